@@ -1,0 +1,10 @@
+"""Actuation: the Kobuki serial protocol, the real base driver and a simulated base.
+
+Knows bytes and wheels, never images: nothing here imports `perception` or `scenarios`.
+Every base stops on close, and the default command is stop.
+"""
+
+from actuation.base import Base, BaseFeedback, Pose2D, VelocityCommand
+from actuation.errors import ActuationError
+
+__all__ = ["ActuationError", "Base", "BaseFeedback", "Pose2D", "VelocityCommand"]

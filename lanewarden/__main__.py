@@ -1,0 +1,3 @@
+from lanewarden.cli import main
+
+raise SystemExit(main())

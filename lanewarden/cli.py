@@ -1,0 +1,68 @@
+"""The `lanewarden` command: the composition root.
+
+Each command group lives in its own module under `lanewarden.commands`; this module only wires
+them together and turns every user-caused error into one line on stderr and a non-zero exit, with
+no traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import click
+
+from lanewarden import __version__
+from lanewarden.commands import register_commands
+from lanewarden.errors import USER_ERRORS, ConfigError, QualityGateError, UsageError
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="lanewarden")
+def cli() -> None:
+    """Lanewarden: follow a taped lane with a Kobuki and a camera, and stop when unsure."""
+
+
+register_commands(cli)
+
+
+def _error(message: str) -> None:
+    for line in str(message).splitlines() or [""]:
+        click.echo(f"lanewarden: error: {line}", err=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point. Returns the exit code: 0 ok, 1 runtime failure, 2 bad input or failed gate."""
+    try:
+        result = cli.main(args=list(argv) if argv is not None else None,
+                          prog_name="lanewarden", standalone_mode=False)
+    except click.exceptions.Abort:
+        _error("interrupted")
+        return 130
+    except click.exceptions.NoArgsIsHelpError as exc:  # bare group: show its help, like --help
+        click.echo(exc.ctx.get_help() if exc.ctx else "", err=True)
+        return 2
+    except click.UsageError as exc:
+        where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
+        _error(f"{where}{exc.format_message()}")
+        return 2
+    except click.ClickException as exc:
+        _error(exc.format_message())
+        return exc.exit_code
+    except (ConfigError, UsageError, QualityGateError) as exc:
+        _error(str(exc))
+        return 2
+    except USER_ERRORS as exc:
+        _error(str(exc))
+        return 1
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    return result if isinstance(result, int) else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,13 @@
+"""The CLI's command groups, one module each. Each module exposes `command` (a click command)."""
+
+from __future__ import annotations
+
+import click
+
+
+def register_commands(cli: click.Group) -> None:
+    from lanewarden.commands import base, calibrate, config_cmd, detect, sim, undistort
+
+    for module in (config_cmd, detect, calibrate, undistort, base, sim):
+        for command in module.commands():
+            cli.add_command(command)

@@ -1,0 +1,31 @@
+"""`lanewarden config show`: print the effective configuration."""
+
+from __future__ import annotations
+
+import click
+
+from lanewarden.config import config_as_yaml, load_config
+
+
+def config_option(func: click.decorators.FC) -> click.decorators.FC:
+    """The shared `--config FILE` option (not checked for existence here: load_config names it)."""
+    return click.option(
+        "--config", "config_path", type=click.Path(dir_okay=True), default=None,
+        help="YAML config file (default: built-in defaults; see `lanewarden config show`).",
+    )(func)
+
+
+@click.group("config")
+def config_group() -> None:
+    """Inspect the configuration."""
+
+
+@config_group.command("show")
+@config_option
+def show(config_path: str | None) -> None:
+    """Print the effective config (defaults merged with FILE) as YAML."""
+    click.echo(config_as_yaml(load_config(config_path)), nl=False)
+
+
+def commands() -> list[click.Command]:
+    return [config_group]

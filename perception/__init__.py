@@ -1,0 +1,10 @@
+"""Perception: turns one camera frame into a `LaneObservation` with a confidence score.
+
+Knows images, never motors: nothing in this package imports `supervisor`, `actuation` or
+`scenarios`, and nothing here reads a clock (frame times are passed in).
+"""
+
+from perception.errors import PerceptionError
+from perception.observation import LaneEdge, LaneObservation
+
+__all__ = ["LaneEdge", "LaneObservation", "PerceptionError"]

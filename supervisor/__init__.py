@@ -1,0 +1,6 @@
+"""Supervisor: the only path from a lane observation to a motor command.
+
+Filters the slope sum (Kalman, filterpy), runs the fail-safe state machine (transitions), watches
+input ages, and limits commands. Pure logic: every function takes `now`/`dt`; nothing here reads a
+clock, a camera or a port.
+"""

@@ -1,0 +1,53 @@
+"""The one config and the CLI's error contract: one line, naming the key/file, non-zero exit."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from lanewarden.cli import main
+from lanewarden.config import LanewardenConfig, config_as_yaml, load_config
+
+
+def test_config_show_round_trips(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["config", "show"]) == 0
+    out = capsys.readouterr().out
+    path = tmp_path / "effective.yaml"
+    path.write_text(out)
+    assert load_config(path) == LanewardenConfig()
+    assert yaml.safe_load(config_as_yaml(LanewardenConfig())) == yaml.safe_load(out)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("perceptoin: {}\n", "unknown key 'perceptoin'"),
+        ("- 1\n- 2\n", "expected a YAML mapping"),
+        ("perception: [\n", "not valid YAML"),
+    ],
+)
+def test_bad_config_is_one_line_naming_the_problem(
+    text: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    assert main(["config", "show", "--config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert expected in err
+    assert str(path) in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_missing_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "nope.yaml"
+    assert main(["config", "show", "--config", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: config file not found" in err
+
+
+def test_unknown_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["no-such-command"]) == 2
+    assert "No such command" in capsys.readouterr().err
