@@ -47,6 +47,11 @@ class LaneObservation:
     - `confidence`: in [0, 1]; `components` names each factor that went into it (each in [0, 1]),
       so a log can say why confidence fell.
     - `frame_index`, `time_s`: the frame's index and capture time on the injected clock.
+    - `center_offset`: where the lane centre (midway between the two edges) crosses the bottom of
+      the region of interest, relative to the image centre, in half image widths: 0 centred,
+      positive when the lane centre lies right of the image centre (the robot is left of the lane
+      centre). None unless both edges exist. The slope sum alone barely sees a lateral offset;
+      this is the centring signal.
     """
 
     frame_index: int
@@ -56,6 +61,7 @@ class LaneObservation:
     slope_sum: float | None
     confidence: float
     components: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    center_offset: float | None = None
 
     @property
     def both_edges(self) -> bool:
@@ -70,4 +76,5 @@ class LaneObservation:
             "slope_sum": None if self.slope_sum is None else round(self.slope_sum, 4),
             "confidence": round(self.confidence, 4),
             "components": {k: round(v, 4) for k, v in self.components.items()},
+            "center_offset": None if self.center_offset is None else round(self.center_offset, 4),
         }

@@ -81,7 +81,7 @@ class CameraModel:
         return self.camera_matrix() @ np.column_stack([rot[:, 0], rot[:, 1], t])
 
     def project_ground(self, points_xy: FloatArray, distort: bool = True) -> FloatArray:
-        """Floor points (N, 2) in the robot frame -> pixels (N, 2). Points behind the camera -> NaN."""
+        """Floor points (N, 2), robot frame -> pixels (N, 2); points behind the camera -> NaN."""
         pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
         rot = self.rotation_robot_to_camera()
         cam = (rot @ (np.column_stack([pts, np.zeros(len(pts))]) - self.position_robot()).T).T
