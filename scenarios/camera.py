@@ -72,7 +72,7 @@ class CameraModel:
         rot = self.rotation_robot_to_camera()
         tvec = -rot @ self.position_robot()
         rvec, _ = cv2.Rodrigues(rot)
-        return rvec.reshape(3), tvec.reshape(3)
+        return np.asarray(rvec, dtype=np.float64).reshape(3), tvec.reshape(3)
 
     def ground_to_image_homography(self) -> FloatArray:
         """H mapping floor points (x, y, 1) in the robot frame to UNDISTORTED pixels (u, v, 1)."""
@@ -90,7 +90,7 @@ class CameraModel:
             rvec, tvec = self.extrinsics()
             obj = np.column_stack([pts, np.zeros(len(pts))]).reshape(-1, 1, 3)
             img, _ = cv2.projectPoints(obj, rvec, tvec, self.camera_matrix(), self.distortion())
-            out = img.reshape(-1, 2)
+            out = np.asarray(img, dtype=np.float64).reshape(-1, 2)
         else:
             h = self.ground_to_image_homography()
             hom = (h @ np.column_stack([pts, np.ones(len(pts))]).T).T
