@@ -1,10 +1,43 @@
-"""Calibration quality gates: the calibration section of the one validated config
-(placeholder owned by the calibration work)."""
+"""Calibration quality gates and detection settings: the `calibration:` section of the one config.
+
+Every default lives here, with units in the names. A calibration that fails a gate is refused by
+`lanewarden calibrate` (exit code 2) and by `check_calibration` before anything moves. This module
+only declares numbers: it never reads images or files.
+"""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
 
 
 class CalibrationConfig(BaseModel):
+    """Quality gates and per-view rules for camera calibration.
+
+    - `max_rms_px`: largest acceptable overall RMS reprojection error, pixels.
+    - `min_views`: fewest usable chessboard views for a calibration to be trusted.
+    - `min_coverage_fraction`: smallest fraction of the image's 3x3 grid of cells that must contain
+      detected corners (1.0 = corners seen in every ninth of the image).
+    - `outlier_error_factor` / `outlier_min_error_px`: a view is an outlier when its RMS error is
+      above `outlier_error_factor` x the median view error AND above `outlier_min_error_px`.
+    - `min_sharpness`: per-view blur rule; the variance of the Laplacian inside the board's area
+      (grey levels squared); a view below it is rejected as blurred. 0 disables the rule.
+    - `subpix_window_px`: half size of the cornerSubPix search window (OpenCV's `winSize`).
+    - `subpix_max_iterations` / `subpix_epsilon_px`: cornerSubPix stopping rule.
+    - `max_views_per_calibration`: at most this many views go into calibrateCamera (evenly chosen);
+      more add little and cost time quadratically.
+    """
+
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    max_rms_px: Annotated[float, Field(gt=0.0)] = 1.0
+    min_views: Annotated[int, Field(ge=3)] = 10
+    min_coverage_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    outlier_error_factor: Annotated[float, Field(gt=1.0)] = 2.0
+    outlier_min_error_px: Annotated[float, Field(ge=0.0)] = 0.3
+    min_sharpness: Annotated[float, Field(ge=0.0)] = 15.0
+    subpix_window_px: Annotated[int, Field(ge=2, le=50)] = 5
+    subpix_max_iterations: Annotated[int, Field(ge=1)] = 30
+    subpix_epsilon_px: Annotated[float, Field(gt=0.0)] = 0.01
+    max_views_per_calibration: Annotated[int, Field(ge=3)] = 60

@@ -1,0 +1,366 @@
+"""A camera's calibration: intrinsics and lens distortion, their file format, and undistortion.
+
+- `CameraCalibration`: the camera matrix K (3x3, pixels), OpenCV distortion coefficients (1-D:
+  k1, k2, p1, p2[, k3[, ...]]), the image size it is valid for (width, height) and, when known,
+  how it was obtained (RMS reprojection error in pixels, pattern, date, number of views).
+- `load_calibration` / `save_calibration`: OpenCV FileStorage YAML (the format OpenCV's own
+  calibration sample writes). `load_calibration` also reads a ROS camera_info YAML.
+- `Undistorter`: remap tables computed once, then one `cv2.remap` per frame.
+- `check_calibration`: the problems that make a calibration unusable for a given camera, so the
+  robot runner can refuse to move before the first frame.
+
+Never prints, never reads a clock (the date is given by the caller), never touches motors.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from perception.errors import PerceptionError
+
+if TYPE_CHECKING:
+    from perception.calibration_config import CalibrationConfig
+
+FloatArray = NDArray[np.float64]
+
+#: Lengths of OpenCV's distortion vector (plumb_bob is 5).
+DIST_COEFF_COUNTS = (4, 5, 8, 12, 14)
+
+
+def _frozen_array(values: object, name: str) -> FloatArray:
+    try:
+        array = np.array(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise PerceptionError(f"calibration: {name} is not numeric ({exc})") from exc
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class CameraCalibration:
+    """Intrinsics and distortion of one camera at one image size.
+
+    - `camera_matrix`: (3, 3) float64, [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] in pixels.
+    - `dist_coeffs`: (N,) float64 with N in 4, 5, 8, 12, 14 (OpenCV's order: k1 k2 p1 p2 k3 ...).
+    - `image_size`: (width, height) in pixels of the images the calibration was made with.
+    - `rms`: overall RMS reprojection error in pixels of the calibration run, when known.
+    - `pattern`: e.g. "9x6 chessboard, 0.025 m squares", when known.
+    - `date`: ISO 8601 text, when known.
+    - `views_used`: how many chessboard views went into the result, when known.
+
+    Arrays are stored read-only. Shapes are checked here; values (finite, positive focal length,
+    RMS) are judged by `check_calibration`, so that a bad file can be reported rather than crash.
+    """
+
+    camera_matrix: FloatArray
+    dist_coeffs: FloatArray
+    image_size: tuple[int, int]
+    rms: float | None = None
+    pattern: str | None = None
+    date: str | None = None
+    views_used: int | None = None
+
+    def __post_init__(self) -> None:
+        k = _frozen_array(self.camera_matrix, "camera_matrix")
+        if k.shape != (3, 3):
+            raise PerceptionError(
+                f"calibration: camera_matrix has shape {k.shape}, expected (3, 3)"
+            )
+        d = _frozen_array(self.dist_coeffs, "dist_coeffs").reshape(-1)
+        d.setflags(write=False)
+        if d.size not in DIST_COEFF_COUNTS:
+            raise PerceptionError(
+                f"calibration: dist_coeffs has {d.size} values, expected one of "
+                f"{', '.join(str(n) for n in DIST_COEFF_COUNTS)}"
+            )
+        try:
+            width, height = (int(v) for v in self.image_size)
+        except (TypeError, ValueError) as exc:
+            raise PerceptionError(
+                f"calibration: image_size {self.image_size!r} is not (width, height)"
+            ) from exc
+        if width <= 0 or height <= 0:
+            raise PerceptionError(
+                f"calibration: image_size {width}x{height} must be positive (width, height)"
+            )
+        object.__setattr__(self, "camera_matrix", k)
+        object.__setattr__(self, "dist_coeffs", d)
+        object.__setattr__(self, "image_size", (width, height))
+        if self.rms is not None:
+            object.__setattr__(self, "rms", float(self.rms))
+        if self.views_used is not None:
+            object.__setattr__(self, "views_used", int(self.views_used))
+
+    @property
+    def fx(self) -> float:
+        return float(self.camera_matrix[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.camera_matrix[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.camera_matrix[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.camera_matrix[1, 2])
+
+
+# ---------------------------------------------------------------------------------------- files
+
+
+def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
+    """Write `calibration` as OpenCV FileStorage YAML (camera_matrix, distortion_coefficients,
+    image_width, image_height and, when known, rms, pattern, date, views_used)."""
+    path = Path(path)
+    if path.parent and not path.parent.exists():
+        raise PerceptionError(f"{path}: folder {path.parent} does not exist")
+    try:
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    except (cv2.error, SystemError) as exc:
+        raise PerceptionError(f"{path}: cannot write calibration file ({exc})") from exc
+    if not storage.isOpened():
+        raise PerceptionError(f"{path}: cannot open calibration file for writing")
+    try:
+        storage.write("camera_matrix", np.asarray(calibration.camera_matrix, dtype=np.float64))
+        storage.write(
+            "distortion_coefficients",
+            np.asarray(calibration.dist_coeffs, dtype=np.float64).reshape(1, -1),
+        )
+        storage.write("image_width", int(calibration.image_size[0]))
+        storage.write("image_height", int(calibration.image_size[1]))
+        if calibration.rms is not None:
+            storage.write("rms", float(calibration.rms))
+        if calibration.views_used is not None:
+            storage.write("views_used", int(calibration.views_used))
+        if calibration.pattern is not None:
+            storage.write("pattern", str(calibration.pattern))
+        if calibration.date is not None:
+            storage.write("date", str(calibration.date))
+    finally:
+        storage.release()
+
+
+def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:
+    """An opencv-matrix node, or a ROS-style {rows, cols, data} mapping."""
+    if node.isNone():
+        raise PerceptionError(f"{path}: missing node '{name}'")
+    if not node.isMap():
+        raise PerceptionError(f"{path}: node '{name}' is not a matrix (expected rows, cols, data)")
+    data_node = node.getNode("data")
+    if data_node.isNone() or not data_node.isSeq():
+        raise PerceptionError(f"{path}: node '{name}' has no 'data' list")
+    values = []
+    for i in range(data_node.size()):
+        item = data_node.at(i)
+        if not (item.isReal() or item.isInt()):
+            raise PerceptionError(f"{path}: node '{name}' data[{i}] is not a number")
+        values.append(item.real())
+    rows = _read_int(node.getNode("rows"), path, f"{name}.rows")
+    cols = _read_int(node.getNode("cols"), path, f"{name}.cols")
+    if rows * cols != len(values):
+        raise PerceptionError(
+            f"{path}: node '{name}' is {rows}x{cols} but has {len(values)} values"
+        )
+    return np.array(values, dtype=np.float64).reshape(rows, cols)
+
+
+def _read_int(node: cv2.FileNode, path: Path, name: str) -> int:
+    if node.isNone():
+        raise PerceptionError(f"{path}: missing node '{name}'")
+    if not node.isInt():
+        raise PerceptionError(f"{path}: node '{name}' is not an integer")
+    return int(node.real())
+
+
+def _read_optional_real(node: cv2.FileNode, path: Path, name: str) -> float | None:
+    if node.isNone():
+        return None
+    if not (node.isReal() or node.isInt()):
+        raise PerceptionError(f"{path}: node '{name}' is not a number")
+    return float(node.real())
+
+
+def _read_optional_string(node: cv2.FileNode) -> str | None:
+    if node.isNone() or not node.isString():
+        return None
+    return str(node.string())
+
+
+def load_calibration(path: str | Path) -> CameraCalibration:
+    """Read a calibration written by `save_calibration` (or OpenCV's calibration sample, or a ROS
+    camera_info YAML). Raises PerceptionError naming the file and the bad or missing node."""
+    path = Path(path)
+    if not path.exists():
+        raise PerceptionError(f"{path}: calibration file not found")
+    if path.is_dir():
+        raise PerceptionError(f"{path}: is a directory, expected a calibration YAML file")
+    try:
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:
+        raise PerceptionError(
+            f"{path}: not a readable OpenCV FileStorage YAML calibration file"
+        ) from exc
+    if not storage.isOpened():
+        raise PerceptionError(f"{path}: cannot open calibration file")
+    try:
+        root = storage.root()
+        if not root.isMap():
+            raise PerceptionError(f"{path}: expected a mapping of calibration nodes")
+        camera_matrix = _read_matrix(storage.getNode("camera_matrix"), path, "camera_matrix")
+        if camera_matrix.shape != (3, 3):
+            raise PerceptionError(
+                f"{path}: node 'camera_matrix' is {camera_matrix.shape[0]}x"
+                f"{camera_matrix.shape[1]}, expected 3x3"
+            )
+        dist = _read_matrix(
+            storage.getNode("distortion_coefficients"), path, "distortion_coefficients"
+        ).reshape(-1)
+        if dist.size not in DIST_COEFF_COUNTS:
+            raise PerceptionError(
+                f"{path}: node 'distortion_coefficients' has {dist.size} values, expected one of "
+                f"{', '.join(str(n) for n in DIST_COEFF_COUNTS)}"
+            )
+        width = _read_int(storage.getNode("image_width"), path, "image_width")
+        height = _read_int(storage.getNode("image_height"), path, "image_height")
+        if width <= 0 or height <= 0:
+            raise PerceptionError(
+                f"{path}: image size {width}x{height} is not positive (image_width, image_height)"
+            )
+        rms = _read_optional_real(storage.getNode("rms"), path, "rms")
+        views_node = storage.getNode("views_used")
+        views = None if views_node.isNone() else _read_int(views_node, path, "views_used")
+        return CameraCalibration(
+            camera_matrix=camera_matrix,
+            dist_coeffs=dist,
+            image_size=(width, height),
+            rms=rms,
+            pattern=_read_optional_string(storage.getNode("pattern")),
+            date=_read_optional_string(storage.getNode("date")),
+            views_used=views,
+        )
+    except cv2.error as exc:
+        raise PerceptionError(f"{path}: malformed calibration file ({exc.err})") from exc
+    finally:
+        storage.release()
+
+
+# ---------------------------------------------------------------------------------- undistortion
+
+
+class Undistorter:
+    """Removes lens distortion from frames of one size, with tables computed once.
+
+    The output is an ideal pinhole image of the same size whose intrinsics are `camera_matrix`
+    (by default the calibration's own K, so pixel geometry near the centre is unchanged; pixels
+    mapped from outside the source image are black).
+    """
+
+    def __init__(
+        self, calibration: CameraCalibration, new_camera_matrix: FloatArray | None = None
+    ) -> None:
+        self.calibration = calibration
+        self.image_size: tuple[int, int] = calibration.image_size
+        k_new = calibration.camera_matrix if new_camera_matrix is None else new_camera_matrix
+        self.camera_matrix: FloatArray = _frozen_array(k_new, "new_camera_matrix")
+        try:
+            map_x, map_y = cv2.initUndistortRectifyMap(
+                np.asarray(calibration.camera_matrix),
+                np.asarray(calibration.dist_coeffs),
+                None,
+                np.asarray(self.camera_matrix),
+                self.image_size,
+                cv2.CV_32FC1,
+            )
+            # Fixed-point tables: about twice as fast to remap with, and half the memory.
+            self._map_fixed, self._map_frac = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
+        except cv2.error as exc:
+            raise PerceptionError(
+                f"calibration: cannot build undistortion maps ({exc.err})"
+            ) from exc
+
+    def apply(self, image: np.ndarray) -> np.ndarray:
+        """Undistort one image (gray HxW or colour HxWxC, any dtype cv2.remap takes)."""
+        if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
+            raise PerceptionError("undistort: expected an HxW or HxWxC image array")
+        height, width = image.shape[:2]
+        if (width, height) != self.image_size:
+            raise PerceptionError(
+                f"undistort: image is {width}x{height}, the calibration is for "
+                f"{self.image_size[0]}x{self.image_size[1]}"
+            )
+        return cv2.remap(image, self._map_fixed, self._map_frac, cv2.INTER_LINEAR)
+
+    def undistort_points(self, points_px: FloatArray) -> FloatArray:
+        """Distorted pixels (N, 2) -> pixels (N, 2) of the undistorted image."""
+        pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
+        out = cv2.undistortPoints(
+            pts,
+            np.asarray(self.calibration.camera_matrix),
+            np.asarray(self.calibration.dist_coeffs),
+            P=np.asarray(self.camera_matrix),
+        )
+        return np.asarray(out, dtype=np.float64).reshape(-1, 2)
+
+
+# -------------------------------------------------------------------------------------- checking
+
+
+def check_calibration(
+    calibration: CameraCalibration, image_size: tuple[int, int], gates: CalibrationConfig
+) -> list[str]:
+    """Problems that make `calibration` unusable for a camera delivering `image_size` frames.
+
+    An empty list means usable. Each problem is one line with the measured and allowed values.
+    RMS and views are judged only when the file stores them.
+    """
+    problems: list[str] = []
+    k = calibration.camera_matrix
+    d = calibration.dist_coeffs
+    if not np.all(np.isfinite(k)):
+        problems.append("camera_matrix has non-finite values")
+    if not np.all(np.isfinite(d)):
+        problems.append("dist_coeffs has non-finite values")
+    if np.all(np.isfinite(k)):
+        if k[0, 0] <= 0 or k[1, 1] <= 0:
+            problems.append(
+                f"focal length fx={k[0, 0]:g}, fy={k[1, 1]:g} px must be positive"
+            )
+        if abs(k[2, 2] - 1.0) > 1e-9 or k[2, 0] != 0 or k[2, 1] != 0:
+            problems.append("camera_matrix last row must be [0, 0, 1]")
+        width, height = calibration.image_size
+        if not (0 <= k[0, 2] <= width and 0 <= k[1, 2] <= height):
+            problems.append(
+                f"principal point ({k[0, 2]:g}, {k[1, 2]:g}) px lies outside the "
+                f"{width}x{height} image"
+            )
+    rms = calibration.rms
+    if rms is not None:
+        if not math.isfinite(rms):
+            problems.append("rms is not finite")
+        elif rms > gates.max_rms_px:
+            problems.append(
+                f"rms {rms:.3f} px exceeds calibration.max_rms_px {gates.max_rms_px:g} px"
+            )
+    views = calibration.views_used
+    if views is not None and views < gates.min_views:
+        problems.append(
+            f"views_used {views} is below calibration.min_views {gates.min_views}"
+        )
+    cam_w, cam_h = (int(v) for v in image_size)
+    cal_w, cal_h = calibration.image_size
+    if (cam_w, cam_h) != (cal_w, cal_h):
+        problems.append(
+            f"image size mismatch: camera delivers {cam_w}x{cam_h}, calibration is for "
+            f"{cal_w}x{cal_h}"
+        )
+    return problems

@@ -1,0 +1,1 @@
+"""Tests of the calibration layer: file format, undistortion, chessboard calibration, CLI."""

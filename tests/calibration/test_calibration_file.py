@@ -1,0 +1,158 @@
+"""CameraCalibration, its FileStorage YAML, the Undistorter and check_calibration."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from perception.calibration import (
+    CameraCalibration,
+    Undistorter,
+    check_calibration,
+    load_calibration,
+    save_calibration,
+)
+from perception.calibration_config import CalibrationConfig
+from perception.errors import PerceptionError
+from scenarios.camera import CameraModel
+
+
+def _calibration(**overrides: object) -> CameraCalibration:
+    cam = CameraModel()
+    fields: dict[str, object] = {
+        "camera_matrix": cam.camera_matrix(),
+        "dist_coeffs": cam.distortion(),
+        "image_size": (cam.width_px, cam.height_px),
+        "rms": 0.31,
+        "pattern": "9x6 chessboard, 0.025 m squares",
+        "date": "2024-05-01T12:00:00+00:00",
+        "views_used": 14,
+    }
+    fields.update(overrides)
+    return CameraCalibration(**fields)  # type: ignore[arg-type]
+
+
+def test_save_load_round_trip(tmp_path: Path) -> None:
+    original = _calibration()
+    path = tmp_path / "camera.yaml"
+    save_calibration(original, path)
+    text = path.read_text()
+    for node in ("camera_matrix", "distortion_coefficients", "image_width", "image_height",
+                 "rms", "pattern", "date"):
+        assert f"{node}:" in text
+    loaded = load_calibration(path)
+    np.testing.assert_allclose(loaded.camera_matrix, original.camera_matrix, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(loaded.dist_coeffs, original.dist_coeffs, rtol=0, atol=1e-15)
+    assert loaded.image_size == (640, 480)
+    assert loaded.rms == pytest.approx(0.31)
+    assert loaded.pattern == original.pattern
+    assert loaded.date == original.date
+    assert loaded.views_used == 14
+
+
+def test_loads_ros_camera_info_yaml(tmp_path: Path) -> None:
+    path = tmp_path / "ost.yaml"
+    path.write_text(
+        "image_width: 640\nimage_height: 480\ncamera_name: narrow_stereo\n"
+        "camera_matrix:\n  rows: 3\n  cols: 3\n"
+        "  data: [500.0, 0.0, 320.5, 0.0, 501.0, 240.5, 0, 0, 1]\n"
+        "distortion_model: plumb_bob\n"
+        "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [-0.2, 0.05, 0.001, 0.0, 0.0]\n"
+    )
+    loaded = load_calibration(path)
+    assert loaded.fx == 500.0 and loaded.fy == 501.0 and loaded.cx == 320.5
+    assert loaded.dist_coeffs.tolist() == [-0.2, 0.05, 0.001, 0.0, 0.0]
+    assert loaded.rms is None
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("image_width: 640\nimage_height: 480\n", "missing node 'camera_matrix'"),
+        ("camera_matrix: 5\n", "node 'camera_matrix' is not a matrix"),
+        ("camera_matrix:\n  rows: 2\n  cols: 2\n  data: [1, 2, 3, 4]\n", "expected 3x3"),
+        ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 2, 3]\n", "is 3x3 but has 3 values"),
+        ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n"
+         "distortion_coefficients:\n  rows: 1\n  cols: 3\n  data: [0, 0, 0]\n",
+         "'distortion_coefficients' has 3 values"),
+        ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n"
+         "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n"
+         "image_width: wide\nimage_height: 480\n", "'image_width' is not an integer"),
+    ],
+)
+def test_load_names_the_bad_node(tmp_path: Path, text: str, expected: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(PerceptionError, match=expected) as info:
+        load_calibration(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_load_missing_and_garbage_files(tmp_path: Path) -> None:
+    with pytest.raises(PerceptionError, match="calibration file not found"):
+        load_calibration(tmp_path / "nope.yaml")
+    garbage = tmp_path / "garbage.yaml"
+    garbage.write_bytes(bytes(range(256)))
+    with pytest.raises(PerceptionError, match=str(garbage)):
+        load_calibration(garbage)
+
+
+def test_constructor_rejects_bad_shapes() -> None:
+    with pytest.raises(PerceptionError, match=r"camera_matrix has shape \(2, 2\)"):
+        _calibration(camera_matrix=np.eye(2))
+    with pytest.raises(PerceptionError, match="dist_coeffs has 3 values"):
+        _calibration(dist_coeffs=[0.0, 0.0, 0.0])
+    with pytest.raises(PerceptionError, match="image_size 0x480"):
+        _calibration(image_size=(0, 480))
+
+
+def test_arrays_are_read_only() -> None:
+    calibration = _calibration()
+    with pytest.raises(ValueError):
+        calibration.camera_matrix[0, 0] = 1.0
+
+
+def test_check_calibration_accepts_a_good_one() -> None:
+    assert check_calibration(_calibration(), (640, 480), CalibrationConfig()) == []
+
+
+def test_check_calibration_flags_each_problem() -> None:
+    gates = CalibrationConfig()
+    k = CameraModel().camera_matrix()
+    k_nan = k.copy()
+    k_nan[0, 0] = math.nan
+    assert any("rms 1.500 px exceeds calibration.max_rms_px 1 px" in p
+               for p in check_calibration(_calibration(rms=1.5), (640, 480), gates))
+    assert any("views_used 4 is below calibration.min_views 10" in p
+               for p in check_calibration(_calibration(views_used=4), (640, 480), gates))
+    assert any("camera delivers 320x240, calibration is for 640x480" in p
+               for p in check_calibration(_calibration(), (320, 240), gates))
+    assert any("camera_matrix has non-finite" in p
+               for p in check_calibration(_calibration(camera_matrix=k_nan), (640, 480), gates))
+    assert any("dist_coeffs has non-finite" in p for p in check_calibration(
+        _calibration(dist_coeffs=[math.inf, 0, 0, 0, 0]), (640, 480), gates))
+    # Not stored -> not judged.
+    assert check_calibration(_calibration(rms=None, views_used=None), (640, 480), gates) == []
+
+
+def test_undistorter_straightens_projected_line_and_checks_size() -> None:
+    cam = CameraModel()
+    undistorter = Undistorter(_calibration())
+    assert undistorter.image_size == (640, 480)
+    # A straight line in the undistorted image, distorted by the lens, then undistorted back.
+    ideal = np.column_stack([np.linspace(60, 580, 40), np.linspace(50, 420, 40)])
+    norm = (np.linalg.inv(cam.camera_matrix()) @ np.column_stack([ideal, np.ones(40)]).T).T
+    distorted, _ = cv2.projectPoints(
+        norm.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.camera_matrix(), cam.distortion()
+    )
+    back = undistorter.undistort_points(distorted.reshape(-1, 2))
+    assert np.max(np.abs(back - ideal)) < 0.01
+    assert np.max(np.abs(distorted.reshape(-1, 2) - ideal)) > 5  # the lens really bends it
+    image = np.zeros((480, 640, 3), np.uint8)
+    assert undistorter.apply(image).shape == (480, 640, 3)
+    with pytest.raises(PerceptionError, match="image is 320x240, the calibration is for 640x480"):
+        undistorter.apply(np.zeros((240, 320), np.uint8))
