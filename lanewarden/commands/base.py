@@ -1,9 +1,162 @@
-"""`lanewarden base` (placeholder: owned by the work item that builds it)."""
+"""`lanewarden base info` and `lanewarden base drive`: bringing up a real Kobuki.
+
+A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
+time.monotonic here). `drive` bypasses the supervisor on purpose (it is a bring-up tool), so it
+validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop, and always
+stops on exit, Ctrl-C included. Never talks to the serial port itself.
+"""
 
 from __future__ import annotations
 
+import json
+import math
+import time
+from typing import Any
+
 import click
+
+from actuation.base import STOP, BaseFeedback, VelocityCommand
+from actuation.errors import ActuationError
+from actuation.kobuki_base import KobukiBase
+from actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+
+#: How long `info` counts feedback packets to measure the stream rate.
+RATE_WINDOW_S = 1.0
+#: How long `info` waits for the versions/UDID after the rate window.
+EXTRA_WAIT_S = 0.5
+#: `drive` re-sends its command this often (well inside the dead-man's heartbeat timeout).
+DRIVE_PERIOD_S = 0.05
+MAX_DRIVE_DURATION_S = 60.0
+
+PORT_HELP = "serial port or pyserial URL (default: config, then /dev/kobuki, then /dev/ttyUSB0)"
+
+
+def _bit_names(bits: int, names: dict[int, str]) -> list[str]:
+    return [name for bit, name in names.items() if bits & bit]
+
+
+BUMPER_NAMES = {Bumper.LEFT: "left", Bumper.CENTRE: "centre", Bumper.RIGHT: "right"}
+CLIFF_NAMES = {Cliff.LEFT: "left", Cliff.CENTRE: "centre", Cliff.RIGHT: "right"}
+WHEEL_DROP_NAMES = {WheelDrop.LEFT: "left", WheelDrop.RIGHT: "right"}
+BUTTON_NAMES = {1: "B0", 2: "B1", 4: "B2"}
+
+
+@click.group("base")
+def base_group() -> None:
+    """Talk to a real Kobuki base over its serial port."""
+
+
+@base_group.command("info")
+@click.option("--port", default=None, help=PORT_HELP)
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object")
+@config_option
+def info(port: str | None, as_json: bool, config_path: str | None) -> None:
+    """Versions, UDID, battery, bumper/cliff/wheel-drop state and the feedback rate."""
+    config = load_config(config_path).actuation
+    with KobukiBase.open(port, config=config) as base:
+        start_packets, start_s = base.packets_received, time.monotonic()
+        lost = base.wait_for(lambda b: b.link_lost is not None, RATE_WINDOW_S)
+        packets, elapsed_s = base.packets_received - start_packets, time.monotonic() - start_s
+        if lost:
+            raise ActuationError(base.link_lost or "link lost")
+        base.wait_for(lambda b: None not in (b.hardware_version, b.firmware_version, b.udid),
+                      EXTRA_WAIT_S)
+        now = time.monotonic()
+        report = _info_report(base, base.feedback(now), packets / elapsed_s, now)
+    if as_json:
+        click.echo(json.dumps(report))
+        return
+    lines = [
+        ("port", report["port"]),
+        ("hardware version", report["hardware_version"] or "unknown (no answer)"),
+        ("firmware version", report["firmware_version"] or "unknown (no answer)"),
+        ("UDID", report["udid"] or "unknown (no answer)"),
+        ("battery", f"{report['battery_v']:.1f} V"),
+        ("bumper", ", ".join(report["bumper"]) or "none"),
+        ("cliff", ", ".join(report["cliff"]) or "none"),
+        ("wheel drop", ", ".join(report["wheel_drop"]) or "none"),
+        ("buttons", ", ".join(report["buttons"]) or "none"),
+        ("feedback rate", f"{report['feedback_rate_hz']:.1f} Hz "
+                          f"({report['checksum_errors']} checksum errors)"),
+    ]
+    for name, value in lines:
+        click.echo(f"{name + ':':18}{value}")
+
+
+def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
+                 now: float) -> dict[str, Any]:
+    health = base.link_health(now)
+    return {
+        "port": base.port,
+        "hardware_version": str(base.hardware_version) if base.hardware_version else None,
+        "firmware_version": str(base.firmware_version) if base.firmware_version else None,
+        "udid": str(base.udid) if base.udid else None,
+        "battery_v": feedback.battery_v,
+        "bumper": _bit_names(feedback.bumper, BUMPER_NAMES),
+        "cliff": _bit_names(feedback.cliff, CLIFF_NAMES),
+        "wheel_drop": _bit_names(feedback.wheel_drop, WHEEL_DROP_NAMES),
+        "buttons": _bit_names(feedback.buttons, BUTTON_NAMES),
+        "feedback_rate_hz": round(rate_hz, 1),
+        "checksum_errors": health.checksum_errors,
+        "low_latency": health.low_latency,
+    }
+
+
+def _check_range(flag: str, value: float, limit: float, unit: str) -> None:
+    if not math.isfinite(value) or abs(value) > limit:
+        raise click.BadParameter(
+            f"{value:g} {unit}: expected a number within -{limit:g}..{limit:g} {unit} "
+            "(the Kobuki's limits, see actuation.max_* in the config)",
+            param_hint=f"'{flag}'")
+
+
+def _hazard(feedback: BaseFeedback) -> str | None:
+    for what, bits, names in (("bumper pressed", feedback.bumper, BUMPER_NAMES),
+                              ("cliff detected", feedback.cliff, CLIFF_NAMES),
+                              ("wheel dropped", feedback.wheel_drop, WHEEL_DROP_NAMES)):
+        if bits:
+            return f"{what} ({', '.join(_bit_names(bits, names))})"
+    return None
+
+
+@base_group.command("drive")
+@click.option("--port", default=None, help=PORT_HELP)
+@click.option("--linear", "linear_m_s", type=float, required=True, help="forward speed, m/s")
+@click.option("--angular", "angular_rad_s", type=float, default=0.0, show_default=True,
+              help="turn rate, rad/s (counter-clockwise +)")
+@click.option("--duration", "duration_s", type=float, required=True, help="seconds, then stop")
+@config_option
+def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s: float,
+          config_path: str | None) -> None:
+    """Drive at a constant velocity for DURATION seconds, then stop (Ctrl-C stops at once)."""
+    config = load_config(config_path).actuation
+    _check_range("--linear", linear_m_s, config.max_linear_m_s, "m/s")
+    _check_range("--angular", angular_rad_s, config.max_angular_rad_s, "rad/s")
+    if not (math.isfinite(duration_s) and 0.0 < duration_s <= MAX_DRIVE_DURATION_S):
+        raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
+                                 param_hint="'--duration'")
+    command = VelocityCommand(linear_m_s, angular_rad_s)
+    with KobukiBase.open(port, config=config, request_versions=False) as base:
+        # Ctrl-C (KeyboardInterrupt) and every error leave through `with`: close() stops the base
+        start_s = now = time.monotonic()
+        while now - start_s < duration_s:
+            hazard = _hazard(base.feedback(now))
+            if hazard is not None:
+                base.send(STOP, now)
+                raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
+                                     f"{hazard}")
+            base.send(command, now)
+            base.wait_for(lambda b: b.link_lost is not None,
+                          min(DRIVE_PERIOD_S, max(0.0, start_s + duration_s - now)))
+            now = time.monotonic()
+        base.send(STOP, now)
+        pose = base.feedback(now).odometry
+    click.echo(f"drove {linear_m_s:g} m/s, {angular_rad_s:g} rad/s for {duration_s:g} s, "
+               f"then stopped; odometry x {pose.x_m:.3f} m, y {pose.y_m:.3f} m, "
+               f"heading {math.degrees(pose.theta_rad):.1f} deg")
 
 
 def commands() -> list[click.Command]:
-    return []
+    return [base_group]

@@ -1,0 +1,243 @@
+"""The dead-man process (`python -m actuation.deadman`): the only owner of the Kobuki's port.
+
+Started by KobukiBase with one end of a SOCK_SEQPACKET socketpair. It opens the serial port,
+writes base control at the steady command rate (changed or not), relays every valid feedback
+payload and its link health to the control process, and follows `DeadmanLogic`: when the
+control process goes silent or away, the base is stopped at once and kept stopped.
+On SIGTERM, SIGINT, SIGHUP, an internal error or a CLOSE message: stop, flush, exit.
+
+This is the thin shell around `DeadmanLogic`: the only code here that reads time.monotonic.
+It must never exit without trying to put a stop on the wire, and never block on the control
+process (messages to it are dropped when it does not read).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import select
+import signal
+import socket
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from types import FrameType
+
+import serial
+
+from actuation.deadman_logic import DeadmanLogic, DeadmanSettings
+from actuation.deadman_messages import (
+    MAX_MESSAGE_BYTES,
+    Arm,
+    Close,
+    Command,
+    DeadmanMessage,
+    FeedbackReceived,
+    LinkLost,
+    ModeChanged,
+    OpenFailed,
+    PortOpened,
+    RawCommand,
+    decode_control,
+    encode_deadman,
+)
+from actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
+from actuation.kobuki_framing import PacketReader
+from actuation.kobuki_port import describe_open_error, open_kobuki_serial
+
+EXIT_OK = 0
+EXIT_OPEN_FAILED = 3
+EXIT_LINK_LOST = 4
+EXIT_INTERNAL_ERROR = 5
+
+#: Serial read timeout of the feedback thread (bounds how long stopping it takes).
+READ_TIMEOUT_S = 0.05
+SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
+
+
+def _lost_message(port: str, exc: BaseException) -> str:
+    detail = " ".join(str(exc).split()) or type(exc).__name__
+    return (f"{port}: serial link lost ({detail}): check the USB cable and that the base is "
+            "switched on")
+
+
+class DeadmanProcess:
+    def __init__(self, port: str, control: socket.socket, settings: DeadmanSettings,
+                 write_timeout_s: float) -> None:
+        self._port = port
+        self._control: socket.socket | None = control
+        self._settings = settings
+        self._write_timeout_s = write_timeout_s
+        self._link: serial.SerialBase | None = None
+        self._packets = PacketReader()
+        self._reading = threading.Event()
+        self._lost: str | None = None
+        self._signal: int | None = None
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+
+    # ---- talking to the control process (never blocks) ----------------------------------------
+    def _tell(self, message: DeadmanMessage) -> None:
+        control = self._control
+        if control is None:
+            return
+        try:
+            control.send(encode_deadman(message), socket.MSG_DONTWAIT)
+        except OSError:
+            pass  # full (control process frozen) or gone: feedback is stale either way
+
+    def _wake(self) -> None:
+        try:
+            os.write(self._wake_w, b"!")
+        except OSError:
+            pass
+
+    # ---- the feedback thread ------------------------------------------------------------------
+    def _read_feedback(self) -> None:
+        link = self._link
+        assert link is not None
+        try:
+            while self._reading.is_set():
+                data = link.read(max(1, link.in_waiting))
+                for payload in self._packets.feed(data):
+                    self._tell(FeedbackReceived(self._packets.checksum_errors, payload))
+        except SERIAL_ERRORS as exc:
+            if self._reading.is_set():
+                self._lost = _lost_message(self._port, exc)
+                self._wake()
+
+    # ---- the main loop ------------------------------------------------------------------------
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._signal = signum
+
+    def run(self) -> int:
+        try:
+            self._link, low_latency = open_kobuki_serial(
+                self._port, read_timeout_s=READ_TIMEOUT_S, write_timeout_s=self._write_timeout_s)
+        except SERIAL_ERRORS as exc:
+            self._tell(OpenFailed(describe_open_error(self._port, exc)))
+            return EXIT_OPEN_FAILED
+        self._tell(PortOpened(low_latency))
+        self._reading.set()
+        reader = threading.Thread(target=self._read_feedback, name="kobuki-feedback",
+                                  daemon=True)
+        reader.start()
+        try:
+            return self._loop()
+        except SERIAL_ERRORS as exc:
+            self._tell(LinkLost(_lost_message(self._port, exc)))
+            return EXIT_LINK_LOST
+        except BaseException as exc:  # noqa: BLE001 - the stop below must happen whatever failed
+            self._tell(LinkLost(f"{self._port}: dead-man process failed ({exc!r})"))
+            return EXIT_INTERNAL_ERROR
+        finally:
+            self._shutdown(reader)
+
+    def _loop(self) -> int:
+        logic = DeadmanLogic(self._settings, time.monotonic())
+        link = self._link
+        assert link is not None
+        while True:
+            action = logic.poll(time.monotonic())
+            if action.send is not None:
+                link.write(command_packet(encode_velocity(action.send)))
+            for event in action.events:
+                self._tell(ModeChanged(event.mode, event.reason))
+            if action.finished:
+                return EXIT_OK
+            if self._lost is not None:
+                self._tell(LinkLost(self._lost))
+                return EXIT_LINK_LOST
+            waiting_on = [self._wake_r] + ([self._control] if self._control else [])
+            timeout_s = max(0.0, logic.next_wakeup_s() - time.monotonic())
+            ready, _, _ = select.select(waiting_on, [], [], timeout_s)
+            now = time.monotonic()
+            if self._wake_r in ready:
+                self._drain_wake_pipe()
+            if self._signal is not None:
+                logic.on_close(now, f"stopped by signal {signal.Signals(self._signal).name}")
+            if self._control is not None and self._control in ready:
+                self._receive(logic, now, link)
+
+    def _receive(self, logic: DeadmanLogic, now: float, link: serial.SerialBase) -> None:
+        assert self._control is not None
+        while True:
+            try:
+                data = self._control.recv(MAX_MESSAGE_BYTES, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                return
+            except OSError:
+                data = b""
+            if not data:
+                logic.on_control_gone(now)
+                self._control.close()
+                self._control = None
+                return
+            try:
+                message = decode_control(data)
+            except (ValueError, UnicodeDecodeError) as exc:
+                logic.on_malformed(now, str(exc))
+                continue
+            if isinstance(message, Arm):
+                logic.on_arm(now)
+            elif isinstance(message, Command):
+                logic.on_command(message.command, now)
+            elif isinstance(message, RawCommand):
+                link.write(command_packet(message.sub_payloads))
+            elif isinstance(message, Close):
+                logic.on_close(now)
+
+    def _drain_wake_pipe(self) -> None:
+        try:
+            while os.read(self._wake_r, 512):
+                pass
+        except BlockingIOError:
+            pass
+
+    def _shutdown(self, reader: threading.Thread) -> None:
+        """Last words: one more stop, flush, close. Never raises."""
+        self._reading.clear()
+        link = self._link
+        if link is not None:
+            try:
+                link.write(STOP_PACKET)
+                link.flush()
+            except SERIAL_ERRORS:
+                pass
+            reader.join(timeout=4 * READ_TIMEOUT_S)
+            try:
+                link.close()
+            except SERIAL_ERRORS:
+                pass
+        if self._control is not None:
+            self._control.close()
+
+    def install_signal_handlers(self) -> None:
+        signal.set_wakeup_fd(self._wake_w)
+        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+            signal.signal(signum, self._on_signal)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m actuation.deadman",
+                                     description="Own the Kobuki's port; stop it if we go quiet.")
+    parser.add_argument("--port", required=True)
+    parser.add_argument("--control-fd", type=int, required=True)
+    parser.add_argument("--command-rate-hz", type=float, default=50.0)
+    parser.add_argument("--heartbeat-timeout-s", type=float, default=0.2)
+    parser.add_argument("--orphan-stop-s", type=float, default=0.5)
+    parser.add_argument("--write-timeout-s", type=float, default=0.5)
+    args = parser.parse_args(argv)
+    control = socket.socket(fileno=args.control_fd)
+    settings = DeadmanSettings(heartbeat_timeout_s=args.heartbeat_timeout_s,
+                               command_period_s=1.0 / args.command_rate_hz,
+                               orphan_stop_s=args.orphan_stop_s)
+    process = DeadmanProcess(args.port, control, settings, args.write_timeout_s)
+    process.install_signal_handlers()
+    return process.run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

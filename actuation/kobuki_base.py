@@ -1,0 +1,413 @@
+"""KobukiBase: the real base, driven through the dead-man process that owns its serial port.
+
+`KobukiBase.open(port)` starts `python -m actuation.deadman` with one end of a socketpair, waits
+(bounded) for the port to open and for the first valid feedback packet, and from then on:
+`send()` forwards each command (which is also the dead-man's heartbeat), a relay thread decodes
+the feedback the dead-man forwards and stamps it with the injected clock, and `close()` stops
+the base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
+(this process went quiet for `heartbeat_timeout_s`) commands are ignored and the base stays
+stopped until `rearm()` is called explicitly.
+
+Call `send()` at least every `heartbeat_timeout_s` while the robot should move. Never write to
+the serial port from here, and never block on the dead-man: a link or process failure becomes a
+one-line KobukiLinkError naming the port.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+from actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
+from actuation.config import ActuationConfig
+from actuation.deadman_logic import DeadmanMode
+from actuation.deadman_messages import (
+    MAX_MESSAGE_BYTES,
+    Arm,
+    Close,
+    Command,
+    ControlMessage,
+    FeedbackReceived,
+    LinkLost,
+    ModeChanged,
+    OpenFailed,
+    PortOpened,
+    RawCommand,
+    check_non_motion,
+    decode_deadman,
+    encode_control,
+)
+from actuation.errors import ActuationError, KobukiLinkError
+from actuation.kobuki_commands import (
+    ExtraRequest,
+    SoundSequence,
+    encode_request_extra,
+    encode_sound_sequence,
+)
+from actuation.kobuki_feedback import (
+    UDID,
+    BasicSensorData,
+    ControllerInfo,
+    FeedbackPacket,
+    Version,
+    decode_feedback,
+)
+from actuation.kobuki_geometry import limit_command, require_finite
+from actuation.kobuki_port import NO_FEEDBACK_HINT, resolve_port
+from actuation.odometry import EncoderOdometry
+
+_PROJECT_ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class LinkHealth:
+    """The serial link and dead-man as the control process sees them at `now`."""
+
+    port: str
+    last_packet_age_s: float | None
+    packets: int
+    checksum_errors: int
+    malformed_subpayloads: int
+    deadman_mode: DeadmanMode
+    deadman_reason: str
+    lost_reason: str | None
+    low_latency: bool
+    alive: bool
+
+
+class KobukiBase:
+    """The real Kobuki behind its dead-man process. Create with `KobukiBase.open(...)`."""
+
+    def __init__(self, port: str, process: subprocess.Popen[bytes], control: socket.socket,
+                 clock: Callable[[], float], config: ActuationConfig) -> None:
+        self._port = port
+        self._process = process
+        self._control = control
+        self._clock = clock
+        self._config = config
+        self._cond = threading.Condition()
+        self._closed = False
+        self._armed = False
+        # everything below is written by the relay thread, under self._cond
+        self._opened = False
+        self._low_latency = False
+        self._open_error: str | None = None
+        self._lost: str | None = None
+        self._deadman_gone = False
+        self._mode = DeadmanMode.DISARMED
+        self._mode_reason = "started"
+        self._packets = 0
+        self._checksum_errors = 0
+        self._malformed = 0
+        self._received_at_s: float | None = None
+        self._latest = FeedbackPacket()
+        self._sensors: BasicSensorData | None = None
+        self._hardware_version: Version | None = None
+        self._firmware_version: Version | None = None
+        self._udid: UDID | None = None
+        self._controller_info: ControllerInfo | None = None
+        self._odometry = EncoderOdometry()
+        self._relay = threading.Thread(target=self._relay_messages, name="kobuki-relay",
+                                       daemon=True)
+        self._relay.start()
+
+    # ---- opening ------------------------------------------------------------------------------
+    @classmethod
+    def open(cls, port: str | None = None, *, clock: Callable[[], float] = time.monotonic,
+             config: ActuationConfig | None = None, request_versions: bool = True) -> KobukiBase:
+        """Start the dead-man on `port` (None: config.port, then /dev/kobuki, /dev/ttyUSB0).
+
+        Returns once the first valid feedback packet arrived. Raises KobukiLinkError (one line
+        naming the port and the likely fix) when the port is missing, refused, busy, or silent.
+        """
+        config = config or ActuationConfig()
+        try:
+            port = resolve_port(port or config.port)
+        except LookupError as exc:
+            raise KobukiLinkError(str(exc)) from None
+        parent_end, child_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(
+            [str(_PROJECT_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+        argv = [sys.executable, "-m", "actuation.deadman", "--port", port,
+                "--control-fd", str(child_end.fileno()),
+                "--command-rate-hz", repr(config.command_rate_hz),
+                "--heartbeat-timeout-s", repr(config.heartbeat_timeout_s),
+                "--orphan-stop-s", repr(config.orphan_stop_s),
+                "--write-timeout-s", repr(config.write_timeout_s)]
+        try:
+            process = subprocess.Popen(argv, pass_fds=(child_end.fileno(),),
+                                       stdin=subprocess.DEVNULL, env=env)
+        except OSError as exc:
+            parent_end.close()
+            raise KobukiLinkError(f"{port}: cannot start the dead-man process ({exc})") from exc
+        finally:
+            child_end.close()
+        base = cls(port, process, parent_end, clock, config)
+        try:
+            base._wait_until_streaming(request_versions)
+        except BaseException:
+            base.close()
+            raise
+        return base
+
+    def _wait_until_streaming(self, request_versions: bool) -> None:
+        config = self._config
+        if not self.wait_for(lambda b: b._opened or b._open_error is not None or b._deadman_gone,
+                             config.deadman_start_timeout_s):
+            raise KobukiLinkError(f"{self._port}: the dead-man process did not open the port "
+                                  f"within {config.deadman_start_timeout_s:g} s")
+        with self._cond:
+            if self._open_error is not None:
+                raise KobukiLinkError(self._open_error)
+            if not self._opened:
+                raise KobukiLinkError(f"{self._port}: the dead-man process exited at start-up "
+                                      f"({self._lost or 'no reason given'})")
+        if not self.wait_for(lambda b: b._packets > 0 or b._lost is not None,
+                             config.first_feedback_timeout_s):
+            raise KobukiLinkError(
+                f"{self._port}: no valid Kobuki packet within "
+                f"{config.first_feedback_timeout_s:g} s: {NO_FEEDBACK_HINT}")
+        self._raise_if_lost()
+        if request_versions:
+            self.request_extra(ExtraRequest.HARDWARE_VERSION | ExtraRequest.FIRMWARE_VERSION
+                               | ExtraRequest.UDID)
+
+    # ---- the Base interface -------------------------------------------------------------------
+    def send(self, command: VelocityCommand, now: float) -> None:
+        """Forward `command` (scaled into the limits) to the dead-man; it is also a heartbeat.
+
+        Non-finite components: stop is sent, then ActuationError. A lost link or dead dead-man:
+        KobukiLinkError. After close(): ActuationError.
+        """
+        self._raise_if_unusable()
+        if not self._armed:
+            self._post(Arm())
+            self._armed = True
+        try:
+            require_finite(command)
+        except ActuationError:
+            self._post(Command(STOP))
+            raise
+        limited = limit_command(command, self._config.max_linear_m_s,
+                                self._config.max_angular_rad_s)
+        self._post(Command(limited))
+
+    def feedback(self, now: float) -> BaseFeedback:
+        """The newest decoded feedback; `received_at_s` is the injected clock at its arrival."""
+        with self._cond:
+            sensors = self._sensors
+            return BaseFeedback(
+                received_at_s=self._received_at_s,
+                bumper=sensors.bumper if sensors else 0,
+                wheel_drop=sensors.wheel_drop if sensors else 0,
+                cliff=sensors.cliff if sensors else 0,
+                buttons=sensors.buttons if sensors else 0,
+                battery_v=sensors.battery_v if sensors else None,
+                odometry=self._odometry.pose,
+            )
+
+    def close(self) -> None:
+        """Stop the base (the dead-man sends stop, flushes, exits), reap it. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._post(Close())
+        except KobukiLinkError:
+            pass  # already gone: it stopped the base on its way out
+        try:
+            self._process.wait(timeout=self._config.close_timeout_s)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait()
+        try:
+            self._control.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self._relay.join(timeout=self._config.close_timeout_s)
+        self._control.close()
+
+    def __enter__(self) -> KobukiBase:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    # ---- beyond the Base interface ------------------------------------------------------------
+    def rearm(self, now: float) -> None:
+        """Explicitly re-arm a tripped dead-man. The command is stop until the next send()."""
+        self._raise_if_unusable()
+        self._post(Arm())
+        self._armed = True
+
+    def request_extra(self, flags: int) -> None:
+        """Ask the base for versions / UDID (ExtraRequest bits); they arrive as feedback."""
+        self.send_extra(encode_request_extra(flags))
+
+    def play_sound_sequence(self, sequence: SoundSequence) -> None:
+        self.send_extra(encode_sound_sequence(sequence))
+
+    def send_extra(self, sub_payloads: bytes) -> None:
+        """Write non-motion command sub-payloads once (ValueError for base control)."""
+        check_non_motion(sub_payloads)
+        self._raise_if_unusable()
+        self._post(RawCommand(sub_payloads))
+
+    def wait_for(self, predicate: Callable[[KobukiBase], bool], timeout_s: float) -> bool:
+        """Block until `predicate(self)` holds (re-checked on every relayed message) or timeout."""
+        with self._cond:
+            return self._cond.wait_for(lambda: predicate(self), timeout_s)
+
+    def link_health(self, now: float) -> LinkHealth:
+        with self._cond:
+            age = None if self._received_at_s is None else now - self._received_at_s
+            return LinkHealth(
+                port=self._port, last_packet_age_s=age, packets=self._packets,
+                checksum_errors=self._checksum_errors, malformed_subpayloads=self._malformed,
+                deadman_mode=self._mode, deadman_reason=self._mode_reason,
+                lost_reason=self._lost, low_latency=self._low_latency,
+                alive=(self._lost is None and age is not None
+                       and age <= self._config.link_timeout_s),
+            )
+
+    @property
+    def port(self) -> str:
+        return self._port
+
+    @property
+    def deadman_pid(self) -> int:
+        return self._process.pid
+
+    @property
+    def deadman_mode(self) -> DeadmanMode:
+        with self._cond:
+            return self._mode
+
+    @property
+    def link_lost(self) -> str | None:
+        """Why the link was lost (one line), or None while it is up."""
+        with self._cond:
+            return self._lost
+
+    @property
+    def packets_received(self) -> int:
+        with self._cond:
+            return self._packets
+
+    @property
+    def sensors(self) -> BasicSensorData | None:
+        with self._cond:
+            return self._sensors
+
+    @property
+    def latest_packet(self) -> FeedbackPacket:
+        """The newest decoded feedback packet (inertial, cliff ADC, current, gyro, GPIO...)."""
+        with self._cond:
+            return self._latest
+
+    @property
+    def battery_v(self) -> float | None:
+        with self._cond:
+            return self._sensors.battery_v if self._sensors else None
+
+    @property
+    def odometry(self) -> Pose2D:
+        with self._cond:
+            return self._odometry.pose
+
+    @property
+    def hardware_version(self) -> Version | None:
+        with self._cond:
+            return self._hardware_version
+
+    @property
+    def firmware_version(self) -> Version | None:
+        with self._cond:
+            return self._firmware_version
+
+    @property
+    def udid(self) -> UDID | None:
+        with self._cond:
+            return self._udid
+
+    @property
+    def controller_info(self) -> ControllerInfo | None:
+        with self._cond:
+            return self._controller_info
+
+    # ---- internals ----------------------------------------------------------------------------
+    def _raise_if_unusable(self) -> None:
+        if self._closed:
+            raise ActuationError(f"{self._port}: the Kobuki base is closed")
+        self._raise_if_lost()
+
+    def _raise_if_lost(self) -> None:
+        with self._cond:
+            if self._lost is not None:
+                raise KobukiLinkError(self._lost)
+
+    def _post(self, message: ControlMessage) -> None:
+        try:
+            self._control.send(encode_control(message), socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            raise KobukiLinkError(
+                f"{self._port}: the dead-man process is not reading commands") from None
+        except OSError as exc:
+            raise KobukiLinkError(
+                f"{self._port}: the dead-man process is gone ({exc.strerror or exc})") from None
+
+    def _relay_messages(self) -> None:
+        while True:
+            try:
+                data = self._control.recv(MAX_MESSAGE_BYTES)
+            except OSError:
+                data = b""
+            if not data:
+                with self._cond:
+                    self._deadman_gone = True
+                    if self._lost is None and not self._closed:
+                        self._lost = f"{self._port}: the dead-man process exited"
+                    self._cond.notify_all()
+                return
+            try:
+                message = decode_deadman(data)
+            except (ValueError, UnicodeDecodeError):
+                continue
+            arrived_s = self._clock()
+            with self._cond:
+                self._apply(message, arrived_s)
+                self._cond.notify_all()
+
+    def _apply(self, message: object, arrived_s: float) -> None:
+        if isinstance(message, FeedbackReceived):
+            packet = decode_feedback(message.payload)
+            self._received_at_s = arrived_s
+            self._packets += 1
+            self._checksum_errors = message.checksum_errors
+            self._malformed += len(packet.malformed_ids) + int(packet.truncated)
+            self._latest = packet
+            if packet.basic is not None:
+                self._sensors = packet.basic
+                self._odometry.update(packet.basic.left_encoder, packet.basic.right_encoder)
+            self._hardware_version = packet.hardware_version or self._hardware_version
+            self._firmware_version = packet.firmware_version or self._firmware_version
+            self._udid = packet.udid or self._udid
+            self._controller_info = packet.controller_info or self._controller_info
+        elif isinstance(message, ModeChanged):
+            self._mode, self._mode_reason = message.mode, message.reason
+        elif isinstance(message, PortOpened):
+            self._opened, self._low_latency = True, message.low_latency
+        elif isinstance(message, OpenFailed):
+            self._open_error = message.message
+        elif isinstance(message, LinkLost):
+            self._lost = message.message
