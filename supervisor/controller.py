@@ -1,0 +1,126 @@
+"""The supervised controller: filter, watchdog, state machine, commands and limiter, step by step.
+
+`SupervisedController.step(inputs, now)` is the pure core the control loop calls once per camera
+tick: (its own state, inputs, now) -> (command, state, events). It gathers the step's events (the
+loop's, the watchdog's, the base's hazards, the lane evidence, the filter's gate), runs the state
+machine, asks the state for its command and limits it. HALT yields an exact zero in the same step.
+
+About frames that are not new: a frame source returns its newest frame until the next one is
+captured. A step without a new frame has no new measurement, so the filter and the lane evidence do
+not move; the state's command is recomputed from the latest estimate, which by construction is at
+most `frame_late_s` old (older: FRAME_LATE -> DEGRADED; older than `frame_stale_s`: FRAME_STALE ->
+HALT and zero). No input ever leads to replaying a previous command.
+
+Never reads a clock, a camera or a port.
+"""
+
+from __future__ import annotations
+
+import math
+
+from actuation.base import STOP, VelocityCommand
+from supervisor.center_offset import CenterOffsetFilter
+from supervisor.commands import command_for
+from supervisor.config import SupervisorConfig
+from supervisor.control_io import ControlInputs, ControlOutput
+from supervisor.events import Event, ordered
+from supervisor.hazards import base_hazard_events
+from supervisor.lane_evidence import LaneEvidence, observation_problem
+from supervisor.limiter import CommandLimiter
+from supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
+from supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
+from supervisor.watchdog import Watchdog
+
+
+class SupervisedController:
+    """The product's controller. One instance per run (it keeps the run's history)."""
+
+    def __init__(self, config: SupervisorConfig) -> None:
+        self.config = config
+        self._watchdog = Watchdog(config)
+        self._slope = SlopeSumFilter(config)
+        self._center = CenterOffsetFilter(config)
+        self._lane = LaneEvidence(config)
+        self._machine = SupervisorStateMachine(config)
+        self._limiter = CommandLimiter(config)
+        self._last_now: float | None = None
+        self._lane_seen_at_s: float | None = None
+        self._estimate = SlopeEstimate(None, None, None)
+
+    @property
+    def state(self) -> SupervisorState:
+        return self._machine.state
+
+    @property
+    def halt_reason(self) -> str | None:
+        return self._machine.halt_reason
+
+    def step(self, inputs: ControlInputs, now: float) -> ControlOutput:
+        cfg = self.config
+        events: set[Event] = set(inputs.events)
+        details = dict(inputs.event_details)
+
+        dt = 0.0
+        if not math.isfinite(now) or (self._last_now is not None and now < self._last_now):
+            events.add(Event.CLOCK_INVALID)
+            details.setdefault(Event.CLOCK_INVALID, f"now={now!r}, previous={self._last_now!r}")
+            now = self._last_now if self._last_now is not None else 0.0
+        elif self._last_now is not None:
+            dt = now - self._last_now
+        self._last_now = now
+
+        previous = self._limiter.last
+        events |= self._watchdog.check(now, inputs.frame, inputs.feedback, not previous.is_stop)
+        events |= base_hazard_events(inputs.feedback)
+
+        frame_confident: bool | None = None
+        innovation: float | None = None
+        obs = inputs.observation
+        if obs is not None and Event.FRAME_INVALID not in events:
+            problem = observation_problem(obs, inputs.frame)
+            if problem is not None:
+                events.add(Event.MALFORMED_OBSERVATION)
+                details.setdefault(Event.MALFORMED_OBSERVATION, problem)
+            else:
+                lane = self._lane.assess(obs)
+                events |= lane.events
+                self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
+                events |= self._estimate.events
+                innovation = self._estimate.innovation
+                if lane.slope_sum is not None:
+                    self._center.step(obs.time_s, obs.center_offset)
+                if lane.usable:
+                    self._lane_seen_at_s = obs.time_s
+                frame_confident = lane.confident and self._estimate.accepted
+
+        tick = self._machine.step(
+            StepFacts(
+                now=now,
+                events=frozenset(events),
+                event_details=details,
+                frame_confident=frame_confident,
+                lane_seen_at_s=self._lane_seen_at_s,
+                slope_sum=self._estimate.slope_sum,
+                travelled_m=abs(previous.linear_m_s) * dt,
+                engage_requested=inputs.start_requested or inputs.resume_requested,
+            )
+        )
+        state = self._machine.state
+        wanted = command_for(state, self._estimate.slope_sum, self._center.value, cfg)
+        command = self._limit(state, wanted, min(dt, cfg.loop_overrun_s))
+        return ControlOutput(
+            command=command,
+            state=state.value,
+            events=ordered(tick.events),
+            halt_reason=self._machine.halt_reason,
+            filtered_slope_sum=self._estimate.slope_sum,
+            slope_sum_variance=self._estimate.variance,
+            innovation=innovation,
+            filtered_center_offset=self._center.value,
+        )
+
+    def _limit(self, state: SupervisorState, wanted: VelocityCommand, dt: float) -> VelocityCommand:
+        if state is SupervisorState.HALT:
+            self._limiter.stop()
+            return STOP
+        return self._limiter.limit(wanted, dt)

@@ -1,0 +1,254 @@
+"""The control loop: frame source -> perception -> controller -> base, one `step(now)` per tick.
+
+Shared by the simulator and the robot runner. The caller owns the clock and calls `step(now)` once
+per camera period WHETHER OR NOT a frame arrived (a dead camera must still be noticed). Each step:
+read the newest frame (non-blocking), run perception on it if it is new, read the base's feedback,
+let the controller decide, send its (already limited) command, and hand a `StepRecord` to `record`.
+
+Failures are faults, never crashes and never a stale command: the frame source raising becomes
+CAMERA_ERROR, the detector raising anything becomes PERCEPTION_ERROR, the base raising an
+ActuationError becomes BASE_LINK_LOST; the controller sees them as events and halts. Operator
+requests (`start`, `resume`, `operator_stop`) are delivered to the controller at the next step;
+`operator_stop` also sends a zero command to the base at once.
+
+This module never reads a clock and never sleeps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Protocol
+
+import numpy as np
+
+from actuation.base import STOP, Base, BaseFeedback, VelocityCommand
+from actuation.errors import ActuationError
+from perception.observation import LaneObservation
+from supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
+from supervisor.events import Event, ordered
+from supervisor.watchdog import frame_fingerprint
+
+__all__ = [
+    "ControlInputs",
+    "ControlLoop",
+    "ControlOutput",
+    "Controller",
+    "Detector",
+    "Frame",
+    "FrameInfo",
+    "FrameSource",
+    "StepRecord",
+]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera image (BGR uint8 HxWx3 or gray HxW), its index and its capture time (seconds on
+    the loop's clock)."""
+
+    image: np.ndarray
+    index: int
+    time_s: float
+
+
+class FrameSource(Protocol):
+    def read(self, now: float) -> Frame | None:
+        """The newest frame captured at or before `now` (the same one again until a newer one
+        exists); None when there is no frame. Must not block."""
+
+
+class Detector(Protocol):
+    def detect(
+        self,
+        image: np.ndarray,
+        frame_index: int,
+        time_s: float,
+        previous: LaneObservation | None = None,
+    ) -> LaneObservation: ...
+
+
+def _round(value: float | None, digits: int = 6) -> float | None:
+    return None if value is None else round(float(value), digits)
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What happened in one step (one line of run.jsonl).
+
+    `frame_index`/`frame_time_s`: the newest frame (None: none yet). `time_s`: the step's time.
+    `observation`: perception's output if the frame was new and perception succeeded.
+    `filtered_slope_sum`: the slope sum the controller acted on (filtered for the supervised
+    controller, raw for the lecture's). `events`: event names in priority order. `command`: what
+    was sent to the base.
+    """
+
+    frame_index: int | None
+    time_s: float
+    observation: LaneObservation | None
+    filtered_slope_sum: float | None
+    slope_sum_variance: float | None
+    state: str
+    events: tuple[str, ...]
+    command: VelocityCommand
+    halt_reason: str | None
+    frame_time_s: float | None = None
+    innovation: float | None = None
+    filtered_center_offset: float | None = None
+
+    def as_json(self) -> dict[str, object]:
+        return {
+            "frame_index": self.frame_index,
+            "time_s": _round(self.time_s),
+            "frame_time_s": _round(self.frame_time_s),
+            "state": self.state,
+            "events": list(self.events),
+            "command": {
+                "linear_m_s": _round(self.command.linear_m_s),
+                "angular_rad_s": _round(self.command.angular_rad_s),
+            },
+            "halt_reason": self.halt_reason,
+            "filtered_slope_sum": _round(self.filtered_slope_sum, 4),
+            "slope_sum_variance": _round(self.slope_sum_variance),
+            "innovation": _round(self.innovation, 4),
+            "filtered_center_offset": _round(self.filtered_center_offset, 4),
+            "observation": None if self.observation is None else self.observation.as_json(),
+        }
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class ControlLoop:
+    def __init__(
+        self,
+        frames: FrameSource,
+        detector: Detector,
+        controller: Controller,
+        base: Base,
+        *,
+        record: Callable[[StepRecord], None] | None = None,
+    ) -> None:
+        self._frames = frames
+        self._detector = detector
+        self._controller = controller
+        self._base = base
+        self._record = record
+        self._last_index: int | None = None
+        self._last_fingerprint: bytes | None = None
+        self._previous: LaneObservation | None = None
+        self._start = False
+        self._resume = False
+        self._stop = False
+        self._base_failure: str | None = None
+
+    def start(self, now: float) -> None:
+        """Ask to engage (from the initial HALT); takes effect at the next step."""
+        self._start = True
+
+    def resume(self, now: float) -> None:
+        """Ask to leave a latched HALT; the controller still needs a confident lane."""
+        self._resume = True
+
+    def operator_stop(self, now: float) -> None:
+        """Stop now: a zero command goes to the base immediately; HALT latches at the next step."""
+        self._stop = True
+        self._send(STOP, now)
+
+    def step(self, now: float) -> StepRecord:
+        events: set[Event] = set()
+        details: dict[Event, str] = {}
+        if self._stop:
+            events.add(Event.OPERATOR_STOP)
+
+        frame: Frame | None = None
+        try:
+            frame = self._frames.read(now)
+        except Exception as exc:  # any camera failure is a fault, never a crash
+            events.add(Event.CAMERA_ERROR)
+            details[Event.CAMERA_ERROR] = _one_line(exc)
+
+        info: FrameInfo | None = None
+        observation: LaneObservation | None = None
+        if frame is not None:
+            is_new = self._last_index is None or frame.index != self._last_index
+            if is_new:
+                self._last_index = frame.index
+                self._last_fingerprint = frame_fingerprint(frame.image)
+            info = FrameInfo(frame.index, frame.time_s, self._last_fingerprint, is_new)
+            if is_new:
+                try:
+                    observation = self._detector.detect(
+                        frame.image, frame.index, frame.time_s, previous=self._previous
+                    )
+                except Exception as exc:  # perception's failure halts; it never crashes the loop
+                    events.add(Event.PERCEPTION_ERROR)
+                    details[Event.PERCEPTION_ERROR] = _one_line(exc)
+                else:
+                    self._previous = observation
+
+        feedback: BaseFeedback | None = None
+        try:
+            feedback = self._base.feedback(now)
+        except ActuationError as exc:
+            events.add(Event.BASE_LINK_LOST)
+            details[Event.BASE_LINK_LOST] = _one_line(exc)
+        if self._base_failure is not None:
+            events.add(Event.BASE_LINK_LOST)
+            details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
+            self._base_failure = None
+
+        output = self._controller.step(
+            ControlInputs(
+                frame=info,
+                observation=observation,
+                feedback=feedback,
+                events=frozenset(events),
+                event_details=MappingProxyType(details),
+                start_requested=self._start,
+                resume_requested=self._resume,
+            ),
+            now,
+        )
+        self._start = self._resume = self._stop = False
+        sent_events = set(output.events)
+        if not self._send(output.command, now):
+            sent_events.add(Event.BASE_LINK_LOST)
+        record = self._make_record(now, info, observation, output, ordered(sent_events))
+        if self._record is not None:
+            self._record(record)
+        return record
+
+    def _send(self, command: VelocityCommand, now: float) -> bool:
+        try:
+            self._base.send(command, now)
+        except ActuationError as exc:
+            self._base_failure = _one_line(exc)
+            return False
+        return True
+
+    @staticmethod
+    def _make_record(
+        now: float,
+        info: FrameInfo | None,
+        observation: LaneObservation | None,
+        output: ControlOutput,
+        events: tuple[Event, ...],
+    ) -> StepRecord:
+        return StepRecord(
+            frame_index=None if info is None else info.index,
+            time_s=now,
+            observation=observation,
+            filtered_slope_sum=output.filtered_slope_sum,
+            slope_sum_variance=output.slope_sum_variance,
+            state=output.state,
+            events=tuple(e.value for e in events),
+            command=output.command,
+            halt_reason=output.halt_reason,
+            frame_time_s=None if info is None else info.time_s,
+            innovation=output.innovation,
+            filtered_center_offset=output.filtered_center_offset,
+        )

@@ -1,0 +1,185 @@
+"""Kalman filter (filterpy) on the lane's slope sum, with outlier gating.
+
+State x = [slope_sum, rate_per_s] (constant-rate model). Time is the frames' capture time: F and Q
+are rebuilt from each step's dt and passed to `predict(F=..., Q=...)`. The measurement noise grows
+as the observation's confidence falls (R = (std / max(confidence, floor))^2). A frame without a
+usable slope sum only predicts, so the variance grows. Before an update the innovation's Mahalanobis
+distance is checked: above `innovation_gate_sigma` the measurement is rejected and reported as
+INNOVATION_OUTLIER; repeated outliers raise REPEATED_OUTLIERS, and when the last
+`outliers_repeated_count` measurements were ALL rejected the lane has really changed (or perception
+is garbage; either way the supervisor degrades), so the filter restarts on the newest measurement
+instead of ignoring the world forever.
+
+Pure: no clock (time comes with each call), no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter
+
+from supervisor.config import SupervisorConfig
+from supervisor.events import Event
+
+
+@dataclass(frozen=True)
+class SlopeEstimate:
+    """The filter's output after one frame.
+
+    `slope_sum`/`variance`/`rate_per_s` are None until the first measurement is accepted.
+    `innovation` (z - H x_prior) and `mahalanobis` are None when the frame carried no measurement.
+    """
+
+    slope_sum: float | None
+    variance: float | None
+    rate_per_s: float | None
+    innovation: float | None = None
+    mahalanobis: float | None = None
+    accepted: bool = False
+    events: frozenset[Event] = frozenset()
+
+    @property
+    def outlier(self) -> bool:
+        return Event.INNOVATION_OUTLIER in self.events
+
+
+def transition_matrix(dt: float) -> np.ndarray:
+    return np.array([[1.0, dt], [0.0, 1.0]])
+
+
+def process_noise(dt: float, config: SupervisorConfig) -> np.ndarray:
+    """Discrete white-noise acceleration for the constant-rate model over dt seconds."""
+    return np.asarray(
+        Q_discrete_white_noise(dim=2, dt=dt, var=config.slope_sum_accel_std_per_s2**2),
+        dtype=np.float64,
+    )
+
+
+def measurement_variance(confidence: float, config: SupervisorConfig) -> float:
+    """R for one slope-sum measurement: low confidence, large noise."""
+    c = max(min(confidence, 1.0), config.measurement_confidence_floor)
+    return (config.slope_sum_measurement_std / c) ** 2
+
+
+def make_slope_sum_filter(
+    slope_sum: float, confidence: float, config: SupervisorConfig
+) -> KalmanFilter:
+    """The one factory: a filter started at a measured slope sum with rate 0."""
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.x = np.array([[slope_sum], [0.0]])
+    kf.H = np.array([[1.0, 0.0]])
+    kf.F = transition_matrix(0.0)
+    kf.R = np.array([[measurement_variance(confidence, config)]])
+    kf.P = np.diag([kf.R[0, 0], config.slope_sum_initial_rate_std_per_s**2])
+    kf.Q = process_noise(0.0, config)
+    return kf
+
+
+class SlopeSumFilter:
+    """Runs the slope-sum Kalman filter frame by frame. One instance per run."""
+
+    def __init__(self, config: SupervisorConfig) -> None:
+        self._config = config
+        self._kf: KalmanFilter | None = None
+        self._time_s: float | None = None
+        self._accepted_at_s: float | None = None
+        self._rejections: deque[bool] = deque(maxlen=config.outliers_window_frames)
+        self._last = SlopeEstimate(None, None, None)
+
+    @property
+    def estimate(self) -> SlopeEstimate:
+        """The latest output (also returned by `step`)."""
+        return self._last
+
+    def step(self, time_s: float, slope_sum: float | None, confidence: float) -> SlopeEstimate:
+        """Advance to `time_s` (a frame's capture time) and fuse `slope_sum` if there is one.
+
+        `slope_sum` None (or not finite) means "no usable measurement in this frame": predict only.
+        """
+        cfg = self._config
+        measured = slope_sum is not None and math.isfinite(slope_sum)
+        if self._kf is None or (
+            measured
+            and self._accepted_at_s is not None
+            and time_s - self._accepted_at_s > cfg.slope_filter_restart_after_s
+        ):
+            if not measured:
+                self._time_s = time_s
+                return self._remember(SlopeEstimate(None, None, None))
+            assert slope_sum is not None
+            return self._restart(time_s, slope_sum, confidence, frozenset())
+
+        dt = 0.0 if self._time_s is None else max(0.0, time_s - self._time_s)
+        self._time_s = time_s if self._time_s is None else max(time_s, self._time_s)
+        if dt > 0.0:
+            self._kf.predict(F=transition_matrix(dt), Q=process_noise(dt, cfg))
+        if not measured:
+            return self._remember(self._snapshot())
+        assert slope_sum is not None
+
+        r = measurement_variance(confidence, cfg)
+        innovation = float(slope_sum - (self._kf.H @ self._kf.x)[0, 0])
+        s = float((self._kf.H @ self._kf.P @ self._kf.H.T)[0, 0] + r)
+        distance = abs(innovation) / math.sqrt(s)
+        if distance > cfg.innovation_gate_sigma:
+            self._rejections.append(True)
+            events = {Event.INNOVATION_OUTLIER}
+            if sum(self._rejections) >= cfg.outliers_repeated_count:
+                events.add(Event.REPEATED_OUTLIERS)
+            recent = list(self._rejections)[-cfg.outliers_repeated_count :]
+            if len(recent) == cfg.outliers_repeated_count and all(recent):
+                # The world moved and the gate would ignore it forever: start again from here.
+                restarted = self._restart(time_s, slope_sum, confidence, frozenset(events))
+                return self._remember(
+                    SlopeEstimate(
+                        restarted.slope_sum,
+                        restarted.variance,
+                        restarted.rate_per_s,
+                        innovation,
+                        distance,
+                        True,
+                        frozenset(events),
+                    )
+                )
+            return self._remember(self._snapshot(innovation, distance, False, frozenset(events)))
+
+        self._rejections.append(False)
+        self._kf.update(np.array([[slope_sum]]), R=np.array([[r]]))
+        self._accepted_at_s = time_s
+        return self._remember(self._snapshot(innovation, distance, True))
+
+    def _restart(
+        self, time_s: float, slope_sum: float, confidence: float, events: frozenset[Event]
+    ) -> SlopeEstimate:
+        self._kf = make_slope_sum_filter(slope_sum, confidence, self._config)
+        self._time_s = time_s
+        self._accepted_at_s = time_s
+        self._rejections.clear()
+        return self._remember(self._snapshot(None, None, True, events))
+
+    def _snapshot(
+        self,
+        innovation: float | None = None,
+        distance: float | None = None,
+        accepted: bool = False,
+        events: frozenset[Event] = frozenset(),
+    ) -> SlopeEstimate:
+        assert self._kf is not None
+        return SlopeEstimate(
+            slope_sum=float(self._kf.x[0, 0]),
+            variance=float(self._kf.P[0, 0]),
+            rate_per_s=float(self._kf.x[1, 0]),
+            innovation=innovation,
+            mahalanobis=distance,
+            accepted=accepted,
+            events=events,
+        )
+
+    def _remember(self, estimate: SlopeEstimate) -> SlopeEstimate:
+        self._last = estimate
+        return estimate

@@ -1,0 +1,212 @@
+"""The fail-safe state machine (transitions): FOLLOW, TURN_LEFT, TURN_RIGHT, DEGRADED, HALT.
+
+One trigger, `tick`, fires once per control step. `TRANSITIONS` is the explicit table: for each
+source state the rows are tried in order and the first whose named condition holds wins (so HALT
+beats DEGRADE beats recovery beats turning). No row matching means "stay". HALT is the initial state
+and is latched: entering it disarms any engage request, and only a NEW start/resume request plus
+`engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again.
+A fresh HALT event while halted re-enters HALT (new reason, request disarmed again).
+
+Timers count injected time (`StepFacts.now`) and frames, never wall clock: no transitions `Timeout`
+states, no threads. The machine never reads an input itself; `SupervisedController` builds the
+`StepFacts`.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from transitions import Machine
+
+from supervisor.config import SupervisorConfig
+from supervisor.events import (
+    LANE_LOSS_EVENTS,
+    Event,
+    Response,
+    halt_reason,
+    response_of,
+    worst_response,
+)
+
+
+class SupervisorState(enum.Enum):
+    FOLLOW = "FOLLOW"
+    TURN_LEFT = "TURN_LEFT"
+    TURN_RIGHT = "TURN_RIGHT"
+    DEGRADED = "DEGRADED"
+    HALT = "HALT"
+
+
+S = SupervisorState
+ENGAGED_STATES: frozenset[SupervisorState] = frozenset(
+    {S.FOLLOW, S.TURN_LEFT, S.TURN_RIGHT, S.DEGRADED}
+)
+NOT_STARTED_REASON = "not engaged yet: waiting for start and a confident lane"
+
+#: The explicit transition table. Order matters within a source state (first match wins).
+TRANSITIONS: tuple[dict[str, Any], ...] = (
+    {"trigger": "tick", "source": [S.FOLLOW, S.TURN_LEFT, S.TURN_RIGHT, S.DEGRADED],
+     "dest": S.HALT, "conditions": "must_halt"},
+    {"trigger": "tick", "source": S.HALT, "dest": S.HALT, "conditions": "must_halt"},
+    {"trigger": "tick", "source": S.HALT, "dest": S.FOLLOW, "conditions": "may_engage"},
+    {"trigger": "tick", "source": [S.FOLLOW, S.TURN_LEFT, S.TURN_RIGHT], "dest": S.DEGRADED,
+     "conditions": "must_degrade"},
+    {"trigger": "tick", "source": S.DEGRADED, "dest": S.FOLLOW, "conditions": "may_recover"},
+    {"trigger": "tick", "source": [S.FOLLOW, S.TURN_RIGHT], "dest": S.TURN_LEFT,
+     "conditions": "bend_left_entered"},
+    {"trigger": "tick", "source": [S.FOLLOW, S.TURN_LEFT], "dest": S.TURN_RIGHT,
+     "conditions": "bend_right_entered"},
+    {"trigger": "tick", "source": S.TURN_LEFT, "dest": S.FOLLOW, "conditions": "bend_left_ended"},
+    {"trigger": "tick", "source": S.TURN_RIGHT, "dest": S.FOLLOW, "conditions": "bend_right_ended"},
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class StepFacts:
+    """What the machine needs to know about one step (built by the controller).
+
+    - `frame_confident`: None when no new frame was judged this step, else whether it was confident
+      (both edges, confidence >= confidence_confident_min, accepted by the filter's gate).
+    - `lane_seen_at_s`: capture time of the newest usable lane (None: never).
+    - `slope_sum`: the filtered slope sum (None before the filter has a measurement).
+    - `travelled_m`: distance covered since the previous step (for the degraded distance budget).
+    """
+
+    now: float
+    events: frozenset[Event] = frozenset()
+    event_details: Mapping[Event, str] = field(default_factory=lambda: MappingProxyType({}))
+    frame_confident: bool | None = None
+    lane_seen_at_s: float | None = None
+    slope_sum: float | None = None
+    travelled_m: float = 0.0
+    engage_requested: bool = False
+
+
+@dataclass(frozen=True)
+class Tick:
+    """The argument of the `tick` trigger: the facts plus the events the machine itself raised."""
+
+    facts: StepFacts
+    events: frozenset[Event]
+
+    @property
+    def worst(self) -> Response | None:
+        return worst_response(self.events)
+
+
+class SupervisorStateMachine:
+    """The transitions model. `state` is set by transitions' Machine."""
+
+    state: SupervisorState
+
+    def __init__(self, config: SupervisorConfig) -> None:
+        self._config = config
+        self.halt_reason: str | None = NOT_STARTED_REASON
+        self.engage_armed = False
+        self.confident_streak = 0
+        self.degraded_since_s: float | None = None
+        self.degraded_travelled_m = 0.0
+        self._machine = Machine(
+            model=self,
+            states=SupervisorState,
+            transitions=[dict(row) for row in TRANSITIONS],
+            initial=SupervisorState.HALT,
+            auto_transitions=False,
+            queued=True,
+        )
+
+    @property
+    def engaged(self) -> bool:
+        return self.state in ENGAGED_STATES
+
+    def step(self, facts: StepFacts) -> Tick:
+        """Run one control step; returns the tick (facts + all events, including LANE_LOST and
+        DEGRADED_BUDGET_EXHAUSTED raised here)."""
+        cfg = self._config
+        events = set(facts.events)
+        if self.engaged and (
+            facts.lane_seen_at_s is None or facts.now - facts.lane_seen_at_s > cfg.lane_lost_halt_s
+        ):
+            events.add(Event.LANE_LOST)
+        if self.state is S.DEGRADED and self.degraded_since_s is not None:
+            self.degraded_travelled_m += abs(facts.travelled_m)
+            if (
+                facts.now - self.degraded_since_s > cfg.degraded_budget_s
+                or self.degraded_travelled_m > cfg.degraded_budget_m
+            ):
+                events.add(Event.DEGRADED_BUDGET_EXHAUSTED)
+        if facts.engage_requested and self.state is S.HALT:
+            self.engage_armed = True
+        tick = Tick(facts, frozenset(events))
+        worst = tick.worst
+        if worst is not None and worst >= Response.DEGRADE:
+            self.confident_streak = 0
+        elif facts.frame_confident is True:
+            self.confident_streak += 1
+        elif facts.frame_confident is False:
+            self.confident_streak = 0
+        self._machine.events["tick"].trigger(self, tick)
+        return tick
+
+    # --- named conditions (called by transitions with the Tick) ---
+    def must_halt(self, tick: Tick) -> bool:
+        return tick.worst is Response.HALT
+
+    def must_degrade(self, tick: Tick) -> bool:
+        return tick.worst is Response.DEGRADE
+
+    def may_engage(self, tick: Tick) -> bool:
+        return (
+            self.engage_armed
+            and self.confident_streak >= self._config.engage_confident_frames
+            and (tick.worst is None or tick.worst < Response.DEGRADE)
+            and tick.facts.slope_sum is not None
+        )
+
+    def may_recover(self, tick: Tick) -> bool:
+        return self.confident_streak >= self._config.recover_confident_frames and (
+            tick.worst is None or tick.worst < Response.DEGRADE
+        )
+
+    def bend_left_entered(self, tick: Tick) -> bool:
+        s = tick.facts.slope_sum
+        return s is not None and s >= self._config.turn_enter_slope_sum
+
+    def bend_right_entered(self, tick: Tick) -> bool:
+        s = tick.facts.slope_sum
+        return s is not None and s <= -self._config.turn_enter_slope_sum
+
+    def bend_left_ended(self, tick: Tick) -> bool:
+        s = tick.facts.slope_sum
+        return s is None or s < self._config.turn_exit_slope_sum
+
+    def bend_right_ended(self, tick: Tick) -> bool:
+        s = tick.facts.slope_sum
+        return s is None or s > -self._config.turn_exit_slope_sum
+
+    # --- state callbacks (transitions binds on_enter_<STATE> / on_exit_<STATE> by name) ---
+    def on_enter_HALT(self, tick: Tick) -> None:
+        halting = {e for e in tick.events if response_of(e) is Response.HALT}
+        self.halt_reason = halt_reason(tick.events, tick.facts.event_details)
+        # Latch: a request made before this halt does not count.
+        self.engage_armed = self._config.auto_resume_after_lane_loss and halting <= LANE_LOSS_EVENTS
+        self.confident_streak = 0
+        self.degraded_since_s = None
+        self.degraded_travelled_m = 0.0
+
+    def on_exit_HALT(self, tick: Tick) -> None:
+        self.halt_reason = None
+        self.engage_armed = False
+
+    def on_enter_DEGRADED(self, tick: Tick) -> None:
+        self.degraded_since_s = tick.facts.now
+        self.degraded_travelled_m = 0.0
+        self.confident_streak = 0
+
+    def on_exit_DEGRADED(self, tick: Tick) -> None:
+        self.degraded_since_s = None
+        self.degraded_travelled_m = 0.0

@@ -1,0 +1,117 @@
+"""Watchdog: are the inputs fresh, in order and alive? Pure logic on injected time.
+
+Checks, each step:
+- loop overrun: time since the previous step above `loop_overrun_s` (LOOP_OVERRUN, a warning: the
+  frame checks below are what stop a robot whose loop stalls);
+- camera: age of the newest frame (now - capture time) above `frame_late_s` (FRAME_LATE) or
+  `frame_stale_s` (FRAME_STALE); a new frame from the future, or going backwards in time or index
+  (FRAME_INVALID); identical images for `frame_frozen_s` while the robot is commanded to move
+  (FRAME_FROZEN; a stopped robot may legitimately see the same image);
+- base: age of the newest feedback above `base_feedback_late_s` (BASE_FEEDBACK_LATE) or
+  `base_link_timeout_s` (BASE_LINK_LOST).
+Before the first frame or feedback, ages count from the watchdog's first check, so "nothing ever
+arrived" turns into STALE / LINK_LOST after the same limits.
+
+Never reads a clock, never sleeps; the images themselves are reduced to a fingerprint by the loop.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from actuation.base import BaseFeedback
+from supervisor.config import SupervisorConfig
+from supervisor.control_io import FrameInfo
+from supervisor.events import Event
+
+#: Pixel stride of the fingerprint: 1/16 of the pixels is plenty to tell sensor noise apart.
+FINGERPRINT_STRIDE = 4
+
+
+def frame_fingerprint(image: object) -> bytes | None:
+    """A cheap digest of a strided copy of the image; None for something that is not an image."""
+    if not isinstance(image, np.ndarray) or image.ndim < 2 or image.size == 0:
+        return None
+    sample = np.ascontiguousarray(image[::FINGERPRINT_STRIDE, ::FINGERPRINT_STRIDE])
+    digest = hashlib.blake2b(sample.tobytes(), digest_size=16)
+    digest.update(repr((image.shape, image.dtype.str)).encode())
+    return digest.digest()
+
+
+class Watchdog:
+    def __init__(self, config: SupervisorConfig) -> None:
+        self._config = config
+        self._first_check_s: float | None = None
+        self._last_check_s: float | None = None
+        self._newest_index: int | None = None
+        self._newest_time_s: float | None = None
+        self._fingerprint: bytes | None = None
+        self._same_since_s: float | None = None
+
+    @property
+    def newest_frame_time_s(self) -> float | None:
+        """Capture time of the newest accepted frame."""
+        return self._newest_time_s
+
+    def check(
+        self,
+        now: float,
+        frame: FrameInfo | None,
+        feedback: BaseFeedback | None,
+        moving: bool,
+    ) -> frozenset[Event]:
+        """Events for this step. `moving`: the previous command sent to the base was not a stop."""
+        cfg = self._config
+        events: set[Event] = set()
+        if self._first_check_s is None:
+            self._first_check_s = now
+        if self._last_check_s is not None and now - self._last_check_s > cfg.loop_overrun_s:
+            events.add(Event.LOOP_OVERRUN)
+        self._last_check_s = now
+
+        if frame is not None and frame.is_new:
+            if self._frame_is_valid(now, frame):
+                events |= self._accept_frame(frame, moving)
+            else:
+                events.add(Event.FRAME_INVALID)
+
+        frame_ref = self._newest_time_s if self._newest_time_s is not None else self._first_check_s
+        frame_age = now - frame_ref
+        if frame_age > cfg.frame_stale_s:
+            events.add(Event.FRAME_STALE)
+        elif frame_age > cfg.frame_late_s:
+            events.add(Event.FRAME_LATE)
+
+        received = None if feedback is None else feedback.received_at_s
+        feedback_ref = self._first_check_s if received is None else received
+        feedback_age = now - feedback_ref
+        if not math.isfinite(feedback_age) or feedback_age > cfg.base_link_timeout_s:
+            events.add(Event.BASE_LINK_LOST)
+        elif feedback_age > cfg.base_feedback_late_s:
+            events.add(Event.BASE_FEEDBACK_LATE)
+        return frozenset(events)
+
+    def _frame_is_valid(self, now: float, frame: FrameInfo) -> bool:
+        if not math.isfinite(frame.time_s) or frame.time_s > now:
+            return False
+        if self._newest_time_s is not None and frame.time_s < self._newest_time_s:
+            return False
+        return self._newest_index is None or frame.index > self._newest_index
+
+    def _accept_frame(self, frame: FrameInfo, moving: bool) -> frozenset[Event]:
+        previous_time_s = self._newest_time_s
+        same = frame.fingerprint is not None and frame.fingerprint == self._fingerprint
+        self._newest_index = frame.index
+        self._newest_time_s = frame.time_s
+        self._fingerprint = frame.fingerprint
+        if not (same and moving) or previous_time_s is None:
+            self._same_since_s = None
+            return frozenset()
+        if self._same_since_s is None:
+            self._same_since_s = previous_time_s
+        if frame.time_s - self._same_since_s >= self._config.frame_frozen_s:
+            return frozenset({Event.FRAME_FROZEN})
+        return frozenset()

@@ -1,0 +1,1 @@
+"""Supervisor tests: filter, events, state machine, watchdog, limiter, loop."""

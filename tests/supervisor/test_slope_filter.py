@@ -1,0 +1,135 @@
+"""The slope-sum Kalman filter: convergence, tracking, gating, prediction, confidence weighting."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from supervisor.center_offset import CenterOffsetFilter
+from supervisor.config import SupervisorConfig
+from supervisor.events import Event
+from supervisor.slope_filter import (
+    SlopeSumFilter,
+    make_slope_sum_filter,
+    measurement_variance,
+    process_noise,
+    transition_matrix,
+)
+
+CONFIG = SupervisorConfig()
+DT = 1.0 / 30.0
+
+
+def test_converges_on_a_constant_and_its_variance_shrinks() -> None:
+    rng = np.random.default_rng(1)
+    f = SlopeSumFilter(CONFIG)
+    first = f.step(0.0, 3.0 + rng.normal(0.0, 0.3), 0.9)
+    for i in range(1, 90):
+        est = f.step(i * DT, 3.0 + rng.normal(0.0, 0.3), 0.9)
+        assert not est.outlier
+    assert est.slope_sum is not None and first.variance is not None and est.variance is not None
+    assert abs(est.slope_sum - 3.0) < 0.15
+    assert est.variance < first.variance / 2
+    assert est.rate_per_s is not None and abs(est.rate_per_s) < 1.0
+
+
+@pytest.mark.parametrize("rate_per_s", [2.0, 10.0, -15.0])
+def test_tracks_a_ramp_without_calling_it_an_outlier(rate_per_s: float) -> None:
+    rng = np.random.default_rng(2)
+    f = SlopeSumFilter(CONFIG)
+    errors = []
+    for i in range(120):
+        t = i * DT
+        truth = 0.0 if i < 30 else rate_per_s * (t - 30 * DT)
+        est = f.step(t, truth + rng.normal(0.0, 0.2), 0.9)
+        assert not est.outlier, (i, est)
+        assert est.slope_sum is not None
+        if i >= 60:
+            errors.append(est.slope_sum - truth)
+    assert max(abs(e) for e in errors) < 0.5
+    assert est.rate_per_s is not None and abs(est.rate_per_s - rate_per_s) < 1.5
+
+
+def test_a_single_wild_outlier_is_rejected_and_reported() -> None:
+    f = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        f.step(i * DT, 1.0, 0.9)
+    before = f.estimate
+    wild = f.step(30 * DT, 20.0, 0.9)
+    assert wild.outlier and wild.events == {Event.INNOVATION_OUTLIER}
+    assert not wild.accepted
+    assert wild.innovation is not None and wild.innovation > 15.0
+    assert wild.mahalanobis is not None and wild.mahalanobis > CONFIG.innovation_gate_sigma
+    assert wild.slope_sum is not None and before.slope_sum is not None
+    assert abs(wild.slope_sum - before.slope_sum) < 0.05  # the estimate did not move towards 20
+    after = f.step(31 * DT, 1.0, 0.9)
+    assert after.accepted and not after.events
+
+
+def test_repeated_outliers_are_reported_and_a_real_step_change_is_adopted() -> None:
+    f = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        f.step(i * DT, 0.0, 0.9)
+    results = [f.step((30 + j) * DT, 12.0, 0.9) for j in range(CONFIG.outliers_repeated_count)]
+    assert all(r.outlier for r in results)
+    assert Event.REPEATED_OUTLIERS not in results[0].events
+    assert Event.REPEATED_OUTLIERS in results[-1].events
+    assert results[-1].slope_sum == pytest.approx(12.0)  # restarted on the new level
+    assert f.step(40 * DT, 12.1, 0.9).accepted
+
+
+def test_prediction_only_grows_the_variance() -> None:
+    f = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        f.step(i * DT, 2.0, 0.9)
+    variances = [f.estimate.variance]
+    for i in range(30, 36):
+        est = f.step(i * DT, None, 0.0)
+        assert est.innovation is None and not est.accepted
+        variances.append(est.variance)
+    assert all(b is not None and a is not None and b > a for a, b in zip(variances, variances[1:]))
+
+
+def test_low_confidence_measurements_pull_less() -> None:
+    def pulled(confidence: float) -> float:
+        f = SlopeSumFilter(CONFIG)
+        for i in range(30):
+            f.step(i * DT, 0.0, 0.9)
+        est = f.step(30 * DT, 1.0, confidence)
+        assert est.accepted and est.slope_sum is not None
+        return est.slope_sum
+
+    assert pulled(0.9) > pulled(0.3) > 0.0
+    assert measurement_variance(0.2, CONFIG) > measurement_variance(0.9, CONFIG)
+    assert measurement_variance(0.0, CONFIG) == measurement_variance(
+        CONFIG.measurement_confidence_floor, CONFIG
+    )
+
+
+def test_f_and_q_follow_dt() -> None:
+    assert transition_matrix(0.1).tolist() == [[1.0, 0.1], [0.0, 1.0]]
+    q1, q2 = process_noise(DT, CONFIG), process_noise(2 * DT, CONFIG)
+    assert q2[0, 0] > q1[0, 0] > 0.0 and q2[1, 1] > q1[1, 1]
+    kf = make_slope_sum_filter(4.0, 0.9, CONFIG)
+    assert kf.x[0, 0] == 4.0 and kf.x[1, 0] == 0.0
+
+
+def test_nothing_before_the_first_measurement_and_restart_after_a_long_gap() -> None:
+    f = SlopeSumFilter(CONFIG)
+    assert f.step(0.0, None, 0.0).slope_sum is None
+    f.step(0.1, 1.0, 0.9)
+    for i in range(20):
+        f.step(0.1 + i * DT, 1.0 + 3.0 * i * DT, 0.9)  # a rising trend
+    gap = 0.1 + 20 * DT + CONFIG.slope_filter_restart_after_s + 0.1
+    est = f.step(gap, -2.0, 0.9)  # long after: no extrapolated trend, no outlier, a fresh start
+    assert est.accepted and not est.events
+    assert est.slope_sum == pytest.approx(-2.0) and est.rate_per_s == 0.0
+
+
+def test_center_offset_low_pass_holds_without_measurement() -> None:
+    c = CenterOffsetFilter(CONFIG)
+    assert c.step(0.0, None) is None
+    assert c.step(0.0, 0.5) == 0.5
+    value = c.step(CONFIG.center_offset_time_constant_s, 0.0)
+    assert value == pytest.approx(0.5 * np.exp(-1.0))
+    assert c.step(1.0, None) == value
