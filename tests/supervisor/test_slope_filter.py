@@ -87,7 +87,10 @@ def test_prediction_only_grows_the_variance() -> None:
         est = f.step(i * DT, None, 0.0)
         assert est.innovation is None and not est.accepted
         variances.append(est.variance)
-    assert all(b is not None and a is not None and b > a for a, b in zip(variances, variances[1:]))
+    assert all(
+        b is not None and a is not None and b > a
+        for a, b in zip(variances, variances[1:], strict=False)
+    )
 
 
 def test_low_confidence_measurements_pull_less() -> None:
