@@ -4,7 +4,8 @@
   k1, k2, p1, p2[, k3[, ...]]), the image size it is valid for (width, height) and, when known,
   how it was obtained (RMS reprojection error in pixels, pattern, date, number of views).
 - `load_calibration` / `save_calibration`: OpenCV FileStorage YAML (the format OpenCV's own
-  calibration sample writes). `load_calibration` also reads a ROS camera_info YAML.
+  calibration sample writes). `load_calibration` also reads a ROS camera_info YAML, which
+  `save_ros_camera_info` writes.
 - `Undistorter`: remap tables computed once, then one `cv2.remap` per frame.
 - `check_calibration`: the problems that make a calibration unusable for a given camera, so the
   robot runner can refuse to move before the first frame.
@@ -17,10 +18,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 
 from perception.errors import PerceptionError
@@ -148,6 +150,48 @@ def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
             storage.write("date", str(calibration.date))
     finally:
         storage.release()
+
+
+def ros_camera_info(calibration: CameraCalibration, camera_name: str = "camera") -> dict[str, Any]:
+    """The calibration as a ROS camera_info YAML mapping (camera_calibration_parsers' layout).
+
+    Monocular: rectification_matrix is the identity and projection_matrix is [K | 0], i.e. the
+    rectified image uses the calibration's own K, as `Undistorter` does.
+    """
+    k = np.asarray(calibration.camera_matrix, dtype=np.float64)
+    d = np.asarray(calibration.dist_coeffs, dtype=np.float64).reshape(-1)
+    projection = np.hstack([k, np.zeros((3, 1))])
+    model = "plumb_bob" if d.size == 5 else "rational_polynomial" if d.size == 8 else "opencv"
+
+    def matrix(values: np.ndarray, rows: int, cols: int) -> dict[str, Any]:
+        return {"rows": rows, "cols": cols, "data": [float(v) for v in values.reshape(-1)]}
+
+    return {
+        "image_width": int(calibration.image_size[0]),
+        "image_height": int(calibration.image_size[1]),
+        "camera_name": camera_name,
+        "camera_matrix": matrix(k, 3, 3),
+        "distortion_model": model,
+        "distortion_coefficients": matrix(d, 1, d.size),
+        "rectification_matrix": matrix(np.eye(3), 3, 3),
+        "projection_matrix": matrix(projection, 3, 4),
+    }
+
+
+def save_ros_camera_info(
+    calibration: CameraCalibration, path: str | Path, camera_name: str = "camera"
+) -> None:
+    """Write a ROS camera_info YAML (readable by ROS and by `load_calibration`)."""
+    path = Path(path)
+    text = yaml.safe_dump(
+        ros_camera_info(calibration, camera_name), sort_keys=False, default_flow_style=None
+    )
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise PerceptionError(
+            f"{path}: cannot write ROS camera_info file ({exc.strerror})"
+        ) from exc
 
 
 def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:

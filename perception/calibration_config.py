@@ -17,16 +17,23 @@ class CalibrationConfig(BaseModel):
 
     - `max_rms_px`: largest acceptable overall RMS reprojection error, pixels.
     - `min_views`: fewest usable chessboard views for a calibration to be trusted.
-    - `min_coverage_fraction`: smallest fraction of the image's 3x3 grid of cells that must contain
-      detected corners (1.0 = corners seen in every ninth of the image).
+    - `min_coverage_fraction`: smallest share of the cells of a 6x6 grid over the image that must
+      hold at least one corner of a used view (1.0 = corners seen everywhere). Corners near the
+      edges are what pin down the distortion.
     - `outlier_error_factor` / `outlier_min_error_px`: a view is an outlier when its RMS error is
       above `outlier_error_factor` x the median view error AND above `outlier_min_error_px`.
-    - `min_sharpness`: per-view blur rule; the variance of the Laplacian inside the board's area
-      (grey levels squared); a view below it is rejected as blurred. 0 disables the rule.
+    - `max_edge_width_px`: per-view blur rule; the mean width, in pixels, of the board's
+      black-to-white transitions (cv2.estimateChessboardSharpness; ~2-3 px for a sharp view). A
+      view above it is rejected as blurred.
+    - `min_contrast_levels`: per-view exposure rule; white-square minus black-square brightness,
+      grey levels (0-255). A view below it is rejected as too dark or washed out.
     - `subpix_window_px`: half size of the cornerSubPix search window (OpenCV's `winSize`).
     - `subpix_max_iterations` / `subpix_epsilon_px`: cornerSubPix stopping rule.
     - `max_views_per_calibration`: at most this many views go into calibrateCamera (evenly chosen);
-      more add little and cost time quadratically.
+      more add little and slow the solver down.
+    - `capture_min_novelty`: `calibrate capture` keeps a frame only when its board differs from
+      every kept one by at least this much (L1 distance of position, size and tilt, each
+      normalised to about 0..1).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -36,8 +43,10 @@ class CalibrationConfig(BaseModel):
     min_coverage_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
     outlier_error_factor: Annotated[float, Field(gt=1.0)] = 2.0
     outlier_min_error_px: Annotated[float, Field(ge=0.0)] = 0.3
-    min_sharpness: Annotated[float, Field(ge=0.0)] = 15.0
+    max_edge_width_px: Annotated[float, Field(gt=0.0)] = 5.0
+    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = 40.0
     subpix_window_px: Annotated[int, Field(ge=2, le=50)] = 5
     subpix_max_iterations: Annotated[int, Field(ge=1)] = 30
     subpix_epsilon_px: Annotated[float, Field(gt=0.0)] = 0.01
     max_views_per_calibration: Annotated[int, Field(ge=3)] = 60
+    capture_min_novelty: Annotated[float, Field(gt=0.0)] = 0.2

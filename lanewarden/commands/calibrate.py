@@ -1,9 +1,466 @@
-"""`lanewarden calibrate` (placeholder: owned by the work item that builds it)."""
+"""`lanewarden calibrate` and `lanewarden calibrate capture`: the shell around the calibration core.
+
+- `lanewarden calibrate --images GLOB --pattern COLSxROWS --square METERS --out FILE`: detect the
+  board in every image (progress on stderr), calibrate, report, apply the quality gates, write an
+  OpenCV FileStorage YAML (and with `--ros` a ROS camera_info YAML). `--json` prints one JSON
+  object as the last stdout line. A failed gate exits 2 (QualityGateError) and writes nothing.
+- `lanewarden calibrate capture --camera INDEX|PATH|URL --pattern COLSxROWS --out DIR`: grab frames,
+  keep those whose whole board is found and adds coverage, save them as JPGs. Headless.
+
+Only I/O lives here (files, camera, clock for the date, printing); every decision is made by
+`perception.chessboard*`, `perception.calibration_capture` and `perception.calibration_report`.
+"""
 
 from __future__ import annotations
 
+import glob
+import json
+import math
+import os
+import re
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
 import click
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+from lanewarden.errors import QualityGateError, UsageError
+from perception.calibration import save_calibration, save_ros_camera_info
+from perception.calibration_capture import BoardPlacement, judge_frame
+from perception.calibration_config import CalibrationConfig
+from perception.calibration_report import (
+    format_report,
+    run_as_json,
+    summarize_rejections,
+    unsolved_as_json,
+)
+from perception.chessboard import (
+    ChessboardPattern,
+    ViewDetection,
+    common_image_size,
+    detect_view,
+    larger_pattern,
+    parse_pattern,
+    reject_other_sizes,
+    suggest_pattern,
+    unreadable_view,
+)
+from perception.chessboard_calibration import MIN_VIEWS_TO_SOLVE, calibrate_views, gate_failures
+from perception.errors import PerceptionError
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+
+
+class PatternType(click.ParamType):
+    """COLSxROWS inner corners, e.g. 9x6."""
+
+    name = "COLSxROWS"
+
+    def convert(
+        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+    ) -> ChessboardPattern:
+        if isinstance(value, ChessboardPattern):
+            return value
+        try:
+            return parse_pattern(str(value))
+        except PerceptionError as exc:
+            self.fail(str(exc), param, ctx)
+
+
+PATTERN = PatternType()
+
+
+def _positive_length(ctx: click.Context, param: click.Parameter, value: float | None) -> Any:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise click.BadParameter(f"{value!r} m: expected a positive square size in metres")
+    return value
+
+
+def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> tuple[np.ndarray | None, str]:
+    """Decode an image file: (image, "") or (None, why it cannot be used)."""
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError as exc:
+        return None, f"cannot read file ({exc.strerror or exc})"
+    if data.size == 0:
+        return None, "empty file, not an image"
+    try:
+        image = cv2.imdecode(data, flags)
+    except cv2.error:
+        image = None
+    if image is None or image.size == 0:
+        return None, "not a readable image"
+    return image, ""
+
+
+def expand_images(pattern: str) -> list[Path]:
+    """Files matching a glob (or every file in a folder), sorted; folders are skipped."""
+    base = Path(pattern).expanduser()
+    if base.is_dir():
+        candidates = [p for p in base.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
+    else:
+        candidates = [Path(p) for p in glob.glob(str(base), recursive=True)]
+    return sorted(p for p in candidates if not p.is_dir())
+
+
+def check_output_folder(folder: Path, flag: str = "--out") -> None:
+    """UsageError unless `folder` is a folder or can be created in an existing one."""
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} '{folder}': exists and is not a folder")
+    if not folder.parent.is_dir():
+        raise UsageError(f"{flag} '{folder}': parent folder '{folder.parent}' does not exist")
+
+
+class CalibrateGroup(click.Group):
+    """A group whose stray positional words get a hint: an unquoted glob expanded by the shell."""
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        name = args[0] if args else ""
+        if name and self.get_command(ctx, name) is None and not name.startswith("-"):
+            raise click.UsageError(
+                f"unexpected argument '{name}': quote the --images glob so the shell does not "
+                "expand it (e.g. --images 'shots/*.jpg'), or use the subcommand 'capture'",
+                ctx,
+            )
+        return super().resolve_command(ctx, args)
+
+
+@contextmanager
+def _quiet_opencv() -> Iterator[None]:
+    """OpenCV's own warnings (failed camera opens) would add lines to our one-line errors."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
+def _detect_all(
+    paths: list[Path], pattern: ChessboardPattern, config: CalibrationConfig
+) -> list[ViewDetection]:
+    views: list[ViewDetection] = []
+    progress = tqdm(paths, desc="detecting corners", unit="view", file=sys.stderr,
+                    disable=None, leave=False)
+    for path in progress:
+        image, why = read_image(path, cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            views.append(unreadable_view(path.name, why))
+        else:
+            views.append(detect_view(image, pattern, config, name=path.name))
+    return views
+
+
+def _pattern_hint(paths: list[Path], views: list[ViewDetection],
+                  pattern: ChessboardPattern) -> str:
+    """When no view has the board, look for a nearby inner-corner count in one image."""
+    for path, view in zip(paths, views, strict=True):
+        if view.image_size is None:
+            continue
+        image, _ = read_image(path, cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            continue
+        found = suggest_pattern(image, pattern)
+        if found is not None:
+            return (f"; {path.name} shows a {found} inner-corner board: try --pattern {found} "
+                    "(count INNER corners: squares minus one per side)")
+        return f"; is --pattern {pattern} right? (count INNER corners: squares minus one per side)"
+    return ""
+
+
+def _check_not_larger(
+    paths: list[Path], views: list[ViewDetection], pattern: ChessboardPattern, samples: int = 3
+) -> None:
+    """UsageError when the first few usable views show a board with more inner corners than
+    --pattern (OpenCV finds a 8x6 grid inside a 9x6 board)."""
+    checked = 0
+    for path, view in zip(paths, views, strict=True):
+        if not view.accepted or checked >= samples:
+            continue
+        checked += 1
+        image, _ = read_image(path, cv2.IMREAD_GRAYSCALE)
+        found = None if image is None else larger_pattern(image, pattern)
+        if found is not None:
+            raise UsageError(
+                f"--pattern {pattern}: {path.name} shows a board with {found} inner corners; "
+                f"use --pattern {found} (count ALL inner corners: squares minus one per side)"
+            )
+
+
+def _emit_json(payload: dict[str, Any]) -> None:
+    click.echo(json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False))
+
+
+def _finite(payload: Any) -> Any:
+    """NaN/inf (e.g. an unestimated standard deviation) become null: JSON has no NaN."""
+    if isinstance(payload, float):
+        return payload if math.isfinite(payload) else None
+    if isinstance(payload, dict):
+        return {k: _finite(v) for k, v in payload.items()}
+    if isinstance(payload, list):
+        return [_finite(v) for v in payload]
+    return payload
+
+
+def run_calibration(
+    images: str,
+    pattern: ChessboardPattern,
+    square_m: float,
+    out: Path,
+    *,
+    as_json: bool,
+    ros: bool,
+    drop_outliers: bool,
+    config: CalibrationConfig,
+) -> None:
+    """The `lanewarden calibrate` shell: read, detect, calibrate, report, gate, write."""
+    if not out.parent.is_dir():
+        raise UsageError(f"--out '{out}': folder '{out.parent}' does not exist")
+    if out.is_dir():
+        raise UsageError(f"--out '{out}': is a folder, expected a calibration file name")
+    paths = expand_images(images)
+    if not paths:
+        raise UsageError(
+            f"--images '{images}': no files match (expected a glob of chessboard images, "
+            "e.g. 'shots/*.jpg', or a folder of images)"
+        )
+    views = _detect_all(paths, pattern, config)
+    image_size = common_image_size(views)
+    if image_size is None:
+        raise UsageError(
+            f"--images '{images}': none of the {len(paths)} matching files is a readable image"
+        )
+    views = reject_other_sizes(views, image_size)
+    _check_not_larger(paths, views, pattern)
+    usable = sum(1 for v in views if v.accepted)
+    if usable < MIN_VIEWS_TO_SOLVE:
+        hint = _pattern_hint(paths, views, pattern) if usable == 0 else ""
+        message = (
+            f"only {usable} of {len(views)} views are usable, need calibration.min_views "
+            f"{config.min_views} (at least {MIN_VIEWS_TO_SOLVE} to solve at all): "
+            f"{summarize_rejections(views)}{hint}; nothing written"
+        )
+        if as_json:
+            _emit_json(unsolved_as_json(views, image_size, [message]))
+        raise QualityGateError(message)
+    date = datetime.now(UTC).isoformat(timespec="seconds")
+    run = calibrate_views(
+        views, pattern, square_m, image_size, config, date=date, drop_outliers=drop_outliers
+    )
+    failures = gate_failures(run, config)
+    payload = run_as_json(run, failures)
+    ros_path = out.with_name(out.stem + ".ros.yaml") if ros else None
+    if not failures:
+        save_calibration(run.calibration, out)
+        if ros_path is not None:
+            save_ros_camera_info(run.calibration, ros_path, camera_name=out.stem)
+    payload["calibration_file"] = None if failures else str(out)
+    payload["ros_file"] = None if failures or ros_path is None else str(ros_path)
+    if as_json:
+        _emit_json(payload)
+    else:
+        click.echo(format_report(run, failures, config))
+        if not failures:
+            click.echo(f"Wrote {out}" + (f" and {ros_path}" if ros_path else ""))
+    if failures:
+        raise QualityGateError(
+            f"calibration fails {len(failures)} quality gate(s): {'; '.join(failures)}; "
+            f"nothing written to {out}"
+        )
+
+
+@click.group("calibrate", cls=CalibrateGroup, invoke_without_command=True)
+@click.option("--images", metavar="GLOB",
+              help="Chessboard images: a quoted glob ('shots/*.jpg') or a folder.")
+@click.option("--pattern", type=PATTERN, help="Inner corners of the board, e.g. 9x6.")
+@click.option("--square", "square_m", type=float, callback=_positive_length, metavar="METERS",
+              help="Side of one chessboard square in metres (scales the poses, not K).")
+@click.option("--out", "out_path", type=click.Path(dir_okay=True), metavar="FILE",
+              help="Where to write the OpenCV FileStorage YAML.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object (the result) as the last stdout line.")
+@click.option("--ros", is_flag=True, help="Also write FILE's stem + .ros.yaml (ROS camera_info).")
+@click.option("--drop-outliers", is_flag=True,
+              help="Re-calibrate without the views flagged as outliers.")
+@config_option
+@click.pass_context
+def calibrate_group(
+    ctx: click.Context,
+    images: str | None,
+    pattern: ChessboardPattern | None,
+    square_m: float | None,
+    out_path: str | None,
+    as_json: bool,
+    ros: bool,
+    drop_outliers: bool,
+    config_path: str | None,
+) -> None:
+    """Calibrate the camera from chessboard photos; `calibrate capture` takes the photos.
+
+    Example: lanewarden calibrate --images 'shots/*.jpg' --pattern 9x6 --square 0.025
+    --out camera.yaml
+    """
+    if ctx.invoked_subcommand is not None:
+        given = [flag for flag, value in (("--images", images), ("--square", square_m),
+                                          ("--out", out_path), ("--pattern", pattern))
+                 if value is not None]
+        if given:
+            raise click.UsageError(
+                f"{', '.join(given)} belong after 'capture' when capturing "
+                f"(lanewarden calibrate {ctx.invoked_subcommand} --pattern ... --out DIR)", ctx
+            )
+        return
+    missing = [flag for flag, value in (("--images", images), ("--pattern", pattern),
+                                        ("--square", square_m), ("--out", out_path))
+               if value is None]
+    if missing:
+        raise click.UsageError(
+            f"missing {', '.join(missing)} (usage: lanewarden calibrate --images GLOB "
+            "--pattern COLSxROWS --square METERS --out FILE)", ctx
+        )
+    assert images is not None and pattern is not None
+    assert square_m is not None and out_path is not None
+    config = load_config(config_path).calibration
+    run_calibration(images, pattern, square_m, Path(out_path), as_json=as_json, ros=ros,
+                    drop_outliers=drop_outliers, config=config)
+
+
+# ----------------------------------------------------------------------------------- capture
+
+_URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
+
+
+def open_camera(camera: str) -> cv2.VideoCapture:
+    """cv2.VideoCapture on an int index, a file path (also an image sequence like
+    'dir/frame_%03d.png') or a URL; UsageError/PerceptionError naming --camera on failure."""
+    source: int | str
+    if camera.strip().isdigit():
+        source = int(camera)
+    else:
+        source = camera
+        if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
+            raise UsageError(
+                f"--camera '{camera}': no such file (expected a camera index like 0, a video "
+                "file, an image sequence like 'dir/frame_%03d.png' or a stream URL)"
+            )
+    # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+    with _quiet_opencv():
+        capture = cv2.VideoCapture(source)
+        opened = capture.isOpened()
+    if not opened:
+        capture.release()
+        raise PerceptionError(
+            f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
+            "free, and a format OpenCV reads?)"
+        )
+    return capture
+
+
+def _next_index(out_dir: Path) -> int:
+    taken = [int(m.group(1)) for p in out_dir.glob("view_*.jpg")
+             if (m := re.fullmatch(r"view_(\d+)\.jpg", p.name))]
+    return max(taken) + 1 if taken else 0
+
+
+def run_capture(
+    camera: str,
+    pattern: ChessboardPattern,
+    out_dir: Path,
+    count: int,
+    max_frames: int | None,
+    config: CalibrationConfig,
+) -> dict[str, int]:
+    """Grab frames until `count` are kept or the source ends; returns counts per outcome."""
+    check_output_folder(out_dir)
+    capture = open_camera(camera)
+    out_dir.mkdir(exist_ok=True)
+    index = _next_index(out_dir)
+    kept: list[BoardPlacement] = []
+    outcome = {"frames": 0, "kept": 0, "no board": 0, "too similar": 0, "rejected": 0}
+    progress = tqdm(total=count, desc="views kept", unit="view", file=sys.stderr,
+                    disable=None, leave=False)
+    try:
+        while len(kept) < count and (max_frames is None or outcome["frames"] < max_frames):
+            with _quiet_opencv():
+                ok, frame = capture.read()
+            if not ok or frame is None:
+                break
+            outcome["frames"] += 1
+            decision = judge_frame(frame, pattern, kept, config, name=f"frame {outcome['frames']}")
+            if not decision.keep or decision.placement is None:
+                key = "rejected" if decision.reason.startswith("rejected") else decision.reason
+                outcome[key] += 1
+                progress.set_postfix(frames=outcome["frames"], refresh=False)
+                continue
+            if not kept:
+                found = larger_pattern(frame, pattern)
+                if found is not None:
+                    raise UsageError(
+                        f"--pattern {pattern}: the camera shows a board with {found} inner "
+                        f"corners; use --pattern {found} (count ALL inner corners)"
+                    )
+            path = out_dir / f"view_{index:03d}.jpg"
+            if not cv2.imwrite(str(path), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
+                raise PerceptionError(f"{path}: cannot write captured view")
+            index += 1
+            kept.append(decision.placement)
+            outcome["kept"] += 1
+            progress.update(1)
+            progress.set_postfix(frames=outcome["frames"], refresh=False)
+    finally:
+        progress.close()
+        capture.release()
+    return outcome
+
+
+@calibrate_group.command("capture")
+@click.option("--camera", required=True, metavar="INDEX|PATH|URL",
+              help="Camera index (0), video file, image sequence ('dir/f_%03d.png') or URL.")
+@click.option("--pattern", required=True, type=PATTERN, help="Inner corners, e.g. 9x6.")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=True), metavar="DIR",
+              help="Folder for the kept views (view_000.jpg, ...); created if missing.")
+@click.option("--count", default=25, show_default=True, type=click.IntRange(min=1),
+              help="Stop after keeping this many views.")
+@click.option("--max-frames", type=click.IntRange(min=1), default=None,
+              help="Stop after reading this many frames (default: until the source ends).")
+@config_option
+def capture_command(
+    camera: str,
+    pattern: ChessboardPattern,
+    out_dir: str,
+    count: int,
+    max_frames: int | None,
+    config_path: str | None,
+) -> None:
+    """Grab frames and keep those whose whole board adds coverage (position, size, tilt).
+
+    Example: lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/
+    """
+    config = load_config(config_path).calibration
+    outcome = run_capture(camera, pattern, Path(out_dir), count, max_frames, config)
+    click.echo(
+        f"kept {outcome['kept']} of {count} views from {outcome['frames']} frames in {out_dir} "
+        f"({outcome['no board']} without the whole board, {outcome['too similar']} too similar "
+        f"to kept views, {outcome['rejected']} blurred or too dark)"
+    )
+    if outcome["kept"] < count:
+        click.echo(
+            f"stopped after {outcome['frames']} frames with fewer than {count} views kept: "
+            "show the board in new places, sizes and tilts and capture again (files are "
+            "numbered on)", err=True
+        )
 
 
 def commands() -> list[click.Command]:
-    return []
+    return [calibrate_group]

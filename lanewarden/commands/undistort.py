@@ -1,9 +1,72 @@
-"""`lanewarden undistort` (placeholder: owned by the work item that builds it)."""
+"""`lanewarden undistort IMAGE... --calibration FILE --out DIR`: see what a calibration does.
+
+For each image writes `<name>_undistorted.<ext>` and `<name>_compare.png` (before | after, with
+the same straight reference lines over both). The remap tables are built once per run.
+
+Only file I/O and printing live here; the work is `perception.calibration.Undistorter` and the
+drawing is `perception.undistort_preview.side_by_side`.
+"""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
+import cv2
+
+from lanewarden.commands.calibrate import IMAGE_SUFFIXES, check_output_folder, read_image
+from perception.calibration import Undistorter, load_calibration
+from perception.errors import PerceptionError
+from perception.undistort_preview import side_by_side
+
+
+def _write(path: Path, image: object) -> None:
+    if not cv2.imwrite(str(path), image):  # type: ignore[call-overload]
+        raise PerceptionError(f"{path}: cannot write image")
+
+
+@click.command("undistort")
+@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--calibration", "calibration_path", required=True, type=click.Path(),
+              metavar="FILE", help="Calibration YAML written by `lanewarden calibrate`.")
+@click.option("--out", "out_dir", required=True, type=click.Path(), metavar="DIR",
+              help="Folder for the undistorted images and before/after pictures (created).")
+def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str) -> None:
+    """Undistort IMAGE... and write before/after pictures with straight reference lines.
+
+    Example: lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/
+    """
+    calibration = load_calibration(calibration_path)
+    out = Path(out_dir)
+    check_output_folder(out)
+    undistorter = Undistorter(calibration)
+    out.mkdir(exist_ok=True)
+    failures: list[str] = []
+    width, height = calibration.image_size
+    for name in images:
+        path = Path(name)
+        image, why = read_image(path, cv2.IMREAD_UNCHANGED)
+        if image is None:
+            failures.append(f"{path}: {why}")
+            continue
+        if (image.shape[1], image.shape[0]) != (width, height):
+            failures.append(
+                f"{path}: image is {image.shape[1]}x{image.shape[0]}, the calibration "
+                f"{calibration_path} is for {width}x{height}"
+            )
+            continue
+        after = undistorter.apply(image)
+        suffix = path.suffix.lower() if path.suffix.lower() in IMAGE_SUFFIXES else ".png"
+        undistorted_path = out / f"{path.stem}_undistorted{suffix}"
+        compare_path = out / f"{path.stem}_compare.png"
+        _write(undistorted_path, after)
+        _write(compare_path, side_by_side(image, after))
+        click.echo(f"wrote {undistorted_path} and {compare_path}")
+    if failures:
+        raise PerceptionError(
+            f"{len(failures)} of {len(images)} images not undistorted: {'; '.join(failures)}"
+        )
 
 
 def commands() -> list[click.Command]:
-    return []
+    return [undistort_command]
