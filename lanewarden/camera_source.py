@@ -1,0 +1,77 @@
+"""Live camera frames for the robot runner: a capture thread that keeps only the newest frame.
+
+This is a thin I/O shell around cv2.VideoCapture. It stamps each frame with the injected clock at
+the moment it is read from the driver; the control loop decides whether that frame is fresh, late
+or stale. It never drops an error silently: a capture failure is kept and raised on the next read.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+from perception.errors import PerceptionError
+from supervisor.loop import Frame
+
+
+def open_capture(source: str) -> cv2.VideoCapture:
+    """Open a camera by index ("0"), device path, video file or URL; one-line error if it fails."""
+    target: int | str = int(source) if source.isdigit() else source
+    capture = cv2.VideoCapture(target)
+    if not capture.isOpened():
+        raise PerceptionError(
+            f"--camera {source}: cannot open the camera (expected a device index like 0, a device "
+            "path like /dev/video0, a video file or a stream URL; check the cable and permissions "
+            "(video group))"
+        )
+    return capture
+
+
+class CameraFrameSource:
+    """A `FrameSource` fed by a background capture thread: `read(now)` returns the newest frame
+    (the same one again until a newer one arrives; the loop tells new from repeated by index)."""
+
+    def __init__(self, capture: cv2.VideoCapture, clock: Callable[[], float]) -> None:
+        self._capture = capture
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._latest: Frame | None = None
+        self._error: str | None = None
+        self._running = True
+        self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        index = 0
+        while self._running:
+            ok, image = self._capture.read()
+            stamp = self._clock()
+            if not ok or image is None:
+                with self._lock:
+                    self._error = "the camera stopped delivering frames"
+                return
+            with self._lock:
+                self._latest = Frame(image=np.asarray(image), index=index, time_s=stamp)
+            index += 1
+
+    def read(self, now: float) -> Frame | None:
+        # When the camera dies the newest frame simply stops changing: the loop's watchdog turns
+        # its growing age into a stale-frame HALT, and `error` says why for the operator.
+        with self._lock:
+            frame = self._latest
+        if frame is not None and frame.time_s <= now:
+            return frame
+        return None
+
+    @property
+    def error(self) -> str | None:
+        with self._lock:
+            return self._error
+
+    def close(self) -> None:
+        self._running = False
+        self._thread.join(timeout=2.0)
+        self._capture.release()

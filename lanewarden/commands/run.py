@@ -1,0 +1,44 @@
+"""`lanewarden run`: drive the real robot with the camera, under the supervisor."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+from supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+
+
+@click.command("run")
+@click.option("--camera", default="0", show_default=True,
+              help="Camera index, device path, video file or stream URL.")
+@click.option("--port", default=None,
+              help="Kobuki serial port (default: actuation.port, then /dev/kobuki, /dev/ttyUSB0).")
+@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+              help="Camera calibration (OpenCV YAML from `lanewarden calibrate`).")
+@click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
+              show_default=True, help="supervised, or the lecture's baseline (never halts on lane "
+              "loss: for comparison on a safe track only).")
+@click.option("--log", "log_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=Path("run.jsonl"), show_default=True, help="Per-frame record (JSON lines).")
+@click.option("--duration", "duration_s", type=click.FloatRange(min=0.0, min_open=True),
+              default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@config_option
+def run_command(camera: str, port: str | None, calibration_path: str | None, controller: str,
+                log_path: Path, duration_s: float | None, config_path: str | None) -> None:
+    """Follow the lane on the robot. Ctrl-C stops the robot; a crash leaves the dead-man holding
+    stop. Every check (config, calibration, camera, base link) passes before anything moves."""
+    from lanewarden.runner import run_robot  # the robot stack loads only when used
+
+    config = load_config(config_path)
+    summary = run_robot(config, camera=camera, port=port, calibration_path=calibration_path,
+                        controller_name=controller, log_path=log_path, duration_s=duration_s)
+    reason = f" ({summary.halt_reason})" if summary.halt_reason else ""
+    click.echo(f"stopped after {summary.duration_s:.1f} s, {summary.steps} steps; final state "
+               f"{summary.final_state}{reason}; log: {summary.log_path}")
+
+
+def commands() -> list[click.Command]:
+    return [run_command]
