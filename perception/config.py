@@ -1,12 +1,294 @@
-"""Perception's section of the one validated config. Every default lives here, with units in names.
+"""Perception's section of the one validated config (`perception:` in the YAML file).
 
-(Placeholder owned by the perception work: fields are added there.)
+Every default lives here, with units in the names. Conventions:
+- `*_norm`: normalised image coordinates, x = column / width, y = row / height (origin top-left,
+  y down), so one ROI fits every resolution. Values outside [0, 1] are allowed (a triangle whose
+  base corners lie outside the image is clipped by it).
+- `*_frac_of_height` / `*_frac_of_width`: a length in pixels expressed as a fraction of the image
+  height or width, so the same config works at 640x480, 320x240 and 160x120.
+- `*_deg`: degrees; `*_levels`: grey levels (0-255).
+- Pixel parameters the lecture's pipeline takes as integers (blur kernel) are given for a
+  480-row image and scaled with the image height (see `BlurConfig`).
+
+This module only declares and validates numbers: it never touches images.
 """
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+import math
+from typing import Annotated, Self
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+_FROZEN = ConfigDict(extra="forbid", frozen=True)
+
+Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
+PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
+
+
+class RoiConfig(BaseModel):
+    """The region of interest, a polygon in normalised image coordinates.
+
+    Default: the lecture's triangle rising from the bottom edge. Its base corners lie outside the
+    image because with the default camera the lane's two tapes leave the image at its bottom
+    corners and converge towards the top centre: a triangle with its corners AT the bottom
+    corners would cut the tapes off. Inside the image it keeps the whole bottom and tapers to the
+    apex, dropping the top corners (walls, clutter beside the far lane).
+    """
+
+    model_config = _FROZEN
+
+    polygon_norm: tuple[tuple[float, float], ...] = ((-0.6, 1.0), (1.6, 1.0), (0.5, 0.0))
+
+    @field_validator("polygon_norm")
+    @classmethod
+    def _polygon(cls, value: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+        if len(value) < 3:
+            raise ValueError(f"needs at least 3 vertices [x, y], got {len(value)}")
+        for x, y in value:
+            if not (math.isfinite(x) and math.isfinite(y)) or not (
+                -2.0 <= x <= 3.0 and -2.0 <= y <= 3.0
+            ):
+                raise ValueError(
+                    f"vertex [{x}, {y}] must be finite and within [-2, 3] (normalised image units)"
+                )
+        area2 = sum(
+            x0 * y1 - x1 * y0
+            for (x0, y0), (x1, y1) in zip(value, value[1:] + value[:1], strict=True)
+        )
+        if abs(area2) < 1e-6:
+            raise ValueError("polygon has zero area (vertices collinear or repeated)")
+        inside = [(x, y) for x, y in value if 0.0 <= y <= 1.0]
+        if not inside:
+            raise ValueError("polygon lies entirely above or below the image (all y outside 0..1)")
+        return value
+
+
+class BlurConfig(BaseModel):
+    """Gaussian blur before Canny.
+
+    `kernel_px` is the kernel size for a 480-row image (odd); at other heights it is scaled with
+    the height and rounded to the nearest odd size, at least 3 (5 -> 3 at 240 and 120 rows).
+    `sigma_px` 0 lets OpenCV derive sigma from the kernel size.
+    """
+
+    model_config = _FROZEN
+
+    kernel_px: int = 5
+    sigma_px: Annotated[float, Field(ge=0.0)] = 0.0
+
+    @field_validator("kernel_px")
+    @classmethod
+    def _odd(cls, value: int) -> int:
+        if value < 1 or value % 2 == 0 or value > 31:
+            raise ValueError(f"must be an odd kernel size between 1 and 31 px, got {value}")
+        return value
+
+
+class CannyConfig(BaseModel):
+    """Canny hysteresis thresholds (gradient magnitude, grey levels per pixel)."""
+
+    model_config = _FROZEN
+
+    low_threshold: Annotated[float, Field(ge=0.0)] = 40.0
+    high_threshold: Annotated[float, Field(gt=0.0)] = 120.0
+    aperture_px: int = 3
+
+    @field_validator("aperture_px")
+    @classmethod
+    def _aperture(cls, value: int) -> int:
+        if value not in (3, 5, 7):
+            raise ValueError(f"must be 3, 5 or 7 (Sobel aperture), got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if not self.low_threshold < self.high_threshold:
+            raise ValueError(
+                f"low_threshold ({self.low_threshold:g}) must be below high_threshold "
+                f"({self.high_threshold:g})"
+            )
+        return self
+
+
+class HoughConfig(BaseModel):
+    """Probabilistic Hough transform (cv2.HoughLinesP). Lengths scale with the image height."""
+
+    model_config = _FROZEN
+
+    rho_px: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
+    theta_deg: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
+    votes_frac_of_height: PositiveFraction = 0.05
+    min_line_length_frac_of_height: PositiveFraction = 0.05
+    max_line_gap_frac_of_height: Fraction = 0.02
+
+
+class EdgesConfig(BaseModel):
+    """Turning Hough segments into lane-edge candidates.
+
+    - `min_angle_from_horizontal_deg`: flatter segments are dropped (tile joints across the lane,
+      the far ends of sharp bends).
+    - `max_past_vertical_deg`: how far an edge may lean the "wrong" way for its side (a right edge
+      leaning "/") and still count: the inner edge of a sharp bend does this.
+    - `cluster_angle_tol_deg` / `cluster_offset_frac_of_width`: segments with directions within
+      the angle and lying within the offset of a longer segment's line are one line (dashes,
+      Hough's broken pieces of one edge).
+    - `chain_gap_frac_of_height` / `chain_max_turn_deg`: a line whose near end starts within the
+      gap of another's far end, turning by at most this much, continues it (a bending edge).
+    - `max_abs_slope`: the slope clamp (see `perception.geometry`).
+    """
+
+    model_config = _FROZEN
+
+    min_angle_from_horizontal_deg: Annotated[float, Field(ge=0.0, lt=80.0)] = 15.0
+    max_past_vertical_deg: Annotated[float, Field(ge=0.0, le=60.0)] = 35.0
+    cluster_angle_tol_deg: Annotated[float, Field(gt=0.0, le=20.0)] = 3.0
+    cluster_offset_frac_of_width: PositiveFraction = 0.008
+    chain_gap_frac_of_height: Fraction = 0.12
+    chain_max_turn_deg: Annotated[float, Field(ge=0.0, le=90.0)] = 35.0
+    max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = 12.0
+
+
+class TapeConfig(BaseModel):
+    """Telling a tape (two parallel edges of opposite polarity, tape-wide apart) from a seam.
+
+    - `width_min/max_frac_of_width`: the tape's width, measured horizontally and projected to the
+      bottom of the ROI using `LaneGeometryConfig.horizon_y_norm` (perspective makes far tape
+      thinner), as a fraction of image width. A 48 mm tape is ~8.6% with the default camera;
+      4 mm tile grout ~0.7%. `expected_width_frac_of_width` is the tape's usual width on the
+      same scale (used to tell whether a missing partner would be outside the image).
+    - `min_gap_px`: two edges closer than this (pixels, where measured) are the two sides of one
+      thin line (grout) however the perspective scales them: a resolution limit, not a length.
+    - `pair_angle_tol_deg`: the two edges of one tape converge slightly; at most this apart.
+    - `polarity_offset_frac_of_width`: how far either side of a line the brightness is sampled.
+    - `polarity_samples`: points sampled along each line (a cheap stand-in for Sobel sign).
+    - `min_contrast_levels`: a side difference smaller than this has no polarity (0).
+    - `min_band_fraction`: at least this fraction of the points sampled along a tape candidate
+      must show the band darker (or lighter) than the floor outside both edges (dashed tape
+      passes with its gaps).
+    - `unpaired_preference`: weight of an edge with no tape partner when choosing, relative to
+      one that is part of a tape (support is multiplied by it).
+    - `unverifiable_score`: tape score of an unpaired edge whose partner would lie outside the
+      image (cut off by the border), where the pair cannot be checked.
+    """
+
+    model_config = _FROZEN
+
+    expected_width_frac_of_width: PositiveFraction = 0.086
+    width_min_frac_of_width: PositiveFraction = 0.035
+    width_max_frac_of_width: PositiveFraction = 0.18
+    min_gap_px: Annotated[float, Field(ge=0.0)] = 5.0
+    pair_angle_tol_deg: Annotated[float, Field(gt=0.0, le=30.0)] = 10.0
+    polarity_offset_frac_of_width: PositiveFraction = 0.006
+    polarity_samples: Annotated[int, Field(ge=1, le=64)] = 6
+    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = 8.0
+    min_band_fraction: PositiveFraction = 0.3
+    unpaired_preference: Fraction = 0.35
+    unverifiable_score: Fraction = 0.6
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        lo, mid, hi = (
+            self.width_min_frac_of_width,
+            self.expected_width_frac_of_width,
+            self.width_max_frac_of_width,
+        )
+        if not lo <= mid <= hi or lo == hi:
+            raise ValueError(
+                f"need width_min_frac_of_width ({lo:g}) <= expected_width_frac_of_width "
+                f"({mid:g}) <= width_max_frac_of_width ({hi:g}), min below max"
+            )
+        return self
+
+
+class LaneGeometryConfig(BaseModel):
+    """What a lane looks like from this camera (defaults: `scenarios.camera.CameraModel()`).
+
+    - `horizon_y_norm`: image row of the horizon (y_norm; negative = above the image). The two
+      edges of a straight lane meet there. Default camera: -0.167.
+    - `vanishing_y_tolerance_norm` / `vanishing_x_tolerance_norm`: the edges' intersection scores
+      1 within this distance of (0.5, horizon_y_norm), falling to 0 at twice the distance.
+    - `width_at_bottom_frac_of_width`: expected distance between the two chosen (inner) edges at
+      the bottom of the ROI; `width_tolerance_frac_of_width`: scores 1 within it, 0 at twice it.
+    """
+
+    model_config = _FROZEN
+
+    horizon_y_norm: Annotated[float, Field(ge=-3.0, le=0.9)] = -0.167
+    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0)] = 0.3
+    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0)] = 0.3
+    width_at_bottom_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = 0.98
+    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0)] = 0.3
+
+
+class ConfidenceWeights(BaseModel):
+    """Exponents of the confidence components: confidence = product of component ** weight.
+
+    1 makes a component a full multiplicative gate, 0.5 softens it (0.25 ** 0.5 = 0.5), 0 ignores
+    it. See `perception.confidence` for what each component measures.
+    """
+
+    model_config = _FROZEN
+
+    both_sides: Annotated[float, Field(ge=0.0, le=4.0)] = 1.0
+    support: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
+    lane_width: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
+    vanishing_point: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
+    tape_pair: Annotated[float, Field(ge=0.0, le=4.0)] = 1.0
+    consistency: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
+
+
+class ConfidenceConfig(BaseModel):
+    """Confidence score and the threshold below which no decision is made.
+
+    - `min_confidence`: below it the decision is "none" (and the supervisor must not steer by it).
+    - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
+      height) gets full support 1; shorter scales linearly.
+    - `consistency_offset_tol_frac_of_width` / `consistency_angle_tol_deg`: how far an edge may
+      move (at the ROI bottom) and turn since the previous observation and still score 1; the
+      score falls to 0 at twice that.
+    """
+
+    model_config = _FROZEN
+
+    weights: ConfidenceWeights = ConfidenceWeights()
+    min_confidence: Fraction = 0.5
+    support_full_frac_of_height: PositiveFraction = 0.3
+    consistency_offset_tol_frac_of_width: PositiveFraction = 0.08
+    consistency_angle_tol_deg: Annotated[float, Field(gt=0.0, le=90.0)] = 8.0
+
+
+class DecisionConfig(BaseModel):
+    """The lecture's rule: slope sum < -turn_slope_sum -> right, > +turn_slope_sum -> left."""
+
+    model_config = _FROZEN
+
+    turn_slope_sum: Annotated[float, Field(gt=0.0)] = 6.0
 
 
 class PerceptionConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Every perception tunable. `opencv_threads`: the process-wide OpenCV thread count that
+    `LaneDetector` sets (1 by default, see `perception.detector`; -1 restores OpenCV's default)."""
+
+    model_config = _FROZEN
+
+    roi: RoiConfig = RoiConfig()
+    blur: BlurConfig = BlurConfig()
+    canny: CannyConfig = CannyConfig()
+    hough: HoughConfig = HoughConfig()
+    edges: EdgesConfig = EdgesConfig()
+    tape: TapeConfig = TapeConfig()
+    lane: LaneGeometryConfig = LaneGeometryConfig()
+    confidence: ConfidenceConfig = ConfidenceConfig()
+    decision: DecisionConfig = DecisionConfig()
+    opencv_threads: Annotated[int, Field(ge=-1, le=64)] = 1
+
+    @model_validator(mode="after")
+    def _slope_clamp_exceeds_threshold(self) -> Self:
+        if self.edges.max_abs_slope * 2 <= self.decision.turn_slope_sum:
+            raise ValueError(
+                f"edges.max_abs_slope ({self.edges.max_abs_slope:g}) is too small for "
+                f"decision.turn_slope_sum ({self.decision.turn_slope_sum:g}): two clamped slopes "
+                "could never reach the turn threshold"
+            )
+        return self

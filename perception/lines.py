@@ -1,0 +1,262 @@
+"""From Hough segments to candidate lines: drop flat segments, merge collinear ones, measure each
+line's brightness polarity.
+
+A `LineSet` holds every candidate line of one frame as parallel numpy arrays (struct of arrays, so
+the per-frame work is a handful of vectorised operations rather than Python loops over segments).
+Pixels: x right, y down; each line runs from its NEAR end (larger y) to its FAR end, and its unit
+direction (ux, uy) points from near to far (uy <= 0).
+
+Polarity: the sign of (brightness right of the line - brightness left of it), sampled on the
+blurred image at a few points along the line, a cheap stand-in for the Sobel sign across it.
++1 dark-to-light going right, -1 light-to-dark, 0 no clear contrast. The two edges of a tape have
+opposite polarities (dark tape on a light floor: -1 then +1; light tape: +1 then -1).
+
+Pure functions of their inputs: never draws, never allocates per segment in Python.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from perception.config import EdgesConfig, TapeConfig
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class LineSet:
+    """Candidate lines of one frame (all arrays have the same length n).
+
+    - `angle_deg`: direction near->far, counter-clockwise from +x with y up (see geometry).
+    - `cx, cy`: a point on the line (support-weighted centre of its segments), pixels.
+    - `ux, uy`: unit direction near->far (uy <= 0, image y down).
+    - `near_x, near_y, far_x, far_y`: the extent of its segments along the line.
+    - `support_px`: total length of its segments.
+    - `polarity`: +1, -1 or 0 (see module docstring).
+    - `x_bottom`: column where the line crosses the ROI's bottom row.
+    - `segment_label`: for each input segment, the line it joined (-1: dropped as flat).
+    """
+
+    angle_deg: FloatArray
+    cx: FloatArray
+    cy: FloatArray
+    ux: FloatArray
+    uy: FloatArray
+    near_x: FloatArray
+    near_y: FloatArray
+    far_x: FloatArray
+    far_y: FloatArray
+    support_px: FloatArray
+    polarity: FloatArray
+    x_bottom: FloatArray
+    segment_label: IntArray
+
+    def __len__(self) -> int:
+        return int(self.angle_deg.shape[0])
+
+    def x_at(self, index: int | IntArray, row: float | FloatArray) -> FloatArray:
+        """Column(s) where line(s) `index` cross image row(s) `row`."""
+        return np.asarray(
+            self.cx[index] + (row - self.cy[index]) * self.ux[index] / self.uy[index]
+        )
+
+
+    def rows(self) -> list[LineRow]:
+        """The lines as plain-float rows, for the per-line logic of edge choice."""
+        columns = (
+            self.angle_deg, self.cx, self.cy, self.ux, self.uy, self.near_x, self.near_y,
+            self.far_x, self.far_y, self.support_px, self.polarity, self.x_bottom,
+        )
+        values = zip(*(c.tolist() for c in columns), strict=True)
+        return [LineRow(i, *row) for i, row in enumerate(values)]
+
+
+class LineRow(NamedTuple):
+    """One line of a `LineSet` as plain floats (same fields; `line_id` is its position)."""
+
+    line_id: int
+    angle_deg: float
+    cx: float
+    cy: float
+    ux: float
+    uy: float
+    near_x: float
+    near_y: float
+    far_x: float
+    far_y: float
+    support_px: float
+    polarity: float
+    x_bottom: float
+
+    def x_at(self, row: float) -> float:
+        """Column where the line crosses image row `row`."""
+        return self.cx + (row - self.cy) * self.ux / self.uy
+
+
+_EMPTY_F = np.zeros(0, dtype=np.float64)
+
+
+def empty_line_set(segment_count: int = 0) -> LineSet:
+    e = _EMPTY_F
+    return LineSet(
+        angle_deg=e, cx=e, cy=e, ux=e, uy=e, near_x=e, near_y=e, far_x=e, far_y=e,
+        support_px=e, polarity=e, x_bottom=e,
+        segment_label=np.full(segment_count, -1, dtype=np.intp),
+    )
+
+
+def _sum_by(label: IntArray, weights: FloatArray, n: int) -> FloatArray:
+    """Per-line sums of `weights` (np.bincount, typed)."""
+    return np.bincount(label, weights=weights, minlength=n).astype(np.float64, copy=False)
+
+
+def build_line_set(
+    segments: NDArray[np.int32] | None,
+    smooth_gray: NDArray[np.uint8],
+    y_bottom: float,
+    edges: EdgesConfig,
+    tape: TapeConfig,
+) -> LineSet:
+    """Group HoughLinesP output (N, 1, 4) into candidate lines and measure their polarity.
+
+    Near-horizontal segments are dropped. The remaining ones are clustered greedily, longest
+    first: a segment joins a longer one's line when its direction is within
+    `cluster_angle_tol_deg` and its midpoint lies within `cluster_offset_frac_of_width` of that
+    line (collinear pieces: Hough's broken edge, dashes of one tape).
+    """
+    if segments is None or len(segments) == 0:
+        return empty_line_set()
+    width = smooth_gray.shape[1]
+    seg = segments.reshape(-1, 4).astype(np.float64)
+    # Orient every segment near (bottom) -> far (top).
+    flip = seg[:, 1] < seg[:, 3]
+    if flip.any():
+        seg[flip] = seg[flip][:, [2, 3, 0, 1]]
+    dx = seg[:, 2] - seg[:, 0]
+    dy_up = seg[:, 1] - seg[:, 3]
+    angle = np.degrees(np.arctan2(dy_up, dx))
+    min_h = edges.min_angle_from_horizontal_deg
+    keep = (angle >= min_h) & (angle <= 180.0 - min_h)
+    label = np.full(len(seg), -1, dtype=np.intp)
+    if not keep.any():
+        return empty_line_set(len(seg))
+    idx = np.flatnonzero(keep)
+    seg = seg[idx]
+    x1, y1, x2, y2 = seg.T
+    dx = dx[idx]
+    dy_up = dy_up[idx]
+    ang = angle[idx]
+    length = np.hypot(dx, dy_up)
+    ux = dx / length
+    uy = -dy_up / length
+    mx = 0.5 * (x1 + x2)
+    my = 0.5 * (y1 + y2)
+
+    # Greedy leader clustering, longest first, on a precomputed compatibility matrix:
+    # compatible[i, j] = segment j lies on segment i's line (direction and offset).
+    offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
+    perp = np.abs(
+        (mx[None, :] - mx[:, None]) * uy[:, None] - (my[None, :] - my[:, None]) * ux[:, None]
+    )
+    compatible = (np.abs(ang[None, :] - ang[:, None]) <= edges.cluster_angle_tol_deg) & (
+        perp <= offset_tol
+    )
+    order = np.argsort(-length, kind="stable")
+    local = np.full(len(idx), -1, dtype=np.intp)
+    free = np.ones(len(idx), dtype=bool)
+    n_lines = 0
+    for lead in order.tolist():
+        if not free[lead]:
+            continue
+        member = compatible[lead] & free
+        member[lead] = True
+        local[member] = n_lines
+        free &= ~member
+        n_lines += 1
+    label[idx] = local
+
+    # Support-weighted direction and centre per line.
+    w_sum = _sum_by(local, length, n_lines)
+    lux = _sum_by(local, dx, n_lines)  # = sum(ux * length)
+    luy = -_sum_by(local, dy_up, n_lines)
+    norm = np.hypot(lux, luy)
+    lux /= norm
+    luy /= norm
+    lcx = _sum_by(local, mx * length, n_lines) / w_sum
+    lcy = _sum_by(local, my * length, n_lines) / w_sum
+    # Extent: project every member endpoint onto its line's direction; min/max per line.
+    by_line = np.argsort(local, kind="stable")
+    sorted_label = local[by_line]
+    starts = np.flatnonzero(np.r_[True, sorted_label[1:] != sorted_label[:-1]])
+    ex = np.stack([x1[by_line], x2[by_line]], axis=1)
+    ey = np.stack([y1[by_line], y2[by_line]], axis=1)
+    t = (ex - lcx[sorted_label, None]) * lux[sorted_label, None] + (
+        ey - lcy[sorted_label, None]
+    ) * luy[sorted_label, None]
+    t_min = np.minimum.reduceat(t.min(axis=1), starts)
+    t_max = np.maximum.reduceat(t.max(axis=1), starts)
+    near_x = lcx + t_min * lux
+    near_y = lcy + t_min * luy
+    far_x = lcx + t_max * lux
+    far_y = lcy + t_max * luy
+    line_angle = np.degrees(np.arctan2(-luy, lux))
+    x_bottom = lcx + (y_bottom - lcy) * lux / np.minimum(luy, -1e-9)
+    polarity = _polarity(smooth_gray, near_x, near_y, far_x, far_y, lux, luy, tape)
+    return LineSet(
+        angle_deg=line_angle,
+        cx=lcx,
+        cy=lcy,
+        ux=lux,
+        uy=luy,
+        near_x=near_x,
+        near_y=near_y,
+        far_x=far_x,
+        far_y=far_y,
+        support_px=w_sum,
+        polarity=polarity,
+        x_bottom=x_bottom,
+        segment_label=label,
+    )
+
+
+def _polarity(
+    gray: NDArray[np.uint8],
+    near_x: FloatArray,
+    near_y: FloatArray,
+    far_x: FloatArray,
+    far_y: FloatArray,
+    ux: FloatArray,
+    uy: FloatArray,
+    tape: TapeConfig,
+) -> FloatArray:
+    """Sign of (right side - left side) brightness, sampled at a few points along each line."""
+    height, width = gray.shape[:2]
+    k = tape.polarity_samples
+    frac = (np.arange(k, dtype=np.float64) + 0.5) / k
+    px = near_x[:, None] + (far_x - near_x)[:, None] * frac
+    py = near_y[:, None] + (far_y - near_y)[:, None] * frac
+    offset = max(tape.polarity_offset_frac_of_width * width, 1.5)
+    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0.
+    nx = (-uy * offset)[:, None]
+    ny = (ux * offset)[:, None]
+    # One gather for both sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
+    xs = np.concatenate([px + nx, px - nx]) + 0.5
+    ys = np.concatenate([py + ny, py - ny]) + 0.5
+    cols = np.minimum(np.maximum(xs, 0.0), width - 1.0).astype(np.intp)
+    rows = np.minimum(np.maximum(ys, 0.0), height - 1.0).astype(np.intp)
+    values = gray[rows, cols].astype(np.float64).mean(axis=1)
+    n = len(near_x)
+    mean = values[:n] - values[n:]
+    threshold = tape.min_contrast_levels
+    return np.where(mean > threshold, 1.0, np.where(mean < -threshold, -1.0, 0.0))
+
+
+def line_angle_deg(ux: float, uy: float) -> float:
+    """Angle (y up, degrees) of a unit direction in image coordinates."""
+    return math.degrees(math.atan2(-uy, ux))

@@ -1,0 +1,1 @@
+"""Perception tests: synthetic frames with known geometry, real frames, the detect CLI."""
