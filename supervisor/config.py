@@ -96,7 +96,7 @@ class SupervisorConfig(BaseModel):
         default=0.1, gt=0.0, description="step-to-step time above this -> LOOP_OVERRUN"
     )
     frame_late_s: float = Field(
-        default=0.1, gt=0.0, description="newest frame older than this -> FRAME_LATE (DEGRADED)"
+        default=0.08, gt=0.0, description="newest frame older than this -> FRAME_LATE (DEGRADED)"
     )
     frame_stale_s: float = Field(
         default=0.15, gt=0.0, description="newest frame older than this -> FRAME_STALE (HALT)"

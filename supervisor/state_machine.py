@@ -65,6 +65,17 @@ TRANSITIONS: tuple[dict[str, Any], ...] = (
 )  # fmt: skip
 
 
+def machine_arguments() -> dict[str, Any]:
+    """Keyword arguments of the transitions Machine, shared by the supervisor and its diagram."""
+    return {
+        "states": SupervisorState,
+        "transitions": [dict(row) for row in TRANSITIONS],
+        "initial": SupervisorState.HALT,
+        "auto_transitions": False,
+        "queued": True,
+    }
+
+
 @dataclass(frozen=True)
 class StepFacts:
     """What the machine needs to know about one step (built by the controller).
@@ -110,14 +121,7 @@ class SupervisorStateMachine:
         self.confident_streak = 0
         self.degraded_since_s: float | None = None
         self.degraded_travelled_m = 0.0
-        self._machine = Machine(
-            model=self,
-            states=SupervisorState,
-            transitions=[dict(row) for row in TRANSITIONS],
-            initial=SupervisorState.HALT,
-            auto_transitions=False,
-            queued=True,
-        )
+        self._machine = Machine(model=self, **machine_arguments())
 
     @property
     def engaged(self) -> bool:
@@ -154,12 +158,16 @@ class SupervisorStateMachine:
 
     # --- named conditions (called by transitions with the Tick) ---
     def must_halt(self, tick: Tick) -> bool:
+        """Some event this step has the HALT response."""
         return tick.worst is Response.HALT
 
     def must_degrade(self, tick: Tick) -> bool:
+        """The worst event this step has the DEGRADE response."""
         return tick.worst is Response.DEGRADE
 
     def may_engage(self, tick: Tick) -> bool:
+        """A start/resume made since the last halt, `engage_confident_frames` confident frames
+        in a row, nothing worse than WARN this step, and a filtered slope sum."""
         return (
             self.engage_armed
             and self.confident_streak >= self._config.engage_confident_frames
@@ -168,23 +176,28 @@ class SupervisorStateMachine:
         )
 
     def may_recover(self, tick: Tick) -> bool:
+        """`recover_confident_frames` confident frames in a row and nothing worse than WARN."""
         return self.confident_streak >= self._config.recover_confident_frames and (
             tick.worst is None or tick.worst < Response.DEGRADE
         )
 
     def bend_left_entered(self, tick: Tick) -> bool:
+        """Filtered slope sum >= turn_enter_slope_sum."""
         s = tick.facts.slope_sum
         return s is not None and s >= self._config.turn_enter_slope_sum
 
     def bend_right_entered(self, tick: Tick) -> bool:
+        """Filtered slope sum <= -turn_enter_slope_sum."""
         s = tick.facts.slope_sum
         return s is not None and s <= -self._config.turn_enter_slope_sum
 
     def bend_left_ended(self, tick: Tick) -> bool:
+        """Filtered slope sum < turn_exit_slope_sum."""
         s = tick.facts.slope_sum
         return s is None or s < self._config.turn_exit_slope_sum
 
     def bend_right_ended(self, tick: Tick) -> bool:
+        """Filtered slope sum > -turn_exit_slope_sum."""
         s = tick.facts.slope_sum
         return s is None or s > -self._config.turn_exit_slope_sum
 

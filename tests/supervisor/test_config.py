@@ -1,0 +1,63 @@
+"""The supervisor's config section: defaults are consistent, bad combinations are refused by key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from lanewarden.config import load_config
+from lanewarden.errors import ConfigError
+from supervisor.config import SupervisorConfig
+
+
+def test_defaults_are_valid_and_match_the_requirements() -> None:
+    c = SupervisorConfig()
+    assert c.turn_enter_slope_sum == 6.0 and c.turn_exit_slope_sum < 6.0
+    assert c.frame_stale_s + c.camera_period_s <= 0.2  # frames stop -> HALT within 200 ms
+    assert c.lane_lost_halt_s + c.camera_period_s <= 0.3  # lane leaves view -> HALT within 0.3 s
+    assert c.max_linear_accel_m_s2 == 0.3 and c.max_angular_accel_rad_s2 == 3.5
+    assert c.auto_resume_after_lane_loss is False
+
+
+def test_every_timing_and_threshold_has_its_unit_or_kind_in_its_name() -> None:
+    suffixes = ("_s", "_m", "_m_s", "_rad_s", "_m_s2", "_rad_s2", "_frames", "_count", "_per_s",
+                "_per_s2", "_std", "_sigma", "_fraction", "_slope_sum", "_min", "_below", "_floor",
+                "_threshold")  # fmt: skip
+    for name, field in SupervisorConfig.model_fields.items():
+        if field.annotation is bool:
+            continue
+        assert name.endswith(suffixes), name
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"turn_exit_slope_sum": 7.0}, "turn_exit_slope_sum"),
+        ({"confidence_usable_min": 0.9}, "confidence_usable_min"),
+        ({"frame_late_s": 0.3}, "frame_late_s"),
+        ({"base_feedback_late_s": 0.5}, "base_feedback_late_s"),
+        ({"follow_speed_m_s": 0.5}, "follow_speed_m_s"),
+        ({"degraded_max_angular_rad_s": 2.0}, "degraded_max_angular_rad_s"),
+        ({"loop_overrun_s": 0.01}, "loop_overrun_s"),
+    ],
+)
+def test_inconsistent_values_are_refused_naming_the_keys(
+    tmp_path: Path, overrides: dict[str, float], message: str
+) -> None:
+    path = tmp_path / "bad.yaml"
+    lines = "\n".join(f"  {k}: {v}" for k, v in overrides.items())
+    path.write_text(f"supervisor:\n{lines}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert message in str(err.value) and str(path) in str(err.value)
+
+
+def test_unknown_and_mistyped_keys_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("supervisor:\n  follow_speed: 0.2\n  frame_stale_s: soon\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    text = str(err.value)
+    assert "supervisor.follow_speed" in text and "supervisor.frame_stale_s = 'soon'" in text
+    assert len(text.splitlines()) == 2

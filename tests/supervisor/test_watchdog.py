@@ -1,0 +1,118 @@
+"""Watchdog: input ages, loop overruns, frozen and invalid frames, base link."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from actuation.base import BaseFeedback
+from supervisor.config import SupervisorConfig
+from supervisor.control_io import FrameInfo
+from supervisor.events import Event
+from supervisor.watchdog import Watchdog, frame_fingerprint
+
+CONFIG = SupervisorConfig()
+DT = 1.0 / 30.0
+
+
+def _frame(i: int, t: float, fp: bytes | None = None, new: bool = True) -> FrameInfo:
+    return FrameInfo(i, t, fp if fp is not None else i.to_bytes(4, "big"), new)
+
+
+def _alive(t: float) -> BaseFeedback:
+    return BaseFeedback(received_at_s=t)
+
+
+def test_fresh_inputs_raise_nothing() -> None:
+    wd = Watchdog(CONFIG)
+    for i in range(60):
+        t = i * DT
+        assert wd.check(t, _frame(i, t), _alive(t), moving=True) == frozenset()
+    assert wd.newest_frame_time_s == 59 * DT
+
+
+def test_frame_age_goes_late_then_stale() -> None:
+    wd = Watchdog(CONFIG)
+    wd.check(0.0, _frame(0, 0.0), _alive(0.0), moving=True)
+    seen = {}
+    for i in range(1, 10):
+        t = i * DT
+        seen[i] = wd.check(t, _frame(0, 0.0, new=False), _alive(t), moving=True)
+    late = [i for i, ev in seen.items() if Event.FRAME_LATE in ev]
+    stale = [i for i, ev in seen.items() if Event.FRAME_STALE in ev]
+    assert late and stale and max(late) < min(stale)
+    assert min(late) * DT > CONFIG.frame_late_s and (min(late) - 1) * DT <= CONFIG.frame_late_s
+    assert min(stale) * DT > CONFIG.frame_stale_s
+    assert (min(stale) - 1) * DT <= CONFIG.frame_stale_s
+
+
+def test_nothing_ever_arriving_is_stale_and_link_lost_after_the_limits() -> None:
+    wd = Watchdog(CONFIG)
+    assert wd.check(5.0, None, None, moving=False) == frozenset()
+    events = wd.check(5.0 + CONFIG.base_link_timeout_s + 0.01, None, None, moving=False)
+    assert {Event.FRAME_STALE, Event.BASE_LINK_LOST} <= events
+
+
+def test_loop_overrun() -> None:
+    wd = Watchdog(CONFIG)
+    wd.check(0.0, _frame(0, 0.0), _alive(0.0), moving=True)
+    t = CONFIG.loop_overrun_s + 0.01
+    assert wd.check(t, _frame(1, t), _alive(t), moving=True) == {Event.LOOP_OVERRUN}
+
+
+def test_frozen_only_while_moving_and_only_after_the_limit() -> None:
+    wd = Watchdog(CONFIG)
+    frozen_at = []
+    for i in range(30):
+        t = i * DT
+        moving = i >= 10
+        events = wd.check(t, _frame(i, t, fp=b"same"), _alive(t), moving=moving)
+        if Event.FRAME_FROZEN in events:
+            frozen_at.append(t)
+    assert frozen_at, "identical images while moving must be reported"
+    # the run of identical images seen while moving starts with the last frame before moving
+    assert frozen_at[0] - 9 * DT >= CONFIG.frame_frozen_s - 1e-9
+    assert frozen_at[0] - 9 * DT <= CONFIG.frame_frozen_s + DT + 1e-9
+
+
+def test_changing_images_reset_the_frozen_timer() -> None:
+    wd = Watchdog(CONFIG)
+    for i in range(60):
+        t = i * DT
+        fp = b"A" if (i // 3) % 2 else b"B"  # runs of 3 identical frames (0.1 s < limit)
+        assert Event.FRAME_FROZEN not in wd.check(t, _frame(i, t, fp=fp), _alive(t), True)
+
+
+def test_invalid_frames() -> None:
+    wd = Watchdog(CONFIG)
+    wd.check(1.0, _frame(10, 1.0), _alive(1.0), moving=True)
+    assert Event.FRAME_INVALID in wd.check(1.03, _frame(11, 1.5), _alive(1.03), True)  # future
+    assert Event.FRAME_INVALID in wd.check(1.06, _frame(9, 1.05), _alive(1.06), True)  # index back
+    assert Event.FRAME_INVALID in wd.check(1.1, _frame(12, 0.9), _alive(1.1), True)  # time back
+    assert Event.FRAME_INVALID in wd.check(1.13, _frame(13, float("nan")), _alive(1.13), True)
+    assert wd.check(1.16, _frame(14, 1.16), _alive(1.16), True) == frozenset()
+
+
+def test_base_feedback_late_then_link_lost() -> None:
+    wd = Watchdog(CONFIG)
+    seen = {}
+    for i in range(12):
+        t = i * DT
+        seen[t] = wd.check(t, _frame(i, t), _alive(0.0), moving=True)
+    late = [t for t, ev in seen.items() if ev == {Event.BASE_FEEDBACK_LATE}]
+    lost = [t for t, ev in seen.items() if ev == {Event.BASE_LINK_LOST}]
+    assert late and lost and max(late) < min(lost)
+    assert min(late) > CONFIG.base_feedback_late_s and min(lost) > CONFIG.base_link_timeout_s
+    assert min(lost) <= CONFIG.base_link_timeout_s + DT
+
+
+def test_fingerprint_tells_noise_apart_and_ignores_nothing_but_non_images() -> None:
+    rng = np.random.default_rng(3)
+    image = rng.integers(0, 256, size=(480, 640, 3), dtype=np.uint8)
+    same = image.copy()
+    noisy = image.copy()
+    noisy[100, 100, 0] ^= 1  # one sampled pixel differs by one grey level
+    assert frame_fingerprint(image) == frame_fingerprint(same)
+    assert frame_fingerprint(image) != frame_fingerprint(noisy)
+    assert frame_fingerprint(image) != frame_fingerprint(image[:, :, 0])
+    assert frame_fingerprint(np.zeros((0, 0), np.uint8)) is None
+    assert frame_fingerprint("not an image") is None
