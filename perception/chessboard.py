@@ -24,6 +24,9 @@ from perception.errors import PerceptionError
 
 FloatArray = NDArray[np.float64]
 
+#: More inner corners per side than any printable calibration board has.
+MAX_PATTERN_SIDE = 100
+
 _PATTERN_TEXT = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 #: findChessboardCorners' default flags; FAST_CHECK quickly gives up on frames without a board.
@@ -46,6 +49,11 @@ class ChessboardPattern:
             raise PerceptionError(
                 f"chessboard pattern {self.columns}x{self.rows}: "
                 "expected at least 3x3 inner corners (OpenCV's minimum)"
+            )
+        if self.columns > MAX_PATTERN_SIDE or self.rows > MAX_PATTERN_SIDE:
+            raise PerceptionError(
+                f"chessboard pattern {self.columns}x{self.rows}: expected at most "
+                f"{MAX_PATTERN_SIDE} inner corners per side"
             )
 
     @property
@@ -73,7 +81,7 @@ def parse_pattern(text: str) -> ChessboardPattern:
     match = _PATTERN_TEXT.match(text)
     if match is None:
         raise PerceptionError(
-            f"'{text}' is not COLSxROWS: expected the board's inner corners, e.g. 9x6"
+            f"{text!r} is not COLSxROWS: expected the board's inner corners, e.g. 9x6"
         )
     return ChessboardPattern(int(match.group(1)), int(match.group(2)))
 

@@ -156,9 +156,14 @@ class ChessboardRenderer:
         *,
         noise_sigma: float = 0.0,
         blur_sigma_px: float = 0.0,
+        noise_grain_px: float = 1.0,
         rng: np.random.Generator | None = None,
     ) -> NDArray[np.uint8]:
-        """A gray uint8 (H, W) image of the board at `pose`; optional Gaussian blur and noise."""
+        """A gray uint8 (H, W) image of the board at `pose`.
+
+        Optional lens blur (`blur_sigma_px`, Gaussian) and sensor noise (`noise_sigma` grey levels
+        per pixel, spatially correlated over `noise_grain_px` like a real camera's demosaiced and
+        compressed noise; 0 gives independent pixels)."""
         a, b, valid = self.board_coordinates(pose)
         grad_a = _gradient_norm(a)
         grad_b = _gradient_norm(b)
@@ -185,7 +190,10 @@ class ChessboardRenderer:
             image = np.asarray(cv2.GaussianBlur(image, (0, 0), blur_sigma_px), dtype=np.float64)
         if noise_sigma > 0:
             generator = rng if rng is not None else np.random.default_rng(0)
-            image = image + generator.normal(0.0, noise_sigma, image.shape)
+            noise = generator.normal(0.0, 1.0, image.shape)
+            if noise_grain_px > 0:
+                noise = np.asarray(cv2.GaussianBlur(noise, (0, 0), noise_grain_px))
+            image = image + noise * (noise_sigma / max(float(noise.std()), 1e-12))
         return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 

@@ -179,7 +179,7 @@ def _pattern_hint(paths: list[Path], views: list[ViewDetection],
 
 
 def _check_not_larger(
-    paths: list[Path], views: list[ViewDetection], pattern: ChessboardPattern, samples: int = 3
+    paths: list[Path], views: list[ViewDetection], pattern: ChessboardPattern, samples: int = 2
 ) -> None:
     """UsageError when the first few usable views show a board with more inner corners than
     --pattern (OpenCV finds a 8x6 grid inside a 9x6 board)."""
@@ -387,6 +387,7 @@ def run_capture(
     out_dir.mkdir(exist_ok=True)
     index = _next_index(out_dir)
     kept: list[BoardPlacement] = []
+    last_frame: np.ndarray | None = None
     outcome = {"frames": 0, "kept": 0, "no board": 0, "too similar": 0, "rejected": 0}
     progress = tqdm(total=count, desc="views kept", unit="view", file=sys.stderr,
                     disable=None, leave=False)
@@ -397,6 +398,7 @@ def run_capture(
             if not ok or frame is None:
                 break
             outcome["frames"] += 1
+            last_frame = frame
             decision = judge_frame(frame, pattern, kept, config, name=f"frame {outcome['frames']}")
             if not decision.keep or decision.placement is None:
                 key = "rejected" if decision.reason.startswith("rejected") else decision.reason
@@ -421,6 +423,13 @@ def run_capture(
     finally:
         progress.close()
         capture.release()
+    if not kept and last_frame is not None and outcome["no board"] == outcome["frames"]:
+        found = suggest_pattern(last_frame, pattern)
+        if found is not None:
+            raise UsageError(
+                f"--pattern {pattern}: no frame showed the whole board, but the camera shows a "
+                f"board with {found} inner corners; use --pattern {found}"
+            )
     return outcome
 
 
