@@ -12,6 +12,8 @@ import pytest
 
 from lanewarden.cli import main
 from perception.calibration import load_calibration
+from scenarios.camera import CameraModel
+from scenarios.chessboard import ChessboardRenderer
 from tests.calibration.conftest import SyntheticViews
 
 
@@ -175,3 +177,29 @@ def test_bad_config_key_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
                         "--out", str(tmp_path / "c.yaml"), "--config", str(config))
     assert code == 2
     assert "unknown key 'calibration.max_rms'" in _one_error_line(err)
+
+
+def test_outlier_view_flagged_then_dropped(
+    synthetic_views: SyntheticViews, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "shots"
+    _copy_views(synthetic_views, folder, 15)
+    # view_01 seen through a different lens: it cannot agree with the other fourteen.
+    odd_lens = ChessboardRenderer(CameraModel(dist_coeffs=(-0.3, 0.05, 0.0, 0.0, 0.0),
+                                              hfov_deg=60.0))
+    cv2.imwrite(str(folder / "view_01.png"), odd_lens.render(synthetic_views.poses[1]))
+    args = ["--images", str(folder / "*.png"), "--pattern", "9x6", "--square", "0.025",
+            "--out", str(tmp_path / "c.yaml")]
+    code, stdout, err = _run(capsys, *args)
+    assert code == 0, err
+    flagged = [line for line in stdout.splitlines() if "<- outlier" in line]
+    assert len(flagged) == 1 and "view_01.png" in flagged[0]
+    assert "--drop-outliers re-calibrates without them" in stdout
+    code, stdout, err = _run(capsys, *args, "--drop-outliers", "--json")
+    assert code == 0, err
+    result = json.loads(stdout.strip().splitlines()[-1])
+    assert result["views_used"] == 14
+    assert {"file": "view_01.png", "reason": "outlier, dropped by --drop-outliers"} in result[
+        "views_rejected"]
+    assert not any(item["outlier"] for item in result["per_view_error"])
+    assert result["rms"] < result["rms_before_drop"] / 2
