@@ -1,0 +1,59 @@
+"""The scenario library shipped with the package (`scenarios/library/*.yaml`), found by name.
+
+`resolve_scenario("lecture")` loads a library scenario; anything that looks like a path (has a
+suffix or a separator, or exists) is loaded as a file. An unknown name is a ScenarioError listing
+the available names. Reads package data only; never renders or runs anything.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from scenarios.errors import ScenarioError
+from scenarios.spec import ScenarioSpec, load_scenario_file, parse_scenario
+
+
+def _library_dir() -> Path:
+    return Path(str(resources.files("scenarios") / "library"))
+
+
+def library_names() -> list[str]:
+    """Names of the scenarios shipped with the package, sorted."""
+    return sorted(p.stem for p in _library_dir().glob("*.yaml"))
+
+
+def library_path(name: str) -> Path:
+    return _library_dir() / f"{name}.yaml"
+
+
+def _looks_like_path(text: str) -> bool:
+    return "/" in text or "\\" in text or text.endswith((".yaml", ".yml")) or Path(text).exists()
+
+
+def resolve_scenario(name_or_file: str) -> ScenarioSpec:
+    """A library scenario by name, or a scenario file by path."""
+    if _looks_like_path(name_or_file):
+        return load_scenario_file(name_or_file)
+    names = library_names()
+    if name_or_file not in names:
+        raise ScenarioError(
+            f"--scenario: unknown scenario '{name_or_file}' (expected a YAML file or one of: "
+            f"{', '.join(names)})"
+        )
+    path = library_path(name_or_file)
+    spec = load_scenario_file(path)
+    if spec.name != name_or_file:
+        raise ScenarioError(f"{path}: name = {spec.name!r}: expected {name_or_file!r}")
+    return spec
+
+
+def parse_scenario_text(text: str, source: str = "<scenario>") -> ScenarioSpec:
+    """Validate scenario YAML given as text (used by tests and tools)."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"{source}: not valid YAML: {exc}") from None
+    return parse_scenario(data, source)

@@ -1,0 +1,148 @@
+"""The synthetic camera: the painted floor as the robot's camera sees it at a given pose.
+
+Per frame: one `cv2.remap` of the ground texture through per-pixel floor coordinates. The floor
+point every (distorted) camera pixel looks at, in the robot frame, is fixed (the camera is rigid,
+`CameraModel.pixel_ground_points`) and computed once; a pose only moves those points by a 2-D rigid
+transform, which is two `cv2.addWeighted` calls into preallocated maps. So lens distortion costs
+nothing per frame and there is a single interpolation between texture and image. Then motion blur
+from the robot's velocity (a box blur along the image directions that motion smears: sideways for
+turning, vertically for driving forward) and seeded sensor noise (a bank of precomputed noise
+frames, one picked per frame by a seeded generator).
+
+Images are uint8, gray (H, W) or BGR (H, W, 3), in the camera's real (distorted) pixel grid, so the
+detector must undistort them with the camera's true calibration
+(`CameraCalibration(camera.camera_matrix(), camera.distortion(), (w, h))`).
+
+Never reads a clock, never touches the robot; allocations happen in __init__, not per frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from actuation.base import Pose2D
+from scenarios.camera import CameraModel
+from scenarios.texture import GroundTexture
+
+U8 = NDArray[np.uint8]
+F32 = NDArray[np.float32]
+
+#: Floor coordinate given to pixels that look above the horizon (maps outside any texture).
+_FAR_M = 1.0e5
+
+
+class CameraRenderer:
+    """Renders camera frames of one painted world for one camera.
+
+    - `noise_sigma`: sensor noise standard deviation, grey levels (0 disables).
+    - `exposure_s`: shutter time used for motion blur (0 disables).
+    - `seed`: seeds the noise bank and the per-frame choice from it.
+    - `distorted`: render the camera's real (distorted) pixel grid; False renders the ideal
+      pinhole image instead (what perception sees after undistortion: used for display only).
+    """
+
+    def __init__(
+        self,
+        texture: GroundTexture,
+        camera: CameraModel,
+        *,
+        noise_sigma: float = 2.0,
+        exposure_s: float = 0.01,
+        seed: int = 0,
+        noise_bank_frames: int = 12,
+        distorted: bool = True,
+    ) -> None:
+        self.texture = texture
+        self.camera = camera
+        self.exposure_s = exposure_s
+        w, h = camera.width_px, camera.height_px
+        self.size = (w, h)
+        gx, gy = camera.pixel_ground_points(distorted=distorted)
+        sky = ~(np.isfinite(gx) & np.isfinite(gy))
+        gx = np.where(sky, _FAR_M, gx)
+        gy = np.where(sky, _FAR_M, gy)
+        self._ground_x = np.ascontiguousarray(gx, dtype=np.float32)
+        self._ground_y = np.ascontiguousarray(gy, dtype=np.float32)
+        self._map_x = np.empty((h, w), np.float32)
+        self._map_y = np.empty((h, w), np.float32)
+        self._scratch_gray = np.empty((h, w), np.uint8)
+        self._scratch_bgr = np.empty((h, w, 3), np.uint8)
+        self._px_from_world = texture.px_from_world_matrix()
+        # Motion blur scale: image pixels per metre of forward motion near the image centre, and
+        # per radian of yaw (the focal length).
+        centre = np.array([[gx[h // 2, w // 2], 0.0], [gx[h // 2, w // 2] + 0.01, 0.0]])
+        if np.all(np.isfinite(centre)):
+            px = camera.project_ground(centre)
+            self._px_per_m_forward = float(abs(px[0, 1] - px[1, 1]) / 0.01)
+        else:
+            self._px_per_m_forward = 0.0
+        self._px_per_rad = camera.focal_px
+        rng = np.random.default_rng([seed, 0x401E])
+        self._noise_rng = np.random.default_rng([seed, 0xF4A3E])
+        self._noise: list[tuple[U8, U8, U8, U8]] = []
+        if noise_sigma > 0:
+            for _ in range(max(1, noise_bank_frames)):
+                n = np.rint(rng.normal(0.0, noise_sigma, (h, w))).astype(np.int16)
+                pos = np.clip(n, 0, 255).astype(np.uint8)
+                neg = np.clip(-n, 0, 255).astype(np.uint8)
+                pos3 = np.ascontiguousarray(np.repeat(pos[:, :, None], 3, axis=2))
+                neg3 = np.ascontiguousarray(np.repeat(neg[:, :, None], 3, axis=2))
+                self._noise.append((pos, neg, pos3, neg3))
+
+    def _maps(self, pose: Pose2D) -> None:
+        c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+        world_from_robot = np.array([[c, -s, pose.x_m], [s, c, pose.y_m], [0.0, 0.0, 1.0]])
+        a = self._px_from_world @ world_from_robot
+        cv2.addWeighted(self._ground_x, a[0, 0], self._ground_y, a[0, 1], a[0, 2], dst=self._map_x)
+        cv2.addWeighted(self._ground_x, a[1, 0], self._ground_y, a[1, 1], a[1, 2], dst=self._map_y)
+
+    def _blur_kernel(self, linear_m_s: float, angular_rad_s: float) -> tuple[int, int] | None:
+        if self.exposure_s <= 0:
+            return None
+        kx = int(round(abs(angular_rad_s) * self.exposure_s * self._px_per_rad)) + 1
+        ky = int(round(abs(linear_m_s) * self.exposure_s * self._px_per_m_forward)) + 1
+        if kx <= 1 and ky <= 1:
+            return None
+        return (kx, ky)
+
+    def _finish(self, image: U8, scratch: U8, velocity: tuple[float, float],
+                noise_index: int | None, channels: int) -> None:
+        kernel = self._blur_kernel(*velocity)
+        if kernel is not None:
+            cv2.blur(image, kernel, dst=scratch)
+            np.copyto(image, scratch)
+        if noise_index is not None:
+            pos, neg, pos3, neg3 = self._noise[noise_index]
+            cv2.add(image, pos if channels == 1 else pos3, dst=image)
+            cv2.subtract(image, neg if channels == 1 else neg3, dst=image)
+
+    def next_noise_index(self) -> int | None:
+        """Draw which noise frame the next capture uses (None without noise)."""
+        if not self._noise:
+            return None
+        return int(self._noise_rng.integers(0, len(self._noise)))
+
+    def render_gray(self, pose: Pose2D, out: U8, velocity: tuple[float, float] = (0.0, 0.0),
+                    noise_index: int | None = None) -> U8:
+        """The gray frame at `pose` into `out` (H, W) uint8; `velocity` = (m/s, rad/s)."""
+        self._maps(pose)
+        cv2.remap(self.texture.gray, self._map_x, self._map_y, cv2.INTER_LINEAR, dst=out,
+                  borderMode=cv2.BORDER_CONSTANT, borderValue=self.texture.fill_gray)
+        self._finish(out, self._scratch_gray, velocity, noise_index, 1)
+        return out
+
+    def render_bgr(self, pose: Pose2D, out: U8, velocity: tuple[float, float] = (0.0, 0.0),
+                   noise_index: int | None = None) -> U8:
+        """The colour frame at `pose` into `out` (H, W, 3) uint8 (needs a colour texture)."""
+        if self.texture.bgr is None:
+            raise ValueError("render_bgr needs a texture painted with color=True")
+        self._maps(pose)
+        fill = self.texture.fill_bgr
+        cv2.remap(self.texture.bgr, self._map_x, self._map_y, cv2.INTER_LINEAR, dst=out,
+                  borderMode=cv2.BORDER_CONSTANT, borderValue=(fill[0], fill[1], fill[2], 0))
+        self._finish(out, self._scratch_bgr, velocity, noise_index, 3)
+        return out

@@ -1,0 +1,104 @@
+"""The simulated camera as the control loop sees it: a `FrameSource` fed by the renderer, faults.
+
+The simulator captures one rendered frame per camera tick (`capture`); `read(now)` returns the
+newest frame captured at or before `now` (the same `Frame` again until a newer one exists), as a
+real camera driver does. Camera faults change what `read` delivers:
+
+- drop: captures stop arriving, so the newest frame ages (the loop sees a stale frame);
+- freeze: the driver keeps delivering the image it had when the freeze began, with fresh indices
+  and timestamps (only the pixels say it is stuck);
+- latency: frames arrive `latency_s` after their capture time;
+- corrupt: frames arrive as unusable (empty) images, so the real detector raises;
+- failing: reading raises `SimulatedCameraError` (a driver error);
+- future_s: frames carry a capture time this far after `now` (a broken clock in the driver).
+
+Image buffers come from a fixed pool owned here (no per-frame allocation); a `Frame` stays valid
+for `pool_size - 1` further captures. Never reads a clock: time is the `now` passed in.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scenarios.errors import ScenarioError
+from supervisor.loop import Frame
+
+U8 = NDArray[np.uint8]
+
+_EMPTY = np.zeros((0, 0), np.uint8)
+
+
+class SimulatedCameraError(ScenarioError):
+    """What the simulated camera raises while a `camera_error` fault is active."""
+
+
+class SimCamera:
+    """FrameSource over rendered frames. `shape`: (H, W) or (H, W, 3) of the captured images."""
+
+    def __init__(self, shape: tuple[int, ...], pool_size: int = 8) -> None:
+        self._pool = [np.zeros(shape, np.uint8) for _ in range(max(3, pool_size))]
+        self._next = 0
+        self._captured: deque[Frame] = deque(maxlen=len(self._pool) - 1)
+        self._delivered: Frame | None = None
+        self.dropping = False
+        self.latency_s = 0.0
+        self.corrupt = False
+        self.failing = False
+        self.future_s = 0.0
+        self._frozen_image: U8 | None = None
+
+    @property
+    def frozen(self) -> bool:
+        return self._frozen_image is not None
+
+    @property
+    def pool_size(self) -> int:
+        return len(self._pool)
+
+    def buffer(self) -> U8:
+        """The buffer the next capture must be rendered into."""
+        return self._pool[self._next]
+
+    def capture(self, index: int, time_s: float) -> Frame:
+        """Record that `buffer()` now holds the frame `index` captured at `time_s`."""
+        image = self._pool[self._next]
+        self._next = (self._next + 1) % len(self._pool)
+        frame = Frame(image=image, index=index, time_s=time_s)
+        if not self.dropping:
+            self._captured.append(frame)
+        return frame
+
+    def freeze(self, on: bool) -> None:
+        """Start (copying the image delivered last) or end a freeze."""
+        if on:
+            source = self._delivered.image if self._delivered is not None else None
+            if source is None and self._captured:
+                source = self._captured[-1].image
+            self._frozen_image = None if source is None else source.copy()
+        else:
+            self._frozen_image = None
+
+    def read(self, now: float) -> Frame | None:
+        if self.failing:
+            raise SimulatedCameraError("simulated camera: read failed (injected camera_error)")
+        newest = None
+        for frame in reversed(self._captured):
+            if frame.time_s <= now - self.latency_s + 1e-9:
+                newest = frame
+                break
+        if newest is None:
+            return self._delivered
+        if self._delivered is not None and newest.index == self._delivered.index:
+            return self._delivered
+        if self._frozen_image is not None:
+            newest = Frame(image=self._frozen_image, index=newest.index, time_s=newest.time_s)
+        elif self.corrupt:
+            newest = Frame(image=_EMPTY, index=newest.index, time_s=newest.time_s)
+        if self.future_s > 0:
+            newest = Frame(image=newest.image, index=newest.index,
+                           time_s=newest.time_s + self.future_s)
+        self._delivered = newest
+        return newest

@@ -1,0 +1,331 @@
+"""The scenario file format: what a scenario YAML may say, validated, with every default here.
+
+A scenario is data: the floor, the tapes and the lane they mark (built from straight segments and
+arcs), gaps, dashes and tape ends, the lighting, where the robot starts, when the run stops, the
+faults to inject, optional config overrides, and the expected outcome per controller.
+
+Units are in the names (`_m`, `_deg`, `_s`). Lane positions (`at_m`, `from_m`, ...) are arc lengths
+along the lane's centre line from its start. Angles: `turn_deg` > 0 turns left (counter-clockwise),
+< 0 turns right. Colours are "#rrggbb".
+
+This module only declares and validates; it never renders, never reads a clock and never builds
+the closed loop. Bad files become ScenarioError with one line per bad key, naming the file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from scenarios.errors import ScenarioError
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
+
+Color = Annotated[str, Field(pattern=r"^#[0-9a-fA-F]{6}$")]
+TapeSide = Literal["left", "right", "both"]
+
+#: Every fault a scenario can inject (see `scenarios.faults` for what each does).
+FaultKind = Literal[
+    "camera_freeze",
+    "camera_drop",
+    "camera_error",
+    "late_frames",
+    "frame_from_future",
+    "perception_exception",
+    "loop_stall",
+    "bumper",
+    "cliff",
+    "wheel_drop",
+    "base_link_loss",
+    "operator_stop",
+]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def color_bgr(color: str) -> tuple[int, int, int]:
+    """"#rrggbb" -> (b, g, r), OpenCV's channel order."""
+    value = int(color[1:], 16)
+    return (value & 0xFF, (value >> 8) & 0xFF, (value >> 16) & 0xFF)
+
+
+class FloorSpec(_Model):
+    """The floor. `tiles`: square tiles with grout seams (the lecture's floor); `plain`: one colour
+    with faint blotches; `wood`: planks with grain along x; `noisy`: strong speckle.
+
+    `variation` is the spread of brightness between tiles/planks (fraction), `grain` the fine
+    texture amplitude (fraction), `grid_angle_deg` rotates the tile grid against the world axes.
+    """
+
+    kind: Literal["tiles", "plain", "wood", "noisy"] = "tiles"
+    color: Color = "#c9c5bd"
+    seam_color: Color = "#8c877e"
+    tile_m: Annotated[float, Field(gt=0.05, le=2.0)] = 0.30
+    seam_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.004
+    grid_angle_deg: float = 0.0
+    grid_offset_m: tuple[float, float] = (0.0, 0.0)
+    variation: Annotated[float, Field(ge=0.0, le=0.5)] = 0.04
+    grain: Annotated[float, Field(ge=0.0, le=0.5)] = 0.03
+
+
+class TapeSpec(_Model):
+    """The tape both lane edges are made of (the lecture's: dark tape, 48 mm wide)."""
+
+    width_m: Annotated[float, Field(gt=0.005, le=0.2)] = 0.048
+    color: Color = "#26262a"
+
+
+class PoseSpec(_Model):
+    x_m: float = 0.0
+    y_m: float = 0.0
+    heading_deg: float = 0.0
+
+
+class SegmentSpec(_Model):
+    """One piece of the lane's centre line: either `straight_m`, or `arc_radius_m` + `turn_deg`.
+
+    `mark` names the gate at the END of this segment (e.g. A after the right turn); a run that
+    crosses the gate between the tapes has completed that turn (`turns_completed`).
+    """
+
+    straight_m: Annotated[float | None, Field(gt=0.0)] = None
+    arc_radius_m: Annotated[float | None, Field(gt=0.0)] = None
+    turn_deg: Annotated[float | None, Field(ge=-360.0, le=360.0)] = None
+    mark: str | None = None
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> SegmentSpec:
+        is_straight = self.straight_m is not None
+        is_arc = self.arc_radius_m is not None or self.turn_deg is not None
+        if is_straight == is_arc:
+            raise ValueError("expected either straight_m, or arc_radius_m with turn_deg")
+        if is_arc and (self.arc_radius_m is None or self.turn_deg in (None, 0.0)):
+            raise ValueError("an arc needs both arc_radius_m > 0 and a non-zero turn_deg")
+        return self
+
+
+class GapSpec(_Model):
+    """A stretch where one tape (or both) is missing: [from_m, to_m) along the centre line."""
+
+    tape: TapeSide
+    from_m: Annotated[float, Field(ge=0.0)]
+    to_m: Annotated[float, Field(gt=0.0)]
+
+    @model_validator(mode="after")
+    def _ordered(self) -> GapSpec:
+        if self.to_m <= self.from_m:
+            raise ValueError(f"to_m ({self.to_m}) must be greater than from_m ({self.from_m})")
+        return self
+
+
+class DashSpec(_Model):
+    """Dashed tape: `on_m` of tape, `off_m` of gap, repeated from `from_m` (to `to_m` or the
+    end)."""
+
+    tape: TapeSide = "both"
+    on_m: Annotated[float, Field(gt=0.0)]
+    off_m: Annotated[float, Field(gt=0.0)]
+    from_m: Annotated[float, Field(ge=0.0)] = 0.0
+    to_m: Annotated[float | None, Field(gt=0.0)] = None
+
+
+class EndsSpec(_Model):
+    """Where each tape ends along the centre line; None: it runs to the end of the segments.
+
+    The path may continue past the tape ends (unmarked floor): it gives the lane's final direction
+    and keeps that floor inside the rendered world.
+    """
+
+    left_m: Annotated[float | None, Field(gt=0.0)] = None
+    right_m: Annotated[float | None, Field(gt=0.0)] = None
+
+
+class LaneSpec(_Model):
+    width_m: Annotated[float, Field(gt=0.1, le=3.0)] = 0.60
+    start: PoseSpec = PoseSpec()
+    segments: Annotated[list[SegmentSpec], Field(min_length=1)]
+    gaps: list[GapSpec] = []
+    dashes: DashSpec | None = None
+    ends: EndsSpec = EndsSpec()
+
+
+class GradientSpec(_Model):
+    """Illumination changing linearly across the floor: +`per_m` (fraction) per metre along
+    `direction_deg`, measured from the lane start."""
+
+    per_m: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.0
+    direction_deg: float = 0.0
+
+
+class GlareSpec(_Model):
+    """A bright reflection on the floor (a ceiling light): centred `at_m` along the lane,
+    `offset_m` to its left, Gaussian with `radius_m` (1 sigma), pushing up to `strength` of
+    full white."""
+
+    at_m: Annotated[float, Field(ge=0.0)]
+    offset_m: float = 0.0
+    radius_m: Annotated[float, Field(gt=0.0, le=3.0)] = 0.25
+    strength: Annotated[float, Field(gt=0.0, le=1.5)] = 0.8
+
+
+class LightingSpec(_Model):
+    brightness: Annotated[float, Field(gt=0.05, le=2.0)] = 1.0
+    gradient: GradientSpec = GradientSpec()
+    glare: list[GlareSpec] = []
+
+
+class RobotSpec(_Model):
+    """Where the robot starts, relative to the lane start: `offset_m` to the left of the centre
+    line, heading `heading_deg` from the lane's start direction."""
+
+    offset_m: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.0
+    heading_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = 0.0
+
+
+class RunSpec(_Model):
+    """When a run ends: `max_time_s` of simulated time; `halt_settle_s` after the first HALT
+    (time for the base to come to rest); once the robot is `stop_past_lane_end_m` past the end
+    of the markings; or when it leaves the rendered world."""
+
+    max_time_s: Annotated[float, Field(gt=0.0, le=600.0)] = 90.0
+    halt_settle_s: Annotated[float, Field(ge=0.0, le=30.0)] = 1.5
+    stop_past_lane_end_m: Annotated[float, Field(gt=0.0)] = 2.0
+
+
+class FaultSpec(_Model):
+    """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run).
+
+    - camera_freeze: the camera keeps delivering the same image (with fresh indices and times).
+    - camera_drop: no new frames at all (the newest one ages).
+    - camera_error: reading the camera raises an error.
+    - late_frames: frames arrive `latency_s` after capture.
+    - frame_from_future: frames carry a capture time `latency_s` AFTER the loop's now.
+    - perception_exception: the camera delivers unusable (empty) images; the detector raises.
+    - loop_stall: the control process hangs: no control step at all (the base keeps its last
+      command), then steps resume.
+    - bumper / cliff / wheel_drop: the base reports these bits (`bits`, Kobuki layout).
+    - base_link_loss: the base's feedback stops arriving.
+    - operator_stop: the operator presses stop (instantaneous).
+    """
+
+    kind: FaultKind
+    at_s: Annotated[float, Field(ge=0.0)]
+    duration_s: Annotated[float | None, Field(gt=0.0)] = None
+    latency_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.5
+    bits: Annotated[int, Field(ge=1, le=7)] = 2
+
+
+class Expectation(_Model):
+    """The outcome a controller must reach on this scenario (None / empty: not checked)."""
+
+    halted: bool | None = None
+    #: the halt reason must contain one of these (e.g. LANE_LOST)
+    halt_reason_any_of: list[str] = []
+    turns_completed: list[str] | None = None
+    max_cross_track_error_m: Annotated[float | None, Field(gt=0.0)] = None
+    max_distance_past_lane_end_m: float | None = None
+    min_distance_past_lane_end_m: float | None = None
+    crossed_tape: bool | None = None
+    min_distance_travelled_m: Annotated[float | None, Field(ge=0.0)] = None
+    max_lane_loss_to_halt_s: float | None = None
+    states_visited_include: list[str] = []
+    states_visited_exclude: list[str] = []
+    events_include: list[str] = []
+    halted_before_s: Annotated[float | None, Field(gt=0.0)] = None
+
+
+class ExpectSpec(_Model):
+    supervised: Expectation | None = None
+    lecture: Expectation | None = None
+
+
+class ScenarioSpec(_Model):
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")]
+    description: str = ""
+    floor: FloorSpec = FloorSpec()
+    tape: TapeSpec = TapeSpec()
+    lane: LaneSpec
+    lighting: LightingSpec = LightingSpec()
+    robot: RobotSpec = RobotSpec()
+    run: RunSpec = RunSpec()
+    faults: list[FaultSpec] = []
+    config: dict[str, Any] = {}
+    expect: ExpectSpec = ExpectSpec()
+
+
+def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) -> ModelT:
+    """`config` (a pydantic model) with a scenario's `config:` block merged over it, validated
+    again; a bad key is a ScenarioError naming the file and `config.<key>`."""
+    if not overrides:
+        return config
+
+    def merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+        out = dict(base)
+        for key, value in extra.items():
+            if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+                out[key] = merge(out[key], value)
+            else:
+                out[key] = value
+        return out
+
+    merged = merge(config.model_dump(), overrides)
+    try:
+        return type(config).model_validate(merged)
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            located = dict(err)
+            located["loc"] = ("config", *err["loc"])
+            lines.append(_describe(source, located))
+        raise ScenarioError("\n".join(lines)) from None
+
+
+def _describe(source: str, err: Any) -> str:
+    key = ".".join(str(part) for part in err["loc"]) or "(top level)"
+    if err["type"] == "extra_forbidden":
+        return f"{source}: unknown key '{key}'"
+    value = err.get("input")
+    shown = "a mapping" if isinstance(value, dict) else repr(value)
+    message = str(err["msg"])
+    if message.startswith("Value error, "):
+        message = message[len("Value error, "):]
+    return f"{source}: {key} = {shown}: {message[:1].lower()}{message[1:]}"
+
+
+def parse_scenario(data: Any, source: str) -> ScenarioSpec:
+    """Validate a parsed YAML mapping; each problem is one line of the ScenarioError."""
+    if not isinstance(data, dict):
+        raise ScenarioError(
+            f"{source}: expected a YAML mapping at the top level, got {type(data).__name__}"
+        )
+    try:
+        return ScenarioSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError("\n".join(_describe(source, e) for e in exc.errors())) from None
+
+
+def load_scenario_file(path: str | Path) -> ScenarioSpec:
+    """Read and validate one scenario YAML file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: scenario file not found") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{path}: is a directory, expected a scenario YAML file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read scenario file ({exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or "invalid YAML"
+        raise ScenarioError(f"{path}: not valid YAML{where}: {problem}") from None
+    return parse_scenario(data, str(path))

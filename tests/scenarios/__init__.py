@@ -1,0 +1,1 @@
+"""Tests of the simulator: world, renderer, metrics, scenario files, closed loop, CLI."""

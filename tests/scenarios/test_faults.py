@@ -1,0 +1,117 @@
+"""The simulated camera's fault modes and the fault schedule acting on real parts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from actuation.sim_base import SimBase
+from scenarios.faults import FaultSchedule, camera_pool_size
+from scenarios.sim_camera import SimCamera, SimulatedCameraError
+from scenarios.spec import FaultSpec
+
+DT = 1 / 30
+
+
+def capture(camera: SimCamera, k: int) -> None:
+    camera.buffer()[:] = k % 256
+    camera.capture(k, k * DT)
+
+
+def test_newest_frame_is_repeated_until_a_newer_one_exists() -> None:
+    camera = SimCamera((4, 4), pool_size=4)
+    assert camera.read(0.0) is None
+    capture(camera, 0)
+    first = camera.read(0.0)
+    assert first is not None and first.index == 0
+    assert camera.read(0.01) is first
+    capture(camera, 1)
+    second = camera.read(DT)
+    assert second is not None and second.index == 1 and int(second.image[0, 0]) == 1
+
+
+def test_drop_latency_freeze_corrupt_error_and_future() -> None:
+    camera = SimCamera((4, 4), pool_size=8)
+    for k in range(3):
+        capture(camera, k)
+    camera.dropping = True
+    capture(camera, 3)
+    frame = camera.read(3 * DT)
+    assert frame is not None and frame.index == 2  # frame 3 never arrived
+    camera.dropping = False
+
+    camera.latency_s = 0.1
+    for k in range(4, 8):
+        capture(camera, k)
+    late = camera.read(7 * DT)
+    assert late is not None and late.time_s <= 7 * DT - 0.1 + 1e-9 and late.index == 4
+    camera.latency_s = 0.0
+
+    newest = camera.read(7 * DT)
+    assert newest is not None and newest.index == 7
+    camera.freeze(True)
+    for k in range(8, 11):
+        capture(camera, k)
+    frozen = camera.read(10 * DT)
+    assert frozen is not None and frozen.index == 10 and frozen.time_s == pytest.approx(10 * DT)
+    assert np.all(frozen.image == 7)  # the image it had when the freeze began
+    camera.freeze(False)
+
+    camera.corrupt = True
+    capture(camera, 11)
+    broken = camera.read(11 * DT)
+    assert broken is not None and broken.image.size == 0
+    camera.corrupt = False
+
+    camera.future_s = 0.5
+    capture(camera, 12)
+    ahead = camera.read(12 * DT)
+    assert ahead is not None and ahead.time_s == pytest.approx(12 * DT + 0.5)
+    camera.future_s = 0.0
+
+    camera.failing = True
+    with pytest.raises(SimulatedCameraError):
+        camera.read(12 * DT)
+
+
+class StopButton:
+    """The loop's operator_stop, as the schedule calls it (records the time)."""
+
+    def __init__(self) -> None:
+        self.pressed_at: list[float] = []
+
+    def operator_stop(self, now: float) -> None:
+        self.pressed_at.append(now)
+
+
+def test_schedule_starts_and_ends_faults_on_the_simulated_clock() -> None:
+    faults = [
+        FaultSpec(kind="bumper", at_s=0.1, duration_s=0.1, bits=4),
+        FaultSpec(kind="base_link_loss", at_s=0.3),
+        FaultSpec(kind="operator_stop", at_s=0.35),
+        FaultSpec(kind="late_frames", at_s=0.0, duration_s=0.05, latency_s=0.2),
+        FaultSpec(kind="loop_stall", at_s=0.4, duration_s=0.1),
+    ]
+    schedule = FaultSchedule(faults)
+    camera = SimCamera((2, 2), camera_pool_size(faults, 30.0))
+    assert camera.pool_size >= 0.2 * 30
+    base = SimBase()
+    button = StopButton()
+    seen: dict[float, list[str]] = {}
+    for k in range(20):
+        now = k * 0.05
+        changed = schedule.apply(now, camera, base, button)
+        if changed:
+            seen[round(now, 2)] = changed
+        fb = base.feedback(now)
+        if now < 0.1 - 1e-9 or now >= 0.2 - 1e-9:
+            assert fb.bumper == 0
+        else:
+            assert fb.bumper == 4
+        if now >= 0.3 - 1e-9:
+            assert fb.received_at_s is not None and fb.received_at_s < 0.3 - 1e-9
+        assert camera.latency_s == (0.2 if now < 0.05 - 1e-9 else 0.0)
+        assert schedule.loop_stalled == (0.4 - 1e-9 <= now < 0.5 - 1e-9)
+    assert button.pressed_at == [pytest.approx(0.35)]
+    assert seen[0.1] == ["bumper begins"] and seen[0.2] == ["bumper ends"]
+    assert seen[0.3] == ["base_link_loss begins"]

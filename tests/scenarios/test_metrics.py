@@ -1,0 +1,127 @@
+"""Ground-truth metrics on hand-made trajectories (no perception, no supervisor)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from actuation.base import Pose2D
+from scenarios.camera import CameraModel
+from scenarios.metrics import (
+    RunTrace,
+    TapeVisibility,
+    compute_metrics,
+    first_halt_index,
+    points_in_polygon,
+    turns_completed,
+)
+from scenarios.world import build_world
+from tests.scenarios.helpers import spec_from, straight_spec
+
+#: A triangle like the lecture's ROI, in undistorted pixels of a 640x480 image.
+ROI = np.array([[-384.0, 480.0], [1024.0, 480.0], [320.0, 0.0]])
+
+
+def trace_along(xs: np.ndarray, ys: np.ndarray, states: list[str], dt: float = 1 / 30,
+                reasons: list[str | None] | None = None) -> RunTrace:
+    thetas = np.arctan2(np.gradient(ys), np.gradient(xs)) if len(xs) > 1 else np.zeros(len(xs))
+    n = len(xs)
+    return RunTrace(
+        time_s=np.arange(n) * dt, poses=np.column_stack([xs, ys, thetas]), states=states,
+        halt_reasons=reasons or [None] * n, events=[()] * n, speed_m_s=np.full(n, 0.2))
+
+
+def test_points_in_polygon_and_first_halt() -> None:
+    square = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
+    inside = points_in_polygon(np.array([[1, 1], [3, 1], [-0.1, 0.5], [1.9, 1.9]]), square)
+    assert inside.tolist() == [True, False, False, True]
+    assert first_halt_index(["HALT", "HALT", "FOLLOW", "DEGRADED", "HALT", "HALT"]) == 4
+    assert first_halt_index(["HALT", "FOLLOW", "FOLLOW"]) is None
+    assert first_halt_index(["HALT", "HALT"]) == 0  # never engaged counts as halted
+
+
+def test_straight_run_that_stops_just_past_the_lane_end() -> None:
+    world = build_world(straight_spec(5.0, ends={"left_m": 3.0, "right_m": 3.2}))
+    n = 101
+    xs = np.linspace(0.0, 3.05, n)
+    ys = np.full(n, 0.02)
+    states = ["HALT"] * 5 + ["FOLLOW"] * 90 + ["HALT"] * 6
+    reasons: list[str | None] = [None] * 95 + ["LANE_LOST: gone"] * 6
+    visible = xs < 2.9
+    m = compute_metrics(world, trace_along(xs, ys, states, reasons=reasons), visible, 2.9)
+    assert m["halted"] is True and m["halt_reason"] == "LANE_LOST: gone"
+    assert m["halt_time_s"] == pytest.approx(95 / 30, abs=1e-3)
+    assert m["max_cross_track_error_m"] == pytest.approx(0.02, abs=1e-6)
+    assert m["mean_cross_track_error_m"] == pytest.approx(0.02, abs=1e-6)
+    assert m["distance_past_lane_end_m"] == pytest.approx(0.05, abs=1e-6)
+    assert m["distance_travelled_m"] == pytest.approx(3.05, abs=1e-6)
+    assert m["crossed_tape"] is False
+    assert m["states_visited"] == ["HALT", "FOLLOW"]
+    first_lost = int(np.argmax(~visible))
+    assert m["lane_loss_to_halt_s"] == pytest.approx((95 - first_lost) / 30, abs=1e-3)
+    assert m["lane_loss_estimated"] is False
+
+
+def test_stopping_before_the_end_is_negative_and_halting_early_extrapolates() -> None:
+    world = build_world(straight_spec(5.0, ends={"left_m": 3.0, "right_m": 3.0}))
+    xs = np.linspace(0.0, 2.5, 60)
+    states = ["FOLLOW"] * 50 + ["HALT"] * 10
+    m = compute_metrics(world, trace_along(xs, np.zeros(60), states), np.ones(60, bool), 2.8)
+    assert m["distance_past_lane_end_m"] == pytest.approx(-0.5, abs=1e-6)
+    # Halted at x = 50/59 * 2.5 with tape still in view; at 0.2 m/s it would have lost the tape
+    # (at 2.8 m) this much later:
+    x_halt = 2.5 * 50 / 59
+    assert m["lane_loss_estimated"] is True
+    assert m["lane_loss_to_halt_s"] == pytest.approx(-(2.8 - x_halt) / 0.2, abs=1e-3)
+
+
+def test_no_lane_end_means_nulls() -> None:
+    world = build_world(straight_spec(5.0))
+    m = compute_metrics(world, trace_along(np.linspace(0, 2, 30), np.zeros(30), ["FOLLOW"] * 30),
+                        None, None)
+    assert m["distance_past_lane_end_m"] is None and m["lane_loss_to_halt_s"] is None
+    assert m["halted"] is False and m["halt_reason"] is None
+
+
+def test_footprint_crossing_a_tape() -> None:
+    world = build_world(straight_spec(4.0))
+    xs = np.linspace(0, 3, 50)
+    # Clearance is 0.30 - 0.024 - 0.175 = 0.101 m from the centre line.
+    ok = compute_metrics(world, trace_along(xs, np.full(50, 0.095), ["FOLLOW"] * 50), None, None)
+    bad = compute_metrics(world, trace_along(xs, np.full(50, 0.11), ["FOLLOW"] * 50), None, None)
+    assert ok["crossed_tape"] is False and bad["crossed_tape"] is True
+    assert ok["min_tape_clearance_m"] == pytest.approx(0.006, abs=1e-6)
+
+
+def test_turn_gates_count_only_inside_the_lane() -> None:
+    spec = spec_from({"lane": {"segments": [
+        {"straight_m": 1.0}, {"arc_radius_m": 1.0, "turn_deg": -90, "mark": "A"},
+        {"straight_m": 1.0}, {"arc_radius_m": 1.0, "turn_deg": 90, "mark": "B"},
+        {"straight_m": 1.0}]}})
+    world = build_world(spec)
+    pts = world.centreline.points[::10]
+    poses = np.column_stack([pts, np.zeros(len(pts))])
+    assert turns_completed(world, poses) == ["A", "B"]
+    # Cutting the corner outside the tapes misses gate A (and everything after).
+    a_left, _ = world.gate("A")
+    shortcut = np.array([[0.0, 0.0, 0.0], [a_left[0] + 0.5, a_left[1] - 0.5, 0.0],
+                         [a_left[0] + 0.5, a_left[1] - 5.0, 0.0]])
+    assert turns_completed(world, shortcut) == []
+
+
+def test_tape_visibility_through_the_camera_and_roi() -> None:
+    world = build_world(straight_spec(6.0, ends={"left_m": 3.0, "right_m": 3.25}))
+    vis = TapeVisibility(world, CameraModel(), ROI)
+    assert vis.visible(Pose2D(0.0, 0.0, 0.0))
+    assert not vis.visible(Pose2D(3.3, 0.0, 0.0))  # past both tape ends
+    assert not vis.visible(Pose2D(-0.3, 0.0, math.pi))  # before the start, facing away
+    loss = vis.loss_arc_length(world)
+    assert loss is not None
+    # The ROI's near edge is about 0.36 m ahead of the robot (bottom of the image) and the tapes
+    # enter the image a little further out, so a centred robot loses the later tape end
+    # (3.25 m) from its ROI somewhat before reaching it.
+    assert 2.6 < loss < 3.25
+    point = world.centreline.at(loss - 0.02)[0]
+    assert vis.visible(Pose2D(float(point[0]), float(point[1]), 0.0))
