@@ -307,8 +307,11 @@ def calibrate_group(
 ) -> None:
     """Calibrate the camera from chessboard photos; `calibrate capture` takes the photos.
 
-    Example: lanewarden calibrate --images 'shots/*.jpg' --pattern 9x6 --square 0.025
-    --out camera.yaml
+    Exit code 2 when a quality gate fails (nothing is written then).
+
+    \b
+    Example:
+      lanewarden calibrate --images 'shots/*.jpg' --pattern 9x6 --square 0.025 --out camera.yaml
     """
     if ctx.invoked_subcommand is not None:
         given = [flag for flag, value in (("--images", images), ("--square", square_m),
@@ -454,7 +457,9 @@ def capture_command(
 ) -> None:
     """Grab frames and keep those whose whole board adds coverage (position, size, tilt).
 
-    Example: lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/
+    \b
+    Example:
+      lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/
     """
     config = load_config(config_path).calibration
     outcome = run_capture(camera, pattern, Path(out_dir), count, max_frames, config)

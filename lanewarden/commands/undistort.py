@@ -34,7 +34,9 @@ def _write(path: Path, image: object) -> None:
 def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str) -> None:
     """Undistort IMAGE... and write before/after pictures with straight reference lines.
 
-    Example: lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/
+    \b
+    Example:
+      lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/
     """
     calibration = load_calibration(calibration_path)
     out = Path(out_dir)
