@@ -24,6 +24,7 @@ _FROZEN = ConfigDict(extra="forbid", frozen=True)
 
 Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
+Weight = Annotated[float, Field(ge=0.0, le=4.0)]
 
 
 class RoiConfig(BaseModel):
@@ -230,12 +231,12 @@ class ConfidenceWeights(BaseModel):
 
     model_config = _FROZEN
 
-    both_sides: Annotated[float, Field(ge=0.0, le=4.0)] = 1.0
-    support: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
-    lane_width: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
-    vanishing_point: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
-    tape_pair: Annotated[float, Field(ge=0.0, le=4.0)] = 1.0
-    consistency: Annotated[float, Field(ge=0.0, le=4.0)] = 0.5
+    both_sides: Weight = 1.0
+    support: Weight = 0.5
+    lane_width: Weight = 0.5
+    vanishing_point: Weight = 0.5
+    tape_pair: Weight = 1.0
+    consistency: Weight = 0.5
 
 
 class ConfidenceConfig(BaseModel):

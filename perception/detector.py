@@ -46,7 +46,7 @@ from perception.confidence import (
 from perception.config import PerceptionConfig
 from perception.edge_choice import SideChoice, choose_side
 from perception.errors import PerceptionError
-from perception.geometry import Side, edge_angle_deg, lecture_slope, x_at_row
+from perception.geometry import Side, edge_slope, x_at_row
 from perception.lines import LineSet, build_line_set
 from perception.observation import LaneEdge, LaneObservation
 
@@ -63,6 +63,8 @@ class DetectionDebug:
     - `lines`: the candidate lines they were grouped into.
     - `left` / `right`: the choice made on each side (chain of lines, tape partner), or None.
     - `image_size`: (width, height) of the image that was analysed (after undistortion).
+    - `image`: that analysed image itself (the caller's array when there is no undistorter; not
+      a copy), so an overlay can be drawn on exactly what the detector saw.
     """
 
     roi_polygon_px: NDArray[np.int32]
@@ -71,6 +73,7 @@ class DetectionDebug:
     left: SideChoice | None
     right: SideChoice | None
     image_size: tuple[int, int]
+    image: np.ndarray
 
 
 class _SizeState:
@@ -126,7 +129,7 @@ class LaneDetector:
         """The lane observation for one frame (see `LaneObservation`). Raises PerceptionError
         for an unusable frame (not an array, wrong dtype or shape, too small, wrong size for
         the calibration)."""
-        observation, _, _, _ = self._run(image, frame_index, time_s, previous)
+        observation, _, _, _, _ = self._run(image, frame_index, time_s, previous)
         return observation
 
     def detect_debug(
@@ -137,7 +140,9 @@ class LaneDetector:
         previous: LaneObservation | None = None,
     ) -> tuple[LaneObservation, DetectionDebug]:
         """`detect` plus the intermediate results, for `perception.overlay` and diagnosis."""
-        observation, state, segments, choices = self._run(image, frame_index, time_s, previous)
+        observation, state, segments, choices, analysed = self._run(
+            image, frame_index, time_s, previous
+        )
         lines, left, right = choices
         flat = (
             np.zeros((0, 4), dtype=np.int32)
@@ -151,6 +156,7 @@ class LaneDetector:
             left=left,
             right=right,
             image_size=state.size,
+            image=analysed,
         )
         return observation, debug
 
@@ -167,6 +173,7 @@ class LaneDetector:
         _SizeState,
         NDArray[np.int32] | None,
         tuple[LineSet, SideChoice | None, SideChoice | None],
+        np.ndarray,
     ]:
         _check_image(image)
         if self.undistorter is not None:
@@ -182,7 +189,7 @@ class LaneDetector:
         left = choose_side(rows, state.smooth, "left", state.y_bottom, config)
         right = choose_side(rows, state.smooth, "right", state.y_bottom, config)
         observation = self._observe(lines, left, right, state, frame_index, time_s, previous)
-        return observation, state, segments, (lines, left, right)
+        return observation, state, segments, (lines, left, right), image
 
     def _segments(self, image: np.ndarray, state: _SizeState) -> NDArray[np.int32] | None:
         """gray -> blur -> Canny -> ROI mask -> HoughLinesP, into the preallocated buffers."""
@@ -272,13 +279,14 @@ class LaneDetector:
     def _edge(self, choice: SideChoice | None, side: Side) -> LaneEdge | None:
         if choice is None:
             return None
-        angle = edge_angle_deg(choice.x1, choice.y1, choice.x2, choice.y2)
         return LaneEdge(
             x1=choice.x1,
             y1=choice.y1,
             x2=choice.x2,
             y2=choice.y2,
-            slope=lecture_slope(angle, side, self.config.edges.max_abs_slope),
+            slope=edge_slope(
+                choice.x1, choice.y1, choice.x2, choice.y2, side, self.config.edges.max_abs_slope
+            ),
             support_px=choice.support_px,
         )
 

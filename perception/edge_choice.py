@@ -256,45 +256,42 @@ def _partner_out_of_view(
 def _follow_edge(
     rows: list[LineRow], start: int, height: int, config: PerceptionConfig
 ) -> tuple[int, ...]:
-    """The chain of lines continuing `start` towards the robot and away from it: same polarity,
+    """The chain of lines continuing `start` away from the robot and towards it: same polarity,
     an end within the chain gap, turning by at most `chain_max_turn_deg`."""
-    gap = config.edges.chain_gap_frac_of_height * height
-    max_turn = config.edges.chain_max_turn_deg
     polarity = rows[start].polarity
     usable = [r for r in rows if r.line_id != start and (polarity == 0 or r.polarity == polarity)]
-    chain = [start]
-    if not usable:
-        return (start,)
-    # Away from the robot: a line whose near end lies close to the current far end.
-    current = rows[start]
+    gap = config.edges.chain_gap_frac_of_height * height
+    max_turn = config.edges.chain_max_turn_deg
+    away = _extend(rows[start], usable, gap, max_turn, away=True)
+    towards = _extend(rows[start], usable, gap, max_turn, away=False)
+    return tuple([r.line_id for r in reversed(towards)] + [start] + [r.line_id for r in away])
+
+
+def _extend(
+    current: LineRow, usable: list[LineRow], gap: float, max_turn: float, *, away: bool
+) -> list[LineRow]:
+    """Lines continuing `current` away from the robot (a near end close to its far end) or
+    towards it (a far end close to its near end), nearest first; taken ones leave `usable`."""
+    found: list[LineRow] = []
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
         for r in usable:
-            if r.far_y >= current.far_y - 1.0 or abs(r.angle_deg - current.angle_deg) > max_turn:
+            if abs(r.angle_deg - current.angle_deg) > max_turn:
                 continue
-            dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
+            if away:
+                if r.far_y >= current.far_y - 1.0:
+                    continue
+                dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
+            else:
+                if r.near_y <= current.near_y + 1.0:
+                    continue
+                dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
             if dist <= best_dist:
                 best, best_dist = r, dist
         if best is None:
             break
-        chain.append(best.line_id)
+        found.append(best)
         usable.remove(best)
         current = best
-    # Towards the robot: a line whose far end lies close to the current near end.
-    current = rows[start]
-    for _ in range(_MAX_CHAIN_STEPS):
-        best = None
-        best_dist = gap
-        for r in usable:
-            if r.near_y <= current.near_y + 1.0 or abs(r.angle_deg - current.angle_deg) > max_turn:
-                continue
-            dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
-            if dist <= best_dist:
-                best, best_dist = r, dist
-        if best is None:
-            break
-        chain.insert(0, best.line_id)
-        usable.remove(best)
-        current = best
-    return tuple(chain)
+    return found

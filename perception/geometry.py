@@ -60,6 +60,23 @@ def lecture_slope(angle_deg: float, side: Side, max_abs_slope: float) -> float:
     return max(math.tan(math.radians(angle_deg)), -max_abs_slope)
 
 
+def edge_slope(
+    x1: float, y1: float, x2: float, y2: float, side: Side, max_abs_slope: float
+) -> float:
+    """`lecture_slope` of the segment from its near end (x1, y1) to its far end (x2, y2),
+    computed from dy/dx directly (exact where unclamped): -(y2 - y1) / (x2 - x1), bounded and
+    side-aware."""
+    dx = x2 - x1
+    dy_up = y1 - y2
+    if side == "left":
+        if dx <= 0.0:  # vertical or leaning "\": past vertical for a left edge
+            return max_abs_slope if dy_up >= 0.0 else 0.0
+        return min(max(dy_up / dx, 0.0), max_abs_slope)
+    if dx >= 0.0:  # vertical or leaning "/": past vertical for a right edge
+        return -max_abs_slope if dy_up >= 0.0 else 0.0
+    return max(min(dy_up / dx, 0.0), -max_abs_slope)
+
+
 def x_at_row(x1: float, y1: float, x2: float, y2: float, row: float) -> float:
     """Column where the infinite line through the two points crosses image row `row`
     (the line must not be horizontal)."""

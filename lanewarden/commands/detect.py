@@ -1,9 +1,137 @@
-"""`lanewarden detect` (placeholder: owned by the work item that builds it)."""
+"""`lanewarden detect IMAGE... [--config FILE] [--calibration FILE] [--out DIR] [--json]`.
+
+Runs the lane detector on still images and prints one result per image, in order, flushed as
+soon as it is known (a bad image later in the list never loses the results already printed).
+Images are analysed independently (no `previous`, so `consistency` is neutral). With `--json`
+each line is one JSON object:
+
+    {"image", "left", "right", "slope_sum", "confidence", "components", "decision"}
+
+`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope"} (pixels of the analysed, i.e.
+undistorted, image; slope in the lecture's y-up convention). `decision`: "straight", "left",
+"right" or "none" (below `perception.confidence.min_confidence`, or an edge missing).
+With `--out DIR`, `<name>_detect.png` overlays are written there too.
+
+Unusable images (missing, empty, not an image, a folder, wrong size for the calibration) are
+skipped and reported together at the end as one error line naming each file; the exit code is
+then non-zero. Only file I/O and printing live here; the work is `perception.detector`.
+"""
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
+
 import click
+import cv2
+
+from lanewarden.commands.calibrate import check_output_folder, read_image
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+from perception.calibration import Undistorter, load_calibration
+from perception.config import PerceptionConfig
+from perception.decision import decide
+from perception.detector import LaneDetector
+from perception.errors import PerceptionError
+from perception.observation import LaneEdge, LaneObservation
+from perception.overlay import draw_overlay
+
+
+def result_json(image: str, observation: LaneObservation, decision: str) -> dict[str, object]:
+    """The `--json` line for one image (key order as documented)."""
+    full = observation.as_json()
+    return {
+        "image": image,
+        "left": full["left"],
+        "right": full["right"],
+        "slope_sum": full["slope_sum"],
+        "confidence": full["confidence"],
+        "components": full["components"],
+        "decision": decision,
+    }
+
+
+def result_text(image: str, observation: LaneObservation, decision: str) -> str:
+    """The human-readable line for one image."""
+
+    def slope(edge: LaneEdge | None) -> str:
+        return "--" if edge is None else f"{edge.slope:+.2f}"
+
+    total = "--" if observation.slope_sum is None else f"{observation.slope_sum:+.2f}"
+    lowest = min(observation.components.items(), key=lambda kv: kv[1])
+    return (
+        f"{image}: {decision}  slope sum {total} (left {slope(observation.left)}, "
+        f"right {slope(observation.right)})  confidence {observation.confidence:.2f} "
+        f"(lowest {lowest[0]} {lowest[1]:.2f})"
+    )
+
+
+def _emit(line: str) -> None:
+    click.echo(line)
+    sys.stdout.flush()
+
+
+@click.command("detect")
+@click.argument("images", nargs=-1, required=True, type=click.Path(), metavar="IMAGE...")
+@config_option
+@click.option("--calibration", "calibration_path", type=click.Path(), default=None,
+              metavar="FILE", help="Undistort with this calibration (OpenCV FileStorage YAML).")
+@click.option("--out", "out_dir", type=click.Path(), default=None, metavar="DIR",
+              help="Write an annotated <name>_detect.png per image into DIR (created).")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per image per line.")
+def detect_command(
+    images: tuple[str, ...],
+    config_path: str | None,
+    calibration_path: str | None,
+    out_dir: str | None,
+    as_json: bool,
+) -> None:
+    """Find the lane in IMAGE... and print slopes, confidence and the lecture's decision.
+
+    Example: lanewarden detect frames/*.png --json --out annotated/
+    """
+    config: PerceptionConfig = load_config(config_path).perception
+    undistorter = None
+    if calibration_path is not None:
+        undistorter = Undistorter(load_calibration(calibration_path))
+    out = None
+    if out_dir is not None:
+        out = Path(out_dir)
+        check_output_folder(out)
+        out.mkdir(exist_ok=True)
+    detector = LaneDetector(config, undistorter)
+    failures: list[str] = []
+    for index, name in enumerate(images):
+        path = Path(name)
+        image, why = read_image(path)
+        if image is None:
+            failures.append(f"{path}: {why}")
+            continue
+        try:
+            observation, debug = (
+                (detector.detect(image, index, 0.0), None)
+                if out is None
+                else detector.detect_debug(image, index, 0.0)
+            )
+        except PerceptionError as exc:
+            failures.append(f"{path}: {exc}")
+            continue
+        decision = decide(observation, config)
+        if as_json:
+            _emit(json.dumps(result_json(name, observation, decision)))
+        else:
+            _emit(result_text(name, observation, decision))
+        if out is not None and debug is not None:
+            target = out / f"{path.stem}_detect.png"
+            overlay = draw_overlay(debug.image, observation, debug, decision)
+            if not cv2.imwrite(str(target), overlay):
+                failures.append(f"{target}: cannot write image")
+    if failures:
+        raise PerceptionError(
+            f"{len(failures)} of {len(images)} images not analysed: {'; '.join(failures)}"
+        )
 
 
 def commands() -> list[click.Command]:
-    return []
+    return [detect_command]

@@ -13,7 +13,7 @@ arguments (no clock, no global randomness).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Literal
 
@@ -65,7 +65,6 @@ class Scene:
     noise_sigma: float = 3.0
     wall_level: float = 90.0
     seed: int = 0
-    extras: tuple[str, ...] = field(default_factory=tuple)
 
 
 @lru_cache(maxsize=8)
@@ -167,10 +166,26 @@ def render(
     return np.clip(bgr, 0, 255).astype(np.uint8)
 
 
+@lru_cache(maxsize=64)
+def _cached(scene: Scene, width: int, height: int, distorted: bool) -> np.ndarray:
+    image = render(scene, width, height, distorted=distorted)
+    image.setflags(write=False)
+    return image
+
+
+def frame(
+    scene: Scene, width: int = 640, height: int = 480, *, distorted: bool = False
+) -> np.ndarray:
+    """`render`, memoised (read-only result): tests share frames instead of re-rendering."""
+    return _cached(scene, width, height, distorted)
+
+
 # The acceptance scenes (named so tests, the benchmark and the docs use the same pictures).
 STRAIGHT = Scene()
-BEND_LEFT = Scene(bend=Bend("left"))
-BEND_RIGHT = Scene(bend=Bend("right"))
+# The robot at the entrance of a bend of 0.8 m radius (lane centreline), which starts 0.3 m ahead
+# of its centre, i.e. just below the bottom of the image (the camera sees from 0.36 m on).
+BEND_LEFT = Scene(bend=Bend("left", radius_m=0.8, start_m=0.3))
+BEND_RIGHT = Scene(bend=Bend("right", radius_m=0.8, start_m=0.3))
 ONE_EDGE = Scene(tapes=("left",))
 NO_LANE = Scene(tapes=())
 TILES_ONLY = Scene(tiles=True, tapes=())

@@ -1,0 +1,114 @@
+"""Perception config validation (through the one config loader), the confidence combination and
+the decision rule."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import MappingProxyType
+
+import pytest
+
+from lanewarden.config import LanewardenConfig, load_config
+from lanewarden.errors import ConfigError
+from perception.confidence import COMPONENT_NAMES, combine
+from perception.config import PerceptionConfig
+from perception.decision import decide
+from perception.observation import LaneEdge, LaneObservation
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "expected"),
+    [
+        ("blur: {kernel_px: 4}", "perception.blur.kernel_px = 4: value error, must be an odd"),
+        ("canny: {low_threshold: 150, high_threshold: 100}", "must be below high_threshold"),
+        ("canny: {aperture_px: 4}", "must be 3, 5 or 7"),
+        ("canny: {low_treshold: 10}", "unknown key 'perception.canny.low_treshold'"),
+        ("roi: {polygon_norm: [[0, 1], [1, 1]]}", "needs at least 3 vertices"),
+        ("roi: {polygon_norm: [[0, 1], [0.5, 1], [1, 1]]}", "zero area"),
+        ("roi: {polygon_norm: [[0, 5], [1, 5], [0.5, 4]]}", "within [-2, 3]"),
+        ("tape: {width_min_frac_of_width: 0.2}", "width_min_frac_of_width (0.2) <="),
+        ("confidence: {min_confidence: 1.5}", "perception.confidence.min_confidence = 1.5"),
+        ("confidence: {weights: {tape_pair: -1}}", "perception.confidence.weights.tape_pair"),
+        ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),
+        ("hough: {votes_frac_of_height: 0}", "perception.hough.votes_frac_of_height = 0"),
+    ],
+)
+def test_bad_perception_values_name_key_value_and_expectation(
+    yaml_text: str, expected: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("perception:\n  " + yaml_text + "\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert expected in message
+    assert str(path) in message
+
+
+def test_defaults_round_trip_and_partial_override(tmp_path: Path) -> None:
+    path = tmp_path / "ok.yaml"
+    path.write_text(
+        "perception:\n"
+        "  blur: {kernel_px: 7}\n"
+        "  decision: {turn_slope_sum: 5.0}\n"
+        "  roi: {polygon_norm: [[0, 1], [1, 1], [0.5, 0.3]]}\n"
+    )
+    config = load_config(path).perception
+    assert config.blur.kernel_px == 7
+    assert config.decision.turn_slope_sum == 5.0
+    assert config.roi.polygon_norm == ((0.0, 1.0), (1.0, 1.0), (0.5, 0.3))
+    assert config.canny == PerceptionConfig().canny  # untouched sections keep defaults
+    assert LanewardenConfig().perception.decision.turn_slope_sum == 6.0
+
+
+def _components(**overrides: float) -> MappingProxyType[str, float]:
+    values = dict.fromkeys(COMPONENT_NAMES, 1.0)
+    values.update(overrides)
+    return MappingProxyType(values)
+
+
+def test_confidence_is_a_weighted_geometric_product() -> None:
+    config = PerceptionConfig()
+    assert combine(_components(), config) == 1.0
+    # Weight 0.5 on lane_width: 0.25 ** 0.5.
+    assert combine(_components(lane_width=0.25), config) == pytest.approx(0.5)
+    # Per-side components share their weight (tape_pair 1.0 -> 0.5 each side).
+    assert combine(_components(tape_pair_left=0.25), config) == pytest.approx(0.5)
+    # A zero in a weighted component is a veto.
+    assert combine(_components(tape_pair_right=0.0), config) == 0.0
+    # Weight 0 ignores a component entirely.
+    ignore = config.model_copy(
+        update={
+            "confidence": config.confidence.model_copy(
+                update={"weights": config.confidence.weights.model_copy(update={"tape_pair": 0.0})}
+            )
+        }
+    )
+    assert combine(_components(tape_pair_right=0.0), ignore) == 1.0
+
+
+def _observation(slope_sum: float | None, confidence: float) -> LaneObservation:
+    edge = LaneEdge(0.0, 100.0, 10.0, 0.0, 1.0)
+    return LaneObservation(
+        frame_index=0,
+        time_s=0.0,
+        left=edge if slope_sum is not None else None,
+        right=edge if slope_sum is not None else None,
+        slope_sum=slope_sum,
+        confidence=confidence,
+    )
+
+
+@pytest.mark.parametrize(
+    ("slope_sum", "confidence", "expected"),
+    [
+        (0.0, 0.9, "straight"),
+        (-6.0, 0.9, "straight"),  # the lecture: strictly below -6 turns right
+        (-6.01, 0.9, "right"),
+        (6.01, 0.9, "left"),
+        (-11.0, 0.49, "none"),  # below min_confidence: no decision, however strong
+        (None, 1.0, "none"),
+    ],
+)
+def test_decision_rule(slope_sum: float | None, confidence: float, expected: str) -> None:
+    assert decide(_observation(slope_sum, confidence), PerceptionConfig()) == expected

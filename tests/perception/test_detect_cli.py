@@ -1,0 +1,158 @@
+"""`lanewarden detect`: output format, overlays, calibration, and the one-line error contract."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+
+from lanewarden.cli import main
+from perception.calibration import CameraCalibration, save_calibration
+from scenarios.camera import CameraModel
+from tests.perception import synthetic as syn
+
+KEYS = ["image", "left", "right", "slope_sum", "confidence", "components", "decision"]
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("frames")
+    cv2.imwrite(str(folder / "straight.png"), syn.frame(syn.STRAIGHT))
+    cv2.imwrite(str(folder / "right.png"), syn.frame(syn.BEND_RIGHT))
+    cv2.imwrite(str(folder / "tiles.jpg"), syn.frame(syn.TILES_ONLY))
+    cv2.imwrite(str(folder / "small.png"), syn.frame(syn.STRAIGHT, 320, 240))
+    cv2.imwrite(str(folder / "distorted.png"), syn.frame(syn.STRAIGHT, distorted=True))
+    (folder / "empty.png").write_bytes(b"")
+    (folder / "notes.png").write_text("not an image\n")
+    camera = CameraModel()
+    save_calibration(
+        CameraCalibration(camera.camera_matrix(), camera.distortion(), (640, 480)),
+        folder / "camera.yaml",
+    )
+    return folder
+
+
+def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_json_lines(frames: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    images = [str(frames / n) for n in ("straight.png", "right.png", "tiles.jpg")]
+    code, out, err = run(["detect", *images, "--json"], capsys)
+    assert code == 0 and err == ""
+    lines = [json.loads(line) for line in out.splitlines()]
+    assert [list(line) for line in lines] == [KEYS] * 3
+    assert [line["image"] for line in lines] == images
+    assert [line["decision"] for line in lines] == ["straight", "right", "none"]
+    straight, right, tiles = lines
+    assert set(straight["left"]) == {"x1", "y1", "x2", "y2", "slope"}
+    assert straight["left"]["slope"] > 0 > straight["right"]["slope"]
+    assert right["slope_sum"] < -6
+    assert tiles["confidence"] < 0.5 and tiles["components"]["tape_pair_left"] == 0.0
+
+
+def test_text_output_and_overlays(
+    frames: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out_dir = tmp_path / "annotated"
+    code, out, _ = run(
+        ["detect", str(frames / "straight.png"), str(frames / "small.png"), "--out", str(out_dir)],
+        capsys,
+    )
+    assert code == 0
+    assert out.splitlines()[0].startswith(f"{frames / 'straight.png'}: straight  slope sum")
+    big = cv2.imread(str(out_dir / "straight_detect.png"))
+    small = cv2.imread(str(out_dir / "small_detect.png"))
+    assert big is not None and big.shape == (480, 640, 3)
+    assert small is not None and small.shape == (240, 320, 3)
+
+
+def test_calibration_undistorts_first(frames: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(
+        ["detect", str(frames / "distorted.png"), "--calibration", str(frames / "camera.yaml"),
+         "--json"],
+        capsys,
+    )
+    assert code == 0
+    assert json.loads(out)["decision"] == "straight"
+
+
+def test_bad_images_are_named_and_good_results_kept(
+    frames: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    missing = frames / "missing.png"
+    args = [
+        "detect",
+        str(frames / "straight.png"),
+        str(missing),
+        str(frames / "empty.png"),
+        str(frames / "notes.png"),
+        str(frames),
+        str(frames / "right.png"),
+        "--json",
+    ]
+    code, out, err = run(args, capsys)
+    assert code == 1
+    assert [json.loads(line)["decision"] for line in out.splitlines()] == ["straight", "right"]
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("lanewarden: error: 4 of 6 images not analysed")
+    for name, why in [
+        (missing, "cannot read file"),
+        (frames / "empty.png", "empty file"),
+        (frames / "notes.png", "not a readable image"),
+        (frames, "cannot read file"),
+    ]:
+        assert f"{name}: {why}" in err
+
+
+def test_image_size_differs_from_calibration(
+    frames: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(
+        ["detect", str(frames / "small.png"), "--calibration", str(frames / "camera.yaml")],
+        capsys,
+    )
+    assert code == 1
+    assert f"{frames / 'small.png'}: undistort: image is 320x240" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("extra", "code", "expected"),
+    [
+        (["--config", "{typo}"], 2, "unknown key 'perception.canny.low_treshold'"),
+        (["--config", "{nothing}"], 2, "config file not found"),
+        (["--calibration", "{nothing}"], 1, "calibration file not found"),
+        (["--out", "{straight}"], 2, "exists and is not a folder"),
+    ],
+)
+def test_bad_options_are_one_line(
+    frames: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: list[str],
+    code: int,
+    expected: str,
+) -> None:
+    typo = tmp_path / "typo.yaml"
+    typo.write_text("perception:\n  canny: {low_treshold: 10}\n")
+    names = {
+        "typo": str(typo),
+        "nothing": str(tmp_path / "nothing.yaml"),
+        "straight": str(frames / "straight.png"),
+    }
+    args = ["detect", str(frames / "straight.png"), *[e.format(**names) for e in extra]]
+    got, out, err = run(args, capsys)
+    assert got == code
+    assert out == ""
+    assert expected in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_no_images_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(["detect"], capsys)
+    assert code == 2 and "IMAGE" in err

@@ -1,0 +1,185 @@
+"""The detector's contract: inputs it accepts and refuses, what its output guarantees, the
+debug path, the overlay, and the per-size caching of masks and buffers."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from perception.confidence import COMPONENT_NAMES
+from perception.config import PerceptionConfig
+from perception.decision import decide
+from perception.detector import LaneDetector
+from perception.errors import PerceptionError
+from perception.observation import LaneObservation
+from perception.overlay import draw_overlay
+from tests.perception import synthetic as syn
+
+CONFIG = PerceptionConfig()
+
+
+@pytest.fixture(scope="module")
+def detector() -> LaneDetector:
+    return LaneDetector(CONFIG)
+
+
+@pytest.mark.parametrize(
+    ("image", "expected"),
+    [
+        (np.zeros((0, 0, 3), np.uint8), "too small"),
+        (np.zeros((8, 640, 3), np.uint8), "too small"),
+        (np.zeros((480, 640, 3), np.float32), "dtype uint8"),
+        (np.zeros((480, 640, 2), np.uint8), "shape"),
+        (np.zeros((4, 480, 640), np.uint8), "shape"),
+        ([[0, 0], [0, 0]], "numpy image array"),
+    ],
+)
+def test_unusable_frames_raise_perception_error(
+    detector: LaneDetector, image: object, expected: str
+) -> None:
+    with pytest.raises(PerceptionError, match=expected) as info:
+        detector.detect(image, 0, 0.0)  # type: ignore[arg-type]
+    assert "\n" not in str(info.value)
+
+
+def test_gray_bgr_and_bgra_inputs_agree(detector: LaneDetector) -> None:
+    bgr = syn.frame(syn.STRAIGHT)
+    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    bgra = cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)
+    results = [detector.detect(img, 0, 0.0) for img in (bgr, gray, gray[:, :, None], bgra)]
+    assert all(r.slope_sum is not None for r in results)
+    sums = [r.slope_sum for r in results]
+    assert max(sums) - min(sums) < 1e-9  # type: ignore[operator]
+
+
+def test_observation_is_frozen_with_immutable_components(detector: LaneDetector) -> None:
+    obs = detector.detect(syn.frame(syn.STRAIGHT), 7, 1.25)
+    assert (obs.frame_index, obs.time_s) == (7, 1.25)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        obs.confidence = 0.0  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        obs.components["both_sides"] = 0.0  # type: ignore[index]
+    assert tuple(obs.components) == COMPONENT_NAMES
+    assert all(0.0 <= v <= 1.0 for v in obs.components.values())
+
+
+def test_input_frame_is_not_modified(detector: LaneDetector) -> None:
+    image = np.array(syn.frame(syn.TILES_WITH_TAPE))
+    before = image.copy()
+    detector.detect(image, 0, 0.0)
+    assert np.array_equal(image, before)
+
+
+def test_debug_path_gives_the_same_observation(detector: LaneDetector) -> None:
+    image = syn.frame(syn.DASHED)
+    plain = detector.detect(image, 3, 0.1)
+    obs, debug = detector.detect_debug(image, 3, 0.1)
+    assert obs == plain
+    assert debug.image_size == (640, 480)
+    assert debug.segments.shape[1] == 4 and len(debug.segments) > 0
+    assert debug.left is not None and debug.right is not None
+    assert debug.left.partner is not None  # the dashed tape's outer edge
+    assert debug.roi_polygon_px.shape == (3, 2)
+
+
+def test_masks_and_buffers_are_made_once_per_image_size(detector: LaneDetector) -> None:
+    big = syn.frame(syn.STRAIGHT)
+    small = syn.frame(syn.STRAIGHT, 320, 240)
+    detector.detect(big, 0, 0.0)
+    state = detector._states[(640, 480)]
+    mask, edges = state.mask, state.edges
+    detector.detect(small, 1, 0.0)
+    detector.detect(big, 2, 0.0)
+    assert detector._states[(640, 480)] is state
+    assert state.mask is mask and state.edges is edges
+    assert set(detector._states) >= {(640, 480), (320, 240)}
+
+
+def test_consistency_with_a_previous_observation(detector: LaneDetector) -> None:
+    straight = detector.detect(syn.frame(syn.STRAIGHT), 0, 0.0)
+    again = detector.detect(syn.frame(syn.STRAIGHT), 1, 0.05, previous=straight)
+    assert again.components["consistency"] == 1.0
+    # The lane jumps sideways by 14% of the image width between two frames: not plausible.
+    jumped = detector.detect(
+        syn.frame(replace(syn.STRAIGHT, lateral_m=0.08)), 1, 0.05, previous=straight
+    )
+    alone = detector.detect(syn.frame(replace(syn.STRAIGHT, lateral_m=0.08)), 1, 0.05)
+    assert jumped.components["consistency"] < 0.5
+    assert jumped.confidence < alone.confidence
+
+
+def test_detector_keeps_no_history(detector: LaneDetector) -> None:
+    """Same frame, same answer, whatever came before (state lives in `previous` only)."""
+    first = detector.detect(syn.frame(syn.BEND_LEFT), 0, 0.0)
+    detector.detect(syn.frame(syn.TILES_ONLY), 1, 0.0)
+    assert detector.detect(syn.frame(syn.BEND_LEFT), 0, 0.0) == first
+
+
+def _finite(obs: LaneObservation) -> bool:
+    values = [obs.confidence, *obs.components.values()]
+    for edge in (obs.left, obs.right):
+        if edge is not None:
+            values += [edge.x1, edge.y1, edge.x2, edge.y2, edge.slope]
+    values += [v for v in (obs.slope_sum, obs.center_offset) if v is not None]
+    return all(math.isfinite(v) for v in values)
+
+
+@settings(derandomize=True, max_examples=25, deadline=None)
+@given(
+    seed=st.integers(min_value=0, max_value=2**31),
+    width=st.integers(min_value=16, max_value=200),
+    height=st.integers(min_value=16, max_value=160),
+    kind=st.sampled_from(["noise", "lines", "flat"]),
+)
+def test_arbitrary_frames_never_crash_or_give_nan(
+    detector: LaneDetector, seed: int, width: int, height: int, kind: str
+) -> None:
+    rng = np.random.default_rng(seed)
+    if kind == "noise":
+        image = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    elif kind == "flat":
+        image = np.full((height, width, 3), int(rng.integers(0, 256)), np.uint8)
+    else:
+        image = np.full((height, width, 3), 128, np.uint8)
+        for _ in range(12):
+            p = rng.integers(-20, max(width, height) + 20, 4)
+            cv2.line(image, (int(p[0]), int(p[1])), (int(p[2]), int(p[3])),
+                     (int(rng.integers(0, 256)),) * 3, int(rng.integers(1, 6)))
+    obs = detector.detect(image, 0, 0.0)
+    assert _finite(obs)
+    assert 0.0 <= obs.confidence <= 1.0
+    max_slope = CONFIG.edges.max_abs_slope
+    if obs.left is not None:
+        assert 0.0 <= obs.left.slope <= max_slope
+    if obs.right is not None:
+        assert -max_slope <= obs.right.slope <= 0.0
+
+
+@pytest.mark.parametrize("scene", [syn.STRAIGHT, syn.ONE_EDGE, syn.NO_LANE])
+def test_overlay_is_a_same_size_bgr_copy(detector: LaneDetector, scene: syn.Scene) -> None:
+    image = syn.frame(scene)
+    obs, debug = detector.detect_debug(image, 0, 0.0)
+    canvas = draw_overlay(image, obs, debug, decide(obs, CONFIG))
+    assert canvas.shape == image.shape and canvas.dtype == np.uint8
+    assert not np.array_equal(canvas, image)  # something was drawn (at least the ROI)
+    gray_canvas = draw_overlay(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), obs, debug, "none")
+    assert gray_canvas.shape == image.shape
+
+
+def test_overlay_draws_the_chosen_edges_bold(detector: LaneDetector) -> None:
+    image = syn.frame(syn.STRAIGHT)
+    obs, debug = detector.detect_debug(image, 0, 0.0)
+    canvas = draw_overlay(image, obs, debug, "straight")
+    assert obs.left is not None
+    # Midpoint of the left edge is painted the left-edge colour (green).
+    mx = round((obs.left.x1 + obs.left.x2) / 2)
+    my = round((obs.left.y1 + obs.left.y2) / 2)
+    b, g, r = canvas[my, mx].astype(int)
+    assert g > 200 and b < 80 and r < 80
