@@ -170,13 +170,22 @@ def test_failed_gates_print_json_then_exit_2(
     assert code == 2 and "Quality gates: FAILED" in stdout
 
 
-def test_bad_config_key_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("calibration:\n  max_rms: 2\n", "unknown key 'calibration.max_rms'"),
+        ("calibration:\n  min_views: 1\n", "calibration.min_views = 1: input should be greater"),
+        ("calibration:\n  max_rms_px: -1\n", "calibration.max_rms_px = -1"),
+    ],
+)
+def test_bad_config_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                text: str, expected: str) -> None:
     config = tmp_path / "bad.yaml"
-    config.write_text("calibration:\n  max_rms: 2\n")
+    config.write_text(text)
     code, _, err = _run(capsys, "--images", "x", "--pattern", "9x6", "--square", "1",
                         "--out", str(tmp_path / "c.yaml"), "--config", str(config))
     assert code == 2
-    assert "unknown key 'calibration.max_rms'" in _one_error_line(err)
+    assert expected in _one_error_line(err)
 
 
 def test_outlier_view_flagged_then_dropped(

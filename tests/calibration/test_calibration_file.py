@@ -8,6 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from perception.calibration import (
     CameraCalibration,
@@ -156,3 +158,35 @@ def test_undistorter_straightens_projected_line_and_checks_size() -> None:
     assert undistorter.apply(image).shape == (480, 640, 3)
     with pytest.raises(PerceptionError, match="image is 320x240, the calibration is for 640x480"):
         undistorter.apply(np.zeros((240, 320), np.uint8))
+
+
+@given(st.binary(max_size=300))
+@settings(derandomize=True, max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_load_never_crashes_on_random_bytes(tmp_path: Path, data: bytes) -> None:
+    path = tmp_path / "random.yaml"
+    path.write_bytes(data)
+    with pytest.raises(PerceptionError) as info:
+        load_calibration(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+@given(st.lists(st.sampled_from([
+    "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n",
+    "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n",
+    "image_width: 640\n", "image_height: 480\n", "image_width: -3\n", "rms: fast\n",
+    "views_used: 2.5\n", "camera_matrix: [1, 2]\n", "date: 2024\n", "pattern: [9, 6]\n",
+]), max_size=6))
+@settings(derandomize=True, max_examples=80, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_load_of_partial_files_is_a_calibration_or_one_line_error(
+    tmp_path: Path, nodes: list[str]
+) -> None:
+    path = tmp_path / "partial.yaml"
+    path.write_text("".join(nodes))
+    try:
+        loaded = load_calibration(path)
+    except PerceptionError as exc:
+        assert str(path) in str(exc) and "\n" not in str(exc)
+    else:
+        assert loaded.camera_matrix.shape == (3, 3) and loaded.image_size[0] > 0
