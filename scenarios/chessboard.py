@@ -249,9 +249,9 @@ def calibration_poses(
         roll = math.radians(rng.uniform(-max_roll_deg, max_roll_deg))
         rot = _rot_z(roll) @ _rot_y(tilt_y) @ _rot_x(tilt_x)
         tvec = centre_cam - rot @ centre_board
-        rvec, _ = cv2.Rodrigues(rot)
+        rvec = np.asarray(cv2.Rodrigues(rot)[0], dtype=np.float64).reshape(3)
         pose = BoardPose(
-            rvec=tuple(float(v) for v in np.asarray(rvec).reshape(3)),  # type: ignore[arg-type]
+            rvec=(float(rvec[0]), float(rvec[1]), float(rvec[2])),
             tvec=(float(tvec[0]), float(tvec[1]), float(tvec[2])),
         )
         if renderer.fits(pose):
