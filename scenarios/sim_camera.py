@@ -91,7 +91,8 @@ class SimCamera:
                 break
         if newest is None:
             return self._delivered
-        if self._delivered is not None and newest.index == self._delivered.index:
+        if self._delivered is not None and newest.index <= self._delivered.index:
+            # Latency that grows delays new frames; it never takes back a delivered one.
             return self._delivered
         if self._frozen_image is not None:
             newest = Frame(image=self._frozen_image, index=newest.index, time_s=newest.time_s)

@@ -43,6 +43,9 @@ def test_drop_latency_freeze_corrupt_error_and_future() -> None:
     camera.latency_s = 0.1
     for k in range(4, 8):
         capture(camera, k)
+        if k == 4:
+            held = camera.read(4 * DT)
+            assert held is not None and held.index == 2  # nothing older than 0.1 s is newer
     late = camera.read(7 * DT)
     assert late is not None and late.time_s <= 7 * DT - 0.1 + 1e-9 and late.index == 4
     camera.latency_s = 0.0
