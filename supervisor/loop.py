@@ -142,7 +142,10 @@ class ControlLoop:
         self._previous: LaneObservation | None = None
         self._start = False
         self._resume = False
-        self._stop = False
+        # Counted, not flagged: a stop requested from another thread while a step runs is never
+        # lost (the step re-sends STOP after its own command, and the next step latches HALT).
+        self._stop_requests = 0
+        self._stops_delivered = 0
         self._base_failure: str | None = None
 
     def start(self, now: float) -> None:
@@ -154,15 +157,19 @@ class ControlLoop:
         self._resume = True
 
     def operator_stop(self, now: float) -> None:
-        """Stop now: a zero command goes to the base immediately; HALT latches at the next step."""
-        self._stop = True
+        """Stop now: a zero command goes to the base immediately; HALT latches at the next step.
+        Safe to call from another thread than the one that steps."""
+        self._stop_requests += 1
         self._send(STOP, now)
 
     def step(self, now: float) -> StepRecord:
         events: set[Event] = set()
         details: dict[Event, str] = {}
-        if self._stop:
+        stop_requests = self._stop_requests
+        if stop_requests != self._stops_delivered:
             events.add(Event.OPERATOR_STOP)
+        start, self._start = self._start, False
+        resume, self._resume = self._resume, False
 
         frame: Frame | None = None
         try:
@@ -208,15 +215,17 @@ class ControlLoop:
                 feedback=feedback,
                 events=frozenset(events),
                 event_details=MappingProxyType(details),
-                start_requested=self._start,
-                resume_requested=self._resume,
+                start_requested=start,
+                resume_requested=resume,
             ),
             now,
         )
-        self._start = self._resume = self._stop = False
+        self._stops_delivered = stop_requests
         sent_events = set(output.events)
         if not self._send(output.command, now):
             sent_events.add(Event.BASE_LINK_LOST)
+        if self._stop_requests != stop_requests and not output.command.is_stop:
+            self._send(STOP, now)  # a stop arrived during this step: it wins over our command
         record = self._make_record(now, info, observation, output, ordered(sent_events))
         if self._record is not None:
             self._record(record)

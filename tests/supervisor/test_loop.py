@@ -295,3 +295,21 @@ def test_make_controller_by_name() -> None:
     assert isinstance(make_controller("supervised", CONFIG), SupervisedController)
     with pytest.raises(SupervisorError, match="--controller: unknown controller 'pid'"):
         make_controller("pid", CONFIG)
+
+
+def test_operator_stop_arriving_during_a_step_is_never_lost() -> None:
+    base = RecordingBase()
+    holder: list[ControlLoop] = []
+
+    def script(i: int, t: float):  # type: ignore[no-untyped-def]
+        if i == 40:  # another thread presses stop while this step is running
+            holder[0].operator_stop(t)
+        return observation(i, t)
+
+    run = Run(detector=ScriptedDetector(script), base=base)
+    holder.append(run.loop)
+    run.engage()
+    run.until(40 * DT)
+    assert run.records[-1].frame_index == 40
+    assert base.sent[-1][1] == STOP  # the step's own command was followed by STOP
+    assert run.step().state == "HALT"
