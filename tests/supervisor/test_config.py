@@ -61,3 +61,17 @@ def test_unknown_and_mistyped_keys_are_refused(tmp_path: Path) -> None:
     text = str(err.value)
     assert "supervisor.follow_speed" in text and "supervisor.frame_stale_s = 'soon'" in text
     assert len(text.splitlines()) == 2
+
+
+def test_docs_list_every_key_with_its_default() -> None:
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "supervisor.md").read_text()
+    rows = {
+        line.split("|")[1].strip().strip("`"): line.split("|")[2].strip()
+        for line in doc.splitlines()
+        if line.startswith("| `")
+    }
+    for name, field in SupervisorConfig.model_fields.items():
+        assert name in rows, f"docs/supervisor.md: config key {name} is not documented"
+        default = field.default
+        shown = str(default).lower() if isinstance(default, bool) else str(round(default, 6))
+        assert rows[name] == shown, f"docs/supervisor.md: {name} default {rows[name]} != {shown}"
