@@ -114,8 +114,8 @@ class DeadmanLogic:
     # ---- outputs ------------------------------------------------------------------------------
     def poll(self, now: float) -> WireAction:
         """What to write at `now`. Call whenever an input arrived or `next_wakeup_s` passed."""
-        if (self._mode is DeadmanMode.ARMED
-                and now - self._last_heartbeat_s >= self._settings.heartbeat_timeout_s):
+        # compare against the same deadline next_wakeup_s() reports, so waking at it trips
+        if self._mode is DeadmanMode.ARMED and now >= self._heartbeat_deadline_s():
             silent_s = now - self._last_heartbeat_s
             self._trip(f"no heartbeat for {silent_s:.3f} s "
                        f"(timeout {self._settings.heartbeat_timeout_s:g} s)")
@@ -132,7 +132,7 @@ class DeadmanLogic:
         """The latest time the shell may wait until before calling `poll` again."""
         wakeup = self._next_send_s
         if self._mode is DeadmanMode.ARMED:
-            wakeup = min(wakeup, self._last_heartbeat_s + self._settings.heartbeat_timeout_s)
+            wakeup = min(wakeup, self._heartbeat_deadline_s())
         if self._mode is DeadmanMode.STOPPING:
             wakeup = min(wakeup, self._stop_until_s)
         if self._urgent:
@@ -140,6 +140,9 @@ class DeadmanLogic:
         return wakeup
 
     # ---- internals ----------------------------------------------------------------------------
+    def _heartbeat_deadline_s(self) -> float:
+        return self._last_heartbeat_s + self._settings.heartbeat_timeout_s
+
     def _set_command(self, command: VelocityCommand) -> None:
         if command.is_stop and not self._command.is_stop:
             self._urgent = True

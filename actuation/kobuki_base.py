@@ -311,7 +311,8 @@ class KobukiBase:
 
     @property
     def latest_packet(self) -> FeedbackPacket:
-        """The newest decoded feedback packet (inertial, cliff ADC, current, gyro, GPIO...)."""
+        """The newest 50 Hz stream packet (the one with basic sensor data, inertial, cliff ADC,
+        current, gyro, GPIO); versions/UDID/controller info have their own properties."""
         with self._cond:
             return self._latest
 
@@ -395,8 +396,8 @@ class KobukiBase:
             self._packets += 1
             self._checksum_errors = message.checksum_errors
             self._malformed += len(packet.malformed_ids) + int(packet.truncated)
-            self._latest = packet
             if packet.basic is not None:
+                self._latest = packet
                 self._sensors = packet.basic
                 self._odometry.update(packet.basic.left_encoder, packet.basic.right_encoder)
             self._hardware_version = packet.hardware_version or self._hardware_version

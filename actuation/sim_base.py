@@ -175,7 +175,12 @@ class SimBase:
         braking = target.is_stop
         linear_rate = params.brake_linear_m_s2 if braking else params.accel_linear_m_s2
         angular_rate = params.brake_angular_rad_s2 if braking else params.accel_angular_rad_s2
+        # end the step where a ramp reaches its target, so the mean velocity is exact
         dt = min(remaining_s, params.integration_step_s)
+        for value, goal, rate in ((self._linear, target.linear_m_s, linear_rate),
+                                  (self._angular, target.angular_rad_s, angular_rate)):
+            if value != goal:
+                dt = min(dt, abs(goal - value) / rate)
         linear = _approach(self._linear, target.linear_m_s, linear_rate * dt)
         angular = _approach(self._angular, target.angular_rad_s, angular_rate * dt)
         self._x, self._y, self._theta = integrate_arc(

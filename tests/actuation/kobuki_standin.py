@@ -8,6 +8,7 @@ base-control command, and records every command packet it receives with its arri
 
 Use `port` (the pty slave's name) as the serial port. `unplug()` closes the master under the
 driver. `unplug_on_motion=True` does that on the first non-zero base-control command.
+`corrupt_every=N` spoils the checksum of every Nth feedback packet.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
 
-STOP_PACKET = bytes.fromhex("AA55060104000000000003")
+STOP_PACKET = bytes.fromhex("AA 55 06 01 04 00 00 00 00 03")
 TICKS_PER_METRE = 2578.33 / (2 * math.pi * 0.035)
 HALF_WHEEL_BASE_MM = 115.0
 
@@ -56,8 +57,9 @@ class ReceivedPacket:
 
 class KobukiStandIn:
     def __init__(self, *, stream: bool = True, period_s: float = 0.02,
-                 unplug_on_motion: bool = False) -> None:
+                 unplug_on_motion: bool = False, corrupt_every: int = 0) -> None:
         self.stream = stream
+        self.corrupt_every = corrupt_every
         self.period_s = period_s
         self.unplug_on_motion = unplug_on_motion
         self.hardware_version = (1, 0, 4)
@@ -177,8 +179,11 @@ class KobukiStandIn:
         next_s = time.monotonic()
         while self._running.is_set():
             if self.stream:
-                self._write(self._feedback_packet())
+                packet = self._feedback_packet()
                 self.feedback_sent += 1
+                if self.corrupt_every and self.feedback_sent % self.corrupt_every == 0:
+                    packet = packet[:-1] + bytes([packet[-1] ^ 0x5A])  # bad checksum
+                self._write(packet)
             next_s += self.period_s
             self._unplugging.wait(max(0.0, next_s - time.monotonic()))
 

@@ -1,0 +1,49 @@
+"""A pretend control process for the dead-man end-to-end tests and benchmark (TEST code).
+
+`python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
+prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending the
+monotonic time of each completed send to HEARTBEAT_LOG if given. Prints `tripped` when the
+dead-man reports it tripped, and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import sys
+import threading
+import time
+
+from actuation.base import VelocityCommand
+from actuation.deadman_logic import DeadmanMode
+from actuation.kobuki_base import KobukiBase
+
+CONTROL_PERIOD_S = 0.02
+
+
+def main(port: str, heartbeat_log: str | None) -> None:
+    base = KobukiBase.open(port, request_versions=False)
+    print(f"deadman {base.deadman_pid}", flush=True)
+    log_fd = os.open(heartbeat_log, os.O_WRONLY | os.O_CREAT | os.O_APPEND) \
+        if heartbeat_log else None
+    command = VelocityCommand(0.2, 0.0)
+    tick = threading.Event()  # never set: its timed wait paces this pretend control loop
+    tripped = False
+    while True:
+        base.send(command, time.monotonic())
+        if log_fd is not None:
+            os.write(log_fd, f"{time.monotonic()!r}\n".encode())
+        if not tripped and base.deadman_mode is DeadmanMode.TRIPPED:
+            tripped = True
+            print("tripped", flush=True)
+        if tripped and select.select([sys.stdin], [], [], 0.0)[0]:
+            if sys.stdin.readline().strip() == "rearm":
+                base.rearm(time.monotonic())
+                base.wait_for(lambda b: b.deadman_mode is DeadmanMode.ARMED, 5.0)
+                tripped = False
+                print("rearmed", flush=True)
+        tick.wait(CONTROL_PERIOD_S)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2] if len(sys.argv) > 2 else None)

@@ -1,0 +1,225 @@
+"""The dead-man's decision logic on a fake clock: every mode x every input, and its timing rules."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+
+from actuation.base import STOP, VelocityCommand
+from actuation.deadman_logic import (
+    CLOSE_STOP_PACKETS,
+    DeadmanLogic,
+    DeadmanMode,
+    DeadmanSettings,
+)
+
+SETTINGS = DeadmanSettings(heartbeat_timeout_s=0.2, command_period_s=0.02, orphan_stop_s=0.5)
+MOVE = VelocityCommand(0.3, 0.1)
+OTHER_MOVE = VelocityCommand(0.2, -0.4)
+
+
+def _setup(state: str) -> DeadmanLogic:
+    """A logic in `state`, having sent packets at 0.00, 0.02, 0.04 (next tick due at 0.06)."""
+    logic = DeadmanLogic(SETTINGS, start_s=0.0)
+    if state in ("armed_stop", "armed_moving", "tripped"):
+        logic.on_arm(0.0)
+    if state in ("armed_moving", "tripped"):
+        logic.on_command(MOVE, 0.0)
+    if state == "tripped":
+        logic.on_malformed(0.0, "garbage")
+    if state == "stopping":
+        logic.on_control_gone(0.0)
+    for t in (0.0, 0.02, 0.04):
+        assert logic.poll(t).send is not None
+    return logic
+
+
+INPUTS: dict[str, Callable[[DeadmanLogic, float], None]] = {
+    "arm": lambda logic, t: logic.on_arm(t),
+    "command_move": lambda logic, t: logic.on_command(OTHER_MOVE, t),
+    "command_stop": lambda logic, t: logic.on_command(STOP, t),
+    "malformed": lambda logic, t: logic.on_malformed(t, "bad"),
+    "control_gone": lambda logic, t: logic.on_control_gone(t),
+    "close": lambda logic, t: logic.on_close(t),
+}
+
+D, A, T, S = (DeadmanMode.DISARMED, DeadmanMode.ARMED, DeadmanMode.TRIPPED,
+              DeadmanMode.STOPPING)
+# (state, input) -> (mode after, command on the wire at the next tick, stop sent at once?)
+TABLE: dict[tuple[str, str], tuple[DeadmanMode, VelocityCommand, bool]] = {
+    ("disarmed", "arm"): (A, STOP, False),
+    ("disarmed", "command_move"): (D, STOP, False),
+    ("disarmed", "command_stop"): (D, STOP, False),
+    ("disarmed", "malformed"): (D, STOP, False),
+    ("disarmed", "control_gone"): (S, STOP, True),
+    ("disarmed", "close"): (S, STOP, True),
+    ("armed_stop", "arm"): (A, STOP, False),
+    ("armed_stop", "command_move"): (A, OTHER_MOVE, False),
+    ("armed_stop", "command_stop"): (A, STOP, False),
+    ("armed_stop", "malformed"): (T, STOP, True),
+    ("armed_stop", "control_gone"): (S, STOP, True),
+    ("armed_stop", "close"): (S, STOP, True),
+    ("armed_moving", "arm"): (A, MOVE, False),
+    ("armed_moving", "command_move"): (A, OTHER_MOVE, False),
+    ("armed_moving", "command_stop"): (A, STOP, True),
+    ("armed_moving", "malformed"): (T, STOP, True),
+    ("armed_moving", "control_gone"): (S, STOP, True),
+    ("armed_moving", "close"): (S, STOP, True),
+    ("tripped", "arm"): (A, STOP, False),
+    ("tripped", "command_move"): (T, STOP, False),
+    ("tripped", "command_stop"): (T, STOP, False),
+    ("tripped", "malformed"): (T, STOP, False),
+    ("tripped", "control_gone"): (S, STOP, True),
+    ("tripped", "close"): (S, STOP, True),
+    ("stopping", "arm"): (S, STOP, False),
+    ("stopping", "command_move"): (S, STOP, False),
+    ("stopping", "command_stop"): (S, STOP, False),
+    ("stopping", "malformed"): (S, STOP, False),
+    ("stopping", "control_gone"): (S, STOP, False),
+    ("stopping", "close"): (S, STOP, False),
+}
+
+
+def test_the_table_covers_every_mode_and_input() -> None:
+    states = {"disarmed", "armed_stop", "armed_moving", "tripped", "stopping"}
+    assert set(TABLE) == {(state, name) for state in states for name in INPUTS}
+    assert {_setup(state).mode for state in states} == set(DeadmanMode)
+
+
+@pytest.mark.parametrize(("state", "input_name"), sorted(TABLE))
+def test_every_mode_and_input(state: str, input_name: str) -> None:
+    mode, next_command, stop_at_once = TABLE[(state, input_name)]
+    logic = _setup(state)
+    INPUTS[input_name](logic, 0.05)
+    at_once = logic.poll(0.05)
+    assert at_once.send == (STOP if stop_at_once else None)
+    assert logic.mode is mode
+    tick = logic.poll(max(0.06, logic.next_wakeup_s()))  # an at-once stop restarts the tick
+    assert tick.send == next_command
+    assert logic.command == next_command
+
+
+def _run(logic: DeadmanLogic, until_s: float,
+         inputs: dict[float, Callable[[DeadmanLogic, float], None]]
+         ) -> tuple[list[tuple[float, VelocityCommand]], bool]:
+    """A fake-clock shell: wake at each input time or at `next_wakeup_s`, like deadman.py."""
+    sent: list[tuple[float, VelocityCommand]] = []
+    pending = sorted(inputs)
+    now = 0.0
+    for _ in range(100_000):  # a logic that never lets time move on fails instead of hanging
+        if now > until_s:
+            break
+        while pending and pending[0] <= now:
+            inputs[pending.pop(0)](logic, now)
+        action = logic.poll(now)
+        if action.send is not None:
+            sent.append((now, action.send))
+        if action.finished:
+            return sent, True
+        now = max(now, min([logic.next_wakeup_s()] + pending[:1]))
+    else:
+        pytest.fail(f"the fake-clock shell spun at t = {now}")
+    return sent, False
+
+
+def _every(period_s: float, start_s: float, end_s: float,
+           action: Callable[[DeadmanLogic, float], None]
+           ) -> dict[float, Callable[[DeadmanLogic, float], None]]:
+    count = round((end_s - start_s) / period_s)
+    return {round(start_s + i * period_s, 9): action for i in range(count + 1)}
+
+
+def test_disarmed_sends_stop_at_the_steady_rate_from_the_start() -> None:
+    sent, finished = _run(DeadmanLogic(SETTINGS, 0.0), 1.001, {})
+    assert not finished
+    assert [command for _, command in sent] == [STOP] * 51  # 0.00, 0.02, ..., 1.00
+    assert sent[1][0] - sent[0][0] == pytest.approx(0.02)
+
+
+def test_armed_repeats_an_unchanged_command_at_the_steady_rate() -> None:
+    inputs = {0.0: INPUTS["arm"], **_every(0.05, 0.01, 1.0,
+                                          lambda lg, t: lg.on_command(MOVE, t))}
+    sent, _ = _run(DeadmanLogic(SETTINGS, 0.0), 1.0, inputs)
+    moving = [t for t, command in sent if command == MOVE]
+    assert len(moving) >= 49
+    assert all(b - a == pytest.approx(0.02) for a, b in zip(moving, moving[1:], strict=False))
+
+
+def test_heartbeat_silence_stops_at_the_timeout_and_keeps_stopping() -> None:
+    last_heartbeat = 0.482
+    inputs = {0.0: INPUTS["arm"], **_every(0.03, 0.002, last_heartbeat,
+                                          lambda lg, t: lg.on_command(MOVE, t))}
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    sent, _ = _run(logic, 3.0, inputs)
+    first_stop = next(t for t, command in sent if t > last_heartbeat and command == STOP)
+    assert first_stop == pytest.approx(last_heartbeat + SETTINGS.heartbeat_timeout_s)
+    assert all(command == STOP for t, command in sent if t >= first_stop)
+    assert all(command == MOVE for t, command in sent if 0.0 < t < first_stop)
+    assert logic.mode is DeadmanMode.TRIPPED
+
+
+def test_no_trip_just_before_the_timeout_and_a_trip_exactly_at_it() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic.on_arm(0.0)
+    logic.on_command(MOVE, 0.0)
+    logic.poll(0.0)
+    assert logic.next_wakeup_s() == pytest.approx(0.02)
+    logic.poll(0.18)
+    assert logic.next_wakeup_s() == pytest.approx(0.2)  # heartbeat deadline before next tick
+    assert logic.poll(0.1999).events == ()
+    action = logic.poll(0.2)
+    assert action.send == STOP
+    assert [event.mode for event in action.events] == [DeadmanMode.TRIPPED]
+    assert "no heartbeat for 0.200 s" in action.events[0].reason
+
+
+def test_tripped_ignores_a_fresh_command_stream_until_an_explicit_arm() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    inputs = {0.0: INPUTS["arm"], 0.01: lambda lg, t: lg.on_command(MOVE, t),
+              # frozen from 0.01 to 0.5, then the stream resumes without re-arming
+              **_every(0.02, 0.5, 2.0, lambda lg, t: lg.on_command(MOVE, t))}
+    sent, _ = _run(logic, 2.0, inputs)
+    assert all(command == STOP for t, command in sent if t >= 0.21)
+    assert logic.mode is DeadmanMode.TRIPPED
+    logic.on_arm(2.0)
+    assert logic.poll(2.0).events[0].mode is DeadmanMode.ARMED
+    assert logic.command == STOP  # arming alone never moves the robot
+    logic.on_command(MOVE, 2.01)
+    assert logic.poll(2.03).send == MOVE
+
+
+def test_control_gone_stops_at_once_for_the_orphan_time_then_finishes() -> None:
+    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: lg.on_command(MOVE, t),
+              0.1: INPUTS["control_gone"]}
+    sent, finished = _run(DeadmanLogic(SETTINGS, 0.0), 5.0, inputs)
+    assert finished
+    stops = [t for t, command in sent if t >= 0.1]
+    assert stops[0] == pytest.approx(0.1)
+    assert stops[-1] == pytest.approx(0.1 + SETTINGS.orphan_stop_s)
+    assert all(command == STOP for t, command in sent if t >= 0.1)
+    assert len(stops) == pytest.approx(SETTINGS.orphan_stop_s / 0.02 + 1, abs=1)
+
+
+def test_close_sends_a_short_burst_of_stops_then_finishes() -> None:
+    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: lg.on_command(MOVE, t),
+              0.1: INPUTS["close"]}
+    sent, finished = _run(DeadmanLogic(SETTINGS, 0.0), 5.0, inputs)
+    assert finished
+    assert [command for t, command in sent if t >= 0.1] == [STOP] * CLOSE_STOP_PACKETS
+
+
+def test_events_report_every_mode_change_once() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic.on_arm(0.0)
+    logic.on_arm(0.01)
+    assert [e.mode for e in logic.poll(0.01).events] == [DeadmanMode.ARMED]
+    logic.on_malformed(0.02, "CMD nan")
+    events = logic.poll(0.02).events
+    assert [e.mode for e in events] == [DeadmanMode.TRIPPED] and "CMD nan" in events[0].reason
+    logic.on_close(0.03, "stopped by signal SIGTERM")
+    logic.on_control_gone(0.03)
+    events = logic.poll(0.03).events
+    assert [(e.mode, e.reason) for e in events] == [(DeadmanMode.STOPPING,
+                                                     "stopped by signal SIGTERM")]
+    assert logic.poll(0.04).events == ()

@@ -1,0 +1,325 @@
+"""KobukiBase, the dead-man process and `lanewarden base` over a pseudo-terminal stand-in base.
+
+Real processes, real pyserial, real pty; no sleeps: every wait is on an event/queue with a
+generous deadline. Latencies are measured in benchmarks/deadman_latency.py, not asserted here.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from actuation.base import STOP, VelocityCommand
+from actuation.deadman_logic import DeadmanMode
+from actuation.errors import KobukiLinkError
+from actuation.kobuki_base import KobukiBase
+from actuation.kobuki_commands import SoundSequence, encode_base_control
+from lanewarden.cli import main
+from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+CONTROL_SCRIPT = Path(__file__).with_name("control_process.py")
+DEADLINE_S = 5.0
+MOVE = VelocityCommand(0.2, 0.0)
+
+
+def _is_motion(packet: ReceivedPacket) -> bool:
+    control = packet.base_control
+    return control is not None and control != (0, 0)
+
+
+def _one_line_error(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("lanewarden: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+# ---- the CLI ------------------------------------------------------------------------------------
+def test_base_info(standin: KobukiStandIn, capsys: pytest.CaptureFixture[str]) -> None:
+    standin.set_sensors(bumper=1, wheel_drop=2)
+    assert main(["base", "info", "--port", standin.port]) == 0
+    out = capsys.readouterr().out
+    for expected in (f"port:             {standin.port}", "hardware version: 1.0.4",
+                     "firmware version: 1.2.0", "UDID:             12345678-9ABCDEF0-0BADCAFE",
+                     "battery:          16.2 V", "bumper:           right",
+                     "cliff:            none", "wheel drop:       left", "feedback rate:"):
+        assert expected in out
+
+
+def test_base_info_json(standin: KobukiStandIn, capsys: pytest.CaptureFixture[str]) -> None:
+    standin.set_sensors(cliff=6)
+    assert main(["base", "info", "--port", standin.port, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["hardware_version"] == "1.0.4" and report["firmware_version"] == "1.2.0"
+    assert report["udid"] == "12345678-9ABCDEF0-0BADCAFE"
+    assert report["battery_v"] == 16.2
+    assert report["cliff"] == ["left", "centre"] and report["bumper"] == []
+    assert report["feedback_rate_hz"] > 0.0 and report["checksum_errors"] == 0
+    # only stops ever went out
+    assert {control for _, control in standin.base_controls()} == {(0, 0)}
+
+
+def test_base_drive_then_stops(standin: KobukiStandIn, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["base", "drive", "--port", standin.port, "--linear", "0.1", "--angular", "0.5",
+                 "--duration", "0.4"]) == 0
+    assert "then stopped" in capsys.readouterr().out
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+    controls = [control for _, control in standin.base_controls()]
+    # R = 200 mm, outer wheel (200 + 115) * 0.5 = 157.5 -> 157 mm/s
+    assert controls.count((157, 200)) >= 5
+    first_motion = controls.index((157, 200))
+    assert set(controls[:first_motion]) == {(0, 0)}
+
+
+def test_base_drive_stops_on_a_pressed_bumper_without_moving(
+        standin: KobukiStandIn, capsys: pytest.CaptureFixture[str]) -> None:
+    standin.set_sensors(bumper=4)
+    assert main(["base", "drive", "--port", standin.port, "--linear", "0.1",
+                 "--duration", "2"]) == 1
+    line = _one_line_error(capsys.readouterr().err)
+    assert "bumper pressed (left)" in line and standin.port in line
+    assert {control for _, control in standin.base_controls()} == {(0, 0)}
+
+
+@pytest.mark.parametrize(("flags", "named"), [
+    (["--linear", "0.8", "--duration", "1"], "'--linear'"),
+    (["--linear", "nan", "--duration", "1"], "'--linear'"),
+    (["--linear", "0.1", "--angular", "-3.2", "--duration", "1"], "'--angular'"),
+    (["--linear", "0.1", "--duration", "0"], "'--duration'"),
+    (["--linear", "0.1", "--duration", "61"], "'--duration'"),
+])
+def test_base_drive_validates_flags_before_opening_anything(
+        flags: list[str], named: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["base", "drive", "--port", "/dev/never-opened", *flags]) == 2
+    line = _one_line_error(capsys.readouterr().err)
+    assert named in line and "/dev/never-opened" not in line
+
+
+def test_missing_port_is_one_line_naming_it(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    port = str(tmp_path / "ttyKobuki")
+    assert main(["base", "info", "--port", port]) == 1
+    line = _one_line_error(capsys.readouterr().err)
+    assert port in line and "no such device" in line and "udev" in line
+
+
+def test_silent_device_is_one_line_naming_it(capsys: pytest.CaptureFixture[str]) -> None:
+    with KobukiStandIn(stream=False) as silent:
+        assert main(["base", "info", "--port", silent.port]) == 1
+    line = _one_line_error(capsys.readouterr().err)
+    assert silent.port in line and "no valid Kobuki packet within 1 s" in line
+
+
+def test_unplugged_while_driving_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    with KobukiStandIn(unplug_on_motion=True) as standin:
+        assert main(["base", "drive", "--port", standin.port, "--linear", "0.1",
+                     "--duration", "10"]) == 1
+    line = _one_line_error(capsys.readouterr().err)
+    assert standin.port in line and "serial link lost" in line
+
+
+def test_ctrl_c_stops_base_drive(standin: KobukiStandIn) -> None:
+    drive = subprocess.Popen(
+        [sys.executable, "-m", "lanewarden", "base", "drive", "--port", standin.port,
+         "--linear", "0.1", "--duration", "30"],
+        cwd=PROJECT_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), 3 * DEADLINE_S)
+        drive.send_signal(signal.SIGINT)
+        _, err = drive.communicate(timeout=3 * DEADLINE_S)
+    finally:
+        drive.kill()
+    assert drive.returncode == 130
+    assert _one_line_error(err) == "lanewarden: error: interrupted"
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+
+
+# ---- KobukiBase ---------------------------------------------------------------------------------
+@pytest.fixture
+def kobuki(standin: KobukiStandIn) -> Iterator[KobukiBase]:
+    with KobukiBase.open(standin.port) as base:
+        yield base
+
+
+def test_versions_udid_sensors_and_health(kobuki: KobukiBase) -> None:
+    assert kobuki.wait_for(lambda b: b.udid is not None and b.firmware_version is not None,
+                           DEADLINE_S)
+    assert (str(kobuki.hardware_version), str(kobuki.firmware_version)) == ("1.0.4", "1.2.0")
+    assert str(kobuki.udid) == "12345678-9ABCDEF0-0BADCAFE"
+    assert kobuki.battery_v == 16.2
+    packet = kobuki.latest_packet
+    assert packet.cliff_adc is not None and packet.cliff_adc.left == 2200
+    assert packet.raw_gyro is not None and len(packet.raw_gyro.samples) == 2
+    assert packet.gpio is not None and packet.gpio.analog_in == (10, 20, 30, 40)
+    health = kobuki.link_health(time.monotonic())
+    assert health.packets > 0 and health.checksum_errors == 0 and health.lost_reason is None
+    assert health.deadman_mode is DeadmanMode.DISARMED  # nothing sent yet: not armed
+    kobuki.send(STOP, time.monotonic())
+    assert kobuki.wait_for(lambda b: b.deadman_mode is DeadmanMode.ARMED, DEADLINE_S)
+
+
+def test_checksum_errors_are_counted_and_the_stream_survives() -> None:
+    with KobukiStandIn(corrupt_every=3) as standin, KobukiBase.open(standin.port) as base:
+        seen = base.packets_received
+        assert base.wait_for(lambda b: b.packets_received >= seen + 6, DEADLINE_S)
+        assert base.link_health(time.monotonic()).checksum_errors >= 2
+
+
+def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn,
+                                                        kobuki: KobukiBase) -> None:
+    sends = 0
+    for _ in range(10):  # one send every 3 feedback packets (~60 ms): well inside the timeout
+        kobuki.send(MOVE, time.monotonic())
+        sends += 1
+        seen = kobuki.packets_received
+        assert kobuki.wait_for(lambda b, seen=seen: b.packets_received >= seen + 3, DEADLINE_S)
+    kobuki.send(STOP, time.monotonic())
+    motion = [p.packet for p in standin.snapshot() if _is_motion(p)]
+    assert len(set(motion)) == 1
+    assert len(motion) >= 2 * sends  # generous: ~3 per send at 50 Hz
+
+
+def test_stop_is_the_exact_stop_packet(standin: KobukiStandIn, kobuki: KobukiBase) -> None:
+    kobuki.send(MOVE, time.monotonic())
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), DEADLINE_S)
+    mark = len(standin.snapshot())
+    kobuki.send(STOP, time.monotonic())
+    assert standin.wait_for(lambda pkts: any(p.packet == bytes.fromhex(
+        "AA 55 06 01 04 00 00 00 00 03") for p in pkts[mark:]), DEADLINE_S)
+
+
+def test_extra_commands_reach_the_wire_but_never_motion(standin: KobukiStandIn,
+                                                         kobuki: KobukiBase) -> None:
+    kobuki.play_sound_sequence(SoundSequence.BUTTON)
+    assert standin.wait_for(lambda pkts: any(
+        p.packet == bytes.fromhex("AA 55 03 04 01 03 05") for p in pkts), DEADLINE_S)
+    with pytest.raises(ValueError, match="base control"):
+        kobuki.send_extra(encode_base_control(100, 0))
+
+
+def test_unplugging_the_pty_is_a_clear_error_not_a_hang(standin: KobukiStandIn,
+                                                       kobuki: KobukiBase) -> None:
+    kobuki.send(MOVE, time.monotonic())
+    standin.unplug()
+    assert kobuki.wait_for(lambda b: b.link_lost is not None, DEADLINE_S)
+    with pytest.raises(KobukiLinkError) as info:
+        kobuki.send(MOVE, time.monotonic())
+    assert standin.port in str(info.value) and "serial link lost" in str(info.value)
+    now = time.monotonic()
+    feedback = kobuki.feedback(now)  # stale data, not an exception: the watchdog decides
+    assert feedback.received_at_s is not None and feedback.received_at_s <= now
+    assert not kobuki.link_health(now).alive
+    kobuki.close()
+
+
+def test_second_opener_is_told_the_port_is_busy(standin: KobukiStandIn,
+                                                kobuki: KobukiBase) -> None:
+    with pytest.raises(KobukiLinkError, match="in use by another process"):
+        KobukiBase.open(standin.port)
+    kobuki.send(STOP, time.monotonic())  # the first owner is unaffected
+
+
+def test_sigterm_to_the_deadman_stops_the_base(standin: KobukiStandIn,
+                                               kobuki: KobukiBase) -> None:
+    kobuki.send(MOVE, time.monotonic())
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), DEADLINE_S)
+    os.kill(kobuki.deadman_pid, signal.SIGTERM)
+    assert kobuki.wait_for(lambda b: b.link_lost is not None, DEADLINE_S)
+    assert "stopped by signal SIGTERM" in kobuki.link_health(time.monotonic()).deadman_reason
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+    with pytest.raises(KobukiLinkError, match="dead-man process exited"):
+        kobuki.send(MOVE, time.monotonic())
+
+
+# ---- the control process dies or freezes --------------------------------------------------------
+class ControlProcess:
+    """tests/actuation/control_process.py as a subprocess, its stdout lines on a queue."""
+
+    def __init__(self, port: str) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, str(CONTROL_SCRIPT), port], cwd=PROJECT_ROOT,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=self._pump, daemon=True).start()
+        self.deadman_pid = int(self.expect_prefix("deadman "))
+
+    def _pump(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.put(line.strip())
+
+    def expect_prefix(self, prefix: str) -> str:
+        line = self.lines.get(timeout=3 * DEADLINE_S)
+        assert line.startswith(prefix), line
+        return line[len(prefix):]
+
+    def close(self) -> None:
+        self.process.kill()
+        self.process.wait(timeout=DEADLINE_S)
+
+
+def _exits_within(pid: int, timeout_s: float) -> bool:
+    """Wait (pidfd, no polling) for a process that is not our child to exit."""
+    try:
+        pidfd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    try:
+        return bool(select.select([pidfd], [], [], timeout_s)[0])
+    finally:
+        os.close(pidfd)
+
+
+@pytest.fixture
+def control(standin: KobukiStandIn) -> Iterator[ControlProcess]:
+    process = ControlProcess(standin.port)
+    try:
+        yield process
+    finally:
+        process.close()
+
+
+def test_sigkill_of_the_control_process_stops_the_base(standin: KobukiStandIn,
+                                                       control: ControlProcess) -> None:
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), 3 * DEADLINE_S)
+    killed_at = time.monotonic()
+    os.kill(control.process.pid, signal.SIGKILL)
+    assert standin.wait_for(lambda pkts: any(p.arrival_s >= killed_at and p.packet == STOP_PACKET
+                                             for p in pkts), DEADLINE_S)
+    # the orphaned dead-man keeps stopping for a moment, then exits; nothing moves again
+    assert _exits_within(control.deadman_pid, DEADLINE_S)
+    after = [p for p in standin.snapshot() if p.arrival_s >= killed_at]
+    first_stop = next(i for i, p in enumerate(after) if p.packet == STOP_PACKET)
+    assert not any(map(_is_motion, after[first_stop:]))
+
+
+def test_frozen_control_process_trips_and_stays_stopped_until_rearmed(
+        standin: KobukiStandIn, control: ControlProcess) -> None:
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), 3 * DEADLINE_S)
+    frozen_at = time.monotonic()
+    os.kill(control.process.pid, signal.SIGSTOP)
+    assert standin.wait_for(lambda pkts: any(p.arrival_s >= frozen_at and p.packet == STOP_PACKET
+                                             for p in pkts), DEADLINE_S)
+    os.kill(control.process.pid, signal.SIGCONT)
+    assert control.expect_prefix("tripped") == ""  # it runs again and sends commands again...
+    mark = len(standin.snapshot())
+    assert standin.wait_for(lambda pkts: len(pkts) >= mark + 10, DEADLINE_S)
+    assert not any(map(_is_motion, standin.snapshot()[mark:]))  # ...which are ignored
+    assert control.process.stdin is not None
+    control.process.stdin.write("rearm\n")
+    control.process.stdin.flush()
+    assert control.expect_prefix("rearmed") == ""
+    mark = len(standin.snapshot())
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts[mark:])), DEADLINE_S)
