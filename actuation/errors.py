@@ -7,3 +7,8 @@ class ActuationError(Exception):
 
 class KobukiLinkError(ActuationError):
     """The serial link to the Kobuki is missing, closed, silent or refused."""
+
+
+class DeadmanTrippedError(ActuationError):
+    """The dead-man stopped the base (the control process went quiet) and ignores motion commands
+    until `KobukiBase.rearm()` is called explicitly."""

@@ -5,8 +5,8 @@
 `send()` forwards each command (which is also the dead-man's heartbeat), a relay thread decodes
 the feedback the dead-man forwards and stamps it with the injected clock, and `close()` stops
 the base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
-(this process went quiet for `heartbeat_timeout_s`) commands are ignored and the base stays
-stopped until `rearm()` is called explicitly.
+(this process went quiet for `heartbeat_timeout_s`) the base stays stopped, motion commands are
+ignored by it and `send()` raises DeadmanTrippedError, until `rearm()` is called explicitly.
 
 Call `send()` at least every `heartbeat_timeout_s` while the robot should move. Never write to
 the serial port from here, and never block on the dead-man: a link or process failure becomes a
@@ -45,7 +45,7 @@ from actuation.deadman_messages import (
     decode_deadman,
     encode_control,
 )
-from actuation.errors import ActuationError, KobukiLinkError
+from actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from actuation.kobuki_commands import (
     ExtraRequest,
     SoundSequence,
@@ -186,7 +186,8 @@ class KobukiBase:
         """Forward `command` (scaled into the limits) to the dead-man; it is also a heartbeat.
 
         Non-finite components: stop is sent, then ActuationError. A lost link or dead dead-man:
-        KobukiLinkError. After close(): ActuationError.
+        KobukiLinkError. A motion command while the dead-man is tripped: forwarded (and ignored
+        by it), then DeadmanTrippedError. After close(): ActuationError.
         """
         self._raise_if_unusable()
         if not self._armed:
@@ -200,6 +201,12 @@ class KobukiBase:
         limited = limit_command(command, self._config.max_linear_m_s,
                                 self._config.max_angular_rad_s)
         self._post(Command(limited))
+        with self._cond:
+            tripped, reason = self._mode is DeadmanMode.TRIPPED, self._mode_reason
+        if tripped and not limited.is_stop:
+            raise DeadmanTrippedError(
+                f"{self._port}: the dead-man stopped the base ({reason}); motion commands are "
+                "ignored until rearm()")
 
     def feedback(self, now: float) -> BaseFeedback:
         """The newest decoded feedback; `received_at_s` is the injected clock at its arrival."""

@@ -53,7 +53,7 @@ def base_group() -> None:
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 @config_option
 def info(port: str | None, as_json: bool, config_path: str | None) -> None:
-    """Versions, UDID, battery, bumper/cliff/wheel-drop state and the feedback rate."""
+    """Show versions, UDID, battery, hazards and the feedback rate."""
     config = load_config(config_path).actuation
     with KobukiBase.open(port, config=config) as base:
         start_packets, start_s = base.packets_received, time.monotonic()
@@ -130,7 +130,7 @@ def _hazard(feedback: BaseFeedback) -> str | None:
 @config_option
 def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s: float,
           config_path: str | None) -> None:
-    """Drive at a constant velocity for DURATION seconds, then stop (Ctrl-C stops at once)."""
+    """Drive at a constant velocity, then stop (Ctrl-C stops at once)."""
     config = load_config(config_path).actuation
     _check_range("--linear", linear_m_s, config.max_linear_m_s, "m/s")
     _check_range("--angular", angular_rad_s, config.max_angular_rad_s, "rad/s")

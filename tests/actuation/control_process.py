@@ -2,8 +2,9 @@
 
 `python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
 prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending the
-monotonic time of each completed send to HEARTBEAT_LOG if given. Prints `tripped` when the
-dead-man reports it tripped, and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
+monotonic time of each completed send to HEARTBEAT_LOG if given. Prints `tripped` when send()
+says the dead-man tripped (it keeps sending: the dead-man must ignore that stream), and re-arms
+(printing `rearmed`) when a `rearm` line arrives on stdin.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import time
 
 from actuation.base import VelocityCommand
 from actuation.deadman_logic import DeadmanMode
+from actuation.errors import DeadmanTrippedError
 from actuation.kobuki_base import KobukiBase
 
 CONTROL_PERIOD_S = 0.02
@@ -30,12 +32,14 @@ def main(port: str, heartbeat_log: str | None) -> None:
     tick = threading.Event()  # never set: its timed wait paces this pretend control loop
     tripped = False
     while True:
-        base.send(command, time.monotonic())
+        try:
+            base.send(command, time.monotonic())  # reaches the dead-man even when tripped
+        except DeadmanTrippedError:
+            if not tripped:
+                tripped = True
+                print("tripped", flush=True)
         if log_fd is not None:
             os.write(log_fd, f"{time.monotonic()!r}\n".encode())
-        if not tripped and base.deadman_mode is DeadmanMode.TRIPPED:
-            tripped = True
-            print("tripped", flush=True)
         if tripped and select.select([sys.stdin], [], [], 0.0)[0]:
             if sys.stdin.readline().strip() == "rearm":
                 base.rearm(time.monotonic())

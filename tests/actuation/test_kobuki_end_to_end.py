@@ -22,7 +22,7 @@ import pytest
 
 from actuation.base import STOP, VelocityCommand
 from actuation.deadman_logic import DeadmanMode
-from actuation.errors import KobukiLinkError
+from actuation.errors import DeadmanTrippedError, KobukiLinkError
 from actuation.kobuki_base import KobukiBase
 from actuation.kobuki_commands import SoundSequence, encode_base_control
 from lanewarden.cli import main
@@ -153,6 +153,11 @@ def kobuki(standin: KobukiStandIn) -> Iterator[KobukiBase]:
         yield base
 
 
+def _wait_packets(base: KobukiBase, count: int) -> None:
+    target = base.packets_received + count
+    assert base.wait_for(lambda b: b.packets_received >= target, DEADLINE_S)
+
+
 def test_versions_udid_sensors_and_health(kobuki: KobukiBase) -> None:
     assert kobuki.wait_for(lambda b: b.udid is not None and b.firmware_version is not None,
                            DEADLINE_S)
@@ -172,8 +177,7 @@ def test_versions_udid_sensors_and_health(kobuki: KobukiBase) -> None:
 
 def test_checksum_errors_are_counted_and_the_stream_survives() -> None:
     with KobukiStandIn(corrupt_every=3) as standin, KobukiBase.open(standin.port) as base:
-        seen = base.packets_received
-        assert base.wait_for(lambda b: b.packets_received >= seen + 6, DEADLINE_S)
+        _wait_packets(base, 6)
         assert base.link_health(time.monotonic()).checksum_errors >= 2
 
 
@@ -183,8 +187,7 @@ def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn,
     for _ in range(10):  # one send every 3 feedback packets (~60 ms): well inside the timeout
         kobuki.send(MOVE, time.monotonic())
         sends += 1
-        seen = kobuki.packets_received
-        assert kobuki.wait_for(lambda b, seen=seen: b.packets_received >= seen + 3, DEADLINE_S)
+        _wait_packets(kobuki, 3)
     kobuki.send(STOP, time.monotonic())
     motion = [p.packet for p in standin.snapshot() if _is_motion(p)]
     assert len(set(motion)) == 1
@@ -222,6 +225,24 @@ def test_unplugging_the_pty_is_a_clear_error_not_a_hang(standin: KobukiStandIn,
     assert feedback.received_at_s is not None and feedback.received_at_s <= now
     assert not kobuki.link_health(now).alive
     kobuki.close()
+
+
+def test_a_quiet_caller_trips_the_deadman_and_must_rearm(standin: KobukiStandIn,
+                                                          kobuki: KobukiBase) -> None:
+    kobuki.send(MOVE, time.monotonic())
+    # no more sends: the heartbeat timeout (0.2 s) trips the dead-man
+    assert kobuki.wait_for(lambda b: b.deadman_mode is DeadmanMode.TRIPPED, DEADLINE_S)
+    assert "no heartbeat" in kobuki.link_health(time.monotonic()).deadman_reason
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+    with pytest.raises(DeadmanTrippedError, match="ignored until rearm"):
+        kobuki.send(MOVE, time.monotonic())
+    kobuki.send(STOP, time.monotonic())  # stopping is always fine
+    kobuki.rearm(time.monotonic())
+    assert kobuki.wait_for(lambda b: b.deadman_mode is DeadmanMode.ARMED, DEADLINE_S)
+    mark = len(standin.snapshot())
+    kobuki.send(MOVE, time.monotonic())
+    assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts[mark:])), DEADLINE_S)
+    kobuki.send(STOP, time.monotonic())
 
 
 def test_second_opener_is_told_the_port_is_busy(standin: KobukiStandIn,

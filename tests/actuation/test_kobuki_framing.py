@@ -68,18 +68,22 @@ payloads_st = st.binary(min_size=3, max_size=255)
 noise_st = st.binary(max_size=40).map(lambda b: bytes(x for x in b if x != 0xAA))
 
 
+def _feed_in_chunks(data: bytes, sizes: list[int]) -> list[bytes]:
+    """Feed `data` to a fresh reader split at the given chunk sizes (the rest in one go)."""
+    reader = PacketReader()
+    out: list[bytes] = []
+    position = 0
+    for size in sizes:
+        out += reader.feed(data[position:position + size])
+        position += size
+    return out + reader.feed(data[position:])
+
+
 @PROPERTY
 @given(st.binary(max_size=2000), st.lists(st.integers(1, 64), max_size=50))
 def test_random_bytes_never_crash_and_never_yield_a_bad_packet(data: bytes,
                                                                 chunks: list[int]) -> None:
-    reader = PacketReader()
-    out: list[bytes] = []
-    position = 0
-    for size in chunks:
-        out += reader.feed(data[position:position + size])
-        position += size
-    out += reader.feed(data[position:])
-    for payload in out:
+    for payload in _feed_in_chunks(data, chunks):
         # every yielded payload came from a checksum-valid frame present in the input
         assert 3 <= len(payload) <= 255
         assert frame_packet(payload) in data
@@ -91,14 +95,7 @@ def test_random_bytes_never_crash_and_never_yield_a_bad_packet(data: bytes,
 def test_every_valid_packet_is_recovered_through_noise_and_splits(
         stream: list[tuple[bytes, bytes]], cuts: list[int]) -> None:
     data = b"".join(noise + frame_packet(payload) for noise, payload in stream)
-    reader = PacketReader()
-    out: list[bytes] = []
-    position = 0
-    for size in cuts:
-        out += reader.feed(data[position:position + size])
-        position += size
-    out += reader.feed(data[position:])
-    assert out == [payload for _, payload in stream]
+    assert _feed_in_chunks(data, cuts) == [payload for _, payload in stream]
 
 
 @PROPERTY
