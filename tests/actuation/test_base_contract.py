@@ -126,8 +126,9 @@ def test_initial_command_is_stop(harness: Harness) -> None:
     if isinstance(harness, SimHarness):
         assert harness.sim.commanded == STOP and harness.sim.velocity == STOP
     if isinstance(harness, KobukiHarness):
-        controls = [c for _, c in harness.standin.base_controls()]
-        assert len(controls) >= 3 and set(controls) == {(0, 0)}
+        assert harness.standin.wait_for(
+            lambda pkts: sum(p.base_control is not None for p in pkts) >= 3, DEADLINE_S)
+        assert {c for _, c in harness.standin.base_controls()} == {(0, 0)}
 
 
 def test_send_moves_and_stop_stops(harness: Harness) -> None:

@@ -189,6 +189,8 @@ def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn,
         sends += 1
         _wait_packets(kobuki, 3)
     kobuki.send(STOP, time.monotonic())
+    # every motion packet is on the wire before the stop: wait for the stop, then count
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     motion = [p.packet for p in standin.snapshot() if _is_motion(p)]
     assert len(set(motion)) == 1
     assert len(motion) >= 2 * sends  # generous: ~3 per send at 50 Hz
