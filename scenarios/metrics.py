@@ -13,9 +13,10 @@ plus the world and the camera; outputs are numbers for `metrics.json`. Definitio
 - `lane_loss_to_halt_s`: first HALT time minus the lane-loss time, where lane loss is the first
   frame in which no tape lies inside the camera's region of interest (tape samples projected
   through the camera, tested against the ROI polygon). If the robot halted while tape was still
-  in view, the loss time is extrapolated: the arc length where a centred robot would lose the
-  tape, reached at the robot's speed before the halt (`lane_loss_estimated: true`). None when the
-  lane never ends or the robot never halted.
+  in view, within `EXTRAPOLATE_LANE_LOSS_M` of the arc length where a centred robot would lose
+  the tape, the loss time is extrapolated at the robot's speed before the halt
+  (`lane_loss_estimated: true`). None when the lane never ends, the robot never halted, or it
+  halted farther back (for another reason than the lane end).
 - `halted`: the controller entered HALT after it had engaged (or never engaged at all).
 - `turns_completed`: marks (A, B, ...) whose gate (the segment across the lane, tape to tape, at
   the end of the marked segment) the robot's centre crossed, in order.
@@ -40,6 +41,9 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 HALT_STATE = "HALT"
+#: A halt this close before the point where the lane would leave the view counts as a response to
+#: the lane end (lane_loss_to_halt_s is extrapolated); farther back it was about something else.
+EXTRAPOLATE_LANE_LOSS_M = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,7 +233,7 @@ def compute_metrics(
             window = (times > times[halted_idx] - 1.0) & (times <= times[halted_idx])
             speed = float(np.mean(trace.speed_m_s[window])) if window.any() else 0.0
             remaining = loss_arc_length_m - float(s[halted_idx])
-            if speed > 1e-3 and remaining > 0:
+            if speed > 1e-3 and 0 < remaining <= EXTRAPOLATE_LANE_LOSS_M:
                 loss_time = float(times[halted_idx]) + remaining / speed
                 estimated = True
     out["lane_loss_time_s"] = None if loss_time is None else round(loss_time, 4)

@@ -1,9 +1,119 @@
-"""`lanewarden sim` (placeholder: owned by the work item that builds it)."""
+"""`lanewarden sim` (one scenario, one controller) and `lanewarden demo` (the lecture's course with
+both controllers, side by side).
+
+Thin shells: parse flags, load the config and the scenario, call `scenarios.sim_run`, print a
+summary. Errors are the layers' one-line errors; the CLI root prints them without a traceback.
+"""
 
 from __future__ import annotations
 
+import multiprocessing
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
 import click
+
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+from lanewarden.errors import QualityGateError
+from scenarios.library import library_names, resolve_scenario
+from scenarios.report import comparison_rows, demo_summary, format_table, write_report
+from scenarios.sim_run import RunRequest, run_to_directory
+from supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+
+DEMO_SCENARIO = "lecture"
+DEFAULT_DEMO_OUT = "lanewarden-out"
+
+
+def _summary_lines(metrics: dict[str, object]) -> list[str]:
+    def fmt(key: str) -> str:
+        value = metrics.get(key)
+        return "-" if value is None else str(value)
+
+    return [
+        f"{metrics['scenario']} / {metrics['controller']} (seed {metrics['seed']}): "
+        f"{metrics['frames']} frames, {metrics['sim_time_s']} s simulated in "
+        f"{metrics['wall_time_s']} s",
+        f"  halted: {fmt('halted')}  reason: {fmt('halt_reason')}",
+        f"  turns completed: {fmt('turns_completed')}  max cross-track error: "
+        f"{fmt('max_cross_track_error_m')} m  crossed tape: {fmt('crossed_tape')}",
+        f"  distance past lane end: {fmt('distance_past_lane_end_m')} m  lane out of view -> "
+        f"HALT: {fmt('lane_loss_to_halt_s')} s",
+    ]
+
+
+@click.command("sim")
+@click.option("--scenario", "scenario", required=True, metavar="NAME|FILE",
+              help=f"A library scenario ({', '.join(library_names())}) or a scenario YAML file.")
+@click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
+              show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Varies the floor texture and the sensor noise.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Output directory (default: lanewarden-out/<scenario>-<controller>).")
+@config_option
+@click.option("--no-video", is_flag=True, help="Skip video.mp4 (faster).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--check", is_flag=True,
+              help="Exit with code 2 if the scenario's expected outcome is not met.")
+def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
+                config_path: str | None, no_video: bool, quiet: bool, check: bool) -> None:
+    """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4, plot.png."""
+    config = load_config(config_path)
+    spec = resolve_scenario(scenario)
+    out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
+    metrics = run_to_directory(RunRequest(
+        spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
+        video=not no_video, progress=not quiet, source=scenario))
+    for line in _summary_lines(metrics):
+        click.echo(line)
+    met = metrics.get("expectation_met")
+    if met is not None:
+        failures = metrics.get("expectation_failures") or []
+        assert isinstance(failures, list)
+        click.echo("  expected outcome: " + ("met" if met else "NOT met: " + "; ".join(failures)))
+    click.echo(f"  outputs in {out}/")
+    if check and met is False:
+        raise QualityGateError(f"scenario {spec.name}: expected outcome not met")
+
+
+@click.command("demo")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=DEFAULT_DEMO_OUT,
+              show_default=True, help="Output directory.")
+@config_option
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Varies the floor texture and the sensor noise.")
+@click.option("--no-video", is_flag=True, help="Skip the videos (faster).")
+@click.option("--quiet", is_flag=True, help="No progress bars.")
+def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: bool,
+                 quiet: bool) -> None:
+    """The lecture's course driven by the lecture's controller and by the supervisor, side by
+    side: DIR/lecture/, DIR/supervised/, DIR/report.html."""
+    started = time.perf_counter()
+    config = load_config(config_path)
+    spec = resolve_scenario(DEMO_SCENARIO)
+    out = Path(out_dir)
+    requests = [
+        RunRequest(spec=spec, config=config, controller=name, seed=seed, out_dir=out / name,
+                   video=not no_video, progress=not quiet, progress_position=i)
+        for i, name in enumerate(("lecture", "supervised"))
+    ]
+    # The two runs are independent: one process each (the machine has two cores).
+    with ProcessPoolExecutor(max_workers=2,
+                             mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(run_to_directory, r) for r in requests]
+        results = [f.result() for f in futures]
+    runs = {r.controller: m for r, m in zip(requests, results, strict=True)}
+    summary = demo_summary(runs["lecture"], runs["supervised"])
+    write_report(out / "report.html", runs, summary)
+    sys.stderr.flush()
+    click.echo(format_table(comparison_rows(runs)))
+    click.echo("")
+    click.echo(summary)
+    click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")
 
 
 def commands() -> list[click.Command]:
-    return []
+    return [sim_command, demo_command]

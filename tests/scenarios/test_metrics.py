@@ -75,6 +75,10 @@ def test_stopping_before_the_end_is_negative_and_halting_early_extrapolates() ->
     x_halt = 2.5 * 50 / 59
     assert m["lane_loss_estimated"] is True
     assert m["lane_loss_to_halt_s"] == pytest.approx(-(2.8 - x_halt) / 0.2, abs=1e-3)
+    # A halt far back is not a response to the lane end: no lane-loss time at all.
+    far = compute_metrics(world, trace_along(xs * 0.4, np.zeros(60), states), np.ones(60, bool),
+                          2.8)
+    assert far["halted"] is True and far["lane_loss_to_halt_s"] is None
 
 
 def test_no_lane_end_means_nulls() -> None:

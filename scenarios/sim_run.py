@@ -1,0 +1,141 @@
+"""One simulated run written to a directory: metrics.json, run.jsonl, video.mp4, plot.png.
+
+The shell around `Simulation`: opens the files, shows progress on stderr (tqdm, only on a
+terminal), measures the wall time for the report (wall time never feeds the simulation) and
+writes the outputs. `lanewarden sim` calls it once; `lanewarden demo` calls it in two worker
+processes. Errors are the layers' one-line errors (ScenarioError, SupervisorError, ...).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from scenarios.errors import ScenarioError
+from scenarios.expectations import check_expectation
+from scenarios.plot import write_plot
+from scenarios.simulator import Simulation, SimulationResult, effective_config
+from scenarios.spec import ScenarioSpec
+from supervisor.recorder import JsonlRecorder
+
+if TYPE_CHECKING:
+    from lanewarden.config import LanewardenConfig
+
+#: metrics.json keys, in this order first (the issue's names); the rest follow alphabetically.
+METRIC_KEYS = (
+    "scenario", "controller", "seed", "frames", "sim_time_s", "wall_time_s", "halted",
+    "halt_reason", "final_state", "states_visited", "max_cross_track_error_m",
+    "mean_cross_track_error_m", "distance_travelled_m", "distance_past_lane_end_m",
+    "crossed_tape", "lane_loss_to_halt_s", "turns_completed",
+)
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """Everything one run needs; picklable, so a worker process can take it."""
+
+    spec: ScenarioSpec
+    config: LanewardenConfig
+    controller: str
+    seed: int
+    out_dir: Path
+    video: bool = True
+    progress: bool = True
+    progress_position: int = 0
+    source: str | None = None
+
+
+def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyped-def]
+    from tqdm import tqdm
+
+    enabled = request.progress and request.config.simulation.progress and sys.stderr.isatty()
+    return tqdm(
+        total=round(total_s, 1), unit="s", desc=f"{request.spec.name}/{request.controller}",
+        disable=not enabled, file=sys.stderr, position=request.progress_position, leave=True,
+        bar_format="{desc}: {bar} {n:.1f}/{total:.0f} s simulated [{elapsed}]",
+    )
+
+
+def ordered_metrics(metrics: dict[str, object]) -> dict[str, object]:
+    first = {k: metrics[k] for k in METRIC_KEYS if k in metrics}
+    rest = {k: metrics[k] for k in sorted(metrics) if k not in first}
+    return {**first, **rest}
+
+
+def run_to_directory(request: RunRequest) -> dict[str, object]:
+    """Run one scenario and write its outputs into `request.out_dir`; returns the metrics."""
+    started = time.perf_counter()
+    config = effective_config(request.config, request.spec, request.source)
+    out = request.out_dir
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ScenarioError(f"--out {out}: cannot create the output directory ({exc})") from exc
+    video_path = out / "video.mp4" if request.video else None
+    if not request.video:
+        (out / "video.mp4").unlink(missing_ok=True)
+    bar = _progress_bar(request, request.spec.run.max_time_s)
+    shown = [0.0]
+
+    def progress(now: float) -> None:
+        if now - shown[0] >= 0.5:
+            bar.update(now - shown[0])
+            shown[0] = now
+
+    with JsonlRecorder(out / "run.jsonl") as recorder:
+        simulation = Simulation(
+            request.spec, config, controller=request.controller, seed=request.seed,
+            video_path=video_path, record=recorder, progress=progress)
+        try:
+            result = simulation.run()
+        finally:
+            bar.close()
+    write_run_plot(out / "plot.png", result, config)
+    metrics = dict(result.metrics)
+    expect = getattr(request.spec.expect, request.controller, None)
+    failures = None if expect is None else check_expectation(metrics, expect)
+    metrics.update(
+        scenario=request.spec.name,
+        controller=request.controller,
+        seed=request.seed,
+        frames=len(result.records),
+        sim_time_s=round(float(result.trace.time_s[-1]), 4) if len(result.records) else 0.0,
+        wall_time_s=round(time.perf_counter() - started, 3),
+        resolution=[config.simulation.width_px, config.simulation.height_px],
+        expectation_met=None if failures is None else not failures,
+        expectation_failures=failures or [],
+        outputs=sorted(p.name for p in (out / "run.jsonl", out / "plot.png", video_path)
+                       if p is not None),
+    )
+    metrics = ordered_metrics(metrics)
+    try:
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
+    return metrics
+
+
+def write_run_plot(path: Path, result: SimulationResult, config: LanewardenConfig) -> None:
+    records = result.records
+    times = result.trace.time_s
+    metrics = result.metrics
+    halt_time = metrics.get("halt_time_s") if metrics.get("halted") else None
+    loss_time = metrics.get("lane_loss_time_s")
+    write_plot(
+        path,
+        f"{result.spec.name} - {result.controller} controller (seed {result.seed})",
+        times,
+        [None if r.observation is None else r.observation.slope_sum for r in records],
+        [r.filtered_slope_sum for r in records],
+        [None if r.observation is None else r.observation.confidence for r in records],
+        [r.state for r in records],
+        config.supervisor.turn_enter_slope_sum,
+        {
+            "lane out of view": loss_time if isinstance(loss_time, float) else None,
+            "HALT": halt_time if isinstance(halt_time, float) else None,
+        },
+    )

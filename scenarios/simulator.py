@@ -1,0 +1,292 @@
+"""The closed loop in simulation: the robot's own runtime driven by a synthetic camera and base.
+
+    SimBase (true pose) -> CameraRenderer -> SimCamera (faults) -> ControlLoop(LaneDetector,
+    SupervisedController | LectureController) -> SimBase
+
+On a fake clock at the camera rate: each tick advances the simulated base to `now`, renders the
+frame the camera sees at the true pose, applies the scenario's faults, and calls
+`loop.step(now)` (the same step the robot runner calls). `loop.start(0)` is the explicit start;
+the supervisor engages by itself after its confident frames. Perception undistorts with the true
+calibration of the simulated camera. Ground-truth metrics come from the world (`metrics`).
+
+Never reads a clock (wall time is measured by the caller) and never writes files itself: the
+run's records, video frames and progress go to callbacks the caller passes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from actuation.base import Pose2D
+from actuation.sim_base import SimBase, SimBaseParams
+from perception.calibration import CameraCalibration, Undistorter
+from perception.decision import decide
+from perception.detector import DetectionDebug, LaneDetector
+from perception.observation import LaneObservation
+from perception.overlay import draw_overlay
+from scenarios.camera import CameraModel
+from scenarios.faults import FaultSchedule, camera_pool_size
+from scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
+from scenarios.render import CameraRenderer
+from scenarios.sim_camera import SimCamera
+from scenarios.spec import ScenarioSpec, with_overrides
+from scenarios.texture import GroundTexture, paint_ground
+from scenarios.video import MapView, VideoRecorder, roi_ground_outline
+from scenarios.world import World, build_world
+from supervisor.controllers import make_controller
+from supervisor.loop import ControlLoop, StepRecord
+
+if TYPE_CHECKING:
+    from lanewarden.config import LanewardenConfig
+
+U8 = NDArray[np.uint8]
+
+#: A run that has not engaged after this long ends (nothing will move).
+NOT_ENGAGED_LIMIT_S = 5.0
+#: The run ends when the robot's centre comes this close to the edge of the painted floor.
+WORLD_EDGE_MARGIN_M = 1.0
+#: The video's camera view is rendered from the floor texture shrunk by this factor.
+DISPLAY_TEXTURE_FACTOR = 2
+#: Below this the base counts as at rest (for ending a run after a HALT).
+AT_REST_M_S = 1e-3
+
+
+class DetectionTap:
+    """The real detector, run through `detect_debug` so a recording can draw its overlay.
+
+    Satisfies the loop's Detector protocol and returns exactly what `detect` would return."""
+
+    def __init__(self, detector: LaneDetector) -> None:
+        self._detector = detector
+        self.last: tuple[int, LaneObservation, DetectionDebug] | None = None
+
+    def detect(self, image: np.ndarray, frame_index: int, time_s: float,
+               previous: LaneObservation | None = None) -> LaneObservation:
+        self.last = None
+        observation, debug = self._detector.detect_debug(image, frame_index, time_s, previous)
+        self.last = (frame_index, observation, debug)
+        return observation
+
+
+@dataclass
+class SimulationResult:
+    """One finished run: the metrics, every step record and the true trajectory."""
+
+    spec: ScenarioSpec
+    controller: str
+    seed: int
+    world: World
+    metrics: dict[str, object]
+    records: list[StepRecord]
+    trace: RunTrace
+    end_reason: str
+
+
+def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
+                     source: str | None = None) -> LanewardenConfig:
+    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides."""
+    return with_overrides(config, spec.config, source or f"scenario {spec.name}")
+
+
+def sim_camera_model(config: LanewardenConfig) -> CameraModel:
+    """The simulated camera: CameraModel's geometry at the configured resolution."""
+    return CameraModel(width_px=config.simulation.width_px, height_px=config.simulation.height_px)
+
+
+class Simulation:
+    """One run of one scenario with one controller. Build, then `run()` once."""
+
+    def __init__(
+        self,
+        spec: ScenarioSpec,
+        config: LanewardenConfig,
+        *,
+        controller: str = "supervised",
+        seed: int = 0,
+        video_path: Path | None = None,
+        record: Callable[[StepRecord], None] | None = None,
+        progress: Callable[[float], None] | None = None,
+    ) -> None:
+        self.spec = spec
+        self.config = config
+        self.controller_name = controller
+        self.seed = seed
+        self._record = record
+        self._progress = progress
+        sim = config.simulation
+        self.camera = sim_camera_model(config)
+        self.world = build_world(spec, margin_m=sim.world_margin_m)
+        want_color = video_path is not None or sim.perception_color
+        self.texture: GroundTexture = paint_ground(
+            self.world, sim.texture_mm_per_px / 1000.0, seed, color=want_color)
+        self.renderer = CameraRenderer(
+            self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
+            exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
+        w, h = self.camera.width_px, self.camera.height_px
+        self.undistorter = Undistorter(CameraCalibration(
+            camera_matrix=self.camera.camera_matrix(), dist_coeffs=self.camera.distortion(),
+            image_size=(w, h)))
+        self.detector = LaneDetector(config.perception, self.undistorter)
+        self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
+        self.controller = make_controller(controller, config.supervisor)
+        shape: tuple[int, ...] = (h, w, 3) if sim.perception_color else (h, w)
+        self.sim_camera = SimCamera(shape, camera_pool_size(spec.faults, sim.camera_rate_hz))
+        self.faults = FaultSchedule(spec.faults)
+        self._tap = DetectionTap(self.detector) if video_path is not None else None
+        self.loop = ControlLoop(self.sim_camera, self._tap or self.detector, self.controller,
+                                self.base, record=record)
+        self.roi_polygon_px = self._roi_polygon()
+        self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
+        self._video: VideoRecorder | None = None
+        self._video_path = video_path
+        self._view_bgr = np.empty((h, w, 3), np.uint8)
+        # The video shows the undistorted view (what perception analyses, where its overlay
+        # coordinates live), rendered directly from a half-resolution copy of the same painting.
+        self._display: CameraRenderer | None = None
+        if video_path is not None:
+            self._display = CameraRenderer(
+                self.texture.downsampled(DISPLAY_TEXTURE_FACTOR), self.camera,
+                noise_sigma=sim.noise_sigma_levels, exposure_s=sim.exposure_s, seed=seed,
+                noise_bank_frames=2, distorted=False)
+
+    def _roi_polygon(self) -> NDArray[np.float64]:
+        """Perception's ROI in undistorted pixels, asked from the detector itself (one detection
+        on the start frame, outside the run)."""
+        w, h = self.camera.width_px, self.camera.height_px
+        image = self.renderer.render_gray(self.world.start_pose, np.empty((h, w), np.uint8))
+        _, debug = self.detector.detect_debug(image, -1, 0.0)
+        return np.asarray(debug.roi_polygon_px, dtype=np.float64)
+
+    def run(self) -> SimulationResult:
+        sim = self.config.simulation
+        spec = self.spec
+        dt = 1.0 / sim.camera_rate_hz
+        ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
+        video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
+        if self._video_path is not None:
+            map_view = MapView(self.world, self.texture, sim.video.map_size_px,
+                               roi_ground_outline(self.camera, self.roi_polygon_px))
+            self._video = VideoRecorder(
+                self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
+                sim_camera_rate_fps(sim.camera_rate_hz, video_every), sim.video.crf,
+                sim.video.preset)
+        else:
+            map_view = None
+
+        times: list[float] = []
+        poses: list[tuple[float, float, float]] = []
+        speeds: list[float] = []
+        records: list[StepRecord] = []
+        visible: list[bool] = []
+        lane_ends = self.world.markings_end_s is not None
+        end = self.world.lane_end()
+        engaged = False
+        halt_time: float | None = None
+        end_reason = "time limit"
+        try:
+            for k in range(ticks):
+                now = k * dt
+                self.faults.apply(now, self.sim_camera, self.base, self.loop)
+                self.base.advance_to(now)
+                pose = self.base.pose
+                velocity = self.base.velocity
+                motion = (velocity.linear_m_s, velocity.angular_rad_s)
+                noise = self.renderer.next_noise_index()
+                buffer = self.sim_camera.buffer()
+                if sim.perception_color:
+                    self.renderer.render_bgr(pose, buffer, motion, noise)
+                else:
+                    self.renderer.render_gray(pose, buffer, motion, noise)
+                self.sim_camera.capture(k, now)
+                if k == 0:
+                    self.loop.start(now)
+                if self.faults.loop_stalled:
+                    continue
+                record = self.loop.step(now)
+                records.append(record)
+                times.append(now)
+                poses.append((pose.x_m, pose.y_m, pose.theta_rad))
+                speeds.append(abs(velocity.linear_m_s))
+                if lane_ends:
+                    visible.append(self.visibility.visible(pose))
+                if map_view is not None:
+                    map_view.add_path_point(pose, record.state)
+                    if k % video_every == 0:
+                        self._add_video_frame(k, now, pose, record, buffer, motion, noise)
+                if self._progress is not None:
+                    self._progress(now)
+
+                if record.state != "HALT":
+                    engaged = True
+                elif engaged and halt_time is None:
+                    halt_time = now
+                if halt_time is not None and now - halt_time >= spec.run.halt_settle_s and \
+                        abs(self.base.velocity.linear_m_s) < AT_REST_M_S:
+                    end_reason = "halted"
+                    break
+                if not engaged and now >= NOT_ENGAGED_LIMIT_S:
+                    end_reason = "never engaged"
+                    break
+                if not self.world.inside_bounds(pose.x_m, pose.y_m, WORLD_EDGE_MARGIN_M):
+                    end_reason = "left the painted floor"
+                    break
+                if end is not None and halt_time is None:
+                    point, heading = end
+                    past = (pose.x_m - point[0]) * math.cos(heading) + (
+                        pose.y_m - point[1]) * math.sin(heading)
+                    if past >= spec.run.stop_past_lane_end_m:
+                        end_reason = f"{spec.run.stop_past_lane_end_m:g} m past the lane end"
+                        break
+        finally:
+            self.base.close()
+            if self._video is not None:
+                self._video.close()
+
+        trace = RunTrace(
+            time_s=np.asarray(times), poses=np.asarray(poses, dtype=np.float64).reshape(-1, 3),
+            states=[r.state for r in records], halt_reasons=[r.halt_reason for r in records],
+            events=[r.events for r in records], speed_m_s=np.asarray(speeds))
+        metrics = compute_metrics(
+            self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
+            self.visibility.loss_arc_length(self.world) if lane_ends else None)
+        metrics["end_reason"] = end_reason
+        return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
+                                records, trace, end_reason)
+
+    def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord,
+                         buffer: U8, motion: tuple[float, float], noise: int | None) -> None:
+        assert self._video is not None
+        assert self._display is not None
+        undistorted = self._display.render_bgr(pose, self._view_bgr, motion, 0)
+        tap = self._tap.last if self._tap is not None else None
+        if tap is not None and tap[0] == k and record.observation is not None:
+            _, observation, debug = tap
+            decision = decide(observation, self.config.perception)
+            panel = draw_overlay(undistorted, observation, debug, decision)
+        else:
+            panel = undistorted
+        obs = record.observation
+        cmd = record.command
+        lines = [
+            f"{self.spec.name} | {self.controller_name} | t={now:5.1f} s",
+            f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
+        ]
+        if obs is not None:
+            raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
+            filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
+            lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
+        if record.halt_reason and record.state == "HALT":
+            lines.append(record.halt_reason.split(":")[0])
+        self._video.add(panel, pose, record.state, lines)
+
+
+def sim_camera_rate_fps(camera_rate_hz: float, every: int) -> float:
+    """Frames per second of a video that keeps every `every`-th camera frame (real-time play)."""
+    return camera_rate_hz / every
