@@ -136,6 +136,10 @@ class EdgesConfig(BaseModel):
       Hough's broken pieces of one edge).
     - `chain_gap_frac_of_height` / `chain_max_turn_deg`: a line whose near end starts within the
       gap of another's far end, turning by at most this much, continues it (a bending edge).
+    - `look_ahead_y_norm`: the reported edge (and so its slope) ends where the edge crosses this
+      image row, or at its far end if it stops short: every frame measures the same stretch of
+      floor (about 1.1 m ahead with the default camera), so a bend reads steadily instead of
+      jumping with how far Hough happened to follow the curve.
     - `max_abs_slope`: the slope clamp (see `perception.geometry`).
     """
 
@@ -147,6 +151,7 @@ class EdgesConfig(BaseModel):
     cluster_offset_frac_of_width: PositiveFraction = 0.008
     chain_gap_frac_of_height: Fraction = 0.12
     chain_max_turn_deg: Annotated[float, Field(ge=0.0, le=90.0)] = 35.0
+    look_ahead_y_norm: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.3
     max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = 12.0
 
 
@@ -167,6 +172,9 @@ class TapeConfig(BaseModel):
     - `min_band_fraction`: at least this fraction of the points sampled along a tape candidate
       must show the band darker (or lighter) than the floor outside both edges (dashed tape
       passes with its gaps).
+    - `min_profile_fraction`: an edge without a Hough partner counts as a tape edge when the
+      brightness profile across it looks like a tape on its outer side along at least this
+      fraction of its length (see `perception.edge_choice.tape_profile_fraction`).
     - `unpaired_preference`: weight of an edge with no tape partner when choosing, relative to
       one that is part of a tape (support is multiplied by it).
     - `unverifiable_score`: tape score of an unpaired edge whose partner would lie outside the
@@ -184,7 +192,8 @@ class TapeConfig(BaseModel):
     polarity_samples: Annotated[int, Field(ge=1, le=64)] = 6
     min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = 8.0
     min_band_fraction: PositiveFraction = 0.3
-    unpaired_preference: Fraction = 0.35
+    min_profile_fraction: PositiveFraction = 0.6
+    unpaired_preference: Fraction = 0.1
     unverifiable_score: Fraction = 0.6
 
     @model_validator(mode="after")

@@ -76,8 +76,16 @@ class DetectionDebug:
     image: np.ndarray
 
 
-class _SizeState:
-    """Everything that depends only on the image size: computed once, reused every frame."""
+class SizeSetup:
+    """Everything that depends only on the image size: computed once, reused every frame.
+
+    - `polygon_px` / `mask`: the ROI in pixels and its filled uint8 mask (255 inside).
+    - `y_bottom`: the ROI's bottom row (pixels).
+    - `gray`, `smooth`, `edges`: the preallocated stage buffers (OpenCV writes into them).
+    - `blur_kernel`: (k, k), `kernel_px` scaled to this height (odd, >= 3).
+    - `hough_votes`, `hough_min_length`, `hough_max_gap`: HoughLinesP's accumulator threshold,
+      minLineLength and maxLineGap in pixels at this size.
+    """
 
     def __init__(self, width: int, height: int, config: PerceptionConfig) -> None:
         self.size = (width, height)
@@ -114,10 +122,17 @@ class LaneDetector:
         self.config = config
         self.undistorter = undistorter
         cv2.setNumThreads(config.opencv_threads)
-        self._states: dict[tuple[int, int], _SizeState] = {}
+        self._states: dict[tuple[int, int], SizeSetup] = {}
         self._theta_rad = math.radians(config.hough.theta_deg)
 
     # ------------------------------------------------------------------------------ public
+
+    def setup_for(self, width: int, height: int) -> SizeSetup:
+        """The per-size setup (mask, buffers, scaled pixel parameters), made on first use."""
+        setup = self._states.get((width, height))
+        if setup is None:
+            setup = self._states[(width, height)] = SizeSetup(width, height, self.config)
+        return setup
 
     def detect(
         self,
@@ -170,7 +185,7 @@ class LaneDetector:
         previous: LaneObservation | None,
     ) -> tuple[
         LaneObservation,
-        _SizeState,
+        SizeSetup,
         NDArray[np.int32] | None,
         tuple[LineSet, SideChoice | None, SideChoice | None],
         np.ndarray,
@@ -179,9 +194,7 @@ class LaneDetector:
         if self.undistorter is not None:
             image = self.undistorter.apply(image)
         height, width = image.shape[:2]
-        state = self._states.get((width, height))
-        if state is None:
-            state = self._states[(width, height)] = _SizeState(width, height, self.config)
+        state = self.setup_for(width, height)
         segments = self._segments(image, state)
         config = self.config
         lines = build_line_set(segments, state.smooth, state.y_bottom, config.edges, config.tape)
@@ -191,7 +204,7 @@ class LaneDetector:
         observation = self._observe(lines, left, right, state, frame_index, time_s, previous)
         return observation, state, segments, (lines, left, right), image
 
-    def _segments(self, image: np.ndarray, state: _SizeState) -> NDArray[np.int32] | None:
+    def _segments(self, image: np.ndarray, state: SizeSetup) -> NDArray[np.int32] | None:
         """gray -> blur -> Canny -> ROI mask -> HoughLinesP, into the preallocated buffers."""
         canny = self.config.canny
         if image.ndim == 2:
@@ -231,7 +244,7 @@ class LaneDetector:
         lines: LineSet,
         left: SideChoice | None,
         right: SideChoice | None,
-        state: _SizeState,
+        state: SizeSetup,
         frame_index: int,
         time_s: float,
         previous: LaneObservation | None,

@@ -12,23 +12,32 @@ For one side of the image (left: lines crossing the ROI bottom left of the image
    - they are at least `min_gap_px` apart where measured: blur keeps the two sides of ANY thin
      line a few pixels apart whatever the resolution (this keeps grout out at 160x120, where a
      4 mm seam is a pixel wide);
-   - the band between them differs from the floor just outside BOTH edges, in the same
-     direction (`_band_is_tape`): this rejects the strip of floor between a seam and a tape.
+   - the band between them is uniform and differs from the floor just outside BOTH edges, in
+     the same direction (`_band_is_tape`): this rejects the strip of floor between a seam and a
+     tape, and a "band" with the real tape edge inside it.
    Dark tape on a light floor (-1, +1) and light tape on a dark floor (+1, -1) both count; dashed
    tape too (its dashes merge into one line per edge, see `perception.lines`).
-   An unpaired edge whose partner would lie outside the image (a tape cut by the image border,
-   the inner tape of a sharp bend) gets `unverifiable_score` instead of 0: absent evidence there
-   is not evidence of a seam.
-2. Preference: a tape scores the support of both its edges times its tape score; a line with no
-   partner scores its support times `unpaired_preference`. The best one wins.
-3. The reported edge is the tape's INNER edge (the one nearer the lane centre: a left tape's right
+2. Single edges. A line without a verified partner (Hough often misses the outer edge of a
+   curving tape) is checked by the brightness profile across it (`tape_profile_fraction`): a
+   tape of the expected width on its outer side along at least `min_profile_fraction` of it
+   makes it a tape edge, scored by that fraction. When that side lies outside the image (a tape
+   at the border, the inner tape of a sharp bend) nothing can be checked: `unverifiable_score`.
+   Otherwise it is not a tape edge (score 0).
+3. Preference: a tape pair is worth (support of its inner edge's whole chain, see 5, plus its
+   outer edge's) x its width score; a single edge its chain's support x its profile fraction,
+   x `unverifiable_score`, or x `unpaired_preference` when refuted. A line with polarity 0
+   (same brightness on both sides: a thin line such as grout, not the edge of anything) is only
+   chosen when there is nothing else. The best one wins. Counting the chain matters in bends: a
+   curved tape breaks into short Hough pieces while a straight grout seam stays one long line.
+4. The reported edge is the tape's INNER edge (the one nearer the lane centre: a left tape's right
    edge, a right tape's left edge), consistently, so the distance between the two reported edges
    is the free lane width.
-4. Bends: Hough fits straight pieces to a curved edge. From the chosen line the edge is followed
+5. Bends: Hough fits straight pieces to a curved edge. From the chosen line the edge is followed
    both ways through lines of the same polarity whose end lies within `chain_gap_frac_of_height`
-   and that turn by at most `chain_max_turn_deg`; the reported segment runs from the chain's
-   nearest point to its farthest. Its slope is therefore the chord of the visible edge, which is
-   what reacts to a bend ahead.
+   of the current end (not running alongside it) and that turn by at most `chain_max_turn_deg`.
+   The reported segment runs from the chain's nearest point to where it crosses the look-ahead
+   row (`look_ahead_y_norm`), or to its far end if shorter: the chord over a fixed stretch of
+   floor, which is what reacts to a bend ahead, steadily from frame to frame.
 
 Implementation note: a frame has a handful of candidate lines, so this works on plain Python
 floats (one `LineSet.rows()` conversion), which is several times faster than numpy on arrays of
@@ -49,6 +58,8 @@ from perception.lines import LineRow
 
 _MAX_CHAIN_STEPS = 8
 _MAX_TAPE_CHECKS = 4
+_CHAIN_BONUS_LIMIT = 4.0
+_MAX_SINGLE_CHECKS = 3
 
 
 @dataclass(frozen=True)
@@ -117,48 +128,137 @@ def choose_side(
     cand = side_candidates(rows, side, width, config)
     if not cand:
         return None
-    strongest = max(cand, key=lambda r: r.support_px)
-    best_edge = strongest.line_id
-    best_partner: int | None = None
-    best_score = 0.0
-    tape = _best_tape(
-        cand, smooth_gray, side, y_bottom, strongest.support_px * config.tape.unpaired_preference,
-        config,
-    )
-    if tape is not None:
-        best_edge, best_partner, best_score = tape
+    # A line with the same brightness on both sides (polarity 0) is a thin line (grout, a crack)
+    # or noise, not the edge of anything: it is only chosen when nothing else is there.
+    polar = sorted((r for r in cand if r.polarity != 0), key=lambda r: -r.support_px)
+    singles = polar or [max(cand, key=lambda r: r.support_px)]
+    preference = config.tape.unpaired_preference
+    best: tuple[float, tuple[int, ...], int | None, float] | None = None  # value, chain, ...
 
-    chain = _follow_edge(rows, best_edge, height, config)
+    # 1. Verified tape pairs. Their value counts the inner edge's whole chain: a bending tape
+    # breaks into short Hough pieces, a straight seam does not, and the tape must still win.
+    to_beat = singles[0].support_px * preference
+    for inner, outer, score in _tape_pairs(cand, smooth_gray, side, y_bottom, to_beat, config):
+        chain = _follow_edge(rows, inner.line_id, height, config)
+        value = (sum(rows[k].support_px for k in chain) + outer.support_px) * score
+        if best is None or value > best[0]:
+            best = (value, chain, outer.line_id, score)
+
+    # 2. Single edges, strongest first: valued by how much of their length the brightness
+    # profile across them shows a tape on their outer side (a curved or half-visible tape whose
+    # other edge Hough missed), `unpaired_preference` when that is below min_profile_fraction.
+    for line in singles[:_MAX_SINGLE_CHECKS]:
+        if best is not None and line.support_px * _CHAIN_BONUS_LIMIT <= best[0]:
+            break
+        chain = _follow_edge(rows, line.line_id, height, config)
+        support = sum(rows[k].support_px for k in chain)
+        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, y_bottom, config)
+        if fraction is None:
+            # The tape's far side would be outside the image: nothing to check it against.
+            score, factor = config.tape.unverifiable_score, config.tape.unverifiable_score
+        elif fraction >= config.tape.min_profile_fraction:
+            score, factor = fraction, fraction
+        else:
+            score, factor = 0.0, preference
+        value = support * factor
+        if best is None or value > best[0]:
+            best = (value, chain, None, score)
+
+    assert best is not None
+    _, chain, partner, score = best
     near = rows[chain[0]]
-    far = rows[chain[-1]]
-    support_px = sum(rows[k].support_px for k in chain)
-    if best_partner is None and _partner_out_of_view(
-        rows, chain, side, (width, height), y_bottom, config
-    ):
-        best_score = config.tape.unverifiable_score
+    x2, y2 = _chain_point_at(rows, chain, config.edges.look_ahead_y_norm * height)
     return SideChoice(
         side=side,
         chain=chain,
-        partner=best_partner,
-        tape_score=best_score,
-        support_px=support_px,
+        partner=partner,
+        tape_score=score,
+        support_px=sum(rows[k].support_px for k in chain),
         x1=near.near_x,
         y1=near.near_y,
-        x2=far.far_x,
-        y2=far.far_y,
+        x2=x2,
+        y2=y2,
     )
 
 
-def _best_tape(
+def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tuple[float, float]:
+    """Where the chain (nearest line first) crosses image row `y`; its far end when it does not
+    reach that far. Between two lines of the chain, on the straight gap between them."""
+    far = rows[chain[-1]]
+    if far.far_y >= y:
+        return far.far_x, far.far_y
+    previous: LineRow | None = None
+    for k in chain:
+        line = rows[k]
+        if line.near_y < y and previous is not None:  # y lies in the gap before this line
+            t = (previous.far_y - y) / max(previous.far_y - line.near_y, 1e-9)
+            return previous.far_x + t * (line.near_x - previous.far_x), y
+        if line.far_y <= y <= line.near_y or line.near_y < y:
+            return line.x_at(y), y
+        previous = line
+    return far.far_x, far.far_y
+
+
+def tape_profile_fraction(
+    smooth_gray: NDArray[np.uint8],
+    rows: list[LineRow],
+    chain: tuple[int, ...],
+    side: Side,
+    y_bottom: float,
+    config: PerceptionConfig,
+) -> float | None:
+    """Fraction of the points sampled along an edge where the brightness across it looks like
+    the INNER edge of a tape: a quarter, half and three quarters of an expected tape width
+    outwards (left for a left edge) the brightness is uniform and differs, in the same
+    direction, from both the lane floor half a width inwards and the floor 1.75 widths
+    outwards. A seam fails (the floor just beyond it is floor again), so does, mostly, a
+    boundary between two floor shades. None when most samples fall outside the image (a tape at
+    the image border: its far side cannot be seen)."""
+    height, width = smooth_gray.shape[:2]
+    horizon = config.lane.horizon_y_norm * height
+    tape_px = config.tape.expected_width_frac_of_width * width
+    c = config.tape.min_contrast_levels
+    out = -1.0 if side == "left" else 1.0
+    near_y = rows[chain[0]].near_y
+    far_y = rows[chain[-1]].far_y
+    n = config.tape.polarity_samples
+    seen = hidden = tape_like = 0
+    member = 0
+    for i in range(n):
+        y = near_y + (far_y - near_y) * (i + 0.5) / n
+        while member < len(chain) - 1 and rows[chain[member]].far_y > y:
+            member += 1
+        x = rows[chain[member]].x_at(y)
+        w = tape_px * (y - horizon) / (y_bottom - horizon)
+        if w < 3.0:
+            continue  # too far away to resolve a tape
+        xs = [x + out * f * w for f in (-0.5, 0.25, 0.5, 0.75, 1.75)]
+        if not all(0.0 <= v <= width - 1.0 for v in xs):
+            hidden += 1
+            continue
+        row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
+        inner, b1, b2, b3, beyond = (float(row[int(v + 0.5)]) for v in xs)
+        seen += 1
+        floor = (inner, beyond)
+        step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
+        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step:
+            tape_like += 1
+    if seen == 0 or hidden > seen:
+        return None if hidden else 0.0
+    return tape_like / seen
+
+
+def _tape_pairs(
     cand: list[LineRow],
     smooth_gray: NDArray[np.uint8],
     side: Side,
     y_bottom: float,
     to_beat: float,
     config: PerceptionConfig,
-) -> tuple[int, int, float] | None:
-    """(inner edge, outer edge, tape score) of the best tape among the candidates whose value
-    beats `to_beat`, or None."""
+) -> list[tuple[LineRow, LineRow, float]]:
+    """Up to `_MAX_TAPE_CHECKS` verified tapes among the candidates, as (inner edge, outer
+    edge, tape score), best first by the value of the two lines alone (which must beat
+    `to_beat` up to the bonus the chain of the inner edge may add: a factor of 4)."""
     height, width = smooth_gray.shape[:2]
     horizon = config.lane.horizon_y_norm * height
     angle_tol = config.tape.pair_angle_tol_deg
@@ -177,14 +277,15 @@ def _best_tape(
             gap_px = abs(xa - xb)
             score = tape_width_score(gap_px * (y_bottom - horizon) / depth / width, gap_px, config)
             value = (a.support_px + b.support_px) * score
-            if value > to_beat:
+            if value * _CHAIN_BONUS_LIMIT > to_beat:
                 inner, outer = (a, b) if (xa > xb) == (side == "left") else (b, a)
                 pairs.append((value, score, inner, outer, y_lo, y_hi))
     pairs.sort(key=lambda p: -p[0])
-    for _, score, inner, outer, y_lo, y_hi in pairs[:_MAX_TAPE_CHECKS]:
-        if _band_is_tape(smooth_gray, inner, outer, y_lo, y_hi, config):
-            return inner.line_id, outer.line_id, score
-    return None
+    return [
+        (inner, outer, score)
+        for _, score, inner, outer, y_lo, y_hi in pairs[:_MAX_TAPE_CHECKS]
+        if _band_is_tape(smooth_gray, inner, outer, y_lo, y_hi, config)
+    ]
 
 
 def _band_is_tape(
@@ -195,11 +296,14 @@ def _band_is_tape(
     y_hi: float,
     config: PerceptionConfig,
 ) -> bool:
-    """Whether the band between lines a and b looks like tape: along enough of it, the middle
-    differs from the floor just outside BOTH edges (half a band width out) by more than
-    `min_contrast_levels`, in the same direction. A floor strip between a grout seam and a tape
-    fails: beyond the seam lies floor as bright as the strip. Samples outside the image don't
-    count against it; at least `min_band_fraction` of the others must look like tape."""
+    """Whether the band between lines a and b looks like tape: along enough of it, the band (at
+    a quarter, half and three quarters across) differs from the floor just outside BOTH edges
+    (half a band width out) by more than `min_contrast_levels`, all in the same direction, and
+    varies across less than that step. A floor strip between a grout seam and a tape fails
+    (beyond the seam lies floor as bright as the strip), so does a band with a tape edge inside
+    it (not uniform). Samples outside the
+    image don't count against it; at least `min_band_fraction` of the others must look like
+    tape."""
     height, width = smooth_gray.shape[:2]
     n = config.tape.polarity_samples
     c = config.tape.min_contrast_levels
@@ -212,45 +316,23 @@ def _band_is_tape(
         xb = b.x_at(y)
         lo, hi = (xa, xb) if xa < xb else (xb, xa)
         half = 0.5 * (hi - lo)
-        middle = float(row[min(width - 1, max(0, int(lo + half + 0.5)))])
+        # Three points across the band (a tape is uniform; a floor strip with a tape edge
+        # inside it is not) against the floor half a band width beyond each edge.
+        band = [float(row[min(width - 1, max(0, int(lo + f * (hi - lo) + 0.5)))])
+                for f in (0.25, 0.5, 0.75)]
         outside = [
             float(row[int(x + 0.5)]) for x in (lo - half, hi + half) if 0.0 <= x <= width - 1.0
         ]
         if not outside:
             continue
         seen += 1
-        if all(middle < o - c for o in outside) or all(middle > o + c for o in outside):
+        # Darker (or lighter) than the floor on both sides by more than the contrast, and
+        # uniform: the spread across the band is smaller than its step to the floor.
+        spread = max(band) - min(band)
+        step = max(min(outside) - max(band), min(band) - max(outside))
+        if step > c and spread < step:
             tape_like += 1
     return seen > 0 and tape_like >= config.tape.min_band_fraction * seen
-
-
-def _partner_out_of_view(
-    rows: list[LineRow],
-    chain: tuple[int, ...],
-    side: Side,
-    size: tuple[int, int],
-    y_bottom: float,
-    config: PerceptionConfig,
-) -> bool:
-    """Whether an unpaired edge's tape partner would lie outside the image for most of its
-    length: a tape of the expected width, on the outer side, crosses the image border (a tape at
-    the image edge, the inner tape of a sharp bend). Its absence then proves nothing."""
-    width, height = size
-    horizon = config.lane.horizon_y_norm * height
-    tape_px = config.tape.expected_width_frac_of_width * width
-    sign = -1.0 if side == "left" else 1.0
-    outside = 0.0
-    total = 0.0
-    for k in chain:
-        r = rows[k]
-        for t in (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0):
-            y = r.near_y + (r.far_y - r.near_y) * t
-            depth = max(0.0, (y - horizon) / (y_bottom - horizon))
-            partner = r.x_at(y) + sign * tape_px * depth
-            if partner < 0.0 or partner > width - 1.0:
-                outside += r.support_px
-            total += r.support_px
-    return total > 0.0 and outside >= 0.5 * total
 
 
 def _follow_edge(
@@ -273,18 +355,21 @@ def _extend(
     """Lines continuing `current` away from the robot (a near end close to its far end) or
     towards it (a far end close to its near end), nearest first; taken ones leave `usable`."""
     found: list[LineRow] = []
+    overlap = 0.25 * gap
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
         for r in usable:
             if abs(r.angle_deg - current.angle_deg) > max_turn:
                 continue
+            # A continuation starts about where the current line stops: running alongside it
+            # (a long overlap) makes it a neighbouring line, not the same edge.
             if away:
-                if r.far_y >= current.far_y - 1.0:
+                if r.far_y >= current.far_y - 1.0 or r.near_y > current.far_y + overlap:
                     continue
                 dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
             else:
-                if r.near_y <= current.near_y + 1.0:
+                if r.near_y <= current.near_y + 1.0 or r.far_y < current.near_y - overlap:
                     continue
                 dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
             if dist <= best_dist:

@@ -93,13 +93,17 @@ def test_masks_and_buffers_are_made_once_per_image_size(detector: LaneDetector) 
     big = syn.frame(syn.STRAIGHT)
     small = syn.frame(syn.STRAIGHT, 320, 240)
     detector.detect(big, 0, 0.0)
-    state = detector._states[(640, 480)]
-    mask, edges = state.mask, state.edges
+    setup = detector.setup_for(640, 480)
+    mask, edges = setup.mask, setup.edges
     detector.detect(small, 1, 0.0)
     detector.detect(big, 2, 0.0)
-    assert detector._states[(640, 480)] is state
-    assert state.mask is mask and state.edges is edges
-    assert set(detector._states) >= {(640, 480), (320, 240)}
+    assert detector.setup_for(640, 480) is setup
+    assert setup.mask is mask and setup.edges is edges
+    assert detector.setup_for(320, 240) is not setup
+    # Pixel lengths scale with the image: the 320x240 setup uses half the Hough lengths.
+    small_setup = detector.setup_for(320, 240)
+    assert small_setup.hough_min_length == pytest.approx(setup.hough_min_length / 2)
+    assert setup.blur_kernel == (5, 5) and small_setup.blur_kernel == (3, 3)
 
 
 def test_consistency_with_a_previous_observation(detector: LaneDetector) -> None:

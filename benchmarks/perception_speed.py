@@ -1,0 +1,153 @@
+"""Perception speed: the full lane detector against the bare OpenCV floor, single-threaded.
+
+Run on demand from the project root: `python benchmarks/perception_speed.py [--repeats N]`.
+
+The floor is the lecture's pipeline and nothing else: gray + Gaussian blur + Canny + ROI mask +
+HoughLinesP, with exactly the detector's parameters at each size (taken from
+`LaneDetector.setup_for`). The detector adds candidate lines, tape-vs-seam edge choice, bounded
+slopes and the confidence score. Both run on the same synthetic lane frames (the test suite's
+scenes: straight, both bends, dashed, tape on tiles, light tape on a dark floor) at 640x480 and
+320x240, with `cv2.setNumThreads(1)`. Floor and detector are timed in alternation and each keeps
+its best (minimum) time over the repeats, which is robust to other work on the machine.
+
+Target: detector <= 1.5x the floor at 640x480. Not a test: nothing here asserts a speed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+# The synthetic scenes live with the tests; make the project root importable when this file is
+# run as a script (`python benchmarks/perception_speed.py`).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from perception.calibration import CameraCalibration, Undistorter  # noqa: E402
+from perception.config import PerceptionConfig  # noqa: E402
+from perception.decision import decide  # noqa: E402
+from perception.detector import LaneDetector  # noqa: E402
+from perception.overlay import draw_overlay  # noqa: E402
+from scenarios.camera import CameraModel  # noqa: E402
+from tests.perception import synthetic as syn  # noqa: E402
+
+SCENES = {
+    "straight": syn.STRAIGHT,
+    "bend_left": syn.BEND_LEFT,
+    "bend_right": syn.BEND_RIGHT,
+    "dashed": syn.DASHED,
+    "tiles_with_tape": syn.TILES_WITH_TAPE,
+    "light_on_dark": syn.LIGHT_ON_DARK,
+}
+
+
+def floor_pipeline(
+    detector: LaneDetector, config: PerceptionConfig
+) -> Callable[[np.ndarray], object]:
+    """The bare OpenCV pipeline with the detector's parameters (fresh arrays, as a script would)."""
+    theta = math.radians(config.hough.theta_deg)
+
+    def run(image: np.ndarray) -> object:
+        setup = detector.setup_for(image.shape[1], image.shape[0])
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        smooth = cv2.GaussianBlur(gray, setup.blur_kernel, config.blur.sigma_px)
+        edges = cv2.Canny(
+            smooth, config.canny.low_threshold, config.canny.high_threshold,
+            apertureSize=config.canny.aperture_px,
+        )
+        masked = cv2.bitwise_and(edges, setup.mask)
+        return cv2.HoughLinesP(
+            masked, config.hough.rho_px, theta, setup.hough_votes,
+            minLineLength=setup.hough_min_length, maxLineGap=setup.hough_max_gap,
+        )
+
+    return run
+
+
+def best_ms_per_frame(
+    work: Callable[[np.ndarray], object], frames: list[np.ndarray], loops: int
+) -> float:
+    start = time.perf_counter()
+    for _ in range(loops):
+        for frame in frames:
+            work(frame)
+    return 1000.0 * (time.perf_counter() - start) / (loops * len(frames))
+
+
+def measure(
+    pipelines: dict[str, Callable[[np.ndarray], object]],
+    frames: list[np.ndarray],
+    repeats: int,
+    loops: int,
+) -> dict[str, float]:
+    """Each pipeline's best ms/frame over `repeats` rounds, the pipelines alternating."""
+    best = dict.fromkeys(pipelines, math.inf)
+    for work in pipelines.values():  # warm-up: per-size setup, caches
+        for frame in frames:
+            work(frame)
+    for _ in range(repeats):
+        for name, work in pipelines.items():
+            best[name] = min(best[name], best_ms_per_frame(work, frames, loops))
+    return best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=15, help="rounds (best one counts)")
+    parser.add_argument("--loops", type=int, default=10, help="passes over the frames per round")
+    args = parser.parse_args()
+
+    cv2.setNumThreads(1)
+    config = PerceptionConfig()
+    detector = LaneDetector(config)  # sets cv2.setNumThreads(config.opencv_threads) == 1
+    floor = floor_pipeline(detector, config)
+    print(f"OpenCV {cv2.__version__}, threads {cv2.getNumThreads()}, "
+          f"scenes: {', '.join(SCENES)}")
+    print(f"{'size':>8}  {'floor ms':>9}  {'detector ms':>11}  {'ratio':>6}")
+    for width, height in ((640, 480), (320, 240)):
+        frames = [np.ascontiguousarray(syn.render(s, width, height)) for s in SCENES.values()]
+        best = measure(
+            {"floor": floor, "detector": lambda f: detector.detect(f, 0, 0.0)},
+            frames, args.repeats, args.loops,
+        )
+        print(f"{width}x{height:<4}  {best['floor']:9.3f}  {best['detector']:11.3f}  "
+              f"{best['detector'] / best['floor']:6.2f}")
+
+    # Per scene at 640x480, and the optional extras, for information.
+    print("\n640x480 per scene (floor / detector ms, ratio):")
+    for name, scene in SCENES.items():
+        frame = [np.ascontiguousarray(syn.render(scene))]
+        best = measure(
+            {"floor": floor, "detector": lambda f: detector.detect(f, 0, 0.0)},
+            frame, max(3, args.repeats // 2), args.loops * 3,
+        )
+        print(f"  {name:16s} {best['floor']:.3f} / {best['detector']:.3f}  "
+              f"{best['detector'] / best['floor']:.2f}")
+    camera = CameraModel()
+    undistorting = LaneDetector(
+        config,
+        Undistorter(CameraCalibration(camera.camera_matrix(), camera.distortion(), (640, 480))),
+    )
+    distorted = [np.ascontiguousarray(syn.render(s, distorted=True)) for s in SCENES.values()]
+
+    def with_overlay(f: np.ndarray) -> object:
+        obs, debug = detector.detect_debug(f, 0, 0.0)
+        return draw_overlay(debug.image, obs, debug, decide(obs, config))
+
+    frames = [np.ascontiguousarray(syn.render(s)) for s in SCENES.values()]
+    extra = measure(
+        {"undistort": lambda f: undistorting.detect(f, 0, 0.0)}, distorted, 5, args.loops
+    ) | measure({"overlay": with_overlay}, frames, 5, args.loops)
+    print(f"\n640x480 detector with undistortion (remap): {extra['undistort']:.3f} ms/frame")
+    print(f"640x480 detect_debug + draw_overlay (debug path, not the hot path): "
+          f"{extra['overlay']:.3f} ms/frame")
+
+
+if __name__ == "__main__":
+    main()
