@@ -8,7 +8,9 @@ or stale. It never drops an error silently: a capture failure is kept and raised
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -30,13 +32,31 @@ def open_capture(source: str) -> cv2.VideoCapture:
     return capture
 
 
+def replay_rate_fps(source: str, capture: cv2.VideoCapture, default_fps: float) -> float | None:
+    """The pace to replay a recorded source at (its own FPS, else `default_fps`); None if live."""
+    if source.isdigit() or "://" in source or source.startswith("/dev/"):
+        return None
+    if not (Path(source).is_file() or "%" in source):
+        return None
+    fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
+    return fps if 1.0 <= fps <= 240.0 else default_fps
+
+
 class CameraFrameSource:
     """A `FrameSource` fed by a background capture thread: `read(now)` returns the newest frame
     (the same one again until a newer one arrives; the loop tells new from repeated by index)."""
 
-    def __init__(self, capture: cv2.VideoCapture, clock: Callable[[], float]) -> None:
+    def __init__(
+        self,
+        capture: cv2.VideoCapture,
+        clock: Callable[[], float],
+        replay_fps: float | None = None,
+    ) -> None:
+        """`replay_fps`: for a recorded source (video file, image sequence), deliver frames at this
+        rate instead of as fast as the file can be decoded; None for a live camera."""
         self._capture = capture
         self._clock = clock
+        self._replay_period_s = 1.0 / replay_fps if replay_fps else None
         self._lock = threading.Lock()
         self._latest: Frame | None = None
         self._error: str | None = None
@@ -46,8 +66,14 @@ class CameraFrameSource:
 
     def _run(self) -> None:
         index = 0
+        next_due = self._clock()
         while self._running:
             ok, image = self._capture.read()
+            if self._replay_period_s is not None:
+                delay = next_due - self._clock()
+                if delay > 0:
+                    time.sleep(delay)
+                next_due += self._replay_period_s
             stamp = self._clock()
             if not ok or image is None:
                 with self._lock:

@@ -19,7 +19,7 @@ from pathlib import Path
 from types import FrameType
 
 from actuation.kobuki_base import KobukiBase
-from lanewarden.camera_source import CameraFrameSource, open_capture
+from lanewarden.camera_source import CameraFrameSource, open_capture, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from perception.calibration import Undistorter, check_calibration, load_calibration
 from perception.detector import LaneDetector
@@ -71,7 +71,8 @@ def run_robot(
     calibration = load_calibration(calibration_path) if calibration_path else None
 
     capture = open_capture(camera)
-    frames = CameraFrameSource(capture, clock.now)
+    period = config.supervisor.camera_period_s
+    frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period))
     try:
         deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
         first = frames.read(clock.now())
@@ -97,7 +98,6 @@ def run_robot(
         stop_requested = [False]
         last: StepRecord | None = None
         steps = 0
-        period = config.supervisor.camera_period_s
         with (
             KobukiBase.open(port, clock=clock.now, config=config.actuation) as base,
             JsonlRecorder(log_path) as recorder,
