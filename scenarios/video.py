@@ -142,11 +142,15 @@ class MapView:
 
 
 def _put_lines(image: U8, lines: list[str], origin: tuple[int, int], scale: float) -> None:
+    """White text on a darkened band (one text pass: OpenCV's glyph advance depends on the
+    thickness, so an outline pass would not line up)."""
     x, y = origin
     step = round(22 * scale)
+    top = max(0, y - step + 4)
+    bottom = min(image.shape[0], y + step * (len(lines) - 1) + 8)
+    band = image[top:bottom]
+    cv2.addWeighted(band, 0.45, np.zeros_like(band), 0.55, 0.0, dst=band)
     for text in lines:
-        cv2.putText(image, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, (0, 0, 0),
-                    3, cv2.LINE_AA)
         cv2.putText(image, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale,
                     (255, 255, 255), 1, cv2.LINE_AA)
         y += step
