@@ -52,7 +52,6 @@ def write_plot(
     limit = max(turn_threshold * 2.0, spread)
     ax_slope.set_ylim(-limit * 1.1, limit * 1.1)
     ax_slope.set_ylabel("slope sum")
-    ax_slope.legend(loc="upper right", fontsize=8)
     ax_slope.set_title(title)
 
     ax_conf.plot(time_s, arr(confidence), "-", lw=1.0, color="C2")
@@ -77,8 +76,9 @@ def write_plot(
         if t is None:
             continue
         for ax in (ax_slope, ax_conf, ax_state):
-            ax.axvline(t, color=style, lw=1.0, ls="--")
-        ax_slope.text(t, limit * 1.0, f" {name}", color=style, fontsize=8, va="top")
+            ax.axvline(t, color=style, lw=1.0, ls="--",
+                       label=f"{name} ({t:.1f} s)" if ax is ax_slope else None)
+    ax_slope.legend(loc="upper left", fontsize=8)
     for ax in (ax_slope, ax_conf, ax_state):
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
