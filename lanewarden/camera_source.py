@@ -7,27 +7,59 @@ or stale. It never drops an error silently: a capture failure is kept and raised
 
 from __future__ import annotations
 
+import os
+import re
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from lanewarden.errors import UsageError
 from perception.errors import PerceptionError
 from supervisor.loop import Frame
 
 
-def open_capture(source: str) -> cv2.VideoCapture:
-    """Open a camera by index ("0"), device path, video file or URL; one-line error if it fails."""
-    target: int | str = int(source) if source.isdigit() else source
-    capture = cv2.VideoCapture(target)
-    if not capture.isOpened():
+@contextmanager
+def quiet_opencv() -> Iterator[None]:
+    """OpenCV's own warnings (failed camera opens) would add lines to our one-line errors."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
+_URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
+
+
+def open_camera(camera: str) -> cv2.VideoCapture:
+    """cv2.VideoCapture on an int index, a file path (also an image sequence like
+    'dir/frame_%03d.png') or a URL; UsageError/PerceptionError naming --camera on failure."""
+    source: int | str
+    if camera.strip().isdigit():
+        source = int(camera)
+    else:
+        source = camera
+        if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
+            raise UsageError(
+                f"--camera '{camera}': no such file (expected a camera index like 0, a video "
+                "file, an image sequence like 'dir/frame_%03d.png' or a stream URL)"
+            )
+    # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+    with quiet_opencv():
+        capture = cv2.VideoCapture(source)
+        opened = capture.isOpened()
+    if not opened:
+        capture.release()
         raise PerceptionError(
-            f"--camera {source}: cannot open the camera (expected a device index like 0, a device "
-            "path like /dev/video0, a video file or a stream URL; check the cable and permissions "
-            "(video group))"
+            f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
+            "free, and a format OpenCV reads?)"
         )
     return capture
 

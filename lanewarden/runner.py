@@ -19,7 +19,7 @@ from pathlib import Path
 from types import FrameType
 
 from actuation.kobuki_base import KobukiBase
-from lanewarden.camera_source import CameraFrameSource, open_capture, replay_rate_fps
+from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from perception.calibration import Undistorter, check_calibration, load_calibration
 from perception.detector import LaneDetector
@@ -70,7 +70,7 @@ def run_robot(
     controller = make_controller(controller_name, config.supervisor)
     calibration = load_calibration(calibration_path) if calibration_path else None
 
-    capture = open_capture(camera)
+    capture = open_camera(camera)
     period = config.supervisor.camera_period_s
     frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period))
     try:

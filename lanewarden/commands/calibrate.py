@@ -16,11 +16,8 @@ from __future__ import annotations
 import glob
 import json
 import math
-import os
 import re
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -30,6 +27,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from lanewarden.camera_source import open_camera, quiet_opencv
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
@@ -133,17 +131,6 @@ class CalibrateGroup(click.Group):
                 ctx,
             )
         return super().resolve_command(ctx, args)
-
-
-@contextmanager
-def _quiet_opencv() -> Iterator[None]:
-    """OpenCV's own warnings (failed camera opens) would add lines to our one-line errors."""
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        yield
-    finally:
-        cv2.utils.logging.setLogLevel(level)
 
 
 def _detect_all(
@@ -340,36 +327,6 @@ def calibrate_group(
 
 # ----------------------------------------------------------------------------------- capture
 
-_URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
-
-
-def open_camera(camera: str) -> cv2.VideoCapture:
-    """cv2.VideoCapture on an int index, a file path (also an image sequence like
-    'dir/frame_%03d.png') or a URL; UsageError/PerceptionError naming --camera on failure."""
-    source: int | str
-    if camera.strip().isdigit():
-        source = int(camera)
-    else:
-        source = camera
-        if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
-            raise UsageError(
-                f"--camera '{camera}': no such file (expected a camera index like 0, a video "
-                "file, an image sequence like 'dir/frame_%03d.png' or a stream URL)"
-            )
-    # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-    with _quiet_opencv():
-        capture = cv2.VideoCapture(source)
-        opened = capture.isOpened()
-    if not opened:
-        capture.release()
-        raise PerceptionError(
-            f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
-            "free, and a format OpenCV reads?)"
-        )
-    return capture
-
-
 def _next_index(out_dir: Path) -> int:
     taken = [int(m.group(1)) for p in out_dir.glob("view_*.jpg")
              if (m := re.fullmatch(r"view_(\d+)\.jpg", p.name))]
@@ -396,7 +353,7 @@ def run_capture(
                     disable=None, leave=False)
     try:
         while len(kept) < count and (max_frames is None or outcome["frames"] < max_frames):
-            with _quiet_opencv():
+            with quiet_opencv():
                 ok, frame = capture.read()
             if not ok or frame is None:
                 break
