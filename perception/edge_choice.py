@@ -13,8 +13,9 @@ For one side of the image (left: lines crossing the ROI bottom left of the image
      line a few pixels apart whatever the resolution (this keeps grout out at 160x120, where a
      4 mm seam is a pixel wide);
    - the band between them is uniform and differs from the floor just outside BOTH edges, in
-     the same direction (`_band_is_tape`): this rejects the strip of floor between a seam and a
-     tape, and a "band" with the real tape edge inside it.
+     the same direction, by more than those two floor samples differ (`_band_is_tape`): this
+     rejects the strip of floor between a seam and a tape (one "outside" is tape), and a band
+     with the real tape edge inside it.
    Dark tape on a light floor (-1, +1) and light tape on a dark floor (+1, -1) both count; dashed
    tape too (its dashes merge into one line per edge, see `perception.lines`).
 2. Single edges. A line without a verified partner (Hough often misses the outer edge of a
@@ -46,7 +47,9 @@ five elements. Pure function of a `LineSet`, the blurred frame and the config.
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +63,7 @@ _MAX_CHAIN_STEPS = 8
 _MAX_TAPE_CHECKS = 4
 _CHAIN_BONUS_LIMIT = 4.0
 _MAX_SINGLE_CHECKS = 3
+_MAX_TAPES_VALUED = 2
 
 
 @dataclass(frozen=True)
@@ -138,7 +142,8 @@ def choose_side(
     # 1. Verified tape pairs. Their value counts the inner edge's whole chain: a bending tape
     # breaks into short Hough pieces, a straight seam does not, and the tape must still win.
     to_beat = singles[0].support_px * preference
-    for inner, outer, score in _tape_pairs(cand, smooth_gray, side, y_bottom, to_beat, config):
+    pairs = _tape_pairs(cand, smooth_gray, side, y_bottom, to_beat, config)
+    for inner, outer, score in itertools.islice(pairs, _MAX_TAPES_VALUED):
         chain = _follow_edge(rows, inner.line_id, height, config)
         value = (sum(rows[k].support_px for k in chain) + outer.support_px) * score
         if best is None or value > best[0]:
@@ -147,11 +152,16 @@ def choose_side(
     # 2. Single edges, strongest first: valued by how much of their length the brightness
     # profile across them shows a tape on their outer side (a curved or half-visible tape whose
     # other edge Hough missed), `unpaired_preference` when that is below min_profile_fraction.
+    taken = set() if best is None else {*best[1], best[2]}
     for line in singles[:_MAX_SINGLE_CHECKS]:
         if best is not None and line.support_px * _CHAIN_BONUS_LIMIT <= best[0]:
             break
+        if line.line_id in taken:  # part of the tape already valued: same chain, less value
+            continue
         chain = _follow_edge(rows, line.line_id, height, config)
         support = sum(rows[k].support_px for k in chain)
+        if best is not None and support <= best[0]:
+            continue  # cannot win even as a perfect tape edge: skip the profile
         fraction = tape_profile_fraction(smooth_gray, rows, chain, side, y_bottom, config)
         if fraction is None:
             # The tape's far side would be outside the image: nothing to check it against.
@@ -211,9 +221,10 @@ def tape_profile_fraction(
     the INNER edge of a tape: a quarter, half and three quarters of an expected tape width
     outwards (left for a left edge) the brightness is uniform and differs, in the same
     direction, from both the lane floor half a width inwards and the floor 1.75 widths
-    outwards. A seam fails (the floor just beyond it is floor again), so does, mostly, a
-    boundary between two floor shades. None when most samples fall outside the image (a tape at
-    the image border: its far side cannot be seen)."""
+    outwards, by more than those two floor samples differ from each other. A seam fails (the
+    floor just beyond it is floor again), so does, mostly, a boundary between two floor shades.
+    None when most samples fall outside the image (a tape at the image border: its far side
+    cannot be seen)."""
     height, width = smooth_gray.shape[:2]
     horizon = config.lane.horizon_y_norm * height
     tape_px = config.tape.expected_width_frac_of_width * width
@@ -232,16 +243,20 @@ def tape_profile_fraction(
         w = tape_px * (y - horizon) / (y_bottom - horizon)
         if w < 3.0:
             continue  # too far away to resolve a tape
-        xs = [x + out * f * w for f in (-0.5, 0.25, 0.5, 0.75, 1.75)]
-        if not all(0.0 <= v <= width - 1.0 for v in xs):
+        lo, hi = (x - out * 0.5 * w, x + out * 1.75 * w)
+        if min(lo, hi) < 0.0 or max(lo, hi) > width - 1.0:
             hidden += 1
             continue
         row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
-        inner, b1, b2, b3, beyond = (float(row[int(v + 0.5)]) for v in xs)
+        inner = float(row[int(lo + 0.5)])
+        beyond = float(row[int(hi + 0.5)])
+        b1 = float(row[int(x + out * 0.25 * w + 0.5)])
+        b2 = float(row[int(x + out * 0.5 * w + 0.5)])
+        b3 = float(row[int(x + out * 0.75 * w + 0.5)])
         seen += 1
         floor = (inner, beyond)
         step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
-        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step:
+        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step and abs(inner - beyond) < step:
             tape_like += 1
     if seen == 0 or hidden > seen:
         return None if hidden else 0.0
@@ -255,10 +270,11 @@ def _tape_pairs(
     y_bottom: float,
     to_beat: float,
     config: PerceptionConfig,
-) -> list[tuple[LineRow, LineRow, float]]:
-    """Up to `_MAX_TAPE_CHECKS` verified tapes among the candidates, as (inner edge, outer
-    edge, tape score), best first by the value of the two lines alone (which must beat
-    `to_beat` up to the bonus the chain of the inner edge may add: a factor of 4)."""
+) -> Iterator[tuple[LineRow, LineRow, float]]:
+    """Verified tapes among the candidates, as (inner edge, outer edge, tape score), best first
+    by the value of the two lines alone, which must beat `to_beat` up to the bonus the chain of
+    the inner edge may add (`_CHAIN_BONUS_LIMIT`). Only the `_MAX_TAPE_CHECKS` best pairs are
+    band-checked, lazily: the check reads pixels."""
     height, width = smooth_gray.shape[:2]
     horizon = config.lane.horizon_y_norm * height
     angle_tol = config.tape.pair_angle_tol_deg
@@ -281,11 +297,9 @@ def _tape_pairs(
                 inner, outer = (a, b) if (xa > xb) == (side == "left") else (b, a)
                 pairs.append((value, score, inner, outer, y_lo, y_hi))
     pairs.sort(key=lambda p: -p[0])
-    return [
-        (inner, outer, score)
-        for _, score, inner, outer, y_lo, y_hi in pairs[:_MAX_TAPE_CHECKS]
-        if _band_is_tape(smooth_gray, inner, outer, y_lo, y_hi, config)
-    ]
+    for _, score, inner, outer, y_lo, y_hi in pairs[:_MAX_TAPE_CHECKS]:
+        if _band_is_tape(smooth_gray, inner, outer, y_lo, y_hi, config):
+            yield inner, outer, score
 
 
 def _band_is_tape(
@@ -298,12 +312,11 @@ def _band_is_tape(
 ) -> bool:
     """Whether the band between lines a and b looks like tape: along enough of it, the band (at
     a quarter, half and three quarters across) differs from the floor just outside BOTH edges
-    (half a band width out) by more than `min_contrast_levels`, all in the same direction, and
-    varies across less than that step. A floor strip between a grout seam and a tape fails
-    (beyond the seam lies floor as bright as the strip), so does a band with a tape edge inside
-    it (not uniform). Samples outside the
-    image don't count against it; at least `min_band_fraction` of the others must look like
-    tape."""
+    (half a band width out) by more than `min_contrast_levels`, all in the same direction; the
+    band varies across, and the floor differs between its two sides, by less than that step.
+    A floor strip between a grout seam and a tape fails (one of its "outsides" is tape), so
+    does a band with a tape edge inside it (not uniform). Samples outside the image don't count
+    against it; at least `min_band_fraction` of the others must look like tape."""
     height, width = smooth_gray.shape[:2]
     n = config.tape.polarity_samples
     c = config.tape.min_contrast_levels
@@ -330,7 +343,8 @@ def _band_is_tape(
         # uniform: the spread across the band is smaller than its step to the floor.
         spread = max(band) - min(band)
         step = max(min(outside) - max(band), min(band) - max(outside))
-        if step > c and spread < step:
+        floor_gap = max(outside) - min(outside)  # the floor on both sides is one floor
+        if step > c and spread < step and floor_gap < step:
             tape_like += 1
     return seen > 0 and tape_like >= config.tape.min_band_fraction * seen
 

@@ -190,17 +190,14 @@ def build_line_set(
     luy /= norm
     lcx = _sum_by(local, mx * length, n_lines) / w_sum
     lcy = _sum_by(local, my * length, n_lines) / w_sum
-    # Extent: project every member endpoint onto its line's direction; min/max per line.
-    by_line = np.argsort(local, kind="stable")
-    sorted_label = local[by_line]
-    starts = np.flatnonzero(np.r_[True, sorted_label[1:] != sorted_label[:-1]])
-    ex = np.stack([x1[by_line], x2[by_line]], axis=1)
-    ey = np.stack([y1[by_line], y2[by_line]], axis=1)
-    t = (ex - lcx[sorted_label, None]) * lux[sorted_label, None] + (
-        ey - lcy[sorted_label, None]
-    ) * luy[sorted_label, None]
-    t_min = np.minimum.reduceat(t.min(axis=1), starts)
-    t_max = np.maximum.reduceat(t.max(axis=1), starts)
+    # Extent along each line: its members' near ends project lowest and far ends highest (all
+    # members run near->far within a few degrees of the line), so min/max of those per line.
+    t_near = (x1 - lcx[local]) * lux[local] + (y1 - lcy[local]) * luy[local]
+    t_far = (x2 - lcx[local]) * lux[local] + (y2 - lcy[local]) * luy[local]
+    t_min = np.full(n_lines, np.inf)
+    t_max = np.full(n_lines, -np.inf)
+    np.minimum.at(t_min, local, np.minimum(t_near, t_far))
+    np.maximum.at(t_max, local, np.maximum(t_near, t_far))
     near_x = lcx + t_min * lux
     near_y = lcy + t_min * luy
     far_x = lcx + t_max * lux
