@@ -144,7 +144,7 @@ def choose_side(
     to_beat = singles[0].support_px * preference
     pairs = _tape_pairs(cand, smooth_gray, side, y_bottom, to_beat, config)
     for inner, outer, score in itertools.islice(pairs, _MAX_TAPES_VALUED):
-        chain = _follow_edge(rows, inner.line_id, height, config)
+        chain = _follow_edge(rows, inner.line_id, (width, height), config)
         value = (sum(rows[k].support_px for k in chain) + outer.support_px) * score
         if best is None or value > best[0]:
             best = (value, chain, outer.line_id, score)
@@ -158,7 +158,7 @@ def choose_side(
             break
         if line.line_id in taken:  # part of the tape already valued: same chain, less value
             continue
-        chain = _follow_edge(rows, line.line_id, height, config)
+        chain = _follow_edge(rows, line.line_id, (width, height), config)
         support = sum(rows[k].support_px for k in chain)
         if best is not None and support <= best[0]:
             continue  # cannot win even as a perfect tape edge: skip the profile
@@ -350,24 +350,37 @@ def _band_is_tape(
 
 
 def _follow_edge(
-    rows: list[LineRow], start: int, height: int, config: PerceptionConfig
+    rows: list[LineRow], start: int, size: tuple[int, int], config: PerceptionConfig
 ) -> tuple[int, ...]:
     """The chain of lines continuing `start` away from the robot and towards it: same polarity,
     an end within the chain gap, turning by at most `chain_max_turn_deg`."""
+    width, height = size
     polarity = rows[start].polarity
     usable = [r for r in rows if r.line_id != start and (polarity == 0 or r.polarity == polarity)]
     gap = config.edges.chain_gap_frac_of_height * height
     max_turn = config.edges.chain_max_turn_deg
-    away = _extend(rows[start], usable, gap, max_turn, away=True)
-    towards = _extend(rows[start], usable, gap, max_turn, away=False)
+    on_line_px = max(1.5, 0.5 * config.edges.cluster_offset_frac_of_width * width)
+    away = _extend(rows[start], usable, gap, max_turn, on_line_px, away=True)
+    towards = _extend(rows[start], usable, gap, max_turn, on_line_px, away=False)
     return tuple([r.line_id for r in reversed(towards)] + [start] + [r.line_id for r in away])
 
 
 def _extend(
-    current: LineRow, usable: list[LineRow], gap: float, max_turn: float, *, away: bool
+    current: LineRow,
+    usable: list[LineRow],
+    gap: float,
+    max_turn: float,
+    on_line_px: float,
+    *,
+    away: bool,
 ) -> list[LineRow]:
     """Lines continuing `current` away from the robot (a near end close to its far end) or
-    towards it (a far end close to its near end), nearest first; taken ones leave `usable`."""
+    towards it (a far end close to its near end), nearest first; taken ones leave `usable`.
+
+    A continuation starts about where the current line stops (overlapping it by at most a
+    quarter of the gap), or, when it overlaps more, lies on it across the overlap (within
+    `on_line_px`: the same edge split by Hough). A line running alongside at a few pixels is a
+    neighbour (a seam beside a tape edge), not the same edge."""
     found: list[LineRow] = []
     overlap = 0.25 * gap
     for _ in range(_MAX_CHAIN_STEPS):
@@ -376,16 +389,20 @@ def _extend(
         for r in usable:
             if abs(r.angle_deg - current.angle_deg) > max_turn:
                 continue
-            # A continuation starts about where the current line stops: running alongside it
-            # (a long overlap) makes it a neighbouring line, not the same edge.
             if away:
-                if r.far_y >= current.far_y - 1.0 or r.near_y > current.far_y + overlap:
+                if r.far_y >= current.far_y - 1.0:
                     continue
+                shared = r.near_y - current.far_y  # rows both lines cover
                 dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
             else:
-                if r.near_y <= current.near_y + 1.0 or r.far_y < current.near_y - overlap:
+                if r.near_y <= current.near_y + 1.0:
                     continue
+                shared = current.near_y - r.far_y
                 dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
+            if shared > overlap:
+                mid = (current.far_y + shared / 2.0) if away else (current.near_y - shared / 2.0)
+                if abs(r.x_at(mid) - current.x_at(mid)) > on_line_px:
+                    continue
             if dist <= best_dist:
                 best, best_dist = r, dist
         if best is None:

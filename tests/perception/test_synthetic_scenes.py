@@ -69,6 +69,10 @@ def test_bends_turn_the_right_way(
     assert abs(obs.slope_sum) > CONFIG.decision.turn_slope_sum
     assert obs.confidence >= MIN_CONF + CLEAN_MARGIN, dict(obs.components)
     assert decide(obs, CONFIG) == decision
+    # The outer tape of the bend is followed from the bottom of the image (its pieces are
+    # chained), not only where Hough found its longest straight piece.
+    outer = obs.right if decision == "left" else obs.left
+    assert outer is not None and outer.y1 > 0.9 * (width * 3 // 4)
 
 
 @pytest.mark.parametrize("direction", ["left", "right"])
