@@ -2,8 +2,8 @@
 (no halt where the lane continues, a safe halt where it ends, every injected fault provoking its
 response), across seeds; and a HALT is never followed by a non-zero command.
 
-Runs at 320x240 without video (the acceptance does not need 640x480 here; the demo test covers
-640x480), so the whole file stays fast.
+Runs without video, and at 320x240 where the outcome does not depend on the resolution, so the
+file stays fast; the demo test covers the lecture's course at 640x480 with video.
 """
 
 from __future__ import annotations
@@ -23,13 +23,22 @@ LANE_SCENARIOS = [n for n in library_names() if not n.startswith("fault-")]
 FAULT_SCENARIOS = [n for n in library_names() if n.startswith("fault-")]
 SEEDS = (0, 1)
 
+#: 320x240 (with a coarser floor texture) keeps the suite fast where the outcome does not depend
+#: on resolution. Tiled-floor bends run at the camera's native 640x480: perception does not yet
+#: hold the lane through them at 320x240 (see docs/scenarios.md, "Known gaps").
 FAST = {"simulation": {"width_px": 320, "height_px": 240, "texture_mm_per_px": 5.0}}
+NATIVE_ONLY = {"lecture", "s-curve"}
+#: The demo test already runs `lecture` seed 0 at 640x480; here another seed.
+SEEDS_FOR = {"lecture": (1,)}
 
 
 @cache
 def run(name: str, seed: int, controller: str = "supervised") -> SimulationResult:
     spec = resolve_scenario(name)
-    config = effective_config(with_overrides(LanewardenConfig(), FAST, "test"), spec)
+    base = LanewardenConfig()
+    if name not in NATIVE_ONLY:
+        base = with_overrides(base, FAST, "test")
+    config = effective_config(base, spec)
     return Simulation(spec, config, controller=controller, seed=seed).run()
 
 
@@ -43,21 +52,9 @@ def assert_safe(result: SimulationResult) -> None:
         assert result.trace.speed_m_s[-1] < 1e-3, "still moving at the end of the run"
 
 
-#: Scenarios whose expected outcome the current perception/supervisor defaults do not reach yet
-#: (see docs/scenarios.md, "Known gaps"); xfail so the suite shows them without blocking others.
-KNOWN_GAPS = {
-    "lecture": "perception loses confidence mid-bend on tiles (seams chosen as an edge)",
-    "s-curve": "perception loses confidence where the lane changes bend direction",
-}
-
-
 def lane_cases() -> list[object]:
-    cases: list[object] = []
-    for name in LANE_SCENARIOS:
-        for seed in SEEDS:
-            marks = [pytest.mark.xfail(reason=KNOWN_GAPS[name])] if name in KNOWN_GAPS else []
-            cases.append(pytest.param(name, seed, marks=marks, id=f"{name}-{seed}"))
-    return cases
+    return [pytest.param(name, seed, id=f"{name}-{seed}")
+            for name in LANE_SCENARIOS for seed in SEEDS_FOR.get(name, SEEDS)]
 
 
 @pytest.mark.parametrize(("name", "seed"), lane_cases())

@@ -22,7 +22,6 @@ def metrics(out: Path, name: str) -> dict[str, object]:
     return dict(json.loads((out / name / "metrics.json").read_text()))
 
 
-@pytest.mark.xfail(reason="perception loses confidence mid-bend on tiles (docs/scenarios.md)")
 def test_supervised_run_follows_the_course_and_stops_at_the_end(demo_out: Path) -> None:
     m = metrics(demo_out, "supervised")
     assert m["scenario"] == "lecture" and m["controller"] == "supervised"
