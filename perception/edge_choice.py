@@ -193,19 +193,23 @@ def choose_side(
 
 def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tuple[float, float]:
     """Where the chain (nearest line first) crosses image row `y`; its far end when it does not
-    reach that far. Between two lines of the chain, on the straight gap between them."""
+    reach that far or starts beyond it. Between two lines of the chain, on the straight gap
+    between them."""
     far = rows[chain[-1]]
-    if far.far_y >= y:
+    if far.far_y >= y or rows[chain[0]].near_y <= y + 1.0:
+        # The edge stops short of the row, or lies wholly beyond it: report all of it.
         return far.far_x, far.far_y
-    previous: LineRow | None = None
+    previous = rows[chain[0]]
     for k in chain:
         line = rows[k]
-        if line.near_y < y and previous is not None:  # y lies in the gap before this line
-            t = (previous.far_y - y) / max(previous.far_y - line.near_y, 1e-9)
-            return previous.far_x + t * (line.near_x - previous.far_x), y
-        if line.far_y <= y <= line.near_y or line.near_y < y:
+        if line.far_y > y:  # this line ends before the row
+            previous = line
+            continue
+        if line.near_y >= y:  # the row crosses this line
             return line.x_at(y), y
-        previous = line
+        # The row falls in the gap between the previous line's far end and this one's near end.
+        t = (previous.far_y - y) / max(previous.far_y - line.near_y, 1e-9)
+        return previous.far_x + t * (line.near_x - previous.far_x), y
     return far.far_x, far.far_y
 
 

@@ -78,8 +78,10 @@ def edge_slope(
 
 
 def x_at_row(x1: float, y1: float, x2: float, y2: float, row: float) -> float:
-    """Column where the infinite line through the two points crosses image row `row`
-    (the line must not be horizontal)."""
+    """Column where the infinite line through the two points crosses image row `row`; for a
+    horizontal line (never a lane edge), the middle of the two points."""
+    if y2 == y1:
+        return 0.5 * (x1 + x2)
     return x1 + (row - y1) * (x2 - x1) / (y2 - y1)
 
 

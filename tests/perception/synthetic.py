@@ -48,7 +48,8 @@ class Scene:
     - `yaw_deg`: robot heading relative to the lane, counter-clockwise (to the left) positive.
     - `tapes`: which tapes exist ("left", "right"); empty for no lane.
     - `dash_m`: (dash, gap) lengths for dashed tape, None for solid.
-    - `lane_end_m`: tape stops this far along the lane (None: never).
+    - `lane_start_m` / `lane_end_m`: tape starts / stops this far along the lane (None: never
+      stops).
     """
 
     floor_level: float = 175.0
@@ -59,6 +60,7 @@ class Scene:
     tape_level: float = 45.0
     dash_m: tuple[float, float] | None = None
     bend: Bend | None = None
+    lane_start_m: float = -0.5
     lane_end_m: float | None = None
     lateral_m: float = 0.0
     yaw_deg: float = 0.0
@@ -142,7 +144,7 @@ def render(
             side_ok |= d > 0
         if "right" in scene.tapes:
             side_ok |= d < 0
-        on_tape &= side_ok & (s > -0.5)
+        on_tape &= side_ok & (s > scene.lane_start_m)
         if scene.dash_m is not None:
             dash, gap = scene.dash_m
             on_tape &= np.mod(s, dash + gap) < dash

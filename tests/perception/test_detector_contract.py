@@ -156,14 +156,31 @@ def test_arbitrary_frames_never_crash_or_give_nan(
             p = rng.integers(-20, max(width, height) + 20, 4)
             cv2.line(image, (int(p[0]), int(p[1])), (int(p[2]), int(p[3])),
                      (int(rng.integers(0, 256)),) * 3, int(rng.integers(1, 6)))
-    obs = detector.detect(image, 0, 0.0)
-    assert _finite(obs)
+    first = detector.detect(image, 0, 0.0)
+    shifted = np.ascontiguousarray(np.roll(image, int(rng.integers(-8, 9)), axis=1))
+    obs = detector.detect(shifted, 1, 0.05, previous=first)
+    assert _finite(first) and _finite(obs)
     assert 0.0 <= obs.confidence <= 1.0
     max_slope = CONFIG.edges.max_abs_slope
     if obs.left is not None:
         assert 0.0 <= obs.left.slope <= max_slope
     if obs.right is not None:
         assert -max_slope <= obs.right.slope <= 0.0
+
+
+@pytest.mark.parametrize("start_m", [1.2, 2.0, 3.0])
+def test_lane_seen_only_far_ahead(detector: LaneDetector, start_m: float) -> None:
+    """The tape starts beyond the look-ahead row: edges are still reported near end first and
+    compared with a previous observation without trouble (a zero-height edge once divided by
+    zero here)."""
+    scene = replace(syn.STRAIGHT, lane_start_m=start_m)
+    straight = detector.detect(syn.frame(syn.STRAIGHT), 0, 0.0)
+    for width in (640, 320):
+        obs = detector.detect(syn.frame(scene, width, width * 3 // 4), 1, 0.0, previous=straight)
+        assert _finite(obs)
+        for edge in (obs.left, obs.right):
+            if edge is not None:
+                assert edge.y1 > edge.y2
 
 
 @pytest.mark.parametrize("scene", [syn.STRAIGHT, syn.ONE_EDGE, syn.NO_LANE])
