@@ -39,7 +39,15 @@ class RoiConfig(BaseModel):
 
     model_config = _FROZEN
 
-    polygon_norm: tuple[tuple[float, float], ...] = ((-0.6, 1.0), (1.6, 1.0), (0.5, 0.0))
+    polygon_norm: tuple[tuple[float, float], ...] = Field(
+        default=((-0.6, 1.0), (1.6, 1.0), (0.5, 0.0)),
+        description=(
+            "ROI polygon [[x, y], ...] in normalised image coordinates (x = column/width, y = "
+            "row/height, y down); may extend outside the image. Default: the lecture's triangle "
+            "rising from the bottom edge, base corners outside the image so the default camera's "
+            "tapes stay inside"
+        ),
+    )
 
     @field_validator("polygon_norm")
     @classmethod
@@ -75,8 +83,19 @@ class BlurConfig(BaseModel):
 
     model_config = _FROZEN
 
-    kernel_px: int = 5
-    sigma_px: Annotated[float, Field(ge=0.0)] = 0.0
+    kernel_px: int = Field(
+        default=5,
+        description=(
+            "Gaussian blur kernel size (odd) for a 480-row image; scaled with the image height to "
+            "the nearest odd size, at least 3"
+        ),
+    )
+    sigma_px: Annotated[float, Field(ge=0.0)] = Field(
+        default=0.0,
+        description=(
+            "Gaussian sigma in pixels; 0 derives it from the kernel size"
+        ),
+    )
 
     @field_validator("kernel_px")
     @classmethod
@@ -91,9 +110,19 @@ class CannyConfig(BaseModel):
 
     model_config = _FROZEN
 
-    low_threshold: Annotated[float, Field(ge=0.0)] = 40.0
-    high_threshold: Annotated[float, Field(gt=0.0)] = 120.0
-    aperture_px: int = 3
+    low_threshold: Annotated[float, Field(ge=0.0)] = Field(
+        default=40.0,
+        description=(
+            "Canny lower hysteresis threshold (gradient, grey levels); below high_threshold"
+        ),
+    )
+    high_threshold: Annotated[float, Field(gt=0.0)] = Field(
+        default=120.0,
+        description=(
+            "Canny upper hysteresis threshold (gradient, grey levels)"
+        ),
+    )
+    aperture_px: int = Field(default=3, description="Sobel aperture of Canny: 3, 5 or 7")
 
     @field_validator("aperture_px")
     @classmethod
@@ -117,11 +146,37 @@ class HoughConfig(BaseModel):
 
     model_config = _FROZEN
 
-    rho_px: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
-    theta_deg: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
-    votes_frac_of_height: PositiveFraction = 0.05
-    min_line_length_frac_of_height: PositiveFraction = 0.05
-    max_line_gap_frac_of_height: Fraction = 0.02
+    rho_px: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        default=1.0,
+        description=(
+            "HoughLinesP distance resolution, pixels"
+        ),
+    )
+    theta_deg: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        default=1.0,
+        description=(
+            "HoughLinesP angle resolution, degrees"
+        ),
+    )
+    votes_frac_of_height: PositiveFraction = Field(
+        default=0.05,
+        description=(
+            "HoughLinesP accumulator threshold (votes), as a fraction of the image height (at "
+            "least 5)"
+        ),
+    )
+    min_line_length_frac_of_height: PositiveFraction = Field(
+        default=0.05,
+        description=(
+            "HoughLinesP minLineLength as a fraction of the image height"
+        ),
+    )
+    max_line_gap_frac_of_height: Fraction = Field(
+        default=0.02,
+        description=(
+            "HoughLinesP maxLineGap as a fraction of the image height"
+        ),
+    )
 
 
 class EdgesConfig(BaseModel):
@@ -145,14 +200,59 @@ class EdgesConfig(BaseModel):
 
     model_config = _FROZEN
 
-    min_angle_from_horizontal_deg: Annotated[float, Field(ge=0.0, lt=80.0)] = 15.0
-    max_past_vertical_deg: Annotated[float, Field(ge=0.0, le=60.0)] = 35.0
-    cluster_angle_tol_deg: Annotated[float, Field(gt=0.0, le=20.0)] = 3.0
-    cluster_offset_frac_of_width: PositiveFraction = 0.008
-    chain_gap_frac_of_height: Fraction = 0.12
-    chain_max_turn_deg: Annotated[float, Field(ge=0.0, le=90.0)] = 35.0
-    look_ahead_y_norm: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.3
-    max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = 12.0
+    min_angle_from_horizontal_deg: Annotated[float, Field(ge=0.0, lt=80.0)] = Field(
+        default=15.0,
+        description=(
+            "segments flatter than this are dropped (tile joints across the lane)"
+        ),
+    )
+    max_past_vertical_deg: Annotated[float, Field(ge=0.0, le=60.0)] = Field(
+        default=35.0,
+        description=(
+            "how far an edge may lean the wrong way for its side (a right edge leaning '/', as "
+            "the inner edge of a sharp bend does) and still count"
+        ),
+    )
+    cluster_angle_tol_deg: Annotated[float, Field(gt=0.0, le=20.0)] = Field(
+        default=3.0,
+        description=(
+            "segments within this angle of a longer one, and on its line, merge into one line "
+            "(dashes, broken edges)"
+        ),
+    )
+    cluster_offset_frac_of_width: PositiveFraction = Field(
+        default=0.008,
+        description=(
+            "max distance of a segment's midpoint from the longer segment's line to merge, "
+            "fraction of image width"
+        ),
+    )
+    chain_gap_frac_of_height: Fraction = Field(
+        default=0.12,
+        description=(
+            "a line starting within this distance of another's end (fraction of image height) may "
+            "continue it (a bending edge)"
+        ),
+    )
+    chain_max_turn_deg: Annotated[float, Field(ge=0.0, le=90.0)] = Field(
+        default=35.0,
+        description=(
+            "max turn between consecutive lines of one bending edge"
+        ),
+    )
+    look_ahead_y_norm: Annotated[float, Field(ge=-1.0, le=1.0)] = Field(
+        default=0.3,
+        description=(
+            "the reported edge (and its slope) ends where the edge crosses this image row "
+            "(normalised), or at its far end if shorter: a fixed stretch of floor every frame"
+        ),
+    )
+    max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = Field(
+        default=12.0,
+        description=(
+            "slope clamp; past vertical an edge reports it with its side's sign (left +, right -)"
+        ),
+    )
 
 
 class TapeConfig(BaseModel):
@@ -183,18 +283,86 @@ class TapeConfig(BaseModel):
 
     model_config = _FROZEN
 
-    expected_width_frac_of_width: PositiveFraction = 0.086
-    width_min_frac_of_width: PositiveFraction = 0.035
-    width_max_frac_of_width: PositiveFraction = 0.18
-    min_gap_px: Annotated[float, Field(ge=0.0)] = 5.0
-    pair_angle_tol_deg: Annotated[float, Field(gt=0.0, le=30.0)] = 10.0
-    polarity_offset_frac_of_width: PositiveFraction = 0.006
-    polarity_samples: Annotated[int, Field(ge=1, le=64)] = 6
-    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = 8.0
-    min_band_fraction: PositiveFraction = 0.3
-    min_profile_fraction: PositiveFraction = 0.6
-    unpaired_preference: Fraction = 0.1
-    unverifiable_score: Fraction = 0.6
+    expected_width_frac_of_width: PositiveFraction = Field(
+        default=0.086,
+        description=(
+            "usual tape width at the ROI bottom, fraction of image width (48 mm tape, default "
+            "camera: 0.086)"
+        ),
+    )
+    width_min_frac_of_width: PositiveFraction = Field(
+        default=0.035,
+        description=(
+            "narrowest tape width at the ROI bottom, fraction of image width (4 mm grout is "
+            "~0.007)"
+        ),
+    )
+    width_max_frac_of_width: PositiveFraction = Field(
+        default=0.18,
+        description=(
+            "widest tape width at the ROI bottom, fraction of image width"
+        ),
+    )
+    min_gap_px: Annotated[float, Field(ge=0.0)] = Field(
+        default=5.0,
+        description=(
+            "two edges closer than this (pixels, where measured) are the two sides of one thin "
+            "line, never a tape"
+        ),
+    )
+    pair_angle_tol_deg: Annotated[float, Field(gt=0.0, le=30.0)] = Field(
+        default=10.0,
+        description=(
+            "max angle between the two edges of one tape"
+        ),
+    )
+    polarity_offset_frac_of_width: PositiveFraction = Field(
+        default=0.006,
+        description=(
+            "how far either side of a line brightness is sampled for its polarity, fraction of "
+            "image width"
+        ),
+    )
+    polarity_samples: Annotated[int, Field(ge=1, le=64)] = Field(
+        default=6,
+        description=(
+            "points sampled along a line (polarity, tape band, tape profile)"
+        ),
+    )
+    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = Field(
+        default=8.0,
+        description=(
+            "smallest brightness difference that counts (polarity, tape band and profile), grey "
+            "levels"
+        ),
+    )
+    min_band_fraction: PositiveFraction = Field(
+        default=0.3,
+        description=(
+            "share of samples along a tape pair whose band must look like tape (uniform, darker "
+            "or lighter than the floor on both sides)"
+        ),
+    )
+    min_profile_fraction: PositiveFraction = Field(
+        default=0.6,
+        description=(
+            "share of samples along an unpaired edge whose brightness profile must show a tape on "
+            "its outer side"
+        ),
+    )
+    unpaired_preference: Fraction = Field(
+        default=0.1,
+        description=(
+            "value factor of a lone line refuted as a tape edge, against a tape (edge choice)"
+        ),
+    )
+    unverifiable_score: Fraction = Field(
+        default=0.6,
+        description=(
+            "tape score of an edge whose tape's far side lies outside the image (cannot be "
+            "checked)"
+        ),
+    )
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
@@ -224,11 +392,40 @@ class LaneGeometryConfig(BaseModel):
 
     model_config = _FROZEN
 
-    horizon_y_norm: Annotated[float, Field(ge=-3.0, le=0.9)] = -0.167
-    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0)] = 0.3
-    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0)] = 0.3
-    width_at_bottom_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = 0.98
-    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0)] = 0.3
+    horizon_y_norm: Annotated[float, Field(ge=-3.0, le=0.9)] = Field(
+        default=-0.167,
+        description=(
+            "image row of the horizon, normalised (negative: above the image; default camera "
+            "-0.167)"
+        ),
+    )
+    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+        default=0.3,
+        description=(
+            "vanishing_point scores 1 within this vertical distance of the horizon, 0 at twice it "
+            "(normalised)"
+        ),
+    )
+    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+        default=0.3,
+        description=(
+            "vanishing_point scores 1 within this horizontal distance of the image centre, 0 at "
+            "twice it (normalised)"
+        ),
+    )
+    width_at_bottom_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
+        default=0.98,
+        description=(
+            "expected distance between the two (inner) edges at the ROI bottom, fraction of image "
+            "width"
+        ),
+    )
+    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0)] = Field(
+        default=0.3,
+        description=(
+            "lane_width scores 1 within this of the expected width, 0 at twice it"
+        ),
+    )
 
 
 class ConfidenceWeights(BaseModel):
@@ -240,12 +437,24 @@ class ConfidenceWeights(BaseModel):
 
     model_config = _FROZEN
 
-    both_sides: Weight = 1.0
-    support: Weight = 0.5
-    lane_width: Weight = 0.5
-    vanishing_point: Weight = 0.5
-    tape_pair: Weight = 1.0
-    consistency: Weight = 0.5
+    both_sides: Weight = Field(default=1.0, description="exponent of the both_sides component")
+    support: Weight = Field(
+        default=0.5,
+        description=(
+            "exponent of the support components (shared: half per side)"
+        ),
+    )
+    lane_width: Weight = Field(default=0.5, description="exponent of the lane_width component")
+    vanishing_point: Weight = Field(
+        default=0.5, description="exponent of the vanishing_point component"
+    )
+    tape_pair: Weight = Field(
+        default=1.0,
+        description=(
+            "exponent of the tape_pair components (shared: half per side)"
+        ),
+    )
+    consistency: Weight = Field(default=0.5, description="exponent of the consistency component")
 
 
 class ConfidenceConfig(BaseModel):
@@ -262,10 +471,32 @@ class ConfidenceConfig(BaseModel):
     model_config = _FROZEN
 
     weights: ConfidenceWeights = ConfidenceWeights()
-    min_confidence: Fraction = 0.5
-    support_full_frac_of_height: PositiveFraction = 0.3
-    consistency_offset_tol_frac_of_width: PositiveFraction = 0.08
-    consistency_angle_tol_deg: Annotated[float, Field(gt=0.0, le=90.0)] = 8.0
+    min_confidence: Fraction = Field(
+        default=0.5,
+        description=(
+            "below this confidence the decision is 'none' and the lane is not trusted"
+        ),
+    )
+    support_full_frac_of_height: PositiveFraction = Field(
+        default=0.3,
+        description=(
+            "Hough support (total segment length) of an edge that scores 1, fraction of image "
+            "height"
+        ),
+    )
+    consistency_offset_tol_frac_of_width: PositiveFraction = Field(
+        default=0.08,
+        description=(
+            "edge shift at the ROI bottom since the previous observation that still scores 1 (0 "
+            "at twice it), fraction of image width"
+        ),
+    )
+    consistency_angle_tol_deg: Annotated[float, Field(gt=0.0, le=90.0)] = Field(
+        default=8.0,
+        description=(
+            "edge turn since the previous observation that still scores 1 (0 at twice it)"
+        ),
+    )
 
 
 class DecisionConfig(BaseModel):
@@ -273,7 +504,12 @@ class DecisionConfig(BaseModel):
 
     model_config = _FROZEN
 
-    turn_slope_sum: Annotated[float, Field(gt=0.0)] = 6.0
+    turn_slope_sum: Annotated[float, Field(gt=0.0)] = Field(
+        default=6.0,
+        description=(
+            "the lecture's threshold: slope sum below -this turns right, above +this turns left"
+        ),
+    )
 
 
 class PerceptionConfig(BaseModel):
@@ -291,7 +527,13 @@ class PerceptionConfig(BaseModel):
     lane: LaneGeometryConfig = LaneGeometryConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
     decision: DecisionConfig = DecisionConfig()
-    opencv_threads: Annotated[int, Field(ge=-1, le=64)] = 1
+    opencv_threads: Annotated[int, Field(ge=-1, le=64)] = Field(
+        default=1,
+        description=(
+            "cv2.setNumThreads set by the detector (process-wide); 1 by default, -1 restores "
+            "OpenCV's default"
+        ),
+    )
 
     @model_validator(mode="after")
     def _slope_clamp_exceeds_threshold(self) -> Self:
