@@ -56,7 +56,7 @@ def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyp
     return tqdm(
         total=round(total_s, 1), unit="s", desc=f"{request.spec.name}/{request.controller}",
         disable=not enabled, file=sys.stderr, position=request.progress_position, leave=True,
-        bar_format="{desc}: {bar} {n:.1f}/{total:.0f} s simulated [{elapsed}]",
+        bar_format="{desc}: {bar} {n:.1f}/{total:.1f} s simulated [{elapsed}]",
     )
 
 
@@ -86,14 +86,17 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
             bar.update(now - shown[0])
             shown[0] = now
 
-    with JsonlRecorder(out / "run.jsonl") as recorder:
-        simulation = Simulation(
-            request.spec, config, controller=request.controller, seed=request.seed,
-            video_path=video_path, record=recorder, progress=progress)
-        try:
+    try:
+        with JsonlRecorder(out / "run.jsonl") as recorder:
+            simulation = Simulation(
+                request.spec, config, controller=request.controller, seed=request.seed,
+                video_path=video_path, record=recorder, progress=progress)
             result = simulation.run()
-        finally:
-            bar.close()
+        # The run usually ends before its time limit: show it finished.
+        bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0
+        bar.update(bar.total - bar.n)
+    finally:
+        bar.close()
     write_run_plot(out / "plot.png", result, config)
     metrics = dict(result.metrics)
     expect = getattr(request.spec.expect, request.controller, None)
