@@ -122,3 +122,36 @@ def test_texture_is_deterministic_per_seed_and_gray_matches_colour() -> None:
     floor_px = a.world_to_px(np.array([[0.55, 0.1]])).round().astype(int)
     assert all(a.gray[r, col] < 70 for col, r in tape_px)
     assert a.gray[floor_px[0, 1], floor_px[0, 0]] > 150
+
+
+@pytest.mark.parametrize("size", [(640, 480), (320, 240)])
+def test_default_roi_sees_both_tapes_at_the_start_of_straight(size: tuple[int, int]) -> None:
+    from lanewarden.config import LanewardenConfig
+    from scenarios.library import resolve_scenario
+    from scenarios.metrics import points_in_polygon
+    from scenarios.simulator import Simulation, effective_config
+    from scenarios.spec import with_overrides
+
+    spec = resolve_scenario("straight")
+    overrides = {"simulation": {"width_px": size[0], "height_px": size[1],
+                                "texture_mm_per_px": 2.5 * 640 / size[0]}}
+    config = effective_config(with_overrides(LanewardenConfig(), overrides, "test"), spec)
+    sim = Simulation(spec, config)
+    start = sim.world.start_pose
+    h_cam = sim.camera.ground_to_image_homography()
+    w, h = size
+    # Ground truth: each tape has floor points inside perception's (default) ROI, in the image.
+    for tape in sim.world.tapes:
+        pts = tape.surface_samples()
+        rel = pts - (start.x_m, start.y_m)  # the lane starts along +x at the origin
+        ahead = rel[rel[:, 0] > 0.0]
+        hom = np.column_stack([ahead, np.ones(len(ahead))]) @ h_cam.T
+        uv = hom[:, :2] / hom[:, 2:3]
+        in_image = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        assert points_in_polygon(uv[in_image], sim.roi_polygon_px).sum() > 50, tape.side
+    # And the real detector finds both edges, confidently, in the rendered frame.
+    image = sim.renderer.render_gray(start, np.empty((h, w), np.uint8))
+    observation = sim.detector.detect(image, 0, 0.0)
+    assert observation.left is not None and observation.right is not None
+    assert observation.confidence >= config.supervisor.confidence_confident_min
+    assert observation.slope_sum is not None and abs(observation.slope_sum) < 1.0
