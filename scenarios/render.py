@@ -3,7 +3,7 @@
 Per frame: one `cv2.remap` of the ground texture through per-pixel floor coordinates. The floor
 point every (distorted) camera pixel looks at, in the robot frame, is fixed (the camera is rigid,
 `CameraModel.pixel_ground_points`) and computed once; a pose only moves those points by a 2-D rigid
-transform, which is two `cv2.addWeighted` calls into preallocated maps. So lens distortion costs
+transform, one `cv2.transform` into a preallocated map. So lens distortion costs
 nothing per frame and there is a single interpolation between texture and image. Then motion blur
 from the robot's velocity (a box blur along the image directions that motion smears: sideways for
 turning, vertically for driving forward) and seeded sensor noise (a bank of precomputed noise
@@ -65,10 +65,10 @@ class CameraRenderer:
         sky = ~(np.isfinite(gx) & np.isfinite(gy))
         gx = np.where(sky, _FAR_M, gx)
         gy = np.where(sky, _FAR_M, gy)
-        self._ground_x = np.ascontiguousarray(gx, dtype=np.float32)
-        self._ground_y = np.ascontiguousarray(gy, dtype=np.float32)
-        self._map_x = np.empty((h, w), np.float32)
-        self._map_y = np.empty((h, w), np.float32)
+        # (H, W, 2) floor points; one cv2.transform per frame turns them into texture coordinates
+        # (a 2-channel map that cv2.remap takes directly).
+        self._ground = np.ascontiguousarray(np.dstack([gx, gy]), dtype=np.float32)
+        self._map = np.empty((h, w, 2), np.float32)
         self._scratch_gray = np.empty((h, w), np.uint8)
         self._scratch_bgr = np.empty((h, w, 3), np.uint8)
         self._px_from_world = texture.px_from_world_matrix()
@@ -97,8 +97,7 @@ class CameraRenderer:
         c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
         world_from_robot = np.array([[c, -s, pose.x_m], [s, c, pose.y_m], [0.0, 0.0, 1.0]])
         a = self._px_from_world @ world_from_robot
-        cv2.addWeighted(self._ground_x, a[0, 0], self._ground_y, a[0, 1], a[0, 2], dst=self._map_x)
-        cv2.addWeighted(self._ground_x, a[1, 0], self._ground_y, a[1, 1], a[1, 2], dst=self._map_y)
+        cv2.transform(self._ground, a[:2], dst=self._map)
 
     def _blur_kernel(self, linear_m_s: float, angular_rad_s: float) -> tuple[int, int] | None:
         if self.exposure_s <= 0:
@@ -130,7 +129,8 @@ class CameraRenderer:
                     noise_index: int | None = None) -> U8:
         """The gray frame at `pose` into `out` (H, W) uint8; `velocity` = (m/s, rad/s)."""
         self._maps(pose)
-        cv2.remap(self.texture.gray, self._map_x, self._map_y, cv2.INTER_LINEAR, dst=out,
+        # map2 is None with a 2-channel float map1 (the stubs do not know that form).
+        cv2.remap(self.texture.gray, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
                   borderMode=cv2.BORDER_CONSTANT, borderValue=self.texture.fill_gray)
         self._finish(out, self._scratch_gray, velocity, noise_index, 1)
         return out
@@ -142,7 +142,7 @@ class CameraRenderer:
             raise ValueError("render_bgr needs a texture painted with color=True")
         self._maps(pose)
         fill = self.texture.fill_bgr
-        cv2.remap(self.texture.bgr, self._map_x, self._map_y, cv2.INTER_LINEAR, dst=out,
+        cv2.remap(self.texture.bgr, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
                   borderMode=cv2.BORDER_CONSTANT, borderValue=(fill[0], fill[1], fill[2], 0))
         self._finish(out, self._scratch_bgr, velocity, noise_index, 3)
         return out
