@@ -72,6 +72,13 @@ class CameraRenderer:
         self._scratch_gray = np.empty((h, w), np.uint8)
         self._scratch_bgr = np.empty((h, w, 3), np.uint8)
         self._px_from_world = texture.px_from_world_matrix()
+        # The texture is also kept transposed: remap reads it along the image's rows, which run
+        # across the robot's heading; facing along x they run down texture columns (a cache
+        # miss per pixel), so then the transposed copy (columns as rows) is read instead.
+        self._gray_t = np.ascontiguousarray(texture.gray.T)
+        self._bgr_t = (None if texture.bgr is None
+                       else np.ascontiguousarray(texture.bgr.transpose(1, 0, 2)))
+        self._transposed = False
         # Motion blur scale: image pixels per metre of forward motion near the image centre, and
         # per radian of yaw (the focal length).
         centre = np.array([[gx[h // 2, w // 2], 0.0], [gx[h // 2, w // 2] + 0.01, 0.0]])
@@ -97,7 +104,8 @@ class CameraRenderer:
         c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
         world_from_robot = np.array([[c, -s, pose.x_m], [s, c, pose.y_m], [0.0, 0.0, 1.0]])
         a = self._px_from_world @ world_from_robot
-        cv2.transform(self._ground, a[:2], dst=self._map)
+        self._transposed = abs(c) > abs(s)
+        cv2.transform(self._ground, a[1::-1] if self._transposed else a[:2], dst=self._map)
 
     def _blur_kernel(self, linear_m_s: float, angular_rad_s: float) -> tuple[int, int] | None:
         if self.exposure_s <= 0:
@@ -130,7 +138,8 @@ class CameraRenderer:
         """The gray frame at `pose` into `out` (H, W) uint8; `velocity` = (m/s, rad/s)."""
         self._maps(pose)
         # map2 is None with a 2-channel float map1 (the stubs do not know that form).
-        cv2.remap(self.texture.gray, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
+        source = self._gray_t if self._transposed else self.texture.gray
+        cv2.remap(source, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
                   borderMode=cv2.BORDER_CONSTANT, borderValue=self.texture.fill_gray)
         self._finish(out, self._scratch_gray, velocity, noise_index, 1)
         return out
@@ -142,7 +151,8 @@ class CameraRenderer:
             raise ValueError("render_bgr needs a texture painted with color=True")
         self._maps(pose)
         fill = self.texture.fill_bgr
-        cv2.remap(self.texture.bgr, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
+        source = self._bgr_t if self._transposed and self._bgr_t is not None else self.texture.bgr
+        cv2.remap(source, self._map, None, cv2.INTER_LINEAR, dst=out,  # type: ignore[call-overload]
                   borderMode=cv2.BORDER_CONSTANT, borderValue=(fill[0], fill[1], fill[2], 0))
         self._finish(out, self._scratch_bgr, velocity, noise_index, 3)
         return out
