@@ -43,7 +43,8 @@ def dark_centroid(image: np.ndarray, near: np.ndarray, window: int = 25) -> np.n
 
 
 @pytest.mark.parametrize("size", [(640, 480), (320, 240)])
-@pytest.mark.parametrize("pose", [Pose2D(0.0, 0.0, 0.0), Pose2D(0.3, -0.2, math.radians(25))])
+@pytest.mark.parametrize("pose", [Pose2D(0.0, 0.0, 0.0), Pose2D(0.3, -0.2, math.radians(25)),
+                                  Pose2D(-0.1, 0.2, math.radians(100))])
 def test_floor_point_lands_where_the_camera_model_says(size: tuple[int, int], pose: Pose2D) -> None:
     camera = CameraModel(width_px=size[0], height_px=size[1])
     # Floor points in the robot frame: centre, near corners (strong distortion), far.
