@@ -52,7 +52,7 @@ U8 = NDArray[np.uint8]
 NOT_ENGAGED_LIMIT_S = 5.0
 #: The run ends when the robot's centre comes this close to the edge of the painted floor.
 WORLD_EDGE_MARGIN_M = 1.0
-#: The video's camera view is rendered from the floor texture shrunk by this factor.
+#: The video's camera view is rendered from a floor texture this many times coarser.
 DISPLAY_TEXTURE_FACTOR = 2
 #: Below this the base counts as at rest (for ending a run after a HALT).
 AT_REST_M_S = 1e-3
@@ -123,9 +123,8 @@ class Simulation:
         sim = config.simulation
         self.camera = sim_camera_model(config)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
-        want_color = video_path is not None or sim.perception_color
         self.texture: GroundTexture = paint_ground(
-            self.world, sim.texture_mm_per_px / 1000.0, seed, color=want_color)
+            self.world, sim.texture_mm_per_px / 1000.0, seed, color=sim.perception_color)
         self.renderer = CameraRenderer(
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
@@ -148,13 +147,17 @@ class Simulation:
         self._video_path = video_path
         self._view_bgr = np.empty((h, w, 3), np.uint8)
         # The video shows the undistorted view (what perception analyses, where its overlay
-        # coordinates live), rendered directly from a half-resolution copy of the same painting.
+        # coordinates live), rendered directly from a colour painting of the same world at half
+        # the resolution (same seed: same tiles, seams, tapes and light; display only).
         self._display: CameraRenderer | None = None
+        self.display_texture: GroundTexture | None = None
         if video_path is not None:
+            self.display_texture = paint_ground(
+                self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
+                color=True)
             self._display = CameraRenderer(
-                self.texture.downsampled(DISPLAY_TEXTURE_FACTOR), self.camera,
-                noise_sigma=sim.noise_sigma_levels, exposure_s=sim.exposure_s, seed=seed,
-                noise_bank_frames=2, distorted=False)
+                self.display_texture, self.camera, noise_sigma=sim.noise_sigma_levels,
+                exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=2, distorted=False)
 
     def _roi_polygon(self) -> NDArray[np.float64]:
         """Perception's ROI in undistorted pixels, asked from the detector itself (one detection
@@ -171,7 +174,8 @@ class Simulation:
         ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
         video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
         if self._video_path is not None:
-            map_view = MapView(self.world, self.texture, sim.video.map_size_px,
+            assert self.display_texture is not None
+            map_view = MapView(self.world, self.display_texture, sim.video.map_size_px,
                                roi_ground_outline(self.camera, self.roi_polygon_px))
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,

@@ -46,23 +46,6 @@ class GroundTexture:
     def shape(self) -> tuple[int, int]:
         return (int(self.gray.shape[0]), int(self.gray.shape[1]))
 
-    def downsampled(self, factor: int) -> GroundTexture:
-        """The same painting at `factor` x coarser resolution (area average), e.g. for display."""
-        if factor <= 1:
-            return self
-        h, w = self.shape
-        size = (w // factor, h // factor)
-
-        def shrink(image: U8) -> U8:
-            crop = image[: size[1] * factor, : size[0] * factor]
-            return np.asarray(cv2.resize(crop, size, interpolation=cv2.INTER_AREA), np.uint8)
-
-        return GroundTexture(
-            gray=shrink(self.gray), bgr=None if self.bgr is None else shrink(self.bgr),
-            m_per_px=self.m_per_px * factor, x_min=self.x_min, y_max=self.y_max,
-            fill_gray=self.fill_gray, fill_bgr=self.fill_bgr,
-        )
-
     def world_to_px(self, points: FloatArray) -> FloatArray:
         """World metres (N, 2) -> texture pixel coordinates (N, 2) (col, row), pixel centres at
         integers."""
