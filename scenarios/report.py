@@ -64,28 +64,34 @@ def format_table(rows: Sequence[Sequence[str]]) -> str:
 
 
 def demo_summary(lecture: Mapping[str, object], supervised: Mapping[str, object]) -> str:
-    """One sentence on what happened."""
+    """One sentence on what happened, built only from what the metrics say."""
 
     def past(m: Mapping[str, object]) -> str:
         value = m.get("distance_past_lane_end_m")
         if not isinstance(value, int | float):
-            return "with no lane end"
+            return "on a lane that never ends"
         return f"{abs(value):.2f} m {'past' if value >= 0 else 'before'} the end of the tape"
 
-    lecture_text = (
-        f"halted ({format_value(lecture.get('halt_reason'))})" if lecture.get("halted")
-        else "never stopped"
-    )
-    supervised_text = (
-        f"halted ({format_value(supervised.get('halt_reason'))})" if supervised.get("halted")
-        else "did not halt"
-    )
-    return (
-        f"The lecture's controller {lecture_text} and ended {past(lecture)}, following tile "
-        f"seams once the tape was gone; the supervised controller completed turns "
-        f"{format_value(supervised.get('turns_completed'))} and {supervised_text} "
-        f"{past(supervised)}."
-    )
+    def story(name: str, m: Mapping[str, object]) -> str:
+        done = list(m.get("turns_completed") or [])  # type: ignore[call-overload]
+        if not done:
+            turns = "completed no turn"
+        elif len(done) == 1:
+            turns = f"completed turn {done[0]}"
+        else:
+            turns = f"completed turns {', '.join(done[:-1])} and {done[-1]}"
+        crossed = ", crossed a tape" if m.get("crossed_tape") else ""
+        value = m.get("distance_past_lane_end_m")
+        if m.get("halted"):
+            ending = f"halted ({format_value(m.get('halt_reason'))}) {past(m)}"
+        else:
+            ending = f"never stopped, ending {past(m)}"
+            if isinstance(value, int | float) and value > 0.5:
+                ending += " (driving on tile seams once the tape was gone)"
+        return f"the {name} controller {turns}{crossed} and {ending}"
+
+    text = story("lecture's", lecture) + "; " + story("supervised", supervised) + "."
+    return text[0].upper() + text[1:]
 
 
 def write_report(path: Path, runs: Mapping[str, Mapping[str, object]], summary: str,

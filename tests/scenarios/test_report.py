@@ -26,8 +26,10 @@ def test_table_and_summary() -> None:
     text = format_table(rows)
     assert text.splitlines()[1].startswith("---")
     summary = demo_summary(LECTURE, SUPERVISED)
-    assert "never stopped" in summary and "2.50 m past" in summary
-    assert "A, B" in summary and "0.36 m before" in summary
+    assert summary.startswith("The lecture's controller completed turn A, crossed a tape and "
+                              "never stopped, ending 2.50 m past the end of the tape")
+    assert "the supervised controller completed turns A and B and halted (LANE_LOST) 0.36 m " \
+           "before the end of the tape." in summary
 
 
 def test_report_page_links_each_run(tmp_path: Path) -> None:
