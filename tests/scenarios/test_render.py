@@ -156,3 +156,17 @@ def test_default_roi_sees_both_tapes_at_the_start_of_straight(size: tuple[int, i
     assert observation.left is not None and observation.right is not None
     assert observation.confidence >= config.supervisor.confidence_confident_min
     assert observation.slope_sum is not None and abs(observation.slope_sum) < 1.0
+
+
+@pytest.mark.parametrize("floor", [
+    {"kind": "tiles", "grid_angle_deg": 20.0}, {"kind": "plain"}, {"kind": "wood"},
+    {"kind": "noisy"}])
+def test_every_floor_kind_paints_a_floor_the_tape_stands_out_on(floor: dict[str, object]) -> None:
+    from tests.scenarios.helpers import spec_from
+
+    spec = spec_from({"floor": floor, "lane": {"segments": [{"straight_m": 1.0}]}})
+    texture = paint_ground(build_world(spec, margin_m=1.0), 0.004, seed=0, color=False)
+    tape = texture.world_to_px(np.array([[0.5, 0.3]])).round().astype(int)[0]
+    floor_patch = texture.gray[:100, :100].astype(float)
+    assert texture.gray[tape[1], tape[0]] < floor_patch.mean() - 60
+    assert floor_patch.std() > 1.0  # textured, not flat
