@@ -193,8 +193,10 @@ class EdgesConfig(BaseModel):
       gap of another's far end, turning by at most this much, continues it (a bending edge).
     - `look_ahead_y_norm`: the reported edge (and so its slope) ends where the edge crosses this
       image row, or at its far end if it stops short: every frame measures the same stretch of
-      floor (about 1.1 m ahead with the default camera), so a bend reads steadily instead of
-      jumping with how far Hough happened to follow the curve.
+      floor (to about 0.87 m ahead with the default camera), so a bend reads steadily instead of
+      jumping with how far Hough happened to follow the curve. Farther (0.3: 1.1 m) makes the
+      lecture's +-6 trip early in gentle bends (R 2 m), where its fixed turn rate then
+      overshoots inside the bend in the closed loop.
     - `max_abs_slope`: the slope clamp (see `perception.geometry`).
     """
 
@@ -241,7 +243,7 @@ class EdgesConfig(BaseModel):
         ),
     )
     look_ahead_y_norm: Annotated[float, Field(ge=-1.0, le=1.0)] = Field(
-        default=0.3,
+        default=0.4,
         description=(
             "the reported edge (and its slope) ends where the edge crosses this image row "
             "(normalised), or at its far end if shorter: a fixed stretch of floor every frame"
