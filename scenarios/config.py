@@ -8,7 +8,7 @@ scales with it). This module only declares numbers: it never renders or runs any
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -17,54 +17,64 @@ _FROZEN = ConfigDict(extra="forbid", frozen=True)
 
 class VideoConfig(BaseModel):
     """`simulation.video`: the run's video.mp4 (camera view with the perception overlay beside a
-    top-down map, H.264 yuv420p so browsers play it).
-
-    - `fps`: frames written per second of simulated time (the camera runs at `camera_rate_hz`;
-      every k-th frame is written so the video plays in real time).
-    - `map_size_px`: the top-down map panel is this many pixels square; the camera panel is scaled
-      to the same height.
-    - `crf` / `preset`: x264 quality (lower = better, bigger) and speed.
-    """
+    top-down map, H.264 yuv420p so browsers play it)."""
 
     model_config = _FROZEN
 
-    fps: Annotated[float, Field(gt=0.0, le=60.0)] = 15.0
-    map_size_px: Annotated[int, Field(ge=160, le=1440, multiple_of=16)] = 480
-    crf: Annotated[int, Field(ge=0, le=51)] = 28
+    fps: float = Field(
+        15.0, gt=0.0, le=60.0,
+        description="video frames per second of simulated time (every k-th camera frame is "
+        "written, so the video plays in real time)",
+    )
+    map_size_px: int = Field(
+        480, ge=160, le=1440, multiple_of=16,
+        description="the top-down map panel is this many pixels square; the camera panel is "
+        "scaled to the same height",
+    )
+    crf: int = Field(28, ge=0, le=51, description="x264 quality (lower: better and bigger)")
     preset: Literal[
         "ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"
-    ] = "ultrafast"
+    ] = Field("ultrafast", description="x264 speed preset")
 
 
 class SimulationConfig(BaseModel):
-    """`simulation:` the synthetic camera and the simulated run.
-
-    - `camera_rate_hz`: camera frames per second; the control loop steps once per frame.
-    - `width_px` / `height_px`: camera resolution (640x480 default; 320x240 scales the focal
-      length with it).
-    - `texture_mm_per_px`: resolution of the painted floor (finer is sharper and slower to paint).
-    - `world_margin_m`: floor painted beyond the lane on every side.
-    - `noise_sigma_levels`: sensor noise, standard deviation in grey levels (0: none).
-    - `noise_bank_frames`: precomputed noise frames one of which is drawn per frame.
-    - `exposure_s`: shutter time for motion blur (0: none).
-    - `perception_color`: give perception the colour frame (else the gray one, which is what it
-      computes first anyway; gray rendering is ~2x faster).
-    - `progress`: show a progress bar on stderr (only when stderr is a terminal).
-    """
+    """`simulation:` the synthetic camera and the simulated run."""
 
     model_config = _FROZEN
 
-    camera_rate_hz: Annotated[float, Field(gt=1.0, le=120.0)] = 30.0
-    width_px: Annotated[int, Field(ge=64, le=1920)] = 640
-    height_px: Annotated[int, Field(ge=48, le=1440)] = 480
-    texture_mm_per_px: Annotated[float, Field(ge=1.0, le=10.0)] = 2.5
-    world_margin_m: Annotated[float, Field(ge=1.0, le=10.0)] = 2.5
-    noise_sigma_levels: Annotated[float, Field(ge=0.0, le=40.0)] = 2.0
-    noise_bank_frames: Annotated[int, Field(ge=1, le=64)] = 12
-    exposure_s: Annotated[float, Field(ge=0.0, le=0.1)] = 0.01
-    perception_color: bool = False
-    progress: bool = True
-    video: VideoConfig = VideoConfig()
+    camera_rate_hz: float = Field(
+        30.0, gt=1.0, le=120.0,
+        description="camera frames per second; the control loop steps once per frame",
+    )
+    width_px: int = Field(
+        640, ge=64, le=1920, description="camera image width (the focal length scales with it)"
+    )
+    height_px: int = Field(480, ge=48, le=1440, description="camera image height")
+    texture_mm_per_px: float = Field(
+        2.5, ge=1.0, le=10.0,
+        description="resolution of the painted floor (finer: sharper and slower to paint)",
+    )
+    world_margin_m: float = Field(
+        2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
+    )
+    noise_sigma_levels: float = Field(
+        2.0, ge=0.0, le=40.0, description="sensor noise, standard deviation in grey levels (0: none)"
+    )
+    noise_bank_frames: int = Field(
+        12, ge=1, le=64, description="precomputed noise frames, one drawn (seeded) per frame"
+    )
+    exposure_s: float = Field(
+        0.01, ge=0.0, le=0.1, description="shutter time used for motion blur (0: none)"
+    )
+    perception_color: bool = Field(
+        False,
+        description="give perception colour frames (default: gray, which it computes first "
+        "anyway; gray rendering is about 2x faster)",
+    )
+    progress: bool = Field(
+        True, description="show a progress bar on stderr (only when stderr is a terminal)"
+    )
+    video: VideoConfig = Field(default_factory=VideoConfig, description="the run's video.mp4")
 
     @model_validator(mode="after")
     def _even(self) -> SimulationConfig:
