@@ -58,7 +58,8 @@ class SimulationConfig(BaseModel):
         2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
     )
     noise_sigma_levels: float = Field(
-        2.0, ge=0.0, le=40.0, description="sensor noise, standard deviation in grey levels (0: none)"
+        2.0, ge=0.0, le=40.0,
+        description="sensor noise, standard deviation in grey levels (0: none)",
     )
     noise_bank_frames: int = Field(
         12, ge=1, le=64, description="precomputed noise frames, one drawn (seeded) per frame"
