@@ -22,19 +22,19 @@ class VideoConfig(BaseModel):
     model_config = _FROZEN
 
     fps: float = Field(
-        15.0, gt=0.0, le=60.0,
+        default=15.0, gt=0.0, le=60.0,
         description="video frames per second of simulated time (every k-th camera frame is "
         "written, so the video plays in real time)",
     )
     map_size_px: int = Field(
-        480, ge=160, le=1440, multiple_of=16,
+        default=480, ge=160, le=1440, multiple_of=16,
         description="the top-down map panel is this many pixels square; the camera panel is "
         "scaled to the same height",
     )
-    crf: int = Field(28, ge=0, le=51, description="x264 quality (lower: better and bigger)")
+    crf: int = Field(default=28, ge=0, le=51, description="x264 quality (lower: better and bigger)")
     preset: Literal[
         "ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"
-    ] = Field("ultrafast", description="x264 speed preset")
+    ] = Field(default="ultrafast", description="x264 speed preset")
 
 
 class SimulationConfig(BaseModel):
@@ -43,39 +43,41 @@ class SimulationConfig(BaseModel):
     model_config = _FROZEN
 
     camera_rate_hz: float = Field(
-        30.0, gt=1.0, le=120.0,
+        default=30.0, gt=1.0, le=120.0,
         description="camera frames per second; the control loop steps once per frame",
     )
     width_px: int = Field(
-        640, ge=64, le=1920, description="camera image width (the focal length scales with it)"
+        default=640, ge=64, le=1920,
+        description="camera image width (the focal length scales with it)",
     )
-    height_px: int = Field(480, ge=48, le=1440, description="camera image height")
+    height_px: int = Field(default=480, ge=48, le=1440, description="camera image height")
     texture_mm_per_px: float = Field(
-        2.5, ge=1.0, le=10.0,
+        default=2.5, ge=1.0, le=10.0,
         description="resolution of the painted floor (finer: sharper and slower to paint)",
     )
     world_margin_m: float = Field(
-        2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
+        default=2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
     )
     noise_sigma_levels: float = Field(
-        2.0, ge=0.0, le=40.0,
+        default=2.0, ge=0.0, le=40.0,
         description="sensor noise, standard deviation in grey levels (0: none)",
     )
     noise_bank_frames: int = Field(
-        12, ge=1, le=64, description="precomputed noise frames, one drawn (seeded) per frame"
+        default=12, ge=1, le=64,
+        description="precomputed noise frames, one drawn (seeded) per frame",
     )
     exposure_s: float = Field(
-        0.01, ge=0.0, le=0.1, description="shutter time used for motion blur (0: none)"
+        default=0.01, ge=0.0, le=0.1, description="shutter time used for motion blur (0: none)"
     )
     perception_color: bool = Field(
-        False,
+        default=False,
         description="give perception colour frames (default: gray, which it computes first "
         "anyway; gray rendering is about 2x faster)",
     )
     progress: bool = Field(
-        True, description="show a progress bar on stderr (only when stderr is a terminal)"
+        default=True, description="show a progress bar on stderr (only when stderr is a terminal)"
     )
-    video: VideoConfig = Field(default_factory=VideoConfig, description="the run's video.mp4")
+    video: VideoConfig = Field(default=VideoConfig(), description="the run's video.mp4")
 
     @model_validator(mode="after")
     def _even(self) -> SimulationConfig:
