@@ -105,3 +105,21 @@ def test_seed_changes_the_run_and_same_seed_repeats_it() -> None:
     config = effective_config(with_overrides(LanewardenConfig(), FAST, "test"), spec)
     again = Simulation(spec, config, seed=0).run()
     assert [r.as_json() for r in again.records] == [r.as_json() for r in a]
+
+
+def test_perception_sees_the_same_lane_in_colour_and_in_gray() -> None:
+    from tests.scenarios.helpers import spec_from
+
+    spec = spec_from({"lane": {"segments": [{"straight_m": 3.0}]}, "run": {"max_time_s": 2.0}})
+    results = []
+    for colour in (False, True):
+        fast = {"simulation": {**FAST["simulation"], "perception_color": colour}}
+        config = effective_config(with_overrides(LanewardenConfig(), fast, "test"), spec)
+        results.append(Simulation(spec, config, seed=2).run())
+    gray, colour = ([r.observation for r in res.records if r.observation is not None]
+                    for res in results)
+    assert len(gray) == len(colour) > 50
+    for a, b in zip(gray, colour, strict=True):
+        assert a.slope_sum is not None and b.slope_sum is not None
+        assert abs(a.slope_sum - b.slope_sum) < 0.2 and abs(a.confidence - b.confidence) < 0.1
+    assert results[1].metrics["engaged"] is True
