@@ -110,8 +110,9 @@ class CameraRenderer:
     def _blur_kernel(self, linear_m_s: float, angular_rad_s: float) -> tuple[int, int] | None:
         if self.exposure_s <= 0:
             return None
-        kx = int(round(abs(angular_rad_s) * self.exposure_s * self._px_per_rad)) + 1
-        ky = int(round(abs(linear_m_s) * self.exposure_s * self._px_per_m_forward)) + 1
+        # A point smeared over L pixels during the exposure: a box of about L pixels.
+        kx = max(1, int(round(abs(angular_rad_s) * self.exposure_s * self._px_per_rad)))
+        ky = max(1, int(round(abs(linear_m_s) * self.exposure_s * self._px_per_m_forward)))
         if kx <= 1 and ky <= 1:
             return None
         return (kx, ky)

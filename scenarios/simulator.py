@@ -148,7 +148,8 @@ class Simulation:
         self._view_bgr = np.empty((h, w, 3), np.uint8)
         # The video shows the undistorted view (what perception analyses, where its overlay
         # coordinates live), rendered directly from a colour painting of the same world at half
-        # the resolution (same seed: same tiles, seams, tapes and light; display only).
+        # the resolution (same seed: same tiles, seams, tapes and light), without sensor noise
+        # or motion blur: display only.
         self._display: CameraRenderer | None = None
         self.display_texture: GroundTexture | None = None
         if video_path is not None:
@@ -156,8 +157,8 @@ class Simulation:
                 self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
                 color=True)
             self._display = CameraRenderer(
-                self.display_texture, self.camera, noise_sigma=sim.noise_sigma_levels,
-                exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=2, distorted=False)
+                self.display_texture, self.camera, noise_sigma=0.0, exposure_s=0.0, seed=seed,
+                distorted=False)
 
     def _roi_polygon(self) -> NDArray[np.float64]:
         """Perception's ROI in undistorted pixels, asked from the detector itself (one detection
@@ -219,11 +220,13 @@ class Simulation:
                 poses.append((pose.x_m, pose.y_m, pose.theta_rad))
                 speeds.append(abs(velocity.linear_m_s))
                 if lane_ends:
-                    visible.append(self.visibility.visible(pose))
+                    # Only the first frame without tape in view matters (metrics): stop there.
+                    seen = not visible or visible[-1]
+                    visible.append(self.visibility.visible(pose) if seen else False)
                 if map_view is not None:
                     map_view.add_path_point(pose, record.state)
                     if k % video_every == 0:
-                        self._add_video_frame(k, now, pose, record, buffer, motion, noise)
+                        self._add_video_frame(k, now, pose, record)
                 if self._progress is not None:
                     self._progress(now)
 
@@ -264,11 +267,10 @@ class Simulation:
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
                                 records, trace, end_reason)
 
-    def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord,
-                         buffer: U8, motion: tuple[float, float], noise: int | None) -> None:
+    def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord) -> None:
         assert self._video is not None
         assert self._display is not None
-        undistorted = self._display.render_bgr(pose, self._view_bgr, motion, 0)
+        undistorted = self._display.render_bgr(pose, self._view_bgr)
         tap = self._tap.last if self._tap is not None else None
         if tap is not None and tap[0] == k and record.observation is not None:
             _, observation, debug = tap
