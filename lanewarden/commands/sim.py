@@ -17,14 +17,25 @@ import click
 
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from lanewarden.errors import QualityGateError
+from lanewarden.errors import QualityGateError, UsageError
+from scenarios.errors import ScenarioError
 from scenarios.library import library_names, resolve_scenario
 from scenarios.report import comparison_rows, demo_summary, format_table, write_report
 from scenarios.sim_run import RunRequest, run_to_directory
+from scenarios.spec import ScenarioSpec
 from supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 DEMO_SCENARIO = "lecture"
 DEFAULT_DEMO_OUT = "lanewarden-out"
+
+
+def _load_scenario(name_or_file: str) -> ScenarioSpec:
+    """The scenario, or a UsageError (exit 2, like a bad config file): a bad scenario name or file
+    is bad input."""
+    try:
+        return resolve_scenario(name_or_file)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _summary_lines(metrics: dict[str, object]) -> list[str]:
@@ -62,7 +73,7 @@ def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
                 config_path: str | None, no_video: bool, quiet: bool, check: bool) -> None:
     """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4, plot.png."""
     config = load_config(config_path)
-    spec = resolve_scenario(scenario)
+    spec = _load_scenario(scenario)
     out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
     metrics = run_to_directory(RunRequest(
         spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
@@ -93,7 +104,7 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     side: DIR/lecture/, DIR/supervised/, DIR/report.html."""
     started = time.perf_counter()
     config = load_config(config_path)
-    spec = resolve_scenario(DEMO_SCENARIO)
+    spec = _load_scenario(DEMO_SCENARIO)
     out = Path(out_dir)
     requests = [
         RunRequest(spec=spec, config=config, controller=name, seed=seed, out_dir=out / name,

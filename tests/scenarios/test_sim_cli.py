@@ -34,7 +34,7 @@ def video_info(path: Path) -> dict[str, object]:
 
 
 def test_unknown_scenario_is_one_line_listing_the_names(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["sim", "--scenario", "nope"]) == 1
+    assert main(["sim", "--scenario", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert err[0].startswith("lanewarden: error: --scenario: unknown scenario 'nope'")
@@ -45,7 +45,7 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text(SHORT.replace("max_time_s: 3", "max_time_s: -3"), encoding="utf-8")
-    assert main(["sim", "--scenario", str(bad), "--out", str(tmp_path / "o")]) == 1
+    assert main(["sim", "--scenario", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"lanewarden: error: {bad}: run.max_time_s = -3: input should be greater "
                    "than 0"]
