@@ -7,8 +7,6 @@ only declares numbers: it never reads images or files.
 
 from __future__ import annotations
 
-from typing import Annotated
-
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -38,15 +36,73 @@ class CalibrationConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    max_rms_px: Annotated[float, Field(gt=0.0)] = 1.0
-    min_views: Annotated[int, Field(ge=3)] = 10
-    min_coverage_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
-    outlier_error_factor: Annotated[float, Field(gt=1.0)] = 2.0
-    outlier_min_error_px: Annotated[float, Field(ge=0.0)] = 0.3
-    max_edge_width_px: Annotated[float, Field(gt=0.0)] = 5.0
-    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = 40.0
-    subpix_window_px: Annotated[int, Field(ge=2, le=50)] = 5
-    subpix_max_iterations: Annotated[int, Field(ge=1)] = 30
-    subpix_epsilon_px: Annotated[float, Field(gt=0.0)] = 0.01
-    max_views_per_calibration: Annotated[int, Field(ge=3)] = 60
-    capture_min_novelty: Annotated[float, Field(gt=0.0)] = 0.2
+    max_rms_px: float = Field(
+        default=1.0,
+        gt=0.0,
+        description="Gate: largest acceptable overall RMS reprojection error, px; above it the "
+        "calibration is refused",
+    )
+    min_views: int = Field(
+        default=10,
+        ge=3,
+        description="Gate: fewest usable chessboard views for a calibration to be trusted",
+    )
+    min_coverage_fraction: float = Field(
+        default=0.5,
+        ge=0.0,
+        le=1.0,
+        description="Gate: smallest share (0-1) of the 6x6 image cells that must hold a corner of "
+        "a used view; edge corners pin down the distortion",
+    )
+    outlier_error_factor: float = Field(
+        default=2.0,
+        gt=1.0,
+        description="A view is an outlier when its RMS error is above this times the median view "
+        "error (and above outlier_min_error_px)",
+    )
+    outlier_min_error_px: float = Field(
+        default=0.3,
+        ge=0.0,
+        description="A view is an outlier only when its RMS error is also above this, px",
+    )
+    max_edge_width_px: float = Field(
+        default=5.0,
+        gt=0.0,
+        description="Per-view blur rule: reject a view whose mean black-to-white edge width is "
+        "above this, px (sharp: ~2-3 px)",
+    )
+    min_contrast_levels: float = Field(
+        default=40.0,
+        ge=0.0,
+        le=255.0,
+        description="Per-view exposure rule: reject a view whose white-minus-black square "
+        "brightness is below this, grey levels (0-255)",
+    )
+    subpix_window_px: int = Field(
+        default=5,
+        ge=2,
+        le=50,
+        description="Half size of the cornerSubPix search window (OpenCV's winSize), px",
+    )
+    subpix_max_iterations: int = Field(
+        default=30,
+        ge=1,
+        description="cornerSubPix stopping rule: at most this many refinement iterations",
+    )
+    subpix_epsilon_px: float = Field(
+        default=0.01,
+        gt=0.0,
+        description="cornerSubPix stopping rule: stop when a corner moves less than this, px",
+    )
+    max_views_per_calibration: int = Field(
+        default=60,
+        ge=3,
+        description="At most this many views (evenly chosen) go into calibrateCamera; more add "
+        "little and slow the solver",
+    )
+    capture_min_novelty: float = Field(
+        default=0.2,
+        gt=0.0,
+        description="`calibrate capture` keeps a frame only when its board differs from every "
+        "kept one by at least this (L1 of normalised position, size and tilt)",
+    )

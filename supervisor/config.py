@@ -17,50 +17,67 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class SupervisorConfig(BaseModel):
-    """`supervisor:` section. Defaults are for the simulator's camera (scenarios.camera.CameraModel)
-    at 30 frames/s on a Kobuki; the closed-loop numbers are tuned there, see docs/supervisor.md."""
+    """The supervisor's slope-sum filter, lane-evidence debounce, watchdog limits, per-state
+    commands and command limiter.
+
+    Defaults are for the simulator's camera (scenarios.camera.CameraModel) at 30 frames/s on a
+    Kobuki; the closed-loop numbers are tuned there, see docs/supervisor.md.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     # --- Slope-sum Kalman filter (state: slope sum, its rate per second) ---
     slope_sum_measurement_std: float = Field(
-        default=0.3, gt=0.0, description="measurement noise of the slope sum at confidence 1"
+        default=0.3,
+        gt=0.0,
+        description="Kalman measurement noise (std) of the slope sum at confidence 1, slope-sum "
+        "units",
     )
     measurement_confidence_floor: float = Field(
         default=0.1,
         gt=0.0,
         le=1.0,
-        description="R = (slope_sum_measurement_std / max(confidence, floor))^2",
+        description="Lowest confidence used to scale the measurement noise: "
+        "R = (slope_sum_measurement_std / max(confidence, floor))^2",
     )
     slope_sum_accel_std_per_s2: float = Field(
         default=40.0,
         gt=0.0,
-        description="process noise: std of the slope sum's acceleration (1/s^2)",
+        description="Kalman process noise: std of the slope sum's acceleration, 1/s^2",
     )
     slope_sum_initial_rate_std_per_s: float = Field(
-        default=2.0, gt=0.0, description="rate uncertainty when the filter (re)starts (1/s)"
+        default=2.0,
+        gt=0.0,
+        description="Uncertainty (std) of the slope sum's rate when the filter (re)starts, 1/s",
     )
     innovation_gate_sigma: float = Field(
         default=4.0,
         gt=0.0,
-        description="Mahalanobis distance above which a measurement is an outlier",
+        description="Mahalanobis distance, sigmas, above which a measurement is rejected as an "
+        "outlier (INNOVATION_OUTLIER)",
     )
     outliers_repeated_count: int = Field(
         default=3,
         ge=1,
-        description="this many outliers within outliers_window_frames -> REPEATED_OUTLIERS; "
-        "this many in a row re-starts the filter on the newest measurement",
+        description="This many outliers within outliers_window_frames -> REPEATED_OUTLIERS "
+        "(DEGRADED); this many in a row restart the filter on the newest measurement",
     )
-    outliers_window_frames: int = Field(default=10, ge=1)
+    outliers_window_frames: int = Field(
+        default=10,
+        ge=1,
+        description="Window over which outliers are counted for REPEATED_OUTLIERS, camera frames",
+    )
     slope_filter_restart_after_s: float = Field(
         default=0.5,
         gt=0.0,
-        description="with no accepted measurement for this long, the next one re-starts the filter",
+        description="With no accepted measurement for this long the next one restarts the "
+        "filter, s",
     )
     center_offset_time_constant_s: float = Field(
         default=0.1,
         ge=0.0,
-        description="low-pass time constant of the centring term (0: no filtering)",
+        description="Low-pass time constant of the centre offset used for steering, s (0: no "
+        "filtering)",
     )
 
     # --- Confidence thresholds and debounce (frames are new camera frames) ---
@@ -68,88 +85,193 @@ class SupervisorConfig(BaseModel):
         default=0.2,
         ge=0.0,
         le=1.0,
-        description="below this a frame has no usable lane (counts towards lane_lost_halt_s)",
+        description="Below this confidence (0-1) a frame has no usable lane (LANE_UNTRUSTED; "
+        "counts towards lane_lost_halt_s)",
     )
-    confidence_degrade_below: float = Field(default=0.45, ge=0.0, le=1.0)
+    confidence_degrade_below: float = Field(
+        default=0.45,
+        ge=0.0,
+        le=1.0,
+        description="Confidence (0-1) below which low_confidence_degrade_frames frames in a row "
+        "give LANE_LOW_CONFIDENCE (DEGRADED)",
+    )
     low_confidence_degrade_frames: int = Field(
-        default=3, ge=1, description="k: frames below confidence_degrade_below in a row -> DEGRADED"
+        default=3,
+        ge=1,
+        description="k: frames in a row below confidence_degrade_below before DEGRADED, camera "
+        "frames",
     )
     confidence_confident_min: float = Field(
-        default=0.6, ge=0.0, le=1.0, description="a confident frame: both edges and at least this"
+        default=0.6,
+        ge=0.0,
+        le=1.0,
+        description="A confident frame (counts to engage and recover) has both edges and at "
+        "least this confidence (0-1)",
     )
     engage_confident_frames: int = Field(
-        default=10, ge=1, description="N: confident frames in a row before start/resume engages"
+        default=10,
+        ge=1,
+        description="N: confident frames in a row before a start or resume engages FOLLOW, "
+        "camera frames",
     )
     recover_confident_frames: int = Field(
         default=5,
         ge=1,
-        description="m: confident frames in a row before DEGRADED recovers to FOLLOW",
+        description="m: confident frames in a row before DEGRADED recovers to FOLLOW, camera "
+        "frames",
     )
 
     # --- Turn hysteresis on the filtered slope sum (the lecture's +-6) ---
-    turn_enter_slope_sum: float = Field(default=6.0, gt=0.0)
-    turn_exit_slope_sum: float = Field(default=4.0, ge=0.0)
+    turn_enter_slope_sum: float = Field(
+        default=6.0,
+        gt=0.0,
+        description="Enter TURN_LEFT/TURN_RIGHT when the filtered slope sum passes +- this "
+        "(the lecture's 6)",
+    )
+    turn_exit_slope_sum: float = Field(
+        default=4.0,
+        ge=0.0,
+        description="Leave a turn for FOLLOW when the filtered slope sum is back inside +- this "
+        "(below turn_enter_slope_sum)",
+    )
 
     # --- Watchdog and timing ---
-    camera_period_s: float = Field(default=1.0 / 30.0, gt=0.0, description="expected frame period")
+    camera_period_s: float = Field(
+        default=1.0 / 30.0,
+        gt=0.0,
+        description="Expected camera frame period, also the runner's control-loop period, s",
+    )
     loop_overrun_s: float = Field(
-        default=0.1, gt=0.0, description="step-to-step time above this -> LOOP_OVERRUN"
+        default=0.1,
+        gt=0.0,
+        description="Step-to-step time above this gives LOOP_OVERRUN (a warning) and caps the "
+        "limiter's dt, s",
     )
     frame_late_s: float = Field(
-        default=0.08, gt=0.0, description="newest frame older than this -> FRAME_LATE (DEGRADED)"
+        default=0.08,
+        gt=0.0,
+        description="Newest frame older than this gives FRAME_LATE (DEGRADED), s",
     )
     frame_stale_s: float = Field(
-        default=0.15, gt=0.0, description="newest frame older than this -> FRAME_STALE (HALT)"
+        default=0.15,
+        gt=0.0,
+        description="Newest frame older than this gives FRAME_STALE (HALT), s",
     )
     frame_frozen_s: float = Field(
         default=0.15,
         gt=0.0,
-        description="identical images for this long while moving -> FRAME_FROZEN (HALT)",
+        description="Identical images for this long while commanded to move give FRAME_FROZEN "
+        "(HALT), s",
     )
-    base_feedback_late_s: float = Field(default=0.1, gt=0.0)
+    base_feedback_late_s: float = Field(
+        default=0.1,
+        gt=0.0,
+        description="Newest base feedback older than this gives BASE_FEEDBACK_LATE (DEGRADED), s",
+    )
     base_link_timeout_s: float = Field(
-        default=0.2, gt=0.0, description="no base feedback for this long -> BASE_LINK_LOST (HALT)"
+        default=0.2,
+        gt=0.0,
+        description="No base feedback for this long gives BASE_LINK_LOST (HALT), s",
     )
     lane_lost_halt_s: float = Field(
         default=0.2,
         gt=0.0,
-        description="engaged with no usable lane (by capture time) for longer -> LANE_LOST (HALT)",
+        description="Halt (LANE_LOST) when engaged with no usable lane for longer than this, by "
+        "capture time, s",
     )
 
     # --- DEGRADED ---
-    degraded_speed_fraction: float = Field(default=0.5, gt=0.0, le=1.0)
-    degraded_max_angular_rad_s: float = Field(default=0.4, gt=0.0)
-    degraded_budget_s: float = Field(default=2.0, gt=0.0)
-    degraded_budget_m: float = Field(default=0.3, gt=0.0)
+    degraded_speed_fraction: float = Field(
+        default=0.5,
+        gt=0.0,
+        le=1.0,
+        description="DEGRADED drives at follow_speed_m_s times this fraction (0-1]",
+    )
+    degraded_max_angular_rad_s: float = Field(
+        default=0.4,
+        gt=0.0,
+        description="DEGRADED clips its steering to +- this, rad/s",
+    )
+    degraded_budget_s: float = Field(
+        default=2.0,
+        gt=0.0,
+        description="Staying DEGRADED longer than this halts (DEGRADED_BUDGET_EXHAUSTED), s",
+    )
+    degraded_budget_m: float = Field(
+        default=0.3,
+        gt=0.0,
+        description="Driving further than this while DEGRADED (commanded speed x dt) halts, m",
+    )
 
     # --- Commands per state ---
-    follow_speed_m_s: float = Field(default=0.2, gt=0.0)
+    follow_speed_m_s: float = Field(
+        default=0.2,
+        gt=0.0,
+        description="Forward speed in FOLLOW, m/s (at most max_linear_m_s)",
+    )
     slope_sum_gain_rad_s: float = Field(
-        default=0.03, ge=0.0, description="rad/s of left turn per unit of filtered slope sum"
+        default=0.03,
+        ge=0.0,
+        description="Left-turn rate per unit of filtered slope sum, rad/s",
     )
     center_offset_gain_rad_s: float = Field(
-        default=1.0, ge=0.0, description="rad/s of right turn per half image width of centre offset"
+        default=1.0,
+        ge=0.0,
+        description="Right-turn rate per half image width of filtered centre offset, rad/s",
     )
-    turn_speed_m_s: float = Field(default=0.15, gt=0.0)
+    turn_speed_m_s: float = Field(
+        default=0.15,
+        gt=0.0,
+        description="Forward speed in TURN_LEFT/TURN_RIGHT and in the lecture controller's "
+        "turns, m/s (at most max_linear_m_s)",
+    )
     turn_extra_angular_rad_s: float = Field(
-        default=0.2, ge=0.0, description="TURN_LEFT/RIGHT add this to the proportional steering"
+        default=0.2,
+        ge=0.0,
+        description="TURN_LEFT/TURN_RIGHT add this to the proportional steering, rad/s",
     )
 
     # --- Command limiter (the Kobuki velocity smoother's 0.3 m/s^2 and 3.5 rad/s^2) ---
-    max_linear_m_s: float = Field(default=0.3, gt=0.0)
-    max_angular_rad_s: float = Field(default=1.0, gt=0.0)
-    max_linear_accel_m_s2: float = Field(default=0.3, gt=0.0)
-    max_angular_accel_rad_s2: float = Field(default=3.5, gt=0.0)
+    max_linear_m_s: float = Field(
+        default=0.3,
+        gt=0.0,
+        description="Limiter cap on the commanded linear speed, m/s",
+    )
+    max_angular_rad_s: float = Field(
+        default=1.0,
+        gt=0.0,
+        description="Limiter cap on the commanded angular speed, rad/s",
+    )
+    max_linear_accel_m_s2: float = Field(
+        default=0.3,
+        gt=0.0,
+        description="Limiter ramp for increases of linear speed, m/s^2 (decreases pass at once)",
+    )
+    max_angular_accel_rad_s2: float = Field(
+        default=3.5,
+        gt=0.0,
+        description="Limiter ramp for increases of angular speed, rad/s^2 (decreases pass at "
+        "once)",
+    )
 
     # --- Resume policy ---
     auto_resume_after_lane_loss: bool = Field(
         default=False,
-        description="re-engage by itself after a LANE_LOST halt once N confident frames",
+        description="Re-engage by itself after a LANE_LOST halt once engage_confident_frames "
+        "confident frames are seen (no other halt is forgiven)",
     )
 
     # --- The lecture's baseline controller (--controller lecture) ---
-    lecture_slope_sum_threshold: float = Field(default=6.0, gt=0.0)
-    lecture_turn_angular_rad_s: float = Field(default=0.4, gt=0.0)
+    lecture_slope_sum_threshold: float = Field(
+        default=6.0,
+        gt=0.0,
+        description="Lecture controller: turn left above + this raw slope sum, right below - this",
+    )
+    lecture_turn_angular_rad_s: float = Field(
+        default=0.4,
+        gt=0.0,
+        description="Lecture controller: fixed turn rate while turning, rad/s",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
