@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D
+from actuation.base import Pose2D, VelocityCommand
 from actuation.sim_base import SimBase, SimBaseParams
 from perception.calibration import CameraCalibration, Undistorter
 from perception.decision import decide
@@ -36,7 +36,7 @@ from scenarios.faults import FaultSchedule, camera_pool_size
 from scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from scenarios.render import CameraRenderer
 from scenarios.sim_camera import SimCamera
-from scenarios.spec import ScenarioSpec, with_overrides
+from scenarios.spec import RunSpec, ScenarioSpec, with_overrides
 from scenarios.texture import GroundTexture, paint_ground
 from scenarios.video import MapView, VideoRecorder, roi_ground_outline
 from scenarios.world import World, build_world
@@ -118,7 +118,6 @@ class Simulation:
         self.config = config
         self.controller_name = controller
         self.seed = seed
-        self._record = record
         self._progress = progress
         sim = config.simulation
         self.camera = sim_camera_model(config)
@@ -180,7 +179,7 @@ class Simulation:
                                roi_ground_outline(self.camera, self.roi_polygon_px))
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
-                sim_camera_rate_fps(sim.camera_rate_hz, video_every), sim.video.crf,
+                sim.camera_rate_hz / video_every, sim.video.crf,
                 sim.video.preset)
         else:
             map_view = None
@@ -191,25 +190,12 @@ class Simulation:
         records: list[StepRecord] = []
         visible: list[bool] = []
         lane_ends = self.world.markings_end_s is not None
-        end = self.world.lane_end()
-        engaged = False
-        halt_time: float | None = None
+        ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
         try:
             for k in range(ticks):
                 now = k * dt
-                self.faults.apply(now, self.sim_camera, self.base, self.loop)
-                self.base.advance_to(now)
-                pose = self.base.pose
-                velocity = self.base.velocity
-                motion = (velocity.linear_m_s, velocity.angular_rad_s)
-                noise = self.renderer.next_noise_index()
-                buffer = self.sim_camera.buffer()
-                if sim.perception_color:
-                    self.renderer.render_bgr(pose, buffer, motion, noise)
-                else:
-                    self.renderer.render_gray(pose, buffer, motion, noise)
-                self.sim_camera.capture(k, now)
+                pose, velocity = self._capture(k, now)
                 if k == 0:
                     self.loop.start(now)
                 if self.faults.loop_stalled:
@@ -229,28 +215,10 @@ class Simulation:
                         self._add_video_frame(k, now, pose, record)
                 if self._progress is not None:
                     self._progress(now)
-
-                if record.state != "HALT":
-                    engaged = True
-                elif engaged and halt_time is None:
-                    halt_time = now
-                if halt_time is not None and now - halt_time >= spec.run.halt_settle_s and \
-                        abs(self.base.velocity.linear_m_s) < AT_REST_M_S:
-                    end_reason = "halted"
+                reason = ending.check(now, record.state, pose, self.base.velocity.linear_m_s)
+                if reason is not None:
+                    end_reason = reason
                     break
-                if not engaged and now >= NOT_ENGAGED_LIMIT_S:
-                    end_reason = "never engaged"
-                    break
-                if not self.world.inside_bounds(pose.x_m, pose.y_m, WORLD_EDGE_MARGIN_M):
-                    end_reason = "left the painted floor"
-                    break
-                if end is not None and halt_time is None:
-                    point, heading = end
-                    past = (pose.x_m - point[0]) * math.cos(heading) + (
-                        pose.y_m - point[1]) * math.sin(heading)
-                    if past >= spec.run.stop_past_lane_end_m:
-                        end_reason = f"{spec.run.stop_past_lane_end_m:g} m past the lane end"
-                        break
         finally:
             self.base.close()
             if self._video is not None:
@@ -266,6 +234,22 @@ class Simulation:
         metrics["end_reason"] = end_reason
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
                                 records, trace, end_reason)
+
+    def _capture(self, k: int, now: float) -> tuple[Pose2D, VelocityCommand]:
+        """Faults due now, the base moved to now, and the camera's frame at the true pose."""
+        self.faults.apply(now, self.sim_camera, self.base, self.loop)
+        self.base.advance_to(now)
+        pose = self.base.pose
+        velocity = self.base.velocity
+        motion = (velocity.linear_m_s, velocity.angular_rad_s)
+        noise = self.renderer.next_noise_index()
+        buffer = self.sim_camera.buffer()
+        if self.config.simulation.perception_color:
+            self.renderer.render_bgr(pose, buffer, motion, noise)
+        else:
+            self.renderer.render_gray(pose, buffer, motion, noise)
+        self.sim_camera.capture(k, now)
+        return pose, velocity
 
     def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord) -> None:
         assert self._video is not None
@@ -293,6 +277,39 @@ class Simulation:
         self._video.add(panel, pose, record.state, lines)
 
 
-def sim_camera_rate_fps(camera_rate_hz: float, every: int) -> float:
-    """Frames per second of a video that keeps every `every`-th camera frame (real-time play)."""
-    return camera_rate_hz / every
+class EndConditions:
+    """When a run is over (pure: fed each step's time, state, true pose and speed).
+
+    - "halted": `halt_settle_s` after the first HALT that followed engagement, once at rest;
+    - "never engaged": still not engaged after NOT_ENGAGED_LIMIT_S;
+    - "left the painted floor": the robot came within WORLD_EDGE_MARGIN_M of its edge;
+    - "<d> m past the lane end": `stop_past_lane_end_m` past the end of the markings (not
+      halted). The time limit is the caller's loop bound.
+    """
+
+    def __init__(self, world: World, run: RunSpec) -> None:
+        self._world = world
+        self._run = run
+        self._end = world.lane_end()
+        self.engaged = False
+        self.halt_time: float | None = None
+
+    def check(self, now: float, state: str, pose: Pose2D, speed_m_s: float) -> str | None:
+        if state != "HALT":
+            self.engaged = True
+        elif self.engaged and self.halt_time is None:
+            self.halt_time = now
+        if self.halt_time is not None:
+            settled = now - self.halt_time >= self._run.halt_settle_s
+            return "halted" if settled and abs(speed_m_s) < AT_REST_M_S else None
+        if not self.engaged and now >= NOT_ENGAGED_LIMIT_S:
+            return "never engaged"
+        if not self._world.inside_bounds(pose.x_m, pose.y_m, WORLD_EDGE_MARGIN_M):
+            return "left the painted floor"
+        if self._end is not None:
+            point, heading = self._end
+            past = (pose.x_m - point[0]) * math.cos(heading) + (
+                pose.y_m - point[1]) * math.sin(heading)
+            if past >= self._run.stop_past_lane_end_m:
+                return f"{self._run.stop_past_lane_end_m:g} m past the lane end"
+        return None
