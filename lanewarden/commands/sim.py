@@ -55,7 +55,15 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
     ]
 
 
-@click.command("sim")
+SIM_EXAMPLES = """\b
+Examples:
+  lanewarden sim --scenario lane-ends
+  lanewarden sim --scenario lecture --controller lecture --seed 3 --out out/lecture
+  lanewarden sim --scenario my-track.yaml --no-video --check
+"""
+
+
+@click.command("sim", epilog=SIM_EXAMPLES)
 @click.option("--scenario", "scenario", required=True, metavar="NAME|FILE",
               help=f"A library scenario ({', '.join(library_names())}) or a scenario YAML file.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
@@ -90,7 +98,10 @@ def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
         raise QualityGateError(f"scenario {spec.name}: expected outcome not met")
 
 
-@click.command("demo")
+@click.command("demo", epilog="""\b
+Example:
+  lanewarden demo && xdg-open lanewarden-out/report.html
+""")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=DEFAULT_DEMO_OUT,
               show_default=True, help="Output directory.")
 @config_option
