@@ -17,6 +17,7 @@ from lanewarden.errors import ConfigError
 from perception.calibration_config import CalibrationConfig
 from perception.config import PerceptionConfig
 from scenarios.config import SimulationConfig
+from scenarios.yaml_documents import read_yaml_document, validation_error_lines
 from supervisor.config import SupervisorConfig
 
 
@@ -32,16 +33,7 @@ class LanewardenConfig(BaseModel):
     simulation: SimulationConfig = SimulationConfig()
 
 
-def _describe_error(source: str, err: Any) -> str:
-    key = ".".join(str(part) for part in err["loc"]) or "(top level)"
-    if err["type"] == "extra_forbidden":
-        return (
-            f"{source}: unknown key '{key}' "
-            "(check the spelling; `lanewarden config show` lists every key)"
-        )
-    value = err.get("input")
-    shown = repr(value) if not isinstance(value, dict) else "a mapping"
-    return f"{source}: {key} = {shown}: {err['msg'].lower()}"
+_UNKNOWN_KEY_HINT = " (check the spelling; `lanewarden config show` lists every key)"
 
 
 def config_from_mapping(data: Any, source: str = "config") -> LanewardenConfig:
@@ -56,30 +48,14 @@ def config_from_mapping(data: Any, source: str = "config") -> LanewardenConfig:
     try:
         return LanewardenConfig.model_validate(data)
     except ValidationError as exc:
-        lines = [_describe_error(source, err) for err in exc.errors()]
-        raise ConfigError("\n".join(lines)) from None
+        raise ConfigError(validation_error_lines(source, exc, _UNKNOWN_KEY_HINT)) from None
 
 
 def load_config(path: str | Path | None) -> LanewardenConfig:
     """Load and validate a YAML config file; None gives the defaults."""
     if path is None:
         return LanewardenConfig()
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: config file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a directory, expected a YAML config file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read config file ({exc})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or "invalid YAML"
-        raise ConfigError(f"{path}: not valid YAML{where}: {problem}") from None
+    data = read_yaml_document(path, "config", ConfigError)
     return config_from_mapping(data, str(path))
 
 

@@ -18,10 +18,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from scenarios.errors import ScenarioError
+from scenarios.yaml_documents import (
+    describe_validation_error,
+    read_yaml_document,
+    validation_error_lines,
+)
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -282,20 +286,8 @@ def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) ->
         for err in exc.errors():
             located = dict(err)
             located["loc"] = ("config", *err["loc"])
-            lines.append(_describe(source, located))
+            lines.append(describe_validation_error(source, located))
         raise ScenarioError("\n".join(lines)) from None
-
-
-def _describe(source: str, err: Any) -> str:
-    key = ".".join(str(part) for part in err["loc"]) or "(top level)"
-    if err["type"] == "extra_forbidden":
-        return f"{source}: unknown key '{key}'"
-    value = err.get("input")
-    shown = "a mapping" if isinstance(value, dict) else repr(value)
-    message = str(err["msg"])
-    if message.startswith("Value error, "):
-        message = message[len("Value error, "):]
-    return f"{source}: {key} = {shown}: {message[:1].lower()}{message[1:]}"
 
 
 def parse_scenario(data: Any, source: str) -> ScenarioSpec:
@@ -307,25 +299,10 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError("\n".join(_describe(source, e) for e in exc.errors())) from None
+        raise ScenarioError(validation_error_lines(source, exc)) from None
 
 
 def load_scenario_file(path: str | Path) -> ScenarioSpec:
     """Read and validate one scenario YAML file."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(f"{path}: scenario file not found") from None
-    except IsADirectoryError:
-        raise ScenarioError(f"{path}: is a directory, expected a scenario YAML file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read scenario file ({exc})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or "invalid YAML"
-        raise ScenarioError(f"{path}: not valid YAML{where}: {problem}") from None
+    data = read_yaml_document(path, "scenario", ScenarioError)
     return parse_scenario(data, str(path))
