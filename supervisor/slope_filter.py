@@ -119,6 +119,13 @@ class SlopeSumFilter:
         if dt > 0.0:
             self._kf.predict(F=transition_matrix(dt), Q=process_noise(dt, cfg))
         if not measured:
+            if (
+                self._accepted_at_s is not None
+                and time_s - self._accepted_at_s > cfg.slope_filter_restart_after_s
+            ):
+                # Expired: extrapolating the last rate for seconds would invent a bend. There is
+                # no estimate until the next measurement restarts the filter.
+                return self._remember(SlopeEstimate(None, None, None))
             return self._remember(self._snapshot())
         assert slope_sum is not None
 

@@ -136,3 +136,15 @@ def test_center_offset_low_pass_holds_without_measurement() -> None:
     value = c.step(CONFIG.center_offset_time_constant_s, 0.0)
     assert value == pytest.approx(0.5 * np.exp(-1.0))
     assert c.step(1.0, None) == value
+
+
+def test_without_measurements_the_estimate_expires_instead_of_extrapolating() -> None:
+    f = SlopeSumFilter(CONFIG)
+    for i in range(20):
+        f.step(i * DT, 3.0 * i * DT, 0.9)  # a rising trend, then the lane disappears
+    last_measured = 19 * DT
+    within = f.step(last_measured + CONFIG.slope_filter_restart_after_s - DT, None, 0.0)
+    assert within.slope_sum is not None  # short gaps are bridged by prediction
+    expired = f.step(last_measured + CONFIG.slope_filter_restart_after_s + DT, None, 0.0)
+    assert expired.slope_sum is None and expired.variance is None
+    assert f.step(last_measured + 5.0, None, 0.0).slope_sum is None  # no invented bend later
