@@ -70,8 +70,8 @@ class SupervisorConfig(BaseModel):
     slope_filter_restart_after_s: float = Field(
         default=0.5,
         gt=0.0,
-        description="With no accepted measurement for this long the next one restarts the "
-        "filter, s",
+        description="With no accepted measurement for this long the estimate expires (no "
+        "extrapolation) and the next measurement restarts the filter, s",
     )
     center_offset_time_constant_s: float = Field(
         default=0.1,
