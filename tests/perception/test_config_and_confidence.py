@@ -19,7 +19,7 @@ from perception.observation import LaneEdge, LaneObservation
 @pytest.mark.parametrize(
     ("yaml_text", "expected"),
     [
-        ("blur: {kernel_px: 4}", "perception.blur.kernel_px = 4: value error, must be an odd"),
+        ("blur: {kernel_px: 4}", "perception.blur.kernel_px = 4: must be an odd"),
         ("canny: {low_threshold: 150, high_threshold: 100}", "must be below high_threshold"),
         ("canny: {aperture_px: 4}", "must be 3, 5 or 7"),
         ("canny: {low_treshold: 10}", "unknown key 'perception.canny.low_treshold'"),
