@@ -4,6 +4,9 @@ Raw slope sum, no filter, no confidence: > +threshold turn left, < -threshold tu
 straight (the lecture's +-6). When it sees no slope sum it keeps its last decision, so it never
 halts on lane loss (that is the point of the baseline: it follows tile seams and wanders off). It
 does obey the operator: nothing moves before start, and an operator stop halts it until resume.
+Because it may drive a real robot (`lanewarden run --controller lecture`), it also halts, latched
+until resume, on the physical hazards the lecture never had to think about: bumper, cliff, wheel
+drop and a lost base link (`PHYSICAL_HAZARDS`). Lane, camera and timing faults it ignores.
 Commands go through the same limiter as the supervised controller so both drive the same robot.
 Its decisions are named FOLLOW (straight), TURN_LEFT and TURN_RIGHT in the records.
 """
@@ -16,6 +19,7 @@ from actuation.base import STOP, VelocityCommand
 from supervisor.config import SupervisorConfig
 from supervisor.control_io import ControlInputs, ControlOutput
 from supervisor.events import EVENT_TABLE, Event, ordered
+from supervisor.hazards import base_hazard_events
 from supervisor.limiter import CommandLimiter
 from supervisor.state_machine import NOT_STARTED_REASON, SupervisorState
 
@@ -33,6 +37,16 @@ def lecture_decision(
     return SupervisorState.FOLLOW
 
 
+#: Faults that halt even the lecture's baseline, in priority order.
+PHYSICAL_HAZARDS: tuple[Event, ...] = (
+    Event.OPERATOR_STOP,
+    Event.BUMPER,
+    Event.CLIFF,
+    Event.WHEEL_DROP,
+    Event.BASE_LINK_LOST,
+)
+
+
 class LectureController:
     def __init__(self, config: SupervisorConfig) -> None:
         self.config = config
@@ -45,10 +59,10 @@ class LectureController:
         cfg = self.config
         dt = 0.0 if self._last_now is None else max(0.0, now - self._last_now)
         self._last_now = now
-        if Event.OPERATOR_STOP in inputs.events:
-            self._halt_reason = (
-                f"{Event.OPERATOR_STOP.value}: {EVENT_TABLE[Event.OPERATOR_STOP].reason}"
-            )
+        events = frozenset(inputs.events) | base_hazard_events(inputs.feedback)
+        hazard = next((e for e in PHYSICAL_HAZARDS if e in events), None)
+        if hazard is not None:
+            self._halt_reason = f"{hazard.value}: {EVENT_TABLE[hazard].reason}"
         elif inputs.start_requested or inputs.resume_requested:
             self._halt_reason = None
         obs = inputs.observation
@@ -64,7 +78,7 @@ class LectureController:
         return ControlOutput(
             command=command,
             state=state.value,
-            events=ordered(inputs.events),
+            events=ordered(events),
             halt_reason=self._halt_reason,
             filtered_slope_sum=None if obs is None else obs.slope_sum,
         )

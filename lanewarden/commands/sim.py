@@ -8,11 +8,12 @@ summary. Errors are the layers' one-line errors; the CLI root prints them withou
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import sys
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from types import FrameType
 
 import click
 
@@ -40,9 +41,15 @@ def _load_scenario(name_or_file: str) -> ScenarioSpec:
 
 
 def _summary_lines(metrics: dict[str, object]) -> list[str]:
-    def fmt(key: str) -> str:
+    def fmt(key: str, unit: str = "") -> str:
         value = metrics.get(key)
-        return "-" if value is None else str(value)
+        if value is None:
+            return "-"
+        if isinstance(value, bool):
+            return "yes" if value else "no"
+        if isinstance(value, list):
+            return ", ".join(str(v) for v in value) or "none"
+        return f"{value}{unit}"
 
     return [
         f"{metrics['scenario']} / {metrics['controller']} (seed {metrics['seed']}): "
@@ -50,9 +57,10 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
         f"{metrics['wall_time_s']} s",
         f"  halted: {fmt('halted')}  reason: {fmt('halt_reason')}",
         f"  turns completed: {fmt('turns_completed')}  max cross-track error: "
-        f"{fmt('max_cross_track_error_m')} m  crossed tape: {fmt('crossed_tape')}",
-        f"  distance past lane end: {fmt('distance_past_lane_end_m')} m  lane out of view -> "
-        f"HALT: {fmt('lane_loss_to_halt_s')} s",
+        f"{fmt('max_cross_track_error_m', ' m')}  crossed tape: {fmt('crossed_tape')}",
+        f"  distance past lane end: {fmt('distance_past_lane_end_m', ' m')} (negative: stopped "
+        f"before it)  lane out of view -> HALT: {fmt('lane_loss_to_halt_s', ' s')} (negative: "
+        "halted before the lane left the view)",
     ]
 
 
@@ -69,7 +77,7 @@ Examples:
               help=f"A library scenario ({', '.join(library_names())}) or a scenario YAML file.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Output directory (default: lanewarden-out/<scenario>-<controller>).")
@@ -95,6 +103,11 @@ def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
         assert isinstance(failures, list)
         click.echo("  expected outcome: " + ("met" if met else "NOT met: " + "; ".join(failures)))
     click.echo(f"  outputs in {out}/")
+    if check and met is None:
+        raise QualityGateError(
+            f"--check: scenario {spec.name} states no expected outcome for controller "
+            f"{controller!r} (add an expect: block for it), nothing was checked"
+        )
     if check and met is False:
         raise QualityGateError(f"scenario {spec.name}: expected outcome not met")
 
@@ -106,7 +119,7 @@ Example:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=DEFAULT_DEMO_OUT,
               show_default=True, help="Output directory.")
 @config_option
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--no-video", is_flag=True, help="Skip the videos (faster).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
@@ -127,10 +140,20 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     # re-import: ~2 s less each) only from a single-threaded process, where forking is safe.
     single = threading.active_count() == 1
     method = "fork" if single and "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    with ProcessPoolExecutor(max_workers=2,
-                             mp_context=multiprocessing.get_context(method)) as pool:
-        futures = [pool.submit(run_to_directory, r) for r in requests]
-        results = [f.result() for f in futures]
+    pool = multiprocessing.get_context(method).Pool(processes=2)
+    # Installed after the workers exist (they keep the default): SIGTERM to the demo becomes an
+    # interrupt here, so the workers are terminated instead of running on as orphans.
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        pending = [pool.apply_async(run_to_directory, (r,)) for r in requests]
+        results = [p.get() for p in pending]
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+        signal.signal(signal.SIGTERM, previous)
     runs = {r.controller: m for r, m in zip(requests, results, strict=True)}
     summary = demo_summary(runs["lecture"], runs["supervised"])
     write_report(out / "report.html", runs, summary)
@@ -139,6 +162,10 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     click.echo("")
     click.echo(summary)
     click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
 
 
 def commands() -> list[click.Command]:

@@ -290,6 +290,24 @@ def test_lecture_controller_keeps_going_when_the_lane_ends_but_obeys_stop() -> N
     assert run.step().state == "HALT"
 
 
+def test_lecture_controller_still_halts_on_a_bumper_until_resumed() -> None:
+    base = RecordingBase()
+    run = Run(base=base, controller=LectureController(CONFIG))
+    run.loop.start(0.0)
+    run.until(0.5)
+    assert not run.records[-1].command.is_stop
+    base.bumper = 1
+    hit = run.step()
+    assert hit.state == "HALT" and hit.command == STOP and hit.halt_reason is not None
+    assert "BUMPER" in hit.halt_reason
+    base.bumper = 0
+    run.until(1.5)
+    assert all(r.state == "HALT" and r.command == STOP for r in run.records[-10:])  # latched
+    run.loop.resume(1.5)
+    run.until(2.0)
+    assert not run.records[-1].command.is_stop
+
+
 def test_make_controller_by_name() -> None:
     assert isinstance(make_controller("lecture", CONFIG), LectureController)
     assert isinstance(make_controller("supervised", CONFIG), SupervisedController)
