@@ -174,7 +174,7 @@ class KobukiBase:
         if not self.wait_for(lambda b: b._packets > 0 or b._lost is not None,
                              config.first_feedback_timeout_s):
             raise KobukiLinkError(
-                f"{self._port}: no valid Kobuki packet within "
+                f"{self._port}: no Kobuki sensor data (valid feedback packet) within "
                 f"{config.first_feedback_timeout_s:g} s: {NO_FEEDBACK_HINT}")
         self._raise_if_lost()
         if request_versions:
@@ -399,11 +399,13 @@ class KobukiBase:
     def _apply(self, message: object, arrived_s: float) -> None:
         if isinstance(message, FeedbackReceived):
             packet = decode_feedback(message.payload)
-            self._received_at_s = arrived_s
-            self._packets += 1
             self._checksum_errors = message.checksum_errors
             self._malformed += len(packet.malformed_ids) + int(packet.truncated)
             if packet.basic is not None:
+                # Only the base's sensor stream proves a live Kobuki: a port that echoes our own
+                # command frames back (loop://, a terminal with echo on) carries valid frames too.
+                self._received_at_s = arrived_s
+                self._packets += 1
                 self._latest = packet
                 self._sensors = packet.basic
                 self._odometry.update(packet.basic.left_encoder, packet.basic.right_encoder)

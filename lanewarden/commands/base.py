@@ -73,7 +73,7 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
         ("hardware version", report["hardware_version"] or "unknown (no answer)"),
         ("firmware version", report["firmware_version"] or "unknown (no answer)"),
         ("UDID", report["udid"] or "unknown (no answer)"),
-        ("battery", f"{report['battery_v']:.1f} V"),
+        ("battery", "unknown" if report["battery_v"] is None else f"{report['battery_v']:.1f} V"),
         ("bumper", ", ".join(report["bumper"]) or "none"),
         ("cliff", ", ".join(report["cliff"]) or "none"),
         ("wheel drop", ", ".join(report["wheel_drop"]) or "none"),

@@ -119,7 +119,17 @@ def test_silent_device_is_one_line_naming_it(capsys: pytest.CaptureFixture[str])
     with KobukiStandIn(stream=False) as silent:
         assert main(["base", "info", "--port", silent.port]) == 1
     line = _one_line_error(capsys.readouterr().err)
-    assert silent.port in line and "no valid Kobuki packet within 1 s" in line
+    assert silent.port in line
+    assert "no Kobuki sensor data (valid feedback packet) within 1 s" in line
+
+
+def test_a_port_that_echoes_our_commands_is_not_a_kobuki(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # loop:// hands every byte written back: valid frames, but never the base's sensor stream.
+    assert main(["base", "info", "--port", "loop://"]) == 1
+    line = _one_line_error(capsys.readouterr().err)
+    assert "loop://" in line and "no Kobuki sensor data" in line
 
 
 def test_unplugged_while_driving_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
