@@ -6,10 +6,10 @@ assembles them, loads YAML and turns validation errors into one line per bad key
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from actuation.config import ActuationConfig
@@ -60,5 +60,23 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
 
 
 def config_as_yaml(config: LanewardenConfig) -> str:
-    """The effective config as YAML, loadable again with `load_config`."""
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
+    """The effective config as block-style YAML with each key's description as a comment, so the
+    output of `lanewarden config show` is a self-documenting file to edit. Loadable again with
+    `load_config` (values are written as JSON, which is valid YAML)."""
+    lines: list[str] = []
+
+    def emit(model: BaseModel, indent: str) -> None:
+        for name, field in type(model).model_fields.items():
+            value = getattr(model, name)
+            if isinstance(value, BaseModel):
+                summary = (type(value).__doc__ or "").strip().split("\n\n")[0]
+                comment = f"  # {' '.join(summary.split())}" if summary and indent == "" else ""
+                lines.append(f"{indent}{name}:{comment}")
+                emit(value, indent + "  ")
+                continue
+            dumped = json.dumps(model.model_dump(mode="json", include={name})[name])
+            comment = f"  # {field.description}" if field.description else ""
+            lines.append(f"{indent}{name}: {dumped}{comment}")
+
+    emit(config, "")
+    return "\n".join(lines) + "\n"

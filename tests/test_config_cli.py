@@ -18,6 +18,9 @@ def test_config_show_round_trips(capsys: pytest.CaptureFixture[str], tmp_path: P
     path.write_text(out)
     assert load_config(path) == LanewardenConfig()
     assert yaml.safe_load(config_as_yaml(LanewardenConfig())) == yaml.safe_load(out)
+    leaf_lines = [line for line in out.splitlines() if not line.rstrip().endswith(":")]
+    leaf_lines = [line for line in leaf_lines if ":  #" not in line]  # section headers
+    assert leaf_lines and all("  # " in line for line in leaf_lines), "a key without its meaning"
 
 
 @pytest.mark.parametrize(
