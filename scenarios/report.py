@@ -134,6 +134,11 @@ th:first-child {{ text-align: left; }}
 <h1>{html.escape(title)}</h1>
 <p>{html.escape(summary)}</p>
 <table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>
+<p class="note">Distances past the lane end are measured from the end of the first tape to end,
+along the lane; negative means the robot stopped before it. "Lane out of view &rarr; HALT" is the
+time from the last tape leaving the camera's region of interest to the halt; negative means it
+halted before that. Cross-track error is the distance of the robot's centre from the lane
+centre.</p>
 <div class="runs">{"".join(panels)}</div>
 </body></html>
 """
