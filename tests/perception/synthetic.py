@@ -1,13 +1,19 @@
 """Synthetic camera frames of a taped lane with known geometry, for perception tests.
 
-The floor is described top-down in the LANE frame (metres; s along the lane centreline, d to its
-left): tiles, tapes (solid or dashed, straight or bending), and the robot's pose on it. Every image
-pixel is mapped to the floor point it sees through `scenarios.camera.CameraModel` (the simulator's
-camera), so the geometry in the image is exactly the camera's: straight floor lines are straight in
-the undistorted view and bent by the lens in the distorted one.
+Each `Scene` is turned into a scenario world with the simulator's own pieces: a
+`scenarios.spec.ScenarioSpec` (lane centre line of straight segments and arcs, tape width and
+colour, gaps for missing tapes, dashes, tape ends, the floor's kind and colours), built by
+`scenarios.world.build_world`, painted top-down by `scenarios.texture.paint_ground` and seen by
+`scenarios.render.CameraRenderer` (the simulator's camera, `scenarios.camera.CameraModel`) at the
+robot's pose. So the geometry in the image is exactly the camera's: straight floor lines are
+straight in the undistorted view and bent by the lens in the distorted one.
 
-Rendering: 2x supersampled, area-averaged down, plus seeded Gaussian noise. Pure function of its
-arguments (no clock, no global randomness).
+Frames: the LANE frame is the world frame: the lane's centre line runs along +x on y = 0 (s along
+it = x until a bend starts), the robot stands at x = 0, `lateral_m` to the left of it, turned
+`yaw_deg`. The renderer draws at 2x the resolution (no noise, no motion blur), the result is
+area-averaged down, then seeded Gaussian sensor noise and a faint colour cast are added. Pure
+function of its arguments (no clock, no global randomness); the floor texture is painted once per
+world (seed 0) and shared between poses and noise seeds.
 """
 
 from __future__ import annotations
@@ -19,16 +25,35 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
+from actuation.base import Pose2D
 from scenarios.camera import CameraModel
-
-FloatArray = NDArray[np.float64]
+from scenarios.render import CameraRenderer
+from scenarios.spec import (
+    DashSpec,
+    EndsSpec,
+    FloorSpec,
+    GapSpec,
+    LaneSpec,
+    PoseSpec,
+    ScenarioSpec,
+    SegmentSpec,
+    TapeSpec,
+)
+from scenarios.texture import GroundTexture, paint_ground
+from scenarios.world import build_world
 
 TAPE_WIDTH_M = 0.048
 TAPE_SPACING_M = 0.60  # between the two tapes' centres
 TILE_M = 0.30
 GROUT_M = 0.004
+#: The painted floor's resolution (the simulator's default, `simulation.texture_mm_per_px`).
+TEXTURE_M_PER_PX = 0.0025
+#: How far ahead of the robot the lane (and its tape) runs: beyond the farthest floor point even
+#: the distorted view sees (about 7.6 m), so the lane never visibly stops unless asked to.
+LANE_AHEAD_M = 8.0
+#: Floor painted beyond the lane on every side (the camera sees about 2 m to each side).
+WORLD_MARGIN_M = 2.5
 
 
 @dataclass(frozen=True)
@@ -50,6 +75,14 @@ class Scene:
     - `dash_m`: (dash, gap) lengths for dashed tape, None for solid.
     - `lane_start_m` / `lane_end_m`: tape starts / stops this far along the lane (None: never
       stops).
+    - levels are grey levels (0-255) of the floor, the tile grout and the tape.
+    - `floor_variation` / `floor_grain`: the scenario floor's brightness spread between tiles (or
+      blotches on a plain floor) and its fine texture, fractions (`scenarios.spec.FloorSpec`);
+      0 by default: the flat floors these scenes have always had.
+    - `wall_level`: kept for compatibility; the camera never sees above the horizon (its top row
+      looks at the floor about 3 m ahead), and beyond the painted floor the renderer shows the
+      floor's median, so it has no effect.
+    - `seed`: the sensor noise (the floor texture is the same for every seed).
     """
 
     floor_level: float = 175.0
@@ -67,45 +100,85 @@ class Scene:
     noise_sigma: float = 3.0
     wall_level: float = 90.0
     seed: int = 0
+    floor_variation: float = 0.0
+    floor_grain: float = 0.0
 
 
-@lru_cache(maxsize=8)
-def _ground_grid(width: int, height: int, distorted: bool) -> tuple[FloatArray, FloatArray]:
-    camera = _camera_at(width, height)
-    gx, gy = camera.pixel_ground_points(distorted=distorted)
-    gx.setflags(write=False)
-    gy.setflags(write=False)
-    return gx, gy
+def _grey(level: float) -> str:
+    v = int(np.clip(round(level), 0, 255))
+    return f"#{v:02x}{v:02x}{v:02x}"
 
 
-def _camera_at(width: int, height: int) -> CameraModel:
-    """The default camera, scaled to another resolution (same field of view and mount)."""
-    return replace(CameraModel(), width_px=width, height_px=height)
+def scenario_spec(scene: Scene) -> ScenarioSpec:
+    """The scenario world a scene's floor and lane are (its pose and noise are not part of it).
 
-
-def _lane_coordinates(
-    x: FloatArray, y: FloatArray, bend: Bend | None
-) -> tuple[FloatArray, FloatArray]:
-    """Lane-frame floor points -> (s along the centreline, d left of it)."""
-    s = x.copy()
-    d = y.copy()
-    if bend is None:
-        return s, d
-    r = bend.radius_m
-    ahead = x >= bend.start_m
-    dx = x[ahead] - bend.start_m
-    if bend.direction == "right":
-        dy = y[ahead] + r
-        dist = np.hypot(dx, dy)
-        d[ahead] = dist - r
-        phi = np.arctan2(dx, dy)
+    World = lane frame: the centre line starts at (lane_start_m, 0) heading +x, so arc length s
+    in the world is the scene's s minus `lane_start_m`.
+    """
+    origin = scene.lane_start_m
+    segments: list[SegmentSpec] = []
+    if scene.bend is None:
+        segments.append(SegmentSpec(straight_m=LANE_AHEAD_M - origin))
     else:
-        dy = r - y[ahead]
-        dist = np.hypot(dx, dy)
-        d[ahead] = r - dist
-        phi = np.arctan2(dx, dy)
-    s[ahead] = bend.start_m + r * phi
-    return s, d
+        bend = scene.bend
+        if bend.start_m > origin:
+            segments.append(SegmentSpec(straight_m=bend.start_m - origin))
+        turn = 180.0 if bend.direction == "left" else -180.0
+        segments.append(SegmentSpec(arc_radius_m=bend.radius_m, turn_deg=turn))
+        if bend.start_m < origin:
+            raise ValueError("a bend must start after the tape does (bend.start_m > lane_start_m)")
+    length = sum(
+        s.straight_m if s.straight_m is not None else abs(math.radians(s.turn_deg or 0.0))
+        * (s.arc_radius_m or 0.0)
+        for s in segments
+    )
+    gaps = [GapSpec(tape=side, from_m=0.0, to_m=length)
+            for side in ("left", "right") if side not in scene.tapes]
+    dashes = None
+    if scene.dash_m is not None:
+        on, off = scene.dash_m
+        # Dashes start where the scene's s is a whole number of periods (as s = 0 at the robot).
+        dashes = DashSpec(tape="both", on_m=on, off_m=off, from_m=(-origin) % (on + off))
+    ends = EndsSpec()
+    if scene.lane_end_m is not None:
+        end = min(scene.lane_end_m - origin, length)
+        ends = EndsSpec(left_m=end, right_m=end)
+    if scene.tiles:
+        ox, oy = scene.tile_offset_m
+        # Scenario seams are centred on the grid lines; a scene's grout starts at them.
+        floor = FloorSpec(kind="tiles", color=_grey(scene.floor_level),
+                          seam_color=_grey(scene.grout_level), tile_m=TILE_M, seam_m=GROUT_M,
+                          grid_offset_m=(ox + GROUT_M / 2.0, oy + GROUT_M / 2.0),
+                          variation=scene.floor_variation, grain=scene.floor_grain)
+    else:
+        floor = FloorSpec(kind="plain", color=_grey(scene.floor_level),
+                          variation=scene.floor_variation, grain=scene.floor_grain)
+    return ScenarioSpec(
+        name="perception-synthetic",
+        floor=floor,
+        tape=TapeSpec(width_m=TAPE_WIDTH_M, color=_grey(scene.tape_level)),
+        lane=LaneSpec(width_m=TAPE_SPACING_M, start=PoseSpec(x_m=origin, y_m=0.0),
+                      segments=segments, gaps=gaps, dashes=dashes, ends=ends),
+    )
+
+
+def _world_key(scene: Scene) -> Scene:
+    """The scene with everything that does not change the painted floor set to defaults."""
+    return replace(scene, lateral_m=0.0, yaw_deg=0.0, noise_sigma=0.0, wall_level=0.0, seed=0)
+
+
+@lru_cache(maxsize=4)
+def _texture(world_key: Scene) -> GroundTexture:
+    world = build_world(scenario_spec(world_key), margin_m=WORLD_MARGIN_M)
+    return paint_ground(world, TEXTURE_M_PER_PX, seed=0, color=False)
+
+
+@lru_cache(maxsize=4)
+def _renderer(world_key: Scene, width: int, height: int, distorted: bool) -> CameraRenderer:
+    """The simulator's camera (same field of view and mount) at another resolution, noiseless."""
+    camera = replace(CameraModel(), width_px=width, height_px=height)
+    return CameraRenderer(_texture(world_key), camera, noise_sigma=0.0, exposure_s=0.0,
+                          distorted=distorted)
 
 
 def render(
@@ -121,45 +194,13 @@ def render(
     `distorted=True` renders what the real lens delivers (barrel distortion of `CameraModel`);
     otherwise the ideal pinhole view.
     """
-    gx, gy = _ground_grid(width * supersample, height * supersample, distorted)
-    floor = np.isfinite(gx)
-    yaw = math.radians(scene.yaw_deg)
-    gxf = np.where(floor, gx, 0.0)
-    gyf = np.where(floor, gy, 0.0)
-    # Robot frame -> lane frame: rotate by the robot's yaw, shift by its lateral position.
-    x = math.cos(yaw) * gxf - math.sin(yaw) * gyf
-    y = math.sin(yaw) * gxf + math.cos(yaw) * gyf + scene.lateral_m
-
-    img = np.full(gx.shape, scene.floor_level, dtype=np.float64)
-    if scene.tiles:
-        ox, oy = scene.tile_offset_m
-        gu = np.mod(x - ox, TILE_M) < GROUT_M
-        gv = np.mod(y - oy, TILE_M) < GROUT_M
-        img[gu | gv] = scene.grout_level
-    if scene.tapes:
-        s, d = _lane_coordinates(x, y, scene.bend)
-        on_tape = np.abs(np.abs(d) - TAPE_SPACING_M / 2.0) <= TAPE_WIDTH_M / 2.0
-        side_ok = np.zeros_like(on_tape)
-        if "left" in scene.tapes:
-            side_ok |= d > 0
-        if "right" in scene.tapes:
-            side_ok |= d < 0
-        on_tape &= side_ok & (s > scene.lane_start_m)
-        if scene.dash_m is not None:
-            dash, gap = scene.dash_m
-            on_tape &= np.mod(s, dash + gap) < dash
-        if scene.lane_end_m is not None:
-            on_tape &= s < scene.lane_end_m
-        img[on_tape] = scene.tape_level
-    # Far floor fades into the wall colour (haze), so the horizon is not a razor edge.
-    dist = np.where(floor, np.hypot(gxf, gyf), np.inf)
-    fade = np.clip((dist - 6.0) / 6.0, 0.0, 1.0)
-    img = img * (1.0 - fade) + scene.wall_level * fade
-    img[~floor] = scene.wall_level
-
-    small = cv2.resize(img.astype(np.float32), (width, height), interpolation=cv2.INTER_AREA)
+    big_w, big_h = width * supersample, height * supersample
+    renderer = _renderer(_world_key(scene), big_w, big_h, distorted)
+    pose = Pose2D(0.0, scene.lateral_m, math.radians(scene.yaw_deg))
+    big = renderer.render_gray(pose, np.empty((big_h, big_w), np.uint8))
+    small = cv2.resize(big.astype(np.float32), (width, height), interpolation=cv2.INTER_AREA)
     rng = np.random.default_rng(scene.seed)
-    small = small + rng.normal(0.0, scene.noise_sigma, small.shape).astype(np.float32)
+    small = small + np.asarray(rng.normal(0.0, scene.noise_sigma, small.shape), np.float32)
     gray = np.clip(np.rint(small), 0, 255).astype(np.uint8)
     # A faint colour cast so the detector's BGR->gray path is exercised, not just gray input.
     bgr = np.dstack([gray, gray, gray]).astype(np.int16)
