@@ -7,6 +7,8 @@ assembles them, loads YAML and turns validation errors into one line per bad key
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -59,24 +61,49 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
     return config_from_mapping(data, str(path))
 
 
+@dataclass(frozen=True)
+class ConfigNode:
+    """One node of the config tree: a section (`is_section`) or a key with its JSON-ready value.
+    `description` is the key's Field description, or a section's one-paragraph summary."""
+
+    path: tuple[str, ...]
+    value: object
+    description: str
+    is_section: bool
+
+
+def _summary(model: BaseModel) -> str:
+    first_paragraph = (type(model).__doc__ or "").strip().split("\n\n")[0]
+    return " ".join(first_paragraph.split())
+
+
+def walk_config(model: BaseModel, path: tuple[str, ...] = ()) -> Iterator[ConfigNode]:
+    """Every section and key in declaration order, each section before its keys. The one walk
+    behind `config show` and the generated reference (docs/configuration.md)."""
+    for name, field in type(model).model_fields.items():
+        value = getattr(model, name)
+        here = (*path, name)
+        if isinstance(value, BaseModel):
+            yield ConfigNode(here, None, _summary(value), True)
+            yield from walk_config(value, here)
+        else:
+            dumped = model.model_dump(mode="json", include={name})[name]
+            yield ConfigNode(here, dumped, (field.description or "").strip(), False)
+
+
 def config_as_yaml(config: LanewardenConfig) -> str:
     """The effective config as block-style YAML with each key's description as a comment, so the
     output of `lanewarden config show` is a self-documenting file to edit. Loadable again with
     `load_config` (values are written as JSON, which is valid YAML)."""
     lines: list[str] = []
-
-    def emit(model: BaseModel, indent: str) -> None:
-        for name, field in type(model).model_fields.items():
-            value = getattr(model, name)
-            if isinstance(value, BaseModel):
-                summary = (type(value).__doc__ or "").strip().split("\n\n")[0]
-                comment = f"  # {' '.join(summary.split())}" if summary and indent == "" else ""
-                lines.append(f"{indent}{name}:{comment}")
-                emit(value, indent + "  ")
-                continue
-            dumped = json.dumps(model.model_dump(mode="json", include={name})[name])
-            comment = f"  # {field.description}" if field.description else ""
-            lines.append(f"{indent}{name}: {dumped}{comment}")
-
-    emit(config, "")
+    for node in walk_config(config):
+        indent = "  " * (len(node.path) - 1)
+        name = node.path[-1]
+        if node.is_section:
+            top_level_summary = node.description and len(node.path) == 1
+            lines.append(f"{indent}{name}:" + (f"  # {node.description}" if top_level_summary
+                                                else ""))
+        else:
+            comment = f"  # {node.description}" if node.description else ""
+            lines.append(f"{indent}{name}: {json.dumps(node.value)}{comment}")
     return "\n".join(lines) + "\n"

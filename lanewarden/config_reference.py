@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 from pydantic import BaseModel
 
-from lanewarden.config import LanewardenConfig
+from lanewarden.config import LanewardenConfig, walk_config
 
 HEADER = """# Configuration reference
 
@@ -29,32 +29,29 @@ def _format_default(value: object) -> str:
     return f"`{text}`"
 
 
-def config_keys(model: BaseModel, prefix: str = "") -> Iterator[tuple[str, object, str]]:
+def config_keys(model: BaseModel) -> Iterator[tuple[str, object, str]]:
     """(dotted key, default, description) for every leaf key, in declaration order."""
-    for name, field in type(model).model_fields.items():
-        value = getattr(model, name)
-        key = f"{prefix}{name}"
-        if isinstance(value, BaseModel):
-            yield from config_keys(value, f"{key}.")
-        else:
-            dumped = model.model_dump(mode="json", include={name})[name]
-            yield key, dumped, (field.description or "").strip()
+    for node in walk_config(model):
+        if not node.is_section:
+            yield ".".join(node.path), node.value, node.description
 
 
 def render_reference(config: LanewardenConfig | None = None) -> str:
     config = config or LanewardenConfig()
     lines = [HEADER]
-    for section in type(config).model_fields:
-        model = getattr(config, section)
-        summary = (type(model).__doc__ or "").strip().split("\n\n")[0]
-        lines.append(f"## `{section}`\n")
-        if summary:
-            lines.append(" ".join(summary.split()) + "\n")
-        lines.append("| key | default | meaning |")
-        lines.append("|---|---|---|")
-        for key, default, description in config_keys(model, f"{section}."):
-            lines.append(f"| `{key}` | {_format_default(default)} | {description} |")
-        lines.append("")
+    for node in walk_config(config):
+        if node.is_section and len(node.path) == 1:
+            if len(lines) > 1:
+                lines.append("")
+            lines.append(f"## `{node.path[0]}`\n")
+            if node.description:
+                lines.append(node.description + "\n")
+            lines.append("| key | default | meaning |")
+            lines.append("|---|---|---|")
+        elif not node.is_section:
+            key = ".".join(node.path)
+            lines.append(f"| `{key}` | {_format_default(node.value)} | {node.description} |")
+    lines.append("")
     return "\n".join(lines)
 
 
