@@ -4,7 +4,7 @@ Knows bytes and wheels, never images: nothing here imports `perception` or `scen
 Every base stops on close, and the default command is stop.
 """
 
-from actuation.base import Base, BaseFeedback, Pose2D, VelocityCommand
-from actuation.errors import ActuationError
+from lanewarden.actuation.base import Base, BaseFeedback, Pose2D, VelocityCommand
+from lanewarden.actuation.errors import ActuationError
 
 __all__ = ["ActuationError", "Base", "BaseFeedback", "Pose2D", "VelocityCommand"]

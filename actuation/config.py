@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actuation.kobuki_geometry import MAX_ANGULAR_RAD_S, MAX_LINEAR_M_S
+from lanewarden.actuation.kobuki_geometry import MAX_ANGULAR_RAD_S, MAX_LINEAR_M_S
 
 
 class SimBaseConfig(BaseModel):

@@ -1,4 +1,5 @@
-"""The dead-man process (`python -m actuation.deadman`): the only owner of the Kobuki's port.
+"""The dead-man process (`python -m lanewarden.actuation.deadman`): the only owner of the
+Kobuki's port.
 
 Started by KobukiBase with one end of a SOCK_SEQPACKET socketpair. It opens the serial port,
 writes base control at the steady command rate (changed or not), relays every valid feedback
@@ -26,8 +27,8 @@ from types import FrameType
 
 import serial
 
-from actuation.deadman_logic import DeadmanLogic, DeadmanSettings
-from actuation.deadman_messages import (
+from lanewarden.actuation.deadman_logic import DeadmanLogic, DeadmanSettings
+from lanewarden.actuation.deadman_messages import (
     MAX_MESSAGE_BYTES,
     Arm,
     Close,
@@ -42,9 +43,9 @@ from actuation.deadman_messages import (
     decode_control,
     encode_deadman,
 )
-from actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
-from actuation.kobuki_framing import PacketReader
-from actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
+from lanewarden.actuation.kobuki_framing import PacketReader
+from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
 
 EXIT_OK = 0
 EXIT_OPEN_FAILED = 3
@@ -221,7 +222,7 @@ class DeadmanProcess:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m actuation.deadman",
+    parser = argparse.ArgumentParser(prog="python -m lanewarden.actuation.deadman",
                                      description="Own the Kobuki's port; stop it if we go quiet.")
     parser.add_argument("--port", required=True)
     parser.add_argument("--control-fd", type=int, required=True)

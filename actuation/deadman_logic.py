@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.base import STOP, VelocityCommand
 
 #: How many stop packets a requested close puts on the wire before the process exits.
 CLOSE_STOP_PACKETS = 3

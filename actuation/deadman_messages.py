@@ -16,9 +16,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from actuation.base import VelocityCommand
-from actuation.deadman_logic import DeadmanMode
-from actuation.kobuki_commands import CommandId
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.kobuki_commands import CommandId
 
 
 # ---- control -> dead-man ------------------------------------------------------------------------

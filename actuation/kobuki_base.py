@@ -1,7 +1,8 @@
 """KobukiBase: the real base, driven through the dead-man process that owns its serial port.
 
-`KobukiBase.open(port)` starts `python -m actuation.deadman` with one end of a socketpair, waits
-(bounded) for the port to open and for the first valid feedback packet, and from then on:
+`KobukiBase.open(port)` starts `python -m lanewarden.actuation.deadman` with one end of a
+socketpair, waits (bounded) for the port to open and for the first valid feedback packet, and
+from then on:
 `send()` forwards each command (which is also the dead-man's heartbeat), a relay thread decodes
 the feedback the dead-man forwards and stamps it with the injected clock, and `close()` stops
 the base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
@@ -15,7 +16,6 @@ one-line KobukiLinkError naming the port.
 
 from __future__ import annotations
 
-import os
 import socket
 import subprocess
 import sys
@@ -23,13 +23,12 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from types import TracebackType
 
-from actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
-from actuation.config import ActuationConfig
-from actuation.deadman_logic import DeadmanMode
-from actuation.deadman_messages import (
+from lanewarden.actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
+from lanewarden.actuation.config import ActuationConfig
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.deadman_messages import (
     MAX_MESSAGE_BYTES,
     Arm,
     Close,
@@ -45,14 +44,14 @@ from actuation.deadman_messages import (
     decode_deadman,
     encode_control,
 )
-from actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
-from actuation.kobuki_commands import (
+from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
+from lanewarden.actuation.kobuki_commands import (
     ExtraRequest,
     SoundSequence,
     encode_request_extra,
     encode_sound_sequence,
 )
-from actuation.kobuki_feedback import (
+from lanewarden.actuation.kobuki_feedback import (
     UDID,
     BasicSensorData,
     ControllerInfo,
@@ -60,11 +59,9 @@ from actuation.kobuki_feedback import (
     Version,
     decode_feedback,
 )
-from actuation.kobuki_geometry import limit_command, require_finite
-from actuation.kobuki_port import NO_FEEDBACK_HINT, resolve_port
-from actuation.odometry import EncoderOdometry
-
-_PROJECT_ROOT = Path(__file__).resolve().parents[1]
+from lanewarden.actuation.kobuki_geometry import limit_command, require_finite
+from lanewarden.actuation.kobuki_port import NO_FEEDBACK_HINT, resolve_port
+from lanewarden.actuation.odometry import EncoderOdometry
 
 
 @dataclass(frozen=True)
@@ -134,10 +131,7 @@ class KobukiBase:
         except LookupError as exc:
             raise KobukiLinkError(str(exc)) from None
         parent_end, child_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(
-            [str(_PROJECT_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-        argv = [sys.executable, "-m", "actuation.deadman", "--port", port,
+        argv = [sys.executable, "-m", "lanewarden.actuation.deadman", "--port", port,
                 "--control-fd", str(child_end.fileno()),
                 "--command-rate-hz", repr(config.command_rate_hz),
                 "--heartbeat-timeout-s", repr(config.heartbeat_timeout_s),
@@ -145,7 +139,7 @@ class KobukiBase:
                 "--write-timeout-s", repr(config.write_timeout_s)]
         try:
             process = subprocess.Popen(argv, pass_fds=(child_end.fileno(),),
-                                       stdin=subprocess.DEVNULL, env=env)
+                                       stdin=subprocess.DEVNULL)
         except OSError as exc:
             parent_end.close()
             raise KobukiLinkError(f"{port}: cannot start the dead-man process ({exc})") from exc

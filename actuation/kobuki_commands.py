@@ -15,9 +15,9 @@ import math
 import struct
 from enum import IntEnum, IntFlag
 
-from actuation.base import VelocityCommand
-from actuation.kobuki_framing import frame_packet
-from actuation.kobuki_geometry import WHEEL_BASE_M
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.kobuki_framing import frame_packet
+from lanewarden.actuation.kobuki_geometry import WHEEL_BASE_M
 
 
 class CommandId(IntEnum):

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import math
 
-from actuation.base import VelocityCommand
-from actuation.errors import ActuationError
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.errors import ActuationError
 
 #: Distance between the two wheels' contact points (the reference driver's "bias").
 WHEEL_BASE_M = 0.230

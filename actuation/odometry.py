@@ -9,8 +9,13 @@ Never reads a port or a clock.
 
 from __future__ import annotations
 
-from actuation.base import Pose2D
-from actuation.kobuki_geometry import TICKS_PER_METRE, WHEEL_BASE_M, integrate_arc, wrap_angle
+from lanewarden.actuation.base import Pose2D
+from lanewarden.actuation.kobuki_geometry import (
+    TICKS_PER_METRE,
+    WHEEL_BASE_M,
+    integrate_arc,
+    wrap_angle,
+)
 
 ENCODER_MODULUS = 1 << 16
 

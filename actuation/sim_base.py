@@ -15,10 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
-from actuation.config import ActuationConfig
-from actuation.errors import ActuationError
-from actuation.kobuki_geometry import (
+from lanewarden.actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
+from lanewarden.actuation.config import ActuationConfig
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.actuation.kobuki_geometry import (
     MAX_ANGULAR_RAD_S,
     MAX_LINEAR_M_S,
     WHEEL_BASE_M,

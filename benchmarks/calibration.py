@@ -13,12 +13,12 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from perception.calibration import CameraCalibration, Undistorter
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ChessboardPattern, detect_view
-from perception.chessboard_calibration import calibrate_views
-from scenarios.camera import CameraModel
-from scenarios.chessboard import ChessboardRenderer, calibration_poses
+from lanewarden.perception.calibration import CameraCalibration, Undistorter
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ChessboardPattern, detect_view
+from lanewarden.perception.chessboard_calibration import calibrate_views
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.chessboard import ChessboardRenderer, calibration_poses
 
 
 def _median_ms(work: Callable[[], object], repeats: int) -> float:

@@ -26,7 +26,7 @@ from pathlib import Path
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(PROJECT_ROOT))
 
-from actuation.kobuki_base import KobukiBase  # noqa: E402
+from lanewarden.actuation.kobuki_base import KobukiBase  # noqa: E402
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn  # noqa: E402
 
 TARGET_S = 0.300
@@ -66,7 +66,7 @@ def one_trial(how: signal.Signals) -> tuple[float, float]:
 
 def steady_rate() -> tuple[float, float]:
     """(base-control packets/s received while driving unchanged, KobukiBase.open seconds)."""
-    from actuation.base import VelocityCommand
+    from lanewarden.actuation.base import VelocityCommand
 
     with KobukiStandIn() as standin:
         started = time.monotonic()

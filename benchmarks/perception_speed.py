@@ -29,12 +29,12 @@ import numpy as np
 # run as a script (`python benchmarks/perception_speed.py`).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from perception.calibration import CameraCalibration, Undistorter  # noqa: E402
-from perception.config import PerceptionConfig  # noqa: E402
-from perception.decision import decide  # noqa: E402
-from perception.detector import LaneDetector  # noqa: E402
-from perception.overlay import draw_overlay  # noqa: E402
-from scenarios.camera import CameraModel  # noqa: E402
+from lanewarden.perception.calibration import CameraCalibration, Undistorter  # noqa: E402
+from lanewarden.perception.config import PerceptionConfig  # noqa: E402
+from lanewarden.perception.decision import decide  # noqa: E402
+from lanewarden.perception.detector import LaneDetector  # noqa: E402
+from lanewarden.perception.overlay import draw_overlay  # noqa: E402
+from lanewarden.scenarios.camera import CameraModel  # noqa: E402
 from tests.perception import synthetic as syn  # noqa: E402
 
 SCENES = {

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from lanewarden.config import LanewardenConfig
-from scenarios.library import resolve_scenario
-from scenarios.simulator import Simulation, effective_config
-from scenarios.spec import with_overrides
+from lanewarden.scenarios.library import resolve_scenario
+from lanewarden.scenarios.simulator import Simulation, effective_config
+from lanewarden.scenarios.spec import with_overrides
 
 SCENARIO = "straight"
 

@@ -12,12 +12,12 @@ import time
 
 import numpy as np
 
-from actuation.base import BaseFeedback
-from perception.observation import LaneEdge, LaneObservation
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import ControlInputs, FrameInfo
-from supervisor.controllers import CONTROLLERS
-from supervisor.watchdog import frame_fingerprint
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, FrameInfo
+from lanewarden.supervisor.controllers import CONTROLLERS
+from lanewarden.supervisor.watchdog import frame_fingerprint
 
 DT = 1.0 / 30.0
 LEFT = LaneEdge(100.0, 480.0, 300.0, 200.0, 1.6, 250.0)

@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 from lanewarden.errors import UsageError
-from perception.errors import PerceptionError
-from supervisor.loop import Frame
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.supervisor.loop import Frame
 
 
 @contextmanager

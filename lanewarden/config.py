@@ -14,13 +14,13 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from actuation.config import ActuationConfig
+from lanewarden.actuation.config import ActuationConfig
 from lanewarden.errors import ConfigError
-from perception.calibration_config import CalibrationConfig
-from perception.config import PerceptionConfig
-from scenarios.config import SimulationConfig
-from scenarios.yaml_documents import read_yaml_document, validation_error_lines
-from supervisor.config import SupervisorConfig
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.scenarios.config import SimulationConfig
+from lanewarden.scenarios.yaml_documents import read_yaml_document, validation_error_lines
+from lanewarden.supervisor.config import SupervisorConfig
 
 
 class LanewardenConfig(BaseModel):

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from actuation.errors import ActuationError
-from perception.errors import PerceptionError
-from scenarios.errors import ScenarioError
-from supervisor.errors import SupervisorError
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.supervisor.errors import SupervisorError
 
 
 class ConfigError(Exception):

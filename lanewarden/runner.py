@@ -18,16 +18,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
-from actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
-from perception.calibration import Undistorter, check_calibration, load_calibration
-from perception.detector import LaneDetector
-from supervisor.clock import MonotonicClock
-from supervisor.controllers import make_controller
-from supervisor.errors import SupervisorError
-from supervisor.loop import ControlLoop, StepRecord
-from supervisor.recorder import JsonlRecorder
+from lanewarden.perception.calibration import Undistorter, check_calibration, load_calibration
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.supervisor.clock import MonotonicClock
+from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.supervisor.recorder import JsonlRecorder
 
 FIRST_FRAME_TIMEOUT_S = 3.0
 

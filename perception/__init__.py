@@ -4,7 +4,7 @@ Knows images, never motors: nothing in this package imports `supervisor`, `actua
 `scenarios`, and nothing here reads a clock (frame times are passed in).
 """
 
-from perception.errors import PerceptionError
-from perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 __all__ = ["LaneEdge", "LaneObservation", "PerceptionError"]

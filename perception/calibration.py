@@ -25,10 +25,10 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from perception.errors import PerceptionError
+from lanewarden.perception.errors import PerceptionError
 
 if TYPE_CHECKING:
-    from perception.calibration_config import CalibrationConfig
+    from lanewarden.perception.calibration_config import CalibrationConfig
 
 FloatArray = NDArray[np.float64]
 

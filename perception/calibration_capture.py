@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ChessboardPattern, ViewDetection, detect_view
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ChessboardPattern, ViewDetection, detect_view
 
 FloatArray = NDArray[np.float64]
 

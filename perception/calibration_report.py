@@ -13,9 +13,9 @@ from collections import Counter
 from collections.abc import Sequence
 from typing import Any
 
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ViewDetection
-from perception.chessboard_calibration import CalibrationRun, Coverage
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ViewDetection
+from lanewarden.perception.chessboard_calibration import CalibrationRun, Coverage
 
 _DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
                "tau_x", "tau_y")

@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.calibration_config import CalibrationConfig
-from perception.errors import PerceptionError
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.errors import PerceptionError
 
 FloatArray = NDArray[np.float64]
 

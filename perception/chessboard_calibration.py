@@ -19,10 +19,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.calibration import CameraCalibration, check_calibration
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ChessboardPattern, ViewDetection
-from perception.errors import PerceptionError
+from lanewarden.perception.calibration import CameraCalibration, check_calibration
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ChessboardPattern, ViewDetection
+from lanewarden.perception.errors import PerceptionError
 
 FloatArray = NDArray[np.float64]
 

@@ -35,9 +35,9 @@ import math
 from collections.abc import Mapping
 from types import MappingProxyType
 
-from perception.config import PerceptionConfig
-from perception.geometry import intersect_lines, x_at_row
-from perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.geometry import intersect_lines, x_at_row
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 COMPONENT_NAMES = (
     "both_sides",

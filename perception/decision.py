@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from typing import Literal
 
-from perception.config import PerceptionConfig
-from perception.observation import LaneObservation
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.observation import LaneObservation
 
 Decision = Literal["straight", "left", "right", "none"]
 

@@ -36,19 +36,19 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.calibration import Undistorter
-from perception.confidence import (
+from lanewarden.perception.calibration import Undistorter
+from lanewarden.perception.confidence import (
     combine,
     consistency_component,
     frozen_components,
     lane_components,
 )
-from perception.config import PerceptionConfig
-from perception.edge_choice import SideChoice, choose_side
-from perception.errors import PerceptionError
-from perception.geometry import Side, edge_slope, x_at_row
-from perception.lines import LineSet, build_line_set
-from perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.edge_choice import SideChoice, choose_side
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.geometry import Side, edge_slope, x_at_row
+from lanewarden.perception.lines import LineSet, build_line_set
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 MIN_IMAGE_SIDE_PX = 16
 _REFERENCE_HEIGHT_PX = 480

@@ -55,9 +55,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.config import PerceptionConfig
-from perception.geometry import Side
-from perception.lines import LineRow
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.geometry import Side
+from lanewarden.perception.lines import LineRow
 
 _MAX_CHAIN_STEPS = 8
 _MAX_TAPE_CHECKS = 4

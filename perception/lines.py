@@ -23,7 +23,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from perception.config import EdgesConfig, TapeConfig
+from lanewarden.perception.config import EdgesConfig, TapeConfig
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]

@@ -11,8 +11,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from perception.detector import DetectionDebug
-from perception.observation import LaneObservation
+from lanewarden.perception.detector import DetectionDebug
+from lanewarden.perception.observation import LaneObservation
 
 _ROI = (255, 200, 0)
 _SEGMENT = (0, 200, 255)

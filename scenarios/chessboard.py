@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from scenarios.camera import CameraModel
+from lanewarden.scenarios.camera import CameraModel
 
 FloatArray = NDArray[np.float64]
 

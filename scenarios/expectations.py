@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from scenarios.spec import Expectation
+from lanewarden.scenarios.spec import Expectation
 
 
 def _number(metrics: Mapping[str, object], key: str) -> float | None:

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-from scenarios.sim_camera import SimCamera
-from scenarios.spec import FaultSpec
+from lanewarden.scenarios.sim_camera import SimCamera
+from lanewarden.scenarios.spec import FaultSpec
 
 _BASE_BITS = ("bumper", "cliff", "wheel_drop")
 

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import yaml
 
-from scenarios.errors import ScenarioError
-from scenarios.spec import ScenarioSpec, load_scenario_file, parse_scenario
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.spec import ScenarioSpec, load_scenario_file, parse_scenario
 
 
 def _library_dir() -> Path:
-    return Path(str(resources.files("scenarios") / "library"))
+    return Path(str(resources.files("lanewarden.scenarios") / "library"))
 
 
 def library_names() -> list[str]:

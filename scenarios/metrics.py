@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.world import ROBOT_RADIUS_M, World
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.world import ROBOT_RADIUS_M, World
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

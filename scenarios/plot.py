@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from scenarios.video import STATE_COLORS
+from lanewarden.scenarios.video import STATE_COLORS
 
 FloatArray = NDArray[np.float64]
 

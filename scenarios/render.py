@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.texture import GroundTexture
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.texture import GroundTexture
 
 U8 = NDArray[np.uint8]
 F32 = NDArray[np.float32]

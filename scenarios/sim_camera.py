@@ -23,8 +23,8 @@ from collections import deque
 import numpy as np
 from numpy.typing import NDArray
 
-from scenarios.errors import ScenarioError
-from supervisor.loop import Frame
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.supervisor.loop import Frame
 
 U8 = NDArray[np.uint8]
 

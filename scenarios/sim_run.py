@@ -15,12 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from scenarios.errors import ScenarioError
-from scenarios.expectations import check_expectation
-from scenarios.plot import write_plot
-from scenarios.simulator import Simulation, SimulationResult, effective_config
-from scenarios.spec import ScenarioSpec
-from supervisor.recorder import JsonlRecorder
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.expectations import check_expectation
+from lanewarden.scenarios.plot import write_plot
+from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
+from lanewarden.scenarios.spec import ScenarioSpec
+from lanewarden.supervisor.recorder import JsonlRecorder
 
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig

@@ -24,24 +24,24 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D, VelocityCommand
-from actuation.sim_base import SimBase, SimBaseParams
-from perception.calibration import CameraCalibration, Undistorter
-from perception.decision import decide
-from perception.detector import DetectionDebug, LaneDetector
-from perception.observation import LaneObservation
-from perception.overlay import draw_overlay
-from scenarios.camera import CameraModel
-from scenarios.faults import FaultSchedule, camera_pool_size
-from scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
-from scenarios.render import CameraRenderer
-from scenarios.sim_camera import SimCamera
-from scenarios.spec import RunSpec, ScenarioSpec, with_overrides
-from scenarios.texture import GroundTexture, paint_ground
-from scenarios.video import MapView, VideoRecorder, roi_ground_outline
-from scenarios.world import World, build_world
-from supervisor.controllers import make_controller
-from supervisor.loop import ControlLoop, StepRecord
+from lanewarden.actuation.base import Pose2D, VelocityCommand
+from lanewarden.actuation.sim_base import SimBase, SimBaseParams
+from lanewarden.perception.calibration import CameraCalibration, Undistorter
+from lanewarden.perception.decision import decide
+from lanewarden.perception.detector import DetectionDebug, LaneDetector
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.overlay import draw_overlay
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
+from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
+from lanewarden.scenarios.render import CameraRenderer
+from lanewarden.scenarios.sim_camera import SimCamera
+from lanewarden.scenarios.spec import RunSpec, ScenarioSpec, with_overrides
+from lanewarden.scenarios.texture import GroundTexture, paint_ground
+from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+from lanewarden.scenarios.world import World, build_world
+from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.loop import ControlLoop, StepRecord
 
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig

@@ -20,8 +20,8 @@ from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from scenarios.errors import ScenarioError
-from scenarios.yaml_documents import (
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.yaml_documents import (
     describe_validation_error,
     read_yaml_document,
     validation_error_lines,

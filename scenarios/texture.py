@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from scenarios.spec import color_bgr
-from scenarios.world import World
+from lanewarden.scenarios.spec import color_bgr
+from lanewarden.scenarios.world import World
 
 FloatArray = NDArray[np.float64]
 F32 = NDArray[np.float32]

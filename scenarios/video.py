@@ -20,11 +20,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.errors import ScenarioError
-from scenarios.texture import GroundTexture
-from scenarios.world import ROBOT_RADIUS_M, World
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.texture import GroundTexture
+from lanewarden.scenarios.world import ROBOT_RADIUS_M, World
 
 U8 = NDArray[np.uint8]
 FloatArray = NDArray[np.float64]

@@ -18,9 +18,16 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
-from actuation.base import Pose2D
-from scenarios.errors import ScenarioError
-from scenarios.spec import FloorSpec, LightingSpec, ScenarioSpec, SegmentSpec, TapeSide, color_bgr
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.spec import (
+    FloorSpec,
+    LightingSpec,
+    ScenarioSpec,
+    SegmentSpec,
+    TapeSide,
+    color_bgr,
+)
 
 FloatArray = NDArray[np.float64]
 

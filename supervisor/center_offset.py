@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from supervisor.config import SupervisorConfig
+from lanewarden.supervisor.config import SupervisorConfig
 
 
 class CenterOffsetFilter:

@@ -14,9 +14,9 @@ fraction of the follow speed, steering clipped to `degraded_max_angular_rad_s`. 
 
 from __future__ import annotations
 
-from actuation.base import STOP, VelocityCommand
-from supervisor.config import SupervisorConfig
-from supervisor.state_machine import SupervisorState
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.state_machine import SupervisorState
 
 
 def proportional_steering_rad_s(

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Protocol
 
-from actuation.base import STOP, BaseFeedback, VelocityCommand
-from perception.observation import LaneObservation
-from supervisor.events import Event
+from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.supervisor.events import Event
 
 
 @dataclass(frozen=True)

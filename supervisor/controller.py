@@ -18,18 +18,18 @@ from __future__ import annotations
 
 import math
 
-from actuation.base import STOP, VelocityCommand
-from supervisor.center_offset import CenterOffsetFilter
-from supervisor.commands import command_for
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import ControlInputs, ControlOutput
-from supervisor.events import Event, ordered
-from supervisor.hazards import base_hazard_events
-from supervisor.lane_evidence import LaneEvidence, observation_problem
-from supervisor.limiter import CommandLimiter
-from supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
-from supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
-from supervisor.watchdog import Watchdog
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.supervisor.center_offset import CenterOffsetFilter
+from lanewarden.supervisor.commands import command_for
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.events import Event, ordered
+from lanewarden.supervisor.hazards import base_hazard_events
+from lanewarden.supervisor.lane_evidence import LaneEvidence, observation_problem
+from lanewarden.supervisor.limiter import CommandLimiter
+from lanewarden.supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
+from lanewarden.supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
+from lanewarden.supervisor.watchdog import Watchdog
 
 
 class SupervisedController:

@@ -5,11 +5,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from types import MappingProxyType
 
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import Controller
-from supervisor.controller import SupervisedController
-from supervisor.errors import SupervisorError
-from supervisor.lecture import LectureController
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import Controller
+from lanewarden.supervisor.controller import SupervisedController
+from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.lecture import LectureController
 
 CONTROLLERS: MappingProxyType[str, Callable[[SupervisorConfig], Controller]] = MappingProxyType(
     {"supervised": SupervisedController, "lecture": LectureController}

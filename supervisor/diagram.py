@@ -12,12 +12,17 @@ from pathlib import Path
 
 from transitions.extensions import GraphMachine
 
-from supervisor.events import EVENT_TABLE
-from supervisor.state_machine import TRANSITIONS, SupervisorStateMachine, machine_arguments
+from lanewarden.supervisor.events import EVENT_TABLE
+from lanewarden.supervisor.state_machine import (
+    TRANSITIONS,
+    SupervisorStateMachine,
+    machine_arguments,
+)
 
 DOC_PATH = Path(__file__).resolve().parents[1] / "docs" / "state-machine.md"
 REGENERATE = (
-    "python -m supervisor.diagram  (or run tests/supervisor/test_diagram.py, which rewrites it)"
+    "python -m lanewarden.supervisor.diagram  "
+    "(or run tests/supervisor/test_diagram.py, which rewrites it)"
 )
 
 

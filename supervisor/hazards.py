@@ -6,8 +6,8 @@ here; the watchdog turns its age into BASE_LINK_LOST. Pure.
 
 from __future__ import annotations
 
-from actuation.base import BaseFeedback
-from supervisor.events import Event
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.supervisor.events import Event
 
 
 def base_hazard_events(feedback: BaseFeedback | None) -> frozenset[Event]:

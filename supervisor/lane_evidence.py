@@ -18,10 +18,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from perception.observation import LaneEdge, LaneObservation
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import FrameInfo
-from supervisor.events import Event
+from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import FrameInfo
+from lanewarden.supervisor.events import Event
 
 
 @dataclass(frozen=True)

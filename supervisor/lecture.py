@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import math
 
-from actuation.base import STOP, VelocityCommand
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import ControlInputs, ControlOutput
-from supervisor.events import EVENT_TABLE, Event, ordered
-from supervisor.hazards import base_hazard_events
-from supervisor.limiter import CommandLimiter
-from supervisor.state_machine import NOT_STARTED_REASON, SupervisorState
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.events import EVENT_TABLE, Event, ordered
+from lanewarden.supervisor.hazards import base_hazard_events
+from lanewarden.supervisor.limiter import CommandLimiter
+from lanewarden.supervisor.state_machine import NOT_STARTED_REASON, SupervisorState
 
 
 def lecture_decision(

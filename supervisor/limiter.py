@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import math
 
-from actuation.base import STOP, VelocityCommand
-from supervisor.config import SupervisorConfig
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.supervisor.config import SupervisorConfig
 
 
 def _limit_axis(current: float, target: float, max_abs: float, max_step: float) -> float:

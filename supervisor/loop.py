@@ -23,12 +23,12 @@ from typing import Protocol
 
 import numpy as np
 
-from actuation.base import STOP, Base, BaseFeedback, VelocityCommand
-from actuation.errors import ActuationError
-from perception.observation import LaneObservation
-from supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
-from supervisor.events import Event, ordered
-from supervisor.watchdog import frame_fingerprint
+from lanewarden.actuation.base import STOP, Base, BaseFeedback, VelocityCommand
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
+from lanewarden.supervisor.events import Event, ordered
+from lanewarden.supervisor.watchdog import frame_fingerprint
 
 __all__ = [
     "ControlInputs",

@@ -12,8 +12,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import TextIO
 
-from supervisor.errors import SupervisorError
-from supervisor.loop import StepRecord
+from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.loop import StepRecord
 
 
 class JsonlRecorder:

@@ -23,8 +23,8 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 
-from supervisor.config import SupervisorConfig
-from supervisor.events import Event
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import Event
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,8 @@ from typing import Any
 
 from transitions import Machine
 
-from supervisor.config import SupervisorConfig
-from supervisor.events import (
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import (
     LANE_LOSS_EVENTS,
     Event,
     Response,

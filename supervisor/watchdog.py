@@ -22,10 +22,10 @@ import math
 
 import numpy as np
 
-from actuation.base import BaseFeedback
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import FrameInfo
-from supervisor.events import Event
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import FrameInfo
+from lanewarden.supervisor.events import Event
 
 #: Pixel stride of the fingerprint: 1/16 of the pixels is plenty to tell sensor noise apart.
 FINGERPRINT_STRIDE = 4

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from lanewarden.cli import main
-from perception.calibration import CameraCalibration, save_calibration
+from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.perception.synthetic import STRAIGHT, render
 

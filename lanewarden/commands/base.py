@@ -15,10 +15,10 @@ from typing import Any
 
 import click
 
-from actuation.base import STOP, BaseFeedback, VelocityCommand
-from actuation.errors import ActuationError
-from actuation.kobuki_base import KobukiBase
-from actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
+from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 

@@ -31,16 +31,16 @@ from lanewarden.camera_source import open_camera, quiet_opencv
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
-from perception.calibration import save_calibration, save_ros_camera_info
-from perception.calibration_capture import BoardPlacement, judge_frame
-from perception.calibration_config import CalibrationConfig
-from perception.calibration_report import (
+from lanewarden.perception.calibration import save_calibration, save_ros_camera_info
+from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.calibration_report import (
     format_report,
     run_as_json,
     summarize_rejections,
     unsolved_as_json,
 )
-from perception.chessboard import (
+from lanewarden.perception.chessboard import (
     ChessboardPattern,
     ViewDetection,
     common_image_size,
@@ -51,8 +51,12 @@ from perception.chessboard import (
     suggest_pattern,
     unreadable_view,
 )
-from perception.chessboard_calibration import MIN_VIEWS_TO_SOLVE, calibrate_views, gate_failures
-from perception.errors import PerceptionError
+from lanewarden.perception.chessboard_calibration import (
+    MIN_VIEWS_TO_SOLVE,
+    calibrate_views,
+    gate_failures,
+)
+from lanewarden.perception.errors import PerceptionError
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 

@@ -29,13 +29,13 @@ import cv2
 from lanewarden.commands.calibrate import check_output_folder, read_image
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from perception.calibration import Undistorter, load_calibration
-from perception.config import PerceptionConfig
-from perception.decision import decide
-from perception.detector import LaneDetector
-from perception.errors import PerceptionError
-from perception.observation import LaneEdge, LaneObservation
-from perception.overlay import draw_overlay
+from lanewarden.perception.calibration import Undistorter, load_calibration
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.decision import decide
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.overlay import draw_overlay
 
 
 def result_json(image: str, observation: LaneObservation, decision: str) -> dict[str, object]:

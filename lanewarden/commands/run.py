@@ -8,7 +8,7 @@ import click
 
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 
 @click.command("run")

@@ -20,12 +20,12 @@ import click
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
-from scenarios.errors import ScenarioError
-from scenarios.library import library_names, resolve_scenario
-from scenarios.report import comparison_rows, demo_summary, format_table, write_report
-from scenarios.sim_run import RunRequest, run_to_directory
-from scenarios.spec import ScenarioSpec
-from supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.library import library_names, resolve_scenario
+from lanewarden.scenarios.report import comparison_rows, demo_summary, format_table, write_report
+from lanewarden.scenarios.sim_run import RunRequest, run_to_directory
+from lanewarden.scenarios.spec import ScenarioSpec
+from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 DEMO_SCENARIO = "lecture"
 DEFAULT_DEMO_OUT = "lanewarden-out"

@@ -15,9 +15,9 @@ import click
 import cv2
 
 from lanewarden.commands.calibrate import IMAGE_SUFFIXES, check_output_folder, read_image
-from perception.calibration import Undistorter, load_calibration
-from perception.errors import PerceptionError
-from perception.undistort_preview import side_by_side
+from lanewarden.perception.calibration import Undistorter, load_calibration
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.undistort_preview import side_by_side
 
 
 def _write(path: Path, image: object) -> None:

@@ -15,10 +15,10 @@ import sys
 import threading
 import time
 
-from actuation.base import VelocityCommand
-from actuation.deadman_logic import DeadmanMode
-from actuation.errors import DeadmanTrippedError
-from actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.errors import DeadmanTrippedError
+from lanewarden.actuation.kobuki_base import KobukiBase
 
 CONTROL_PERIOD_S = 0.02
 

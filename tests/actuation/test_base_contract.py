@@ -14,10 +14,10 @@ from typing import Protocol
 
 import pytest
 
-from actuation.base import STOP, Base, BaseFeedback, VelocityCommand
-from actuation.errors import ActuationError
-from actuation.kobuki_base import KobukiBase
-from actuation.sim_base import SimBase
+from lanewarden.actuation.base import STOP, Base, BaseFeedback, VelocityCommand
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.sim_base import SimBase
 from tests.actuation.kobuki_standin import KobukiStandIn
 
 MOVE = VelocityCommand(0.2, 0.0)

@@ -6,8 +6,8 @@ from collections.abc import Callable
 
 import pytest
 
-from actuation.base import STOP, VelocityCommand
-from actuation.deadman_logic import (
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.deadman_logic import (
     CLOSE_STOP_PACKETS,
     DeadmanLogic,
     DeadmanMode,

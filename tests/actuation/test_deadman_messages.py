@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from actuation.base import VelocityCommand
-from actuation.deadman_logic import DeadmanMode
-from actuation.deadman_messages import (
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.deadman_messages import (
     Arm,
     Close,
     Command,
@@ -24,7 +24,7 @@ from actuation.deadman_messages import (
     encode_control,
     encode_deadman,
 )
-from actuation.kobuki_commands import encode_request_extra, encode_sound
+from lanewarden.actuation.kobuki_commands import encode_request_extra, encode_sound
 
 
 @pytest.mark.parametrize("message", [

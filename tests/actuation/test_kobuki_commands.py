@@ -7,8 +7,8 @@ import struct
 
 import pytest
 
-from actuation.base import VelocityCommand
-from actuation.kobuki_commands import (
+from lanewarden.actuation.base import VelocityCommand
+from lanewarden.actuation.kobuki_commands import (
     STOP_PACKET,
     ExtraRequest,
     SoundSequence,

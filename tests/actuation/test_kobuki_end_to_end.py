@@ -20,11 +20,11 @@ from pathlib import Path
 
 import pytest
 
-from actuation.base import STOP, VelocityCommand
-from actuation.deadman_logic import DeadmanMode
-from actuation.errors import DeadmanTrippedError, KobukiLinkError
-from actuation.kobuki_base import KobukiBase
-from actuation.kobuki_commands import SoundSequence, encode_base_control
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.errors import DeadmanTrippedError, KobukiLinkError
+from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.kobuki_commands import SoundSequence, encode_base_control
 from lanewarden.cli import main
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
 

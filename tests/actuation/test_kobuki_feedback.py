@@ -8,7 +8,7 @@ import struct
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actuation.kobuki_feedback import (
+from lanewarden.actuation.kobuki_feedback import (
     GPIO,
     UDID,
     BasicSensorData,

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from actuation.kobuki_framing import PacketReader, checksum, frame_packet
+from lanewarden.actuation.kobuki_framing import PacketReader, checksum, frame_packet
 
 PROPERTY = settings(derandomize=True, max_examples=300, deadline=None)
 

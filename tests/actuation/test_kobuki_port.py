@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from actuation.kobuki_port import describe_open_error, open_kobuki_serial, resolve_port
+from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial, resolve_port
 
 
 def test_requested_port_wins() -> None:

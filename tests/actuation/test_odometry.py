@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from actuation.kobuki_geometry import TICKS_PER_METRE, WHEEL_BASE_M
-from actuation.odometry import EncoderOdometry, encoder_delta
+from lanewarden.actuation.kobuki_geometry import TICKS_PER_METRE, WHEEL_BASE_M
+from lanewarden.actuation.odometry import EncoderOdometry, encoder_delta
 
 
 @pytest.mark.parametrize(("previous", "current", "delta"), [

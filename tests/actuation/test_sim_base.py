@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from actuation.base import STOP, Pose2D, VelocityCommand
-from actuation.config import ActuationConfig, SimBaseConfig
-from actuation.errors import ActuationError
-from actuation.kobuki_geometry import MAX_ANGULAR_RAD_S
-from actuation.sim_base import SimBase, SimBaseParams
+from lanewarden.actuation.base import STOP, Pose2D, VelocityCommand
+from lanewarden.actuation.config import ActuationConfig, SimBaseConfig
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.actuation.kobuki_geometry import MAX_ANGULAR_RAD_S
+from lanewarden.actuation.sim_base import SimBase, SimBaseParams
 
 
 def test_accelerates_at_the_limit_then_cruises() -> None:

@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from scenarios.camera import CameraModel
-from scenarios.chessboard import BoardPose, ChessboardRenderer, calibration_poses
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.chessboard import BoardPose, ChessboardRenderer, calibration_poses
 
 SYNTHETIC_VIEWS = 15
 

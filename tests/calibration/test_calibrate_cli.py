@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from lanewarden.cli import main
-from perception.calibration import load_calibration
-from scenarios.camera import CameraModel
-from scenarios.chessboard import ChessboardRenderer
+from lanewarden.perception.calibration import load_calibration
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.chessboard import ChessboardRenderer
 from tests.calibration.conftest import SyntheticViews
 
 

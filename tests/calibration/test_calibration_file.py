@@ -11,16 +11,16 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from perception.calibration import (
+from lanewarden.perception.calibration import (
     CameraCalibration,
     Undistorter,
     check_calibration,
     load_calibration,
     save_calibration,
 )
-from perception.calibration_config import CalibrationConfig
-from perception.errors import PerceptionError
-from scenarios.camera import CameraModel
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.scenarios.camera import CameraModel
 
 
 def _calibration(**overrides: object) -> CameraCalibration:

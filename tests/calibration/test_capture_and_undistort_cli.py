@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from lanewarden.cli import main
-from perception.calibration import CameraCalibration, load_calibration, save_calibration
-from perception.undistort_preview import side_by_side
+from lanewarden.perception.calibration import CameraCalibration, load_calibration, save_calibration
+from lanewarden.perception.undistort_preview import side_by_side
 from tests.calibration.conftest import SyntheticViews
 from tests.conftest import shared_data
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from lanewarden.cli import main
-from perception.calibration import load_calibration
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ChessboardPattern, detect_view
-from perception.chessboard_calibration import calibrate_views, gate_failures
+from lanewarden.perception.calibration import load_calibration
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ChessboardPattern, detect_view
+from lanewarden.perception.chessboard_calibration import calibrate_views, gate_failures
 from tests.conftest import shared_data
 
 # From OpenCV's modules/python/test/test_calibration.py (see ../shared/data/README.md).

@@ -5,11 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from perception.calibration import Undistorter
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import ChessboardPattern, detect_view
-from perception.chessboard_calibration import calibrate_views, gate_failures
-from scenarios.chessboard import ChessboardRenderer, facing_pose
+from lanewarden.perception.calibration import Undistorter
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import ChessboardPattern, detect_view
+from lanewarden.perception.chessboard_calibration import calibrate_views, gate_failures
+from lanewarden.scenarios.chessboard import ChessboardRenderer, facing_pose
 from tests.calibration.conftest import SyntheticViews
 
 

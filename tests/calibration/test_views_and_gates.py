@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from perception.calibration_config import CalibrationConfig
-from perception.chessboard import (
+from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.chessboard import (
     ChessboardPattern,
     ViewDetection,
     common_image_size,
@@ -17,14 +17,14 @@ from perception.chessboard import (
     parse_pattern,
     reject_other_sizes,
 )
-from perception.chessboard_calibration import (
+from lanewarden.perception.chessboard_calibration import (
     calibrate_views,
     corner_coverage,
     flag_outliers,
     gate_failures,
 )
-from perception.errors import PerceptionError
-from scenarios.chessboard import ChessboardLook, ChessboardRenderer
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.scenarios.chessboard import ChessboardLook, ChessboardRenderer
 from tests.calibration.conftest import SyntheticViews
 
 PATTERN = ChessboardPattern(9, 6)

@@ -26,10 +26,10 @@ from typing import Literal
 import cv2
 import numpy as np
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.render import CameraRenderer
-from scenarios.spec import (
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.render import CameraRenderer
+from lanewarden.scenarios.spec import (
     DashSpec,
     EndsSpec,
     FloorSpec,
@@ -40,8 +40,8 @@ from scenarios.spec import (
     SegmentSpec,
     TapeSpec,
 )
-from scenarios.texture import GroundTexture, paint_ground
-from scenarios.world import build_world
+from lanewarden.scenarios.texture import GroundTexture, paint_ground
+from lanewarden.scenarios.world import build_world
 
 TAPE_WIDTH_M = 0.048
 TAPE_SPACING_M = 0.60  # between the two tapes' centres

@@ -10,10 +10,10 @@ import pytest
 
 from lanewarden.config import LanewardenConfig, load_config
 from lanewarden.errors import ConfigError
-from perception.confidence import COMPONENT_NAMES, combine
-from perception.config import PerceptionConfig
-from perception.decision import decide
-from perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.confidence import COMPONENT_NAMES, combine
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.decision import decide
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 
 @pytest.mark.parametrize(

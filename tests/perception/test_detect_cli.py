@@ -9,8 +9,8 @@ import cv2
 import pytest
 
 from lanewarden.cli import main
-from perception.calibration import CameraCalibration, save_calibration
-from scenarios.camera import CameraModel
+from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from lanewarden.scenarios.camera import CameraModel
 from tests.perception import synthetic as syn
 
 KEYS = ["image", "left", "right", "slope_sum", "confidence", "components", "decision"]

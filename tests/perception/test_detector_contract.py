@@ -13,13 +13,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from perception.confidence import COMPONENT_NAMES
-from perception.config import PerceptionConfig
-from perception.decision import decide
-from perception.detector import LaneDetector
-from perception.errors import PerceptionError
-from perception.observation import LaneObservation
-from perception.overlay import draw_overlay
+from lanewarden.perception.confidence import COMPONENT_NAMES
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.decision import decide
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.overlay import draw_overlay
 from tests.perception import synthetic as syn
 
 CONFIG = PerceptionConfig()

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from lanewarden.config import load_config
-from perception.config import PerceptionConfig
-from perception.detector import LaneDetector
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.detector import LaneDetector
 from tests.conftest import shared_data
 
 HERE = Path(__file__).parent

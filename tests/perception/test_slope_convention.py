@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from perception.config import PerceptionConfig
-from perception.detector import LaneDetector
-from perception.geometry import (
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.geometry import (
     Side,
     edge_angle_deg,
     edge_slope,

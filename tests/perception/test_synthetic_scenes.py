@@ -10,12 +10,12 @@ from dataclasses import replace
 
 import pytest
 
-from perception.calibration import CameraCalibration, Undistorter
-from perception.config import PerceptionConfig
-from perception.decision import decide
-from perception.detector import LaneDetector
-from perception.observation import LaneObservation
-from scenarios.camera import CameraModel
+from lanewarden.perception.calibration import CameraCalibration, Undistorter
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.decision import decide
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.scenarios.camera import CameraModel
 from tests.perception import synthetic as syn
 
 CONFIG = PerceptionConfig()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from scenarios.spec import ScenarioSpec, parse_scenario
+from lanewarden.scenarios.spec import ScenarioSpec, parse_scenario
 
 
 def spec_from(data: dict[str, Any]) -> ScenarioSpec:

@@ -13,11 +13,11 @@ from functools import cache
 import pytest
 
 from lanewarden.config import LanewardenConfig
-from scenarios.expectations import check_expectation
-from scenarios.library import library_names, resolve_scenario
-from scenarios.metrics import first_halt_index
-from scenarios.simulator import Simulation, SimulationResult, effective_config
-from scenarios.spec import with_overrides
+from lanewarden.scenarios.expectations import check_expectation
+from lanewarden.scenarios.library import library_names, resolve_scenario
+from lanewarden.scenarios.metrics import first_halt_index
+from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
+from lanewarden.scenarios.spec import with_overrides
 
 LANE_SCENARIOS = [n for n in library_names() if not n.startswith("fault-")]
 FAULT_SCENARIOS = [n for n in library_names() if n.startswith("fault-")]

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from actuation.base import Pose2D
-from scenarios.simulator import NOT_ENGAGED_LIMIT_S, EndConditions
-from scenarios.spec import RunSpec
-from scenarios.world import build_world
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.simulator import NOT_ENGAGED_LIMIT_S, EndConditions
+from lanewarden.scenarios.spec import RunSpec
+from lanewarden.scenarios.world import build_world
 from tests.scenarios.helpers import straight_spec
 
 

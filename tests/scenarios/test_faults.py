@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actuation.sim_base import SimBase
-from scenarios.faults import FaultSchedule, camera_pool_size
-from scenarios.sim_camera import SimCamera, SimulatedCameraError
-from scenarios.spec import FaultSpec
+from lanewarden.actuation.sim_base import SimBase
+from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
+from lanewarden.scenarios.sim_camera import SimCamera, SimulatedCameraError
+from lanewarden.scenarios.spec import FaultSpec
 
 DT = 1 / 30
 

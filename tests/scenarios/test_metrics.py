@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.metrics import (
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.metrics import (
     RunTrace,
     TapeVisibility,
     compute_metrics,
@@ -17,7 +17,7 @@ from scenarios.metrics import (
     points_in_polygon,
     turns_completed,
 )
-from scenarios.world import build_world
+from lanewarden.scenarios.world import build_world
 from tests.scenarios.helpers import spec_from, straight_spec
 
 #: A triangle like the lecture's ROI, in undistorted pixels of a 640x480 image.

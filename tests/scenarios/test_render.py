@@ -9,11 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
-from actuation.base import Pose2D
-from scenarios.camera import CameraModel
-from scenarios.render import CameraRenderer
-from scenarios.texture import GroundTexture, paint_ground
-from scenarios.world import build_world
+from lanewarden.actuation.base import Pose2D
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.render import CameraRenderer
+from lanewarden.scenarios.texture import GroundTexture, paint_ground
+from lanewarden.scenarios.world import build_world
 from tests.scenarios.helpers import straight_spec
 
 RES = 0.002  # m per texture pixel
@@ -128,10 +128,10 @@ def test_texture_is_deterministic_per_seed_and_gray_matches_colour() -> None:
 @pytest.mark.parametrize("size", [(640, 480), (320, 240)])
 def test_default_roi_sees_both_tapes_at_the_start_of_straight(size: tuple[int, int]) -> None:
     from lanewarden.config import LanewardenConfig
-    from scenarios.library import resolve_scenario
-    from scenarios.metrics import points_in_polygon
-    from scenarios.simulator import Simulation, effective_config
-    from scenarios.spec import with_overrides
+    from lanewarden.scenarios.library import resolve_scenario
+    from lanewarden.scenarios.metrics import points_in_polygon
+    from lanewarden.scenarios.simulator import Simulation, effective_config
+    from lanewarden.scenarios.spec import with_overrides
 
     spec = resolve_scenario("straight")
     overrides = {"simulation": {"width_px": size[0], "height_px": size[1],

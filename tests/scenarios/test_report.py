@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenarios.report import comparison_rows, demo_summary, format_table, write_report
+from lanewarden.scenarios.report import comparison_rows, demo_summary, format_table, write_report
 
 LECTURE = {"halted": False, "halt_reason": None, "turns_completed": ["A"],
            "max_cross_track_error_m": 0.7, "distance_past_lane_end_m": 2.5, "crossed_tape": True,

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.errors import ScenarioError
-from scenarios.library import library_names, library_path, resolve_scenario
-from scenarios.spec import load_scenario_file, parse_scenario
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.library import library_names, library_path, resolve_scenario
+from lanewarden.scenarios.spec import load_scenario_file, parse_scenario
 
 REQUIRED = {
     "lecture", "straight", "s-curve", "dashed", "one-edge-gap", "lane-ends", "glare",
@@ -29,7 +29,7 @@ def test_library_has_every_named_scenario_and_each_validates() -> None:
 def test_every_fault_kind_has_a_library_scenario() -> None:
     from typing import get_args
 
-    from scenarios.spec import FaultKind
+    from lanewarden.scenarios.spec import FaultKind
 
     kinds = {f.kind for n in library_names() for f in resolve_scenario(n).faults}
     assert kinds == set(get_args(FaultKind))
@@ -77,7 +77,7 @@ def test_gap_must_be_ordered_and_library_path_is_packaged() -> None:
 
 def test_config_overrides_are_validated_with_the_scenario_named() -> None:
     from lanewarden.config import LanewardenConfig
-    from scenarios.spec import with_overrides
+    from lanewarden.scenarios.spec import with_overrides
 
     base = LanewardenConfig()
     tuned = with_overrides(base, {"simulation": {"width_px": 320, "height_px": 240}}, "x.yaml")

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.errors import ScenarioError
-from scenarios.world import build_world, tape_intervals
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.world import build_world, tape_intervals
 from tests.scenarios.helpers import spec_from, straight_spec
 
 

@@ -11,16 +11,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from actuation.base import STOP, BaseFeedback, VelocityCommand
-from actuation.errors import ActuationError
-from perception.errors import PerceptionError
-from perception.observation import LaneEdge, LaneObservation
-from supervisor.clock import FakeClock
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
-from supervisor.controller import SupervisedController
-from supervisor.events import Event
-from supervisor.loop import Frame
+from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
+from lanewarden.actuation.errors import ActuationError
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.supervisor.clock import FakeClock
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
+from lanewarden.supervisor.controller import SupervisedController
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.loop import Frame
 
 DT = 1.0 / 30.0
 LEFT_EDGE = LaneEdge(100.0, 480.0, 300.0, 200.0, 1.6, 250.0)

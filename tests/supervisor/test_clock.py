@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from supervisor.clock import Clock, FakeClock, MonotonicClock
+from lanewarden.supervisor.clock import Clock, FakeClock, MonotonicClock
 
 
 def test_fake_clock_moves_only_when_advanced() -> None:

@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from actuation.base import STOP, VelocityCommand
-from supervisor.commands import command_for, proportional_steering_rad_s
-from supervisor.config import SupervisorConfig
-from supervisor.limiter import CommandLimiter
-from supervisor.state_machine import SupervisorState as S
+from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.supervisor.commands import command_for, proportional_steering_rad_s
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.limiter import CommandLimiter
+from lanewarden.supervisor.state_machine import SupervisorState as S
 
 CONFIG = SupervisorConfig()
 DT = 1.0 / 30.0

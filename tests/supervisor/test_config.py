@@ -8,7 +8,7 @@ import pytest
 
 from lanewarden.config import load_config
 from lanewarden.errors import ConfigError
-from supervisor.config import SupervisorConfig
+from lanewarden.supervisor.config import SupervisorConfig
 
 
 def test_defaults_are_valid_and_match_the_requirements() -> None:

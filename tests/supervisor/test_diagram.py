@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-from supervisor.diagram import DOC_PATH, REGENERATE, mermaid_diagram, state_machine_markdown
-from supervisor.events import Event
-from supervisor.state_machine import TRANSITIONS, SupervisorState
+from lanewarden.supervisor.diagram import (
+    DOC_PATH,
+    REGENERATE,
+    mermaid_diagram,
+    state_machine_markdown,
+)
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.state_machine import TRANSITIONS, SupervisorState
 
 
 def test_mermaid_diagram_has_every_state_and_every_transition_row() -> None:

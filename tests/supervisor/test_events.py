@@ -10,11 +10,11 @@ from dataclasses import dataclass
 
 import pytest
 
-from actuation.base import STOP, BaseFeedback, VelocityCommand
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import ControlInputs, ControlOutput
-from supervisor.events import EVENT_TABLE, Event, Response, halt_reason, ordered
-from supervisor.loop import ControlLoop, StepRecord
+from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.events import EVENT_TABLE, Event, Response, halt_reason, ordered
+from lanewarden.supervisor.loop import ControlLoop, StepRecord
 from tests.supervisor.rig import (
     DT,
     RecordingBase,
@@ -51,7 +51,7 @@ def _loop_engaged(
     detector: ScriptedDetector | None = None,
     base: RecordingBase | None = None,
 ) -> tuple[ControlLoop, RecordingBase, list[StepRecord], float]:
-    from supervisor.controller import SupervisedController
+    from lanewarden.supervisor.controller import SupervisedController
 
     base = base or RecordingBase()
     records: list[StepRecord] = []

@@ -7,16 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from actuation.base import STOP
-from actuation.sim_base import SimBase
-from supervisor.clock import FakeClock
-from supervisor.config import SupervisorConfig
-from supervisor.controller import SupervisedController
-from supervisor.controllers import make_controller
-from supervisor.errors import SupervisorError
-from supervisor.lecture import LectureController
-from supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
-from supervisor.recorder import JsonlRecorder
+from lanewarden.actuation.base import STOP
+from lanewarden.actuation.sim_base import SimBase
+from lanewarden.supervisor.clock import FakeClock
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.controller import SupervisedController
+from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.lecture import LectureController
+from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
+from lanewarden.supervisor.recorder import JsonlRecorder
 from tests.supervisor.rig import (
     DT,
     RecordingBase,

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
-from actuation.base import STOP, BaseFeedback
-from supervisor.config import SupervisorConfig
-from supervisor.events import EVENT_TABLE, Event, Response
+from lanewarden.actuation.base import STOP, BaseFeedback
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import EVENT_TABLE, Event, Response
 from tests.supervisor.rig import DT, Rig, observation
 
 CONFIG = SupervisorConfig()

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from supervisor.center_offset import CenterOffsetFilter
-from supervisor.config import SupervisorConfig
-from supervisor.events import Event
-from supervisor.slope_filter import (
+from lanewarden.supervisor.center_offset import CenterOffsetFilter
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.slope_filter import (
     SlopeSumFilter,
     make_slope_sum_filter,
     measurement_variance,

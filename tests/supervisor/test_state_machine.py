@@ -6,10 +6,10 @@ from collections.abc import Callable
 
 import pytest
 
-from actuation.base import STOP
-from supervisor.config import SupervisorConfig
-from supervisor.events import EVENT_TABLE, Event, Response
-from supervisor.state_machine import (
+from lanewarden.actuation.base import STOP
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import EVENT_TABLE, Event, Response
+from lanewarden.supervisor.state_machine import (
     TRANSITIONS,
     StepFacts,
     SupervisorState,

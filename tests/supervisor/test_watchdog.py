@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from actuation.base import BaseFeedback
-from supervisor.config import SupervisorConfig
-from supervisor.control_io import FrameInfo
-from supervisor.events import Event
-from supervisor.watchdog import Watchdog, frame_fingerprint
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import FrameInfo
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.watchdog import Watchdog, frame_fingerprint
 
 CONFIG = SupervisorConfig()
 DT = 1.0 / 30.0
