@@ -12,12 +12,21 @@ robot frame) is fixed and computed once. Pure geometry: no clock, no I/O.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+from lanewarden.perception.ground import (
+    DEFAULT_HFOV_DEG,
+    DEFAULT_POSE_FORWARD_M,
+    DEFAULT_POSE_HEIGHT_M,
+    DEFAULT_POSE_PITCH_DEG,
+    CameraPose,
+    GroundModel,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -33,39 +42,41 @@ class CameraModel:
 
     width_px: int = 640
     height_px: int = 480
-    hfov_deg: float = 70.0
-    height_m: float = 0.40
-    pitch_down_deg: float = 35.0
-    forward_offset_m: float = 0.15
+    hfov_deg: float = DEFAULT_HFOV_DEG
+    height_m: float = DEFAULT_POSE_HEIGHT_M
+    pitch_down_deg: float = DEFAULT_POSE_PITCH_DEG
+    roll_deg: float = 0.0
+    forward_offset_m: float = DEFAULT_POSE_FORWARD_M
     dist_coeffs: tuple[float, float, float, float, float] = (-0.20, 0.05, 0.0, 0.0, 0.0)
 
     @property
+    def pose(self) -> CameraPose:
+        return CameraPose(height_m=self.height_m, pitch_deg=self.pitch_down_deg,
+                          roll_deg=self.roll_deg, forward_m=self.forward_offset_m)
+
+    @cached_property
+    def ground(self) -> GroundModel:
+        """Perception's ground model of this camera (undistorted pixels): the same floor <->
+        image math the detector uses, so the renderer and perception cannot disagree."""
+        return GroundModel.from_fov(self.hfov_deg, (self.width_px, self.height_px), self.pose)
+
+    @property
     def focal_px(self) -> float:
-        return (self.width_px / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
+        return float(self.ground.camera_matrix[0, 0])
 
     def camera_matrix(self) -> FloatArray:
         """3x3 intrinsics K (square pixels, principal point at the image centre)."""
-        f = self.focal_px
-        return np.array(
-            [[f, 0.0, self.width_px / 2.0], [0.0, f, self.height_px / 2.0], [0.0, 0.0, 1.0]]
-        )
+        return self.ground.camera_matrix.copy()
 
     def distortion(self) -> FloatArray:
         return np.asarray(self.dist_coeffs, dtype=np.float64)
 
     def rotation_robot_to_camera(self) -> FloatArray:
         """R such that p_cam = R @ (p_robot - camera_position)."""
-        p = math.radians(self.pitch_down_deg)
-        # Level camera: cam x = -robot y, cam y = -robot z, cam z = robot x.
-        level = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-        # Pitch down by p about the camera x axis (positive p tilts the optical axis to the floor).
-        pitch = np.array(
-            [[1.0, 0.0, 0.0], [0.0, math.cos(p), -math.sin(p)], [0.0, math.sin(p), math.cos(p)]]
-        )
-        return pitch @ level
+        return self.ground.rotation.copy()
 
     def position_robot(self) -> FloatArray:
-        return np.array([self.forward_offset_m, 0.0, self.height_m])
+        return self.ground.position.copy()
 
     def extrinsics(self) -> tuple[FloatArray, FloatArray]:
         """(rvec, tvec) for cv2.projectPoints with object points in the robot frame."""
@@ -76,9 +87,7 @@ class CameraModel:
 
     def ground_to_image_homography(self) -> FloatArray:
         """H mapping floor points (x, y, 1) in the robot frame to UNDISTORTED pixels (u, v, 1)."""
-        rot = self.rotation_robot_to_camera()
-        t = -rot @ self.position_robot()
-        return self.camera_matrix() @ np.column_stack([rot[:, 0], rot[:, 1], t])
+        return self.ground.floor_to_image_h.copy()
 
     def project_ground(self, points_xy: FloatArray, distort: bool = True) -> FloatArray:
         """Floor points (N, 2), robot frame -> pixels (N, 2); points behind the camera -> NaN."""
@@ -107,18 +116,11 @@ class CameraModel:
         u, v = np.meshgrid(
             np.arange(self.width_px, dtype=np.float64), np.arange(self.height_px, dtype=np.float64)
         )
-        pix = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+        pix: FloatArray = np.stack([u.ravel(), v.ravel()], axis=1)
         if distorted:
-            norm = cv2.undistortPoints(pix, self.camera_matrix(), self.distortion()).reshape(-1, 2)
-        else:
-            k_inv = np.linalg.inv(self.camera_matrix())
-            norm = (k_inv @ np.column_stack([pix.reshape(-1, 2), np.ones(pix.shape[0])]).T).T[:, :2]
-        rays_cam = np.column_stack([norm, np.ones(len(norm))])
-        rays_robot = (self.rotation_robot_to_camera().T @ rays_cam.T).T
-        origin = self.position_robot()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale = -origin[2] / rays_robot[:, 2]
-        scale[~(rays_robot[:, 2] < -1e-9)] = np.nan
-        ground = origin[:2] + rays_robot[:, :2] * scale[:, None]
+            k = self.camera_matrix()
+            pix = np.asarray(cv2.undistortPoints(pix.reshape(-1, 1, 2), k, self.distortion(),
+                                                 P=k), dtype=np.float64).reshape(-1, 2)
+        ground = self.ground.image_to_floor(pix)
         shape = (self.height_px, self.width_px)
         return ground[:, 0].reshape(shape), ground[:, 1].reshape(shape)

@@ -1,0 +1,203 @@
+"""The ground model: where the floor is in the image, in metres, for one camera at one image size.
+
+A camera's intrinsics (K, from the chessboard calibration) and its pose over the floor give the
+homography between the floor plane and the UNDISTORTED image, the horizon, and the size of a
+pixel on the floor anywhere in the image. Perception uses it to judge tape and seams in metres,
+so the same rules hold on any camera; the simulator's camera uses the same math to render.
+
+Frames (ROS REP 103):
+- robot frame: x forward, y left, z up, metres; origin on the floor under the robot's centre
+  (base_footprint).
+- camera frame (OpenCV): x right, y down, z along the optical axis.
+- image: pixels of the undistorted image, origin top-left, u right, v down.
+
+Pose angles follow the right-hand rule about the robot's axes, applied to a level camera looking
+along +x: `yaw_deg` about z (left +), then `pitch_deg` about the camera's left axis (nose DOWN +,
+as REP 103's pitch about +y), then `roll_deg` about the optical axis (left side up +).
+
+Pure geometry: no clock, no I/O, no distortion (undistort first; the simulator's renderer adds
+distortion on top of this model).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: The camera perception assumes when there is no ground calibration: the simulator's default
+#: camera (a cheap ~70 deg USB camera 0.40 m above the floor, pitched 35 deg down, 0.15 m ahead of
+#: the robot's centre). scenarios.camera.CameraModel's defaults are these.
+DEFAULT_HFOV_DEG = 70.0
+DEFAULT_POSE_HEIGHT_M = 0.40
+DEFAULT_POSE_PITCH_DEG = 35.0
+DEFAULT_POSE_FORWARD_M = 0.15
+
+#: A ray closer than this to parallel with the floor (z component of its unit direction in the
+#: robot frame) counts as looking at or above the horizon: it meets no floor in front of us.
+_MIN_DOWN_COMPONENT = 1e-9
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """The camera's rigid pose on the robot, relative to base_footprint.
+
+    `height_m`: optical centre above the floor (> 0). `forward_m`, `lateral_m`: its x, y in the
+    robot frame. Angles in degrees as described in the module docstring.
+    """
+
+    height_m: float
+    pitch_deg: float
+    roll_deg: float = 0.0
+    yaw_deg: float = 0.0
+    forward_m: float = 0.0
+    lateral_m: float = 0.0
+
+    def rotation_robot_to_camera(self) -> FloatArray:
+        """R such that p_cam = R @ (p_robot - position)."""
+        yaw, pitch, roll = (math.radians(a) for a in (self.yaw_deg, self.pitch_deg,
+                                                        self.roll_deg))
+        # robot axes -> a level camera looking along +x: cam x = -y, cam y = -z, cam z = x
+        level = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        undo_yaw = np.array([[cy, sy, 0.0], [-sy, cy, 0.0], [0.0, 0.0, 1.0]])
+        # nose down by `pitch` = a rotation about the camera's x axis (which points right)
+        cp, sp = math.cos(pitch), math.sin(pitch)
+        pitch_m = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+        # left side up by `roll` = the image content turns clockwise about the optical axis
+        cr, sr = math.cos(roll), math.sin(roll)
+        roll_m = np.array([[cr, sr, 0.0], [-sr, cr, 0.0], [0.0, 0.0, 1.0]])
+        return roll_m @ pitch_m @ level @ undo_yaw
+
+    def position(self) -> FloatArray:
+        """The optical centre in the robot frame, metres."""
+        return np.array([self.forward_m, self.lateral_m, self.height_m])
+
+
+class GroundModel:
+    """Floor <-> undistorted image for one camera (K, pose) at one image size.
+
+    - `floor_to_image` / `image_to_floor`: points (N, 2) <-> (N, 2); NaN where there is no
+      answer (a floor point behind the camera; a pixel at or above the horizon).
+    - `horizon_v(u)`: the image row of the horizon at column u (the line the floor converges to).
+    - `metres_per_px_across(u, v)`: how much floor, in metres, one pixel step along the image
+      row covers at (u, v) (NaN at or above the horizon). The scale every metric threshold in
+      perception is turned into pixels with.
+    - `pixel_at(x_m, y_m)`: where a floor point lands, as a float pixel.
+    """
+
+    def __init__(self, camera_matrix: FloatArray, pose: CameraPose,
+                 image_size: tuple[int, int]) -> None:
+        k = np.asarray(camera_matrix, dtype=np.float64).reshape(3, 3)
+        if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0):
+            raise ValueError(f"camera matrix must be finite with positive focal lengths, got {k}")
+        if not (math.isfinite(pose.height_m) and pose.height_m > 0):
+            raise ValueError(f"camera height must be above the floor, got {pose.height_m} m")
+        self.camera_matrix = k
+        self.pose = pose
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+        self.rotation = pose.rotation_robot_to_camera()
+        self.position = pose.position()
+        t = -self.rotation @ self.position
+        # floor (x, y, 1) -> undistorted pixel (u, v, 1) up to scale
+        self.floor_to_image_h = k @ np.column_stack([self.rotation[:, 0], self.rotation[:, 1], t])
+        self.image_to_floor_h = np.linalg.inv(self.floor_to_image_h)
+        self._k_inv = np.linalg.inv(k)
+        # horizon: pixels whose ray has no z component in the robot frame
+        up_in_camera = self.rotation @ np.array([0.0, 0.0, 1.0])
+        self.horizon_line = self._k_inv.T @ up_in_camera  # (a, b, c): a u + b v + c = 0
+
+    @classmethod
+    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int],
+                 pose: CameraPose) -> GroundModel:
+        """An ideal pinhole (square pixels, centred principal point) with this horizontal FOV."""
+        return cls(camera_matrix_for_fov(hfov_deg, image_size), pose, image_size)
+
+    def scaled_to(self, image_size: tuple[int, int]) -> GroundModel:
+        """The same camera and pose at another image size (K scaled per axis)."""
+        sx = image_size[0] / self.image_size[0]
+        sy = image_size[1] / self.image_size[1]
+        k = np.diag([sx, sy, 1.0]) @ self.camera_matrix
+        return GroundModel(k, self.pose, image_size)
+
+    # ---- projections --------------------------------------------------------------------------
+    def floor_to_image(self, points_xy: FloatArray) -> FloatArray:
+        """Floor points (N, 2), robot frame, metres -> undistorted pixels (N, 2); behind the
+        camera -> NaN."""
+        pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+        hom = np.column_stack([pts, np.ones(len(pts))]) @ self.floor_to_image_h.T
+        out = np.full((len(pts), 2), np.nan)
+        ahead = hom[:, 2] > 1e-12
+        out[ahead] = hom[ahead, :2] / hom[ahead, 2:3]
+        return out
+
+    def image_to_floor(self, points_px: FloatArray) -> FloatArray:
+        """Undistorted pixels (N, 2) -> floor points (N, 2), robot frame, metres; pixels at or
+        above the horizon -> NaN."""
+        pix = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+        rays_cam = np.column_stack([pix, np.ones(len(pix))]) @ self._k_inv.T
+        rays_robot = rays_cam @ self.rotation  # R^T applied to each row
+        norms = np.linalg.norm(rays_robot, axis=1)
+        down = rays_robot[:, 2] < -_MIN_DOWN_COMPONENT * norms
+        out = np.full((len(pix), 2), np.nan)
+        scale = -self.position[2] / rays_robot[down, 2]
+        out[down] = self.position[:2] + rays_robot[down, :2] * scale[:, None]
+        return out
+
+    def pixel_at(self, x_m: float, y_m: float) -> tuple[float, float]:
+        u, v = self.floor_to_image(np.array([[x_m, y_m]]))[0]
+        return float(u), float(v)
+
+    # ---- scale and horizon --------------------------------------------------------------------
+    def horizon_v(self, u: float | None = None) -> float:
+        """Row of the horizon at column `u` (default: the image centre); +inf when the camera
+        looks straight down (no horizon), -inf/+inf as the line is vertical (roll near 90 deg)."""
+        a, b, c = self.horizon_line
+        u = self.image_size[0] / 2.0 if u is None else u
+        if abs(b) < 1e-12:
+            return math.inf
+        return float(-(a * u + c) / b)
+
+    def metres_per_px_across(self, u: float, v: float) -> float:
+        """Floor distance covered by one pixel step along the row at (u, v), metres."""
+        a, b = self.image_to_floor(np.array([[u - 0.5, v], [u + 0.5, v]]))
+        return float(np.linalg.norm(a - b))
+
+    def metres_per_px_along(self, u: float, v: float) -> float:
+        """Floor distance covered by one pixel step down the column at (u, v), metres."""
+        a, b = self.image_to_floor(np.array([[u, v - 0.5], [u, v + 0.5]]))
+        return float(np.linalg.norm(a - b))
+
+    def row_at_distance(self, x_m: float) -> float:
+        """The image row where the floor point straight ahead at forward distance `x_m` lands
+        (NaN when it is behind the camera)."""
+        return self.pixel_at(x_m, self.pose.lateral_m)[1]
+
+    def distance_at_row(self, v: float) -> float:
+        """Forward distance (robot x) of the floor seen at row `v` in the image centre column;
+        NaN at or above the horizon."""
+        return float(self.image_to_floor(np.array([[self.image_size[0] / 2.0, v]]))[0, 0])
+
+
+def default_pose() -> CameraPose:
+    return CameraPose(height_m=DEFAULT_POSE_HEIGHT_M, pitch_deg=DEFAULT_POSE_PITCH_DEG,
+                      forward_m=DEFAULT_POSE_FORWARD_M)
+
+
+def default_ground_model(image_size: tuple[int, int]) -> GroundModel:
+    """The ground model of the simulator's default camera at `image_size` (used when a camera
+    has no ground calibration; callers say so once)."""
+    return GroundModel.from_fov(DEFAULT_HFOV_DEG, image_size, default_pose())
+
+
+def camera_matrix_for_fov(hfov_deg: float, image_size: tuple[int, int]) -> FloatArray:
+    """K of an ideal pinhole with square pixels and the principal point at the image centre."""
+    if not (0.0 < hfov_deg < 180.0):
+        raise ValueError(f"horizontal field of view must be within 0..180 deg, got {hfov_deg}")
+    width, height = image_size
+    f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+    return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
