@@ -88,7 +88,7 @@ class SupervisedController:
                 events |= self._estimate.events
                 innovation = self._estimate.innovation
                 if lane.slope_sum is not None:
-                    self._center.step(obs.time_s, obs.center_offset)
+                    self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
                 if lane.usable:
                     self._lane_seen_at_s = obs.time_s
                 frame_confident = lane.confident and self._estimate.accepted

@@ -5,12 +5,21 @@ soon as it is known (a bad image later in the list never loses the results alrea
 Images are analysed independently (no `previous`, so `consistency` is neutral). With `--json`
 each line is one JSON object:
 
-    {"image", "left", "right", "slope_sum", "confidence", "components", "decision"}
+    {"image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_rad", "confidence",
+     "components", "decision"}
 
-`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope"} (pixels of the analysed, i.e.
-undistorted, image; slope in the lecture's y-up convention). `decision`: "straight", "left",
-"right" or "none" (below `perception.confidence.min_confidence`, or an edge missing).
+`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad"} (pixels of
+the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the edge's line on
+the floor in the robot frame). `lane_offset_m` / `lane_heading_rad`: the lane centre line's
+signed distance from the robot's centre (left +) and direction (left +), null without both edges.
+`decision`: "straight", "left", "right" or "none" (low confidence, or an edge missing).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
+
+Perception sees the floor through a ground model; one line on stderr says which one (the
+simulator's default camera unless a ground calibration says otherwise) and what a pixel covers at
+the look-ahead. A config this camera cannot work with (`PerceptionConfigError`: the floor region
+or the look-ahead out of view, tape and seams not separable at the look-ahead) is a config error:
+one line, exit code 2.
 
 Unusable images (missing, empty, not an image, a folder, wrong size for the calibration) are
 skipped and reported together at the end as one error line naming each file; the exit code is
@@ -29,11 +38,18 @@ import cv2
 from lanewarden.commands.calibrate import check_output_folder, read_image
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from lanewarden.perception.calibration import Undistorter, load_calibration
+from lanewarden.errors import ConfigError
+from lanewarden.perception.calibration import CameraCalibration, Undistorter, load_calibration
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.decision import decide
 from lanewarden.perception.detector import LaneDetector
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
+from lanewarden.perception.ground import (
+    DEFAULT_HFOV_DEG,
+    GroundModel,
+    default_ground_model,
+    default_pose,
+)
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 
@@ -46,6 +62,8 @@ def result_json(image: str, observation: LaneObservation, decision: str) -> dict
         "left": full["left"],
         "right": full["right"],
         "slope_sum": full["slope_sum"],
+        "lane_offset_m": full["lane_offset_m"],
+        "lane_heading_rad": full["lane_heading_rad"],
         "confidence": full["confidence"],
         "components": full["components"],
         "decision": decision,
@@ -72,6 +90,16 @@ def _emit(line: str) -> None:
     sys.stdout.flush()
 
 
+def ground_model(calibration: CameraCalibration | None) -> tuple[GroundModel, str]:
+    """The ground model perception uses and how to name it. Without a ground calibration: the
+    simulator's default camera pose (with the calibration's intrinsics when one is given)."""
+    if calibration is None:
+        return (default_ground_model((640, 480)),
+                f"the simulator's default camera ({DEFAULT_HFOV_DEG:g} deg lens; no --calibration)")
+    ground = GroundModel(calibration.camera_matrix, default_pose(), calibration.image_size)
+    return ground, "the calibration's intrinsics with the default camera pose (no ground pose)"
+
+
 @click.command("detect")
 @click.argument("images", nargs=-1, required=True, type=click.Path(), metavar="IMAGE...")
 @config_option
@@ -93,14 +121,22 @@ def detect_command(
     """
     config: PerceptionConfig = load_config(config_path).perception
     undistorter = None
+    calibration = None
     if calibration_path is not None:
-        undistorter = Undistorter(load_calibration(calibration_path))
+        calibration = load_calibration(calibration_path)
+        undistorter = Undistorter(calibration)
     out = None
     if out_dir is not None:
         out = Path(out_dir)
         check_output_folder(out)
         out.mkdir(exist_ok=True)
-    detector = LaneDetector(config, undistorter)
+    ground, source = ground_model(calibration)
+    try:
+        detector = LaneDetector(config, undistorter, ground)
+    except PerceptionConfigError as exc:
+        raise ConfigError(str(exc)) from None
+    setup = detector.setup_for(*ground.image_size)
+    click.echo(f"lanewarden: ground model: {source}: {setup.describe()}", err=True)
     failures: list[str] = []
     for index, name in enumerate(images):
         path = Path(name)
