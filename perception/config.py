@@ -332,6 +332,16 @@ class PerceptionConfig(BaseModel):
         return self
 
     @model_validator(mode="after")
+    def _look_ahead_inside_roi(self) -> Self:
+        look, roi = self.edges.look_ahead_m, self.roi
+        if not roi.near_m <= look <= roi.far_m:
+            raise ValueError(
+                f"edges.look_ahead_m ({look:g}) must lie within the region of interest, "
+                f"roi.near_m ({roi.near_m:g}) to roi.far_m ({roi.far_m:g})"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _lane_wider_than_two_tapes(self) -> Self:
         if self.lane.width_m <= 2.0 * self.tape.width_m:
             raise ValueError(

@@ -6,7 +6,10 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
 1. Verified tapes. Two candidate lines of nearly the same direction (`pair_angle_tol_deg`) and
    opposite polarity are the two edges of one tape when their distance ON THE FLOOR, measured
    at the nearest row both reach (the best resolved) through the ground model, scores as tape
-   rather than seam (`perception.tape_rules.tape_width_score`) and the band between them looks
+   rather than seam (`perception.tape_rules.tape_width_score` at least
+   MIN_VERIFIED_WIDTH_SCORE: nearer the tape's width than the widest seam's), measured no
+   farther than the look-ahead (where the start-up check guarantees the camera can tell), and
+   the band between them looks
    like tape (`perception.tape_rules.band_is_tape`). Dark tape on a light floor (-1, +1) and
    light tape on a dark floor (+1, -1) both count; dashed tape too (its dashes merge into one
    line per edge, see `perception.lines`).
@@ -58,6 +61,9 @@ _MAX_CHAIN_STEPS = 8
 _MAX_TAPE_CHECKS = 4
 #: Verified tapes kept per side for the joint choice.
 _MAX_TAPES_KEPT = 3
+#: A pair verifies a tape only when its width is nearer the tape than the widest seam (the
+#: middle of the width score's ramp between the two hypotheses).
+MIN_VERIFIED_WIDTH_SCORE = 0.5
 _MAX_SINGLE_CHECKS = 3
 
 
@@ -174,16 +180,19 @@ def verified_tapes(
     config: PerceptionConfig,
 ) -> list[TapeCandidate]:
     """The verified tapes among one side's candidates, closest to the tape's width first (at
-    most _MAX_TAPES_KEPT; only the _MAX_TAPE_CHECKS best widths are band-checked)."""
+    most _MAX_TAPES_KEPT; only the _MAX_TAPE_CHECKS best widths are band-checked). A pair is
+    only measured up to the look-ahead distance: there the camera is known to resolve tape from
+    seam (checked at start-up); farther on, pixels grow and a seam may measure as tape."""
     angle_tol = config.tape.pair_angle_tol_deg
     tape_width = config.tape.width_m
+    look_ahead = config.edges.look_ahead_m
     measured: list[tuple[float, TapeCandidate, float, float]] = []
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
             if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
                 continue
             pair = measure_pair(a, b, side, view, config)
-            if pair is None or pair[2] <= 0.0:
+            if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
                 continue
             inner, outer, score, width_m, at = pair
             dark = (inner.polarity > 0) == (side == "left")
@@ -351,9 +360,12 @@ def _extend(
     A continuation starts about where the current line stops (overlapping it by at most a
     quarter of the gap), or, when it overlaps more, lies on it across the overlap (within
     `on_line_px`: the same edge split by Hough). A line running alongside at a few pixels is a
-    neighbour (a seam beside a tape edge), not the same edge."""
+    neighbour (a seam beside a tape edge), not the same edge. Across a gap, the step from one
+    line's end to the next one's must itself run within `max_turn` of the current direction: a
+    bending edge continues forwards, it does not jump sideways onto a seam beside it."""
     found: list[LineRow] = []
     overlap = 0.25 * gap
+    min_cos = math.cos(math.radians(max_turn))
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
@@ -364,16 +376,21 @@ def _extend(
                 if r.far_y >= current.far_y - 1.0:
                     continue
                 shared = r.near_y - current.far_y  # rows both lines cover
-                dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
+                step_x, step_y = r.near_x - current.far_x, r.near_y - current.far_y
+                forward = current.ux * step_x + current.uy * step_y
             else:
                 if r.near_y <= current.near_y + 1.0:
                     continue
                 shared = current.near_y - r.far_y
-                dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
+                step_x, step_y = r.far_x - current.near_x, r.far_y - current.near_y
+                forward = -(current.ux * step_x + current.uy * step_y)
+            dist = math.hypot(step_x, step_y)
             if shared > overlap:
                 mid = (current.far_y + shared / 2.0) if away else (current.near_y - shared / 2.0)
                 if abs(r.x_at(mid) - current.x_at(mid)) > on_line_px:
                     continue
+            elif dist > 2.0 * on_line_px and forward < min_cos * dist:
+                continue
             if dist <= best_dist:
                 best, best_dist = r, dist
         if best is None:

@@ -10,9 +10,10 @@ ends, the lecture's pipeline follows tile seams; these rules are what refuse the
    falling back to 0 above the widest tape. Where the two hypotheses overlap (far away, coarse
    pixels) nothing scores: the camera cannot tell, so nothing passes as tape.
 2. Band (`band_is_tape`): between the two edges a uniform band, darker (or lighter) than the floor
-   just outside BOTH edges by more than those two floor samples differ from each other. A strip
-   of floor between a seam and a tape fails (one "outside" is tape), so does a band with a tape
-   edge inside it (not uniform).
+   beyond BOTH edges by more than those two floor samples differ from each other. A band with a
+   tape edge inside it fails (not uniform), so does a floor strip with tape on one side and floor
+   on the other. (A light strip between a dark tape and a wide seam does look like a light tape:
+   the choice of tapes rejects it, both tapes of a lane being of one kind.)
 3. Profile of a lone edge (`tape_profile_fraction`): an edge whose partner Hough missed is
    checked by the brightness across it, where the tape's other side would be on the floor
    (`width_m` outwards). It can make the edge a tape edge, never a verified tape: only a pair
@@ -98,10 +99,12 @@ def band_is_tape(
     tape: TapeConfig,
 ) -> bool:
     """Whether the band between lines a and b (image rows y_lo..y_hi) looks like tape: along
-    enough of it, the band (at a quarter, half and three quarters across) differs from the floor
-    just outside BOTH edges (half a band width out) by more than `min_contrast_levels`, all in
-    the same direction; the band varies across, and the floor differs between its two sides, by
-    less than that step. Samples whose outside points are all outside the image don't count
+    enough of it, the band (at a quarter, half and three quarters across) is darker (or
+    lighter) than the floor beyond BOTH edges by more than `min_contrast_levels`; the band
+    varies across, and the floor differs between its two sides, by less than that step. The
+    floor beyond each edge is read 0.3 and 0.6 band widths out and the more floor-like of the
+    two counts (the lighter one beside a dark band), so a seam running close beside a tape does
+    not hide the floor. Samples whose outside points are all outside the image don't count
     against it; at least `min_band_fraction` of the others must look like tape."""
     height, width = smooth_gray.shape[:2]
     n = tape.polarity_samples
@@ -114,20 +117,26 @@ def band_is_tape(
         xa = a.x_at(y)
         xb = b.x_at(y)
         lo, hi = (xa, xb) if xa < xb else (xb, xa)
-        half = 0.5 * (hi - lo)
-        band = [float(row[min(width - 1, max(0, int(lo + f * (hi - lo) + 0.5)))])
+        w = hi - lo
+        band = [float(row[min(width - 1, max(0, int(lo + f * w + 0.5)))])
                 for f in (0.25, 0.5, 0.75)]
-        outside = [
-            float(row[int(x + 0.5)]) for x in (lo - half, hi + half) if 0.0 <= x <= width - 1.0
+        sides = [
+            [float(row[int(x + 0.5)]) for x in xs if 0.0 <= x <= width - 1.0]
+            for xs in ((lo - 0.3 * w, lo - 0.6 * w), (hi + 0.3 * w, hi + 0.6 * w))
         ]
-        if not outside:
+        sides = [values for values in sides if values]
+        if not sides:
             continue
         seen += 1
         spread = max(band) - min(band)
-        step = max(min(outside) - max(band), min(band) - max(outside))
-        floor_gap = max(outside) - min(outside)  # the floor on both sides is one floor
-        if step > c and spread < step and floor_gap < step:
-            tape_like += 1
+        lighter = [max(values) for values in sides]  # the floor beside a dark band
+        darker = [min(values) for values in sides]  # the floor beside a light band
+        for floor, step in ((lighter, min(lighter) - max(band)),
+                            (darker, min(band) - max(darker))):
+            floor_gap = max(floor) - min(floor)  # the floor on both sides is one floor
+            if step > c and spread < step and floor_gap < step:
+                tape_like += 1
+                break
     return seen > 0 and tape_like >= tape.min_band_fraction * seen
 
 

@@ -34,6 +34,7 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("lane: {horizon_y_norm: 0.3}", "unknown key 'perception.lane.horizon_y_norm'"),
         ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
         ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1"),
+        ("edges: {look_ahead_m: 2.0}", "edges.look_ahead_m (2) must lie within the region of"),
         ("confidence: {min_confidence: 1.5}", "perception.confidence.min_confidence = 1.5"),
         ("confidence: {weights: {tape_pair: -1}}", "perception.confidence.weights.tape_pair"),
         ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),

@@ -35,9 +35,9 @@ def observation(
     confidence: float = 0.9,
     left: bool = True,
     right: bool = True,
-    center_offset: float = 0.0,
+    lane_offset_m: float = 0.0,
 ) -> LaneObservation:
-    """A well-formed observation (slope sum and centre offset only when both edges exist)."""
+    """A well-formed observation (slope sum and lane centre only when both edges exist)."""
     both = left and right
     return LaneObservation(
         frame_index=index,
@@ -46,7 +46,8 @@ def observation(
         right=RIGHT_EDGE if right else None,
         slope_sum=slope_sum if both else None,
         confidence=confidence,
-        center_offset=center_offset if both else None,
+        lane_offset_m=lane_offset_m if both else None,
+        lane_heading_rad=0.0 if both else None,
     )
 
 
@@ -76,7 +77,7 @@ class Rig:
         confidence: float = 0.9,
         left: bool = True,
         right: bool = True,
-        center_offset: float = 0.0,
+        lane_offset_m: float = 0.0,
         new_frame: bool = True,
         latency_s: float = 0.0,
         obs: object = _UNSET,
@@ -105,7 +106,7 @@ class Rig:
                     confidence=confidence,
                     left=left,
                     right=right,
-                    center_offset=center_offset,
+                    lane_offset_m=lane_offset_m,
                 )
             else:
                 assert obs is None or isinstance(obs, LaneObservation)
