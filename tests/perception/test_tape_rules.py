@@ -151,9 +151,13 @@ def test_a_pair_is_measured_on_the_floor(
         ([(0.276, 0.324, DARK)], (0.276, 0.324), True),
         # a light tape on the same floor
         ([(0.276, 0.324, 250)], (0.276, 0.324), True),
-        # the floor strip between a 24 mm seam (0.200..0.224) and that tape: one "outside" is
-        # tape, the other floor
-        ([(0.200, 0.224, 90), (0.276, 0.324, DARK)], (0.224, 0.276), False),
+        # a 12 mm seam runs 14 mm beside the tape: the floor beyond the seam still counts
+        ([(0.250, 0.262, 90), (0.276, 0.324, DARK)], (0.276, 0.324), True),
+        # the floor strip between a 4 mm seam (0.220..0.224) and the tape: tape on one side,
+        # floor on the other
+        ([(0.220, 0.224, 90), (0.276, 0.324, DARK)], (0.224, 0.276), False),
+        # the floor strip beside the tape, nothing on its other side
+        ([(0.276, 0.324, DARK)], (0.224, 0.276), False),
         # a band with the tape's edge inside it (not uniform)
         ([(0.276, 0.324, DARK)], (0.250, 0.300), False),
         # too little contrast (5 grey levels, min_contrast_levels 8)
