@@ -253,7 +253,7 @@ def _side_choice(
     height, width = smooth_gray.shape[:2]
     size = (width, height)
     if tape is not None:
-        chain = _follow_edge(rows, tape.inner.line_id, size, config)
+        chain = follow_edge(rows, tape.inner.line_id, size, config)
         partner: int | None = tape.outer.line_id
         verified, score, width_m = True, tape.score, tape.width_m
     else:
@@ -288,7 +288,7 @@ def _best_single(
     preference = config.tape.unpaired_preference
     best: tuple[float, tuple[int, ...], float] | None = None
     for line in singles[:_MAX_SINGLE_CHECKS]:
-        chain = _follow_edge(rows, line.line_id, (width, height), config)
+        chain = follow_edge(rows, line.line_id, (width, height), config)
         support = sum(rows[k].support_px for k in chain)
         if best is not None and support <= best[0]:
             continue  # cannot win even as a perfect tape edge: skip the profile
@@ -329,7 +329,7 @@ def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tu
     return far.far_x, far.far_y
 
 
-def _follow_edge(
+def follow_edge(
     rows: list[LineRow], start: int, size: tuple[int, int], config: PerceptionConfig
 ) -> tuple[int, ...]:
     """The chain of lines continuing `start` away from the robot and towards it: same polarity,

@@ -24,6 +24,7 @@ from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.edge_choice import (
     TapeCandidate,
+    follow_edge,
     measure_pair,
     pick_tapes,
     verified_tapes,
@@ -255,6 +256,35 @@ def test_tapes_are_ranked_by_closeness_to_the_tape_width_not_by_length() -> None
     found = verified_tapes(lines, picture, "left", VIEW, CONFIG)
     assert [(t.inner.line_id, t.outer.line_id) for t in found] == [(0, 1), (2, 3)]
     assert found[0].score == 1.0 and found[1].score == pytest.approx(0.69, abs=0.02)
+
+
+@pytest.mark.parametrize(
+    ("band", "at_m", "found"),
+    [
+        ((0.276, 0.324), (0.55, 0.85), True),  # 48 mm, measured 0.55 m ahead
+        # 30 mm: nearer the widest seam (24 mm + error) than the tape: width score 0.35, no tape
+        ((0.276, 0.306), (0.55, 0.85), False),
+        # the 48 mm tape seen only 0.95-1.5 m ahead, beyond the look-ahead (0.87 m): the start-up
+        # check only guarantees tape and seam apart up to there
+        ((0.276, 0.324), (0.95, 1.5), False),
+    ],
+)
+def test_a_tape_is_verified_only_when_measured_clearly_and_near_enough(
+    band: tuple[float, float], at_m: tuple[float, float], found: bool
+) -> None:
+    picture = floor_picture([(band[0], band[1], DARK)])
+    lines = [along(band[0], 1.0, *at_m, line_id=0), along(band[1], -1.0, *at_m, line_id=1)]
+    assert bool(verified_tapes(lines, picture, "left", VIEW, CONFIG)) is found
+
+
+def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
+    """Hough pieces of one edge are chained across gaps; a piece of a seam 5 cm beside the edge,
+    whose end lies within the gap, is not the same edge."""
+    edge = floor_line((0.60, 0.30), (1.60, 0.32), 1.0, line_id=0)
+    nearer_piece = floor_line((0.40, 0.296), (0.52, 0.298), 1.0, line_id=1)
+    seam_beside = floor_line((0.39, 0.25), (0.50, 0.25), 1.0, line_id=2)
+    assert follow_edge([edge, nearer_piece], 0, (640, 480), CONFIG) == (1, 0)
+    assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
 
 
 def _tape(inner_y: float, outer_y: float, dark: bool = True) -> TapeCandidate:
