@@ -278,11 +278,11 @@ def test_a_tape_is_verified_only_when_measured_clearly_and_near_enough(
 
 
 def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
-    """Hough pieces of one edge are chained across gaps; a piece of a seam 5 cm beside the edge,
-    whose end lies within the gap, is not the same edge."""
+    """Hough pieces of one edge are chained across gaps; a piece of a seam 3 cm beside the edge,
+    whose end lies within the gap (29 px from the edge's near end), is not the same edge."""
     edge = floor_line((0.60, 0.30), (1.60, 0.32), 1.0, line_id=0)
     nearer_piece = floor_line((0.40, 0.296), (0.52, 0.298), 1.0, line_id=1)
-    seam_beside = floor_line((0.39, 0.25), (0.50, 0.25), 1.0, line_id=2)
+    seam_beside = floor_line((0.45, 0.27), (0.55, 0.27), 1.0, line_id=2)
     assert follow_edge([edge, nearer_piece], 0, (640, 480), CONFIG) == (1, 0)
     assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
 
