@@ -192,7 +192,7 @@ class LaneDetector:
         state = self.setup_for(width, height)
         segments = self._segments(image, state)
         config = self.config
-        lines = build_line_set(segments, state.smooth, state.y_bottom, state.ground, config.edges,
+        lines = build_line_set(segments, state.smooth, state.y_bottom, state.view, config.edges,
                                config.tape)
         rows = lines.rows()
         left, right = choose_edges(rows, state.smooth, state, config)

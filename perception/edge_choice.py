@@ -65,6 +65,9 @@ _MAX_TAPES_KEPT = 3
 #: middle of the width score's ramp between the two hypotheses).
 MIN_VERIFIED_WIDTH_SCORE = 0.5
 _MAX_SINGLE_CHECKS = 3
+#: A lone line's chain is assumed at most this many times as long as the line itself when
+#: deciding whether it is worth following and checking (singles come strongest first).
+_CHAIN_BONUS_LIMIT = 4.0
 
 
 @dataclass(frozen=True)
@@ -164,7 +167,7 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
     at = view.to_floor(u, y_hi)
     o_near = (outer.near_fx, outer.near_fy)
     o_dir = direction(o_near, (outer.far_fx, outer.far_fy))
-    if not all(math.isfinite(v) for v in (*at, *o_near, *o_dir)) or o_dir == (0.0, 0.0):
+    if not math.isfinite(sum((*at, *o_near, *o_dir))) or o_dir == (0.0, 0.0):
         return None
     width_m = distance_to_line(at, o_near, o_dir)
     m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]))
@@ -182,7 +185,10 @@ def verified_tapes(
     """The verified tapes among one side's candidates, closest to the tape's width first (at
     most _MAX_TAPES_KEPT; only the _MAX_TAPE_CHECKS best widths are band-checked). A pair is
     only measured up to the look-ahead distance: there the camera is known to resolve tape from
-    seam (checked at start-up); farther on, pixels grow and a seam may measure as tape."""
+    seam (checked at start-up); farther on, pixels grow and a seam may measure as tape. Pairs
+    whose lines lie less than a third or more than three tape widths apart on the floor (from
+    one's near end) are skipped before being measured (a cheap filter: the measurement
+    decides)."""
     angle_tol = config.tape.pair_angle_tol_deg
     tape_width = config.tape.width_m
     look_ahead = config.edges.look_ahead_m
@@ -190,6 +196,12 @@ def verified_tapes(
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
             if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
+                continue
+            # Distance from a's near end to b's line on the floor (not yet where they are
+            # measured): a third to three tape widths, or no tape.
+            bx, by = b.far_fx - b.near_fx, b.far_fy - b.near_fy
+            rough = abs(bx * (a.near_fy - b.near_fy) - by * (a.near_fx - b.near_fx))
+            if not tape_width / 3.0 <= rough / max(math.hypot(bx, by), 1e-9) <= 3.0 * tape_width:
                 continue
             pair = measure_pair(a, b, side, view, config)
             if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
@@ -288,6 +300,8 @@ def _best_single(
     preference = config.tape.unpaired_preference
     best: tuple[float, tuple[int, ...], float] | None = None
     for line in singles[:_MAX_SINGLE_CHECKS]:
+        if best is not None and line.support_px * _CHAIN_BONUS_LIMIT <= best[0]:
+            break  # even a chain of four times its own length could not win
         chain = follow_edge(rows, line.line_id, (width, height), config)
         support = sum(rows[k].support_px for k in chain)
         if best is not None and support <= best[0]:

@@ -16,10 +16,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
 from lanewarden.perception.ground import GroundModel
 
 Point = tuple[float, float]
+FloatArray = NDArray[np.float64]
 
 #: A pixel whose ray meets the floor at a homogeneous scale below this is at or above the
 #: horizon (no floor there).
@@ -59,6 +61,15 @@ class FloorView:
         w = h[6] * u + h[7] * v + h[8]
         if w * self._below_sign <= _MIN_SCALE:
             return math.nan, math.nan
+        return (h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w
+
+    def to_floor_many(self, u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """`to_floor` for arrays of pixels (one homography product; NaN at or above the
+        horizon)."""
+        h = self._to_floor
+        w = h[6] * u + h[7] * v + h[8]
+        valid = w * self._below_sign > _MIN_SCALE
+        w = np.where(valid, w, np.nan)
         return (h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w
 
     def metres_per_px_across(self, u: float, v: float, du: float, dv: float,

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from lanewarden.perception.config import EdgesConfig
 from lanewarden.perception.floor_config import TapeConfig
-from lanewarden.perception.ground import GroundModel
+from lanewarden.perception.floor_view import FloorView
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -135,7 +135,7 @@ def build_line_set(
     segments: NDArray[np.int32] | None,
     smooth_gray: NDArray[np.uint8],
     y_bottom: float,
-    ground: GroundModel,
+    floor: FloorView,
     edges: EdgesConfig,
     tape: TapeConfig,
 ) -> LineSet:
@@ -144,7 +144,7 @@ def build_line_set(
     Near-horizontal segments are dropped. The remaining ones are clustered greedily, longest
     first: a segment joins a longer one's line when its direction is within
     `cluster_angle_tol_deg` and its midpoint lies within `cluster_offset_frac_of_width` of that
-    line (collinear pieces: Hough's broken edge, dashes of one tape). `ground` is the ground
+    line (collinear pieces: Hough's broken edge, dashes of one tape). `floor` is the ground
     model of this image size (undistorted pixels).
     """
     if segments is None or len(segments) == 0:
@@ -222,9 +222,10 @@ def build_line_set(
     line_angle = np.degrees(np.arctan2(-luy, lux))
     x_bottom = lcx + (y_bottom - lcy) * lux / np.minimum(luy, -1e-9)
     polarity = _polarity(smooth_gray, near_x, near_y, far_x, far_y, lux, luy, tape)
-    ends = ground.image_to_floor(
-        np.column_stack([np.concatenate([near_x, far_x]), np.concatenate([near_y, far_y])])
-    )
+    ends_x, ends_y = floor.to_floor_many(np.concatenate([near_x, far_x]),
+                                         np.concatenate([near_y, far_y]))
+    near_fx, far_fx = ends_x[:n_lines], ends_x[n_lines:]
+    near_fy, far_fy = ends_y[:n_lines], ends_y[n_lines:]
     return LineSet(
         angle_deg=line_angle,
         cx=lcx,
@@ -238,10 +239,10 @@ def build_line_set(
         support_px=w_sum,
         polarity=polarity,
         x_bottom=x_bottom,
-        near_fx=ends[:n_lines, 0],
-        near_fy=ends[:n_lines, 1],
-        far_fx=ends[n_lines:, 0],
-        far_fy=ends[n_lines:, 1],
+        near_fx=near_fx,
+        near_fy=near_fy,
+        far_fx=far_fx,
+        far_fy=far_fy,
         segment_label=label,
     )
 

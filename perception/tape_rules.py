@@ -214,7 +214,7 @@ def _outer_line(line: LineRow, side: Side, view: FloorView,
     side of its tape would be), or None when the line has no floor position."""
     a = (line.near_fx, line.near_fy)
     b = (line.far_fx, line.far_fy)
-    if not all(math.isfinite(v) for v in (*a, *b)):
+    if not math.isfinite(a[0] + a[1] + b[0] + b[1]):
         return None
     dx, dy = b[0] - a[0], b[1] - a[1]
     n = math.hypot(dx, dy)
