@@ -57,7 +57,7 @@ from lanewarden.perception.edge_choice import SideChoice, choose_edges
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.floor_view import direction, signed_offset
 from lanewarden.perception.geometry import Side, edge_slope
-from lanewarden.perception.ground import GroundModel, default_ground_model
+from lanewarden.perception.ground import GroundModel, default_ground_model, default_pose
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.size_setup import SizeSetup
@@ -92,10 +92,9 @@ class LaneDetector:
     """Finds the two lane edges in a frame and says how far to trust them.
 
     `ground`: the camera's ground model (undistorted pixels, any image size: it is scaled to each
-    frame's size); None: the simulator's default camera (`default_ground_model`) at the
-    undistorter's image size, or 640x480. Construction sets up the ground model's own image size
-    at once, so a config this camera cannot work with is refused here (`PerceptionConfigError`),
-    before any frame.
+    frame's size); None: `assumed_ground_model(undistorter)`. Construction sets up the ground
+    model's own image size at once, so a config this camera cannot work with is refused here
+    (`PerceptionConfigError`), before any frame.
 
     `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the last
     observation) only feeds the `consistency` confidence component; the detector keeps no
@@ -106,14 +105,11 @@ class LaneDetector:
                  ground: GroundModel | None = None) -> None:
         self.config = config
         self.undistorter = undistorter
-        if ground is None:
-            size = undistorter.image_size if undistorter is not None else (640, 480)
-            ground = default_ground_model(size)
-        self.ground = ground
+        self.ground = assumed_ground_model(undistorter) if ground is None else ground
         cv2.setNumThreads(config.opencv_threads)
         self._states: dict[tuple[int, int], SizeSetup] = {}
         self._theta_rad = math.radians(config.hough.theta_deg)
-        self.setup_for(*ground.image_size)
+        self.setup_for(*self.ground.image_size)
 
     # ------------------------------------------------------------------------------ public
 
@@ -291,6 +287,15 @@ class LaneDetector:
             offset_m=offset,
             heading_rad=heading,
         )
+
+
+def assumed_ground_model(undistorter: Undistorter | None) -> GroundModel:
+    """The ground model when the camera has no ground calibration: the simulator's default
+    camera pose, with the calibration's intrinsics when there is one (its undistorted image),
+    else the default camera's own (640x480)."""
+    if undistorter is None:
+        return default_ground_model((640, 480))
+    return GroundModel(undistorter.camera_matrix, default_pose(), undistorter.image_size)
 
 
 def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | None:

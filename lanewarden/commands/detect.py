@@ -42,14 +42,9 @@ from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration import CameraCalibration, Undistorter, load_calibration
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.decision import decide
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.detector import LaneDetector, assumed_ground_model
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
-from lanewarden.perception.ground import (
-    DEFAULT_HFOV_DEG,
-    GroundModel,
-    default_ground_model,
-    default_pose,
-)
+from lanewarden.perception.ground import DEFAULT_HFOV_DEG
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 
@@ -90,14 +85,11 @@ def _emit(line: str) -> None:
     sys.stdout.flush()
 
 
-def ground_model(calibration: CameraCalibration | None) -> tuple[GroundModel, str]:
-    """The ground model perception uses and how to name it. Without a ground calibration: the
-    simulator's default camera pose (with the calibration's intrinsics when one is given)."""
+def ground_source(calibration: CameraCalibration | None) -> str:
+    """How to name the ground model `assumed_ground_model` gives (no ground calibration)."""
     if calibration is None:
-        return (default_ground_model((640, 480)),
-                f"the simulator's default camera ({DEFAULT_HFOV_DEG:g} deg lens; no --calibration)")
-    ground = GroundModel(calibration.camera_matrix, default_pose(), calibration.image_size)
-    return ground, "the calibration's intrinsics with the default camera pose (no ground pose)"
+        return f"the simulator's default camera ({DEFAULT_HFOV_DEG:g} deg lens; no --calibration)"
+    return "the calibration's intrinsics with the default camera pose (no ground pose)"
 
 
 @click.command("detect")
@@ -130,13 +122,13 @@ def detect_command(
         out = Path(out_dir)
         check_output_folder(out)
         out.mkdir(exist_ok=True)
-    ground, source = ground_model(calibration)
     try:
-        detector = LaneDetector(config, undistorter, ground)
+        detector = LaneDetector(config, undistorter, assumed_ground_model(undistorter))
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    setup = detector.setup_for(*ground.image_size)
-    click.echo(f"lanewarden: ground model: {source}: {setup.describe()}", err=True)
+    setup = detector.setup_for(*detector.ground.image_size)
+    click.echo(f"lanewarden: ground model: {ground_source(calibration)}: {setup.describe()}",
+               err=True)
     failures: list[str] = []
     for index, name in enumerate(images):
         path = Path(name)
