@@ -15,8 +15,9 @@ Components (each in [0, 1], all reported in `LaneObservation.components`):
 - `verified_tape`: 1 when at least one side is a verified tape (two edges whose width on the
   floor is a tape's, with a tape's band between them), else 0. Always a full gate (no weight):
   edges nobody could check (at the image border) never make a lane confident on their own.
-- `consistency`: agreement with the previous observation (each edge's position and direction on
-  the floor), when one is given; 1 when there is none or nothing to compare (neutral).
+- `consistency`: agreement with the previous observation (each reported edge's position and
+  direction on the floor), when one is given; 1 when there is none or nothing to compare
+  (neutral).
 
 Combination (a weighted geometric product, weights in `confidence.weights`):
 
@@ -40,7 +41,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.floor_view import Point, distance_to_line
+from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 COMPONENT_NAMES = (
@@ -120,10 +121,13 @@ def consistency_component(
     left: LaneEdge | None,
     right: LaneEdge | None,
     previous: LaneObservation | None,
+    view: FloorView,
     config: PerceptionConfig,
 ) -> float:
-    """Agreement with `previous`: per side present in both, the edge's offset from the robot
-    and its heading on the floor; the worst side counts. 1 when there is nothing to compare."""
+    """Agreement with `previous`: per side present in both, the reported segment (near end to
+    the look-ahead) on the floor: how far its near end lies from the previous one's line and how
+    much it turned; the worst side counts. 1 when there is nothing to compare. (The reported
+    chord, not the near line: near Hough pieces come and go in a bend, the chord does not.)"""
     if previous is None:
         return 1.0
     cc = config.confidence
@@ -131,12 +135,13 @@ def consistency_component(
     for now, before in ((left, previous.left), (right, previous.right)):
         if now is None or before is None:
             continue
-        if None in (now.offset_m, now.heading_rad, before.offset_m, before.heading_rad):
+        a0, a1 = view.to_floor(now.x1, now.y1), view.to_floor(now.x2, now.y2)
+        b0, b1 = view.to_floor(before.x1, before.y1), view.to_floor(before.x2, before.y2)
+        da, db = direction(a0, a1), direction(b0, b1)
+        if not math.isfinite(sum((*a0, *b0, *da, *db))) or (0.0, 0.0) in (da, db):
             continue
-        assert now.offset_m is not None and before.offset_m is not None
-        assert now.heading_rad is not None and before.heading_rad is not None
-        shift = now.offset_m - before.offset_m
-        turn = math.degrees(now.heading_rad - before.heading_rad)
+        shift = distance_to_line(a0, b0, db)
+        turn = floor_angle_deg(da, db)
         score = min(
             score,
             _ramp(shift, cc.consistency_offset_tol_m) * _ramp(turn, cc.consistency_angle_tol_deg),

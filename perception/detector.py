@@ -248,7 +248,9 @@ class LaneDetector:
         components = lane_components(
             height_px=state.size[1], left=left_floor, right=right_floor, config=config
         )
-        components["consistency"] = consistency_component(left_edge, right_edge, previous, config)
+        components["consistency"] = consistency_component(
+            left_edge, right_edge, previous, state.view, config
+        )
         slope_sum = None
         lane_offset = lane_heading = None
         if left_edge is not None and right_edge is not None:

@@ -15,8 +15,9 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    line per edge, see `perception.lines`).
 2. Which tapes: by closeness to the tape's width and to the lane's position, not by length. With
    tapes on both sides, the pair of tapes of the same kind (both dark or both light) whose inner
-   edges lie `lane.width_m - tape.width_m` apart on the floor wins (`lane_fit`), then the one
-   whose widths are closest to `tape.width_m`.
+   edges lie `lane.width_m - tape.width_m` apart on the floor wins (`lane_fit`), then the best
+   width scores (1 within the tape's tolerance), then the nearest measurement (best resolved,
+   and where a bending tape's chain starts).
 3. Single edges, on a side without a verified tape. A line without a verified partner (Hough
    often misses the outer edge of a curving tape) is checked by the brightness profile across it
    (`perception.tape_rules.tape_profile_fraction`): a tape `width_m` wide on its outer side along
@@ -116,9 +117,11 @@ class TapeCandidate:
     dark: bool
     at: Point
 
-    def closeness(self, tape_width_m: float) -> float:
-        """The width score, less the relative deviation from the tape's width (in [0, 1])."""
-        return self.score * max(0.0, 1.0 - abs(self.width_m - tape_width_m) / tape_width_m)
+    def rank(self) -> tuple[float, float]:
+        """Best first: the width score (closeness to the tape's width, 1 within its tolerance),
+        then the nearest measurement (the best resolved, and where a bending tape's chain
+        starts)."""
+        return self.score, -self.at[0]
 
 
 def side_candidates(
@@ -182,7 +185,7 @@ def verified_tapes(
     view: FloorView,
     config: PerceptionConfig,
 ) -> list[TapeCandidate]:
-    """The verified tapes among one side's candidates, closest to the tape's width first (at
+    """The verified tapes among one side's candidates, best first (`TapeCandidate.rank`; at
     most _MAX_TAPES_KEPT; only the _MAX_TAPE_CHECKS best widths are band-checked). A pair is
     only measured up to the look-ahead distance: there the camera is known to resolve tape from
     seam (checked at start-up); farther on, pixels grow and a seam may measure as tape. Pairs
@@ -192,7 +195,7 @@ def verified_tapes(
     angle_tol = config.tape.pair_angle_tol_deg
     tape_width = config.tape.width_m
     look_ahead = config.edges.look_ahead_m
-    measured: list[tuple[float, TapeCandidate, float, float]] = []
+    measured: list[tuple[tuple[float, float], TapeCandidate, float, float]] = []
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
             if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
@@ -211,8 +214,8 @@ def verified_tapes(
             tape = TapeCandidate(inner, outer, score, width_m, dark, at)
             y_lo = max(a.far_y, b.far_y)
             y_hi = min(a.near_y, b.near_y)
-            measured.append((tape.closeness(tape_width), tape, y_lo, y_hi))
-    measured.sort(key=lambda m: -m[0])
+            measured.append((tape.rank(), tape, y_lo, y_hi))
+    measured.sort(key=lambda m: m[0], reverse=True)
     found: list[TapeCandidate] = []
     for _, tape, y_lo, y_hi in measured[:_MAX_TAPE_CHECKS]:
         if band_is_tape(smooth_gray, tape.inner, tape.outer, y_lo, y_hi, config.tape):
@@ -237,16 +240,16 @@ def pick_tapes(
     left: list[TapeCandidate], right: list[TapeCandidate], config: PerceptionConfig
 ) -> tuple[TapeCandidate | None, TapeCandidate | None]:
     """One tape per side: with tapes on both sides, the pair of the same kind (dark or light)
-    that best fits the lane's width, then the closest widths; otherwise each side's closest."""
-    w = config.tape.width_m
+    that best fits the lane's width, then the best width scores, then the nearest; otherwise
+    each side's best (`TapeCandidate.rank`)."""
     if not left or not right:
-        return (max(left, key=lambda t: t.closeness(w), default=None),
-                max(right, key=lambda t: t.closeness(w), default=None))
-    best: tuple[tuple[bool, float, float], TapeCandidate, TapeCandidate] | None = None
+        return (max(left, key=TapeCandidate.rank, default=None),
+                max(right, key=TapeCandidate.rank, default=None))
+    best: tuple[tuple[bool, float, float, float], TapeCandidate, TapeCandidate] | None = None
     for lt in left:
         for rt in right:
-            both = lt.closeness(w) * rt.closeness(w)
-            key = (lt.dark == rt.dark, lane_fit(lt, rt, config) * both, both)
+            both = lt.score * rt.score
+            key = (lt.dark == rt.dark, lane_fit(lt, rt, config) * both, both, -lt.at[0] - rt.at[0])
             if best is None or key > best[0]:
                 best = (key, lt, rt)
     assert best is not None

@@ -287,9 +287,21 @@ def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
     assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
 
 
-def _tape(inner_y: float, outer_y: float, dark: bool = True) -> TapeCandidate:
+def test_among_equally_good_tapes_the_nearest_measurement_wins() -> None:
+    """Two pieces of one bending tape, both 48 mm: the one measured 0.45 m ahead (where the
+    edge's chain starts) before the one measured 0.9 m ahead."""
+    far, near = _tape(0.276, 0.324, at_m=(0.9, 1.3)), _tape(0.276, 0.324, at_m=(0.45, 0.8))
+    assert far.score == near.score == 1.0
+    assert pick_tapes([far, near], [], CONFIG)[0] is near
+    right = _tape(-0.276, -0.324)
+    assert pick_tapes([far, near], [right], CONFIG)[0] is near
+
+
+def _tape(inner_y: float, outer_y: float, dark: bool = True,
+          at_m: tuple[float, float] = (0.55, 1.2)) -> TapeCandidate:
     side = "left" if inner_y > 0 else "right"
-    measured = measure_pair(along(inner_y, 1.0), along(outer_y, -1.0), side, VIEW, CONFIG)
+    measured = measure_pair(along(inner_y, 1.0, *at_m), along(outer_y, -1.0, *at_m), side, VIEW,
+                            CONFIG)
     assert measured is not None
     inner, outer, score, width_m, at = measured
     return TapeCandidate(inner, outer, score, width_m, dark, at)
@@ -309,12 +321,13 @@ def test_tapes_are_paired_by_the_lane_width() -> None:
 
 def test_both_tapes_are_the_same_kind() -> None:
     """A light 'tape' (a floor strip between two dark lines) 48 mm wide where the lane's tape
-    belongs, and a dark tape 44 mm wide 5 cm off; the right tape is dark: the two dark tapes
-    make the lane."""
-    strip, dark = _tape(0.276, 0.324, dark=False), _tape(0.326, 0.370, dark=True)
+    belongs, and a dark band 34 mm wide 5 cm off (width score 0.63); the right tape is dark: the
+    two dark tapes make the lane."""
+    strip, dark = _tape(0.276, 0.324, dark=False), _tape(0.326, 0.360, dark=True)
+    assert dark.score == pytest.approx(0.63, abs=0.03)
     right = _tape(-0.276, -0.324, dark=True)
     assert pick_tapes([strip, dark], [right], CONFIG)[0] is dark
-    # Without a right tape there is nothing to compare kinds with: the closest width wins.
+    # Without a right tape there is nothing to compare kinds with: the best width wins.
     assert pick_tapes([strip, dark], [], CONFIG)[0] is strip
 
 
