@@ -45,6 +45,7 @@ five elements. Pure function of the lines, the blurred frame, the size setup and
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,8 +108,10 @@ class SideChoice:
 
 @dataclass(frozen=True)
 class TapeCandidate:
-    """A verified tape: its `inner` and `outer` edges, width score, width on the floor, whether
-    it is darker than the floor, and where its inner edge was measured (`at`, floor metres)."""
+    """A pair of lines whose width on the floor verifies a tape: its `inner` and `outer` edges,
+    width score, width on the floor, whether it is darker than the floor, where its inner edge
+    was measured (`at`, floor metres) and the image rows both edges cover (`rows`, for the band
+    check)."""
 
     inner: LineRow
     outer: LineRow
@@ -116,6 +119,10 @@ class TapeCandidate:
     width_m: float
     dark: bool
     at: Point
+    rows: tuple[float, float] = (0.0, 0.0)
+
+    def band_is_tape(self, smooth_gray: NDArray[np.uint8], config: PerceptionConfig) -> bool:
+        return band_is_tape(smooth_gray, self.inner, self.outer, *self.rows, config.tape)
 
     def rank(self) -> tuple[float, float]:
         """Best first: the width score (closeness to the tape's width, 1 within its tolerance),
@@ -147,9 +154,18 @@ def choose_edges(
     frame's candidate lines, `smooth_gray` the blurred frame they came from."""
     cands = {side: side_candidates(rows, side, setup.centre_x_bottom, config)
              for side in ("left", "right")}
-    tapes = {side: verified_tapes(cands[side], smooth_gray, side, setup.view, config)
+    tapes = {side: tape_candidates(cands[side], side, setup.view, config)
              for side in ("left", "right")}
-    left_tape, right_tape = pick_tapes(tapes["left"], tapes["right"], config)
+    # The band check reads pixels: only for the tapes the choice would take, each at most once.
+    checked: dict[int, bool] = {}
+
+    def band_ok(tape: TapeCandidate) -> bool:
+        key = id(tape)
+        if key not in checked:
+            checked[key] = tape.band_is_tape(smooth_gray, config)
+        return checked[key]
+
+    left_tape, right_tape = pick_tapes(tapes["left"], tapes["right"], config, band_ok)
     left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config)
     right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config)
     return left, right
@@ -178,15 +194,11 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
     return inner, outer, score, width_m, at
 
 
-def verified_tapes(
-    cand: list[LineRow],
-    smooth_gray: NDArray[np.uint8],
-    side: Side,
-    view: FloorView,
-    config: PerceptionConfig,
+def tape_candidates(
+    cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig
 ) -> list[TapeCandidate]:
-    """The verified tapes among one side's candidates, best first (`TapeCandidate.rank`; at
-    most _MAX_TAPES_KEPT; only the _MAX_TAPE_CHECKS best widths are band-checked). A pair is
+    """The pairs among one side's candidates whose width on the floor verifies a tape, best first
+    (`TapeCandidate.rank`), at most _MAX_TAPE_CHECKS; their bands are not checked yet. A pair is
     only measured up to the look-ahead distance: there the camera is known to resolve tape from
     seam (checked at start-up); farther on, pixels grow and a seam may measure as tape. Pairs
     whose lines lie less than a third or more than three tape widths apart on the floor (from
@@ -195,7 +207,7 @@ def verified_tapes(
     angle_tol = config.tape.pair_angle_tol_deg
     tape_width = config.tape.width_m
     look_ahead = config.edges.look_ahead_m
-    measured: list[tuple[tuple[float, float], TapeCandidate, float, float]] = []
+    found: list[TapeCandidate] = []
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
             if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
@@ -211,18 +223,24 @@ def verified_tapes(
                 continue
             inner, outer, score, width_m, at = pair
             dark = (inner.polarity > 0) == (side == "left")
-            tape = TapeCandidate(inner, outer, score, width_m, dark, at)
-            y_lo = max(a.far_y, b.far_y)
-            y_hi = min(a.near_y, b.near_y)
-            measured.append((tape.rank(), tape, y_lo, y_hi))
-    measured.sort(key=lambda m: m[0], reverse=True)
-    found: list[TapeCandidate] = []
-    for _, tape, y_lo, y_hi in measured[:_MAX_TAPE_CHECKS]:
-        if band_is_tape(smooth_gray, tape.inner, tape.outer, y_lo, y_hi, config.tape):
-            found.append(tape)
-            if len(found) == _MAX_TAPES_KEPT:
-                break
-    return found
+            rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
+            found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows))
+    found.sort(key=TapeCandidate.rank, reverse=True)
+    return found[:_MAX_TAPE_CHECKS]
+
+
+def verified_tapes(
+    cand: list[LineRow],
+    smooth_gray: NDArray[np.uint8],
+    side: Side,
+    view: FloorView,
+    config: PerceptionConfig,
+) -> list[TapeCandidate]:
+    """The verified tapes among one side's candidates (width on the floor and band), best
+    first, at most _MAX_TAPES_KEPT (`tape_candidates`, then `band_is_tape`)."""
+    tapes = [t for t in tape_candidates(cand, side, view, config)
+             if t.band_is_tape(smooth_gray, config)]
+    return tapes[:_MAX_TAPES_KEPT]
 
 
 def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig) -> float:
@@ -237,23 +255,28 @@ def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig
 
 
 def pick_tapes(
-    left: list[TapeCandidate], right: list[TapeCandidate], config: PerceptionConfig
+    left: list[TapeCandidate],
+    right: list[TapeCandidate],
+    config: PerceptionConfig,
+    accept: Callable[[TapeCandidate], bool] = lambda tape: True,
 ) -> tuple[TapeCandidate | None, TapeCandidate | None]:
-    """One tape per side: with tapes on both sides, the pair of the same kind (dark or light)
+    """One tape per side among those `accept` takes (the band check, asked only of the tapes
+    that would be chosen): with tapes on both sides, the pair of the same kind (dark or light)
     that best fits the lane's width, then the best width scores, then the nearest; otherwise
     each side's best (`TapeCandidate.rank`)."""
-    if not left or not right:
-        return (max(left, key=TapeCandidate.rank, default=None),
-                max(right, key=TapeCandidate.rank, default=None))
-    best: tuple[tuple[bool, float, float, float], TapeCandidate, TapeCandidate] | None = None
-    for lt in left:
-        for rt in right:
-            both = lt.score * rt.score
-            key = (lt.dark == rt.dark, lane_fit(lt, rt, config) * both, both, -lt.at[0] - rt.at[0])
-            if best is None or key > best[0]:
-                best = (key, lt, rt)
-    assert best is not None
-    return best[1], best[2]
+    combos = sorted(
+        ((lt.dark == rt.dark, lane_fit(lt, rt, config) * lt.score * rt.score,
+          lt.score * rt.score, -lt.at[0] - rt.at[0], i, j)
+         for i, lt in enumerate(left) for j, rt in enumerate(right)),
+        reverse=True,
+    )
+    for *_, i, j in combos:
+        if accept(left[i]) and accept(right[j]):
+            return left[i], right[j]
+    return (next((t for t in sorted(left, key=TapeCandidate.rank, reverse=True) if accept(t)),
+                 None),
+            next((t for t in sorted(right, key=TapeCandidate.rank, reverse=True) if accept(t)),
+                 None))
 
 
 def _side_choice(
