@@ -174,6 +174,16 @@ def test_band_between_the_edges_must_look_like_tape(
     assert band_is_tape(picture, a, b, y_lo, y_hi, TAPE) is expected
 
 
+def test_the_detector_band_checks_the_tape_it_chooses() -> None:
+    """A tape-wide band (0.276..0.324 m left) whose halves differ (45 and 130 grey levels), and a
+    real tape on the right: the left pair has a tape's width but not a tape's band, so it is not
+    a verified tape; the right one is."""
+    picture = floor_picture([(0.276, 0.300, DARK), (0.300, 0.324, 130), (-0.324, -0.276, DARK)])
+    _, debug = LaneDetector(CONFIG).detect_debug(picture, 0, 0.0)
+    assert debug.right is not None and debug.right.verified
+    assert debug.left is not None and not debug.left.verified and debug.left.partner is None
+
+
 # ---- 3. a lone edge, and the image border ----------------------------------------------------
 
 
