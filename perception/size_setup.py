@@ -79,7 +79,7 @@ class SizeSetup:
             raise PerceptionConfigError(
                 f"perception.edges.look_ahead_m = {look_ahead:g}: outside the camera's view at "
                 f"{width}x{height}; expected a distance within {_range_text(near, far)}",
-                suggested_look_ahead_m=_inside(near, far),
+                suggested_look_ahead_m=_inside(near, far, config),
             )
         self.centre_x_bottom = self.view.line_column_at((0.0, 0.0), (1.0, 0.0), self.y_bottom)
         if not math.isfinite(self.centre_x_bottom):
@@ -218,7 +218,10 @@ def _range_text(near: float, far: float) -> str:
     return f"the floor the camera sees, {near:.2f} m to {far_text} ahead of the robot's centre"
 
 
-def _inside(near: float, far: float) -> float | None:
-    if not math.isfinite(near):
+def _inside(near: float, far: float, config: PerceptionConfig) -> float | None:
+    """The middle of the floor both in view and in the ROI, rounded to centimetres (None when
+    there is none)."""
+    lo, hi = max(near, config.roi.near_m), min(far, config.roi.far_m)
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
         return None
-    return near + 0.5 * ((far if math.isfinite(far) else near + 2.0) - near)
+    return round(0.5 * (lo + hi), 2)

@@ -367,7 +367,7 @@ def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
         # closer than the image's bottom row (0.36 m ahead)
         ((640, 480), {"edges": {"look_ahead_m": 0.2}}, "perception.edges.look_ahead_m = 0.2: "
          "outside the camera's view at 640x480; expected a distance within the floor the "
-         "camera sees, 0.36 m to 3.25 m ahead of the robot's centre", 1.8),
+         "camera sees, 0.36 m to 3.25 m ahead of the robot's centre", 0.98),
         ((640, 480), {"roi": {"near_m": 5.0, "far_m": 6.0}, "edges": {"look_ahead_m": 5.5}},
          "perception.roi (near_m 5, far_m 6, lateral_m 0.65): this floor is not in the "
          "camera's view at 640x480", None),
