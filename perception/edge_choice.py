@@ -17,7 +17,7 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    tapes on both sides, the pair of tapes of the same kind (both dark or both light) whose inner
    edges lie `lane.width_m - tape.width_m` apart on the floor wins (`lane_fit`), then the best
    width scores (1 within the tape's tolerance), then the nearest measurement (best resolved,
-   and where a bending tape's chain starts).
+   and where a bending tape's chain starts), then the widths closest to the tape's.
 3. Single edges, on a side without a verified tape. A line without a verified partner (Hough
    often misses the outer edge of a curving tape) is checked by the brightness profile across it
    (`perception.tape_rules.tape_profile_fraction`): a tape `width_m` wide on its outer side along
@@ -110,8 +110,8 @@ class SideChoice:
 class TapeCandidate:
     """A pair of lines whose width on the floor verifies a tape: its `inner` and `outer` edges,
     width score, width on the floor, whether it is darker than the floor, where its inner edge
-    was measured (`at`, floor metres) and the image rows both edges cover (`rows`, for the band
-    check)."""
+    was measured (`at`, floor metres), the image rows both edges cover (`rows`, for the band
+    check) and the configured tape width it is ranked against (`tape_width_m`)."""
 
     inner: LineRow
     outer: LineRow
@@ -120,15 +120,16 @@ class TapeCandidate:
     dark: bool
     at: Point
     rows: tuple[float, float] = (0.0, 0.0)
+    tape_width_m: float = 0.0
 
     def band_is_tape(self, smooth_gray: NDArray[np.uint8], config: PerceptionConfig) -> bool:
         return band_is_tape(smooth_gray, self.inner, self.outer, *self.rows, config.tape)
 
-    def rank(self) -> tuple[float, float]:
-        """Best first: the width score (closeness to the tape's width, 1 within its tolerance),
-        then the nearest measurement (the best resolved, and where a bending tape's chain
-        starts)."""
-        return self.score, -self.at[0]
+    def rank(self) -> tuple[float, float, float]:
+        """Best first: the width score (1 within the tape's tolerance), then the nearest
+        measurement, to the centimetre (the best resolved, and where a bending tape's chain
+        starts), then the width closest to the tape's."""
+        return self.score, -round(self.at[0], 2), -abs(self.width_m - self.tape_width_m)
 
 
 def side_candidates(
@@ -224,7 +225,7 @@ def tape_candidates(
             inner, outer, score, width_m, at = pair
             dark = (inner.polarity > 0) == (side == "left")
             rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
-            found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows))
+            found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
     found.sort(key=TapeCandidate.rank, reverse=True)
     return found[:_MAX_TAPE_CHECKS]
 
@@ -266,7 +267,7 @@ def pick_tapes(
     each side's best (`TapeCandidate.rank`)."""
     combos = sorted(
         ((lt.dark == rt.dark, lane_fit(lt, rt, config) * lt.score * rt.score,
-          lt.score * rt.score, -lt.at[0] - rt.at[0], i, j)
+          lt.score * rt.score, lt.rank()[1] + rt.rank()[1], lt.rank()[2] + rt.rank()[2], -i, -j)
          for i, lt in enumerate(left) for j, rt in enumerate(right)),
         reverse=True,
     )

@@ -297,6 +297,17 @@ def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
     assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
 
 
+def test_measured_at_the_same_spot_the_width_closest_to_the_tape_wins() -> None:
+    """Grout running along a tape's inner edge: the tape (48 mm) and the tape with the grout
+    (54 mm, still within the tape's tolerance, score 1) are measured at the same spot; the
+    tape's own width wins, on either side, with or without a tape on the other side."""
+    with_grout, tape = _tape(0.270, 0.324), _tape(0.276, 0.324)
+    assert with_grout.score == tape.score == 1.0
+    assert pick_tapes([with_grout, tape], [], CONFIG)[0] is tape
+    right, right_with_grout = _tape(-0.276, -0.324), _tape(-0.270, -0.324)
+    assert pick_tapes([with_grout, tape], [right, right_with_grout], CONFIG) == (tape, right)
+
+
 def test_among_equally_good_tapes_the_nearest_measurement_wins() -> None:
     """Two pieces of one bending tape, both 48 mm: the one measured 0.45 m ahead (where the
     edge's chain starts) before the one measured 0.9 m ahead."""
@@ -314,7 +325,7 @@ def _tape(inner_y: float, outer_y: float, dark: bool = True,
                             CONFIG)
     assert measured is not None
     inner, outer, score, width_m, at = measured
-    return TapeCandidate(inner, outer, score, width_m, dark, at)
+    return TapeCandidate(inner, outer, score, width_m, dark, at, tape_width_m=CONFIG.tape.width_m)
 
 
 def test_tapes_are_paired_by_the_lane_width() -> None:
