@@ -119,7 +119,7 @@ def parse_yaml_text(text: str, source: str, error: type[Exception]) -> Any:
         raise error(f"{source}: larger than {MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
     try:
         check_event_stream(text)
-        return yaml.load(text, Loader=_LOADER)  # noqa: S506 - a safe loader (C or Python)
+        return yaml.load(text, Loader=_LOADER)  # a safe loader (LibYAML or Python)
     except DocumentTooLarge as exc:
         raise error(f"{source}: {exc}, refusing to read it") from None
     except yaml.YAMLError as exc:
