@@ -14,6 +14,7 @@ from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.controller import SupervisedController
 from lanewarden.supervisor.controllers import make_controller
 from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.lecture import LectureController
 from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
 from lanewarden.supervisor.recorder import JsonlRecorder
@@ -44,7 +45,7 @@ class Run:
         self.loop = ControlLoop(
             camera or ScriptedCamera(),
             detector or ScriptedDetector(),
-            controller or SupervisedController(CONFIG),
+            SafetyGate(controller or SupervisedController(CONFIG), CONFIG),
             self.base,
             record=self.records.append,
         )
@@ -248,7 +249,8 @@ def test_jsonl_recorder_writes_one_flushed_line_per_step(tmp_path: Path) -> None
     with JsonlRecorder(path) as recorder:
         run = Run()
         run.loop = ControlLoop(
-            ScriptedCamera(), ScriptedDetector(), SupervisedController(CONFIG), SimBase(),
+            ScriptedCamera(), ScriptedDetector(),
+            SafetyGate(SupervisedController(CONFIG), CONFIG), SimBase(),
             record=recorder,
         )  # fmt: skip
         run.loop.start(0.0)
