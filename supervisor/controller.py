@@ -19,16 +19,29 @@ Never reads a clock, a camera or a port.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
+from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.center_offset import CenterOffsetFilter
 from lanewarden.supervisor.commands import command_for
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
 from lanewarden.supervisor.events import Event, ordered
 from lanewarden.supervisor.lane_evidence import LaneEvidence, observation_problem
 from lanewarden.supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
 from lanewarden.supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
 from lanewarden.supervisor.watchdog import Watchdog
+
+
+@dataclass(frozen=True)
+class FrameVerdict:
+    """What the supervisor made of this step's new frame (all None: no new frame judged).
+    `trusted`: a usable lane; `confident`: counts towards engage/recover (None for a malformed
+    observation); `innovation`: the filter's, for the record."""
+
+    trusted: bool | None = None
+    confident: bool | None = None
+    innovation: float | None = None
 
 
 class SupervisedController:
@@ -69,36 +82,16 @@ class SupervisedController:
 
         previous = inputs.previous_command
         events |= self._watchdog.check(now, inputs.frame, inputs.feedback, not previous.is_stop)
-
-        frame_confident: bool | None = None
-        lane_trusted: bool | None = None
-        innovation: float | None = None
-        obs = inputs.observation
-        if obs is not None and Event.FRAME_INVALID not in events:
-            problem = observation_problem(obs, inputs.frame)
-            if problem is not None:
-                events.add(Event.MALFORMED_OBSERVATION)
-                details.setdefault(Event.MALFORMED_OBSERVATION, problem)
-                lane_trusted = False
-            else:
-                lane = self._lane.assess(obs)
-                events |= lane.events
-                self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
-                events |= self._estimate.events
-                innovation = self._estimate.innovation
-                if lane.slope_sum is not None:
-                    self._center.step(obs.time_s, obs.center_offset)
-                lane_trusted = lane.usable
-                if lane.usable:
-                    self._lane_seen_at_s = obs.time_s
-                frame_confident = lane.confident and self._estimate.accepted
+        frame = FrameVerdict()
+        if inputs.observation is not None and Event.FRAME_INVALID not in events:
+            frame = self._judge(inputs.observation, inputs.frame, events, details)
 
         tick = self._machine.step(
             StepFacts(
                 now=now,
                 events=frozenset(events),
                 event_details=details,
-                frame_confident=frame_confident,
+                frame_confident=frame.confident,
                 lane_seen_at_s=self._lane_seen_at_s,
                 slope_sum=self._estimate.slope_sum,
                 travelled_m=abs(previous.linear_m_s) * dt,
@@ -113,7 +106,29 @@ class SupervisedController:
             halt_reason=self._machine.halt_reason,
             filtered_slope_sum=self._estimate.slope_sum,
             slope_sum_variance=self._estimate.variance,
-            innovation=innovation,
+            innovation=frame.innovation,
             filtered_center_offset=self._center.value,
-            lane_trusted=lane_trusted,
+            lane_trusted=frame.trusted,
+        )
+
+    def _judge(self, obs: LaneObservation, frame: FrameInfo | None, events: set[Event],
+               details: dict[Event, str]) -> FrameVerdict:
+        """Assess a new frame's observation, feed the filters; adds its events to `events`."""
+        problem = observation_problem(obs, frame)
+        if problem is not None:
+            events.add(Event.MALFORMED_OBSERVATION)
+            details.setdefault(Event.MALFORMED_OBSERVATION, problem)
+            return FrameVerdict(trusted=False, confident=None)
+        lane = self._lane.assess(obs)
+        events |= lane.events
+        self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
+        events |= self._estimate.events
+        if lane.slope_sum is not None:
+            self._center.step(obs.time_s, obs.center_offset)
+        if lane.usable:
+            self._lane_seen_at_s = obs.time_s
+        return FrameVerdict(
+            trusted=lane.usable,
+            confident=lane.confident and self._estimate.accepted,
+            innovation=self._estimate.innovation,
         )

@@ -177,43 +177,8 @@ class ControlLoop:
             events.add(Event.OPERATOR_STOP)
         start, self._start = self._start, False
         resume, self._resume = self._resume, False
-
-        frame: Frame | None = None
-        try:
-            frame = self._frames.read(now)
-        except Exception as exc:  # any camera failure is a fault, never a crash
-            events.add(Event.CAMERA_ERROR)
-            details[Event.CAMERA_ERROR] = _one_line(exc)
-
-        info: FrameInfo | None = None
-        observation: LaneObservation | None = None
-        if frame is not None:
-            is_new = self._last_index is None or frame.index != self._last_index
-            if is_new:
-                self._last_index = frame.index
-                self._last_fingerprint = frame_fingerprint(frame.image)
-            info = FrameInfo(frame.index, frame.time_s, self._last_fingerprint, is_new)
-            if is_new:
-                try:
-                    observation = self._detector.detect(
-                        frame.image, frame.index, frame.time_s, previous=self._previous
-                    )
-                except Exception as exc:  # perception's failure halts; it never crashes the loop
-                    events.add(Event.PERCEPTION_ERROR)
-                    details[Event.PERCEPTION_ERROR] = _one_line(exc)
-                else:
-                    self._previous = observation
-
-        feedback: BaseFeedback | None = None
-        try:
-            feedback = self._base.feedback(now)
-        except ActuationError as exc:
-            events.add(Event.BASE_LINK_LOST)
-            details[Event.BASE_LINK_LOST] = _one_line(exc)
-        if self._base_failure is not None:
-            events.add(Event.BASE_LINK_LOST)
-            details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
-            self._base_failure = None
+        info, observation = self._perceive(now, events, details)
+        feedback = self._feedback(now, events, details)
 
         output = self._gate.step(
             ControlInputs(
@@ -237,6 +202,54 @@ class ControlLoop:
         if self._record is not None:
             self._record(record)
         return record
+
+    def _perceive(
+        self, now: float, events: set[Event], details: dict[Event, str]
+    ) -> tuple[FrameInfo | None, LaneObservation | None]:
+        """The newest frame's identity, and perception's observation if the frame is new. A
+        camera or perception failure becomes an event (with its detail), never a crash."""
+        try:
+            frame = self._frames.read(now)
+        except Exception as exc:  # any camera failure is a fault, never a crash
+            events.add(Event.CAMERA_ERROR)
+            details[Event.CAMERA_ERROR] = _one_line(exc)
+            return None, None
+        if frame is None:
+            return None, None
+        is_new = self._last_index is None or frame.index != self._last_index
+        if is_new:
+            self._last_index = frame.index
+            self._last_fingerprint = frame_fingerprint(frame.image)
+        info = FrameInfo(frame.index, frame.time_s, self._last_fingerprint, is_new)
+        if not is_new:
+            return info, None
+        try:
+            observation = self._detector.detect(
+                frame.image, frame.index, frame.time_s, previous=self._previous
+            )
+        except Exception as exc:  # perception's failure halts; it never crashes the loop
+            events.add(Event.PERCEPTION_ERROR)
+            details[Event.PERCEPTION_ERROR] = _one_line(exc)
+            return info, None
+        self._previous = observation
+        return info, observation
+
+    def _feedback(
+        self, now: float, events: set[Event], details: dict[Event, str]
+    ) -> BaseFeedback | None:
+        """The base's newest feedback; its failure, or a failed send since the last step, is
+        BASE_LINK_LOST."""
+        feedback: BaseFeedback | None = None
+        try:
+            feedback = self._base.feedback(now)
+        except ActuationError as exc:
+            events.add(Event.BASE_LINK_LOST)
+            details[Event.BASE_LINK_LOST] = _one_line(exc)
+        if self._base_failure is not None:
+            events.add(Event.BASE_LINK_LOST)
+            details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
+            self._base_failure = None
+        return feedback
 
     def _send(self, command: VelocityCommand, now: float) -> bool:
         try:
