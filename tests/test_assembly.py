@@ -53,3 +53,25 @@ def test_the_decision_uses_the_supervisors_thresholds() -> None:
 
     assert [decide(obs(3.5, 0.5)), decide(obs(-3.5, 0.5)), decide(obs(2.9, 0.5)),
             decide(obs(3.5, 0.39))] == ["left", "right", "straight", "none"]  # fmt: skip
+
+
+def test_scenarios_never_import_the_cli_side_at_run_time() -> None:
+    """The simulator receives `build_stack`; scenarios/ imports lanewarden's CLI side (assembly,
+    commands, cli, runner) only for type checking."""
+    import ast
+    from pathlib import Path
+
+    import lanewarden.scenarios as scenarios
+
+    cli_side = ("lanewarden.assembly", "lanewarden.commands", "lanewarden.cli", "lanewarden.runner")
+    offenders = []
+    for path in sorted(Path(scenarios.__file__).parent.glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        type_only = {id(node) for block in ast.walk(tree) if isinstance(block, ast.If)
+                     and ast.unparse(block.test) == "TYPE_CHECKING"
+                     for node in ast.walk(block)}  # fmt: skip
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and id(node) not in type_only:
+                if (node.module or "").startswith(cli_side):
+                    offenders.append(f"{path.name}: {node.module}")
+    assert offenders == []
