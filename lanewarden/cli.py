@@ -14,10 +14,11 @@ import click
 
 from lanewarden import __version__
 from lanewarden.commands import register_commands
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.errors import USER_ERRORS, ConfigError, QualityGateError, UsageError
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=CommandGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="lanewarden")
 def cli() -> None:
     """Lanewarden: follow a taped lane with a Kobuki and a camera, and stop when unsure."""

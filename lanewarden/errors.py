@@ -16,6 +16,10 @@ class UsageError(Exception):
     """A command-line value that cannot be used (exit code 2)."""
 
 
+class OutputError(Exception):
+    """An output that cannot be written (a folder that cannot be created, a full disk): exit 1."""
+
+
 class QualityGateError(Exception):
     """A result that was computed but fails a quality gate (exit code 2), e.g. a bad calibration."""
 
@@ -24,6 +28,7 @@ class QualityGateError(Exception):
 USER_ERRORS: tuple[type[Exception], ...] = (
     ActuationError,
     ConfigError,
+    OutputError,
     PerceptionError,
     QualityGateError,
     ScenarioError,

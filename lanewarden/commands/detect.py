@@ -26,8 +26,9 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import check_output_folder, read_image
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.image_files import read_image
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.perception.calibration import Undistorter, load_calibration
 from lanewarden.perception.config import PerceptionConfig
@@ -97,9 +98,7 @@ def detect_command(
         undistorter = Undistorter(load_calibration(calibration_path))
     out = None
     if out_dir is not None:
-        out = Path(out_dir)
-        check_output_folder(out)
-        out.mkdir(exist_ok=True)
+        out = create_output_folder(Path(out_dir))
     detector = LaneDetector(config, undistorter)
     failures: list[str] = []
     for index, name in enumerate(images):

@@ -14,7 +14,8 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import IMAGE_SUFFIXES, check_output_folder, read_image
+from lanewarden.commands.image_files import IMAGE_SUFFIXES, read_image
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.perception.calibration import Undistorter, load_calibration
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.undistort_preview import side_by_side
@@ -39,10 +40,8 @@ def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: s
       lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/
     """
     calibration = load_calibration(calibration_path)
-    out = Path(out_dir)
-    check_output_folder(out)
+    out = create_output_folder(Path(out_dir))
     undistorter = Undistorter(calibration)
-    out.mkdir(exist_ok=True)
     failures: list[str] = []
     width, height = calibration.image_size
     for name in images:

@@ -47,7 +47,18 @@ def test_lecture_run_never_stops_and_wanders_past_the_end(demo_out: Path) -> Non
 def test_report_shows_both_runs(demo_out: Path) -> None:
     page = (demo_out / "report.html").read_text()
     for name in ("lecture", "supervised"):
-        assert f'src="{name}/video.mp4"' in page and f'src="{name}/plot.png"' in page
-        for output in ("metrics.json", "run.jsonl", "video.mp4", "plot.png"):
+        assert f'src="{name}/video.mp4" poster="{name}/poster.jpg"' in page
+        assert f'src="{name}/plot.png"' in page
+        for output in ("metrics.json", "run.jsonl", "video.mp4", "poster.jpg", "plot.png",
+                       "report.html"):
             assert (demo_out / name / output).stat().st_size > 0
+        assert not (demo_out / name / "PARTIAL").exists()
+    assert not (demo_out / "PARTIAL").exists()
     assert "<table>" in page and "distance past lane end" in page
+    assert "<th>states visited</th>" in page and "<th>halt position</th>" in page
+    assert "<h2>Reading the videos</h2>" in page
+
+
+def test_posters_show_the_outcome(demo_out: Path) -> None:
+    assert metrics(demo_out, "supervised")["video_poster"]["shows"] == "the halt"  # type: ignore[index]
+    assert metrics(demo_out, "lecture")["video_poster"]["shows"] == "the last frame"  # type: ignore[index]
