@@ -66,8 +66,17 @@ def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]
     names = list(runs)
     rows = [["", *names]]
     for key, label in TABLE_ROWS:
-        rows.append([label, *(format_value(runs[n].get(key)) for n in names)])
+        rows.append([label, *(format_metric(runs[n], key) for n in names)])
     return rows
+
+
+def format_metric(metrics: Mapping[str, object], key: str) -> str:
+    """One metric as the table shows it; an extrapolated lane-loss time says it is estimated."""
+    text = format_value(metrics.get(key))
+    if key == "lane_loss_to_halt_s" and metrics.get(key) is not None \
+            and metrics.get("lane_loss_estimated"):
+        text += " (estimated)"
+    return text
 
 
 def format_table(rows: Sequence[Sequence[str]]) -> str:
@@ -224,10 +233,9 @@ th:first-child {{ text-align: left; }}
 along the lane; negative means the robot stopped before it. The halt position is where the robot
 was when HALT began (it brakes to a stop after that; x and y are in metrics.json). "Lane out of
 view &rarr; HALT" is the time from the last tape leaving the camera's region of interest to the
-halt; negative means it
-halted before that (the moment the tape would have left the view is then estimated after the run,
-and the plot marks it as an estimate). Cross-track error is the distance of the robot's centre
-from the lane centre.</p>
+halt; negative means it halted before that (the moment the tape would have left the view is then
+estimated after the run, and the table and the plot mark it as an estimate). Cross-track error is
+the distance of the robot's centre from the lane centre.</p>
 {legend_html()}
 {"".join(panels)}
 </body></html>

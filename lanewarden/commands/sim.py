@@ -73,8 +73,9 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
         lines.append(f"  distance past lane end: {fmt('distance_past_lane_end_m', ' m')} "
                      "(negative: stopped before it)")
     if metrics.get("lane_loss_to_halt_s") is not None:
-        lines.append(f"  lane out of view -> HALT: {fmt('lane_loss_to_halt_s', ' s')} (negative: "
-                     "halted before the lane left the view)")
+        estimated = " (estimated)" if metrics.get("lane_loss_estimated") else ""
+        lines.append(f"  lane out of view -> HALT: {fmt('lane_loss_to_halt_s', ' s')}{estimated} "
+                     "(negative: halted before the lane left the view)")
     return lines
 
 

@@ -60,5 +60,12 @@ def test_report_shows_both_runs(demo_out: Path) -> None:
 
 
 def test_posters_show_the_outcome(demo_out: Path) -> None:
-    assert metrics(demo_out, "supervised")["video_poster"]["shows"] == "the halt"  # type: ignore[index]
-    assert metrics(demo_out, "lecture")["video_poster"]["shows"] == "the last frame"  # type: ignore[index]
+    supervised, lecture = metrics(demo_out, "supervised"), metrics(demo_out, "lecture")
+    poster = supervised["video_poster"]
+    assert isinstance(poster, dict) and poster["shows"] == "the halt"
+    halt_time = supervised["halt_time_s"]
+    assert isinstance(halt_time, float)
+    assert 0.0 <= poster["time_s"] - halt_time <= 1 / 15 + 1e-9  # the first video frame in HALT
+    last = lecture["video_poster"]
+    assert isinstance(last, dict) and last["shows"] == "the last frame"
+    assert 0.0 <= lecture["sim_time_s"] - last["time_s"] < 1 / 15  # type: ignore[operator]

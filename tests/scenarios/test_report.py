@@ -7,17 +7,25 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
+from lanewarden.actuation.base import STOP
 from lanewarden.perception.overlay import OVERLAY_STYLES, put_text_lines
 from lanewarden.scenarios.plot import decision_shares, state_runs
 from lanewarden.scenarios.report import comparison_rows, demo_summary, format_table, write_report
 from lanewarden.scenarios.state_reasons import state_reasons, state_with_reason
+from lanewarden.scenarios.texture import paint_ground
 from lanewarden.scenarios.video import (
     MAP_STYLES,
     STATE_COLORS,
+    MapView,
+    VideoRecorder,
     caption_cap_height_px,
     video_legend,
 )
+from lanewarden.scenarios.world import build_world
+from lanewarden.supervisor.loop import StepRecord
+from tests.scenarios.helpers import straight_spec
 
 LECTURE = {"halted": False, "halt_reason": None, "turns_completed": ["A"],
            "states_visited": ["FOLLOW", "TURN_RIGHT", "TURN_LEFT"], "halt_position": None,
@@ -27,6 +35,7 @@ LECTURE = {"halted": False, "halt_reason": None, "turns_completed": ["A"],
 SUPERVISED = {"halted": True, "halt_reason": "LANE_LOST: no usable lane for longer than x",
               "states_visited": ["HALT", "FOLLOW", "DEGRADED"],
               "halt_position": {"x_m": 6.38, "y_m": -5.2, "past_lane_end_m": -0.372},
+              "lane_loss_to_halt_s": -2.07, "lane_loss_estimated": True,
               "turns_completed": ["A", "B"], "max_cross_track_error_m": 0.05123,
               "distance_past_lane_end_m": -0.36, "crossed_tape": False,
               "outputs": ["plot.png", "run.jsonl"]}
@@ -41,6 +50,7 @@ def test_table_and_summary() -> None:
     assert table["halt position"] == ["-", "0.37 m before the tape end"]
     assert table["states visited"] == ["FOLLOW, TURN_RIGHT, TURN_LEFT", "HALT, FOLLOW, DEGRADED"]
     assert table["turns completed"] == ["A", "A, B"]
+    assert table["lane out of view -> HALT (s)"] == ["-", "-2.07 (estimated)"]
     assert table["max cross-track error (m)"] == ["0.7", "0.051"]
     text = format_table(rows)
     assert text.splitlines()[1].startswith("---")
@@ -130,3 +140,32 @@ def test_caption_text_is_readable_at_the_reports_size() -> None:
     put_text_lines(canvas, ["HALT"], (5, 40), cap, shade=False)
     rows = np.nonzero(cv2.cvtColor(canvas, cv2.COLOR_BGR2GRAY).max(axis=1) > 128)[0]
     assert rows.max() - rows.min() + 1 >= 13
+
+
+def _record(t: float, state: str, events: tuple[str, ...] = (),
+            halt_reason: str | None = None) -> StepRecord:
+    return StepRecord(frame_index=None, time_s=t, observation=None, filtered_slope_sum=None,
+                      slope_sum_variance=None, state=state, events=events, command=STOP,
+                      halt_reason=halt_reason)
+
+
+@pytest.mark.parametrize(("states", "shows", "time_s"), [
+    (["HALT", "FOLLOW", "DEGRADED", "HALT", "HALT"], "the halt", 0.3),
+    (["HALT", "FOLLOW", "TURN_LEFT", "FOLLOW", "FOLLOW"], "the last frame", 0.4),
+    (["HALT", "HALT", "HALT", "HALT", "HALT"], "the last frame", 0.4),  # never engaged
+])
+def test_the_poster_is_the_outcome(tmp_path: Path, states: list[str], shows: str,
+                                   time_s: float) -> None:
+    world = build_world(straight_spec(2.0), margin_m=1.0)
+    texture = paint_ground(world, 0.02, seed=0)
+    recorder = VideoRecorder(tmp_path / "video.mp4", (64, 48), MapView(world, texture, 160),
+                             fps=10.0, crf=28, preset="ultrafast", title="t")
+    camera = np.zeros((48, 64, 3), np.uint8)
+    for i, state in enumerate(states):
+        record = _record(i / 10, state, halt_reason="LANE_LOST: x" if state == "HALT" else None)
+        recorder.step(world.start_pose, record)
+        recorder.add(camera, world.start_pose, i / 10, record, None)
+    recorder.close()
+    assert (recorder.poster_shows, recorder.poster_time_s) == (shows, time_s)
+    poster = cv2.imread(str(tmp_path / "poster.jpg"))
+    assert poster.shape == (160 + 38, 214 + 160, 3)  # caption over [camera scaled | map]
