@@ -5,8 +5,9 @@ here, in order, in a folder prepared with what it reads (chessboard shots, lane 
 scenario file of docs/scenarios.md); run by another test (the demo); or, for those that need a
 robot or a camera, parsed by the real CLI down to their subcommand and options (so a renamed flag
 fails) but not run: on a developer's machine `--camera 0` may be a real webcam, `base drive` a
-real robot. The `from ... import ...` lines of the ```python sketches are imported. An example
-added to the docs without a row here fails `test_every_example_is_accounted_for`.
+real robot. The `from ... import ...` lines of the ```python sketches are imported, and the
+examples in every command's --help are parsed. An example added to the docs without a row here
+fails `test_every_example_is_accounted_for`.
 """
 
 from __future__ import annotations
@@ -171,3 +172,27 @@ def test_the_scenario_example_meets_its_expectation_with_either_controller(
         sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sim", "--scenario", "my-track.yaml", "--no-video", "--check", "--quiet",
                  "--controller", "lecture"]) == 0, capsys.readouterr().err
+
+
+def _help_examples() -> list[str]:
+    """The `lanewarden ...` example lines of every command's --help."""
+    found = []
+    pending: list[tuple[list[str], click.Command]] = [([], cli)]
+    while pending:
+        path, command = pending.pop()
+        ctx = click.Context(command, info_name=" ".join(["lanewarden", *path]))
+        for line in command.get_help(ctx).splitlines():
+            text = line.strip().removeprefix("Example: ")
+            if text.startswith("lanewarden "):
+                found.append(text.split("&&")[0].strip())
+        if isinstance(command, click.Group):
+            pending += [([*path, name], command.commands[name]) for name in command.commands]
+    return sorted(found)
+
+
+def test_every_help_example_parses() -> None:
+    examples = _help_examples()
+    assert len(examples) == 8
+    for example in examples:
+        argv, _ = argv_of(example)
+        assert parse_only(argv).params, example  # parsed down to the command that runs
