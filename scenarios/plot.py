@@ -19,11 +19,15 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.scenarios.video import STATE_COLORS
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 FloatArray = NDArray[np.float64]
 
@@ -107,6 +111,105 @@ def _reason_summary(runs: Sequence[StateRun], reasons: dict[float, str | None]) 
     return ", ".join(f"{name} x{n}" if n > 1 else name for name, n in counts.most_common())
 
 
+def _values(values: Sequence[float | None]) -> FloatArray:
+    return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+
+
+def _draw_slope_sum(ax: Axes, times: FloatArray, raw: FloatArray, acted: FloatArray,
+                    turn_threshold: float) -> float:
+    """The slope sum panel; returns its half height (y limit)."""
+    if not np.array_equal(raw, acted, equal_nan=True):
+        ax.plot(times, raw, ".", ms=2, color="0.55", label="raw slope sum (each frame)")
+        ax.plot(times, acted, "-", lw=1.4, color="C0",
+                label="filtered slope sum\n(what the supervisor acts on)")
+    else:
+        ax.plot(times, raw, "-", lw=0.6, color="C0",
+                label="raw slope sum\n(the controller acts on it unfiltered)")
+    for sign in (1, -1):
+        ax.axhline(sign * turn_threshold, color="C3", lw=0.8, ls=":",
+                   label=f"turn threshold +-{turn_threshold:g}" if sign > 0 else None)
+    finite = raw[np.isfinite(raw)]
+    spread = float(np.percentile(np.abs(finite), 99)) if len(finite) else 0.0
+    limit = max(turn_threshold * 2.0, spread) * 1.1
+    ax.set_ylim(-limit, limit)
+    ax.set_ylabel("slope sum")
+    return limit
+
+
+def _draw_state_strip(ax: Axes, times: FloatArray, states: Sequence[str],
+                      reasons: Sequence[str | None]) -> None:
+    """HALT / DEGRADED / driving bands, the reasons in the legend."""
+    from matplotlib.patches import Patch
+
+    runs = state_runs(times, [strip_label(s) for s in states])
+    reason_at = {}
+    for run in runs:
+        k = int(np.searchsorted(times, run.start_s))
+        reason_at[run.start_s] = reasons[k] if k < len(reasons) else None
+        ax.axvspan(run.start_s, run.end_s, color=_rgb(run.label), lw=0)
+    legend = []
+    for label in ("HALT", "DEGRADED", DRIVING):
+        present = [r for r in runs if r.label == label]
+        if not present:
+            continue
+        if label == DRIVING:
+            text = "driving (FOLLOW / TURN_*)"
+        elif label == "HALT":
+            text = "HALT: " + ", ".join(
+                f"{reason_at[r.start_s] or '?'} ({r.start_s:.1f} s)" for r in present)
+        else:
+            text = f"DEGRADED: {_reason_summary(present, reason_at)}"
+        legend.append(Patch(color=_rgb(label), label=textwrap.fill(text, LEGEND_WIDTH_CHARS)))
+    ax.set_yticks([])
+    ax.set_ylabel("state", rotation=0, ha="right", va="center")
+    ax.legend(handles=legend, loc="upper left", bbox_to_anchor=(1.0, 1.15), fontsize=8,
+              frameon=False)
+
+
+def _draw_decisions(ax: Axes, times: FloatArray, states: Sequence[str]) -> None:
+    """The lane decision's share of each DECISION_BIN_S, stacked."""
+    from matplotlib.patches import Patch
+
+    starts, shares = decision_shares(times, states)
+    edges = np.append(starts, starts[-1] + DECISION_BIN_S) if len(starts) else starts
+    bottom = np.zeros(len(starts))
+    for decision in DECISIONS:
+        share = shares[decision]
+        ax.stairs(bottom + share, edges, baseline=bottom, fill=True, color=_rgb(decision),
+                  label=decision)
+        bottom = bottom + share
+    ax.set_ylim(0, 1)
+    ax.set_ylabel(f"lane decision\n(share of each\n{DECISION_BIN_S:g} s)")
+    handles, _ = ax.get_legend_handles_labels()
+    handles.append(Patch(facecolor="white", edgecolor="0.6",
+                         label="no decision (HALT or DEGRADED)"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8,
+              frameon=False)
+    ax.set_xlabel("time (s)")
+
+
+def _draw_markers(axes: Sequence[Axes], markers: Sequence[PlotMarker], end: float,
+                  y_text: float) -> float:
+    """Vertical lines on every panel (legend on the first); an estimate is dotted and says so,
+    and the time after the run's end is shaded. Returns the latest time drawn."""
+    latest = end
+    for marker, colour in zip(markers, ["C1", "C3", "C4", "C5"], strict=False):
+        t = marker.time_s
+        label = f"{marker.name} ({t:.1f} s)"
+        if marker.estimated:
+            label = f"{marker.name} ({t:.1f} s, estimated after the run"
+            label += ", beyond its end)" if t > end else ")"
+        for ax in axes:
+            ax.axvline(t, color=colour, lw=1.2, ls=":" if marker.estimated else "--",
+                       label=textwrap.fill(label, LEGEND_WIDTH_CHARS) if ax is axes[0] else None)
+        latest = max(latest, t)
+    if latest > end:
+        for ax in axes:
+            ax.axvspan(end, latest + 0.5, color="0.9", zorder=0)
+        axes[0].text(end, y_text, "run ended ", fontsize=8, color="0.4", va="bottom", ha="right")
+    return latest
+
+
 def write_plot(
     path: Path,
     title: str,
@@ -125,100 +228,21 @@ def write_plot(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Patch
 
-    def arr(values: Sequence[float | None]) -> FloatArray:
-        return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
-
-    fig, (ax_slope, ax_conf, ax_state, ax_decision) = plt.subplots(
-        4, 1, figsize=(12.5, 8.5), sharex=True, gridspec_kw={"height_ratios": [3, 1.6, 0.7, 1.6]}
-    )
+    fig, axes = plt.subplots(4, 1, figsize=(12.5, 8.5), sharex=True,
+                             gridspec_kw={"height_ratios": [3, 1.6, 0.7, 1.6]})
+    ax_slope, ax_conf, ax_state, ax_decision = axes
     times = np.asarray(time_s, dtype=np.float64)
-    raw, acted = arr(raw_slope_sum), arr(acted_slope_sum)
-    filtered = not np.array_equal(raw, acted, equal_nan=True)
-    if filtered:
-        ax_slope.plot(times, raw, ".", ms=2, color="0.55", label="raw slope sum (each frame)")
-        ax_slope.plot(times, acted, "-", lw=1.4, color="C0",
-                      label="filtered slope sum\n(what the supervisor acts on)")
-    else:
-        ax_slope.plot(times, raw, "-", lw=0.6, color="C0",
-                      label="raw slope sum\n(the controller acts on it unfiltered)")
-    for sign in (1, -1):
-        ax_slope.axhline(sign * turn_threshold, color="C3", lw=0.8, ls=":",
-                         label=f"turn threshold +-{turn_threshold:g}" if sign > 0 else None)
-    finite = raw[np.isfinite(raw)]
-    spread = float(np.percentile(np.abs(finite), 99)) if len(finite) else 0.0
-    limit = max(turn_threshold * 2.0, spread)
-    ax_slope.set_ylim(-limit * 1.1, limit * 1.1)
-    ax_slope.set_ylabel("slope sum")
+    limit = _draw_slope_sum(ax_slope, times, _values(raw_slope_sum), _values(acted_slope_sum),
+                            turn_threshold)
     ax_slope.set_title(title)
-
-    ax_conf.plot(times, arr(confidence), "-", lw=1.0, color="C2")
+    ax_conf.plot(times, _values(confidence), "-", lw=1.0, color="C2")
     ax_conf.set_ylim(-0.05, 1.05)
     ax_conf.set_ylabel("perception\nconfidence")
-
-    strip = [strip_label(s) for s in states]
-    runs = state_runs(times, strip)
-    reason_at = {}
-    for run in runs:
-        k = int(np.searchsorted(times, run.start_s))
-        reason_at[run.start_s] = reasons[k] if k < len(reasons) else None
-    for run in runs:
-        ax_state.axvspan(run.start_s, run.end_s, color=_rgb(run.label), lw=0)
-    legend = []
-    for label in ("HALT", "DEGRADED", DRIVING):
-        present = [r for r in runs if r.label == label]
-        if not present:
-            continue
-        if label == DRIVING:
-            text = "driving (FOLLOW / TURN_*)"
-        elif label == "HALT":
-            text = "HALT: " + ", ".join(
-                f"{reason_at[r.start_s] or '?'} ({r.start_s:.1f} s)" for r in present)
-        else:
-            text = f"DEGRADED: {_reason_summary(present, reason_at)}"
-        legend.append(Patch(color=_rgb(label), label=textwrap.fill(text, LEGEND_WIDTH_CHARS)))
-    ax_state.set_yticks([])
-    ax_state.set_ylabel("state", rotation=0, ha="right", va="center")
-    ax_state.legend(handles=legend, loc="upper left", bbox_to_anchor=(1.0, 1.15), fontsize=8,
-                    frameon=False)
-
-    starts, shares = decision_shares(times, states)
-    edges = np.append(starts, starts[-1] + DECISION_BIN_S) if len(starts) else starts
-    bottom = np.zeros(len(starts))
-    for decision in DECISIONS:
-        share = shares[decision]
-        ax_decision.stairs(bottom + share, edges, baseline=bottom, fill=True,
-                           color=_rgb(decision), label=decision)
-        bottom = bottom + share
-    ax_decision.set_ylim(0, 1)
-    ax_decision.set_ylabel(f"lane decision\n(share of each\n{DECISION_BIN_S:g} s)")
-    handles, _ = ax_decision.get_legend_handles_labels()
-    handles.append(Patch(facecolor="white", edgecolor="0.6",
-                         label="no decision (HALT or DEGRADED)"))
-    ax_decision.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8,
-                       frameon=False)
-    ax_decision.set_xlabel("time (s)")
-
+    _draw_state_strip(ax_state, times, states, reasons)
+    _draw_decisions(ax_decision, times, states)
     end = float(times[-1]) if len(times) else 0.0
-    styles = ["C1", "C3", "C4", "C5"]
-    latest = end
-    for marker, colour in zip(markers, styles, strict=False):
-        t = marker.time_s
-        label = f"{marker.name} ({t:.1f} s)"
-        if marker.estimated:
-            label = f"{marker.name} ({t:.1f} s, estimated after the run"
-            label += ", beyond its end)" if t > end else ")"
-        label = textwrap.fill(label, LEGEND_WIDTH_CHARS)
-        for ax in (ax_slope, ax_conf, ax_state, ax_decision):
-            ax.axvline(t, color=colour, lw=1.2, ls=":" if marker.estimated else "--",
-                       label=label if ax is ax_slope else None)
-        latest = max(latest, t)
-    if latest > end:
-        for ax in (ax_slope, ax_conf, ax_state, ax_decision):
-            ax.axvspan(end, latest + 0.5, color="0.9", zorder=0)
-        ax_slope.text(end, -limit * 1.05, "run ended ", fontsize=8, color="0.4", va="bottom",
-                      ha="right")
+    latest = _draw_markers(list(axes), markers, end, -limit * 0.95)
     ax_slope.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     for ax in (ax_slope, ax_conf, ax_decision):
         ax.grid(True, alpha=0.3)
