@@ -324,9 +324,10 @@ def draw_ground_check(
                 cv2.drawMarker(canvas, (round(piece[0]), round(piece[1])), (40, 40, 230),
                                cv2.MARKER_CROSS, 7, 1, cv2.LINE_AA)
     for i, text in enumerate(lines):
-        origin = (8, 20 + 18 * i)
-        cv2.putText(canvas, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3,
-                    cv2.LINE_AA)
-        cv2.putText(canvas, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1,
-                    cv2.LINE_AA)
+        text = text.replace("°", " deg").encode("ascii", "replace").decode()  # Hershey: ASCII
+        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)
+        top = 4 + 18 * i
+        cv2.rectangle(canvas, (4, top), (12 + w, top + h + base + 4), (0, 0, 0), cv2.FILLED)
+        cv2.putText(canvas, text, (8, top + h + 2), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+                    (255, 255, 255), 1, cv2.LINE_AA)
     return canvas

@@ -60,8 +60,8 @@ def test_random_cameras_are_recovered_from_one_floor_chessboard() -> None:
         assert solution.reprojection_error_m < 0.002
         worst["height_m"] = max(worst["height_m"], abs(pose.height_m - camera.height_m))
         worst["pitch_deg"] = max(worst["pitch_deg"], abs(pose.pitch_deg - camera.pitch_down_deg))
-    # Typically far better than the acceptance bounds (1 cm, 1 deg): ~1 mm and ~0.1 deg.
-    assert worst["height_m"] < 0.004 and worst["pitch_deg"] < 0.4, worst
+    # Far better than the acceptance bounds (1 cm, 1 deg): measured 0.2 mm and 0.04 deg.
+    assert worst["height_m"] < 0.002 and worst["pitch_deg"] < 0.2, worst
 
 
 def test_the_corner_order_does_not_matter() -> None:

@@ -8,6 +8,7 @@ from lanewarden.scenarios.report import comparison_rows, demo_summary, format_ta
 
 LECTURE = {"halted": False, "halt_reason": None, "turns_completed": ["A"],
            "max_cross_track_error_m": 0.7, "distance_past_lane_end_m": 2.5, "crossed_tape": True,
+           "states_visited": ["FOLLOW", "TURN_RIGHT", "TURN_LEFT"],
            "outputs": ["plot.png", "run.jsonl", "video.mp4"]}
 SUPERVISED = {"halted": True, "halt_reason": "LANE_LOST: no usable lane for longer than x",
               "turns_completed": ["A", "B"], "max_cross_track_error_m": 0.05123,
@@ -22,6 +23,7 @@ def test_table_and_summary() -> None:
     assert table["halted"] == ["no", "yes"]
     assert table["halt reason"] == ["-", "LANE_LOST"]
     assert table["turns completed"] == ["A", "A, B"]
+    assert table["states visited"] == ["FOLLOW, TURN_RIGHT, TURN_LEFT", "-"]
     assert table["max cross-track error (m)"] == ["0.7", "0.051"]
     text = format_table(rows)
     assert text.splitlines()[1].startswith("---")
