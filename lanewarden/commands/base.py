@@ -2,14 +2,17 @@
 
 A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
 time.monotonic here). `drive` bypasses the supervisor on purpose (it is a bring-up tool), so it
-validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop, and always
-stops on exit, Ctrl-C included. Never talks to the serial port itself.
+validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop and on stale
+feedback (a silent base or a frozen dead-man), and always stops on exit: Ctrl-C, SIGTERM,
+SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first, then suspends, and
+the drive does not resume after SIGCONT (exit 130). Never talks to the serial port itself.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import signal
 import time
 from typing import Any
 
@@ -21,6 +24,7 @@ from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
+from lanewarden.stop_signals import SignalRequests, signal_requests, suspend
 
 #: How long `info` counts feedback packets to measure the stream rate.
 RATE_WINDOW_S = 1.0
@@ -121,6 +125,40 @@ def _hazard(feedback: BaseFeedback) -> str | None:
     return None
 
 
+def _stale_feedback(base: KobukiBase, limit_s: float) -> str | None:
+    """Why the base's feedback is too old to keep driving (the base went silent, the dead-man is
+    frozen), or None. A packet may still be in the relay's backlog (this process was briefly
+    descheduled): wait up to `limit_s` for a fresh one before calling the feedback stale."""
+
+    def age_s(b: KobukiBase) -> float:
+        received = b.feedback(time.monotonic()).received_at_s
+        return math.inf if received is None else time.monotonic() - received
+
+    if base.wait_for(lambda b: age_s(b) <= limit_s, limit_s):
+        return None
+    return (f"no feedback from the base for {age_s(base):.2f} s (limit "
+            f"actuation.link_timeout_s = {limit_s:g} s)")
+
+
+class DriveInterrupted(click.ClickException):
+    """A signal ended the drive (after the base was stopped)."""
+
+    exit_code = 130
+
+
+def _act_on_signals(base: KobukiBase, requests: SignalRequests, now: float) -> None:
+    """Stop signals end the drive; Ctrl-Z stops the base, suspends, and ends it after SIGCONT."""
+    if requests.suspend:
+        base.hold_stopped(now)  # stop on the wire and held by the dead-man before we freeze
+        suspend()
+        raise DriveInterrupted("interrupted (SIGTSTP): the base was stopped before suspending; "
+                               "the drive does not resume")
+    if requests.stop is signal.SIGINT:
+        raise KeyboardInterrupt
+    if requests.stop is not None:
+        raise DriveInterrupted(f"interrupted ({requests.stop.name})")
+
+
 @base_group.command("drive")
 @click.option("--port", default=None, help=PORT_HELP)
 @click.option("--linear", "linear_m_s", type=float, required=True, help="forward speed, m/s")
@@ -138,10 +176,16 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
     command = VelocityCommand(linear_m_s, angular_rad_s)
-    with KobukiBase.open(port, config=config, request_versions=False) as base:
-        # Ctrl-C (KeyboardInterrupt) and every error leave through `with`: close() stops the base
+    with (KobukiBase.open(port, config=config, request_versions=False) as base,
+          signal_requests() as requests):
+        # signals and every error leave through `with`: close() stops the base
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
+            _act_on_signals(base, requests, now)
+            stale = _stale_feedback(base, config.link_timeout_s)
+            if stale is not None:
+                base.send(STOP, now)
+                raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: {stale}")
             hazard = _hazard(base.feedback(now))
             if hazard is not None:
                 base.send(STOP, now)

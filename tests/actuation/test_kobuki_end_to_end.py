@@ -264,13 +264,14 @@ def test_second_opener_is_told_the_port_is_busy(standin: KobukiStandIn,
     kobuki.send(STOP, time.monotonic())  # the first owner is unaffected
 
 
-def test_sigterm_to_the_deadman_stops_the_base(standin: KobukiStandIn,
-                                               kobuki: KobukiBase) -> None:
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGQUIT, signal.SIGINT, signal.SIGHUP])
+def test_a_stop_signal_to_the_deadman_stops_the_base(standin: KobukiStandIn, kobuki: KobukiBase,
+                                                     how: signal.Signals) -> None:
     kobuki.send(MOVE, time.monotonic())
     assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts)), DEADLINE_S)
-    os.kill(kobuki.deadman_pid, signal.SIGTERM)
+    os.kill(kobuki.deadman_pid, how)
     assert kobuki.wait_for(lambda b: b.link_lost is not None, DEADLINE_S)
-    assert "stopped by signal SIGTERM" in kobuki.link_health(time.monotonic()).deadman_reason
+    assert f"stopped by signal {how.name}" in kobuki.link_health(time.monotonic()).deadman_reason
     assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     with pytest.raises(KobukiLinkError, match="dead-man process exited"):
         kobuki.send(MOVE, time.monotonic())
