@@ -1,107 +1,240 @@
-"""Dead-man latency: last heartbeat -> stop packet on the wire, against the 300 ms target.
+"""Dead-man latency under load: last heartbeat -> stop packet on the wire, against its bound.
 
 Runs the pty stand-in Kobuki (tests/actuation/kobuki_standin.py) and the pretend control process
-(tests/actuation/control_process.py, which logs the monotonic time of every completed send), then:
-- SIGKILL: the dead-man sees end-of-stream and stops at once;
-- SIGSTOP (a frozen control process): the dead-man's heartbeat timeout (0.2 s) trips.
-Latency = arrival of the first stop packet at the stand-in - the last logged heartbeat
-(CLOCK_MONOTONIC is system-wide, so the processes' stamps compare). Also reports the steady
-base-control rate the stand-in receives and how long KobukiBase.open takes.
+(tests/actuation/control_process.py, which logs the monotonic time just before every send) while
+busy processes load every core (default two per core), then measures:
+- SIGSTOP of the control process (frozen): the dead-man's heartbeat timeout trips; the same
+  control process is continued and re-armed between trials;
+- SIGKILL of the control process: the dead-man sees end-of-stream and stops at once;
+- SIGSTOP of the dead-man itself: the control side notices its silence, kills it and writes the
+  stop to the port directly (measured from the signal);
+- SIGTSTP and SIGQUIT to the process group of `lanewarden base drive` (from the signal).
+Latency = arrival of the first stop packet at the stand-in - the reference time (CLOCK_MONOTONIC
+is system-wide, so the processes' stamps compare). The documented bound is heartbeat timeout +
+one command period (0.2 s + 0.02 s with the defaults); the target for the SIGSTOP trials is
+250 ms. The stand-in runs at SCHED_FIFO where permitted (it plays the hardware: its arrival
+stamps should measure the dead-man, not the stand-in's own starvation); the control processes
+and the load run at normal priority.
 
-    python benchmarks/deadman_latency.py [--trials N]
+    python benchmarks/deadman_latency.py [--trials 100] [--kill-trials 10] [--load-per-core 2]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import queue
 import signal
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(PROJECT_ROOT))
 
-from lanewarden.actuation.kobuki_base import KobukiBase  # noqa: E402
+from lanewarden.actuation.config import ActuationConfig  # noqa: E402
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn  # noqa: E402
 
-TARGET_S = 0.300
+CONFIG = ActuationConfig()
+BOUND_S = CONFIG.heartbeat_timeout_s + CONFIG.command_period_s
+TARGET_S = 0.250
 CONTROL_SCRIPT = PROJECT_ROOT / "tests" / "actuation" / "control_process.py"
+WAIT_S = 30.0  # generous: a loaded machine starts Python slowly
 
 
 def _motion(packets: list) -> bool:  # type: ignore[type-arg]
     return any(p.base_control not in (None, (0, 0)) for p in packets)
 
 
-def one_trial(how: signal.Signals) -> tuple[float, float]:
-    """(last heartbeat -> stop, signal -> stop) in seconds."""
+@contextmanager
+def busy_load(per_core: int) -> Iterator[int]:
+    """`per_core` busy processes per core (normal priority) for the duration of the block."""
+    count = per_core * (os.cpu_count() or 1)
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
+            for _ in range(count)]
+    try:
+        yield count
+    finally:
+        for process in busy:
+            process.kill()
+            process.wait()
+
+
+def raise_own_priority() -> str:
+    """SCHED_FIFO for this thread and the stand-in threads it starts (children reset to normal)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(20))
+    except (OSError, AttributeError) as exc:
+        return f"normal priority ({exc})"
+    return "SCHED_FIFO 20"
+
+
+class Control:
+    """tests/actuation/control_process.py on the stand-in's port, its stdout lines on a queue."""
+
+    def __init__(self, port: str, log: Path) -> None:
+        self.log = log
+        self.process = subprocess.Popen(
+            [sys.executable, str(CONTROL_SCRIPT), port, str(log)], cwd=PROJECT_ROOT,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=self._pump, daemon=True).start()
+        self.deadman_pid = int(self.expect("deadman ").split()[-1])
+
+    def _pump(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.put(line.strip())
+
+    def expect(self, prefix: str) -> str:
+        line = self.lines.get(timeout=WAIT_S)
+        if not line.startswith(prefix):
+            raise RuntimeError(f"control process said {line!r}, expected {prefix!r}")
+        return line
+
+    def last_heartbeat_before(self, when_s: float) -> float:
+        return max(t for t in map(float, self.log.read_text().split()) if t <= when_s)
+
+    def close(self) -> None:
+        os.kill(self.process.pid, signal.SIGCONT)
+        self.process.kill()
+        self.process.wait()
+
+
+def first_stop_after(standin: KobukiStandIn, since_s: float) -> float:
+    def stopped(packets: list) -> bool:  # type: ignore[type-arg]
+        return any(p.arrival_s >= since_s and p.packet == STOP_PACKET for p in packets)
+
+    if not standin.wait_for(stopped, 5.0):
+        raise RuntimeError("no stop packet within 5 s")
+    return next(p.arrival_s for p in standin.snapshot()
+                if p.arrival_s >= since_s and p.packet == STOP_PACKET)
+
+
+def wait_for_motion_after(standin: KobukiStandIn, since_s: float) -> None:
+    if not standin.wait_for(lambda pkts: _motion([p for p in pkts if p.arrival_s >= since_s]),
+                            WAIT_S):
+        raise RuntimeError("the control process never drove")
+
+
+def frozen_control_trials(trials: int) -> list[float]:
+    """SIGSTOP of one control process, `trials` times: last heartbeat -> stop, s."""
+    results = []
     with KobukiStandIn() as standin, tempfile.TemporaryDirectory() as tmp:
-        log = Path(tmp) / "heartbeats"
-        control = subprocess.Popen([sys.executable, str(CONTROL_SCRIPT), standin.port, str(log)],
-                                   cwd=PROJECT_ROOT, stdin=subprocess.PIPE,
-                                   stdout=subprocess.DEVNULL)
+        control = Control(standin.port, Path(tmp) / "heartbeats")
         try:
-            if not standin.wait_for(_motion, 15.0):
-                raise RuntimeError("the control process never drove")
-            signalled_at = time.monotonic()
-            os.kill(control.pid, how)
-            if not standin.wait_for(lambda pkts: any(
-                    p.arrival_s >= signalled_at and p.packet == STOP_PACKET for p in pkts), 5.0):
-                raise RuntimeError("no stop packet within 5 s")
-            stop_at = next(p.arrival_s for p in standin.snapshot()
-                           if p.arrival_s >= signalled_at and p.packet == STOP_PACKET)
-            heartbeats = [float(line) for line in log.read_text().split()]
-            last = max(t for t in heartbeats if t <= stop_at)
-            return stop_at - last, stop_at - signalled_at
+            wait_for_motion_after(standin, 0.0)
+            for _ in range(trials):
+                signalled_at = time.monotonic()
+                os.kill(control.process.pid, signal.SIGSTOP)
+                stop_at = first_stop_after(standin, signalled_at)
+                results.append(stop_at - control.last_heartbeat_before(stop_at))
+                os.kill(control.process.pid, signal.SIGCONT)
+                control.expect("tripped")
+                assert control.process.stdin is not None
+                control.process.stdin.write("rearm\n")
+                control.process.stdin.flush()
+                control.expect("rearmed")
+                wait_for_motion_after(standin, time.monotonic())
         finally:
-            if how is signal.SIGSTOP:
-                os.kill(control.pid, signal.SIGCONT)
-            control.kill()
-            control.wait()
+            control.close()
+    return results
 
 
-def steady_rate() -> tuple[float, float]:
-    """(base-control packets/s received while driving unchanged, KobukiBase.open seconds)."""
-    from lanewarden.actuation.base import VelocityCommand
+def killed_control_trial() -> float:
+    with KobukiStandIn() as standin, tempfile.TemporaryDirectory() as tmp:
+        control = Control(standin.port, Path(tmp) / "heartbeats")
+        try:
+            wait_for_motion_after(standin, 0.0)
+            signalled_at = time.monotonic()
+            os.kill(control.process.pid, signal.SIGKILL)
+            stop_at = first_stop_after(standin, signalled_at)
+            return stop_at - control.last_heartbeat_before(stop_at)
+        finally:
+            control.close()
 
+
+def frozen_deadman_trial() -> float:
+    """SIGSTOP of the dead-man: signal -> the control side's own stop on the wire, s."""
+    with KobukiStandIn() as standin, tempfile.TemporaryDirectory() as tmp:
+        control = Control(standin.port, Path(tmp) / "heartbeats")
+        try:
+            wait_for_motion_after(standin, 0.0)
+            signalled_at = time.monotonic()
+            os.kill(control.deadman_pid, signal.SIGSTOP)
+            return first_stop_after(standin, signalled_at) - signalled_at
+        finally:
+            control.close()
+
+
+def drive_trial(how: signal.Signals) -> float:
+    """`how` to the process group of `lanewarden base drive`: signal -> stop on the wire, s."""
     with KobukiStandIn() as standin:
-        started = time.monotonic()
-        with KobukiBase.open(standin.port) as base:
-            opened_s = time.monotonic() - started
-            command = VelocityCommand(0.2, 0.0)
-            begin = time.monotonic()
-            while time.monotonic() - begin < 2.0:
-                base.send(command, time.monotonic())
-                base.wait_for(lambda b: False, 0.1)  # heartbeat every 100 ms
-            base.send(VelocityCommand(), time.monotonic())
-        moving = [t for t, c in standin.base_controls() if c != (0, 0)]
-        return (len(moving) - 1) / (moving[-1] - moving[0]), opened_s
+        drive = subprocess.Popen(
+            [sys.executable, "-m", "lanewarden", "base", "drive", "--port", standin.port,
+             "--linear", "0.1", "--duration", "60"], cwd=PROJECT_ROOT, start_new_session=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            wait_for_motion_after(standin, 0.0)
+            signalled_at = time.monotonic()
+            os.killpg(drive.pid, how)
+            return first_stop_after(standin, signalled_at) - signalled_at
+        finally:
+            try:
+                os.killpg(drive.pid, signal.SIGKILL)  # its dead-man then stops and exits
+            except ProcessLookupError:
+                pass
+            drive.wait()
 
 
-def _summary(name: str, values: list[float]) -> str:
+def _summary(name: str, values: list[float], target_s: float | None) -> str:
     ms = sorted(v * 1000 for v in values)
-    verdict = "PASS" if max(ms) <= TARGET_S * 1000 else "FAIL"
-    return (f"{name:34} min {ms[0]:6.1f}  median {statistics.median(ms):6.1f}  "
-            f"max {ms[-1]:6.1f} ms  (target {TARGET_S * 1000:.0f} ms: {verdict})")
+    p99 = statistics.quantiles(ms, n=100, method="inclusive")[98] if len(ms) > 1 else ms[0]
+    verdict = ""
+    if target_s is not None:
+        verdict = f"  (target {target_s * 1000:.0f} ms: " \
+                  f"{'PASS' if ms[-1] <= target_s * 1000 else 'FAIL'})"
+    return (f"{name:44} n {len(ms):3}  min {ms[0]:6.1f}  median {statistics.median(ms):6.1f}  "
+            f"p99 {p99:6.1f}  max {ms[-1]:6.1f} ms{verdict}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--trials", type=int, default=10)
-    trials = parser.parse_args().trials
-    rate_hz, open_s = steady_rate()
-    print(f"steady base-control rate while the command is unchanged: {rate_hz:.1f} Hz "
-          f"(configured 50 Hz)")
-    print(f"KobukiBase.open (spawn dead-man, open port, first feedback): {open_s * 1000:.0f} ms")
-    for how, label in ((signal.SIGKILL, "SIGKILL control process"),
-                       (signal.SIGSTOP, "SIGSTOP (frozen) control process")):
-        results = [one_trial(how) for _ in range(trials)]
-        print(_summary(f"{label}: last heartbeat->stop", [r[0] for r in results]))
-        print(_summary(f"{label}: signal->stop", [r[1] for r in results]))
+    parser.add_argument("--trials", type=int, default=100, help="SIGSTOP trials of the control")
+    parser.add_argument("--kill-trials", type=int, default=10)
+    parser.add_argument("--deadman-trials", type=int, default=10)
+    parser.add_argument("--drive-trials", type=int, default=3)
+    parser.add_argument("--load-per-core", type=int, default=2)
+    args = parser.parse_args()
+    with busy_load(args.load_per_core) as busy:
+        priority = raise_own_priority()
+        print(f"load: {busy} busy processes ({args.load_per_core} per core, "
+              f"{os.cpu_count()} cores) at normal priority; load average before: "
+              f"{os.getloadavg()[0]:.1f}; stand-in: {priority}")
+        print(f"documented bound: heartbeat timeout {CONFIG.heartbeat_timeout_s:g} s + one "
+              f"command period {CONFIG.command_period_s:g} s = {BOUND_S * 1000:.0f} ms")
+        rows = [
+            _summary("SIGSTOP control: last heartbeat -> stop",
+                     frozen_control_trials(args.trials), TARGET_S),
+            _summary("SIGKILL control: last heartbeat -> stop",
+                     [killed_control_trial() for _ in range(args.kill_trials)], BOUND_S),
+            _summary("SIGSTOP dead-man: signal -> stop (control)",
+                     [frozen_deadman_trial() for _ in range(args.deadman_trials)], None),
+        ]
+        if args.drive_trials:
+            for how in (signal.SIGTSTP, signal.SIGQUIT):
+                rows.append(_summary(f"{how.name} to base drive's group: signal -> stop",
+                                     [drive_trial(how) for _ in range(args.drive_trials)],
+                                     BOUND_S))
+        print(f"load average after: {os.getloadavg()[0]:.1f}")
+        for row in rows:
+            print(row)
 
 
 if __name__ == "__main__":
