@@ -9,8 +9,9 @@ starve its send loop, opens the serial port, writes base control at the steady c
 every valid feedback payload and its link health, and follows `DeadmanLogic`: when the control
 process goes silent or away, the base is stopped at once and kept stopped.
 On SIGTERM, SIGINT, SIGHUP, SIGQUIT, an internal error or a CLOSE message: stop, flush, exit.
-SIGTSTP, SIGTTIN and SIGTTOU are ignored (only SIGSTOP can freeze it; the control process then
-notices its silence, kills it and writes the stop itself).
+Even SIGTSTP sent to it directly does not stop it (its process group is orphaned, and the kernel
+discards job-control stops there); only SIGSTOP can freeze it, and then the control process
+notices its silence, kills it and writes the stop itself.
 
 This is the thin shell around `DeadmanLogic`: the only code here that reads time.monotonic.
 It must never exit without trying to put a stop on the wire, and never block on the control
@@ -257,8 +258,6 @@ class DeadmanProcess:
         signal.set_wakeup_fd(self._wake_w)
         for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT):
             signal.signal(signum, self._on_signal)
-        for signum in (signal.SIGTSTP, signal.SIGTTIN, signal.SIGTTOU):
-            signal.signal(signum, signal.SIG_IGN)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
