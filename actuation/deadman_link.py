@@ -12,9 +12,11 @@ It also watches the dead-man: it reports every write to the port (at the command
 report received for `heartbeat_timeout_s`, with nothing waiting in the socket, means it is
 frozen, starved or wedged (the silence is timed from when the relay last received a report, so a
 relay that was itself frozen or starved first drains its backlog and then waits the full time).
-Then the relay kills it and, once it is confirmed dead, reopens the port and writes stop itself
-(`write_stop_directly`); the same when it dies from a signal it could not handle. Either way the
-link is lost with one line saying what happened and whether the stop went out.
+Then it is killed and, once it is confirmed dead, the port is reopened and the stop written from
+here (`write_stop_directly`); the same when it dies from a signal it could not handle. That work
+runs in a thread that is not a daemon, so it completes even if this process is exiting. Either
+way the link is then lost with one line saying what happened and whether the stop went out (a
+send that finds the dead-man gone waits, bounded, for that line).
 
 The only code outside the dead-man process that writes to the serial port is
 `write_stop_directly`, and only after the dead-man is confirmed dead: two writers never race.
@@ -119,6 +121,7 @@ class DeadmanLink:
         self.mode = DeadmanMode.DISARMED
         self.mode_reason = "started"
         self.wire: OnTheWire | None = None
+        self._emergency: threading.Thread | None = None
         self._relay = threading.Thread(target=self._relay_messages, name="kobuki-relay",
                                        daemon=True)
 
@@ -175,8 +178,10 @@ class DeadmanLink:
             raise KobukiLinkError(
                 f"{self.port}: the dead-man process is not reading commands") from None
         except OSError as exc:
-            raise KobukiLinkError(
-                f"{self.port}: the dead-man process is gone ({exc.strerror or exc})") from None
+            # gone: the relay says how once it has seen to the stop (a moment, bounded)
+            self.wait_for(lambda: self.gone, self._config.close_timeout_s)
+            raise KobukiLinkError(self.lost or f"{self.port}: the dead-man process is gone "
+                                  f"({exc.strerror or exc})") from None
 
     def wait_for(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         with self.cond:
@@ -205,6 +210,10 @@ class DeadmanLink:
         except OSError:
             pass
         self._relay.join(timeout=self._config.close_timeout_s)
+        with self.cond:
+            emergency = self._emergency
+        if emergency is not None:
+            emergency.join(timeout=self._config.close_timeout_s + self._config.write_timeout_s)
         self._control.close()
 
     # ---- the relay thread -----------------------------------------------------------------------
@@ -214,7 +223,8 @@ class DeadmanLink:
         while True:
             data = self._receive(None if last_report_s is None else last_report_s + silence_s)
             if data is None:
-                self._on_silence(silence_s)
+                self._start_emergency_stop(f"stopped answering (no report for {silence_s:g} s)",
+                                           kill=True)
                 return
             if not data:
                 self._on_end_of_stream()
@@ -261,19 +271,6 @@ class DeadmanLink:
         elif isinstance(message, LinkLost):
             self.lost = message.message
 
-    def _on_silence(self, silence_s: float) -> None:
-        """No report for `silence_s`: kill it, then (confirmed dead) write the stop ourselves.
-        Also while closing: a frozen dead-man would not act on CLOSE either."""
-        self.process.kill()
-        try:
-            self.process.wait(timeout=self._config.close_timeout_s)
-        except subprocess.TimeoutExpired:
-            outcome = "could not confirm it dead, so no stop was written"
-        else:
-            outcome = write_stop_directly(self.port, self._config.write_timeout_s)
-        self._lose(f"{self.port}: the dead-man process stopped answering (no report for "
-                   f"{silence_s:g} s): killed it; {outcome}")
-
     def _on_end_of_stream(self) -> None:
         """The dead-man closed its end: exited on its own (it stopped the base on its way out) or
         was killed by a signal it could not handle (then nobody did: write the stop ourselves)."""
@@ -287,11 +284,33 @@ class DeadmanLink:
         if closing:
             self._lose(None)
         elif returncode < 0 and opened:
-            outcome = write_stop_directly(self.port, self._config.write_timeout_s)
-            self._lose(f"{self.port}: the dead-man process was killed "
-                       f"({_signal_name(returncode)}); {outcome}")
+            self._start_emergency_stop(f"was killed ({_signal_name(returncode)})", kill=False)
         else:
             self._lose(f"{self.port}: the dead-man process exited")
+
+    def _start_emergency_stop(self, what: str, *, kill: bool) -> None:
+        """Run `_emergency_stop` in a thread that is NOT a daemon: it finishes even when this
+        process is on its way out (an exception in the main thread, a plain return)."""
+        thread = threading.Thread(target=self._emergency_stop, args=(what, kill),
+                                  name="kobuki-emergency-stop")
+        with self.cond:
+            self._emergency = thread
+        thread.start()
+
+    def _emergency_stop(self, what: str, kill: bool) -> None:
+        """Kill the dead-man if asked (also while closing: a frozen dead-man would not act on
+        CLOSE either), and once it is confirmed dead write the stop ourselves; then the link is
+        lost, saying what happened."""
+        if kill:
+            self.process.kill()
+            what += ": killed it"
+        try:
+            self.process.wait(timeout=self._config.close_timeout_s)
+        except subprocess.TimeoutExpired:
+            outcome = "could not confirm it dead, so no stop was written"
+        else:
+            outcome = write_stop_directly(self.port, self._config.write_timeout_s)
+        self._lose(f"{self.port}: the dead-man process {what}; {outcome}")
 
     def _lose(self, reason: str | None) -> None:
         with self.cond:

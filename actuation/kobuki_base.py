@@ -256,6 +256,15 @@ class KobukiBase:
                 deadman_priority=link.priority, deadman_priority_raised=link.priority_raised,
             )
 
+    def priority_warning(self) -> str | None:
+        """One line for the operator when the dead-man could not raise its priority, else None."""
+        with self._cond:
+            if self._link.priority_raised:
+                return None
+            return (f"{self._port}: the dead-man runs at {self._link.priority}: under load it "
+                    "may stop the robot later than documented (run as root or grant "
+                    "CAP_SYS_NICE)")
+
     @property
     def port(self) -> str:
         return self._port

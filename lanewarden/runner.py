@@ -15,6 +15,7 @@ dead-man lost, the dead-man tripped, a live camera gone. `RunSummary.outcome` sa
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,6 +114,9 @@ def run_robot(
             JsonlRecorder(log_path) as recorder,
             signal_requests() as requests,
         ):
+            warning = base.priority_warning()
+            if warning is not None:
+                print(f"lanewarden: warning: {warning}", file=sys.stderr, flush=True)
             loop = ControlLoop(frames, detector, controller, base, record=recorder)
             started = clock.now()
             loop.start(started)

@@ -29,6 +29,7 @@ from tests.actuation.processes import (
     is_motion,
     process_state,
     start_lanewarden,
+    stderr_lines,
     wait_for_more_packets,
     wait_for_stop_after,
 )
@@ -94,7 +95,7 @@ def _run(camera: str, port: str, tmp_path: Path, config: str, *extra: str) -> li
 
 
 def _safety_line(err: str) -> str:
-    lines = err.strip().splitlines()
+    lines = stderr_lines(err)
     assert len(lines) == 1 and lines[0].startswith("lanewarden: safety stop: "), err
     return lines[0]
 
@@ -112,7 +113,7 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
         controls = base.base_controls()
     out, err = capsys.readouterr()
     assert code == 0, err
-    assert err == ""
+    assert stderr_lines(err) == []
     assert controls, "the stand-in never received a base-control packet"
     assert controls[-1][1] == (0, 0), "the last command on the wire must be stop"
     records = [json.loads(line) for line in log.read_text().splitlines()]
@@ -165,7 +166,7 @@ def test_the_end_of_the_clip_is_a_normal_end(
         code = main(_run(camera, base.port, tmp_path, relaxed_config))
         assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     out, err = capsys.readouterr()
-    assert (code, err) == (0, "")
+    assert (code, stderr_lines(err)) == (0, [])
     assert out.startswith("run ended: end of the clip; after ")
 
 
@@ -280,7 +281,7 @@ def test_ctrl_z_stops_run_first_then_it_stays_halted_after_sigcont(
     wait_for_more_packets(base, 25)  # it runs again, halted: still nothing but stop
     os.killpg(run.pid, signal.SIGTERM)
     out, err = run.communicate(timeout=3 * DEADLINE_S)
-    assert (run.returncode, err) == (0, "")
+    assert (run.returncode, stderr_lines(err)) == (0, [])
     assert out.startswith("run ended: operator stop (SIGTERM); after ")
     assert "state before the final stop: HALT (OPERATOR_STOP: operator stop)" in out
     assert_stop_held_since(base, signalled_at)
@@ -293,7 +294,7 @@ def test_ctrl_backslash_ends_run_like_sigterm(
     signalled_at = time.monotonic()
     os.killpg(run.pid, signal.SIGQUIT)
     out, err = run.communicate(timeout=3 * DEADLINE_S)
-    assert (run.returncode, err) == (0, "")
+    assert (run.returncode, stderr_lines(err)) == (0, [])
     assert out.startswith("run ended: operator stop (SIGQUIT); after ")
     assert_stop_held_since(base, signalled_at)
 

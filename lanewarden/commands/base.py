@@ -179,6 +179,9 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
     with (KobukiBase.open(port, config=config, request_versions=False) as base,
           signal_requests() as requests):
         # signals and every error leave through `with`: close() stops the base
+        warning = base.priority_warning()
+        if warning is not None:
+            click.echo(f"lanewarden: warning: {warning}", err=True)
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
             _act_on_signals(base, requests, now)

@@ -3,9 +3,9 @@
 `python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
 prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending to
 HEARTBEAT_LOG, if given, the monotonic time taken just BEFORE each send (never later than the
-stamp the heartbeat carries, so latencies measured from it err on the long side). Prints `tripped` when send()
-says the dead-man tripped (it keeps sending: the dead-man must ignore that stream), and re-arms
-(printing `rearmed`) when a `rearm` line arrives on stdin.
+stamp the heartbeat carries, so latencies measured from it err on the long side). Prints
+`tripped` when send() says the dead-man tripped (it keeps sending: the dead-man must ignore
+that stream), and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
 """
 
 from __future__ import annotations

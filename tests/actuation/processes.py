@@ -91,3 +91,10 @@ def assert_stop_held_since(standin: KobukiStandIn, since_s: float) -> None:
     wait_for_stop_after(standin, since_s)
     assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     assert motion_after_the_stop(standin, since_s) == []
+
+
+def stderr_lines(err: str) -> list[str]:
+    """The lines of stderr, without start-up warnings (`lanewarden: warning: ...`, e.g. a
+    dead-man that could not raise its priority on a machine where that is not permitted)."""
+    return [line for line in err.strip().splitlines()
+            if not line.startswith("lanewarden: warning: ")]

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterator
 import pytest
 
 from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.deadman import raise_priority
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_base import KobukiBase
@@ -32,6 +33,7 @@ from tests.actuation.processes import (
     motion_after_the_stop,
     process_state,
     start_lanewarden,
+    stderr_lines,
     wait_for_more_packets,
     wait_for_stop_after,
 )
@@ -167,8 +169,8 @@ def test_ctrl_z_to_base_drive_stops_first_and_nothing_moves_after_sigcont(
     os.killpg(drive.pid, signal.SIGCONT)
     _, err = drive.communicate(timeout=3 * DEADLINE_S)
     assert drive.returncode == 130
-    assert err.strip() == ("lanewarden: error: interrupted (SIGTSTP): the base was stopped "
-                           "before suspending; the drive does not resume")
+    assert stderr_lines(err) == ["lanewarden: error: interrupted (SIGTSTP): the base was "
+                                 "stopped before suspending; the drive does not resume"]
     assert_stop_held_since(standin, signalled_at)
 
 
@@ -179,7 +181,7 @@ def test_ctrl_backslash_to_base_drive_stops_it(
     os.killpg(drive.pid, signal.SIGQUIT)
     _, err = drive.communicate(timeout=3 * DEADLINE_S)
     assert drive.returncode == 130
-    assert err.strip() == "lanewarden: error: interrupted (SIGQUIT)"
+    assert stderr_lines(err) == ["lanewarden: error: interrupted (SIGQUIT)"]
     assert_stop_held_since(standin, signalled_at)
     assert standin.wait_for(lambda _: _gone(deadman), DEADLINE_S)
 
@@ -193,7 +195,7 @@ def test_base_drive_halts_when_its_deadman_freezes_or_dies(
     os.kill(deadman, how)
     _, err = drive.communicate(timeout=3 * DEADLINE_S)
     assert drive.returncode == 1
-    lines = err.strip().splitlines()
+    lines = stderr_lines(err)
     assert len(lines) == 1 and lines[0].startswith("lanewarden: error: "), err
     assert standin.port in lines[0] and ("dead-man" in lines[0] or "no feedback" in lines[0])
     assert_stop_held_since(standin, signalled_at)
@@ -208,7 +210,21 @@ def test_base_drive_stops_when_the_base_falls_silent(standin: KobukiStandIn,
     threading.Thread(target=fall_silent_once_moving, daemon=True).start()
     assert main(["base", "drive", "--port", standin.port, "--linear", "0.1",
                  "--duration", "20"]) == 1
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and standin.port in err
+    lines = stderr_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    err = lines[0]
+    assert standin.port in err
     assert "no feedback from the base for" in err and "actuation.link_timeout_s = 0.1 s" in err
     assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+
+
+def test_the_deadman_says_when_it_could_not_raise_its_priority(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*args: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    monkeypatch.setattr(os, "setpriority", refuse)
+    assert raise_priority() == (False, "normal priority: could not raise it (SCHED_FIFO: [Errno 1] "
+                                       "Operation not permitted; nice -10: [Errno 1] Operation "
+                                       "not permitted)")

@@ -27,6 +27,7 @@ from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_commands import SoundSequence, encode_base_control
 from lanewarden.cli import main
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
+from tests.actuation.processes import stderr_lines
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 CONTROL_SCRIPT = Path(__file__).with_name("control_process.py")
@@ -40,7 +41,7 @@ def _is_motion(packet: ReceivedPacket) -> bool:
 
 
 def _one_line_error(err: str) -> str:
-    lines = err.strip().splitlines()
+    lines = stderr_lines(err)
     assert len(lines) == 1, err
     assert lines[0].startswith("lanewarden: error: ") and "Traceback" not in err
     return lines[0]
