@@ -54,6 +54,7 @@ from lanewarden.actuation.deadman_messages import (
 from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
 from lanewarden.actuation.kobuki_framing import PacketReader
 from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.realtime import raise_priority
 
 EXIT_OK = 0
 EXIT_OPEN_FAILED = 3
@@ -63,30 +64,8 @@ EXIT_INTERNAL_ERROR = 5
 #: Serial read timeout of the feedback thread (bounds how long stopping it takes).
 READ_TIMEOUT_S = 0.05
 SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
-#: SCHED_FIFO priority of the dead-man (1..99): above every ordinary process, below the kernel's
-#: own real-time threads; both of its threads block in select/read almost all the time.
-REALTIME_PRIORITY = 10
 #: Control messages handled per wake-up before the send loop polls again.
 MAX_MESSAGES_PER_WAKE = 64
-#: The nice value tried when SCHED_FIFO is refused.
-NICE_VALUE = -10
-
-
-def raise_priority() -> tuple[bool, str]:
-    """Raise this thread's scheduling priority (threads started later inherit it).
-
-    Returns (raised, one-line description): SCHED_FIFO where permitted (root or CAP_SYS_NICE),
-    else nice -10, else the reason neither was allowed."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
-        return True, f"SCHED_FIFO {REALTIME_PRIORITY}"
-    except (OSError, AttributeError) as fifo_exc:
-        try:
-            os.setpriority(os.PRIO_PROCESS, 0, NICE_VALUE)
-            return True, f"nice {NICE_VALUE} (SCHED_FIFO refused: {fifo_exc})"
-        except (OSError, AttributeError) as nice_exc:
-            return False, (f"normal priority: could not raise it (SCHED_FIFO: {fifo_exc}; "
-                           f"nice {NICE_VALUE}: {nice_exc})")
 
 
 def _lost_message(port: str, exc: BaseException) -> str:

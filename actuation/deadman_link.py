@@ -59,6 +59,7 @@ from lanewarden.actuation.deadman_messages import (
 from lanewarden.actuation.errors import KobukiLinkError
 from lanewarden.actuation.kobuki_commands import STOP_PACKET
 from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.realtime import raise_priority
 
 SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
 
@@ -218,6 +219,7 @@ class DeadmanLink:
 
     # ---- the relay thread -----------------------------------------------------------------------
     def _relay_messages(self) -> None:
+        raise_priority()  # best effort: the watch and the emergency stop it starts must be on time
         silence_s = self._config.heartbeat_timeout_s
         last_report_s: float | None = None  # when the relay last received a WIRE report
         while True:

@@ -145,7 +145,8 @@ class DeadmanLogic:
         if self._mode is DeadmanMode.ARMED and now >= self._heartbeat_deadline_s():
             silent_s = now - self._last_heartbeat_s
             self._trip(f"no heartbeat for {silent_s:.3f} s "
-                       f"(timeout {self._settings.heartbeat_timeout_s:g} s)")
+                       f"(timeout {self._settings.heartbeat_timeout_s:g} s; the last one was "
+                       f"stamped {self._last_heartbeat_s:.6f})")
         finished = self._mode is DeadmanMode.STOPPING and now >= self._stop_until_s
         send: VelocityCommand | None = None
         if self._urgent or now >= self._next_send_s or finished:

@@ -4,7 +4,9 @@ Runs the pty stand-in Kobuki (tests/actuation/kobuki_standin.py) and the pretend
 (tests/actuation/control_process.py, which logs the monotonic time just before every send) while
 busy processes load every core (default two per core), then measures:
 - SIGSTOP of the control process (frozen): the dead-man's heartbeat timeout trips; the same
-  control process is continued and re-armed between trials;
+  control process is continued and re-armed between trials. The reference is the stamp of the
+  last heartbeat the dead-man accepted (it names it in its trip reason), so a control process
+  starved between two sends does not blur the figure;
 - SIGKILL of the control process: the dead-man sees end-of-stream and stops at once;
 - SIGSTOP of the dead-man itself: the control side notices its silence, kills it and writes the
   stop to the port directly (measured from the signal);
@@ -24,6 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import queue
+import re
 import signal
 import statistics
 import subprocess
@@ -98,6 +101,14 @@ class Control:
             raise RuntimeError(f"control process said {line!r}, expected {prefix!r}")
         return line
 
+    def last_accepted_heartbeat(self) -> float:
+        """After SIGCONT: the stamp of the last heartbeat the dead-man accepted before tripping."""
+        reason = self.expect("tripped ")
+        match = re.search(r"the last one was stamped ([0-9.]+)", reason)
+        if match is None:
+            raise RuntimeError(f"no stamp in the trip reason {reason!r}")
+        return float(match.group(1))
+
     def last_heartbeat_before(self, when_s: float) -> float:
         return max(t for t in map(float, self.log.read_text().split()) if t <= when_s)
 
@@ -117,6 +128,20 @@ def first_stop_after(standin: KobukiStandIn, since_s: float) -> float:
                 if p.arrival_s >= since_s and p.packet == STOP_PACKET)
 
 
+def stop_ending_motion(standin: KobukiStandIn, since_s: float) -> float:
+    """Arrival of the stop that ended the motion going on at `since_s` (the first stop after the
+    last motion packet before the first stop at or after `since_s`; that stop may precede
+    `since_s` when a starved control process let the dead-man trip just before the signal)."""
+    first_stop_after(standin, since_s)
+    packets = standin.snapshot()
+    stop_index = next(i for i, p in enumerate(packets)
+                      if p.arrival_s >= since_s and p.packet == STOP_PACKET)
+    moving = [i for i, p in enumerate(packets[:stop_index])
+              if p.base_control not in (None, (0, 0))]
+    start = moving[-1] + 1 if moving else 0
+    return next(p.arrival_s for p in packets[start:] if p.packet == STOP_PACKET)
+
+
 def wait_for_motion_after(standin: KobukiStandIn, since_s: float) -> None:
     if not standin.wait_for(lambda pkts: _motion([p for p in pkts if p.arrival_s >= since_s]),
                             WAIT_S):
@@ -133,10 +158,9 @@ def frozen_control_trials(trials: int) -> list[float]:
             for _ in range(trials):
                 signalled_at = time.monotonic()
                 os.kill(control.process.pid, signal.SIGSTOP)
-                stop_at = first_stop_after(standin, signalled_at)
-                results.append(stop_at - control.last_heartbeat_before(stop_at))
+                stop_at = stop_ending_motion(standin, signalled_at)
                 os.kill(control.process.pid, signal.SIGCONT)
-                control.expect("tripped")
+                results.append(stop_at - control.last_accepted_heartbeat())
                 assert control.process.stdin is not None
                 control.process.stdin.write("rearm\n")
                 control.process.stdin.flush()

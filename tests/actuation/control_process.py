@@ -2,9 +2,9 @@
 
 `python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
 prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending to
-HEARTBEAT_LOG, if given, the monotonic time taken just BEFORE each send (never later than the
-stamp the heartbeat carries, so latencies measured from it err on the long side). Prints
-`tripped` when send() says the dead-man tripped (it keeps sending: the dead-man must ignore
+HEARTBEAT_LOG, if given, the monotonic time taken just before each send. Prints `tripped REASON`
+(the dead-man's reason, with the stamp of the last heartbeat it accepted) when send() says the
+dead-man tripped (it keeps sending: the dead-man must ignore
 that stream), and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
 """
 
@@ -40,7 +40,7 @@ def main(port: str, heartbeat_log: str | None) -> None:
         except DeadmanTrippedError:
             if not tripped:
                 tripped = True
-                print("tripped", flush=True)
+                print(f"tripped {base.deadman_reason}", flush=True)
         if tripped and select.select([sys.stdin], [], [], 0.0)[0]:
             if sys.stdin.readline().strip() == "rearm":
                 base.rearm(time.monotonic())

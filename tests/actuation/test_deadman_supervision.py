@@ -19,10 +19,10 @@ from collections.abc import Callable, Iterator
 import pytest
 
 from lanewarden.actuation.base import STOP, VelocityCommand
-from lanewarden.actuation.deadman import raise_priority
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.actuation.realtime import raise_priority
 from lanewarden.cli import main
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.actuation.processes import (
