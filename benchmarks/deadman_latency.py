@@ -43,6 +43,7 @@ sys.path.insert(0, str(PROJECT_ROOT))
 
 from lanewarden.actuation.config import ActuationConfig  # noqa: E402
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn  # noqa: E402
+from tests.actuation.processes import process_state  # noqa: E402
 
 CONFIG = ActuationConfig()
 BOUND_S = CONFIG.heartbeat_timeout_s + CONFIG.command_period_s
@@ -97,9 +98,11 @@ class Control:
 
     def __init__(self, port: str, log: Path) -> None:
         self.log = log
-        self.process = subprocess.Popen(
-            [sys.executable, str(CONTROL_SCRIPT), port, str(log)], cwd=PROJECT_ROOT,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        self.stderr = log.with_suffix(".stderr")
+        with self.stderr.open("w") as stderr:
+            self.process = subprocess.Popen(
+                [sys.executable, str(CONTROL_SCRIPT), port, str(log)], cwd=PROJECT_ROOT,
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, text=True)
         self.lines: queue.Queue[str] = queue.Queue()
         threading.Thread(target=self._pump, daemon=True).start()
         self.deadman_pid = int(self.expect("deadman ").split()[-1])
@@ -110,7 +113,12 @@ class Control:
             self.lines.put(line.strip())
 
     def expect(self, prefix: str) -> str:
-        line = self.lines.get(timeout=WAIT_S)
+        try:
+            line = self.lines.get(timeout=WAIT_S)
+        except queue.Empty:
+            tail = self.stderr.read_text().strip().splitlines()[-1:]
+            raise RuntimeError(f"control process silent (waiting for {prefix!r}; state "
+                               f"{process_state(self.process.pid)!r}, stderr {tail})") from None
         if not line.startswith(prefix):
             raise RuntimeError(f"control process said {line!r}, expected {prefix!r}")
         return line
@@ -260,22 +268,22 @@ def main() -> None:
               f"{os.getloadavg()[0]:.1f}")
         print(f"documented bound: heartbeat timeout {CONFIG.heartbeat_timeout_s:g} s + one "
               f"command period {CONFIG.command_period_s:g} s = {BOUND_S * 1000:.0f} ms")
-        rows = [
-            _summary("SIGSTOP control: last heartbeat -> stop",
-                     frozen_control_trials(args.trials), TARGET_S),
-            _summary("SIGKILL control: last heartbeat -> stop",
-                     [killed_control_trial() for _ in range(args.kill_trials)], BOUND_S),
-            _summary("SIGSTOP dead-man: signal -> stop (control)",
-                     [frozen_deadman_trial() for _ in range(args.deadman_trials)], None),
+        measurements = [
+            ("SIGSTOP control: last heartbeat -> stop", args.trials, TARGET_S,
+             lambda: frozen_control_trials(args.trials)),
+            ("SIGKILL control: last heartbeat -> stop", args.kill_trials, BOUND_S,
+             lambda: [killed_control_trial() for _ in range(args.kill_trials)]),
+            ("SIGSTOP dead-man: signal -> stop (control)", args.deadman_trials, None,
+             lambda: [frozen_deadman_trial() for _ in range(args.deadman_trials)]),
+        ] + [
+            (f"{how.name} to base drive's group: signal -> stop", args.drive_trials, BOUND_S,
+             lambda how=how: [drive_trial(how) for _ in range(args.drive_trials)])
+            for how in (signal.SIGTSTP, signal.SIGQUIT)
         ]
-        if args.drive_trials:
-            for how in (signal.SIGTSTP, signal.SIGQUIT):
-                rows.append(_summary(f"{how.name} to base drive's group: signal -> stop",
-                                     [drive_trial(how) for _ in range(args.drive_trials)],
-                                     BOUND_S))
+        for name, trials, target_s, measure in measurements:
+            if trials > 0:
+                print(_summary(name, measure(), target_s), flush=True)
         print(f"load average after: {os.getloadavg()[0]:.1f}; stand-in: {STANDIN_PRIORITY}")
-        for row in rows:
-            print(row)
 
 
 if __name__ == "__main__":
