@@ -85,6 +85,35 @@ def write_stop_directly(port: str, write_timeout_s: float) -> str:
     return "a stop was written to the port directly"
 
 
+def receive_or_silence(recv: Callable[[], bytes], deadline_s: float | None,
+                       clock: Callable[[], float],
+                       wait_readable: Callable[[float | None], object]) -> bytes | None:
+    """The next message (b"" at end of stream), or None for silence: the queue seen empty at a
+    time after `deadline_s` (None: wait as long as it takes).
+
+    `recv` must not block (BlockingIOError when nothing is queued); `wait_readable(timeout)`
+    waits until something is (or the timeout passes). What is already queued always counts, so
+    a caller that was itself starved or frozen first drains its backlog; and only an empty queue
+    seen after the deadline is silence, because the caller may have been frozen (SIGSTOP,
+    Ctrl-Z) between a look at the queue and its clock reading."""
+    while True:
+        try:
+            return recv()
+        except BlockingIOError:
+            pass
+        except OSError:
+            return b""
+        wait_s = None if deadline_s is None else deadline_s - clock()
+        if wait_s is not None and wait_s <= 0.0:
+            try:
+                return recv()  # a look after the deadline
+            except BlockingIOError:
+                return None
+            except OSError:
+                return b""
+        wait_readable(wait_s)
+
+
 def _signal_name(returncode: int) -> str:
     try:
         return signal.Signals(-returncode).name
@@ -243,20 +272,10 @@ class DeadmanLink:
                 self.cond.notify_all()
 
     def _receive(self, deadline_s: float | None) -> bytes | None:
-        """The next message; b"" at end of stream; None when nothing arrived by `deadline_s`
-        (time.monotonic). What is already queued always counts, so a relay that was itself
-        starved or frozen never mistakes its own backlog for silence."""
-        while True:
-            try:
-                return self._control.recv(MAX_MESSAGE_BYTES, socket.MSG_DONTWAIT)
-            except BlockingIOError:
-                pass
-            except OSError:
-                return b""
-            wait_s = None if deadline_s is None else deadline_s - time.monotonic()
-            if wait_s is not None and wait_s <= 0.0:
-                return None
-            select.select([self._control], [], [], wait_s)
+        control = self._control
+        return receive_or_silence(
+            lambda: control.recv(MAX_MESSAGE_BYTES, socket.MSG_DONTWAIT), deadline_s,
+            time.monotonic, lambda wait_s: select.select([control], [], [], wait_s))
 
     def _apply(self, message: DeadmanMessage, arrived_s: float) -> None:
         if isinstance(message, FeedbackReceived):
