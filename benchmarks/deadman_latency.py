@@ -14,9 +14,11 @@ busy processes load every core (default two per core), then measures:
 Latency = arrival of the first stop packet at the stand-in - the reference time (CLOCK_MONOTONIC
 is system-wide, so the processes' stamps compare). The documented bound is heartbeat timeout +
 one command period (0.2 s + 0.02 s with the defaults); the target for the SIGSTOP trials is
-250 ms. The stand-in runs at SCHED_FIFO where permitted (it plays the hardware: its arrival
-stamps should measure the dead-man, not the stand-in's own starvation); the control processes
-and the load run at normal priority.
+250 ms. The stand-in runs at SCHED_FIFO 20 where permitted (it plays the hardware: its arrival
+stamps should measure the dead-man, not the stand-in's own starvation) and the benchmark's other
+threads at SCHED_FIFO 5 (below the dead-man's 10: none may hold the stand-in's GIL while the load
+preempts it); the control processes (with their own relay threads raised as in production) and
+the load run at normal priority.
 
     python benchmarks/deadman_latency.py [--trials 100] [--kill-trials 10] [--load-per-core 2]
 """
@@ -71,22 +73,30 @@ def busy_load(per_core: int) -> Iterator[int]:
 
 
 STANDIN_PRIORITY = "SCHED_FIFO 20"
+#: The benchmark's own threads (waits, pipes): real-time too, so none of them can be preempted by
+#: the load while holding the GIL the stand-in's threads need (that would delay their arrival
+#: stamps), but below the dead-man (10) and the stand-in (20). Children reset to normal.
+INSTRUMENT_FIFO = 5
+
+
+def _set_fifo(priority: int) -> None:
+    os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(priority))
 
 
 @contextmanager
 def realtime_standin() -> Iterator[KobukiStandIn]:
-    """A stand-in whose threads (only) run at SCHED_FIFO 20 where permitted: they inherit the
-    policy this thread has while starting them; this thread and everything started later
-    (control processes, the load) run at normal priority."""
+    """A stand-in whose threads run at SCHED_FIFO 20 where permitted (they inherit the policy
+    this thread has while starting them); then this thread goes back to its own policy."""
     global STANDIN_PRIORITY
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(20))
+        _set_fifo(20)
     except (OSError, AttributeError) as exc:
         STANDIN_PRIORITY = f"normal priority ({exc})"
     try:
         standin = KobukiStandIn().__enter__()
     finally:
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        os.sched_setscheduler(0, policy, param)
     try:
         yield standin
     finally:
@@ -263,6 +273,10 @@ def main() -> None:
     parser.add_argument("--load-per-core", type=int, default=2)
     args = parser.parse_args()
     with busy_load(args.load_per_core) as busy:
+        try:
+            _set_fifo(INSTRUMENT_FIFO)
+        except (OSError, AttributeError):
+            pass  # then the stand-in runs at normal priority too (said at the end)
         print(f"load: {busy} busy processes ({args.load_per_core} per core, "
               f"{os.cpu_count()} cores) at normal priority; load average before: "
               f"{os.getloadavg()[0]:.1f}")
