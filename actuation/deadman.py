@@ -156,10 +156,11 @@ class DeadmanProcess:
             action = logic.poll(time.monotonic())
             if action.send is not None:
                 link.write(command_packet(encode_velocity(action.send)))
+                written_s = time.monotonic()
             for event in action.events:
                 self._tell(ModeChanged(event.mode, event.reason))
             if action.send is not None:
-                self._tell(OnTheWire(logic.heartbeat_seq, action.send))
+                self._tell(OnTheWire(logic.heartbeat_seq, written_s, action.send))
             if action.finished:
                 return EXIT_OK
             if self._lost is not None:

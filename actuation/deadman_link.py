@@ -126,7 +126,8 @@ class DeadmanLink:
 
     Everything the relay thread learns is read under `cond` (a Condition notified on every
     message): `opened`, `low_latency`, `priority_raised`, `priority`, `open_error`, `lost`,
-    `gone`, `mode`, `mode_reason`, `wire` (the newest WIRE report)."""
+    `gone`, `mode`, `mode_reason`, `wire` (the newest WIRE report), `motion_stopped_s` (when the
+    dead-man wrote the stop that ended the latest motion, on its CLOCK_MONOTONIC)."""
 
     def __init__(self, port: str, process: subprocess.Popen[bytes], control: socket.socket,
                  config: ActuationConfig, clock: Callable[[], float],
@@ -151,6 +152,7 @@ class DeadmanLink:
         self.mode = DeadmanMode.DISARMED
         self.mode_reason = "started"
         self.wire: OnTheWire | None = None
+        self.motion_stopped_s: float | None = None
         self._emergency: threading.Thread | None = None
         self._relay = threading.Thread(target=self._relay_messages, name="kobuki-relay",
                                        daemon=True)
@@ -281,6 +283,8 @@ class DeadmanLink:
         if isinstance(message, FeedbackReceived):
             self._on_feedback(message, arrived_s)
         elif isinstance(message, OnTheWire):
+            if message.command.is_stop and self.wire is not None and not self.wire.command.is_stop:
+                self.motion_stopped_s = message.written_s
             self.wire = message
         elif isinstance(message, ModeChanged):
             self.mode, self.mode_reason = message.mode, message.reason

@@ -8,14 +8,14 @@ control -> dead-man: `ARM <seq> <sent_s>` | `DISARM <seq> <sent_s>`
 dead-man -> control: `OPEN <low_latency 0|1> <priority_raised 0|1> <priority text>`
                      | `ERROR <text>` | `FB <checksum_errors> <hex payload>`
                      | `MODE <mode> <reason>` | `LOST <text>`
-                     | `WIRE <seq> <linear_m_s> <angular_rad_s>`
+                     | `WIRE <seq> <written_s> <linear_m_s> <angular_rad_s>`
 
 `ARM`, `DISARM` and `CMD` are heartbeats: `seq` counts up with every heartbeat the control
 process sends and `sent_s` is its CLOCK_MONOTONIC time at sending (system-wide on Linux, so the
 dead-man compares it with its own clock: a heartbeat that sat in the socket while the sender was
 frozen is not fresh). `WIRE` reports every command the dead-man writes to the port, with the
-newest heartbeat sequence it had accepted (-1: none yet): it is the dead-man's own heartbeat
-towards the control process.
+newest heartbeat sequence it had accepted (-1: none yet) and its CLOCK_MONOTONIC time once the
+write returned: it is the dead-man's own heartbeat towards the control process.
 
 Decoding is strict (integers are digits, numbers finite decimals): anything else raises
 ValueError (the dead-man treats that as a missed heartbeat). Pure: no sockets here.
@@ -103,10 +103,11 @@ class LinkLost:
 
 @dataclass(frozen=True)
 class OnTheWire:
-    """The dead-man wrote `command` to the port, having accepted heartbeats up to
-    `heartbeat_seq` (-1: none yet)."""
+    """The dead-man wrote `command` to the port (the write returned at `written_s`, its
+    CLOCK_MONOTONIC), having accepted heartbeats up to `heartbeat_seq` (-1: none yet)."""
 
     heartbeat_seq: int
+    written_s: float
     command: VelocityCommand
 
 
@@ -201,7 +202,7 @@ def encode_deadman(message: DeadmanMessage) -> bytes:
         return f"MODE {message.mode.value} {_one_line(message.reason)}".encode()
     if isinstance(message, OnTheWire):
         command = message.command
-        return (f"WIRE {message.heartbeat_seq} {command.linear_m_s!r} "
+        return (f"WIRE {message.heartbeat_seq} {message.written_s!r} {command.linear_m_s!r} "
                 f"{command.angular_rad_s!r}").encode()
     return f"LOST {_one_line(message.message)}".encode()
 
@@ -225,7 +226,7 @@ def decode_deadman(data: bytes) -> DeadmanMessage:
         return LinkLost(rest)
     if kind == "WIRE":
         args = rest.split(" ")
-        if len(args) == 3:
-            return OnTheWire(_sequence(args[0], allow_none=True),
-                             VelocityCommand(_number(args[1]), _number(args[2])))
+        if len(args) == 4:
+            return OnTheWire(_sequence(args[0], allow_none=True), _number(args[1]),
+                             VelocityCommand(_number(args[2]), _number(args[3])))
     raise ValueError(f"unknown dead-man message {data[:40]!r}")

@@ -279,6 +279,13 @@ class KobukiBase:
             return self._link.mode
 
     @property
+    def motion_stopped_s(self) -> float | None:
+        """When the dead-man wrote the stop that ended the latest motion (CLOCK_MONOTONIC, the
+        dead-man's reading once the write returned), or None."""
+        with self._cond:
+            return self._link.motion_stopped_s
+
+    @property
     def deadman_reason(self) -> str:
         """Why the dead-man is in its mode (one line)."""
         with self._cond:

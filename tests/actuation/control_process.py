@@ -2,10 +2,10 @@
 
 `python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
 prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending to
-HEARTBEAT_LOG, if given, the monotonic time taken just before each send. Prints `tripped REASON`
-(the dead-man's reason, with the stamp of the last heartbeat it accepted) when send() says the
-dead-man tripped (it keeps sending: the dead-man must ignore
-that stream), and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
+HEARTBEAT_LOG, if given, the monotonic time taken just before each send. Prints `tripped
+STOPPED_S REASON` (when the dead-man wrote the stop, and its reason, with the stamp of the last
+heartbeat it accepted) when send() says the dead-man tripped (it keeps sending: the dead-man
+must ignore that stream), and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def main(port: str, heartbeat_log: str | None) -> None:
         except DeadmanTrippedError:
             if not tripped:
                 tripped = True
-                print(f"tripped {base.deadman_reason}", flush=True)
+                print(f"tripped {base.motion_stopped_s!r} {base.deadman_reason}", flush=True)
         if tripped and select.select([sys.stdin], [], [], 0.0)[0]:
             if sys.stdin.readline().strip() == "rearm":
                 base.rearm(time.monotonic())

@@ -46,13 +46,14 @@ def test_heartbeats_are_written_as_sequence_then_stamp() -> None:
         b"CMD 3 812.5 0.25 -0.5"
     assert encode_control(Arm(Heartbeat(0, 1.0))) == b"ARM 0 1.0"
     assert encode_control(Disarm(Heartbeat(4, 2.0))) == b"DISARM 4 2.0"
-    assert encode_deadman(OnTheWire(3, VelocityCommand(0.0, 0.0))) == b"WIRE 3 0.0 0.0"
+    assert encode_deadman(OnTheWire(3, 7.25, VelocityCommand(0.0, 0.0))) == b"WIRE 3 7.25 0.0 0.0"
 
 
 @pytest.mark.parametrize("message", [
     PortOpened(True, True, "SCHED_FIFO 10"), PortOpened(False, False, "normal priority: no"),
-    OpenFailed("/dev/x: permission denied: add ..."), OnTheWire(-1, VelocityCommand(0.0, 0.0)),
-    OnTheWire(41, VelocityCommand(0.2, -1e-3)),
+    OpenFailed("/dev/x: permission denied: add ..."),
+    OnTheWire(-1, 0.5, VelocityCommand(0.0, 0.0)),
+    OnTheWire(41, 81234.123456789, VelocityCommand(0.2, -1e-3)),
     FeedbackReceived(3, bytes(range(77))), ModeChanged(DeadmanMode.TRIPPED, "no heartbeat"),
     LinkLost("/dev/x: serial link lost (EIO)"),
 ])
@@ -86,8 +87,9 @@ def test_raw_may_not_carry_motion() -> None:
 
 @pytest.mark.parametrize("data", [b"", b"OPEN 2", b"OPEN 1", b"OPEN 1 2 x", b"OPEN 1 1 ",
                                   b"FB x 00", b"FB 1 zz", b"MODE flying x", b"HELLO", b"WIRE",
-                                  b"WIRE 1 0.0", b"WIRE -2 0.0 0.0", b"WIRE 1 nan 0.0",
-                                  b"WIRE 1 0.0 0.0 0.0"])
+                                  b"WIRE 1 0.0 0.0", b"WIRE -2 1.0 0.0 0.0",
+                                  b"WIRE 1 1.0 nan 0.0", b"WIRE 1 inf 0.0 0.0",
+                                  b"WIRE 1 1.0 0.0 0.0 0.0"])
 def test_malformed_deadman_messages_are_rejected(data: bytes) -> None:
     with pytest.raises(ValueError):
         decode_deadman(data)

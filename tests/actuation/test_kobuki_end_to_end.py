@@ -349,7 +349,7 @@ def test_frozen_control_process_trips_and_stays_stopped_until_rearmed(
                                              for p in pkts), DEADLINE_S)
     os.kill(control.process.pid, signal.SIGCONT)
     # it runs again and sends commands again...
-    assert control.expect_prefix("tripped ").startswith("no heartbeat for ")
+    assert "no heartbeat for " in control.expect_prefix("tripped ")
     mark = len(standin.snapshot())
     assert standin.wait_for(lambda pkts: len(pkts) >= mark + 10, DEADLINE_S)
     assert not any(map(_is_motion, standin.snapshot()[mark:]))  # ...which are ignored
