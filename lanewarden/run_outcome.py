@@ -16,8 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-EXIT_NORMAL_END = 0
-EXIT_SAFETY_STOP = 3
+from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP
 
 #: Halt events that are a normal end, not a safety stop.
 NORMAL_HALTS = frozenset({"OPERATOR_STOP"})
@@ -35,7 +34,7 @@ class RunOutcome:
 
     @property
     def exit_code(self) -> int:
-        return EXIT_SAFETY_STOP if self.safety_stop else EXIT_NORMAL_END
+        return EXIT_SAFETY_STOP if self.safety_stop else EXIT_OK
 
 
 def halt_event(halt_reason: str) -> str:

@@ -1,7 +1,8 @@
 """The robot runner: camera -> perception -> supervisor -> Kobuki, on the monotonic clock.
 
 The only place in Lanewarden that reads the wall (monotonic) clock for control and the only loop
-that sleeps. Everything it drives is the same `ControlLoop` the simulator steps on a fake clock.
+that sleeps. Everything it drives is the same stack (lanewarden/assembly.py: detector, controller,
+SafetyGate, `ControlLoop`) the simulator steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
 (and its image size against the calibration), then the base, then an explicit start. On any exit
 (end of duration or clip, Ctrl-C, SIGTERM, SIGQUIT, SIGHUP, an error) the loop is told to stop,
@@ -22,16 +23,16 @@ from pathlib import Path
 
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.assembly import build_stack
 from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
-from lanewarden.perception.calibration import Undistorter, check_calibration, load_calibration
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.run_outcome import RunOutcome, RunWatch
 from lanewarden.stop_signals import signal_requests, suspend
 from lanewarden.supervisor.clock import MonotonicClock
-from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
-from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.supervisor.loop import StepRecord
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 FIRST_FRAME_TIMEOUT_S = 3.0
@@ -74,13 +75,14 @@ def run_robot(
     duration_s: float | None,
 ) -> RunSummary:
     clock = MonotonicClock()
-    controller = make_controller(controller_name, config.supervisor)
+    controller_factory(controller_name)  # an unknown name fails here, before the camera opens
     calibration = load_calibration(calibration_path) if calibration_path else None
 
-    capture = open_camera(camera)
+    max_pixels = config.perception.max_image_pixels
+    capture = open_camera(camera, max_pixels)
     period = config.supervisor.camera_period_s
     replay_fps = replay_rate_fps(camera, capture, 1.0 / period)
-    frames = CameraFrameSource(capture, clock.now, replay_fps)
+    frames = CameraFrameSource(capture, clock.now, replay_fps, max_pixels=max_pixels)
     try:
         deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
         first = frames.read(clock.now())
@@ -93,15 +95,10 @@ def run_robot(
                 f"({frames.error or 'the camera opened but delivered nothing'})"
             )
         height, width = first.image.shape[:2]
-        undistorter = None
         if calibration is not None:
-            problems = check_calibration(calibration, (width, height), config.calibration)
-            if problems:
-                raise SupervisorError(
-                    f"--calibration {calibration_path}: refusing to engage: {'; '.join(problems)}"
-                )
-            undistorter = Undistorter(calibration)
-        detector = LaneDetector(config.perception, undistorter)
+            require_usable_calibration(calibration, (width, height), config.calibration,
+                                       f"--calibration {calibration_path}")
+        stack = build_stack(config, controller=controller_name, calibration=calibration)
 
         last: StepRecord | None = None
         steps = 0
@@ -117,7 +114,7 @@ def run_robot(
             warning = base.priority_warning()
             if warning is not None:
                 print(f"lanewarden: warning: {warning}", file=sys.stderr, flush=True)
-            loop = ControlLoop(frames, detector, controller, base, record=recorder)
+            loop = stack.connect(frames, base, recorder)
             started = clock.now()
             loop.start(started)
             next_tick = started

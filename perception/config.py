@@ -20,7 +20,7 @@ from typing import Annotated, Self
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-_FROZEN = ConfigDict(extra="forbid", frozen=True)
+_FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
@@ -85,12 +85,14 @@ class BlurConfig(BaseModel):
 
     kernel_px: int = Field(
         default=5,
+        ge=1,
+        le=31,
         description=(
             "Gaussian blur kernel size (odd) for a 480-row image; scaled with the image height to "
             "the nearest odd size, at least 3"
         ),
     )
-    sigma_px: Annotated[float, Field(ge=0.0)] = Field(
+    sigma_px: Annotated[float, Field(ge=0.0, le=20.0)] = Field(
         default=0.0,
         description=(
             "Gaussian sigma in pixels; 0 derives it from the kernel size"
@@ -110,19 +112,20 @@ class CannyConfig(BaseModel):
 
     model_config = _FROZEN
 
-    low_threshold: Annotated[float, Field(ge=0.0)] = Field(
+    low_threshold: Annotated[float, Field(ge=0.0, le=10000.0)] = Field(
         default=40.0,
         description=(
             "Canny lower hysteresis threshold (gradient, grey levels); below high_threshold"
         ),
     )
-    high_threshold: Annotated[float, Field(gt=0.0)] = Field(
+    high_threshold: Annotated[float, Field(gt=0.0, le=10000.0)] = Field(
         default=120.0,
         description=(
             "Canny upper hysteresis threshold (gradient, grey levels)"
         ),
     )
-    aperture_px: int = Field(default=3, description="Sobel aperture of Canny: 3, 5 or 7")
+    aperture_px: int = Field(default=3, ge=3, le=7,
+                             description="Sobel aperture of Canny: 3, 5 or 7")
 
     @field_validator("aperture_px")
     @classmethod
@@ -305,7 +308,7 @@ class TapeConfig(BaseModel):
             "widest tape width at the ROI bottom, fraction of image width"
         ),
     )
-    min_gap_px: Annotated[float, Field(ge=0.0)] = Field(
+    min_gap_px: Annotated[float, Field(ge=0.0, le=100.0)] = Field(
         default=5.0,
         description=(
             "two edges closer than this (pixels, where measured) are the two sides of one thin "
@@ -401,14 +404,14 @@ class LaneGeometryConfig(BaseModel):
             "-0.167)"
         ),
     )
-    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "vanishing_point scores 1 within this vertical distance of the horizon, 0 at twice it "
             "(normalised)"
         ),
     )
-    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "vanishing_point scores 1 within this horizontal distance of the image centre, 0 at "
@@ -422,7 +425,7 @@ class LaneGeometryConfig(BaseModel):
             "width"
         ),
     )
-    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0)] = Field(
+    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "lane_width scores 1 within this of the expected width, 0 at twice it"
@@ -460,9 +463,9 @@ class ConfidenceWeights(BaseModel):
 
 
 class ConfidenceConfig(BaseModel):
-    """Confidence score and the threshold below which no decision is made.
+    """How the confidence score is computed (what counts as trusted is the supervisor's call:
+    `supervisor.confidence_usable_min`).
 
-    - `min_confidence`: below it the decision is "none" (and the supervisor must not steer by it).
     - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
       height) gets full support 1; shorter scales linearly.
     - `consistency_offset_tol_frac_of_width` / `consistency_angle_tol_deg`: how far an edge may
@@ -473,12 +476,6 @@ class ConfidenceConfig(BaseModel):
     model_config = _FROZEN
 
     weights: ConfidenceWeights = ConfidenceWeights()
-    min_confidence: Fraction = Field(
-        default=0.5,
-        description=(
-            "below this confidence the decision is 'none' and the lane is not trusted"
-        ),
-    )
     support_full_frac_of_height: PositiveFraction = Field(
         default=0.3,
         description=(
@@ -501,19 +498,6 @@ class ConfidenceConfig(BaseModel):
     )
 
 
-class DecisionConfig(BaseModel):
-    """The lecture's rule: slope sum < -turn_slope_sum -> right, > +turn_slope_sum -> left."""
-
-    model_config = _FROZEN
-
-    turn_slope_sum: Annotated[float, Field(gt=0.0)] = Field(
-        default=6.0,
-        description=(
-            "the lecture's threshold: slope sum below -this turns right, above +this turns left"
-        ),
-    )
-
-
 class PerceptionConfig(BaseModel):
     """Every perception tunable. `opencv_threads`: the process-wide OpenCV thread count that
     `LaneDetector` sets (1 by default, see `perception.detector`; -1 restores OpenCV's default)."""
@@ -528,7 +512,6 @@ class PerceptionConfig(BaseModel):
     tape: TapeConfig = TapeConfig()
     lane: LaneGeometryConfig = LaneGeometryConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
-    decision: DecisionConfig = DecisionConfig()
     opencv_threads: Annotated[int, Field(ge=-1, le=64)] = Field(
         default=1,
         description=(
@@ -536,13 +519,10 @@ class PerceptionConfig(BaseModel):
             "OpenCV's default"
         ),
     )
-
-    @model_validator(mode="after")
-    def _slope_clamp_exceeds_threshold(self) -> Self:
-        if self.edges.max_abs_slope * 2 <= self.decision.turn_slope_sum:
-            raise ValueError(
-                f"edges.max_abs_slope ({self.edges.max_abs_slope:g}) is too small for "
-                f"decision.turn_slope_sum ({self.decision.turn_slope_sum:g}): two clamped slopes "
-                "could never reach the turn threshold"
-            )
-        return self
+    max_image_pixels: Annotated[int, Field(ge=4096, le=50_000_000)] = Field(
+        default=10_000_000,
+        description=(
+            "largest image (width x height, pixels) `detect`, `undistort` and the camera accept; "
+            "image files are checked from their header before decoding"
+        ),
+    )

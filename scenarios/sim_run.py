@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.plot import write_plot
 from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
@@ -23,6 +23,7 @@ from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
 
 #: metrics.json keys, in this order first (the issue's names); the rest follow alphabetically.
@@ -36,13 +37,15 @@ METRIC_KEYS = (
 
 @dataclass(frozen=True)
 class RunRequest:
-    """Everything one run needs; picklable, so a worker process can take it."""
+    """Everything one run needs; picklable, so a worker process can take it. `build_stack`: the
+    composition root's (`lanewarden.assembly.build_stack`, a module-level function)."""
 
     spec: ScenarioSpec
     config: LanewardenConfig
     controller: str
     seed: int
     out_dir: Path
+    build_stack: BuildStack
     video: bool = True
     progress: bool = True
     progress_position: int = 0
@@ -74,7 +77,9 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ScenarioError(f"--out {out}: cannot create the output directory ({exc})") from exc
+        raise ScenarioOutputError(
+            f"--out {out}: cannot create the output directory ({exc})"
+        ) from exc
     video_path = out / "video.mp4" if request.video else None
     if not request.video:
         (out / "video.mp4").unlink(missing_ok=True)
@@ -89,8 +94,8 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         with JsonlRecorder(out / "run.jsonl") as recorder:
             simulation = Simulation(
-                request.spec, config, controller=request.controller, seed=request.seed,
-                video_path=video_path, record=recorder, progress=progress)
+                request.spec, config, request.build_stack, controller=request.controller,
+                seed=request.seed, video_path=video_path, record=recorder, progress=progress)
             result = simulation.run()
         # The run usually ends before its time limit: show it finished.
         bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0
@@ -118,7 +123,7 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
     except OSError as exc:
-        raise ScenarioError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
+        raise ScenarioOutputError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
     return metrics
 
 

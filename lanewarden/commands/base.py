@@ -1,11 +1,14 @@
 """`lanewarden base info` and `lanewarden base drive`: bringing up a real Kobuki.
 
 A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
-time.monotonic here). `drive` bypasses the supervisor on purpose (it is a bring-up tool), so it
-validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop and on stale
-feedback (a silent base or a frozen dead-man), and always stops on exit: Ctrl-C, SIGTERM,
-SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first, then suspends, and
-the drive does not resume after SIGCONT (exit 130). Never talks to the serial port itself.
+time.monotonic here). `drive` has no camera and no supervisor state machine (it is a bring-up
+tool), but its command goes through the same SafetyGate as every controller's, in bring-up mode
+(lanewarden/assembly.py `build_bring_up_gate`): ramped up, capped at the Kobuki's limits its flags
+are validated against, halted on bumper/cliff/wheel drop/lost link (feedback older than
+`supervisor.base_link_timeout_s`: a silent base or a frozen dead-man). It always stops on exit:
+Ctrl-C, SIGTERM, SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first,
+then suspends, and the drive does not resume after SIGCONT (exit 130). Never talks to the serial
+port itself.
 """
 
 from __future__ import annotations
@@ -22,9 +25,12 @@ from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
+from lanewarden.assembly import build_bring_up_gate
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
+from lanewarden.errors import EXIT_INTERRUPTED
 from lanewarden.stop_signals import SignalRequests, signal_requests, suspend
+from lanewarden.supervisor.control_io import ControlInputs
 
 #: How long `info` counts feedback packets to measure the stream rate.
 RATE_WINDOW_S = 1.0
@@ -116,34 +122,10 @@ def _check_range(flag: str, value: float, limit: float, unit: str) -> None:
             param_hint=f"'{flag}'")
 
 
-def _hazard(feedback: BaseFeedback) -> str | None:
-    for what, bits, names in (("bumper pressed", feedback.bumper, BUMPER_NAMES),
-                              ("cliff detected", feedback.cliff, CLIFF_NAMES),
-                              ("wheel dropped", feedback.wheel_drop, WHEEL_DROP_NAMES)):
-        if bits:
-            return f"{what} ({', '.join(_bit_names(bits, names))})"
-    return None
-
-
-def _stale_feedback(base: KobukiBase, limit_s: float) -> str | None:
-    """Why the base's feedback is too old to keep driving (the base went silent, the dead-man is
-    frozen), or None. A packet may still be in the relay's backlog (this process was briefly
-    descheduled): wait up to `limit_s` for a fresh one before calling the feedback stale."""
-
-    def age_s(b: KobukiBase) -> float:
-        received = b.feedback(time.monotonic()).received_at_s
-        return math.inf if received is None else time.monotonic() - received
-
-    if base.wait_for(lambda b: age_s(b) <= limit_s, limit_s):
-        return None
-    return (f"no feedback from the base for {age_s(base):.2f} s (limit "
-            f"actuation.link_timeout_s = {limit_s:g} s)")
-
-
 class DriveInterrupted(click.ClickException):
     """A signal ended the drive (after the base was stopped)."""
 
-    exit_code = 130
+    exit_code = EXIT_INTERRUPTED
 
 
 def _act_on_signals(base: KobukiBase, requests: SignalRequests, now: float) -> None:
@@ -169,13 +151,14 @@ def _act_on_signals(base: KobukiBase, requests: SignalRequests, now: float) -> N
 def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s: float,
           config_path: str | None) -> None:
     """Drive at a constant velocity, then stop (Ctrl-C stops at once)."""
-    config = load_config(config_path).actuation
+    full_config = load_config(config_path)
+    config = full_config.actuation
     _check_range("--linear", linear_m_s, config.max_linear_m_s, "m/s")
     _check_range("--angular", angular_rad_s, config.max_angular_rad_s, "rad/s")
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= MAX_DRIVE_DURATION_S):
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
-    command = VelocityCommand(linear_m_s, angular_rad_s)
+    gate = build_bring_up_gate(full_config, VelocityCommand(linear_m_s, angular_rad_s))
     with (KobukiBase.open(port, config=config, request_versions=False) as base,
           signal_requests() as requests):
         # signals and every error leave through `with`: close() stops the base
@@ -185,16 +168,12 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
             _act_on_signals(base, requests, now)
-            stale = _stale_feedback(base, config.link_timeout_s)
-            if stale is not None:
-                base.send(STOP, now)
-                raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: {stale}")
-            hazard = _hazard(base.feedback(now))
-            if hazard is not None:
-                base.send(STOP, now)
+            allowed = gate.step(ControlInputs(feedback=base.feedback(now),
+                                              start_requested=now == start_s), now)
+            base.send(allowed.command, now)
+            if allowed.state == "HALT":
                 raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
-                                     f"{hazard}")
-            base.send(command, now)
+                                     f"{allowed.halt_reason}")
             base.wait_for(lambda b: b.link_lost is not None,
                           min(DRIVE_PERIOD_S, max(0.0, start_s + duration_s - now)))
             now = time.monotonic()
