@@ -1,11 +1,18 @@
-"""The robot runner: camera -> perception -> supervisor -> Kobuki, on the monotonic clock.
+"""The robot runner: camera -> perception -> supervisor -> base, on the monotonic clock.
 
 The only place in Lanewarden that reads the wall (monotonic) clock for control and the only loop
 that sleeps. Everything it drives is the same `ControlLoop` the simulator steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
-(and its image size against the calibration), then the base, then an explicit start. On any exit
-(end of duration, Ctrl-C, SIGTERM, an error) the loop is told to stop, the base is closed (which
-sends stop and leaves the dead-man holding it), and the log is flushed.
+(and its image size against the calibration), the recording folder and the live view's port, then
+the base (`--base kobuki|sim|none`), then an explicit start. On any exit (end of duration, Ctrl-C,
+SIGTERM, the end of a clip, an error) the loop is told to stop, a last step sends the stop, the
+base is closed (which sends stop and leaves the dead-man holding it), and the recording is
+finished.
+
+What ends a run, and its exit code: Ctrl-C/SIGTERM, `--duration`, the end of a clip or image
+sequence: 0. A live camera that stops delivering, or the base's link lost for good (the dead-man
+gone, the port unplugged): 3, a safety stop, with one line naming the reason. A HALT the operator
+can resume from (lane lost, operator stop, a bumper) does not end the run.
 """
 
 from __future__ import annotations
@@ -18,18 +25,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
-from lanewarden.actuation.kobuki_base import KobukiBase
-from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
+from lanewarden.bases import open_base
+from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import Undistorter, check_calibration, load_calibration
 from lanewarden.perception.detector import LaneDetector
+from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.supervisor.clock import MonotonicClock
 from lanewarden.supervisor.controllers import make_controller
 from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
-from lanewarden.supervisor.recorder import JsonlRecorder
 
 FIRST_FRAME_TIMEOUT_S = 3.0
+EXIT_OK = 0
+EXIT_SAFETY_STOP = 3
 
 
 @dataclass(frozen=True)
@@ -38,7 +48,10 @@ class RunSummary:
     duration_s: float
     final_state: str
     halt_reason: str | None
-    log_path: Path
+    end_reason: str
+    exit_code: int
+    record_folder: Path
+    lines: tuple[str, ...]
 
 
 @contextmanager
@@ -56,6 +69,36 @@ def _stop_on_signals(request_stop: list[bool]) -> Iterator[None]:
             signal.signal(sig, old)
 
 
+def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> tuple[int, int]:
+    """The camera's image size (width, height), once its first frame arrived."""
+    deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
+    problem = "the camera opened but delivered nothing"
+    while clock.now() < deadline:
+        try:
+            first = frames.read(clock.now())
+        except CameraLost as exc:
+            problem = str(exc)
+            break
+        if first is not None:
+            height, width = first.image.shape[:2]
+            return width, height
+        time.sleep(0.02)
+    raise SupervisorError(f"--camera {camera}: no frame within {FIRST_FRAME_TIMEOUT_S:.0f} s "
+                          f"({problem})")
+
+
+def _run_over(record: StepRecord, frames: CameraFrameSource,
+              link_lost: str | None) -> tuple[str, int] | None:
+    """(end reason, exit code) when this step ends the run, else None."""
+    if Event.CAMERA_ERROR.value in record.events and frames.error is not None:
+        if frames.ended:
+            return f"end of the clip: {frames.error}", EXIT_OK
+        return f"camera lost: {frames.error}", EXIT_SAFETY_STOP
+    if Event.BASE_LINK_LOST.value in record.events and link_lost is not None:
+        return f"base link lost: {link_lost}", EXIT_SAFETY_STOP
+    return None
+
+
 def run_robot(
     config: LanewardenConfig,
     *,
@@ -63,8 +106,12 @@ def run_robot(
     port: str | None,
     calibration_path: str | None,
     controller_name: str,
-    log_path: Path,
     duration_s: float | None,
+    base_kind: str = "kobuki",
+    record: Path | None = None,
+    record_lossy: bool = False,
+    view: str | None = None,
+    meta: dict[str, object] | None = None,
 ) -> RunSummary:
     clock = MonotonicClock()
     controller = make_controller(controller_name, config.supervisor)
@@ -74,17 +121,7 @@ def run_robot(
     period = config.supervisor.camera_period_s
     frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period))
     try:
-        deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
-        first = frames.read(clock.now())
-        while first is None and clock.now() < deadline and frames.error is None:
-            time.sleep(0.02)
-            first = frames.read(clock.now())
-        if first is None:
-            raise SupervisorError(
-                f"--camera {camera}: no frame within {FIRST_FRAME_TIMEOUT_S:.0f} s "
-                f"({frames.error or 'the camera opened but delivered nothing'})"
-            )
-        height, width = first.image.shape[:2]
+        width, height = _first_frame(frames, clock, camera)
         undistorter = None
         if calibration is not None:
             problems = check_calibration(calibration, (width, height), config.calibration)
@@ -95,41 +132,67 @@ def run_robot(
             undistorter = Undistorter(calibration)
         detector = LaneDetector(config.perception, undistorter)
 
+        session = RunSession(
+            SessionOptions(base_kind=base_kind, record=record, record_lossy=record_lossy,
+                           view=view, calibration_path=Path(calibration_path)
+                           if calibration_path else None,
+                           meta={"camera": camera, "controller": controller_name,
+                                 "image_size": [width, height], **(meta or {})}),
+            config, clock.now)
         stop_requested = [False]
         last: StepRecord | None = None
+        halted_for: str | None = None
+        end_reason, exit_code = "operator stop (Ctrl-C or SIGTERM)", EXIT_OK
         steps = 0
-        with (
-            KobukiBase.open(port, clock=clock.now, config=config.actuation) as base,
-            JsonlRecorder(log_path) as recorder,
-            _stop_on_signals(stop_requested),
-        ):
-            loop = ControlLoop(frames, detector, controller, base, record=recorder)
-            started = clock.now()
-            loop.start(started)
-            next_tick = started
-            try:
-                while not stop_requested[0]:
+        started = clock.now()
+        try:
+            with (
+                open_base(base_kind, port=port, config=config.actuation, clock=clock.now) as base,
+                _stop_on_signals(stop_requested),
+            ):
+                parts = session.wrap(frames, detector, controller, base)
+                loop = ControlLoop(*parts, record=session.after_step)
+                session.attach(loop)
+                started = clock.now()
+                loop.start(started)
+                next_tick = started
+                try:
+                    while not stop_requested[0]:
+                        now = clock.now()
+                        if duration_s is not None and now - started >= duration_s:
+                            end_reason = f"--duration {duration_s:g} s reached"
+                            break
+                        session.before_step(now)
+                        last = loop.step(now)
+                        steps += 1
+                        over = _run_over(last, frames, getattr(base, "link_lost", None))
+                        if over is not None:
+                            end_reason, exit_code = over
+                            break
+                        next_tick += period
+                        delay = next_tick - clock.now()
+                        if delay > 0:
+                            time.sleep(delay)
+                        else:
+                            next_tick = clock.now()  # overrun: the watchdog sees it; don't burst
+                finally:
+                    if last is not None and last.state == "HALT":
+                        halted_for = last.halt_reason
                     now = clock.now()
-                    if duration_s is not None and now - started >= duration_s:
-                        break
+                    loop.operator_stop(now)
+                    session.before_step(now)
                     last = loop.step(now)
-                    steps += 1
-                    next_tick += period
-                    delay = next_tick - clock.now()
-                    if delay > 0:
-                        time.sleep(delay)
-                    else:
-                        next_tick = clock.now()  # overrun: the watchdog sees it; don't burst
-            finally:
-                now = clock.now()
-                loop.operator_stop(now)
-                last = loop.step(now)
+        finally:
+            lines = session.close(end_reason, exit_code, halted_for)
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,
             final_state=last.state if last else "HALT",
-            halt_reason=last.halt_reason if last else None,
-            log_path=log_path,
+            halt_reason=halted_for or (last.halt_reason if last else None),
+            end_reason=end_reason,
+            exit_code=exit_code,
+            record_folder=session.folder,
+            lines=tuple(lines),
         )
     finally:
         frames.close()

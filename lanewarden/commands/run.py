@@ -1,4 +1,4 @@
-"""`lanewarden run`: drive the real robot with the camera, under the supervisor."""
+"""`lanewarden run`: follow the lane under the supervisor, on the robot or on the bench."""
 
 from __future__ import annotations
 
@@ -6,14 +6,28 @@ from pathlib import Path
 
 import click
 
+from lanewarden.bases import BASE_KINDS, DEFAULT_BASE
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
+RUN_EXAMPLES = """\b
+Examples:
+  lanewarden run --camera clip.mp4 --base sim --view 8080      # no robot: watch it live
+  lanewarden run --camera 0 --base none                        # live camera, nothing sent
+  lanewarden run --camera 0 --calibration camera.yaml          # on the robot
+  lanewarden replay runs/<UTC time> --check                    # replay a recorded run
+"""
 
-@click.command("run")
+
+@click.command("run", epilog=RUN_EXAMPLES)
 @click.option("--camera", default="0", show_default=True,
-              help="Camera index, device path, video file or stream URL.")
+              help="Camera index, device path, stream URL, video file, or image sequence (a "
+              "folder, a glob like 'shots/*.png', or 'dir/frame_%03d.png'). A file or sequence is "
+              "played at its frame rate; its end ends the run.")
+@click.option("--base", "base_kind", type=click.Choice(BASE_KINDS), default=DEFAULT_BASE,
+              show_default=True, help="kobuki: the robot; sim: a simulated Kobuki driven by the "
+              "very commands the wheels would get; none: send nothing, show what would be sent.")
 @click.option("--port", default=None,
               help="Kobuki serial port (default: actuation.port, then /dev/kobuki, /dev/ttyUSB0).")
 @click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
@@ -21,23 +35,37 @@ from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="supervised, or the lecture's baseline (never halts on lane "
               "loss: for comparison on a safe track only).")
-@click.option("--log", "log_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("run.jsonl"), show_default=True, help="Per-frame record (JSON lines).")
+@click.option("--record", "record_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="Record the run into this new folder (default: runs/<UTC "
+              "time>/; never overwritten).")
+@click.option("--record-lossy", is_flag=True,
+              help="Record JPEG frames instead of lossless PNG (about 6x smaller, for long runs; "
+              "the replay is then not exact).")
+@click.option("--view", "view", metavar="[HOST:]PORT", default=None,
+              help="Serve the live page on this port (127.0.0.1 unless a host is given, e.g. "
+              "0.0.0.0:8080 to watch from another machine).")
 @click.option("--duration", "duration_s", type=click.FloatRange(min=0.0, min_open=True),
               default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
-def run_command(camera: str, port: str | None, calibration_path: str | None, controller: str,
-                log_path: Path, duration_s: float | None, config_path: str | None) -> None:
-    """Follow the lane on the robot. Ctrl-C stops the robot; a crash leaves the dead-man holding
-    stop. Every check (config, calibration, camera, base link) passes before anything moves."""
+def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
+                controller: str, record_dir: Path | None, record_lossy: bool, view: str | None,
+                duration_s: float | None, config_path: str | None) -> int:
+    """Follow the lane under the supervisor. Ctrl-C stops the robot; a crash leaves the dead-man
+    holding stop. Every check (config, calibration, camera, recording folder, base link) passes
+    before anything moves. Keys: s start, space stop, r resume; Kobuki buttons: B0 start/resume,
+    B1 stop. Every run is recorded (see `lanewarden replay`)."""
     from lanewarden.runner import run_robot  # the robot stack loads only when used
 
     config = load_config(config_path)
     summary = run_robot(config, camera=camera, port=port, calibration_path=calibration_path,
-                        controller_name=controller, log_path=log_path, duration_s=duration_s)
-    reason = f" ({summary.halt_reason})" if summary.halt_reason else ""
-    click.echo(f"stopped after {summary.duration_s:.1f} s, {summary.steps} steps; final state "
-               f"{summary.final_state}{reason}; log: {summary.log_path}")
+                        controller_name=controller, duration_s=duration_s, base_kind=base_kind,
+                        record=record_dir, record_lossy=record_lossy, view=view,
+                        meta={"config_file": config_path})
+    for line in summary.lines:
+        click.echo(line)
+    if summary.exit_code != 0:
+        click.echo(f"lanewarden: error: safety stop: {summary.end_reason}", err=True)
+    return summary.exit_code
 
 
 def commands() -> list[click.Command]:
