@@ -171,13 +171,34 @@ class CameraFrameSource:
         self._ended = False
         self.frames_captured = 0
         self._running = True
+        self._playing = threading.Event()
+        if replay_fps is None:
+            self._playing.set()
         self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
         self._thread.start()
+
+    def play(self) -> None:
+        """Start playing a recorded source: until then it holds its first frame (so a clip starts
+        when the run does, not while the base is being opened), which now counts as just
+        captured. No effect on a live camera."""
+        if self._playing.is_set():
+            return
+        with self._lock:
+            if self._latest is not None:
+                self._latest = Frame(self._latest.image, self._latest.index, self._clock())
+        self._playing.set()
+
+    def _hold_first_frame(self) -> None:
+        while self._running and not self._playing.wait(0.1):
+            pass
 
     def _run(self) -> None:
         index = 0
         next_due = self._clock()
         while self._running:
+            if index == 1 and not self._playing.is_set():
+                self._hold_first_frame()
+                next_due = self._clock() + (self._replay_period_s or 0.0)
             ok, image = self._capture.read()
             if self._replay_period_s is not None:
                 delay = next_due - self._clock()
@@ -225,5 +246,6 @@ class CameraFrameSource:
 
     def close(self) -> None:
         self._running = False
+        self._playing.set()
         self._thread.join(timeout=2.0)
         self._capture.release()

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from lanewarden.actuation.base import BaseFeedback
+from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.loop import StepRecord
 
 #: Kobuki button bits (BaseFeedback.buttons): B0 starts or resumes, B1 stops.
@@ -31,6 +32,8 @@ BUTTON_B0 = 0x01
 BUTTON_B1 = 0x02
 #: New frames the frame rate is measured over.
 FPS_WINDOW_FRAMES = 30
+#: Steps the live loop time (mean, max) is measured over.
+LOOP_WINDOW_STEPS = 30
 
 
 class Engageable(Protocol):
@@ -126,6 +129,7 @@ class RunStats:
     last_time_s: float | None = None
     states_visited: list[str] = field(default_factory=list)
     halt_reason: str | None = None
+    halt_cause: str | None = None
     state: str = "HALT"
     distance_m: float = 0.0
     frames_seen: int = 0
@@ -134,9 +138,11 @@ class RunStats:
     loop_overruns: int = 0
     loop_time_s_max: float = 0.0
     loop_time_s_sum: float = 0.0
+    last_observation: LaneObservation | None = None
     _last_index: int | None = None
     _last_pose: tuple[float, float] | None = None
     _frame_times: deque[float] = field(default_factory=lambda: deque(maxlen=FPS_WINDOW_FRAMES))
+    _loop_times: deque[float] = field(default_factory=lambda: deque(maxlen=LOOP_WINDOW_STEPS))
 
     def add(self, record: StepRecord, feedback: BaseFeedback | None,
             loop_time_s: float = 0.0) -> None:
@@ -144,6 +150,8 @@ class RunStats:
         if self.first_time_s is None:
             self.first_time_s = record.time_s
         self.last_time_s = record.time_s
+        if record.state == "HALT" and self.state != "HALT":
+            self.halt_cause = record.halt_reason  # why it stopped (later steps may add reasons)
         self.state = record.state
         if record.state not in self.states_visited:
             self.states_visited.append(record.state)
@@ -160,6 +168,9 @@ class RunStats:
         self.loop_overruns += "LOOP_OVERRUN" in record.events
         self.loop_time_s_max = max(self.loop_time_s_max, loop_time_s)
         self.loop_time_s_sum += loop_time_s
+        self._loop_times.append(loop_time_s)
+        if record.observation is not None:
+            self.last_observation = record.observation
         if feedback is not None:
             pose = (feedback.odometry.x_m, feedback.odometry.y_m)
             if self._last_pose is not None:
@@ -184,6 +195,12 @@ class RunStats:
     def loop_time_s_mean(self) -> float:
         return self.loop_time_s_sum / self.steps if self.steps else 0.0
 
+    @property
+    def recent_loop_time_s(self) -> tuple[float, float]:
+        """(mean, max) step time over the last LOOP_WINDOW_STEPS steps."""
+        times = self._loop_times
+        return (sum(times) / len(times), max(times)) if times else (0.0, 0.0)
+
 
 def _round(value: float | None, digits: int) -> float | None:
     return None if value is None else round(value, digits)
@@ -198,10 +215,11 @@ def base_link(feedback: BaseFeedback | None, now: float, late_s: float, lost_s: 
 
 
 def status_of(record: StepRecord, stats: RunStats, feedback: BaseFeedback | None, *,
-              link: str, loop_time_s: float, extra: dict[str, Any] | None = None
-              ) -> dict[str, Any]:
-    """The live status after one step (JSON-ready)."""
-    obs = record.observation
+              link: str, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The live status after one step (JSON-ready). Perception's numbers are those of the newest
+    observation (most steps have no new frame); the loop time is over the last steps."""
+    obs = stats.last_observation
+    loop_mean, loop_max = stats.recent_loop_time_s
     return {
         "time_s": round(stats.duration_s, 3),
         "step": stats.steps,
@@ -216,7 +234,8 @@ def status_of(record: StepRecord, stats: RunStats, feedback: BaseFeedback | None
         "command": {"linear_m_s": round(record.command.linear_m_s, 3),
                     "angular_rad_s": round(record.command.angular_rad_s, 3)},
         "fps": _round(stats.fps, 1),
-        "loop_ms": round(loop_time_s * 1000.0, 1),
+        "loop_ms": round(loop_mean * 1000.0, 1),
+        "loop_ms_max": round(loop_max * 1000.0, 1),
         "base_link": link,
         "battery_v": None if feedback is None else _round(feedback.battery_v, 1),
         "distance_m": round(stats.distance_m, 3),
@@ -229,9 +248,10 @@ def status_of(record: StepRecord, stats: RunStats, feedback: BaseFeedback | None
 def summary_lines(stats: RunStats, *, end_reason: str, halt_reason: str | None = None,
                   recording: str | None = None, frames_dropped_recording: int = 0,
                   view_dropped: int | None = None) -> list[str]:
-    """The final summary printed when a run ends. `halt_reason`: why it was halted before the
-    runner's own final stop (default: the last step's reason)."""
-    reason = halt_reason or (stats.halt_reason if stats.state == "HALT" else None)
+    """The final summary printed when a run ends. `halt_reason`: why it halted (default: the
+    reason it entered its last HALT with, else the last step's)."""
+    reason = halt_reason or stats.halt_cause or (
+        stats.halt_reason if stats.state == "HALT" else None)
     lines = [
         f"run ended ({end_reason}) after {stats.duration_s:.1f} s, {stats.steps} steps; "
         f"final state {stats.state}" + (f", halted: {reason}" if reason else ""),

@@ -133,7 +133,6 @@ class RunSession:
             record, self.stats, feedback,
             link=base_link(feedback, record.time_s, sup.base_feedback_late_s,
                            sup.base_link_timeout_s),
-            loop_time_s=self._loop_time_s,
             extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
                    "recording": str(self.folder),
                    "recording_frames_dropped": len(self.recorder.summary.frames_dropped)})
@@ -178,7 +177,7 @@ class RunSession:
             self.panel.resume("key")
 
     # ---- the end ------------------------------------------------------------------------------
-    def close(self, end_reason: str, exit_code: int, halt_reason: str | None = None) -> list[str]:
+    def close(self, end_reason: str, exit_code: int) -> list[str]:
         """Stop the keys, the page, the status line; finish the recording; the summary lines."""
         self.keys.__exit__(None, None, None)
         view_dropped = None
@@ -190,10 +189,9 @@ class RunSession:
             "end_reason": end_reason, "exit_code": exit_code,
             "duration_s": round(self.stats.duration_s, 3),
             "final_state": self.stats.state,
-            "halt_reason": halt_reason or self.stats.halt_reason,
+            "halt_reason": self.stats.halt_cause or self.stats.halt_reason,
             "states_visited": self.stats.states_visited,
             "distance_m": round(self.stats.distance_m, 4)})
-        return summary_lines(self.stats, end_reason=end_reason, halt_reason=halt_reason,
-                             recording=str(self.folder),
+        return summary_lines(self.stats, end_reason=end_reason, recording=str(self.folder),
                              frames_dropped_recording=len(self.recording.frames_dropped),
                              view_dropped=view_dropped)

@@ -141,7 +141,6 @@ def run_robot(
             config, clock.now)
         stop_requested = [False]
         last: StepRecord | None = None
-        halted_for: str | None = None
         end_reason, exit_code = "operator stop (Ctrl-C or SIGTERM)", EXIT_OK
         steps = 0
         started = clock.now()
@@ -152,9 +151,10 @@ def run_robot(
             ):
                 parts = session.wrap(frames, detector, controller, base)
                 loop = ControlLoop(*parts, record=session.after_step)
-                session.attach(loop)
+                panel = session.attach(loop)
+                frames.play()
                 started = clock.now()
-                loop.start(started)
+                panel.start("the run command")  # the explicit start; it only arms
                 next_tick = started
                 try:
                     while not stop_requested[0]:
@@ -176,19 +176,17 @@ def run_robot(
                         else:
                             next_tick = clock.now()  # overrun: the watchdog sees it; don't burst
                 finally:
-                    if last is not None and last.state == "HALT":
-                        halted_for = last.halt_reason
                     now = clock.now()
                     loop.operator_stop(now)
                     session.before_step(now)
                     last = loop.step(now)
         finally:
-            lines = session.close(end_reason, exit_code, halted_for)
+            lines = session.close(end_reason, exit_code)
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,
             final_state=last.state if last else "HALT",
-            halt_reason=halted_for or (last.halt_reason if last else None),
+            halt_reason=session.stats.halt_cause or (last.halt_reason if last else None),
             end_reason=end_reason,
             exit_code=exit_code,
             record_folder=session.folder,

@@ -3,8 +3,8 @@
 - `format_status` (pure): state and reason, fps, confidence, slope sum, speed, battery in one line.
 - `StatusPrinter`: on a terminal, rewrites one line in place a few times a second; otherwise
   (a pipe, a log file) prints a plain line when the state or its reason changes and every
-  `PLAIN_EVERY_S` seconds. It prints from its own thread through a latest-only slot, so a slow
-  or stalled terminal never holds up the control loop.
+  `PLAIN_EVERY_S` seconds. It prints from its own thread (the newest status replaces one not yet
+  printed), so a slow or stalled terminal never holds up the control loop.
 - `KeyReader`: reads single keys in cbreak mode (no Enter needed, no echo; Ctrl-C still sends
   SIGINT) from its own thread, and restores the terminal's settings on every way out (the context
   manager's exit, which the runner reaches on a normal end, an error, Ctrl-C or SIGTERM).
@@ -20,17 +20,18 @@ import termios
 import threading
 import time
 import tty
+from collections import deque
 from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TextIO
-
-from lanewarden.latest_slot import LatestSlot
 
 #: Refresh rate of the in-place status line, Hz.
 TTY_REFRESH_HZ = 5.0
 #: Without a terminal: a status line at least this often (and on every state change), s.
 PLAIN_EVERY_S = 5.0
 KEY_HELP = "keys: s start, space stop, r resume, Ctrl-C end"
+#: Operator messages waiting for the terminal beyond this are dropped (oldest first).
+MAX_PENDING_MESSAGES = 100
 
 
 def _num(value: Any, fmt: str, missing: str = "-") -> str:
@@ -64,44 +65,56 @@ def format_status(status: dict[str, Any]) -> str:
 
 
 class StatusPrinter:
-    """Prints the status from its own thread; `publish` only swaps a reference."""
+    """Prints the status from its own thread; `publish` and `message` only hand over a reference
+    (the newest status replaces an unprinted one; messages are all printed, in order)."""
 
     def __init__(self, stream: TextIO, *, tty_mode: bool | None = None) -> None:
         self._stream = stream
         self.tty_mode = stream.isatty() if tty_mode is None else tty_mode
-        self._slot: LatestSlot[dict[str, Any]] = LatestSlot()
-        self._thread = threading.Thread(target=self._run, name="status-line", daemon=True)
+        self._cond = threading.Condition()
+        self._status: dict[str, Any] | None = None
+        self._messages: deque[str] = deque(maxlen=MAX_PENDING_MESSAGES)
+        self._closed = False
         self._last_key: tuple[object, object] | None = None
         self._last_plain_s = -float("inf")
         self._width = 0
+        self._thread = threading.Thread(target=self._run, name="status-line", daemon=True)
         self._thread.start()
 
     def publish(self, status: dict[str, Any]) -> None:
-        self._slot.put(status)
+        with self._cond:
+            self._status = status
+            self._cond.notify()
 
     def message(self, text: str) -> None:
         """A line of its own (an operator request, say), above the status line."""
-        self._slot.put({"_message": text})
+        with self._cond:
+            self._messages.append(text)
+            self._cond.notify()
 
     def _run(self) -> None:
         period = 1.0 / TTY_REFRESH_HZ
         while True:
-            status = self._slot.take(timeout_s=1.0)
-            if status is None:
-                if self._slot.closed:
-                    return
-                continue
+            with self._cond:
+                self._cond.wait_for(
+                    lambda: self._closed or self._messages or self._status is not None, 1.0)
+                messages = list(self._messages)
+                self._messages.clear()
+                status, self._status = self._status, None
+                closed = self._closed
             try:
-                self._show(status)
+                for text in messages:
+                    self._write_line(text)
+                if status is not None:
+                    self._show(status)
             except (OSError, ValueError):
                 return  # the terminal went away: the run goes on without it
-            if self.tty_mode and not self._slot.closed:
+            if closed:
+                return
+            if self.tty_mode and status is not None:
                 time.sleep(period)  # this thread's own pace; newer statuses replace older ones
 
     def _show(self, status: dict[str, Any]) -> None:
-        if "_message" in status:
-            self._write_line(str(status["_message"]))
-            return
         line = format_status(status)
         if self.tty_mode:
             width = shutil.get_terminal_size((100, 20)).columns - 1
@@ -125,8 +138,10 @@ class StatusPrinter:
         self._stream.flush()
 
     def close(self) -> None:
-        """Stop the thread; on a terminal, end the status line."""
-        self._slot.close()
+        """Print what is pending, stop the thread; on a terminal, end the status line."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
         self._thread.join(timeout=2.0)
         if self.tty_mode and self._width:
             try:

@@ -54,11 +54,11 @@ def lane_then_end_video(folder: Path) -> Path:
 
 
 def lane_gap_lane_images(folder: Path, lane_after_s: float = 3.0) -> Path:
-    """A lane (1 s), no lane (0.7 s: seams only), then the lane again (`lane_after_s`): a LANE_LOST
-    halt the operator can resume from."""
+    """A lane (1.5 s), no lane (1 s: seams only), then the lane again (`lane_after_s`): a
+    LANE_LOST halt the operator can resume from."""
     frames: list[np.ndarray] = []
-    frames += lane_end_frames(start_m=1.0, end_m=1.5, speed_m_s=0.5)
-    frames += lane_end_frames(start_m=4.2, end_m=4.55, speed_m_s=0.5, seed=1)
+    frames += lane_end_frames(start_m=1.0, end_m=1.75, speed_m_s=0.5)
+    frames += lane_end_frames(start_m=5.0, end_m=5.5, speed_m_s=0.5, seed=1)
     frames += lane_end_frames(start_m=1.0, end_m=1.0 + 0.5 * lane_after_s, speed_m_s=0.5, seed=2)
     return write_images(frames, folder / "gap")
 

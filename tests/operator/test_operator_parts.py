@@ -144,7 +144,7 @@ def test_run_stats_add_up_a_run() -> None:
     assert (stats.frames_seen, stats.frames_skipped) == (4, 2)
     assert (stats.steps_frame_late, stats.loop_overruns) == (1, 1)
     assert stats.loop_time_s_max == pytest.approx(0.008)
-    assert stats.halt_reason == "LANE_LOST: gone"
+    assert stats.halt_reason == stats.halt_cause == "LANE_LOST: gone"
     # frames at 9.99, 10.09, 10.29, 10.39: 3 intervals over 0.4 s
     assert stats.fps == pytest.approx(7.5)
 
@@ -158,13 +158,14 @@ def test_status_and_summary_say_what_the_operator_needs() -> None:
     feedback = _feedback(9.95, 0.0)
     stats.add(record, feedback, 0.0042)
     status = status_of(record, stats, feedback, link=base_link(feedback, 10.0, 0.1, 0.2),
-                       loop_time_s=0.0042, extra={"base": "sim"})
+                       extra={"base": "sim"})
     assert status == {
         "time_s": 0.0, "step": 1, "state": "HALT", "halt_reason": "LANE_LOST: no usable lane",
         "events": [], "frame_index": 3, "confidence": 0.812,
         "components": {"edges": 0.9, "width": 0.75}, "slope_sum": None,
         "filtered_slope_sum": 0.5, "command": {"linear_m_s": 0.0, "angular_rad_s": 0.25},
-        "fps": None, "loop_ms": 4.2, "base_link": "ok", "battery_v": 16.2, "distance_m": 0.0,
+        "fps": None, "loop_ms": 4.2, "loop_ms_max": 4.2, "base_link": "ok", "battery_v": 16.2,
+        "distance_m": 0.0,
         "frames_skipped": 0, "frames_late": 0, "base": "sim"}
     assert format_status(status) == ("HALT (LANE_LOST)  - fps  conf 0.81  slope -/+0.50  "
                                      "v 0.00 w +0.25  battery 16.2 V  link ok")
@@ -179,6 +180,10 @@ def test_status_and_summary_say_what_the_operator_needs() -> None:
         "  recorded in runs/x, 2 frames dropped (replay cannot be exact)",
         "  live view: 5 view frames dropped (the loop never waits)",
     ]
+    # a later step without a new frame still shows the newest observation's numbers
+    stats.add(_record(3, 10.033, "HALT", reason="LANE_LOST: no usable lane"), feedback, 0.0062)
+    later = status_of(_record(3, 10.033, "HALT"), stats, feedback, link="ok")
+    assert (later["confidence"], later["loop_ms"], later["loop_ms_max"]) == (0.812, 5.2, 6.2)
 
 
 def test_base_link_by_feedback_age() -> None:
@@ -240,3 +245,55 @@ def test_latency_timer_of_a_pty_is_not_exposed(tmp_path: Path) -> None:
     assert value is None
     assert latency_timer_text(value, path) == (
         "not exposed for this port (not a USB serial adapter)")
+
+
+# ---- the terminal ------------------------------------------------------------------------------
+def test_keys_are_read_in_cbreak_mode_and_the_terminal_is_restored() -> None:
+    import os
+    import termios
+    import threading
+
+    from lanewarden.terminal import KeyReader
+
+    master, slave = os.openpty()
+    stream = os.fdopen(slave, "r")
+    try:
+        before = termios.tcgetattr(slave)
+        keys: list[str] = []
+        got = threading.Event()
+
+        def on_key(key: str) -> None:
+            keys.append(key)
+            got.set()
+
+        with KeyReader(on_key, stream) as reader:
+            assert reader.active
+            during = termios.tcgetattr(slave)
+            assert not during[3] & termios.ICANON and not during[3] & termios.ECHO
+            assert during[3] & termios.ISIG, "Ctrl-C must still send SIGINT"
+            os.write(master, b"r")
+            assert got.wait(10.0)
+        assert keys == ["r"]
+        assert termios.tcgetattr(slave) == before
+        with pytest.raises(RuntimeError), KeyReader(on_key, stream):
+            raise RuntimeError("an error on the way out")
+        assert termios.tcgetattr(slave) == before, "restored on an error too"
+    finally:
+        stream.close()
+        os.close(master)
+
+
+def test_plain_status_lines_on_state_changes_and_every_message() -> None:
+    import io
+
+    from lanewarden.terminal import StatusPrinter
+
+    out = io.StringIO()
+    printer = StatusPrinter(out, tty_mode=False)
+    printer.message("start requested (key)")
+    printer.publish({"time_s": 1.5, "state": "FOLLOW", "fps": 30.0})
+    printer.close()
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "start requested (key)"
+    assert lines[1] == ("[   1.50 s] FOLLOW  30.0 fps  conf -  slope -/-  v - w -  battery ? V  "
+                        "link ?")
