@@ -39,6 +39,7 @@ from lanewarden.latest_slot import LatestSlot
 from lanewarden.perception.detector import DetectionDebug
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import draw_overlay
+from lanewarden.recording import lower_priority
 from lanewarden.scenarios.video import state_color
 
 #: The encoder's ceiling, frames per second (the page asks at most this often, too).
@@ -155,6 +156,7 @@ class LiveView:
 
     # ---- the encoder thread -------------------------------------------------------------------
     def _encode_frames(self) -> None:
+        lower_priority()  # the control loop wins the CPU; the page gets fewer frames
         period = 1.0 / VIEW_FPS
         while True:
             frame = self._frames.take(timeout_s=0.5)

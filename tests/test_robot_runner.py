@@ -31,10 +31,10 @@ def camera_sequence(tmp_path: Path) -> str:
 def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     camera_sequence: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    log = tmp_path / "run.jsonl"
+    log = tmp_path / "run" / "run.jsonl"
     with KobukiStandIn() as base:
         code = main(["run", "--camera", camera_sequence, "--port", base.port,
-                     "--duration", "1.0", "--log", str(log)])
+                     "--duration", "1.0", "--record", str(log.parent)])
         assert code == 0, capsys.readouterr().err
         assert base.wait_for(lambda packets: any(p.packet == STOP_PACKET for p in packets), 5.0)
         controls = base.base_controls()
@@ -59,7 +59,7 @@ def test_calibration_for_another_camera_refuses_before_the_base_is_touched(
     with KobukiStandIn() as base:
         code = main(["run", "--camera", camera_sequence, "--port", base.port,
                      "--calibration", str(calibration), "--duration", "1.0",
-                     "--log", str(tmp_path / "run.jsonl")])
+                     "--record", str(tmp_path / "run")])
         received = base.snapshot()
     err = capsys.readouterr().err
     assert code != 0
