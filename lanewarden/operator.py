@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import threading
+from array import array
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -143,6 +144,7 @@ class RunStats:
     _last_pose: tuple[float, float] | None = None
     _frame_times: deque[float] = field(default_factory=lambda: deque(maxlen=FPS_WINDOW_FRAMES))
     _loop_times: deque[float] = field(default_factory=lambda: deque(maxlen=LOOP_WINDOW_STEPS))
+    loop_times_s: array[float] = field(default_factory=lambda: array("d"))
 
     def add(self, record: StepRecord, feedback: BaseFeedback | None,
             loop_time_s: float = 0.0) -> None:
@@ -169,6 +171,7 @@ class RunStats:
         self.loop_time_s_max = max(self.loop_time_s_max, loop_time_s)
         self.loop_time_s_sum += loop_time_s
         self._loop_times.append(loop_time_s)
+        self.loop_times_s.append(loop_time_s)
         if record.observation is not None:
             self.last_observation = record.observation
         if feedback is not None:
@@ -194,6 +197,13 @@ class RunStats:
     @property
     def loop_time_s_mean(self) -> float:
         return self.loop_time_s_sum / self.steps if self.steps else 0.0
+
+    def loop_time_percentile_s(self, q: float) -> float:
+        """The q-th percentile (0-100) of every step's time so far (nearest rank)."""
+        if not self.loop_times_s:
+            return 0.0
+        ordered = sorted(self.loop_times_s)
+        return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100.0 * len(ordered)) - 1))]
 
     @property
     def recent_loop_time_s(self) -> tuple[float, float]:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import datetime as dt
 import sys
+import time
+from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +48,13 @@ from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 DEFAULT_RUNS_ROOT = Path("runs")
 
 
+def _summary_ms(values: array[float]) -> dict[str, float]:
+    ordered = sorted(values) or [0.0]
+    return {"mean": round(sum(ordered) / len(ordered) * 1000, 3),
+            "p50": round(ordered[len(ordered) // 2] * 1000, 3),
+            "p95": round(ordered[min(len(ordered) - 1, int(len(ordered) * 0.95))] * 1000, 3)}
+
+
 @dataclass(frozen=True)
 class SessionOptions:
     base_kind: str = "kobuki"
@@ -73,7 +82,11 @@ class RunSession:
         self._detections: DetectionTap | None = None
         self.panel: OperatorPanel | None = None
         self._step_started_s: float | None = None
+        self._step_cpu_started_s = 0.0
         self._loop_time_s = 0.0
+        #: CPU time of the control thread per step (not slowed by other processes: what the
+        #: live-view benchmark compares).
+        self.step_cpu_s: array[float] = array("d")
         folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
                                                       dt.datetime.now(dt.UTC))
         self.folder = create_run_folder(folder)
@@ -113,6 +126,7 @@ class RunSession:
     # ---- each step ----------------------------------------------------------------------------
     def before_step(self, now: float) -> None:
         self._step_started_s = now
+        self._step_cpu_started_s = time.thread_time()
         if self.panel is not None:
             for request in self.panel.deliver(now):
                 self.printer.message(f"{request.kind} requested ({request.source})")
@@ -120,6 +134,7 @@ class RunSession:
     def after_step(self, record: StepRecord) -> None:
         """The loop's record callback (runs inside the step: cheap work only)."""
         now = self._clock()
+        self.step_cpu_s.append(time.thread_time() - self._step_cpu_started_s)
         started = self._step_started_s if self._step_started_s is not None else record.time_s
         self._loop_time_s = max(0.0, now - started)
         step_input, new_frame = self.tap.take(record.time_s)
@@ -191,7 +206,16 @@ class RunSession:
             "final_state": self.stats.state,
             "halt_reason": self.stats.halt_cause or self.stats.halt_reason,
             "states_visited": self.stats.states_visited,
-            "distance_m": round(self.stats.distance_m, 4)})
+            "distance_m": round(self.stats.distance_m, 4),
+            "loop_time_ms": {
+                "mean": round(self.stats.loop_time_s_mean * 1000, 3),
+                "p50": round(self.stats.loop_time_percentile_s(50) * 1000, 3),
+                "p95": round(self.stats.loop_time_percentile_s(95) * 1000, 3),
+                "max": round(self.stats.loop_time_s_max * 1000, 3)},
+            "loop_cpu_ms": _summary_ms(self.step_cpu_s),
+            "frames_seen": self.stats.frames_seen,
+            "frames_skipped": self.stats.frames_skipped,
+            "view_frames_dropped": view_dropped})
         return summary_lines(self.stats, end_reason=end_reason, recording=str(self.folder),
                              frames_dropped_recording=len(self.recording.frames_dropped),
                              view_dropped=view_dropped)

@@ -144,6 +144,7 @@ def test_run_stats_add_up_a_run() -> None:
     assert (stats.frames_seen, stats.frames_skipped) == (4, 2)
     assert (stats.steps_frame_late, stats.loop_overruns) == (1, 1)
     assert stats.loop_time_s_max == pytest.approx(0.008)
+    assert stats.loop_time_percentile_s(50) == pytest.approx(0.004)
     assert stats.halt_reason == stats.halt_cause == "LANE_LOST: gone"
     # frames at 9.99, 10.09, 10.29, 10.39: 3 intervals over 0.4 s
     assert stats.fps == pytest.approx(7.5)
