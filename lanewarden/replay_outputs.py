@@ -29,6 +29,7 @@ from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.plot import write_plot
 from lanewarden.scenarios.report import write_report
 from lanewarden.scenarios.sim_run import ordered_metrics
+from lanewarden.scenarios.simulator import video_lines
 from lanewarden.scenarios.video import MapView, VideoRecorder
 from lanewarden.supervisor.recorder import JsonlRecorder
 
@@ -147,8 +148,8 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
                                           config.simulation.video.preset)
                 map_view.add_path_point(pose, record.state)
                 if step.index % every == 0:
-                    video.add(panel[:, :, :3], pose, record.state, _video_lines(
-                        source, record, step.step_input.t - times[0]))
+                    video.add(panel[:, :, :3], pose, record.state, video_lines(
+                        f"{source.name} | replay", step.step_input.t - times[0], record))
     finally:
         if video is not None:
             video.close()
@@ -166,20 +167,6 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     write_report(request.out_dir / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
                  title=f"Lanewarden replay: {source.name} ({source.kind})")
     return metrics
-
-
-def _video_lines(source: ReplaySource, record: Any, t: float) -> list[str]:
-    cmd = record.command
-    lines = [f"{source.name} | replay | t={t:5.1f} s",
-             f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s"]
-    obs = record.observation
-    if obs is not None:
-        raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
-        filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
-        lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
-    if record.halt_reason and record.state == "HALT":
-        lines.append(record.halt_reason.split(":")[0])
-    return lines
 
 
 def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: list[float],

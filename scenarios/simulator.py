@@ -262,19 +262,26 @@ class Simulation:
             panel = draw_overlay(undistorted, observation, debug, decision)
         else:
             panel = undistorted
-        obs = record.observation
-        cmd = record.command
-        lines = [
-            f"{self.spec.name} | {self.controller_name} | t={now:5.1f} s",
-            f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
-        ]
-        if obs is not None:
-            raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
-            filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
-            lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
-        if record.halt_reason and record.state == "HALT":
-            lines.append(record.halt_reason.split(":")[0])
-        self._video.add(panel, pose, record.state, lines)
+        self._video.add(panel, pose, record.state,
+                        video_lines(f"{self.spec.name} | {self.controller_name}", now, record))
+
+
+def video_lines(title: str, now: float, record: StepRecord) -> list[str]:
+    """The text on a run video's map panel: title and time, state and command, slope sum and
+    confidence, the halt reason's event (also used by `lanewarden replay`)."""
+    obs = record.observation
+    cmd = record.command
+    lines = [
+        f"{title} | t={now:5.1f} s",
+        f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
+    ]
+    if obs is not None:
+        raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
+        filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
+        lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
+    if record.halt_reason and record.state == "HALT":
+        lines.append(record.halt_reason.split(":")[0])
+    return lines
 
 
 class EndConditions:

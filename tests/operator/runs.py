@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import subprocess
 import sys
 import threading
@@ -31,6 +32,18 @@ def wait_until(condition: Callable[[], bool], timeout_s: float = 20.0,
             return True
         pause.wait(poll_s)
     return condition()
+
+
+def free_port() -> int:
+    """A loopback port nobody listens on now (for --view)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def moving(packets: list[Any]) -> bool:
+    """The Kobuki stand-in received a non-zero base-control command."""
+    return any(p.base_control not in (None, (0, 0)) for p in packets)
 
 
 def steps(folder: Path) -> list[dict[str, Any]]:
@@ -67,6 +80,19 @@ def long_lane_images(folder: Path, seconds: float = 6.0) -> Path:
     """A straight lane for `seconds` (the tape never ends within the clip)."""
     return write_images(lane_end_frames(start_m=0.3, end_m=0.3 + 0.4 * seconds,
                                         speed_m_s=0.4), folder / "long")
+
+
+def run_beside(operator: Callable[[], None], args: list[str]) -> int:
+    """`lanewarden run ARGS` in this thread (its signal handlers need the main thread) while
+    `operator` acts from another one; the run's exit code."""
+    from lanewarden.cli import main
+
+    helper = threading.Thread(target=operator, daemon=True)
+    helper.start()
+    try:
+        return main(["run", *args])
+    finally:
+        helper.join(10)
 
 
 def start_run(args: list[str], **popen: Any) -> subprocess.Popen[str]:

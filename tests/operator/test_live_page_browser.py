@@ -8,17 +8,14 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import tempfile
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from lanewarden.cli import main
-from tests.operator.runs import long_lane_images, steps, wait_until
+from tests.operator.runs import free_port, long_lane_images, run_beside, steps, wait_until
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
@@ -48,19 +45,13 @@ def browser() -> Iterator[Any]:
         shutil.rmtree(profile, ignore_errors=True)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_the_page_shows_the_run_and_its_stop_button_halts_it(
         browser: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from selenium.webdriver.common.by import By
 
     clip = long_lane_images(tmp_path, seconds=12.0)
     record = tmp_path / "run"
-    port = _free_port()
+    port = free_port()
     seen: dict[str, Any] = {}
 
     def operator() -> None:
@@ -91,11 +82,8 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
         finally:
             os.kill(os.getpid(), signal.SIGINT)  # the operator's Ctrl-C ends the run
 
-    helper = threading.Thread(target=operator, daemon=True)
-    helper.start()
-    code = main(["run", "--camera", str(clip), "--base", "sim", "--view", str(port),
-                 "--record", str(record)])
-    helper.join(10)
+    code = run_beside(operator, ["--camera", str(clip), "--base", "sim", "--view", str(port),
+                                 "--record", str(record)])
     assert code == 0, capsys.readouterr().err
     assert seen.get("image"), f"the page never showed the camera image: {seen}"
     assert seen.get("follow"), f"the page never showed FOLLOW: {seen}"

@@ -10,17 +10,21 @@ from __future__ import annotations
 import http.client
 import json
 import os
-import socket
-import threading
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from lanewarden.cli import main
 from lanewarden.supervisor.config import SupervisorConfig
 from tests.actuation.kobuki_standin import KobukiStandIn
-from tests.operator.runs import lane_gap_lane_images, start_run, steps, wait_until
+from tests.operator.runs import (
+    free_port,
+    lane_gap_lane_images,
+    run_beside,
+    start_run,
+    steps,
+    wait_until,
+)
 
 ENGAGE_FRAMES = SupervisorConfig().engage_confident_frames
 
@@ -63,21 +67,12 @@ def test_resume_from_the_kobuki_b0_button(gap_clip: Path, tmp_path: Path,
                 wait_until(lambda: kobuki.feedback_sent >= sent + 5, 5.0)
                 kobuki.buttons = 0  # ... and up
 
-        helper = threading.Thread(target=operator, daemon=True)
-        helper.start()
-        code = main(["run", "--camera", str(gap_clip), "--port", kobuki.port, "--record",
-                     str(record)])
-        helper.join(10)
+        code = run_beside(operator, ["--camera", str(gap_clip), "--port", kobuki.port,
+                                     "--record", str(record)])
     assert code == 0, capsys.readouterr().err
     records = steps(record)
     assert_resumed_after_confident_frames(records)
     assert "resume requested (button B0)" in capsys.readouterr().out
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _http(port: int, method: str, path: str) -> dict[str, Any] | None:
@@ -94,7 +89,7 @@ def _http(port: int, method: str, path: str) -> dict[str, Any] | None:
 def test_resume_from_the_live_page(gap_clip: Path, tmp_path: Path,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     record = tmp_path / "run"
-    port = _free_port()
+    port = free_port()
 
     def operator() -> None:
         def halted() -> bool:
@@ -105,11 +100,8 @@ def test_resume_from_the_live_page(gap_clip: Path, tmp_path: Path,
         if wait_until(halted, 30.0):
             _http(port, "POST", "/resume")
 
-    helper = threading.Thread(target=operator, daemon=True)
-    helper.start()
-    code = main(["run", "--camera", str(gap_clip), "--base", "sim", "--view", str(port),
-                 "--record", str(record)])
-    helper.join(10)
+    code = run_beside(operator, ["--camera", str(gap_clip), "--base", "sim", "--view", str(port),
+                                 "--record", str(record)])
     assert code == 0, capsys.readouterr().err
     assert_resumed_after_confident_frames(steps(record))
     assert "resume requested (page)" in capsys.readouterr().out

@@ -19,6 +19,7 @@ from tests.actuation.kobuki_standin import KobukiStandIn
 from tests.operator.runs import (
     lane_then_end_video,
     long_lane_images,
+    moving,
     start_run,
     steps,
 )
@@ -121,8 +122,7 @@ def test_sigstop_of_the_runner_stops_the_base_through_the_deadman(
         process = start_run(["--camera", str(long_lane), "--port", kobuki.port, "--record",
                              str(record)], stdout=open(os.devnull, "w"))
         try:
-            assert kobuki.wait_for(lambda ps: any(p.base_control not in (None, (0, 0))
-                                                  for p in ps), 30.0), "it never moved"
+            assert kobuki.wait_for(moving, 30.0), "it never moved"
             frozen_at = len(kobuki.snapshot())
             os.kill(process.pid, signal.SIGSTOP)
             assert kobuki.wait_for(lambda ps: any(p.base_control == (0, 0)
@@ -147,8 +147,7 @@ def test_sigint_and_sigterm_end_with_stop_and_the_summary(
         process = start_run(["--camera", str(long_lane), "--port", kobuki.port, "--record",
                              str(record)], stdout=-1, stderr=-1)
         try:
-            assert kobuki.wait_for(lambda ps: any(p.base_control not in (None, (0, 0))
-                                                  for p in ps), 30.0), "it never moved"
+            assert kobuki.wait_for(moving, 30.0), "it never moved"
             process.send_signal(sig)
             out, err = process.communicate(timeout=20)
         finally:
