@@ -23,8 +23,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lanewarden.errors import UsageError
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.errors import DeviceError, UsageError
+from lanewarden.image_files import header_problem, read_image, too_many_pixels
 from lanewarden.supervisor.loop import Frame
 
 
@@ -74,8 +74,9 @@ class ImageSequence:
     """A folder or glob of image files behind cv2.VideoCapture's read/get/release/isOpened, so the
     capture thread treats it like a video. An unreadable file ends it with `failure` set."""
 
-    def __init__(self, paths: list[Path]) -> None:
+    def __init__(self, paths: list[Path], max_pixels: int | None = None) -> None:
         self.paths = paths
+        self._max_pixels = max_pixels
         self._next = 0
         self.failure: str | None = None
 
@@ -86,9 +87,9 @@ class ImageSequence:
         if self._next >= len(self.paths) or self.failure is not None:
             return False, None
         path = self.paths[self._next]
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        image, why = read_image(path, cv2.IMREAD_UNCHANGED, self._max_pixels)
         if image is None or image.dtype != np.uint8:
-            self.failure = f"{path}: not an 8-bit image OpenCV can read"
+            self.failure = f"{path}: {why or 'not an 8-bit image'}"
             return False, None
         self._next += 1
         return True, image
@@ -100,10 +101,12 @@ class ImageSequence:
         self._next = len(self.paths)
 
 
-def open_camera(camera: str) -> cv2.VideoCapture | ImageSequence:
+def open_camera(camera: str,
+                max_pixels: int | None = None) -> cv2.VideoCapture | ImageSequence:
     """cv2.VideoCapture on an int index, a file path (also an image sequence like
     'dir/frame_%03d.png') or a URL, or an `ImageSequence` on a folder of images or a glob
-    ('shots/*.png'); UsageError/PerceptionError naming --camera on failure."""
+    ('shots/*.png'); UsageError (bad input: no such file, no images, frames larger than
+    `max_pixels` by the source's own size) or DeviceError (cannot open it) naming --camera."""
     paths = image_sequence_paths(camera)
     if paths is not None:
         if not paths:
@@ -111,7 +114,9 @@ def open_camera(camera: str) -> cv2.VideoCapture | ImageSequence:
                 f"--camera '{camera}': no images there (expected {', '.join(IMAGE_SUFFIXES)} "
                 "files in a folder or matching the pattern)"
             )
-        return ImageSequence(paths)
+        if max_pixels is not None and (why := header_problem(paths[0], max_pixels)):
+            raise UsageError(f"--camera '{camera}': {paths[0]}: {why}")
+        return ImageSequence(paths, max_pixels)
     source: int | str
     if camera.strip().isdigit():
         source = int(camera)
@@ -129,10 +134,15 @@ def open_camera(camera: str) -> cv2.VideoCapture | ImageSequence:
         opened = capture.isOpened()
     if not opened:
         capture.release()
-        raise PerceptionError(
+        raise DeviceError(
             f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
             "free, and a format OpenCV reads?)"
         )
+    width = int(capture.get(cv2.CAP_PROP_FRAME_WIDTH) or 0)
+    height = int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
+    if max_pixels is not None and (why := too_many_pixels(width, height, max_pixels)):
+        capture.release()
+        raise UsageError(f"--camera '{camera}': {why}")
     return capture
 
 
@@ -159,10 +169,14 @@ class CameraFrameSource:
         capture: cv2.VideoCapture | ImageSequence,
         clock: Callable[[], float],
         replay_fps: float | None = None,
+        max_pixels: int | None = None,
     ) -> None:
         """`replay_fps`: for a recorded source (video file, image sequence), deliver frames at this
-        rate instead of as fast as the file can be decoded; None for a live camera."""
+        rate instead of as fast as the file can be decoded; None for a live camera. A frame with
+        more than `max_pixels` pixels ends the delivery with an `error` (the loop then halts on
+        the stale frame)."""
         self._capture = capture
+        self._max_pixels = max_pixels
         self._clock = clock
         self._replay_period_s = 1.0 / replay_fps if replay_fps else None
         self._lock = threading.Lock()
@@ -216,6 +230,13 @@ class CameraFrameSource:
                         self._error = f"end of the recorded clip after {index} frames"
                     else:
                         self._error = "the camera stopped delivering frames"
+                return
+            height, width = image.shape[:2]
+            if self._max_pixels is not None and (
+                why := too_many_pixels(width, height, self._max_pixels)
+            ):
+                with self._lock:
+                    self._error = f"camera frame refused: {why}"
                 return
             with self._lock:
                 self._latest = Frame(image=np.asarray(image), index=index, time_s=stamp)

@@ -21,11 +21,11 @@ import numpy as np
 
 from lanewarden.actuation.base import Pose2D
 from lanewarden.config import LanewardenConfig
+from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.decision import decide
 from lanewarden.perception.overlay import draw_overlay
 from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
-from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.plot import write_plot
 from lanewarden.scenarios.report import write_report
 from lanewarden.scenarios.sim_run import ordered_metrics
@@ -106,7 +106,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ScenarioError(f"--out {request.out_dir}: cannot create it ({exc})") from exc
+        raise OutputError(f"--out {request.out_dir}: cannot create it ({exc})") from exc
     times = [s.t for s in source.steps]
     video: VideoRecorder | None = None
     map_view: OdometryMapView | None = None
@@ -163,7 +163,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
     except OSError as exc:
-        raise ScenarioError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
+        raise OutputError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
     write_report(request.out_dir / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
                  title=f"Lanewarden replay: {source.name} ({source.kind})")
     return metrics

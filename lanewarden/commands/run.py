@@ -8,6 +8,7 @@ import click
 
 from lanewarden.bases import BASE_KINDS, DEFAULT_BASE
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import FiniteRange
 from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
@@ -18,6 +19,8 @@ Examples:
   lanewarden run --camera 0 --calibration camera.yaml          # on the robot
   lanewarden replay runs/<UTC time> --check                    # replay a recorded run
 """
+#: Longest `--duration` of one run (a day); without it the run lasts until stopped.
+MAX_RUN_DURATION_S = 86_400.0
 
 
 @click.command("run", epilog=RUN_EXAMPLES)
@@ -44,8 +47,9 @@ Examples:
 @click.option("--view", "view", metavar="[HOST:]PORT", default=None,
               help="Serve the live page on this port (127.0.0.1 unless a host is given, e.g. "
               "0.0.0.0:8080 to watch from another machine).")
-@click.option("--duration", "duration_s", type=click.FloatRange(min=0.0, min_open=True),
-              default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", "duration_s", default=None,
+              type=FiniteRange(0.0, MAX_RUN_DURATION_S, "s", low_open=True),
+              help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
 def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
                 controller: str, record_dir: Path | None, record_lossy: bool, view: str | None,
