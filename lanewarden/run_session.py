@@ -87,19 +87,26 @@ class RunSession:
         #: CPU time of the control thread per step (not slowed by other processes: what the
         #: live-view benchmark compares).
         self.step_cpu_s: array[float] = array("d")
-        folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
-                                                      dt.datetime.now(dt.UTC))
-        self.folder = create_run_folder(folder)
-        self.recorder = RunRecorder(self.folder, lossy=options.record_lossy)
-        self.recorder.write_header(
-            {**options.meta, "base": options.base_kind,
-             "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-             "argv": sys.argv},
-            config.model_dump(mode="json"), options.calibration_path)
         self.view: LiveView | None = None
-        if options.view is not None:
+        if options.view is not None:  # a bad or busy --view fails before anything is written
             host, port = parse_view_address(options.view)
             self.view = LiveView(host, port, self)
+        try:
+            folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
+                                                          dt.datetime.now(dt.UTC))
+            self.folder = create_run_folder(folder)
+            self.recorder = RunRecorder(self.folder, lossy=options.record_lossy)
+            self.recorder.write_header(
+                {**options.meta, "base": options.base_kind,
+                 "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+                 "argv": sys.argv},
+                config.model_dump(mode="json"), options.calibration_path)
+        except BaseException:
+            if self.view is not None:
+                self.view.close()
+            if hasattr(self, "recorder"):
+                self.recorder.close({"end_reason": "could not start", "exit_code": None})
+            raise
         self.printer = StatusPrinter(self._out)
         self.keys = KeyReader(self._on_key)
         self.recording: RecordingSummary | None = None
@@ -192,7 +199,7 @@ class RunSession:
             self.panel.resume("key")
 
     # ---- the end ------------------------------------------------------------------------------
-    def close(self, end_reason: str, exit_code: int) -> list[str]:
+    def close(self, end_reason: str, exit_code: int | None) -> list[str]:
         """Stop the keys, the page, the status line; finish the recording; the summary lines."""
         self.keys.__exit__(None, None, None)
         view_dropped = None

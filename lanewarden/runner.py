@@ -144,7 +144,7 @@ def run_robot(
             config, clock.now)
         stop_requested = [False]
         last: StepRecord | None = None
-        end_reason, exit_code = "operator stop (Ctrl-C or SIGTERM)", EXIT_OK
+        end_reason, exit_code = "an error (see the message)", None
         steps = 0
         started = clock.now()
         try:
@@ -160,10 +160,13 @@ def run_robot(
                 panel.start("the run command")  # the explicit start; it only arms
                 next_tick = started
                 try:
-                    while not stop_requested[0]:
+                    while True:
+                        if stop_requested[0]:
+                            end_reason, exit_code = "operator stop (Ctrl-C or SIGTERM)", EXIT_OK
+                            break
                         now = clock.now()
                         if duration_s is not None and now - started >= duration_s:
-                            end_reason = f"--duration {duration_s:g} s reached"
+                            end_reason, exit_code = f"--duration {duration_s:g} s reached", EXIT_OK
                             break
                         session.before_step(now)
                         last = loop.step(now)
@@ -185,6 +188,7 @@ def run_robot(
                     last = loop.step(now)
         finally:
             lines = session.close(end_reason, exit_code)
+        assert exit_code is not None  # set on every way out of the loop that does not raise
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,

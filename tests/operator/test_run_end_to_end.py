@@ -178,3 +178,29 @@ def test_base_vanishing_mid_run_is_a_clean_one_line_safety_stop(
     assert any("BASE_LINK_LOST" in r["events"] for r in records)
     assert records[-1]["state"] == "HALT"
     assert json.loads((record / "summary.json").read_text())["exit_code"] == 3
+
+
+def test_a_busy_view_port_is_one_line_before_anything_is_written(
+        clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        code = main(["run", "--camera", str(clip), "--base", "sim", "--view", str(port),
+                     "--record", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and f"--view 127.0.0.1:{port}: cannot listen there" in err[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_missing_robot_leaves_a_closed_recording(
+        clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", "--camera", str(clip), "--port", str(tmp_path / "no-such-port"),
+                 "--record", str(tmp_path / "run")])
+    assert code == 1
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert (summary["steps"], summary["exit_code"]) == (0, None)
