@@ -18,8 +18,7 @@ are scripted from the recording. Never reads a clock and never sleeps.
 from __future__ import annotations
 
 import json
-import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,20 +29,15 @@ import yaml
 
 from lanewarden.actuation.base import BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
+from lanewarden.assembly import build_stack
 from lanewarden.camera_source import image_sequence_paths, quiet_opencv
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
 from lanewarden.errors import UsageError
-from lanewarden.perception.calibration import (
-    CameraCalibration,
-    Undistorter,
-    load_calibration,
-)
-from lanewarden.perception.detector import DetectionDebug, LaneDetector
+from lanewarden.perception.calibration import CameraCalibration, load_calibration
+from lanewarden.perception.detector import DetectionDebug
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.run_record import FORMAT_VERSION, StepInput, step_input_from_line
-from lanewarden.scenarios.simulator import DetectionTap
-from lanewarden.supervisor.controllers import make_controller
-from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
+from lanewarden.supervisor.loop import Frame, StepRecord
 
 SOURCE_HELP = ("a run folder (lanewarden run --record), a video file, a folder or glob of "
                "images, or a Donkeycar tub")
@@ -373,15 +367,16 @@ class ReplayedStep:
 
 
 def replay_steps(source: ReplaySource, config: LanewardenConfig,
-                 calibration: CameraCalibration | None, controller: str,
-                 on_step: Callable[[ReplayedStep], None] | None = None) -> Iterator[ReplayedStep]:
+                 calibration: CameraCalibration | None,
+                 controller: str) -> Iterator[ReplayedStep]:
     """Run the loop over the source's steps; yields each replayed step (compared with the
     recording for a run folder)."""
-    undistorter = Undistorter(calibration) if calibration is not None else None
-    tap = DetectionTap(LaneDetector(config.perception, undistorter))
+    stack = build_stack(config, controller=controller, calibration=calibration, debug_tap=True)
+    tap = stack.tap
+    assert tap is not None
     frames = ScriptedFrames(source.frames)
     base = ScriptedBase()
-    loop = ControlLoop(frames, tap, make_controller(controller, config.supervisor), base)
+    loop = stack.connect(frames, base)  # the very stack `run` drives: detector, controller, gate
     for k, step_input in enumerate(source.steps):
         now = step_input.t
         for request in step_input.requests:
@@ -416,5 +411,3 @@ def missing_frames(source: ReplaySource) -> int:
     return sum(not (folder.folder / f"{i:06d}{folder.suffix}").exists() for i in wanted)
 
 
-def finite_or_none(value: float | None) -> float | None:
-    return None if value is None or not math.isfinite(value) else value

@@ -20,10 +20,10 @@ import cv2
 import numpy as np
 
 from lanewarden.actuation.base import Pose2D
+from lanewarden.assembly import decision_rule
 from lanewarden.config import LanewardenConfig
 from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
-from lanewarden.perception.decision import decide
 from lanewarden.perception.overlay import draw_overlay
 from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
 from lanewarden.scenarios.plot import write_plot
@@ -113,6 +113,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     every, video_fps = _video_every(times, config.simulation.video.fps)
     panel: np.ndarray | None = None
     records = []
+    decide = decision_rule(config)
     divergences: list[Divergence] = []
     distance = 0.0
     last_pose: Pose2D | None = None
@@ -133,8 +134,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
                     continue
                 if step.detection is not None:
                     observation, debug = step.detection
-                    panel = draw_overlay(debug.image, observation, debug,
-                                         decide(observation, config.perception))
+                    panel = draw_overlay(debug.image, observation, debug, decide(observation))
                 elif step.image is not None and (panel is None or record.observation is None
                                                  and step.record.frame_index is not None):
                     panel = step.image if step.image.ndim == 3 else cv2.cvtColor(

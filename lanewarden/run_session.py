@@ -17,9 +17,10 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, TextIO, cast
 
 from lanewarden.actuation.base import Base
+from lanewarden.assembly import ControlStack, DetectionTap
 from lanewarden.config import LanewardenConfig
 from lanewarden.live_view import LiveView, ViewFrame, parse_view_address
 from lanewarden.operator import (
@@ -31,8 +32,6 @@ from lanewarden.operator import (
     status_of,
     summary_lines,
 )
-from lanewarden.perception.decision import decide
-from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import (
     InputTap,
     RecordingSummary,
@@ -40,9 +39,8 @@ from lanewarden.recording import (
     create_run_folder,
     default_run_folder,
 )
-from lanewarden.scenarios.simulator import DetectionTap
-from lanewarden.supervisor.control_io import Controller
-from lanewarden.supervisor.loop import ControlLoop, FrameSource, StepRecord
+from lanewarden.supervisor.gate import SafetyGate
+from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 
 DEFAULT_RUNS_ROOT = Path("runs")
@@ -80,6 +78,7 @@ class RunSession:
         self.stats = RunStats()
         self._buttons = ButtonEdges()
         self._detections: DetectionTap | None = None
+        self._stack: ControlStack | None = None
         self.panel: OperatorPanel | None = None
         self._step_started_s: float | None = None
         self._step_cpu_started_s = 0.0
@@ -112,12 +111,15 @@ class RunSession:
         self.recording: RecordingSummary | None = None
 
     # ---- building the loop --------------------------------------------------------------------
-    def wrap(self, frames: FrameSource, detector: LaneDetector, controller: Controller,
-             base: Base) -> tuple[FrameSource, DetectionTap, Controller, Base]:
-        """The loop's parts with the recording taps around them (same behaviour)."""
-        self._detections = DetectionTap(detector)
-        return (self.tap.frames(frames), self._detections, self.tap.controller(controller),
-                self.tap.base(base))
+    def wrap(self, frames: FrameSource, stack: ControlStack,
+             base: Base) -> tuple[FrameSource, Detector, SafetyGate, Base]:
+        """The loop's parts (the stack's detector and safety gate, built with `debug_tap=True`
+        for the live page's overlay) with the recording taps around them (same behaviour)."""
+        self._stack = stack
+        self._detections = stack.tap
+        # The controller tap hands every step to the gate and returns its output unchanged.
+        gate = cast(SafetyGate, self.tap.controller(stack.gate))
+        return (self.tap.frames(frames), stack.tap or stack.detector, gate, self.tap.base(base))
 
     def attach(self, loop: ControlLoop) -> OperatorPanel:
         """Connect the operator's inputs (keys, buttons, page) to the loop's requests."""
@@ -168,8 +170,8 @@ class RunSession:
                     image=new_frame.image,
                     observation=None if detection is None else detection[1],
                     debug=None if detection is None else detection[2],
-                    decision="none" if detection is None else decide(
-                        detection[1], self.config.perception),
+                    decision="none" if detection is None or self._stack is None
+                    else self._stack.decide(detection[1]),
                     state=record.state, reason=record.halt_reason)
             self.view.publish(status, frame)
 

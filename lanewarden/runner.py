@@ -1,7 +1,8 @@
 """The robot runner: camera -> perception -> supervisor -> base, on the monotonic clock.
 
 The only place in Lanewarden that reads the wall (monotonic) clock for control and the only loop
-that sleeps. Everything it drives is the same `ControlLoop` the simulator steps on a fake clock.
+that sleeps. Everything it drives is the same stack (lanewarden/assembly.py: detector, controller,
+SafetyGate, `ControlLoop`) the simulator steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
 (and its image size against the calibration), the recording folder and the live view's port, then
 the base (`--base kobuki|sim|none`), then an explicit start. On any exit (end of duration, Ctrl-C,
@@ -25,18 +26,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
+from lanewarden.assembly import build_stack
 from lanewarden.bases import open_base
 from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
-from lanewarden.perception.calibration import (
-    Undistorter,
-    load_calibration,
-    require_usable_calibration,
-)
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.supervisor.clock import MonotonicClock
-from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
 from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
@@ -118,7 +115,7 @@ def run_robot(
     meta: dict[str, object] | None = None,
 ) -> RunSummary:
     clock = MonotonicClock()
-    controller = make_controller(controller_name, config.supervisor)
+    controller_factory(controller_name)  # an unknown name fails here, before the camera opens
     calibration = load_calibration(calibration_path) if calibration_path else None
 
     max_pixels = config.perception.max_image_pixels
@@ -128,12 +125,11 @@ def run_robot(
                                max_pixels=max_pixels)
     try:
         width, height = _first_frame(frames, clock, camera)
-        undistorter = None
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")
-            undistorter = Undistorter(calibration)
-        detector = LaneDetector(config.perception, undistorter)
+        stack = build_stack(config, controller=controller_name, calibration=calibration,
+                            debug_tap=True)  # the live page draws the detection's overlay
 
         session = RunSession(
             SessionOptions(base_kind=base_kind, record=record, record_lossy=record_lossy,
@@ -152,7 +148,7 @@ def run_robot(
                 open_base(base_kind, port=port, config=config.actuation, clock=clock.now) as base,
                 _stop_on_signals(stop_requested),
             ):
-                parts = session.wrap(frames, detector, controller, base)
+                parts = session.wrap(frames, stack, base)
                 loop = ControlLoop(*parts, record=session.after_step)
                 panel = session.attach(loop)
                 frames.play()

@@ -17,6 +17,7 @@ from types import FrameType
 
 import click
 
+from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
@@ -94,7 +95,7 @@ def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
     out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
     metrics = run_to_directory(RunRequest(
         spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-        video=not no_video, progress=not quiet, source=scenario))
+        build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario))
     for line in _summary_lines(metrics):
         click.echo(line)
     met = metrics.get("expectation_met")
@@ -133,7 +134,8 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     out = Path(out_dir)
     requests = [
         RunRequest(spec=spec, config=config, controller=name, seed=seed, out_dir=out / name,
-                   video=not no_video, progress=not quiet, progress_position=i)
+                   build_stack=build_stack, video=not no_video, progress=not quiet,
+                   progress_position=i)
         for i, name in enumerate(("lecture", "supervised"))
     ]
     # The two runs are independent: one process each (the machine has two cores). Forked (no

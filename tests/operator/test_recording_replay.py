@@ -10,16 +10,17 @@ from __future__ import annotations
 import json
 import threading
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pytest
 
 from lanewarden.actuation.sim_base import SimBase
+from lanewarden.assembly import build_stack
 from lanewarden.camera_source import CameraLost
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.errors import UsageError
-from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import (
     InputTap,
     RunRecorder,
@@ -28,7 +29,7 @@ from lanewarden.recording import (
 )
 from lanewarden.replay import Divergence, open_replay_source, replay_config, replay_steps
 from lanewarden.replay_outputs import replay_metrics
-from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from tests.operator.clips import lane_end_frames
 
@@ -71,10 +72,10 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
         recorder.record(record, step_input, new_frame)
 
     base = SimBase()
-    loop = ControlLoop(tap.frames(ClipFrames(frames, t0)),
-                       LaneDetector(config.perception),
-                       tap.controller(make_controller("supervised", config.supervisor)),
-                       tap.base(base), record=on_step)
+    stack = build_stack(config)  # what `run` builds: detector, supervised controller, gate
+    loop = ControlLoop(tap.frames(ClipFrames(frames, t0)), stack.detector,
+                       cast(SafetyGate, tap.controller(stack.gate)), tap.base(base),
+                       record=on_step)
     loop_ref.append(loop)
     records = []
     for k in range(len(frames) + 3):
@@ -106,12 +107,12 @@ def test_the_taps_change_nothing(clip: list[np.ndarray]) -> None:
     """The same run with and without the recording taps gives the same steps."""
     config = LanewardenConfig()
     t0 = 50.0
-    plain = ControlLoop(ClipFrames(clip, t0), LaneDetector(config.perception),
-                        make_controller("supervised", config.supervisor), SimBase())
+    plain = build_stack(config).connect(ClipFrames(clip, t0), SimBase())
     tap = InputTap()
-    tapped = ControlLoop(tap.frames(ClipFrames(clip, t0)), LaneDetector(config.perception),
-                         tap.controller(make_controller("supervised", config.supervisor)),
-                         tap.base(SimBase()), record=lambda r: tap.take(r.time_s) and None)
+    stack = build_stack(config)
+    tapped = ControlLoop(tap.frames(ClipFrames(clip, t0)), stack.detector,
+                         cast(SafetyGate, tap.controller(stack.gate)), tap.base(SimBase()),
+                         record=lambda r: tap.take(r.time_s) and None)
     plain.start(t0)
     tapped.start(t0)
     for k in range(len(clip) + 2):
