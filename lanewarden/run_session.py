@@ -200,6 +200,14 @@ class RunSession:
         else:
             self.panel.resume("key")
 
+    def suspending(self) -> None:
+        """Before the process suspends itself (Ctrl-Z): the terminal as the shell expects it."""
+        self.keys.pause()
+
+    def resumed(self) -> None:
+        """After SIGCONT: keys in cbreak mode again."""
+        self.keys.resume()
+
     # ---- the end ------------------------------------------------------------------------------
     def close(self, end_reason: str, exit_code: int | None) -> list[str]:
         """Stop the keys, the page, the status line; finish the recording; the summary lines."""

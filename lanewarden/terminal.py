@@ -161,6 +161,7 @@ class KeyReader:
         self._on_key = on_key
         self._stream = stream if stream is not None else sys.stdin
         self._saved: list[Any] | None = None
+        self._paused: list[Any] | None = None
         self._running = threading.Event()
         self._thread: threading.Thread | None = None
         self._fd = -1
@@ -190,6 +191,24 @@ class KeyReader:
             self._thread.join(timeout=1.0)
             self._thread = None
         self.restore()
+
+    def pause(self) -> None:
+        """Give the terminal back as it was (before Ctrl-Z suspends the process: the shell
+        gets a normal terminal); `resume()` takes it again."""
+        saved = self._saved
+        self.restore()
+        self._paused = saved
+
+    def resume(self) -> None:
+        """After SIGCONT: cbreak mode again (the shell may have changed the settings)."""
+        if self._paused is None:
+            return
+        try:
+            self._saved = termios.tcgetattr(self._fd)
+            tty.setcbreak(self._fd)
+        except (OSError, termios.error):
+            self._saved = None
+        self._paused = None
 
     def restore(self) -> None:
         """Put the terminal back as it was (idempotent)."""

@@ -274,6 +274,10 @@ def test_keys_are_read_in_cbreak_mode_and_the_terminal_is_restored() -> None:
             assert during[3] & termios.ISIG, "Ctrl-C must still send SIGINT"
             os.write(master, b"r")
             assert got.wait(10.0)
+            reader.pause()  # Ctrl-Z: the shell gets the terminal as it was
+            assert termios.tcgetattr(slave) == before
+            reader.resume()  # fg
+            assert termios.tcgetattr(slave) == during
         assert keys == ["r"]
         assert termios.tcgetattr(slave) == before
         with pytest.raises(RuntimeError), KeyReader(on_key, stream):
