@@ -1,6 +1,7 @@
-"""`lanewarden replay`'s outputs: the same files as `sim` (video.mp4, plot.png, metrics.json,
-run.jsonl) in OUT/replay/, and OUT/report.html, drawn by the simulator's own video, plot and report
-code (`scenarios.video.VideoRecorder`, `scenarios.plot.write_plot`, `scenarios.report`).
+"""`lanewarden replay`'s outputs: the same files as `sim` (video.mp4 and its poster.jpg, plot.png,
+metrics.json, run.jsonl, report.html) in OUT/, drawn by the simulator's own video, plot and report
+code (`scenarios.video.VideoRecorder`, `scenarios.plot.write_plot`, `scenarios.report`), in an
+`OutputFolder` like `sim`'s (no stale file from an earlier run; PARTIAL until complete).
 
 The video's map panel has no world to draw for a real run: `OdometryMapView` draws the path the
 base's odometry recorded (a grid in metres), coloured by state, with the robot on it; for a video,
@@ -24,12 +25,13 @@ from lanewarden.assembly import decision_rule
 from lanewarden.config import LanewardenConfig
 from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
-from lanewarden.perception.overlay import draw_overlay
+from lanewarden.perception.overlay import as_bgr, draw_detection
 from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
-from lanewarden.scenarios.plot import write_plot
+from lanewarden.scenarios.output_folder import OutputFolder
+from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.report import write_report
-from lanewarden.scenarios.sim_run import ordered_metrics
-from lanewarden.scenarios.simulator import video_lines
+from lanewarden.scenarios.sim_run import RUN_OUTPUTS, ordered_metrics
+from lanewarden.scenarios.state_reasons import state_reasons
 from lanewarden.scenarios.video import MapView, VideoRecorder
 from lanewarden.supervisor.recorder import JsonlRecorder
 
@@ -99,19 +101,17 @@ def _video_every(times: list[float], video_fps: float) -> tuple[int, float]:
 
 
 def run_replay(request: ReplayRequest) -> dict[str, Any]:
-    """Replay into OUT/replay/ and write OUT/report.html; returns the metrics."""
+    """Replay into OUT/ (the files `sim` writes); returns the metrics."""
     started = time.perf_counter()
     source, config = request.source, request.config
-    out = request.out_dir / RUN_NAME
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"--out {request.out_dir}: cannot create it ({exc})") from exc
+    out = request.out_dir
+    folder = OutputFolder(out, RUN_OUTPUTS)
+    folder.begin()
     times = [s.t for s in source.steps]
     video: VideoRecorder | None = None
-    map_view: OdometryMapView | None = None
     every, video_fps = _video_every(times, config.simulation.video.fps)
     panel: np.ndarray | None = None
+    detection: tuple[Any, str] | None = None
     records = []
     decide = decision_rule(config)
     divergences: list[Divergence] = []
@@ -132,24 +132,26 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
                 last_pose = pose
                 if not request.video:
                     continue
+                detection = None
                 if step.detection is not None:
                     observation, debug = step.detection
-                    panel = draw_overlay(debug.image, observation, debug, decide(observation))
+                    panel = as_bgr(debug.image)
+                    draw_detection(panel, observation, debug)
+                    detection = (observation, decide(observation))
                 elif step.image is not None and (panel is None or record.observation is None
                                                  and step.record.frame_index is not None):
-                    panel = step.image if step.image.ndim == 3 else cv2.cvtColor(
-                        step.image, cv2.COLOR_GRAY2BGR)
+                    panel = as_bgr(step.image)
                 if panel is None:
                     continue
-                if video is None or map_view is None:
-                    map_view = OdometryMapView(_poses(source), config.simulation.video.map_size_px)
-                    video = VideoRecorder(out / "video.mp4", (panel.shape[1], panel.shape[0]),
-                                          map_view, video_fps, config.simulation.video.crf,
-                                          config.simulation.video.preset)
-                map_view.add_path_point(pose, record.state)
+                if video is None:
+                    video = VideoRecorder(
+                        out / "video.mp4", (panel.shape[1], panel.shape[0]),
+                        OdometryMapView(_poses(source), config.simulation.video.map_size_px),
+                        video_fps, config.simulation.video.crf, config.simulation.video.preset,
+                        title=f"{source.name} (replay)")
+                video.step(pose, record)
                 if step.index % every == 0:
-                    video.add(panel[:, :, :3], pose, record.state, video_lines(
-                        f"{source.name} | replay", step.step_input.t - times[0], record))
+                    video.add(panel, pose, step.step_input.t - times[0], record, detection)
     finally:
         if video is not None:
             video.close()
@@ -157,15 +159,19 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
     _write_plot(out / "plot.png", source, records, times, config)
-    outputs = ["metrics.json", "plot.png", "run.jsonl"] + (["video.mp4"] if video else [])
+    outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
+    if video is not None:
+        outputs += ["video.mp4"] + (["poster.jpg"] if (out / "poster.jpg").exists() else [])
     metrics["outputs"] = sorted(outputs)
     metrics = ordered_metrics(metrics)
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        write_report(out / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
+                     title=f"Lanewarden replay: {source.name} ({source.kind})",
+                     folders={RUN_NAME: ""})
     except OSError as exc:
-        raise OutputError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
-    write_report(request.out_dir / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
-                 title=f"Lanewarden replay: {source.name} ({source.kind})")
+        raise OutputError(f"{out}: cannot write the replay's outputs ({exc})") from exc
+    folder.finish()
     return metrics
 
 
@@ -173,15 +179,17 @@ def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: lis
                 config: LanewardenConfig) -> None:
     t0 = times[0] if times else 0.0
     halt = _first_halt_after_engaging(records)
+    states = [r.state for r in records]
     write_plot(
         path, f"replay of {source.name} ({source.kind})",
         np.asarray([t - t0 for t in times[:len(records)]], dtype=np.float64),
         [None if r.observation is None else r.observation.slope_sum for r in records],
         [r.filtered_slope_sum for r in records],
         [None if r.observation is None else r.observation.confidence for r in records],
-        [r.state for r in records],
+        states,
+        state_reasons(states, [r.events for r in records], [r.halt_reason for r in records]),
         config.supervisor.turn_enter_slope_sum,
-        {"HALT": None if halt is None else records[halt].time_s - t0},
+        [] if halt is None else [PlotMarker("HALT", records[halt].time_s - t0)],
     )
 
 

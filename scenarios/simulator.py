@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
 from lanewarden.perception.calibration import CameraCalibration
-from lanewarden.perception.overlay import draw_overlay
+from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
@@ -165,9 +165,7 @@ class Simulation:
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
                 sim.camera_rate_hz / video_every, sim.video.crf,
-                sim.video.preset)
-        else:
-            map_view = None
+                sim.video.preset, title=f"scenario {spec.name}, {self.controller_name} controller")
 
         times: list[float] = []
         poses: list[tuple[float, float, float]] = []
@@ -194,8 +192,8 @@ class Simulation:
                     # Only the first frame without tape in view matters (metrics): stop there.
                     seen = not visible or visible[-1]
                     visible.append(self.visibility.visible(pose) if seen else False)
-                if map_view is not None:
-                    map_view.add_path_point(pose, record.state)
+                if self._video is not None:
+                    self._video.step(pose, record)
                     if k % video_every == 0:
                         self._add_video_frame(k, now, pose, record)
                 if self._progress is not None:
@@ -217,6 +215,9 @@ class Simulation:
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
         metrics["end_reason"] = end_reason
+        if self._video is not None and self._video.poster_shows is not None:
+            metrics["video_poster"] = {"shows": self._video.poster_shows,
+                                       "time_s": self._video.poster_time_s}
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
                                 records, trace, end_reason)
 
@@ -241,32 +242,12 @@ class Simulation:
         assert self._display is not None
         undistorted = self._display.render_bgr(pose, self._view_bgr)
         tap = self.stack.tap.last if self.stack.tap is not None else None
+        detection = None
         if tap is not None and tap[0] == k and record.observation is not None:
             _, observation, debug = tap
-            decision = self.stack.decide(observation)
-            panel = draw_overlay(undistorted, observation, debug, decision)
-        else:
-            panel = undistorted
-        self._video.add(panel, pose, record.state,
-                        video_lines(f"{self.spec.name} | {self.controller_name}", now, record))
-
-
-def video_lines(title: str, now: float, record: StepRecord) -> list[str]:
-    """The text on a run video's map panel: title and time, state and command, slope sum and
-    confidence, the halt reason's event (also used by `lanewarden replay`)."""
-    obs = record.observation
-    cmd = record.command
-    lines = [
-        f"{title} | t={now:5.1f} s",
-        f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
-    ]
-    if obs is not None:
-        raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
-        filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
-        lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
-    if record.halt_reason and record.state == "HALT":
-        lines.append(record.halt_reason.split(":")[0])
-    return lines
+            draw_detection(undistorted, observation, debug)
+            detection = (observation, self.stack.decide(observation))
+        self._video.add(undistorted, pose, now, record, detection)
 
 
 class EndConditions:

@@ -24,6 +24,7 @@ from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
 from lanewarden.assembly import build_bring_up_gate
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.supervisor.control_io import ControlInputs
@@ -74,7 +75,7 @@ WHEEL_DROP_NAMES = {WheelDrop.LEFT: "left", WheelDrop.RIGHT: "right"}
 BUTTON_NAMES = {1: "B0", 2: "B1", 4: "B2"}
 
 
-@click.group("base")
+@click.group("base", cls=CommandGroup)
 def base_group() -> None:
     """Talk to a real Kobuki base over its serial port."""
 

@@ -39,9 +39,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                    calibration_path: str | None, controller: str | None, no_video: bool,
                    check: bool) -> None:
     """Replay SOURCE (a run folder, a video file, a folder or glob of images, or a Donkeycar tub)
-    on a fake clock at its recorded timestamps: OUT/replay/{video.mp4, plot.png, metrics.json,
-    run.jsonl} and OUT/report.html. A run folder replays with its own recorded config and
-    calibration unless --config/--calibration say otherwise, and every step is compared."""
+    on a fake clock at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png,
+    metrics.json, run.jsonl, report.html}, as `sim` writes them. A run folder replays with its
+    own recorded config and calibration unless --config/--calibration say otherwise, and every
+    step is compared."""
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
     from lanewarden.replay import open_replay_source, replay_config

@@ -138,14 +138,14 @@ def test_a_recorded_run_replays_exactly(clip: list[np.ndarray], tmp_path: Path,
     out = capsys.readouterr().out
     assert code == 0, out
     assert f"reproduced: all {len(records)} steps match the recording" in out
-    metrics = json.loads((tmp_path / "out" / "replay" / "metrics.json").read_text())
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["reproduced"] is True and metrics["divergent_steps"] == 0
     assert metrics["exact_input"] is True
     replayed = [json.loads(line) for line in
-                (tmp_path / "out" / "replay" / "run.jsonl").read_text().splitlines()]
+                (tmp_path / "out" / "run.jsonl").read_text().splitlines()]
     assert [r["state"] for r in replayed] == states
     assert (tmp_path / "out" / "report.html").exists()
-    assert (tmp_path / "out" / "replay" / "plot.png").exists()
+    assert (tmp_path / "out" / "plot.png").exists()
 
 
 def test_a_changed_step_is_the_first_divergence(clip: list[np.ndarray], tmp_path: Path,

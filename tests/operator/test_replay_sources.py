@@ -15,15 +15,16 @@ from tests.operator.clips import lane_end_frames, write_images, write_video
 
 HERE = Path(__file__).resolve().parent
 DONKEYCAR_CONFIG = HERE.parent / "perception" / "donkeycar_camera.yaml"
-OUTPUTS = ("video.mp4", "plot.png", "metrics.json", "run.jsonl")
+OUTPUTS = ("video.mp4", "poster.jpg", "plot.png", "metrics.json", "run.jsonl", "report.html")
 
 
 def _outputs_written(out: Path) -> dict[str, object]:
     for name in OUTPUTS:
-        assert (out / "replay" / name).stat().st_size > 0, name
+        assert (out / name).stat().st_size > 0, name
     report = (out / "report.html").read_text()
-    assert 'src="replay/video.mp4"' in report and 'src="replay/plot.png"' in report
-    return json.loads((out / "replay" / "metrics.json").read_text())
+    assert 'src="video.mp4"' in report and 'src="plot.png"' in report
+    assert not (out / "PARTIAL").exists()
+    return json.loads((out / "metrics.json").read_text())
 
 
 def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -51,7 +52,7 @@ def test_a_video_and_a_folder_of_images(tmp_path: Path,
     assert str(metrics["first_halt_reason"]).startswith(("LANE_LOST", "DEGRADED_BUDGET"))
     folder = write_images(frames[:30], tmp_path / "images")
     assert main(["replay", str(folder), "--no-video", "--out", str(tmp_path / "i")]) == 0
-    metrics = json.loads((tmp_path / "i" / "replay" / "metrics.json").read_text())
+    metrics = json.loads((tmp_path / "i" / "metrics.json").read_text())
     assert (metrics["source_kind"], metrics["frames"]) == ("images", 30)
     assert "video.mp4" not in metrics["outputs"]  # type: ignore[operator]
     capsys.readouterr()

@@ -77,7 +77,7 @@ def test_clip_on_the_simulated_base_then_replay_reproduces_it(
     assert code == 0, out
     assert f"reproduced: all {len(records)} steps match the recording" in out
     for name in ("video.mp4", "plot.png", "metrics.json", "run.jsonl"):
-        assert (tmp_path / "replay" / "replay" / name).stat().st_size > 0
+        assert (tmp_path / "replay" / name).stat().st_size > 0
     assert (tmp_path / "replay" / "report.html").exists()
 
 

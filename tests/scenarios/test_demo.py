@@ -47,7 +47,25 @@ def test_lecture_run_never_stops_and_wanders_past_the_end(demo_out: Path) -> Non
 def test_report_shows_both_runs(demo_out: Path) -> None:
     page = (demo_out / "report.html").read_text()
     for name in ("lecture", "supervised"):
-        assert f'src="{name}/video.mp4"' in page and f'src="{name}/plot.png"' in page
-        for output in ("metrics.json", "run.jsonl", "video.mp4", "plot.png"):
+        assert f'src="{name}/video.mp4" poster="{name}/poster.jpg"' in page
+        assert f'src="{name}/plot.png"' in page
+        for output in ("metrics.json", "run.jsonl", "video.mp4", "poster.jpg", "plot.png",
+                       "report.html"):
             assert (demo_out / name / output).stat().st_size > 0
+        assert not (demo_out / name / "PARTIAL").exists()
+    assert not (demo_out / "PARTIAL").exists()
     assert "<table>" in page and "distance past lane end" in page
+    assert "<th>states visited</th>" in page and "<th>halt position</th>" in page
+    assert "<h2>Reading the videos</h2>" in page
+
+
+def test_posters_show_the_outcome(demo_out: Path) -> None:
+    supervised, lecture = metrics(demo_out, "supervised"), metrics(demo_out, "lecture")
+    poster = supervised["video_poster"]
+    assert isinstance(poster, dict) and poster["shows"] == "the halt"
+    halt_time = supervised["halt_time_s"]
+    assert isinstance(halt_time, float)
+    assert 0.0 <= poster["time_s"] - halt_time <= 1 / 15 + 1e-9  # the first video frame in HALT
+    last = lecture["video_poster"]
+    assert isinstance(last, dict) and last["shows"] == "the last frame"
+    assert 0.0 <= lecture["sim_time_s"] - last["time_s"] < 1 / 15  # type: ignore[operator]
