@@ -13,11 +13,12 @@ from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 RUN_EXAMPLES = """\b
-Examples:
-  lanewarden run --camera clip.mp4 --base sim --view 8080      # no robot: watch it live
-  lanewarden run --camera 0 --base none                        # live camera, nothing sent
-  lanewarden run --camera 0 --calibration camera.yaml          # on the robot
-  lanewarden replay runs/<UTC time> --check                    # replay a recorded run
+Examples (no robot: a clip on a simulated base, watched at http://127.0.0.1:8080/; the live
+camera with nothing sent; the robot; a recorded run replayed):
+  lanewarden run --camera clip.mp4 --base sim --view 8080
+  lanewarden run --camera 0 --base none
+  lanewarden run --camera 0 --calibration camera.yaml
+  lanewarden replay runs/2026-11-05T14-03-12Z --check
 """
 #: Longest `--duration` of one run (a day); without it the run lasts until stopped.
 MAX_RUN_DURATION_S = 86_400.0
