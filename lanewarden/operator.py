@@ -255,16 +255,16 @@ def status_of(record: StepRecord, stats: RunStats, feedback: BaseFeedback | None
     }
 
 
-def summary_lines(stats: RunStats, *, end_reason: str, halt_reason: str | None = None,
+def summary_lines(stats: RunStats, *, halt_reason: str | None = None,
                   recording: str | None = None, frames_dropped_recording: int = 0,
                   view_dropped: int | None = None) -> list[str]:
-    """The final summary printed when a run ends. `halt_reason`: why it halted (default: the
-    reason it entered its last HALT with, else the last step's)."""
+    """The operator's summary printed when a run ends (before the runner's one line saying why it
+    ended). `halt_reason`: why it halted (default: the reason it entered its last HALT with, else
+    the last step's)."""
     reason = halt_reason or stats.halt_cause or (
         stats.halt_reason if stats.state == "HALT" else None)
     lines = [
-        f"run ended ({end_reason}) after {stats.duration_s:.1f} s, {stats.steps} steps; "
-        f"final state {stats.state}" + (f", halted: {reason}" if reason else ""),
+        f"  halted: {reason}" if reason else "  never halted",
         f"  distance (odometry) {stats.distance_m:.2f} m; states visited: "
         f"{', '.join(stats.states_visited) or 'none'}",
         f"  frames: {stats.frames_seen} seen, {stats.frames_skipped} skipped by the loop, "

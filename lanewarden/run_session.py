@@ -233,6 +233,6 @@ class RunSession:
             "frames_seen": self.stats.frames_seen,
             "frames_skipped": self.stats.frames_skipped,
             "view_frames_dropped": view_dropped})
-        return summary_lines(self.stats, end_reason=end_reason, recording=str(self.folder),
+        return summary_lines(self.stats, recording=str(self.folder),
                              frames_dropped_recording=len(self.recording.frames_dropped),
                              view_dropped=view_dropped)

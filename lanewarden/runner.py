@@ -5,69 +5,56 @@ that sleeps. Everything it drives is the same stack (lanewarden/assembly.py: det
 SafetyGate, `ControlLoop`) the simulator steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
 (and its image size against the calibration), the recording folder and the live view's port, then
-the base (`--base kobuki|sim|none`), then an explicit start. On any exit (end of duration, Ctrl-C,
-SIGTERM, the end of a clip, an error) the loop is told to stop, a last step sends the stop, the
-base is closed (which sends stop and leaves the dead-man holding it), and the recording is
-finished.
-
-What ends a run, and its exit code: Ctrl-C/SIGTERM, `--duration`, the end of a clip or image
-sequence: 0. A live camera that stops delivering, or the base's link lost for good (the dead-man
-gone, the port unplugged): 3, a safety stop, with one line naming the reason. A HALT the operator
-can resume from (lane lost, operator stop, a bumper) does not end the run.
+the base (`--base kobuki|sim|none`), then an explicit start. On any exit (end of duration or clip,
+Ctrl-C, SIGTERM, SIGQUIT, SIGHUP, an error) the loop is told to stop, a last step sends the stop,
+the base is closed (which sends stop and leaves the dead-man holding it), and the recording is
+finished (lanewarden/run_session.py: recording, live page, status line, keys, buttons).
+Ctrl-Z (SIGTSTP) stops the robot first (the dead-man holds the stop), then suspends the process;
+after SIGCONT the supervisor stays latched in HALT (OPERATOR_STOP) until an explicit start or
+resume. The run also ends by itself on a failure it cannot recover from: the base link or the
+dead-man lost, the dead-man tripped, a live camera gone. `RunSummary.outcome` says which
+(`run_outcome`: a normal end, exit 0, or a safety stop, exit 3).
 """
 
 from __future__ import annotations
 
-import signal
+import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 
+from lanewarden.actuation.base import Base
+from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.assembly import build_stack
 from lanewarden.bases import open_base
 from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+from lanewarden.run_outcome import RunOutcome, RunWatch
 from lanewarden.run_session import RunSession, SessionOptions
+from lanewarden.stop_signals import signal_requests, suspend
 from lanewarden.supervisor.clock import MonotonicClock
 from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
-from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
 
 FIRST_FRAME_TIMEOUT_S = 3.0
-EXIT_OK = 0
-EXIT_SAFETY_STOP = 3
 
 
 @dataclass(frozen=True)
 class RunSummary:
+    """`final_state`/`halt_reason`: the supervisor's state and halt reason just before the
+    runner's own closing stop. `outcome`: why the run ended and its exit code. `lines`: the
+    operator's summary (distance, states visited, frames, recording)."""
+
     steps: int
     duration_s: float
     final_state: str
     halt_reason: str | None
-    end_reason: str
-    exit_code: int
-    record_folder: Path
-    lines: tuple[str, ...]
-
-
-@contextmanager
-def _stop_on_signals(request_stop: list[bool]) -> Iterator[None]:
-    """SIGINT/SIGTERM set a flag the loop checks every period (the handler itself does no I/O)."""
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        request_stop[0] = True
-
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
+    log_path: Path
+    outcome: RunOutcome = RunOutcome("not run")
+    lines: tuple[str, ...] = ()
 
 
 def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> tuple[int, int]:
@@ -88,15 +75,18 @@ def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) 
                           f"({problem})")
 
 
-def _run_over(record: StepRecord, frames: CameraFrameSource,
-              link_lost: str | None) -> tuple[str, int] | None:
-    """(end reason, exit code) when this step ends the run, else None."""
-    if Event.CAMERA_ERROR.value in record.events and frames.error is not None:
-        if frames.ended:
-            return f"end of the clip: {frames.error}", EXIT_OK
-        return f"camera lost: {frames.error}", EXIT_SAFETY_STOP
-    if Event.BASE_LINK_LOST.value in record.events and link_lost is not None:
-        return f"base link lost: {link_lost}", EXIT_SAFETY_STOP
+def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
+                  recorded: bool) -> str | None:
+    """A failure that ends the run by itself (one line, its kind first), or None. Only the
+    Kobuki has a link and a dead-man to lose."""
+    if isinstance(base, KobukiBase):
+        lost = base.link_lost
+        if lost is not None:
+            return f"BASE_LINK_LOST: {lost}"
+        if base.deadman_mode is DeadmanMode.TRIPPED:
+            return f"DEADMAN_TRIPPED: the dead-man stopped the base ({base.deadman_reason})"
+    if frames.error is not None and not recorded:
+        return f"CAMERA_LOST: --camera {camera}: {frames.error}"
     return None
 
 
@@ -121,8 +111,8 @@ def run_robot(
     max_pixels = config.perception.max_image_pixels
     capture = open_camera(camera, max_pixels)
     period = config.supervisor.camera_period_s
-    frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period),
-                               max_pixels=max_pixels)
+    replay_fps = replay_rate_fps(camera, capture, 1.0 / period)
+    frames = CameraFrameSource(capture, clock.now, replay_fps, max_pixels=max_pixels)
     try:
         width, height = _first_frame(frames, clock, camera)
         if calibration is not None:
@@ -138,61 +128,87 @@ def run_robot(
                            meta={"camera": camera, "controller": controller_name,
                                  "image_size": [width, height], **(meta or {})}),
             config, clock.now)
-        stop_requested = [False]
         last: StepRecord | None = None
-        end_reason, exit_code = "an error (see the message)", None
         steps = 0
+        watch = RunWatch()
+        fault: str | None = None
+        clip_ended = False
+        ended_by = "an error"
+        outcome: RunOutcome | None = None
         started = clock.now()
         try:
             with (
                 open_base(base_kind, port=port, config=config.actuation, clock=clock.now) as base,
-                _stop_on_signals(stop_requested),
+                signal_requests() as requests,
             ):
-                parts = session.wrap(frames, stack, base)
-                loop = ControlLoop(*parts, record=session.after_step)
+                warning = base.priority_warning() if isinstance(base, KobukiBase) else None
+                if warning is not None:
+                    print(f"lanewarden: warning: {warning}", file=sys.stderr, flush=True)
+                loop = ControlLoop(*session.wrap(frames, stack, base), record=session.after_step)
                 panel = session.attach(loop)
                 frames.play()
                 started = clock.now()
                 panel.start("the run command")  # the explicit start; it only arms
                 next_tick = started
+                rearm_after_suspend = False
                 try:
                     while True:
-                        if stop_requested[0]:
-                            end_reason, exit_code = "operator stop (Ctrl-C or SIGTERM)", EXIT_OK
+                        if requests.stop is not None:
+                            ended_by = f"operator stop ({requests.stop.name})"
                             break
                         now = clock.now()
+                        if requests.suspend:
+                            requests.suspend = False
+                            loop.operator_stop(now)  # stop first; HALT latches at the next step
+                            if isinstance(base, KobukiBase):
+                                base.hold_stopped(now)  # the dead-man holds stop meanwhile
+                                rearm_after_suspend = True
+                            session.suspending()
+                            suspend()
+                            session.resumed()
+                            continue
                         if duration_s is not None and now - started >= duration_s:
-                            end_reason, exit_code = f"--duration {duration_s:g} s reached", EXIT_OK
+                            ended_by = f"--duration {duration_s:g} s reached"
                             break
                         session.before_step(now)
                         last = loop.step(now)
                         steps += 1
-                        over = _run_over(last, frames, getattr(base, "link_lost", None))
-                        if over is not None:
-                            end_reason, exit_code = over
+                        watch.observe(last.state, last.halt_reason, last.time_s,
+                                      last.frame_time_s)
+                        fault = _ending_fault(base, frames, camera, replay_fps is not None)
+                        if fault is not None:
+                            break
+                        if rearm_after_suspend and last.state == "HALT":
+                            assert isinstance(base, KobukiBase)
+                            base.rearm(now)  # still latched: only an explicit start/resume moves
+                            rearm_after_suspend = False
+                        if frames.error is not None:  # a recorded clip ran out
+                            ended_by, clip_ended = "end of the clip", True
                             break
                         next_tick += period
                         delay = next_tick - clock.now()
                         if delay > 0:
                             time.sleep(delay)
                         else:
-                            next_tick = clock.now()  # overrun: the watchdog sees it; don't burst
+                            next_tick = clock.now()  # overrun: the watchdog sees it; no burst
                 finally:
+                    final_state = last.state if last else "HALT"
+                    final_reason = last.halt_reason if last else None
                     now = clock.now()
                     loop.operator_stop(now)
                     session.before_step(now)
-                    last = loop.step(now)
+                    loop.step(now)
+            outcome = watch.outcome(ended_by, fault=fault, clip_ended=clip_ended)
         finally:
-            lines = session.close(end_reason, exit_code)
-        assert exit_code is not None  # set on every way out of the loop that does not raise
+            lines = session.close(outcome.ended_by if outcome else ended_by,
+                                  outcome.exit_code if outcome else None)
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,
-            final_state=last.state if last else "HALT",
-            halt_reason=session.stats.halt_cause or (last.halt_reason if last else None),
-            end_reason=end_reason,
-            exit_code=exit_code,
-            record_folder=session.folder,
+            final_state=final_state,
+            halt_reason=final_reason,
+            log_path=session.folder / "run.jsonl",
+            outcome=outcome,
             lines=tuple(lines),
         )
     finally:

@@ -23,6 +23,7 @@ TABLE_ROWS: tuple[tuple[str, str], ...] = (
     ("halt_position", "halt position"),
     ("states_visited", "states visited"),
     ("turns_completed", "turns completed"),
+    ("states_visited", "states visited"),
     ("max_cross_track_error_m", "max cross-track error (m)"),
     ("mean_cross_track_error_m", "mean cross-track error (m)"),
     ("distance_travelled_m", "distance travelled (m)"),

@@ -28,14 +28,14 @@ from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
-from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
-from lanewarden.scenarios.spec import RunSpec, ScenarioSpec, with_overrides
+from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
 from lanewarden.scenarios.texture import GroundTexture, paint_ground
 from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
 from lanewarden.scenarios.world import World, build_world
@@ -73,13 +73,32 @@ class SimulationResult:
 
 def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
                      source: str | None = None) -> LanewardenConfig:
-    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides."""
-    return with_overrides(config, spec.config, source or f"scenario {spec.name}")
+    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides;
+    a camera block's size becomes `simulation.width_px`/`height_px` (the render size's one home
+    during the run)."""
+    where = source or f"scenario {spec.name}"
+    config = with_overrides(config, spec.config, where)
+    camera = spec.camera
+    if camera is not None and camera.width_px is not None:
+        config = with_overrides(config, {"simulation": {
+            "width_px": camera.width_px, "height_px": camera.height_px}}, where)
+    return config
 
 
-def sim_camera_model(config: LanewardenConfig) -> CameraModel:
-    """The simulated camera: CameraModel's geometry at the configured resolution."""
-    return CameraModel(width_px=config.simulation.width_px, height_px=config.simulation.height_px)
+def sim_camera_model(config: LanewardenConfig, camera: CameraSpec | None = None) -> CameraModel:
+    """The simulated camera: the scenario's camera block (default: CameraModel's geometry) at
+    the configured resolution (see `effective_config`)."""
+    width, height = config.simulation.width_px, config.simulation.height_px
+    if camera is None:
+        return CameraModel(width_px=width, height_px=height)
+    if camera.width_px is not None and (camera.width_px, camera.height_px) != (width, height):
+        raise ScenarioError(
+            f"camera block: {camera.width_px}x{camera.height_px} px but the config renders "
+            f"{width}x{height} px (build the config with effective_config)")
+    return CameraModel(width_px=width, height_px=height, hfov_deg=camera.hfov_deg,
+                       height_m=camera.height_m, pitch_down_deg=camera.pitch_deg,
+                       roll_deg=camera.roll_deg, forward_offset_m=camera.forward_m,
+                       dist_coeffs=camera.distortion)
 
 
 class Simulation:
@@ -106,7 +125,7 @@ class Simulation:
         self.seed = seed
         self._progress = progress
         sim = config.simulation
-        self.camera = sim_camera_model(config)
+        self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
         self.texture: GroundTexture = paint_ground(
             self.world, sim.texture_mm_per_px / 1000.0, seed, color=sim.perception_color)
@@ -114,10 +133,8 @@ class Simulation:
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
         w, h = self.camera.width_px, self.camera.height_px
-        calibration = CameraCalibration(
-            camera_matrix=self.camera.camera_matrix(), dist_coeffs=self.camera.distortion(),
-            image_size=(w, h))
-        self.stack = build_stack(config, controller=controller, calibration=calibration,
+        self.calibration = self.camera.calibration()  # with its ground pose, as on a robot
+        self.stack = build_stack(config, controller=controller, calibration=self.calibration,
                                  debug_tap=video_path is not None)
         self.detector = self.stack.detector
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))

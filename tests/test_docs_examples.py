@@ -23,7 +23,11 @@ import pytest
 
 from lanewarden.cli import cli, main
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.chessboard import ChessboardRenderer, calibration_poses
+from lanewarden.scenarios.chessboard import (
+    ChessboardRenderer,
+    calibration_poses,
+    floor_board_pose,
+)
 from tests.conftest import PROJECT_ROOT
 from tests.perception import synthetic as syn
 
@@ -37,6 +41,10 @@ RUN_HERE: tuple[tuple[str, int], ...] = (
     ("lanewarden calibrate --images 'shots/*.jpg' --pattern 9x6 --square 0.025 --out camera.yaml "
      "--ros", 0),
     ("lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/", 0),
+    ("lanewarden calibrate ground --calibration camera.yaml --height-m 0.26 --pitch-deg 40 "
+     "--forward-m 0.12 --out camera.yaml", 0),
+    ("lanewarden calibrate ground --calibration camera.yaml --image floor.jpg --pattern 9x6 "
+     "--square 0.03 --board-center-m 0.55,0 --out camera.yaml", 0),
     ("lanewarden detect frames/*.png --json > detections.jsonl", 0),
     ("lanewarden detect shot.jpg --calibration camera.yaml --out annotated/", 0),
     ("lanewarden sim --scenario my-track.yaml --no-video --check", 0),
@@ -75,11 +83,16 @@ def _blocks(language: str) -> list[str]:
             if m.group(1) == language]
 
 
+def _joined_lines(text: str) -> list[str]:
+    """Lines with shell continuations (a trailing backslash) joined to the next line."""
+    return text.replace("\\\n", " ").splitlines()
+
+
 def doc_examples() -> list[str]:
     """Every `lanewarden ...` command in a bash block (comments dropped, `&&` chains split)."""
     found = []
     for block in _blocks("bash"):
-        for line in block.splitlines():
+        for line in _joined_lines(block):
             for part in line.split("&&"):
                 command = part.split(" #")[0].strip()
                 if command.startswith("lanewarden "):
@@ -157,6 +170,9 @@ def sandbox(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     for name, scene in (("straight", syn.STRAIGHT), ("bend", syn.BEND_LEFT)):
         assert cv2.imwrite(f"frames/{name}.png", syn.frame(scene))
     assert cv2.imwrite("shot.jpg", syn.frame(syn.STRAIGHT, distorted=True))
+    floor_board = ChessboardRenderer(camera, columns=9, rows=6, square_m=0.03)
+    assert cv2.imwrite("floor.jpg", floor_board.render(floor_board_pose(floor_board, (0.55, 0.0)),
+                                                       noise_sigma=2.0, rng=rng))
     scenario = next(b for b in _blocks("yaml") if b.startswith("name: my-track"))
     (tmp_path / "my-track.yaml").write_text(scenario, encoding="utf-8")
     return tmp_path
@@ -174,6 +190,7 @@ def test_the_examples_run(sandbox: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert main(["config", "show", "--config", "lanewarden.yaml"]) == 0
     assert len((sandbox / "detections.jsonl").read_text().splitlines()) == 2
     assert (sandbox / "camera.ros.yaml").exists()
+    assert "ground_height_m" in (sandbox / "camera.yaml").read_text()
     assert (sandbox / "undistorted" / "view_000_compare.png").exists()
     assert (sandbox / "annotated" / "shot_detect.png").exists()
     assert (sandbox / "out" / "lane-ends" / "video.mp4").exists()
@@ -192,7 +209,7 @@ def _help_examples() -> list[str]:
     while pending:
         path, command = pending.pop()
         ctx = click.Context(command, info_name=" ".join(["lanewarden", *path]))
-        for line in command.get_help(ctx).splitlines():
+        for line in _joined_lines(command.get_help(ctx)):
             text = line.strip().removeprefix("Example: ")
             if text.startswith("lanewarden "):
                 found.append(text.split("&&")[0].strip())
@@ -203,7 +220,7 @@ def _help_examples() -> list[str]:
 
 def test_every_help_example_parses() -> None:
     examples = _help_examples()
-    assert len(examples) == 15
+    assert len(examples) == 17
     for example in examples:
         argv, _ = argv_of(example)
         assert parse_only(argv).params, example  # parsed down to the command that runs

@@ -288,4 +288,7 @@ calibrate_group.add_command(capture_command)
 
 
 def commands() -> list[click.Command]:
+    from lanewarden.commands.calibrate_ground import ground_command  # imports this module
+
+    calibrate_group.add_command(ground_command)
     return [calibrate_group]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -11,6 +12,9 @@ from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import FiniteRange
 from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+
+if TYPE_CHECKING:
+    from lanewarden.runner import RunSummary
 
 RUN_EXAMPLES = """\b
 Examples (no robot: a clip on a simulated base, watched at http://127.0.0.1:8080/; the live
@@ -55,10 +59,13 @@ MAX_RUN_DURATION_S = 86_400.0
 def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
                 controller: str, record_dir: Path | None, record_lossy: bool, view: str | None,
                 duration_s: float | None, config_path: str | None) -> int:
-    """Follow the lane under the supervisor. Ctrl-C stops the robot; a crash leaves the dead-man
-    holding stop. Every check (config, calibration, camera, recording folder, base link) passes
-    before anything moves. Keys: s start, space stop, r resume; Kobuki buttons: B0 start/resume,
-    B1 stop. Every run is recorded (see `lanewarden replay`)."""
+    """Follow the lane under the supervisor, on the robot or on the bench. Ctrl-C, SIGTERM or
+    SIGQUIT stop the robot and end the run; Ctrl-Z stops the robot, then suspends (after `fg` it
+    stays halted); a crash leaves the dead-man holding stop. Every check (config, calibration,
+    camera, recording folder, base link) passes before anything moves. Keys: s start, space stop,
+    r resume; Kobuki buttons: B0 start/resume, B1 stop. Every run is recorded (see `lanewarden
+    replay`). Exit 0 for a normal end (operator stop, --duration, end of a clip), 3 for a safety
+    stop (its reason also on stderr)."""
     from lanewarden.runner import run_robot  # the robot stack loads only when used
 
     config = load_config(config_path)
@@ -68,9 +75,25 @@ def run_command(camera: str, base_kind: str, port: str | None, calibration_path:
                         meta={"config_file": config_path})
     for line in summary.lines:
         click.echo(line)
-    if summary.exit_code != 0:
-        click.echo(f"lanewarden: error: safety stop: {summary.end_reason}", err=True)
-    return summary.exit_code
+    click.echo(summary_line(summary))
+    outcome = summary.outcome
+    if outcome.safety_stop is not None:
+        click.echo(f"lanewarden: safety stop: {outcome.safety_stop}", err=True)
+    return outcome.exit_code
+
+
+def summary_line(summary: RunSummary) -> str:
+    """The run's last line on stdout: why it ended, how long, the state before the stop, log."""
+    outcome = summary.outcome
+    if outcome.safety_stop is not None:
+        why = f"run ended by a safety stop: {outcome.safety_stop}"
+    else:
+        why = f"run ended: {outcome.ended_by}"
+    state = summary.final_state
+    if state == "HALT" and summary.halt_reason:
+        state = f"HALT ({summary.halt_reason})"
+    return (f"{why}; after {summary.duration_s:.1f} s and {summary.steps} steps; state before "
+            f"the final stop: {state}; log: {summary.log_path}")
 
 
 def commands() -> list[click.Command]:

@@ -170,11 +170,10 @@ def test_status_and_summary_say_what_the_operator_needs() -> None:
         "frames_skipped": 0, "frames_late": 0, "base": "sim"}
     assert format_status(status) == ("HALT (LANE_LOST)  - fps  conf 0.81  slope -/+0.50  "
                                      "v 0.00 w +0.25  battery 16.2 V  link ok")
-    lines = summary_lines(stats, end_reason="end of the clip", recording="runs/x",
+    lines = summary_lines(stats, recording="runs/x",
                           frames_dropped_recording=2, view_dropped=5)
     assert lines == [
-        "run ended (end of the clip) after 0.0 s, 1 steps; final state HALT, halted: "
-        "LANE_LOST: no usable lane",
+        "  halted: LANE_LOST: no usable lane",
         "  distance (odometry) 0.00 m; states visited: HALT",
         "  frames: 1 seen, 0 skipped by the loop, 0 steps with a late frame; loop time mean "
         "4.2 ms, max 4.2 ms",

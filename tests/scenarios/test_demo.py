@@ -27,18 +27,26 @@ def test_supervised_run_follows_the_course_and_stops_at_the_end(demo_out: Path) 
     assert m["scenario"] == "lecture" and m["controller"] == "supervised"
     assert m["resolution"] == [640, 480]
     assert m["turns_completed"] == ["A", "B"]
+    # the lecture's sharp corners: TURN_RIGHT (at A) before TURN_LEFT (at B); where exactly is
+    # tests/scenarios/test_lecture_turns.py
+    visited = m["states_visited"]
+    assert isinstance(visited, list) and "TURN_RIGHT" in visited and "TURN_LEFT" in visited
+    assert visited.index("TURN_RIGHT") < visited.index("TURN_LEFT")
     assert isinstance(m["max_cross_track_error_m"], float)
-    assert m["max_cross_track_error_m"] <= 0.08
+    assert m["max_cross_track_error_m"] <= 0.10
     assert m["halted"] is True
     assert str(m["halt_reason"]).startswith(("LANE_LOST", "DEGRADED_BUDGET_EXHAUSTED"))
     assert isinstance(m["distance_past_lane_end_m"], float)
-    assert m["distance_past_lane_end_m"] <= 0.10
+    assert m["distance_past_lane_end_m"] <= 0.50
     assert m["crossed_tape"] is False
 
 
 def test_lecture_run_never_stops_and_wanders_past_the_end(demo_out: Path) -> None:
     m = metrics(demo_out, "lecture")
     assert m["controller"] == "lecture"
+    assert m["turns_completed"] == ["A", "B"]
+    visited = m["states_visited"]
+    assert isinstance(visited, list) and {"TURN_RIGHT", "TURN_LEFT"} <= set(visited)
     assert m["halted"] is False
     assert isinstance(m["distance_past_lane_end_m"], float)
     assert m["distance_past_lane_end_m"] >= 1.0
