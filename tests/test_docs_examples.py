@@ -53,6 +53,16 @@ RUN_HERE: tuple[tuple[str, int], ...] = (
 #: Run by another test.
 RUN_ELSEWHERE = {
     "lanewarden demo": "tests/scenarios/test_demo.py (the same command, into a temporary --out)",
+    "lanewarden run --camera clip.mp4 --base sim --view 8080":
+        "tests/operator/test_live_page_browser.py (a rendered clip, --base sim, --view, a browser)",
+    "lanewarden replay runs/2026-11-05T14-03-12Z --check":
+        "tests/operator/test_run_end_to_end.py (a run recorded by run --record, replay --check)",
+    "lanewarden replay clip.mp4 --out out/clip":
+        "tests/operator/test_replay_sources.py (a rendered clip)",
+    "lanewarden replay 'shots/*.png'": "tests/operator/test_replay_sources.py (a folder of images)",
+    ("lanewarden replay ../shared/data/donkeycar-tub --config "
+     "tests/perception/donkeycar_camera.yaml"):
+        "tests/operator/test_replay_sources.py (the same tub and config)",
 }
 #: Need hardware: parsed, not run.
 NEEDS_HARDWARE = {
@@ -60,7 +70,8 @@ NEEDS_HARDWARE = {
     "lanewarden base drive --linear 0.1 --duration 2": "a Kobuki (the wheels turn)",
     "lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/": "camera 0",
     "lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/ --count 25": "camera 0",
-    "lanewarden run --camera 0 --calibration camera.yaml --log run.jsonl": "camera 0 and a Kobuki",
+    "lanewarden run --camera 0 --calibration camera.yaml --view 8080": "camera 0 and a Kobuki",
+    "lanewarden run --camera 0 --base none": "camera 0",
 }
 
 _FENCE = re.compile(r"```(\w*)\n(.*?)```", re.S)
@@ -209,7 +220,7 @@ def _help_examples() -> list[str]:
 
 def test_every_help_example_parses() -> None:
     examples = _help_examples()
-    assert len(examples) == 10
+    assert len(examples) == 17
     for example in examples:
         argv, _ = argv_of(example)
         assert parse_only(argv).params, example  # parsed down to the command that runs

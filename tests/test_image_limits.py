@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lanewarden.camera_source import CameraFrameSource, open_camera
+from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera
 from lanewarden.cli import main
 from lanewarden.errors import UsageError
 from lanewarden.image_files import read_image
@@ -67,7 +67,8 @@ def test_an_oversized_live_frame_ends_the_delivery(sequence: str) -> None:
             time.sleep(0.01)
         assert frames.error == ("camera frame refused: image is 160x120 = 19200 pixels, more "
                                 "than perception.max_image_pixels (100)")
-        assert frames.read(time.monotonic()) is None
+        with pytest.raises(CameraLost, match="camera frame refused"):  # the loop: CAMERA_ERROR
+            frames.read(time.monotonic())
     finally:
         frames.close()
 

@@ -52,6 +52,11 @@ supervisor:
 """
 
 
+def last_line(out: str) -> str:
+    """The run's last stdout line (why it ended); the operator's status and summary come first."""
+    return out.strip().splitlines()[-1]
+
+
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
     """A few frames of a straight taped lane and of bare floor, each with its own sensor noise
@@ -90,7 +95,7 @@ def relaxed_config(tmp_path: Path) -> str:
 
 
 def _run(camera: str, port: str, tmp_path: Path, config: str, *extra: str) -> list[str]:
-    return ["run", "--camera", camera, "--port", port, "--log", str(tmp_path / "run.jsonl"),
+    return ["run", "--camera", camera, "--port", port, "--record", str(tmp_path / "run"),
             "--config", config, *extra]
 
 
@@ -106,7 +111,7 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     camera = clip(tmp_path / "camera", scenes, ("lane", 4.0))
-    log = tmp_path / "run.jsonl"
+    log = tmp_path / "run" / "run.jsonl"
     with KobukiStandIn() as base:
         code = main(_run(camera, base.port, tmp_path, relaxed_config, "--duration", "1.0"))
         assert base.wait_for(lambda packets: any(p.packet == STOP_PACKET for p in packets), 5.0)
@@ -123,7 +128,7 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     assert any(r["observation"] is not None for r in records), "perception never ran"
     moving = [r for r in records if r["command"]["linear_m_s"] > 0]
     assert moving and all(r["state"] != "HALT" for r in moving), "it never engaged on a clean lane"
-    assert out.startswith("run ended: --duration 1 s reached; after ")
+    assert last_line(out).startswith("run ended: --duration 1 s reached; after ")
     assert "state before the final stop: FOLLOW;" in out
 
 
@@ -137,7 +142,7 @@ def test_calibration_for_another_camera_refuses_before_the_base_is_touched(
     with KobukiStandIn() as base:
         code = main(["run", "--camera", camera, "--port", base.port,
                      "--calibration", str(calibration), "--duration", "1.0",
-                     "--log", str(tmp_path / "run.jsonl")])
+                     "--record", str(tmp_path / "run")])
         received = base.snapshot()
     err = capsys.readouterr().err
     assert code != 0
@@ -167,7 +172,7 @@ def test_the_end_of_the_clip_is_a_normal_end(
         assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     out, err = capsys.readouterr()
     assert (code, stderr_lines(err)) == (0, [])
-    assert out.startswith("run ended: end of the clip; after ")
+    assert last_line(out).startswith("run ended: end of the clip; after ")
 
 
 def test_lane_lost_is_a_safety_stop(
@@ -184,7 +189,7 @@ def test_lane_lost_is_a_safety_stop(
     assert code == 3
     line = _safety_line(err)
     assert line.startswith("lanewarden: safety stop: LANE_LOST: no usable lane")
-    assert out.startswith("run ended by a safety stop: LANE_LOST: no usable lane")
+    assert last_line(out).startswith("run ended by a safety stop: LANE_LOST: no usable lane")
 
 
 def test_a_lost_base_link_is_a_safety_stop(
@@ -199,7 +204,7 @@ def test_a_lost_base_link_is_a_safety_stop(
     line = _safety_line(err)
     assert line.startswith(f"lanewarden: safety stop: BASE_LINK_LOST: {base.port}: serial link "
                            "lost")
-    assert out.startswith("run ended by a safety stop: BASE_LINK_LOST: ")
+    assert last_line(out).startswith("run ended by a safety stop: BASE_LINK_LOST: ")
 
 
 def test_a_live_camera_that_stops_delivering_is_a_safety_stop(
@@ -217,7 +222,7 @@ def test_a_live_camera_that_stops_delivering_is_a_safety_stop(
     line = _safety_line(err)
     assert line == (f"lanewarden: safety stop: CAMERA_LOST: --camera {camera}: the camera "
                     "stopped delivering frames")
-    assert out.startswith("run ended by a safety stop: CAMERA_LOST: ")
+    assert last_line(out).startswith("run ended by a safety stop: CAMERA_LOST: ")
 
 
 @pytest.mark.parametrize(("how", "said"), [
@@ -282,7 +287,7 @@ def test_ctrl_z_stops_run_first_then_it_stays_halted_after_sigcont(
     os.killpg(run.pid, signal.SIGTERM)
     out, err = run.communicate(timeout=3 * DEADLINE_S)
     assert (run.returncode, stderr_lines(err)) == (0, [])
-    assert out.startswith("run ended: operator stop (SIGTERM); after ")
+    assert last_line(out).startswith("run ended: operator stop (SIGTERM); after ")
     assert "state before the final stop: HALT (OPERATOR_STOP: operator stop)" in out
     assert_stop_held_since(base, signalled_at)
 
@@ -295,7 +300,7 @@ def test_ctrl_backslash_ends_run_like_sigterm(
     os.killpg(run.pid, signal.SIGQUIT)
     out, err = run.communicate(timeout=3 * DEADLINE_S)
     assert (run.returncode, stderr_lines(err)) == (0, [])
-    assert out.startswith("run ended: operator stop (SIGQUIT); after ")
+    assert last_line(out).startswith("run ended: operator stop (SIGQUIT); after ")
     assert_stop_held_since(base, signalled_at)
 
 
@@ -312,5 +317,5 @@ def test_a_frozen_run_trips_the_deadman_and_ends_as_a_safety_stop(
     line = _safety_line(err)
     assert line.startswith("lanewarden: safety stop: DEADMAN_TRIPPED: the dead-man stopped the "
                            "base (no heartbeat for ")
-    assert out.startswith("run ended by a safety stop: DEADMAN_TRIPPED: ")
+    assert last_line(out).startswith("run ended by a safety stop: DEADMAN_TRIPPED: ")
     assert_stop_held_since(base, frozen_at)

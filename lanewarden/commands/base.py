@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import time
+from pathlib import Path
 from typing import Any
 
 import click
@@ -42,6 +44,31 @@ DRIVE_PERIOD_S = 0.05
 MAX_DRIVE_DURATION_S = 60.0
 
 PORT_HELP = "serial port or pyserial URL (default: config, then /dev/kobuki, then /dev/ttyUSB0)"
+#: What the USB serial adapter's latency timer should be: at the FTDI default of 16 ms, the
+#: Kobuki's 50 Hz packets arrive in bursts and are the known cause of malformed packets.
+LATENCY_TIMER_GOAL_MS = 1
+UDEV_RULE_DOC = "docs/udev/99-kobuki.rules"
+
+
+def usb_latency_timer(port: str, sys_root: Path = Path("/sys")) -> tuple[int | None, Path]:
+    """The latency timer (ms) Linux exposes for `port`'s USB serial adapter, and where; None when
+    it is not exposed (not a USB serial adapter, a pty, a URL) or cannot be read."""
+    tty = Path(os.path.realpath(port)).name  # /dev/kobuki -> ttyUSB0
+    path = sys_root / "bus" / "usb-serial" / "devices" / tty / "latency_timer"
+    try:
+        return int(path.read_text().strip()), path
+    except (OSError, ValueError):
+        return None, path
+
+
+def latency_timer_text(value: int | None, path: Path) -> str:
+    if value is None:
+        return "not exposed for this port (not a USB serial adapter)"
+    if value <= LATENCY_TIMER_GOAL_MS:
+        return f"{value} ms (good)"
+    return (f"{value} ms: set it to {LATENCY_TIMER_GOAL_MS} ms (16 ms causes malformed Kobuki "
+            f"packets): install the udev rule {UDEV_RULE_DOC}, or for now: "
+            f"echo {LATENCY_TIMER_GOAL_MS} | sudo tee {path}")
 
 
 def _bit_names(bits: int, names: dict[int, str]) -> list[str]:
@@ -64,7 +91,8 @@ def base_group() -> None:
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 @config_option
 def info(port: str | None, as_json: bool, config_path: str | None) -> None:
-    """Show versions, UDID, battery, hazards and the feedback rate."""
+    """Show versions, UDID, battery, hazards, the feedback rate and the USB adapter's latency
+    timer."""
     config = load_config(config_path).actuation
     with KobukiBase.open(port, config=config) as base:
         start_packets, start_s = base.packets_received, time.monotonic()
@@ -91,6 +119,8 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
         ("buttons", ", ".join(report["buttons"]) or "none"),
         ("feedback rate", f"{report['feedback_rate_hz']:.1f} Hz "
                           f"({report['checksum_errors']} checksum errors)"),
+        ("latency timer", latency_timer_text(report["latency_timer_ms"],
+                                             Path(report["latency_timer_path"]))),
     ]
     for name, value in lines:
         click.echo(f"{name + ':':18}{value}")
@@ -99,6 +129,7 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
 def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
                  now: float) -> dict[str, Any]:
     health = base.link_health(now)
+    latency_ms, latency_path = usb_latency_timer(base.port)
     return {
         "port": base.port,
         "hardware_version": str(base.hardware_version) if base.hardware_version else None,
@@ -112,6 +143,8 @@ def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
         "feedback_rate_hz": round(rate_hz, 1),
         "checksum_errors": health.checksum_errors,
         "low_latency": health.low_latency,
+        "latency_timer_ms": latency_ms,
+        "latency_timer_path": str(latency_path),
     }
 
 
