@@ -18,6 +18,7 @@ from lanewarden.actuation.config import ActuationConfig
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
 from lanewarden.scenarios.yaml_documents import read_yaml_document, validation_error_lines
 from lanewarden.supervisor.config import SupervisorConfig
@@ -33,6 +34,7 @@ class LanewardenConfig(BaseModel):
     supervisor: SupervisorConfig = SupervisorConfig()
     actuation: ActuationConfig = ActuationConfig()
     simulation: SimulationConfig = SimulationConfig()
+    campaign: CampaignConfig = CampaignConfig()
 
 
 _UNKNOWN_KEY_HINT = " (check the spelling; `lanewarden config show` lists every key)"

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -32,19 +32,25 @@ from lanewarden.perception.detector import DetectionDebug, LaneDetector
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
+from lanewarden.scenarios.fault_link import FaultyLink
+from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
 from lanewarden.scenarios.spec import RunSpec, ScenarioSpec, with_overrides
-from lanewarden.scenarios.texture import GroundTexture, paint_ground
-from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+from lanewarden.scenarios.texture import (
+    GroundTexture,
+    paint_ground,
+    paint_ground_cached,
+    with_marks,
+)
 from lanewarden.scenarios.world import World, build_world
 from lanewarden.supervisor.controllers import make_controller
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
 
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig
+    from lanewarden.scenarios.video import VideoRecorder
 
 U8 = NDArray[np.uint8]
 
@@ -87,6 +93,10 @@ class SimulationResult:
     records: list[StepRecord]
     trace: RunTrace
     end_reason: str
+    #: the first frame where each fault took effect (by its place in the scenario's list)
+    fault_effects: dict[int, FaultEffect] = field(default_factory=dict)
+    #: (index, kind, from_s, to_s) while each fault that took effect was acting
+    fault_windows: list[tuple[int, str, float, float]] = field(default_factory=list)
 
 
 def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
@@ -122,8 +132,14 @@ class Simulation:
         sim = config.simulation
         self.camera = sim_camera_model(config)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
-        self.texture: GroundTexture = paint_ground(
-            self.world, sim.texture_mm_per_px / 1000.0, seed, color=sim.perception_color)
+        # The painted floor depends only on these (and is reused by a campaign's worker); floor
+        # faults are painted over a copy.
+        floor_key = spec.model_dump_json(include={"floor", "tape", "lane", "lighting"}) + repr(
+            sim.world_margin_m)
+        self.texture: GroundTexture = with_marks(
+            paint_ground_cached(self.world, floor_key, sim.texture_mm_per_px / 1000.0, seed,
+                                color=sim.perception_color),
+            floor_marks(self.world, spec.faults))
         self.renderer = CameraRenderer(
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
@@ -133,13 +149,14 @@ class Simulation:
             image_size=(w, h)))
         self.detector = LaneDetector(config.perception, self.undistorter)
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
+        self.link = FaultyLink(self.base, config.actuation.write_timeout_s, seed)
         self.controller = make_controller(controller, config.supervisor)
         shape: tuple[int, ...] = (h, w, 3) if sim.perception_color else (h, w)
         self.sim_camera = SimCamera(shape, camera_pool_size(spec.faults, sim.camera_rate_hz))
-        self.faults = FaultSchedule(spec.faults)
+        self.faults = FaultSchedule(spec.faults, self.world, shape)
         self._tap = DetectionTap(self.detector) if video_path is not None else None
         self.loop = ControlLoop(self.sim_camera, self._tap or self.detector, self.controller,
-                                self.base, record=record)
+                                self.link, record=record)
         self.roi_polygon_px = self._roi_polygon()
         self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
         self._video: VideoRecorder | None = None
@@ -152,9 +169,9 @@ class Simulation:
         self._display: CameraRenderer | None = None
         self.display_texture: GroundTexture | None = None
         if video_path is not None:
-            self.display_texture = paint_ground(
+            self.display_texture = with_marks(paint_ground(
                 self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
-                color=True)
+                color=True), floor_marks(self.world, spec.faults))
             self._display = CameraRenderer(
                 self.display_texture, self.camera, noise_sigma=0.0, exposure_s=0.0, seed=seed,
                 distorted=False)
@@ -174,6 +191,8 @@ class Simulation:
         ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
         video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
         if self._video_path is not None:
+            from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+
             assert self.display_texture is not None
             map_view = MapView(self.world, self.display_texture, sim.video.map_size_px,
                                roi_ground_outline(self.camera, self.roi_polygon_px))
@@ -199,8 +218,10 @@ class Simulation:
                 if k == 0:
                     self.loop.start(now)
                 if self.faults.loop_stalled:
+                    self.faults.stalled_tick(k, now)
                     continue
                 record = self.loop.step(now)
+                self.faults.observe(k, now, self.sim_camera, self.link, self.visibility, pose)
                 records.append(record)
                 times.append(now)
                 poses.append((pose.x_m, pose.y_m, pose.theta_rad))
@@ -232,12 +253,14 @@ class Simulation:
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
         metrics["end_reason"] = end_reason
+        run_end = float(times[-1]) if times else 0.0
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
-                                records, trace, end_reason)
+                                records, trace, end_reason, dict(self.faults.effects),
+                                self.faults.windows(run_end))
 
     def _capture(self, k: int, now: float) -> tuple[Pose2D, VelocityCommand]:
         """Faults due now, the base moved to now, and the camera's frame at the true pose."""
-        self.faults.apply(now, self.sim_camera, self.base, self.loop)
+        self.faults.apply(now, self.sim_camera, self.link, self.loop, k)
         self.base.advance_to(now)
         pose = self.base.pose
         velocity = self.base.velocity
@@ -248,6 +271,7 @@ class Simulation:
             self.renderer.render_bgr(pose, buffer, motion, noise)
         else:
             self.renderer.render_gray(pose, buffer, motion, noise)
+        self.faults.after_render(k, now, buffer)
         self.sim_camera.capture(k, now)
         return pose, velocity
 
