@@ -5,9 +5,10 @@ with the real protocol code in the path:
 
 - link_garbage / checksum_storm: while one is active, the base's 50 Hz feedback stream is really
   encoded as Kobuki packets (basic sensor data), garbage bytes are inserted between packets or
-  checksums corrupted, and the bytes go through the real framing parser (`PacketReader`) and
-  decoder (`decode_feedback`). Feedback is only as fresh as the newest packet that survived, as
-  with `KobukiBase` (only basic sensor data proves a live link).
+  the checksums of exactly that fraction of the packets corrupted (from the storm's first), and
+  the bytes go through the real framing parser (`PacketReader`) and decoder
+  (`decode_feedback`). Feedback is only as fresh as the newest packet that survived, as with
+  `KobukiBase` (only basic sensor data proves a live link).
 - write_blocks: writes to the port block: commands no longer reach the motors (the base keeps the
   command it had). After `write_timeout_s` the dead-man gives the link up (the port's write
   timeout) and every later send raises, as `KobukiBase.send` does after a lost link; when the
@@ -65,6 +66,7 @@ class FaultyLink:
         self._reader = PacketReader()
         self._wire_time_s: float | None = None
         self._wire_feedback: BaseFeedback | None = None
+        self._storm_debt = 1.0
 
     # ---- fault switches (the schedule calls these) --------------------------------------------
     @property
@@ -112,6 +114,7 @@ class FaultyLink:
         if not self.wire_faulty:
             self._wire_time_s = None
             self._wire_feedback = direct
+            self._storm_debt = 1.0
             return direct
         return self._through_wire(now, direct)
 
@@ -131,7 +134,10 @@ class FaultyLink:
             if state.received_at_s is not None and state.received_at_s < sent_at - 1e-9:
                 continue  # the base itself is silent (base_link_loss)
             packet = bytearray(basic_sensor_packet(round(sent_at * 1000), state))
-            if self._rng.random() < self.checksum_storm_intensity:
+            # Exactly the `intensity` fraction of packets, starting with the first of the storm.
+            self._storm_debt += self.checksum_storm_intensity
+            if self.checksum_storm_intensity > 0.0 and self._storm_debt >= 1.0 - 1e-9:
+                self._storm_debt -= 1.0
                 packet[-1] ^= 1 + int(self._rng.integers(0, 255))
             garbage = round(self.garbage_intensity * MAX_GARBAGE_BYTES)
             noise = self._rng.integers(0, 256, garbage, dtype=np.uint8).tobytes()

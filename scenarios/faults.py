@@ -278,6 +278,11 @@ class FaultSchedule:
 
     # ---- queries ------------------------------------------------------------------------------
     @property
+    def pending(self) -> bool:
+        """A timed fault has not started yet (a run should not end before it is applied)."""
+        return any(not f.started for f in self._faults if f.spec.kind not in FLOOR_FAULT_KINDS)
+
+    @property
     def loop_stalled(self) -> bool:
         """The control process is hung (`loop_stall`): the simulator must not step the loop."""
         return bool(self._active("loop_stall"))

@@ -237,6 +237,8 @@ class Simulation:
                 if self._progress is not None:
                     self._progress(now)
                 reason = ending.check(now, record.state, pose, self.base.velocity.linear_m_s)
+                if reason == "halted" and self.faults.pending:
+                    continue  # every fault is applied, even after a halt (or it is unproven)
                 if reason is not None:
                     end_reason = reason
                     break

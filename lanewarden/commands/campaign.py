@@ -8,9 +8,11 @@ report.html from every stored row. Ctrl-C leaves a resumable result file (exit 1
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import click
@@ -98,6 +100,8 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
             bar.update(1)
             bar.set_postfix_str(_counts(progress), refresh=False)
 
+    # SIGTERM stops a campaign like Ctrl-C: the cluster is shut down, finished rows stay.
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         progress = run_campaign(plan, scheduler, workers, on_start, on_row)
     except CampaignMismatch as exc:
@@ -109,6 +113,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                    "; run the same command again to resume", err=True)
         raise
     finally:
+        signal.signal(signal.SIGTERM, previous)
         if bar is not None:
             bar.close()
     with ResultStore(out / "results.sqlite") as store:
@@ -123,6 +128,10 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     click.echo(summary)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
 
 
 def commands() -> list[click.Command]:

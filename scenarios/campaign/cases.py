@@ -57,6 +57,7 @@ class CameraChoice(_Model):
     `simulation:` settings that go with it (e.g. a coarser floor texture for a small image)."""
 
     name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
     width_px: Annotated[int, Field(ge=64, le=1920)] = 320
     height_px: Annotated[int, Field(ge=48, le=1440)] = 240
     simulation: dict[str, Any] = {}
@@ -237,7 +238,9 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
     rng = np.random.default_rng([campaign_seed, index, 0xCA5E])
     scenario_name = spec.scenarios[int(rng.integers(0, len(spec.scenarios)))]
     scenario = _resolve(scenario_name, spec_path)
-    camera = spec.cameras[int(rng.integers(0, len(spec.cameras)))]
+    camera_weights = np.array([c.weight for c in spec.cameras], dtype=np.float64)
+    camera = spec.cameras[int(rng.choice(len(spec.cameras),
+                                         p=camera_weights / camera_weights.sum()))]
     seed = int(rng.integers(0, spec.floor_seeds))
     max_time = min(scenario.run.max_time_s, spec.max_time_s)
     count = int(rng.integers(spec.faults_per_run[0], spec.faults_per_run[1] + 1))
@@ -245,6 +248,10 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
     chosen: list[int] = [int(c) for c in rng.choice(
         len(spec.faults), size=min(count, len(spec.faults)), replace=False,
         p=weights / weights.sum())] if count else []
+    on_floor = [c for c in chosen if spec.faults[c].kind in FLOOR_FAULT_KINDS]
+    if on_floor:
+        # A floor fault needs the robot to drive up to it: no other fault may stop it first.
+        chosen = on_floor[:1]
     reach = min(_lane_length_m(scenario) - 0.3,
                 REACH_FRACTION * follow_speed_m_s * max(0.0, max_time - START_UP_S))
     faults = [dict(f) for f in (fs.model_dump(mode="json", exclude_defaults=True)
@@ -264,6 +271,7 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
         faults.append({"kind": fault.kind, **params})
         kinds.append(fault.kind)
     data = scenario.model_dump(mode="json", exclude_defaults=True)
+    data.pop("expect", None)  # the scenario's expected outcome is without these faults
     data["faults"] = faults
     data["run"] = merge_overrides(data.get("run", {}), {"max_time_s": max_time})
     config = merge_overrides(dict(config_overrides), spec.config)

@@ -192,13 +192,13 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
     if not any(s != "HALT" for s in facts.states):
         return Verdict("error", f"never engaged ({facts.end_reason})")
     halt = _first_halt(facts.states)
-    halt_s = None if halt is None else round(float(facts.times[halt]), 4)
+    halt_s = None if halt is None else float(facts.times[halt])
     first_effect = min(facts.effects.values(), default=None)
     to_halt = (None if halt_s is None or first_effect is None
                else round(halt_s - first_effect, 4))
 
     def verdict(outcome: str, reason: str) -> Verdict:
-        return Verdict(outcome, reason, halt_s, to_halt)
+        return Verdict(outcome, reason, None if halt_s is None else round(halt_s, 4), to_halt)
 
     metrics = facts.metrics
     if metrics.get("crossed_tape"):
@@ -211,7 +211,7 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
         after = [i for i in range(halt, len(facts.states)) if facts.commands_nonzero[i]]
         if after:
             return verdict("unsafe", f"non-zero command at {facts.times[after[0]]:.3f} s after "
-                                     f"HALT at {halt_s} s")
+                                     f"HALT at {halt_s:.3f} s")
     unanswered = _unanswered_hazard(facts, config, limits, halt_s)
     if unanswered is not None:
         return verdict("unsafe", unanswered)
@@ -223,8 +223,8 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
                 return verdict("safe_halt", f"{code} answering {kind} (fault {index})")
         if code in _LANE and _near_lane_end(facts, config):
             return verdict("safe_halt", f"{code} at the end of the tape")
-        return verdict("false_halt", f"{code} at {halt_s} s with no fault acting and the tape "
-                                     "in place")
+        return verdict("false_halt", f"{code} at {halt_s:.3f} s with no fault acting and the "
+                                     "tape in place")
     visited = set(facts.states)
     if "DEGRADED" in visited:
         if facts.states[-1] == "DEGRADED":
@@ -248,7 +248,7 @@ def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
         if deadline > run_end + 1e-9:
             continue  # the run ended first (settled after another halt, or the time limit)
         if halt_s is None or halt_s > deadline + 1e-9:
-            when = "never" if halt_s is None else f"at {halt_s} s"
+            when = "never" if halt_s is None else f"at {halt_s:.3f} s"
             return (f"{spec.kind} (fault {index}) took effect at {effect:.3f} s: HALT due by "
                     f"{deadline:.3f} s, came {when}")
     return None
