@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lanewarden.errors import UsageError
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.errors import DeviceError, UsageError
+from lanewarden.image_files import too_many_pixels
 from lanewarden.supervisor.loop import Frame
 
 
@@ -37,9 +37,10 @@ def quiet_opencv() -> Iterator[None]:
 _URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
 
 
-def open_camera(camera: str) -> cv2.VideoCapture:
+def open_camera(camera: str, max_pixels: int | None = None) -> cv2.VideoCapture:
     """cv2.VideoCapture on an int index, a file path (also an image sequence like
-    'dir/frame_%03d.png') or a URL; UsageError/PerceptionError naming --camera on failure."""
+    'dir/frame_%03d.png') or a URL; UsageError (bad input: no such file, frames larger than
+    `max_pixels` by the source's own size) or DeviceError (cannot open it) naming --camera."""
     source: int | str
     if camera.strip().isdigit():
         source = int(camera)
@@ -57,10 +58,15 @@ def open_camera(camera: str) -> cv2.VideoCapture:
         opened = capture.isOpened()
     if not opened:
         capture.release()
-        raise PerceptionError(
+        raise DeviceError(
             f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
             "free, and a format OpenCV reads?)"
         )
+    width = int(capture.get(cv2.CAP_PROP_FRAME_WIDTH) or 0)
+    height = int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
+    if max_pixels is not None and (why := too_many_pixels(width, height, max_pixels)):
+        capture.release()
+        raise UsageError(f"--camera '{camera}': {why}")
     return capture
 
 
@@ -83,10 +89,14 @@ class CameraFrameSource:
         capture: cv2.VideoCapture,
         clock: Callable[[], float],
         replay_fps: float | None = None,
+        max_pixels: int | None = None,
     ) -> None:
         """`replay_fps`: for a recorded source (video file, image sequence), deliver frames at this
-        rate instead of as fast as the file can be decoded; None for a live camera."""
+        rate instead of as fast as the file can be decoded; None for a live camera. A frame with
+        more than `max_pixels` pixels ends the delivery with an `error` (the loop then halts on
+        the stale frame)."""
         self._capture = capture
+        self._max_pixels = max_pixels
         self._clock = clock
         self._replay_period_s = 1.0 / replay_fps if replay_fps else None
         self._lock = threading.Lock()
@@ -110,6 +120,13 @@ class CameraFrameSource:
             if not ok or image is None:
                 with self._lock:
                     self._error = "the camera stopped delivering frames"
+                return
+            height, width = image.shape[:2]
+            if self._max_pixels is not None and (
+                why := too_many_pixels(width, height, self._max_pixels)
+            ):
+                with self._lock:
+                    self._error = f"camera frame refused: {why}"
                 return
             with self._lock:
                 self._latest = Frame(image=np.asarray(image), index=index, time_s=stamp)

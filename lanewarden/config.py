@@ -15,19 +15,19 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from lanewarden.actuation.config import ActuationConfig
+from lanewarden.documents import allowed_range, read_yaml_document, validation_error_lines
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
-from lanewarden.scenarios.yaml_documents import read_yaml_document, validation_error_lines
 from lanewarden.supervisor.config import SupervisorConfig
 
 
 class LanewardenConfig(BaseModel):
     """The whole configuration. `lanewarden config show` prints it as YAML."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     perception: PerceptionConfig = PerceptionConfig()
     calibration: CalibrationConfig = CalibrationConfig()
@@ -52,7 +52,9 @@ def config_from_mapping(data: Any, source: str = "config") -> LanewardenConfig:
     try:
         return LanewardenConfig.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(validation_error_lines(source, exc, _UNKNOWN_KEY_HINT)) from None
+        raise ConfigError(
+            validation_error_lines(source, exc, LanewardenConfig, _UNKNOWN_KEY_HINT)
+        ) from None
 
 
 def load_config(path: str | Path | None) -> LanewardenConfig:
@@ -66,12 +68,14 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
 @dataclass(frozen=True)
 class ConfigNode:
     """One node of the config tree: a section (`is_section`) or a key with its JSON-ready value.
-    `description` is the key's Field description, or a section's one-paragraph summary."""
+    `description` is the key's Field description, or a section's one-paragraph summary;
+    `allowed` a numeric key's allowed range (e.g. '0 < value <= 5'), else ''."""
 
     path: tuple[str, ...]
     value: object
     description: str
     is_section: bool
+    allowed: str = ""
 
 
 def _summary(model: BaseModel) -> str:
@@ -90,7 +94,8 @@ def walk_config(model: BaseModel, path: tuple[str, ...] = ()) -> Iterator[Config
             yield from walk_config(value, here)
         else:
             dumped = model.model_dump(mode="json", include={name})[name]
-            yield ConfigNode(here, dumped, (field.description or "").strip(), False)
+            yield ConfigNode(here, dumped, (field.description or "").strip(), False,
+                             allowed_range(field))
 
 
 def config_as_yaml(config: LanewardenConfig) -> str:

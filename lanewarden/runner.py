@@ -21,7 +21,11 @@ from types import FrameType
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
-from lanewarden.perception.calibration import Undistorter, check_calibration, load_calibration
+from lanewarden.perception.calibration import (
+    Undistorter,
+    load_calibration,
+    require_usable_calibration,
+)
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.supervisor.clock import MonotonicClock
 from lanewarden.supervisor.controllers import make_controller
@@ -70,9 +74,11 @@ def run_robot(
     controller = make_controller(controller_name, config.supervisor)
     calibration = load_calibration(calibration_path) if calibration_path else None
 
-    capture = open_camera(camera)
+    max_pixels = config.perception.max_image_pixels
+    capture = open_camera(camera, max_pixels)
     period = config.supervisor.camera_period_s
-    frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period))
+    frames = CameraFrameSource(capture, clock.now, replay_rate_fps(camera, capture, 1.0 / period),
+                               max_pixels=max_pixels)
     try:
         deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
         first = frames.read(clock.now())
@@ -87,11 +93,8 @@ def run_robot(
         height, width = first.image.shape[:2]
         undistorter = None
         if calibration is not None:
-            problems = check_calibration(calibration, (width, height), config.calibration)
-            if problems:
-                raise SupervisorError(
-                    f"--calibration {calibration_path}: refusing to engage: {'; '.join(problems)}"
-                )
+            require_usable_calibration(calibration, (width, height), config.calibration,
+                                       f"--calibration {calibration_path}")
             undistorter = Undistorter(calibration)
         detector = LaneDetector(config.perception, undistorter)
 

@@ -408,3 +408,17 @@ def check_calibration(
             f"{cal_w}x{cal_h}"
         )
     return problems
+
+
+def require_usable_calibration(
+    calibration: CameraCalibration,
+    image_size: tuple[int, int],
+    gates: CalibrationConfig,
+    source: str,
+) -> None:
+    """The one calibration check behind `run`, `detect` and `undistort`: PerceptionError (one
+    line naming `source`, e.g. '--calibration camera.yaml') listing every `check_calibration`
+    problem, or nothing when the calibration is usable for `image_size` frames."""
+    problems = check_calibration(calibration, image_size, gates)
+    if problems:
+        raise PerceptionError(f"{source}: refusing to engage: {'; '.join(problems)}")

@@ -20,7 +20,7 @@ from typing import Annotated, Self
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-_FROZEN = ConfigDict(extra="forbid", frozen=True)
+_FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
@@ -85,12 +85,14 @@ class BlurConfig(BaseModel):
 
     kernel_px: int = Field(
         default=5,
+        ge=1,
+        le=31,
         description=(
             "Gaussian blur kernel size (odd) for a 480-row image; scaled with the image height to "
             "the nearest odd size, at least 3"
         ),
     )
-    sigma_px: Annotated[float, Field(ge=0.0)] = Field(
+    sigma_px: Annotated[float, Field(ge=0.0, le=20.0)] = Field(
         default=0.0,
         description=(
             "Gaussian sigma in pixels; 0 derives it from the kernel size"
@@ -110,19 +112,20 @@ class CannyConfig(BaseModel):
 
     model_config = _FROZEN
 
-    low_threshold: Annotated[float, Field(ge=0.0)] = Field(
+    low_threshold: Annotated[float, Field(ge=0.0, le=10000.0)] = Field(
         default=40.0,
         description=(
             "Canny lower hysteresis threshold (gradient, grey levels); below high_threshold"
         ),
     )
-    high_threshold: Annotated[float, Field(gt=0.0)] = Field(
+    high_threshold: Annotated[float, Field(gt=0.0, le=10000.0)] = Field(
         default=120.0,
         description=(
             "Canny upper hysteresis threshold (gradient, grey levels)"
         ),
     )
-    aperture_px: int = Field(default=3, description="Sobel aperture of Canny: 3, 5 or 7")
+    aperture_px: int = Field(default=3, ge=3, le=7,
+                             description="Sobel aperture of Canny: 3, 5 or 7")
 
     @field_validator("aperture_px")
     @classmethod
@@ -305,7 +308,7 @@ class TapeConfig(BaseModel):
             "widest tape width at the ROI bottom, fraction of image width"
         ),
     )
-    min_gap_px: Annotated[float, Field(ge=0.0)] = Field(
+    min_gap_px: Annotated[float, Field(ge=0.0, le=100.0)] = Field(
         default=5.0,
         description=(
             "two edges closer than this (pixels, where measured) are the two sides of one thin "
@@ -401,14 +404,14 @@ class LaneGeometryConfig(BaseModel):
             "-0.167)"
         ),
     )
-    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "vanishing_point scores 1 within this vertical distance of the horizon, 0 at twice it "
             "(normalised)"
         ),
     )
-    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0)] = Field(
+    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "vanishing_point scores 1 within this horizontal distance of the image centre, 0 at "
@@ -422,7 +425,7 @@ class LaneGeometryConfig(BaseModel):
             "width"
         ),
     )
-    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0)] = Field(
+    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
         default=0.3,
         description=(
             "lane_width scores 1 within this of the expected width, 0 at twice it"
@@ -506,7 +509,7 @@ class DecisionConfig(BaseModel):
 
     model_config = _FROZEN
 
-    turn_slope_sum: Annotated[float, Field(gt=0.0)] = Field(
+    turn_slope_sum: Annotated[float, Field(gt=0.0, le=100.0)] = Field(
         default=6.0,
         description=(
             "the lecture's threshold: slope sum below -this turns right, above +this turns left"
@@ -534,6 +537,13 @@ class PerceptionConfig(BaseModel):
         description=(
             "cv2.setNumThreads set by the detector (process-wide); 1 by default, -1 restores "
             "OpenCV's default"
+        ),
+    )
+    max_image_pixels: Annotated[int, Field(ge=4096, le=50_000_000)] = Field(
+        default=10_000_000,
+        description=(
+            "largest image (width x height, pixels) `detect`, `undistort` and the camera accept; "
+            "image files are checked from their header before decoding"
         ),
     )
 

@@ -10,8 +10,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-import yaml
-
+from lanewarden.documents import parse_yaml_text
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.spec import ScenarioSpec, load_scenario_file, parse_scenario
 
@@ -52,8 +51,4 @@ def resolve_scenario(name_or_file: str) -> ScenarioSpec:
 
 def parse_scenario_text(text: str, source: str = "<scenario>") -> ScenarioSpec:
     """Validate scenario YAML given as text (used by tests and tools)."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f"{source}: not valid YAML: {exc}") from None
-    return parse_scenario(data, source)
+    return parse_scenario(parse_yaml_text(text, source, ScenarioError), source)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.plot import write_plot
 from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
@@ -78,7 +78,9 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ScenarioError(f"--out {out}: cannot create the output directory ({exc})") from exc
+        raise ScenarioOutputError(
+            f"--out {out}: cannot create the output directory ({exc})"
+        ) from exc
     video_path = out / "video.mp4" if request.video else None
     if not request.video:
         (out / "video.mp4").unlink(missing_ok=True)
@@ -124,7 +126,7 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
     except OSError as exc:
-        raise ScenarioError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
+        raise ScenarioOutputError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
     return metrics
 
 

@@ -14,20 +14,27 @@ the closed loop. Bad files become ScenarioError with one line per bad key, namin
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from lanewarden.documents import read_yaml_document, validation_error_lines
 from lanewarden.scenarios.errors import ScenarioError
-from lanewarden.scenarios.yaml_documents import (
-    describe_validation_error,
-    read_yaml_document,
-    validation_error_lines,
-)
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
+
+#: Limits on the world a scenario may describe, checked before anything is built or painted (the
+#: floor texture costs ~35 bytes per pixel while it is painted; see `scenarios.texture`).
+MAX_LANE_LENGTH_M = 100.0
+MAX_SEGMENTS = 200
+MAX_GAPS = 100
+MAX_GLARE_SPOTS = 20
+MAX_FAULTS = 50
+#: Anywhere in the world (start positions, offsets), metres from the origin.
+MAX_COORDINATE_M = 1000.0
 
 Color = Annotated[str, Field(pattern=r"^#[0-9a-fA-F]{6}$")]
 TapeSide = Literal["left", "right", "both"]
@@ -70,7 +77,7 @@ FLOOR_FAULT_KINDS = ("tape_patch", "floor_mark", "shadow_edge")
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def color_bgr(color: str) -> tuple[int, int, int]:
@@ -92,7 +99,7 @@ class FloorSpec(_Model):
     seam_color: Color = "#8c877e"
     tile_m: Annotated[float, Field(gt=0.05, le=2.0)] = 0.30
     seam_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.004
-    grid_angle_deg: float = 0.0
+    grid_angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
     grid_offset_m: tuple[float, float] = (0.0, 0.0)
     variation: Annotated[float, Field(ge=0.0, le=0.5)] = 0.04
     grain: Annotated[float, Field(ge=0.0, le=0.5)] = 0.03
@@ -106,9 +113,9 @@ class TapeSpec(_Model):
 
 
 class PoseSpec(_Model):
-    x_m: float = 0.0
-    y_m: float = 0.0
-    heading_deg: float = 0.0
+    x_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
+    y_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
+    heading_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
 
 
 class SegmentSpec(_Model):
@@ -118,8 +125,8 @@ class SegmentSpec(_Model):
     crosses the gate between the tapes has completed that turn (`turns_completed`).
     """
 
-    straight_m: Annotated[float | None, Field(gt=0.0)] = None
-    arc_radius_m: Annotated[float | None, Field(gt=0.0)] = None
+    straight_m: Annotated[float | None, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = None
+    arc_radius_m: Annotated[float | None, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = None
     turn_deg: Annotated[float | None, Field(ge=-360.0, le=360.0)] = None
     mark: str | None = None
 
@@ -153,8 +160,8 @@ class DashSpec(_Model):
     end)."""
 
     tape: TapeSide = "both"
-    on_m: Annotated[float, Field(gt=0.0)]
-    off_m: Annotated[float, Field(gt=0.0)]
+    on_m: Annotated[float, Field(ge=0.05, le=MAX_LANE_LENGTH_M)]
+    off_m: Annotated[float, Field(ge=0.05, le=MAX_LANE_LENGTH_M)]
     from_m: Annotated[float, Field(ge=0.0)] = 0.0
     to_m: Annotated[float | None, Field(gt=0.0)] = None
 
@@ -173,10 +180,24 @@ class EndsSpec(_Model):
 class LaneSpec(_Model):
     width_m: Annotated[float, Field(gt=0.1, le=3.0)] = 0.60
     start: PoseSpec = PoseSpec()
-    segments: Annotated[list[SegmentSpec], Field(min_length=1)]
-    gaps: list[GapSpec] = []
+    segments: Annotated[list[SegmentSpec], Field(min_length=1, max_length=MAX_SEGMENTS)]
+    gaps: Annotated[list[GapSpec], Field(max_length=MAX_GAPS)] = []
     dashes: DashSpec | None = None
     ends: EndsSpec = EndsSpec()
+
+    @model_validator(mode="after")
+    def _length(self) -> LaneSpec:
+        total = sum(
+            seg.straight_m if seg.straight_m is not None
+            else (seg.arc_radius_m or 0.0) * abs(math.radians(seg.turn_deg or 0.0))
+            for seg in self.segments
+        )
+        if total > MAX_LANE_LENGTH_M:
+            raise ValueError(
+                f"the segments add up to {total:.6g} m of lane, expected at most "
+                f"{MAX_LANE_LENGTH_M:g} m"
+            )
+        return self
 
 
 class GradientSpec(_Model):
@@ -184,7 +205,7 @@ class GradientSpec(_Model):
     `direction_deg`, measured from the lane start."""
 
     per_m: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.0
-    direction_deg: float = 0.0
+    direction_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
 
 
 class GlareSpec(_Model):
@@ -192,8 +213,8 @@ class GlareSpec(_Model):
     `offset_m` to its left, Gaussian with `radius_m` (1 sigma), pushing up to `strength` of
     full white."""
 
-    at_m: Annotated[float, Field(ge=0.0)]
-    offset_m: float = 0.0
+    at_m: Annotated[float, Field(ge=0.0, le=MAX_LANE_LENGTH_M)]
+    offset_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
     radius_m: Annotated[float, Field(gt=0.0, le=3.0)] = 0.25
     strength: Annotated[float, Field(gt=0.0, le=1.5)] = 0.8
 
@@ -201,7 +222,7 @@ class GlareSpec(_Model):
 class LightingSpec(_Model):
     brightness: Annotated[float, Field(gt=0.05, le=2.0)] = 1.0
     gradient: GradientSpec = GradientSpec()
-    glare: list[GlareSpec] = []
+    glare: Annotated[list[GlareSpec], Field(max_length=MAX_GLARE_SPOTS)] = []
 
 
 class RobotSpec(_Model):
@@ -219,7 +240,7 @@ class RunSpec(_Model):
 
     max_time_s: Annotated[float, Field(gt=0.0, le=600.0)] = 90.0
     halt_settle_s: Annotated[float, Field(ge=0.0, le=30.0)] = 1.5
-    stop_past_lane_end_m: Annotated[float, Field(gt=0.0)] = 2.0
+    stop_past_lane_end_m: Annotated[float, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = 2.0
 
 
 class FaultSpec(_Model):
@@ -262,11 +283,11 @@ class FaultSpec(_Model):
     """
 
     kind: FaultKind
-    at_s: Annotated[float, Field(ge=0.0)] = 0.0
-    duration_s: Annotated[float | None, Field(gt=0.0)] = None
+    at_s: Annotated[float, Field(ge=0.0, le=600.0)] = 0.0
+    duration_s: Annotated[float | None, Field(gt=0.0, le=600.0)] = None
     latency_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.5
     bits: Annotated[int, Field(ge=1, le=7)] = 2
-    at_m: Annotated[float | None, Field(ge=0.0, le=1000.0)] = None
+    at_m: Annotated[float | None, Field(ge=0.0, le=MAX_LANE_LENGTH_M)] = None
     offset_m: Annotated[float, Field(ge=-3.0, le=3.0)] = 0.0
     length_m: Annotated[float, Field(gt=0.0, le=20.0)] = 1.0
     width_m: Annotated[float, Field(gt=0.0, le=0.2)] = 0.01
@@ -321,7 +342,7 @@ class ScenarioSpec(_Model):
     lighting: LightingSpec = LightingSpec()
     robot: RobotSpec = RobotSpec()
     run: RunSpec = RunSpec()
-    faults: list[FaultSpec] = []
+    faults: Annotated[list[FaultSpec], Field(max_length=MAX_FAULTS)] = []
     config: dict[str, Any] = {}
     expect: ExpectSpec = ExpectSpec()
 
@@ -346,12 +367,9 @@ def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) ->
     try:
         return type(config).model_validate(merged)
     except ValidationError as exc:
-        lines = []
-        for err in exc.errors():
-            located = dict(err)
-            located["loc"] = ("config", *err["loc"])
-            lines.append(describe_validation_error(source, located))
-        raise ScenarioError("\n".join(lines)) from None
+        raise ScenarioError(
+            validation_error_lines(source, exc, type(config), prefix=("config",))
+        ) from None
 
 
 def parse_scenario(data: Any, source: str) -> ScenarioSpec:
@@ -363,7 +381,7 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(validation_error_lines(source, exc)) from None
+        raise ScenarioError(validation_error_lines(source, exc, ScenarioSpec)) from None
 
 
 def load_scenario_file(path: str | Path) -> ScenarioSpec:

@@ -18,12 +18,18 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.spec import color_bgr
 from lanewarden.scenarios.world import World
 
 FloatArray = NDArray[np.float64]
 F32 = NDArray[np.float32]
 U8 = NDArray[np.uint8]
+
+#: Largest floor texture painted, pixels: the result is 1 byte per pixel (4 with colour) and the
+#: painting's float layers exist for one strip of rows at a time, so this bounds it at ~50 MB
+#: gray (the lecture's course is 27 Mpx at the default 2.5 mm per pixel).
+MAX_TEXTURE_PIXELS = 50_000_000
 
 #: OpenCV's BGR -> gray weights, so a gray texture equals the gray of the colour texture.
 GRAY_WEIGHTS = (0.114, 0.587, 0.299)
@@ -67,6 +73,12 @@ def _grid_coords(world: World, m_per_px: float) -> tuple[F32, F32, int, int]:
     x0, y0, x1, y1 = world.bounds
     width = int(math.ceil((x1 - x0) / m_per_px))
     height = int(math.ceil((y1 - y0) / m_per_px))
+    if width * height > MAX_TEXTURE_PIXELS:
+        raise ScenarioError(
+            f"{world.name}: the floor texture would be {width} x {height} px at "
+            f"{m_per_px * 1000:g} mm per pixel, expected at most {MAX_TEXTURE_PIXELS} px (a "
+            "larger simulation.texture_mm_per_px, or a smaller world)"
+        )
     xs = (x0 + (np.arange(width, dtype=np.float32) + 0.5) * m_per_px).astype(np.float32)
     ys = (y1 - (np.arange(height, dtype=np.float32) + 0.5) * m_per_px).astype(np.float32)
     return xs, ys, width, height

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.texture import GroundTexture
 from lanewarden.scenarios.world import ROBOT_RADIUS_M, World
 
@@ -180,7 +180,7 @@ class VideoRecorder:
             )
             writer.send(None)
         except (OSError, RuntimeError) as exc:
-            raise ScenarioError(f"{path}: cannot start the video encoder ({exc})") from exc
+            raise ScenarioOutputError(f"{path}: cannot start the video encoder ({exc})") from exc
         self._writer = writer
         self.frames = 0
 
@@ -199,7 +199,7 @@ class VideoRecorder:
         try:
             self._writer.send(self._frame)
         except (OSError, RuntimeError) as exc:
-            raise ScenarioError(f"{self.path}: video encoding failed ({exc})") from exc
+            raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
         self.frames += 1
 
     def close(self) -> None:
@@ -208,4 +208,4 @@ class VideoRecorder:
             try:
                 writer.close()
             except (OSError, RuntimeError) as exc:
-                raise ScenarioError(f"{self.path}: video encoding failed ({exc})") from exc
+                raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc

@@ -24,12 +24,13 @@ class SupervisorConfig(BaseModel):
     Kobuki; the closed-loop numbers are tuned there, see docs/supervisor.md.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     # --- Slope-sum Kalman filter (state: slope sum, its rate per second) ---
     slope_sum_measurement_std: float = Field(
         default=0.3,
         gt=0.0,
+        le=100.0,
         description="Kalman measurement noise (std) of the slope sum at confidence 1, slope-sum "
         "units",
     )
@@ -43,39 +44,46 @@ class SupervisorConfig(BaseModel):
     slope_sum_accel_std_per_s2: float = Field(
         default=40.0,
         gt=0.0,
+        le=10000.0,
         description="Kalman process noise: std of the slope sum's acceleration, 1/s^2",
     )
     slope_sum_initial_rate_std_per_s: float = Field(
         default=2.0,
         gt=0.0,
+        le=1000.0,
         description="Uncertainty (std) of the slope sum's rate when the filter (re)starts, 1/s",
     )
     innovation_gate_sigma: float = Field(
         default=4.0,
         gt=0.0,
+        le=100.0,
         description="Mahalanobis distance, sigmas, above which a measurement is rejected as an "
         "outlier (INNOVATION_OUTLIER)",
     )
     outliers_repeated_count: int = Field(
         default=3,
         ge=1,
+        le=1000,
         description="This many outliers within outliers_window_frames -> REPEATED_OUTLIERS "
         "(DEGRADED); this many in a row restart the filter on the newest measurement",
     )
     outliers_window_frames: int = Field(
         default=10,
         ge=1,
+        le=1000,
         description="Window over which outliers are counted for REPEATED_OUTLIERS, camera frames",
     )
     slope_filter_restart_after_s: float = Field(
         default=0.5,
         gt=0.0,
+        le=10.0,
         description="With no accepted measurement for this long the estimate expires (no "
         "extrapolation) and the next measurement restarts the filter, s",
     )
     center_offset_time_constant_s: float = Field(
         default=0.1,
         ge=0.0,
+        le=10.0,
         description="Low-pass time constant of the centre offset used for steering, s (0: no "
         "filtering)",
     )
@@ -98,6 +106,7 @@ class SupervisorConfig(BaseModel):
     low_confidence_degrade_frames: int = Field(
         default=3,
         ge=1,
+        le=300,
         description="k: frames in a row below confidence_degrade_below before DEGRADED, camera "
         "frames",
     )
@@ -111,12 +120,14 @@ class SupervisorConfig(BaseModel):
     engage_confident_frames: int = Field(
         default=10,
         ge=1,
+        le=300,
         description="N: confident frames in a row before a start or resume engages FOLLOW, "
         "camera frames",
     )
     recover_confident_frames: int = Field(
         default=5,
         ge=1,
+        le=300,
         description="m: confident frames in a row before DEGRADED recovers to FOLLOW, camera "
         "frames",
     )
@@ -125,12 +136,14 @@ class SupervisorConfig(BaseModel):
     turn_enter_slope_sum: float = Field(
         default=6.0,
         gt=0.0,
+        le=100.0,
         description="Enter TURN_LEFT/TURN_RIGHT when the filtered slope sum passes +- this "
         "(the lecture's 6)",
     )
     turn_exit_slope_sum: float = Field(
         default=4.0,
         ge=0.0,
+        le=100.0,
         description="Leave a turn for FOLLOW when the filtered slope sum is back inside +- this "
         "(below turn_enter_slope_sum)",
     )
@@ -139,43 +152,51 @@ class SupervisorConfig(BaseModel):
     camera_period_s: float = Field(
         default=1.0 / 30.0,
         gt=0.0,
+        le=1.0,
         description="Expected camera frame period, also the runner's control-loop period, s",
     )
     loop_overrun_s: float = Field(
         default=0.1,
         gt=0.0,
+        le=2.0,
         description="Step-to-step time above this gives LOOP_OVERRUN (a warning) and caps the "
         "limiter's dt, s",
     )
     frame_late_s: float = Field(
         default=0.08,
         gt=0.0,
+        le=1.0,
         description="Newest frame older than this gives FRAME_LATE (DEGRADED), s",
     )
     frame_stale_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=1.0,
         description="Newest frame older than this gives FRAME_STALE (HALT), s",
     )
     frame_frozen_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=2.0,
         description="Identical images for this long while commanded to move give FRAME_FROZEN "
         "(HALT), s",
     )
     base_feedback_late_s: float = Field(
         default=0.1,
         gt=0.0,
+        le=1.0,
         description="Newest base feedback older than this gives BASE_FEEDBACK_LATE (DEGRADED), s",
     )
     base_link_timeout_s: float = Field(
         default=0.2,
         gt=0.0,
+        le=1.0,
         description="No base feedback for this long gives BASE_LINK_LOST (HALT), s",
     )
     lane_lost_halt_s: float = Field(
         default=0.2,
         gt=0.0,
+        le=1.0,
         description="Halt (LANE_LOST) when engaged with no usable lane for longer than this, by "
         "capture time, s",
     )
@@ -190,16 +211,19 @@ class SupervisorConfig(BaseModel):
     degraded_max_angular_rad_s: float = Field(
         default=0.4,
         gt=0.0,
+        le=3.2,
         description="DEGRADED clips its steering to +- this, rad/s",
     )
     degraded_budget_s: float = Field(
         default=2.0,
         gt=0.0,
+        le=10.0,
         description="Staying DEGRADED longer than this halts (DEGRADED_BUDGET_EXHAUSTED), s",
     )
     degraded_budget_m: float = Field(
         default=0.3,
         gt=0.0,
+        le=2.0,
         description="Driving further than this while DEGRADED (commanded speed x dt) halts, m",
     )
 
@@ -207,27 +231,32 @@ class SupervisorConfig(BaseModel):
     follow_speed_m_s: float = Field(
         default=0.2,
         gt=0.0,
+        le=0.7,
         description="Forward speed in FOLLOW, m/s (at most max_linear_m_s)",
     )
     slope_sum_gain_rad_s: float = Field(
         default=0.03,
         ge=0.0,
+        le=1.0,
         description="Left-turn rate per unit of filtered slope sum, rad/s",
     )
     center_offset_gain_rad_s: float = Field(
         default=1.0,
         ge=0.0,
+        le=10.0,
         description="Right-turn rate per half image width of filtered centre offset, rad/s",
     )
     turn_speed_m_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=0.7,
         description="Forward speed in TURN_LEFT/TURN_RIGHT and in the lecture controller's "
         "turns, m/s (at most max_linear_m_s)",
     )
     turn_extra_angular_rad_s: float = Field(
         default=0.2,
         ge=0.0,
+        le=3.2,
         description="TURN_LEFT/TURN_RIGHT add this to the proportional steering, rad/s",
     )
 
@@ -235,21 +264,25 @@ class SupervisorConfig(BaseModel):
     max_linear_m_s: float = Field(
         default=0.3,
         gt=0.0,
+        le=0.7,
         description="Limiter cap on the commanded linear speed, m/s",
     )
     max_angular_rad_s: float = Field(
         default=1.0,
         gt=0.0,
+        le=3.2,
         description="Limiter cap on the commanded angular speed, rad/s",
     )
     max_linear_accel_m_s2: float = Field(
         default=0.3,
         gt=0.0,
+        le=5.0,
         description="Limiter ramp for increases of linear speed, m/s^2 (decreases pass at once)",
     )
     max_angular_accel_rad_s2: float = Field(
         default=3.5,
         gt=0.0,
+        le=50.0,
         description="Limiter ramp for increases of angular speed, rad/s^2 (decreases pass at "
         "once)",
     )
@@ -265,11 +298,13 @@ class SupervisorConfig(BaseModel):
     lecture_slope_sum_threshold: float = Field(
         default=6.0,
         gt=0.0,
+        le=100.0,
         description="Lecture controller: turn left above + this raw slope sum, right below - this",
     )
     lecture_turn_angular_rad_s: float = Field(
         default=0.4,
         gt=0.0,
+        le=3.2,
         description="Lecture controller: fixed turn rate while turning, rad/s",
     )
 

@@ -30,7 +30,8 @@ from tqdm import tqdm
 from lanewarden.camera_source import open_camera, quiet_opencv
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.errors import OutputError, QualityGateError, UsageError
+from lanewarden.image_files import read_image
 from lanewarden.perception.calibration import save_calibration, save_ros_camera_info
 from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
 from lanewarden.perception.calibration_config import CalibrationConfig
@@ -80,27 +81,16 @@ class PatternType(click.ParamType):
 PATTERN = PatternType()
 
 
+#: Largest chessboard square `--square` accepts, metres.
+MAX_SQUARE_M = 1.0
+
+
 def _positive_length(ctx: click.Context, param: click.Parameter, value: float | None) -> Any:
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise click.BadParameter(f"{value!r} m: expected a positive square size in metres")
+    if value is not None and not (math.isfinite(value) and 0 < value <= MAX_SQUARE_M):
+        raise click.BadParameter(
+            f"{value!r} m: expected a positive square size in metres, at most {MAX_SQUARE_M:g}"
+        )
     return value
-
-
-def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> tuple[np.ndarray | None, str]:
-    """Decode an image file: (image, "") or (None, why it cannot be used)."""
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError as exc:
-        return None, f"cannot read file ({exc.strerror or exc})"
-    if data.size == 0:
-        return None, "empty file, not an image"
-    try:
-        image = cv2.imdecode(data, flags)
-    except cv2.error:
-        image = None
-    if image is None or image.size == 0:
-        return None, "not a readable image"
-    return image, ""
 
 
 def expand_images(pattern: str) -> list[Path]:
@@ -252,9 +242,12 @@ def run_calibration(
     payload = run_as_json(run, failures)
     ros_path = out.with_name(out.stem + ".ros.yaml") if ros else None
     if not failures:
-        save_calibration(run.calibration, out)
-        if ros_path is not None:
-            save_ros_camera_info(run.calibration, ros_path, camera_name=out.stem)
+        try:
+            save_calibration(run.calibration, out)
+            if ros_path is not None:
+                save_ros_camera_info(run.calibration, ros_path, camera_name=out.stem)
+        except PerceptionError as exc:  # the calibration is good; writing it failed
+            raise OutputError(str(exc)) from None
     payload["calibration_file"] = None if failures else str(out)
     payload["ros_file"] = None if failures or ros_path is None else str(ros_path)
     if as_json:
@@ -378,7 +371,7 @@ def run_capture(
                     )
             path = out_dir / f"view_{index:03d}.jpg"
             if not cv2.imwrite(str(path), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
-                raise PerceptionError(f"{path}: cannot write captured view")
+                raise OutputError(f"{path}: cannot write captured view")
             index += 1
             kept.append(decision.placement)
             outcome["kept"] += 1
@@ -403,9 +396,9 @@ def run_capture(
 @click.option("--pattern", required=True, type=PATTERN, help="Inner corners, e.g. 9x6.")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=True), metavar="DIR",
               help="Folder for the kept views (view_000.jpg, ...); created if missing.")
-@click.option("--count", default=25, show_default=True, type=click.IntRange(min=1),
+@click.option("--count", default=25, show_default=True, type=click.IntRange(1, 1000),
               help="Stop after keeping this many views.")
-@click.option("--max-frames", type=click.IntRange(min=1), default=None,
+@click.option("--max-frames", type=click.IntRange(1, 10_000_000), default=None,
               help="Stop after reading this many frames (default: until the source ends).")
 @config_option
 def capture_command(

@@ -12,9 +12,11 @@ undistorted, image; slope in the lecture's y-up convention). `decision`: "straig
 "right" or "none" (below `perception.confidence.min_confidence`, or an edge missing).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
 
-Unusable images (missing, empty, not an image, a folder, wrong size for the calibration) are
-skipped and reported together at the end as one error line naming each file; the exit code is
-then non-zero. Only file I/O and printing live here; the work is `perception.detector`.
+Unusable images (missing, empty, not an image, a folder, more pixels than
+`perception.max_image_pixels`, wrong size for the calibration) are skipped and reported together
+at the end as one error line naming each file; the exit code is then 2 (1 when an overlay could not
+be written). The calibration is checked as `run` checks it (`require_usable_calibration`). Only
+file I/O and printing live here; the work is `perception.detector`.
 """
 
 from __future__ import annotations
@@ -26,11 +28,16 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import check_output_folder, read_image
+from lanewarden.commands.calibrate import check_output_folder
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from lanewarden.perception.calibration import Undistorter, load_calibration
-from lanewarden.perception.config import PerceptionConfig
+from lanewarden.errors import InputFileError, OutputError
+from lanewarden.image_files import read_image
+from lanewarden.perception.calibration import (
+    Undistorter,
+    load_calibration,
+    require_usable_calibration,
+)
 from lanewarden.perception.decision import decide
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionError
@@ -91,10 +98,14 @@ def detect_command(
 
     Example: lanewarden detect frames/*.png --json --out annotated/
     """
-    config: PerceptionConfig = load_config(config_path).perception
+    full_config = load_config(config_path)
+    config = full_config.perception
     undistorter = None
     if calibration_path is not None:
-        undistorter = Undistorter(load_calibration(calibration_path))
+        calibration = load_calibration(calibration_path)
+        require_usable_calibration(calibration, calibration.image_size, full_config.calibration,
+                                   f"--calibration {calibration_path}")
+        undistorter = Undistorter(calibration)
     out = None
     if out_dir is not None:
         out = Path(out_dir)
@@ -102,9 +113,10 @@ def detect_command(
         out.mkdir(exist_ok=True)
     detector = LaneDetector(config, undistorter)
     failures: list[str] = []
+    unwritten: list[str] = []
     for index, name in enumerate(images):
         path = Path(name)
-        image, why = read_image(path)
+        image, why = read_image(path, max_pixels=config.max_image_pixels)
         if image is None:
             failures.append(f"{path}: {why}")
             continue
@@ -126,9 +138,11 @@ def detect_command(
             target = out / f"{path.stem}_detect.png"
             overlay = draw_overlay(debug.image, observation, debug, decision)
             if not cv2.imwrite(str(target), overlay):
-                failures.append(f"{target}: cannot write image")
+                unwritten.append(f"{target}: cannot write image")
+    if unwritten:  # a runtime failure (exit 1) outranks bad input files
+        raise OutputError("; ".join([*unwritten, *failures]))
     if failures:
-        raise PerceptionError(
+        raise InputFileError(
             f"{len(failures)} of {len(images)} images not analysed: {'; '.join(failures)}"
         )
 

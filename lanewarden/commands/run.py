@@ -7,8 +7,12 @@ from pathlib import Path
 import click
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import FiniteRange
 from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+
+#: Longest `--duration` of one run (a day); without it the run lasts until stopped.
+MAX_RUN_DURATION_S = 86_400.0
 
 
 @click.command("run")
@@ -23,8 +27,9 @@ from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
               "loss: for comparison on a safe track only).")
 @click.option("--log", "log_path", type=click.Path(dir_okay=False, path_type=Path),
               default=Path("run.jsonl"), show_default=True, help="Per-frame record (JSON lines).")
-@click.option("--duration", "duration_s", type=click.FloatRange(min=0.0, min_open=True),
-              default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", "duration_s", default=None,
+              type=FiniteRange(0.0, MAX_RUN_DURATION_S, "s", low_open=True),
+              help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
 def run_command(camera: str, port: str | None, calibration_path: str | None, controller: str,
                 log_path: Path, duration_s: float | None, config_path: str | None) -> None:

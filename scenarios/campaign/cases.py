@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from lanewarden.documents import read_yaml_document, validation_error_lines
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.spec import (
@@ -35,7 +36,6 @@ from lanewarden.scenarios.spec import (
     merge_overrides,
     parse_scenario,
 )
-from lanewarden.scenarios.yaml_documents import read_yaml_document, validation_error_lines
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -49,7 +49,7 @@ START_UP_S = 2.0
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class CameraChoice(_Model):
@@ -146,7 +146,7 @@ def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(validation_error_lines(str(path), exc)) from None
+        raise ScenarioError(validation_error_lines(str(path), exc, model)) from None
 
 
 def _check_draws(spec: CampaignSpec, path: Path) -> None:

@@ -174,7 +174,8 @@ def test_failed_gates_print_json_then_exit_2(
     ("text", "expected"),
     [
         ("calibration:\n  max_rms: 2\n", "unknown key 'calibration.max_rms'"),
-        ("calibration:\n  min_views: 1\n", "calibration.min_views = 1: input should be greater"),
+        ("calibration:\n  min_views: 1\n",
+         "calibration.min_views = 1: expected an integer with 3 <= value <= 1000"),
         ("calibration:\n  max_rms_px: -1\n", "calibration.max_rms_px = -1"),
     ],
 )

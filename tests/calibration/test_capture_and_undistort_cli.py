@@ -136,7 +136,7 @@ def test_undistort_bad_inputs(synthetic_views: SyntheticViews, tmp_path: Path,
     code = main(["undistort", str(small), str(junk), str(synthetic_views.folder / "view_01.png"),
                  "--calibration", str(calibration), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 1 and err.count("\n") == 1
+    assert code == 2 and err.count("\n") == 1
     assert "2 of 3 images not undistorted" in err
     assert "small.png: image is 320x240, the calibration" in err and "is for 640x480" in err
     assert "junk.png: not a readable image" in err
@@ -144,7 +144,7 @@ def test_undistort_bad_inputs(synthetic_views: SyntheticViews, tmp_path: Path,
     code = main(["undistort", str(small), "--calibration", str(tmp_path / "none.yaml"),
                  "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 1 and "none.yaml: calibration file not found" in err
+    assert code == 2 and "none.yaml: calibration file not found" in err
 
 
 def test_side_by_side_draws_the_same_lines_on_both() -> None:

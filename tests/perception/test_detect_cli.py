@@ -96,7 +96,7 @@ def test_bad_images_are_named_and_good_results_kept(
         "--json",
     ]
     code, out, err = run(args, capsys)
-    assert code == 1
+    assert code == 2
     assert [json.loads(line)["decision"] for line in out.splitlines()] == ["straight", "right"]
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert err.startswith("lanewarden: error: 4 of 6 images not analysed")
@@ -116,7 +116,7 @@ def test_image_size_differs_from_calibration(
         ["detect", str(frames / "small.png"), "--calibration", str(frames / "camera.yaml")],
         capsys,
     )
-    assert code == 1
+    assert code == 2
     assert f"{frames / 'small.png'}: undistort: image is 320x240" in err
     assert len(err.strip().splitlines()) == 1
 
@@ -126,7 +126,7 @@ def test_image_size_differs_from_calibration(
     [
         (["--config", "{typo}"], 2, "unknown key 'perception.canny.low_treshold'"),
         (["--config", "{nothing}"], 2, "config file not found"),
-        (["--calibration", "{nothing}"], 1, "calibration file not found"),
+        (["--calibration", "{nothing}"], 2, "calibration file not found"),
         (["--out", "{straight}"], 2, "exists and is not a folder"),
     ],
 )

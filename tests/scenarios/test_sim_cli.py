@@ -47,8 +47,8 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path,
     bad.write_text(SHORT.replace("max_time_s: 3", "max_time_s: -3"), encoding="utf-8")
     assert main(["sim", "--scenario", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"lanewarden: error: {bad}: run.max_time_s = -3: input should be greater "
-                   "than 0"]
+    assert err == [f"lanewarden: error: {bad}: run.max_time_s = -3: expected a finite number "
+                   "with 0 < value <= 600"]
 
 
 def test_sim_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
