@@ -53,14 +53,17 @@ class _Model(BaseModel):
 
 
 class CameraChoice(_Model):
-    """One camera a campaign draws from: its name in the results, the render size, and any other
-    `simulation:` settings that go with it (e.g. a coarser floor texture for a small image)."""
+    """One camera a campaign draws from: its name in the results, its relative frequency, the
+    render size, any other `simulation:` settings that go with it (e.g. a coarser floor texture
+    for a small image) and the scenario `camera:` block (pose, field of view, distortion)."""
 
     name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
     weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
     width_px: Annotated[int, Field(ge=64, le=1920)] = 320
     height_px: Annotated[int, Field(ge=48, le=1440)] = 240
     simulation: dict[str, Any] = {}
+    #: the scenario's `camera:` block for this camera (its pose, field of view, distortion)
+    camera: dict[str, Any] = {}
 
 
 class FaultRange(_Model):
@@ -272,6 +275,8 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
         kinds.append(fault.kind)
     data = scenario.model_dump(mode="json", exclude_defaults=True)
     data.pop("expect", None)  # the scenario's expected outcome is without these faults
+    if camera.camera:
+        data["camera"] = merge_overrides(data.get("camera", {}), camera.camera)
     data["faults"] = faults
     data["run"] = merge_overrides(data.get("run", {}), {"max_time_s": max_time})
     config = merge_overrides(dict(config_overrides), spec.config)
