@@ -212,7 +212,12 @@ class Simulation:
         ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
         try:
-            for k in range(ticks):
+            # A run whose time is up while DEGRADED goes on until the supervisor decides (back
+            # to following, or HALT), at most its DEGRADED time budget: otherwise undecided.
+            overtime = int(math.ceil(self.config.supervisor.degraded_budget_s / dt)) + 2
+            for k in range(ticks + overtime):
+                if k >= ticks and (not records or records[-1].state != "DEGRADED"):
+                    break
                 now = k * dt
                 pose, velocity = self._capture(k, now)
                 if k == 0:
