@@ -26,6 +26,7 @@ from typing import Any
 
 def _worker(scenario: str, width: int, height: int, runs: int) -> dict[str, Any]:
     started = time.process_time()
+    from lanewarden.assembly import build_stack
     from lanewarden.config import config_from_mapping
     from lanewarden.scenarios.campaign.run_case import judge
     from lanewarden.scenarios.library import resolve_scenario
@@ -39,7 +40,7 @@ def _worker(scenario: str, width: int, height: int, runs: int) -> dict[str, Any]
     cpu, sim_s = [], []
     for _ in range(runs):
         before = time.process_time()
-        result = Simulation(spec, config, seed=0).run()
+        result = Simulation(spec, config, build_stack, seed=0).run()
         judge(result, config)
         cpu.append(time.process_time() - before)
         sim_s.append(float(result.trace.time_s[-1]))

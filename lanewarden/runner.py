@@ -1,7 +1,8 @@
 """The robot runner: camera -> perception -> supervisor -> Kobuki, on the monotonic clock.
 
 The only place in Lanewarden that reads the wall (monotonic) clock for control and the only loop
-that sleeps. Everything it drives is the same `ControlLoop` the simulator steps on a fake clock.
+that sleeps. Everything it drives is the same stack (lanewarden/assembly.py: detector, controller,
+SafetyGate, `ControlLoop`) the simulator steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
 (and its image size against the calibration), then the base, then an explicit start. On any exit
 (end of duration, Ctrl-C, SIGTERM, an error) the loop is told to stop, the base is closed (which
@@ -19,18 +20,14 @@ from pathlib import Path
 from types import FrameType
 
 from lanewarden.actuation.kobuki_base import KobukiBase
+from lanewarden.assembly import build_stack
 from lanewarden.camera_source import CameraFrameSource, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
-from lanewarden.perception.calibration import (
-    Undistorter,
-    load_calibration,
-    require_usable_calibration,
-)
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.supervisor.clock import MonotonicClock
-from lanewarden.supervisor.controllers import make_controller
+from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
-from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.supervisor.loop import StepRecord
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 FIRST_FRAME_TIMEOUT_S = 3.0
@@ -71,7 +68,7 @@ def run_robot(
     duration_s: float | None,
 ) -> RunSummary:
     clock = MonotonicClock()
-    controller = make_controller(controller_name, config.supervisor)
+    controller_factory(controller_name)  # an unknown name fails here, before the camera opens
     calibration = load_calibration(calibration_path) if calibration_path else None
 
     max_pixels = config.perception.max_image_pixels
@@ -91,12 +88,10 @@ def run_robot(
                 f"({frames.error or 'the camera opened but delivered nothing'})"
             )
         height, width = first.image.shape[:2]
-        undistorter = None
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")
-            undistorter = Undistorter(calibration)
-        detector = LaneDetector(config.perception, undistorter)
+        stack = build_stack(config, controller=controller_name, calibration=calibration)
 
         stop_requested = [False]
         last: StepRecord | None = None
@@ -106,7 +101,7 @@ def run_robot(
             JsonlRecorder(log_path) as recorder,
             _stop_on_signals(stop_requested),
         ):
-            loop = ControlLoop(frames, detector, controller, base, record=recorder)
+            loop = stack.connect(frames, base, recorder)
             started = clock.now()
             loop.start(started)
             next_tick = started

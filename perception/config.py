@@ -463,9 +463,9 @@ class ConfidenceWeights(BaseModel):
 
 
 class ConfidenceConfig(BaseModel):
-    """Confidence score and the threshold below which no decision is made.
+    """How the confidence score is computed (what counts as trusted is the supervisor's call:
+    `supervisor.confidence_usable_min`).
 
-    - `min_confidence`: below it the decision is "none" (and the supervisor must not steer by it).
     - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
       height) gets full support 1; shorter scales linearly.
     - `consistency_offset_tol_frac_of_width` / `consistency_angle_tol_deg`: how far an edge may
@@ -476,12 +476,6 @@ class ConfidenceConfig(BaseModel):
     model_config = _FROZEN
 
     weights: ConfidenceWeights = ConfidenceWeights()
-    min_confidence: Fraction = Field(
-        default=0.5,
-        description=(
-            "below this confidence the decision is 'none' and the lane is not trusted"
-        ),
-    )
     support_full_frac_of_height: PositiveFraction = Field(
         default=0.3,
         description=(
@@ -504,19 +498,6 @@ class ConfidenceConfig(BaseModel):
     )
 
 
-class DecisionConfig(BaseModel):
-    """The lecture's rule: slope sum < -turn_slope_sum -> right, > +turn_slope_sum -> left."""
-
-    model_config = _FROZEN
-
-    turn_slope_sum: Annotated[float, Field(gt=0.0, le=100.0)] = Field(
-        default=6.0,
-        description=(
-            "the lecture's threshold: slope sum below -this turns right, above +this turns left"
-        ),
-    )
-
-
 class PerceptionConfig(BaseModel):
     """Every perception tunable. `opencv_threads`: the process-wide OpenCV thread count that
     `LaneDetector` sets (1 by default, see `perception.detector`; -1 restores OpenCV's default)."""
@@ -531,7 +512,6 @@ class PerceptionConfig(BaseModel):
     tape: TapeConfig = TapeConfig()
     lane: LaneGeometryConfig = LaneGeometryConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
-    decision: DecisionConfig = DecisionConfig()
     opencv_threads: Annotated[int, Field(ge=-1, le=64)] = Field(
         default=1,
         description=(
@@ -546,13 +526,3 @@ class PerceptionConfig(BaseModel):
             "image files are checked from their header before decoding"
         ),
     )
-
-    @model_validator(mode="after")
-    def _slope_clamp_exceeds_threshold(self) -> Self:
-        if self.edges.max_abs_slope * 2 <= self.decision.turn_slope_sum:
-            raise ValueError(
-                f"edges.max_abs_slope ({self.edges.max_abs_slope:g}) is too small for "
-                f"decision.turn_slope_sum ({self.decision.turn_slope_sum:g}): two clamped slopes "
-                "could never reach the turn threshold"
-            )
-        return self

@@ -24,6 +24,7 @@ from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
 
 #: metrics.json keys, in this order first (the issue's names); the rest follow alphabetically.
@@ -37,13 +38,15 @@ METRIC_KEYS = (
 
 @dataclass(frozen=True)
 class RunRequest:
-    """Everything one run needs; picklable, so a worker process can take it."""
+    """Everything one run needs; picklable, so a worker process can take it. `build_stack`: the
+    composition root's (`lanewarden.assembly.build_stack`, a module-level function)."""
 
     spec: ScenarioSpec
     config: LanewardenConfig
     controller: str
     seed: int
     out_dir: Path
+    build_stack: BuildStack
     video: bool = True
     progress: bool = True
     progress_position: int = 0
@@ -95,8 +98,8 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         with JsonlRecorder(out / "run.jsonl") as recorder:
             simulation = Simulation(
-                request.spec, config, controller=request.controller, seed=request.seed,
-                video_path=video_path, record=recorder, progress=progress)
+                request.spec, config, request.build_stack, controller=request.controller,
+                seed=request.seed, video_path=video_path, record=recorder, progress=progress)
             result = simulation.run()
         # The run usually ends before its time limit: show it finished.
         bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0

@@ -1,13 +1,15 @@
 """The closed loop in simulation: the robot's own runtime driven by a synthetic camera and base.
 
     SimBase (true pose) -> CameraRenderer -> SimCamera (faults) -> ControlLoop(LaneDetector,
-    SupervisedController | LectureController) -> SimBase
+    SafetyGate(SupervisedController | LectureController)) -> SimBase
 
 On a fake clock at the camera rate: each tick advances the simulated base to `now`, renders the
 frame the camera sees at the true pose, applies the scenario's faults, and calls
 `loop.step(now)` (the same step the robot runner calls). `loop.start(0)` is the explicit start;
-the supervisor engages by itself after its confident frames. Perception undistorts with the true
-calibration of the simulated camera. Ground-truth metrics come from the world (`metrics`).
+the supervisor engages by itself after its confident frames. The stack between camera and base
+(detector, controller, gate, loop) is not wired here: it comes from the composition root's
+`build_stack` (lanewarden/assembly.py), passed in by the caller, with the true calibration of the
+simulated camera for perception to undistort with. Ground-truth metrics come from the world.
 
 Never reads a clock (wall time is measured by the caller) and never writes files itself: the
 run's records, video frames and progress go to callbacks the caller passes.
@@ -26,10 +28,7 @@ from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
-from lanewarden.perception.calibration import CameraCalibration, Undistorter
-from lanewarden.perception.decision import decide
-from lanewarden.perception.detector import DetectionDebug, LaneDetector
-from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.overlay import draw_overlay
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.fault_link import FaultyLink
@@ -45,10 +44,10 @@ from lanewarden.scenarios.texture import (
     with_marks,
 )
 from lanewarden.scenarios.world import World, build_world
-from lanewarden.supervisor.controllers import make_controller
-from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.supervisor.loop import StepRecord
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
     from lanewarden.scenarios.video import VideoRecorder
 
@@ -62,23 +61,6 @@ WORLD_EDGE_MARGIN_M = 1.0
 DISPLAY_TEXTURE_FACTOR = 2
 #: Below this the base counts as at rest (for ending a run after a HALT).
 AT_REST_M_S = 1e-3
-
-
-class DetectionTap:
-    """The real detector, run through `detect_debug` so a recording can draw its overlay.
-
-    Satisfies the loop's Detector protocol and returns exactly what `detect` would return."""
-
-    def __init__(self, detector: LaneDetector) -> None:
-        self._detector = detector
-        self.last: tuple[int, LaneObservation, DetectionDebug] | None = None
-
-    def detect(self, image: np.ndarray, frame_index: int, time_s: float,
-               previous: LaneObservation | None = None) -> LaneObservation:
-        self.last = None
-        observation, debug = self._detector.detect_debug(image, frame_index, time_s, previous)
-        self.last = (frame_index, observation, debug)
-        return observation
 
 
 @dataclass
@@ -111,12 +93,16 @@ def sim_camera_model(config: LanewardenConfig) -> CameraModel:
 
 
 class Simulation:
-    """One run of one scenario with one controller. Build, then `run()` once."""
+    """One run of one scenario with one controller. Build, then `run()` once.
+
+    `build_stack`: the composition root's `lanewarden.assembly.build_stack` (passed in, so this
+    layer never imports the CLI side)."""
 
     def __init__(
         self,
         spec: ScenarioSpec,
         config: LanewardenConfig,
+        build_stack: BuildStack,
         *,
         controller: str = "supervised",
         seed: int = 0,
@@ -144,19 +130,18 @@ class Simulation:
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
         w, h = self.camera.width_px, self.camera.height_px
-        self.undistorter = Undistorter(CameraCalibration(
+        calibration = CameraCalibration(
             camera_matrix=self.camera.camera_matrix(), dist_coeffs=self.camera.distortion(),
-            image_size=(w, h)))
-        self.detector = LaneDetector(config.perception, self.undistorter)
+            image_size=(w, h))
+        self.stack = build_stack(config, controller=controller, calibration=calibration,
+                                 debug_tap=video_path is not None)
+        self.detector = self.stack.detector
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
         self.link = FaultyLink(self.base, config.actuation.write_timeout_s, seed)
-        self.controller = make_controller(controller, config.supervisor)
         shape: tuple[int, ...] = (h, w, 3) if sim.perception_color else (h, w)
         self.sim_camera = SimCamera(shape, camera_pool_size(spec.faults, sim.camera_rate_hz))
         self.faults = FaultSchedule(spec.faults, self.world, shape)
-        self._tap = DetectionTap(self.detector) if video_path is not None else None
-        self.loop = ControlLoop(self.sim_camera, self._tap or self.detector, self.controller,
-                                self.link, record=record)
+        self.loop = self.stack.connect(self.sim_camera, self.link, record)
         self.roi_polygon_px = self._roi_polygon()
         self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
         self._video: VideoRecorder | None = None
@@ -286,10 +271,10 @@ class Simulation:
         assert self._video is not None
         assert self._display is not None
         undistorted = self._display.render_bgr(pose, self._view_bgr)
-        tap = self._tap.last if self._tap is not None else None
+        tap = self.stack.tap.last if self.stack.tap is not None else None
         if tap is not None and tap[0] == k and record.observation is not None:
             _, observation, debug = tap
-            decision = decide(observation, self.config.perception)
+            decision = self.stack.decide(observation)
             panel = draw_overlay(undistorted, observation, debug, decision)
         else:
             panel = undistorted

@@ -4,7 +4,12 @@ Units are in the names (`_s` seconds, `_m` metres, `_m_s` m/s, `_rad_s` rad/s, `
 frames). Slope sums are in the lecture's convention (dimensionless, positive = the lane bends left);
 `center_offset` is in half image widths (see `perception.observation.LaneObservation`). Confidences
 are in [0, 1]. Cross-field rules (exit below enter, late below stale, ...) are checked here, so a
-bad combination is refused at start-up, before anything moves.
+bad combination is refused at start-up, before anything moves; rules across sections (the limiter's
+caps within the base's limits, the camera period against the simulated camera's rate, the turn
+threshold against perception's slope clamp) in `lanewarden.config.LanewardenConfig`.
+
+This section owns the thresholds that decide what is trusted and when to turn; perception only
+reports slopes and a confidence.
 
 Never read a clock or a file here: this is data.
 """
@@ -94,7 +99,8 @@ class SupervisorConfig(BaseModel):
         ge=0.0,
         le=1.0,
         description="Below this confidence (0-1) a frame has no usable lane (LANE_UNTRUSTED; "
-        "counts towards lane_lost_halt_s)",
+        "counts towards lane_lost_halt_s); the one trust threshold: perception only reports "
+        "confidence, and `lanewarden detect` and the overlay decide 'none' below this",
     )
     confidence_degrade_below: float = Field(
         default=0.45,
@@ -137,8 +143,9 @@ class SupervisorConfig(BaseModel):
         default=6.0,
         gt=0.0,
         le=100.0,
-        description="Enter TURN_LEFT/TURN_RIGHT when the filtered slope sum passes +- this "
-        "(the lecture's 6)",
+        description="The lecture's 6, its one home: enter TURN_LEFT/TURN_RIGHT when the filtered "
+        "slope sum passes +- this; the lecture controller turns beyond +- this raw slope sum, and "
+        "`lanewarden detect` and the video overlay decide left/right with it",
     )
     turn_exit_slope_sum: float = Field(
         default=4.0,
@@ -153,7 +160,8 @@ class SupervisorConfig(BaseModel):
         default=1.0 / 30.0,
         gt=0.0,
         le=1.0,
-        description="Expected camera frame period, also the runner's control-loop period, s",
+        description="Expected camera frame period, also the runner's control-loop period, s "
+        "(must match simulation.camera_rate_hz, checked at load)",
     )
     loop_overrun_s: float = Field(
         default=0.1,
@@ -232,7 +240,7 @@ class SupervisorConfig(BaseModel):
         default=0.2,
         gt=0.0,
         le=0.7,
-        description="Forward speed in FOLLOW, m/s (at most max_linear_m_s)",
+        description="Forward speed in FOLLOW, m/s (at most limiter_max_linear_m_s)",
     )
     slope_sum_gain_rad_s: float = Field(
         default=0.03,
@@ -251,7 +259,7 @@ class SupervisorConfig(BaseModel):
         gt=0.0,
         le=0.7,
         description="Forward speed in TURN_LEFT/TURN_RIGHT and in the lecture controller's "
-        "turns, m/s (at most max_linear_m_s)",
+        "turns, m/s (at most limiter_max_linear_m_s)",
     )
     turn_extra_angular_rad_s: float = Field(
         default=0.2,
@@ -260,18 +268,20 @@ class SupervisorConfig(BaseModel):
         description="TURN_LEFT/TURN_RIGHT add this to the proportional steering, rad/s",
     )
 
-    # --- Command limiter (the Kobuki velocity smoother's 0.3 m/s^2 and 3.5 rad/s^2) ---
-    max_linear_m_s: float = Field(
+    # --- Command limiter in the SafetyGate (the Kobuki velocity smoother: 0.3 m/s^2, 3.5 rad/s^2)
+    limiter_max_linear_m_s: float = Field(
         default=0.3,
         gt=0.0,
         le=0.7,
-        description="Limiter cap on the commanded linear speed, m/s",
+        description="The gate's cap on a controller's linear speed, m/s; at most "
+        "actuation.max_linear_m_s (the base's own limit, checked at load)",
     )
-    max_angular_rad_s: float = Field(
+    limiter_max_angular_rad_s: float = Field(
         default=1.0,
         gt=0.0,
         le=3.2,
-        description="Limiter cap on the commanded angular speed, rad/s",
+        description="The gate's cap on a controller's angular speed, rad/s; at most "
+        "actuation.max_angular_rad_s (the base's own limit, checked at load)",
     )
     max_linear_accel_m_s2: float = Field(
         default=0.3,
@@ -294,13 +304,7 @@ class SupervisorConfig(BaseModel):
         "confident frames are seen (no other halt is forgiven)",
     )
 
-    # --- The lecture's baseline controller (--controller lecture) ---
-    lecture_slope_sum_threshold: float = Field(
-        default=6.0,
-        gt=0.0,
-        le=100.0,
-        description="Lecture controller: turn left above + this raw slope sum, right below - this",
-    )
+    # --- The lecture's baseline controller (--controller lecture; it turns at turn_enter_slope_sum)
     lecture_turn_angular_rad_s: float = Field(
         default=0.4,
         gt=0.0,
@@ -346,14 +350,14 @@ class SupervisorConfig(BaseModel):
         )
         for name in ("follow_speed_m_s", "turn_speed_m_s"):
             require(
-                getattr(self, name) <= self.max_linear_m_s,
-                f"{name} ({getattr(self, name)}) must not exceed max_linear_m_s "
-                f"({self.max_linear_m_s})",
+                getattr(self, name) <= self.limiter_max_linear_m_s,
+                f"{name} ({getattr(self, name)}) must not exceed limiter_max_linear_m_s "
+                f"({self.limiter_max_linear_m_s})",
             )
         require(
-            self.degraded_max_angular_rad_s <= self.max_angular_rad_s,
+            self.degraded_max_angular_rad_s <= self.limiter_max_angular_rad_s,
             f"degraded_max_angular_rad_s ({self.degraded_max_angular_rad_s}) must not exceed "
-            f"max_angular_rad_s ({self.max_angular_rad_s})",
+            f"limiter_max_angular_rad_s ({self.limiter_max_angular_rad_s})",
         )
         if problems:
             raise ValueError("; ".join(problems))

@@ -1,9 +1,11 @@
 """`lanewarden base info` and `lanewarden base drive`: bringing up a real Kobuki.
 
 A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
-time.monotonic here). `drive` bypasses the supervisor on purpose (it is a bring-up tool), so it
-validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop, and always
-stops on exit, Ctrl-C included. Never talks to the serial port itself.
+time.monotonic here). `drive` has no camera and no supervisor state machine (it is a bring-up
+tool), but its command goes through the same SafetyGate as every controller's, in bring-up mode
+(lanewarden/assembly.py `build_bring_up_gate`): ramped up, capped at the Kobuki's limits its flags
+are validated against, halted on bumper/cliff/wheel drop/lost link; and it always stops on exit,
+Ctrl-C included. Never talks to the serial port itself.
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
+from lanewarden.assembly import build_bring_up_gate
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
+from lanewarden.supervisor.control_io import ControlInputs
 
 #: How long `info` counts feedback packets to measure the stream rate.
 RATE_WINDOW_S = 1.0
@@ -112,15 +116,6 @@ def _check_range(flag: str, value: float, limit: float, unit: str) -> None:
             param_hint=f"'{flag}'")
 
 
-def _hazard(feedback: BaseFeedback) -> str | None:
-    for what, bits, names in (("bumper pressed", feedback.bumper, BUMPER_NAMES),
-                              ("cliff detected", feedback.cliff, CLIFF_NAMES),
-                              ("wheel dropped", feedback.wheel_drop, WHEEL_DROP_NAMES)):
-        if bits:
-            return f"{what} ({', '.join(_bit_names(bits, names))})"
-    return None
-
-
 @base_group.command("drive")
 @click.option("--port", default=None, help=PORT_HELP)
 @click.option("--linear", "linear_m_s", type=float, required=True, help="forward speed, m/s")
@@ -131,23 +126,24 @@ def _hazard(feedback: BaseFeedback) -> str | None:
 def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s: float,
           config_path: str | None) -> None:
     """Drive at a constant velocity, then stop (Ctrl-C stops at once)."""
-    config = load_config(config_path).actuation
+    full_config = load_config(config_path)
+    config = full_config.actuation
     _check_range("--linear", linear_m_s, config.max_linear_m_s, "m/s")
     _check_range("--angular", angular_rad_s, config.max_angular_rad_s, "rad/s")
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= MAX_DRIVE_DURATION_S):
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
-    command = VelocityCommand(linear_m_s, angular_rad_s)
+    gate = build_bring_up_gate(full_config, VelocityCommand(linear_m_s, angular_rad_s))
     with KobukiBase.open(port, config=config, request_versions=False) as base:
         # Ctrl-C (KeyboardInterrupt) and every error leave through `with`: close() stops the base
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
-            hazard = _hazard(base.feedback(now))
-            if hazard is not None:
-                base.send(STOP, now)
+            allowed = gate.step(ControlInputs(feedback=base.feedback(now),
+                                              start_requested=now == start_s), now)
+            base.send(allowed.command, now)
+            if allowed.state == "HALT":
                 raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
-                                     f"{hazard}")
-            base.send(command, now)
+                                     f"{allowed.halt_reason}")
             base.wait_for(lambda b: b.link_lost is not None,
                           min(DRIVE_PERIOD_S, max(0.0, start_s + duration_s - now)))
             now = time.monotonic()

@@ -17,6 +17,7 @@ from typing import Any
 
 import click
 
+from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import UsageError
@@ -81,8 +82,8 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or LOCAL
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
-    plan = CampaignPlan(spec=spec, spec_path=spec_path, seed=seed, runs=runs or 100,
-                        out_dir=out, config_overrides=overrides,
+    plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
+                        runs=runs or 100, out_dir=out, config_overrides=overrides,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
                         worker_memory_limit_mb=config.campaign.worker_memory_limit_mb)
     bar: Any = None

@@ -9,7 +9,8 @@ each line is one JSON object:
 
 `left` / `right`: null or {"x1", "y1", "x2", "y2", "slope"} (pixels of the analysed, i.e.
 undistorted, image; slope in the lecture's y-up convention). `decision`: "straight", "left",
-"right" or "none" (below `perception.confidence.min_confidence`, or an edge missing).
+"right" or "none" (confidence below `supervisor.confidence_usable_min`, or an edge missing;
+left/right beyond `supervisor.turn_enter_slope_sum`: the supervisor's thresholds).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
 
 Unusable images (missing, empty, not an image, a folder, more pixels than
@@ -28,6 +29,7 @@ from pathlib import Path
 import click
 import cv2
 
+from lanewarden.assembly import decision_rule
 from lanewarden.commands.calibrate import check_output_folder
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
@@ -38,7 +40,6 @@ from lanewarden.perception.calibration import (
     load_calibration,
     require_usable_calibration,
 )
-from lanewarden.perception.decision import decide
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.observation import LaneEdge, LaneObservation
@@ -100,6 +101,7 @@ def detect_command(
     """
     full_config = load_config(config_path)
     config = full_config.perception
+    decide = decision_rule(full_config)
     undistorter = None
     if calibration_path is not None:
         calibration = load_calibration(calibration_path)
@@ -129,7 +131,7 @@ def detect_command(
         except PerceptionError as exc:
             failures.append(f"{path}: {exc}")
             continue
-        decision = decide(observation, config)
+        decision = decide(observation)
         if as_json:
             _emit(json.dumps(result_json(name, observation, decision)))
         else:

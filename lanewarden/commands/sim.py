@@ -17,6 +17,7 @@ from types import FrameType
 
 import click
 
+from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
@@ -106,7 +107,7 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
         request = RunRequest(
             spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-            video=not no_video, progress=not quiet, source=scenario)
+            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario)
     metrics = run_to_directory(request)
     for line in _summary_lines(metrics):
         click.echo(line)
@@ -148,7 +149,8 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     out = Path(out_dir)
     requests = [
         RunRequest(spec=spec, config=config, controller=name, seed=seed, out_dir=out / name,
-                   video=not no_video, progress=not quiet, progress_position=i)
+                   build_stack=build_stack, video=not no_video, progress=not quiet,
+                   progress_position=i)
         for i, name in enumerate(("lecture", "supervised"))
     ]
     # The two runs are independent: one process each (the machine has two cores). Forked (no
@@ -196,8 +198,8 @@ def _case_request(case_file: str, scenario: str | None, config_path: str | None,
         raise UsageError(str(exc)) from None
     out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"case-{case.id}"
     return RunRequest(spec=spec, config=config, controller=case.controller, seed=case.seed,
-                      out_dir=out, video=not no_video, progress=not quiet, source=case_file,
-                      judge=judge_metrics)
+                      out_dir=out, build_stack=build_stack, video=not no_video,
+                      progress=not quiet, source=case_file, judge=judge_metrics)
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:

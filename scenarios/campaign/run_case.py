@@ -1,7 +1,8 @@
 """One campaign case, run and judged: what a campaign worker executes (and `sim --case` reuses).
 
-`run_case(case_json)` builds the config and scenario from the case, runs the simulation without
-video or plot (nothing a campaign does not need), judges the outcome and returns one result row
+`run_case(case_json, build_stack)` builds the config and scenario from the case, runs the
+simulation without video or plot (nothing a campaign does not need) with the composition root's
+stack, judges the outcome and returns one result row
 (plain JSON-ready data). Any exception inside the run becomes an `error` row with its one-line
 reason: a worker never dies of a bad case. CPU and wall time are measured here for the report
 (they never feed the simulation).
@@ -20,6 +21,7 @@ from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.campaign.outcome import Limits, RunFacts, Verdict, classify
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
     from lanewarden.scenarios.simulator import SimulationResult
 
@@ -56,8 +58,9 @@ def case_config(case: Case, source: str) -> LanewardenConfig:
     return config_from_mapping(case.config, f"{source}: config")
 
 
-def run_case(case_json: str) -> dict[str, Any]:
-    """Run one case (its JSON) and return its result row."""
+def run_case(case_json: str, build_stack: BuildStack) -> dict[str, Any]:
+    """Run one case (its JSON) with the composition root's `build_stack` and return its result
+    row."""
     started_cpu, started_wall = time.process_time(), time.perf_counter()
     case = Case.model_validate_json(case_json)
     row: dict[str, Any] = {
@@ -70,7 +73,8 @@ def run_case(case_json: str) -> dict[str, Any]:
 
         spec = case.scenario_spec(case.id)
         config = effective_config(case_config(case, case.id), spec)
-        result = Simulation(spec, config, controller=case.controller, seed=case.seed).run()
+        result = Simulation(spec, config, build_stack, controller=case.controller,
+                            seed=case.seed).run()
         verdict = judge(result, config)
     except Exception as exc:  # a bad case is an error row, never a dead worker
         text = " ".join(str(exc).split())

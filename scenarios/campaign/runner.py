@@ -20,7 +20,7 @@ from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from lanewarden.scenarios.campaign.cases import (
     CampaignSpec,
@@ -33,6 +33,9 @@ from lanewarden.scenarios.campaign.run_case import run_case
 from lanewarden.scenarios.campaign.store import ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 
+if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
+
 #: `--scheduler` value that runs every case in this process, one after the other (no Dask).
 IN_PROCESS = "in-process"
 #: `--scheduler` value (the default) that starts a LocalCluster sized to this machine.
@@ -42,8 +45,10 @@ SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 
 @dataclass(frozen=True)
 class CampaignPlan:
-    """Everything a campaign needs; `config_overrides` is the --config file's content."""
+    """Everything a campaign needs; `config_overrides` is the --config file's content,
+    `build_stack` the composition root's (`lanewarden.assembly.build_stack`, sent to workers)."""
 
+    build_stack: BuildStack
     spec: CampaignSpec
     spec_path: Path
     seed: int
@@ -119,7 +124,8 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
             progress.counts[str(row["outcome"])] += 1
         if on_start is not None:
             on_start(progress, describe_scheduler(scheduler, workers))
-        for row in _execute(pending, scheduler, workers, plan.worker_memory_limit_mb):
+        for row in _execute(pending, plan.build_stack, scheduler, workers,
+                            plan.worker_memory_limit_mb):
             store.put(row)
             progress.done += 1
             progress.counts[str(row["outcome"])] += 1
@@ -136,19 +142,19 @@ def describe_scheduler(scheduler: str, workers: int | None) -> str:
     return f"Dask scheduler {scheduler}"
 
 
-def _execute(cases: list[Case], scheduler: str, workers: int | None,
+def _execute(cases: list[Case], build_stack: BuildStack, scheduler: str, workers: int | None,
              memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     if not cases:
         return
     if scheduler == IN_PROCESS:
         for case in cases:
-            yield run_case(case.model_dump_json())
+            yield run_case(case.model_dump_json(), build_stack)
         return
-    yield from _execute_on_dask(cases, scheduler, workers, memory_limit_mb)
+    yield from _execute_on_dask(cases, build_stack, scheduler, workers, memory_limit_mb)
 
 
-def _execute_on_dask(cases: list[Case], scheduler: str, workers: int | None,
-                     memory_limit_mb: int) -> Iterator[dict[str, Any]]:
+def _execute_on_dask(cases: list[Case], build_stack: BuildStack, scheduler: str,
+                     workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     import dask
     from distributed import Client, LocalCluster, as_completed
 
@@ -171,7 +177,8 @@ def _execute_on_dask(cases: list[Case], scheduler: str, workers: int | None,
         by_key = {}
         futures = []
         for case in cases:
-            future = client.submit(run_case, case.model_dump_json(), pure=False, retries=0,
+            future = client.submit(run_case, case.model_dump_json(), build_stack, pure=False,
+                                   retries=0,
                                    key=f"lanewarden-case-{case.id}-{os.getpid()}-{id(case)}")
             by_key[future.key] = case
             futures.append(future)

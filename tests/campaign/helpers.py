@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from lanewarden.assembly import build_stack
 from lanewarden.config import config_from_mapping
 from lanewarden.scenarios.campaign.outcome import Verdict
 from lanewarden.scenarios.campaign.run_case import judge
@@ -22,5 +23,5 @@ def fault_scenario(faults: list[dict[str, Any]], max_time_s: float = 4.5,
 
 def run_judged(spec: ScenarioSpec, seed: int = 0) -> tuple[SimulationResult, Verdict]:
     config = effective_config(config_from_mapping(SMALL_CONFIG), spec)
-    result = Simulation(spec, config, seed=seed).run()
+    result = Simulation(spec, config, build_stack, seed=seed).run()
     return result, judge(result, config)

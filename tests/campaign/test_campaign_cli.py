@@ -50,9 +50,9 @@ def test_a_rerun_resumes_and_runs_only_what_is_missing(
     ran: list[str] = []
     real = runner_module.run_case
 
-    def counting(case_json: str) -> dict[str, object]:
+    def counting(case_json: str, build_stack: object) -> dict[str, object]:
         ran.append(json.loads(case_json)["id"])
-        return real(case_json)
+        return real(case_json, build_stack)  # type: ignore[arg-type]
 
     monkeypatch.setattr(runner_module, "run_case", counting)
     assert main([*args, "--runs", "3"]) == 0
@@ -66,11 +66,11 @@ def test_interrupted_campaign_leaves_a_resumable_file(
     real = runner_module.run_case
     calls = []
 
-    def interrupt_second(case_json: str) -> dict[str, object]:
+    def interrupt_second(case_json: str, build_stack: object) -> dict[str, object]:
         calls.append(case_json)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        return real(case_json)
+        return real(case_json, build_stack)  # type: ignore[arg-type]
 
     monkeypatch.setattr(runner_module, "run_case", interrupt_second)
     args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7", "--runs",

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from lanewarden.assembly import build_stack
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
 from lanewarden.scenarios.campaign.run_case import DETERMINISTIC_COLUMNS
 from lanewarden.scenarios.campaign.runner import IN_PROCESS, LOCAL, CampaignPlan, run_campaign
@@ -30,8 +31,9 @@ WAIT_S = 120.0
 
 def plan(spec_path: Path, out: Path, runs: int) -> CampaignPlan:
     spec, path = load_campaign_spec(str(spec_path))
-    return CampaignPlan(spec=spec, spec_path=path, seed=11, runs=runs, out_dir=out,
-                        config_overrides={}, follow_speed_m_s=0.2, worker_memory_limit_mb=1024)
+    return CampaignPlan(build_stack=build_stack, spec=spec, spec_path=path, seed=11, runs=runs,
+                        out_dir=out, config_overrides={}, follow_speed_m_s=0.2,
+                        worker_memory_limit_mb=1024)
 
 
 def deterministic(out: Path) -> list[tuple[object, ...]]:

@@ -8,7 +8,7 @@ from types import MappingProxyType
 
 import pytest
 
-from lanewarden.config import LanewardenConfig, load_config
+from lanewarden.config import load_config
 from lanewarden.errors import ConfigError
 from lanewarden.perception.confidence import COMPONENT_NAMES, combine
 from lanewarden.perception.config import PerceptionConfig
@@ -27,9 +27,10 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("roi: {polygon_norm: [[0, 1], [0.5, 1], [1, 1]]}", "zero area"),
         ("roi: {polygon_norm: [[0, 5], [1, 5], [0.5, 4]]}", "within [-2, 3]"),
         ("tape: {width_min_frac_of_width: 0.2}", "width_min_frac_of_width (0.2) <="),
-        ("confidence: {min_confidence: 1.5}", "perception.confidence.min_confidence = 1.5"),
+        ("confidence: {min_confidence: 0.5}",
+         "unknown key 'perception.confidence.min_confidence'"),  # trust is the supervisor's
         ("confidence: {weights: {tape_pair: -1}}", "perception.confidence.weights.tape_pair"),
-        ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),
+        ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),  # vs supervisor
         ("hough: {votes_frac_of_height: 0}", "perception.hough.votes_frac_of_height = 0"),
     ],
 )
@@ -50,15 +51,12 @@ def test_defaults_round_trip_and_partial_override(tmp_path: Path) -> None:
     path.write_text(
         "perception:\n"
         "  blur: {kernel_px: 7}\n"
-        "  decision: {turn_slope_sum: 5.0}\n"
         "  roi: {polygon_norm: [[0, 1], [1, 1], [0.5, 0.3]]}\n"
     )
     config = load_config(path).perception
     assert config.blur.kernel_px == 7
-    assert config.decision.turn_slope_sum == 5.0
     assert config.roi.polygon_norm == ((0.0, 1.0), (1.0, 1.0), (0.5, 0.3))
     assert config.canny == PerceptionConfig().canny  # untouched sections keep defaults
-    assert LanewardenConfig().perception.decision.turn_slope_sum == 6.0
 
 
 def _components(**overrides: float) -> MappingProxyType[str, float]:
@@ -106,9 +104,13 @@ def _observation(slope_sum: float | None, confidence: float) -> LaneObservation:
         (-6.0, 0.9, "straight"),  # the lecture: strictly below -6 turns right
         (-6.01, 0.9, "right"),
         (6.01, 0.9, "left"),
-        (-11.0, 0.49, "none"),  # below min_confidence: no decision, however strong
+        (-11.0, 0.49, "right"),
+        (-11.0, 0.19, "none"),  # below the trust threshold: no decision, however strong
         (None, 1.0, "none"),
     ],
 )
 def test_decision_rule(slope_sum: float | None, confidence: float, expected: str) -> None:
-    assert decide(_observation(slope_sum, confidence), PerceptionConfig()) == expected
+    # The thresholds are the supervisor's (confidence_usable_min 0.2, turn_enter_slope_sum 6),
+    # passed in by the composition root.
+    observation = _observation(slope_sum, confidence)
+    assert decide(observation, trust_min_confidence=0.2, turn_slope_sum=6.0) == expected

@@ -12,6 +12,7 @@ from functools import cache
 
 import pytest
 
+from lanewarden.assembly import build_stack
 from lanewarden.config import LanewardenConfig
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.library import library_names, resolve_scenario
@@ -39,7 +40,7 @@ def run(name: str, seed: int, controller: str = "supervised") -> SimulationResul
     if name not in NATIVE_ONLY:
         base = with_overrides(base, FAST, "test")
     config = effective_config(base, spec)
-    return Simulation(spec, config, controller=controller, seed=seed).run()
+    return Simulation(spec, config, build_stack, controller=controller, seed=seed).run()
 
 
 def assert_safe(result: SimulationResult) -> None:
@@ -103,7 +104,7 @@ def test_seed_changes_the_run_and_same_seed_repeats_it() -> None:
         r.observation.slope_sum for r in b[20:40] if r.observation]
     spec = resolve_scenario("straight")
     config = effective_config(with_overrides(LanewardenConfig(), FAST, "test"), spec)
-    again = Simulation(spec, config, seed=0).run()
+    again = Simulation(spec, config, build_stack, seed=0).run()
     assert [r.as_json() for r in again.records] == [r.as_json() for r in a]
 
 
@@ -115,7 +116,7 @@ def test_perception_sees_the_same_lane_in_colour_and_in_gray() -> None:
     for colour in (False, True):
         fast = {"simulation": {**FAST["simulation"], "perception_color": colour}}
         config = effective_config(with_overrides(LanewardenConfig(), fast, "test"), spec)
-        results.append(Simulation(spec, config, seed=2).run())
+        results.append(Simulation(spec, config, build_stack, seed=2).run())
     gray, colour = ([r.observation for r in res.records if r.observation is not None]
                     for res in results)
     assert len(gray) == len(colour) > 50

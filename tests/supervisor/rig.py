@@ -20,6 +20,7 @@ from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
 from lanewarden.supervisor.controller import SupervisedController
 from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import Frame
 
 DT = 1.0 / 30.0
@@ -54,11 +55,13 @@ _UNSET = object()
 
 
 class Rig:
-    """A SupervisedController stepped at 30 Hz on a fake clock with hand-made inputs."""
+    """A SupervisedController behind its SafetyGate (as every run has it), stepped at 30 Hz on a
+    fake clock with hand-made inputs. Outputs are the gate's (what would reach the base)."""
 
     def __init__(self, config: SupervisorConfig | None = None) -> None:
         self.config = config or SupervisorConfig()
         self.controller = SupervisedController(self.config)
+        self.gate = SafetyGate(self.controller, self.config)
         self.clock = FakeClock()
         self.index = -1
         self.frame: FrameInfo | None = None
@@ -116,7 +119,7 @@ class Rig:
             )
         fb = BaseFeedback(received_at_s=now) if feedback is _UNSET else feedback
         assert fb is None or isinstance(fb, BaseFeedback)
-        out = self.controller.step(
+        out = self.gate.step(
             ControlInputs(
                 frame=self.frame,
                 observation=observation_,
