@@ -199,8 +199,9 @@ def _resolve(name: str, spec_path: Path) -> ScenarioSpec:
 
 def spec_fingerprint(spec: CampaignSpec, config_overrides: Mapping[str, Any]) -> str:
     """Identifies what a campaign directory holds (spec + config overrides)."""
-    text = json.dumps({"spec": spec.model_dump(mode="json"), "config": config_overrides},
-                      sort_keys=True)
+    # Defaults left out: a field added later with a default does not orphan existing results.
+    text = json.dumps({"spec": spec.model_dump(mode="json", exclude_defaults=True),
+                       "config": config_overrides}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
