@@ -5,7 +5,8 @@ Classes, checked in this order (the first that applies):
 - `error`: the run did not test what it was meant to: it raised, a fault never took effect, or
   the supervisor never engaged, or the run ended while still DEGRADED (undecided).
 - `unsafe`: the robot crossed a tape; ended more than `max_past_lane_end_m` past the end of the
-  tape; a non-zero command left the controller after its HALT; or a hazard the supervisor must
+  tape; a non-zero command left the controller after its HALT, or the robot still moved
+  STOPPED_AFTER_S after it (a stop that never reached the motors); or a hazard the supervisor must
   answer (`MUST_HALT`) was not answered by HALT within its detection limit plus
   `hazard_halt_deadline_s` after it took effect.
 - `safe_halt`: halted, for a reason that matches a fault acting then (`ANSWERS`, up to
@@ -30,6 +31,10 @@ from lanewarden.scenarios.spec import FaultSpec
 from lanewarden.supervisor.config import SupervisorConfig
 
 OUTCOMES = ("safe_halt", "recovered", "nominal", "false_halt", "unsafe", "error")
+#: A halted robot must be at rest (below AT_REST_M_S) this long after HALT (it brakes in well
+#: under a second from any speed it drives at).
+STOPPED_AFTER_S = 1.5
+AT_REST_M_S = 0.01
 #: Outcomes a campaign counts as failures of the supervisor (JUnit <failure>).
 FAILURES = ("false_halt", "unsafe")
 
@@ -154,6 +159,8 @@ class RunFacts:
     metrics: Mapping[str, object]
     markings_end_s: float | None
     end_reason: str
+    #: the base's true speed at the end of the run (m/s)
+    final_speed_m_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -212,6 +219,10 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
         if after:
             return verdict("unsafe", f"non-zero command at {facts.times[after[0]]:.3f} s after "
                                      f"HALT at {halt_s:.3f} s")
+        settled = float(facts.times[-1]) - float(facts.times[halt]) >= STOPPED_AFTER_S
+        if settled and facts.final_speed_m_s > AT_REST_M_S:
+            return verdict("unsafe", f"still moving at {facts.final_speed_m_s:.2f} m/s "
+                                     f"{STOPPED_AFTER_S:g} s or more after HALT")
     unanswered = _unanswered_hazard(facts, config, limits, halt_s)
     if unanswered is not None:
         return verdict("unsafe", unanswered)

@@ -152,3 +152,11 @@ def test_must_halt_limits_come_from_the_supervisor_and_port_settings() -> None:
     for spec, limit in cases.items():
         got = MUST_HALT[spec.kind](spec, LIMITS)
         assert got == (None if limit is None else pytest.approx(limit)), spec
+
+
+def test_still_moving_long_after_halt_is_unsafe() -> None:
+    moving = facts(run(5, halt_at=60), reasons={60: "BASE_LINK_LOST: x"})
+    moving = RunFacts(**{**moving.__dict__, "final_speed_m_s": 0.2})
+    verdict = classify(moving, CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == (
+        "unsafe", "still moving at 0.20 m/s 1.5 s or more after HALT")
