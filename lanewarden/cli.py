@@ -15,16 +15,18 @@ import click
 
 from lanewarden import __version__
 from lanewarden.commands import register_commands
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.errors import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
     EXIT_OK,
     USER_ERRORS,
+    Interrupted,
     exit_code_for,
 )
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=CommandGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="lanewarden")
 def cli() -> None:
     """Lanewarden: follow a taped lane with a Kobuki and a camera, and stop when unsure."""
@@ -56,6 +58,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except click.ClickException as exc:
         _error(exc.format_message())
         return exc.exit_code
+    except Interrupted as exc:
+        _error(f"interrupted: {exc}")
+        return EXIT_INTERRUPTED
     except USER_ERRORS as exc:
         _error(str(exc))
         return exit_code_for(exc)

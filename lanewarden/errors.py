@@ -48,12 +48,18 @@ class OutputError(Exception):
     """An output file that cannot be written (exit code 1: the input was fine)."""
 
 
+class Interrupted(Exception):
+    """Ctrl-C during a command that has something to say about it, e.g. which outputs are
+    partial (exit code 130). The message follows "interrupted: "."""
+
+
 class DeviceError(Exception):
     """A device (camera) that cannot be opened or delivers nothing (exit code 1)."""
 
 
 #: The exit code of every error a user can meet; the first row whose type matches decides.
 EXIT_CODE_BY_ERROR: tuple[tuple[type[Exception], int], ...] = (
+    (Interrupted, EXIT_INTERRUPTED),
     (ConfigError, EXIT_BAD_INPUT),
     (UsageError, EXIT_BAD_INPUT),
     (InputFileError, EXIT_BAD_INPUT),

@@ -9,12 +9,15 @@ command can report every bad file in one line. Never prints.
 
 from __future__ import annotations
 
+import glob
 import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 
 #: The config key of the limit, named in the messages.
 LIMIT_KEY = "perception.max_image_pixels"
@@ -68,3 +71,13 @@ def read_image(
                                                           max_pixels)):
         return None, why
     return image, ""
+
+
+def expand_images(pattern: str) -> list[Path]:
+    """Files matching a glob (or every file in a folder), sorted; folders are skipped."""
+    base = Path(pattern).expanduser()
+    if base.is_dir():
+        candidates = [p for p in base.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
+    else:
+        candidates = [Path(p) for p in glob.glob(str(base), recursive=True)]
+    return sorted(p for p in candidates if not p.is_dir())

@@ -32,6 +32,8 @@ class CalibrationConfig(BaseModel):
     - `capture_min_novelty`: `calibrate capture` keeps a frame only when its board differs from
       every kept one by at least this much (L1 distance of position, size and tilt, each
       normalised to about 0..1).
+    - `max_ground_error_m`: gate of `calibrate ground` from a floor chessboard: the RMS distance
+      on the floor between the board's corners and where the solved pose puts them, metres.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -114,4 +116,11 @@ class CalibrationConfig(BaseModel):
         le=5.0,
         description="`calibrate capture` keeps a frame only when its board differs from every "
         "kept one by at least this (L1 of normalised position, size and tilt)",
+    )
+    max_ground_error_m: float = Field(
+        default=0.01,
+        gt=0.0,
+        le=0.1,
+        description="Gate of `calibrate ground` (floor chessboard): largest RMS distance on the "
+        "floor between the board's corners and where the solved camera pose puts them, m",
     )

@@ -28,15 +28,15 @@ from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
-from lanewarden.perception.calibration import CameraCalibration
-from lanewarden.perception.overlay import draw_overlay
+from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.fault_link import FaultyLink
 from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
-from lanewarden.scenarios.spec import RunSpec, ScenarioSpec, with_overrides
+from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
 from lanewarden.scenarios.texture import (
     GroundTexture,
     paint_ground,
@@ -83,13 +83,32 @@ class SimulationResult:
 
 def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
                      source: str | None = None) -> LanewardenConfig:
-    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides."""
-    return with_overrides(config, spec.config, source or f"scenario {spec.name}")
+    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides;
+    a camera block's size becomes `simulation.width_px`/`height_px` (the render size's one home
+    during the run)."""
+    where = source or f"scenario {spec.name}"
+    config = with_overrides(config, spec.config, where)
+    camera = spec.camera
+    if camera is not None and camera.width_px is not None:
+        config = with_overrides(config, {"simulation": {
+            "width_px": camera.width_px, "height_px": camera.height_px}}, where)
+    return config
 
 
-def sim_camera_model(config: LanewardenConfig) -> CameraModel:
-    """The simulated camera: CameraModel's geometry at the configured resolution."""
-    return CameraModel(width_px=config.simulation.width_px, height_px=config.simulation.height_px)
+def sim_camera_model(config: LanewardenConfig, camera: CameraSpec | None = None) -> CameraModel:
+    """The simulated camera: the scenario's camera block (default: CameraModel's geometry) at
+    the configured resolution (see `effective_config`)."""
+    width, height = config.simulation.width_px, config.simulation.height_px
+    if camera is None:
+        return CameraModel(width_px=width, height_px=height)
+    if camera.width_px is not None and (camera.width_px, camera.height_px) != (width, height):
+        raise ScenarioError(
+            f"camera block: {camera.width_px}x{camera.height_px} px but the config renders "
+            f"{width}x{height} px (build the config with effective_config)")
+    return CameraModel(width_px=width, height_px=height, hfov_deg=camera.hfov_deg,
+                       height_m=camera.height_m, pitch_down_deg=camera.pitch_deg,
+                       roll_deg=camera.roll_deg, forward_offset_m=camera.forward_m,
+                       dist_coeffs=camera.distortion)
 
 
 class Simulation:
@@ -116,7 +135,7 @@ class Simulation:
         self.seed = seed
         self._progress = progress
         sim = config.simulation
-        self.camera = sim_camera_model(config)
+        self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
         # The painted floor depends only on these (and is reused by a campaign's worker); floor
         # faults are painted over a copy.
@@ -130,10 +149,8 @@ class Simulation:
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
         w, h = self.camera.width_px, self.camera.height_px
-        calibration = CameraCalibration(
-            camera_matrix=self.camera.camera_matrix(), dist_coeffs=self.camera.distortion(),
-            image_size=(w, h))
-        self.stack = build_stack(config, controller=controller, calibration=calibration,
+        self.calibration = self.camera.calibration()  # with its ground pose, as on a robot
+        self.stack = build_stack(config, controller=controller, calibration=self.calibration,
                                  debug_tap=video_path is not None)
         self.detector = self.stack.detector
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
@@ -184,9 +201,7 @@ class Simulation:
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
                 sim.camera_rate_hz / video_every, sim.video.crf,
-                sim.video.preset)
-        else:
-            map_view = None
+                sim.video.preset, title=f"scenario {spec.name}, {self.controller_name} controller")
 
         times: list[float] = []
         poses: list[tuple[float, float, float]] = []
@@ -220,8 +235,8 @@ class Simulation:
                     # Only the first frame without tape in view matters (metrics): stop there.
                     seen = not visible or visible[-1]
                     visible.append(self.visibility.visible(pose) if seen else False)
-                if map_view is not None:
-                    map_view.add_path_point(pose, record.state)
+                if self._video is not None:
+                    self._video.step(pose, record)
                     if k % video_every == 0:
                         self._add_video_frame(k, now, pose, record)
                 if self._progress is not None:
@@ -245,6 +260,9 @@ class Simulation:
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
         metrics["end_reason"] = end_reason
+        if self._video is not None and self._video.poster_shows is not None:
+            metrics["video_poster"] = {"shows": self._video.poster_shows,
+                                       "time_s": self._video.poster_time_s}
         run_end = float(times[-1]) if times else 0.0
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
                                 records, trace, end_reason, dict(self.faults.effects),
@@ -272,25 +290,12 @@ class Simulation:
         assert self._display is not None
         undistorted = self._display.render_bgr(pose, self._view_bgr)
         tap = self.stack.tap.last if self.stack.tap is not None else None
+        detection = None
         if tap is not None and tap[0] == k and record.observation is not None:
             _, observation, debug = tap
-            decision = self.stack.decide(observation)
-            panel = draw_overlay(undistorted, observation, debug, decision)
-        else:
-            panel = undistorted
-        obs = record.observation
-        cmd = record.command
-        lines = [
-            f"{self.spec.name} | {self.controller_name} | t={now:5.1f} s",
-            f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
-        ]
-        if obs is not None:
-            raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
-            filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
-            lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
-        if record.halt_reason and record.state == "HALT":
-            lines.append(record.halt_reason.split(":")[0])
-        self._video.add(panel, pose, record.state, lines)
+            draw_detection(undistorted, observation, debug)
+            detection = (observation, self.stack.decide(observation))
+        self._video.add(undistorted, pose, now, record, detection)
 
 
 class EndConditions:

@@ -1,8 +1,9 @@
 """The scenario file format: what a scenario YAML may say, validated, with every default here.
 
 A scenario is data: the floor, the tapes and the lane they mark (built from straight segments and
-arcs), gaps, dashes and tape ends, the lighting, where the robot starts, when the run stops, the
-faults to inject, optional config overrides, and the expected outcome per controller.
+arcs), gaps, dashes and tape ends, the lighting, the robot's camera, where the robot starts, when
+the run stops, the faults to inject, optional config overrides, and the expected outcome per
+controller.
 
 Units are in the names (`_m`, `_deg`, `_s`). Lane positions (`at_m`, `from_m`, ...) are arc lengths
 along the lane's centre line from its start. Angles: `turn_deg` > 0 turns left (counter-clockwise),
@@ -22,6 +23,13 @@ from typing import Annotated, Any, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from lanewarden.documents import read_yaml_document, validation_error_lines
+from lanewarden.perception.ground import (
+    DEFAULT_HFOV_DEG,
+    DEFAULT_POSE_FORWARD_M,
+    DEFAULT_POSE_HEIGHT_M,
+    DEFAULT_POSE_PITCH_DEG,
+)
+from lanewarden.scenarios.camera import DEFAULT_DIST_COEFFS
 from lanewarden.scenarios.errors import ScenarioError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -243,6 +251,35 @@ class RunSpec(_Model):
     stop_past_lane_end_m: Annotated[float, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = 2.0
 
 
+class CameraSpec(_Model):
+    """The robot's camera (`camera:`); without the block, the simulator's default camera.
+
+    Mount (robot frame, `perception.ground.CameraPose`): `height_m` above the floor, `pitch_deg`
+    down from level, `roll_deg` left side up, `forward_m` ahead of the robot's centre. Lens: an
+    ideal pinhole with `hfov_deg` across the image and OpenCV's `distortion` [k1, k2, p1, p2, k3].
+    `width_px` x `height_px`: the rendered size; when given it is THE render size of this scenario
+    (the config's `simulation.width_px`/`height_px` apply to scenarios that do not give one, and a
+    scenario may not give both). Perception gets this camera's true calibration, ground pose
+    included, as a calibrated robot would.
+    """
+
+    height_m: Annotated[float, Field(gt=0.03, le=2.0)] = DEFAULT_POSE_HEIGHT_M
+    pitch_deg: Annotated[float, Field(ge=0.0, le=85.0)] = DEFAULT_POSE_PITCH_DEG
+    roll_deg: Annotated[float, Field(ge=-30.0, le=30.0)] = 0.0
+    hfov_deg: Annotated[float, Field(ge=20.0, le=150.0)] = DEFAULT_HFOV_DEG
+    forward_m: Annotated[float, Field(ge=-0.5, le=1.0)] = DEFAULT_POSE_FORWARD_M
+    width_px: Annotated[int | None, Field(ge=64, le=1920, multiple_of=2)] = None
+    height_px: Annotated[int | None, Field(ge=48, le=1440, multiple_of=2)] = None
+    distortion: tuple[float, float, float, float, float] = DEFAULT_DIST_COEFFS
+
+    @model_validator(mode="after")
+    def _size_together(self) -> CameraSpec:
+        if (self.width_px is None) != (self.height_px is None):
+            raise ValueError("give width_px and height_px together (or neither: the config's "
+                             "simulation.width_px/height_px)")
+        return self
+
+
 class FaultSpec(_Model):
     """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run); the
     floor hazards (tape_patch, floor_mark, shadow_edge) are placed at lane position `at_m`
@@ -340,11 +377,22 @@ class ScenarioSpec(_Model):
     tape: TapeSpec = TapeSpec()
     lane: LaneSpec
     lighting: LightingSpec = LightingSpec()
+    camera: CameraSpec | None = None
     robot: RobotSpec = RobotSpec()
     run: RunSpec = RunSpec()
     faults: Annotated[list[FaultSpec], Field(max_length=MAX_FAULTS)] = []
     config: dict[str, Any] = {}
     expect: ExpectSpec = ExpectSpec()
+
+    @model_validator(mode="after")
+    def _one_render_size(self) -> ScenarioSpec:
+        simulation = self.config.get("simulation")
+        if self.camera is not None and self.camera.width_px is not None and isinstance(
+                simulation, Mapping) and ({"width_px", "height_px"} & set(simulation)):
+            raise ValueError(
+                "camera.width_px/height_px and config.simulation.width_px/height_px both give "
+                "the render size: give it in one place")
+        return self
 
 
 def merge_overrides(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:

@@ -4,14 +4,18 @@ A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, 
 time.monotonic here). `drive` has no camera and no supervisor state machine (it is a bring-up
 tool), but its command goes through the same SafetyGate as every controller's, in bring-up mode
 (lanewarden/assembly.py `build_bring_up_gate`): ramped up, capped at the Kobuki's limits its flags
-are validated against, halted on bumper/cliff/wheel drop/lost link; and it always stops on exit,
-Ctrl-C included. Never talks to the serial port itself.
+are validated against, halted on bumper/cliff/wheel drop/lost link (feedback older than
+`supervisor.base_link_timeout_s`: a silent base or a frozen dead-man). It always stops on exit:
+Ctrl-C, SIGTERM, SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first,
+then suspends, and the drive does not resume after SIGCONT (exit 130). Never talks to the serial
+port itself.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import signal
 import time
 from typing import Any
 
@@ -22,8 +26,11 @@ from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
 from lanewarden.assembly import build_bring_up_gate
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
+from lanewarden.errors import EXIT_INTERRUPTED
+from lanewarden.stop_signals import SignalRequests, signal_requests, suspend
 from lanewarden.supervisor.control_io import ControlInputs
 
 #: How long `info` counts feedback packets to measure the stream rate.
@@ -47,7 +54,7 @@ WHEEL_DROP_NAMES = {WheelDrop.LEFT: "left", WheelDrop.RIGHT: "right"}
 BUTTON_NAMES = {1: "B0", 2: "B1", 4: "B2"}
 
 
-@click.group("base")
+@click.group("base", cls=CommandGroup)
 def base_group() -> None:
     """Talk to a real Kobuki base over its serial port."""
 
@@ -116,6 +123,25 @@ def _check_range(flag: str, value: float, limit: float, unit: str) -> None:
             param_hint=f"'{flag}'")
 
 
+class DriveInterrupted(click.ClickException):
+    """A signal ended the drive (after the base was stopped)."""
+
+    exit_code = EXIT_INTERRUPTED
+
+
+def _act_on_signals(base: KobukiBase, requests: SignalRequests, now: float) -> None:
+    """Stop signals end the drive; Ctrl-Z stops the base, suspends, and ends it after SIGCONT."""
+    if requests.suspend:
+        base.hold_stopped(now)  # stop on the wire and held by the dead-man before we freeze
+        suspend()
+        raise DriveInterrupted("interrupted (SIGTSTP): the base was stopped before suspending; "
+                               "the drive does not resume")
+    if requests.stop is signal.SIGINT:
+        raise KeyboardInterrupt
+    if requests.stop is not None:
+        raise DriveInterrupted(f"interrupted ({requests.stop.name})")
+
+
 @base_group.command("drive")
 @click.option("--port", default=None, help=PORT_HELP)
 @click.option("--linear", "linear_m_s", type=float, required=True, help="forward speed, m/s")
@@ -134,10 +160,15 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
     gate = build_bring_up_gate(full_config, VelocityCommand(linear_m_s, angular_rad_s))
-    with KobukiBase.open(port, config=config, request_versions=False) as base:
-        # Ctrl-C (KeyboardInterrupt) and every error leave through `with`: close() stops the base
+    with (KobukiBase.open(port, config=config, request_versions=False) as base,
+          signal_requests() as requests):
+        # signals and every error leave through `with`: close() stops the base
+        warning = base.priority_warning()
+        if warning is not None:
+            click.echo(f"lanewarden: warning: {warning}", err=True)
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
+            _act_on_signals(base, requests, now)
             allowed = gate.step(ControlInputs(feedback=base.feedback(now),
                                               start_requested=now == start_s), now)
             base.send(allowed.command, now)

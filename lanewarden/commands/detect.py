@@ -30,8 +30,8 @@ import click
 import cv2
 
 from lanewarden.assembly import decision_rule
-from lanewarden.commands.calibrate import check_output_folder
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import InputFileError, OutputError
 from lanewarden.image_files import read_image
@@ -110,9 +110,7 @@ def detect_command(
         undistorter = Undistorter(calibration)
     out = None
     if out_dir is not None:
-        out = Path(out_dir)
-        check_output_folder(out)
-        out.mkdir(exist_ok=True)
+        out = create_output_folder(Path(out_dir))
     detector = LaneDetector(config, undistorter)
     failures: list[str] = []
     unwritten: list[str] = []

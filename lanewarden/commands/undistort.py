@@ -18,11 +18,11 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import IMAGE_SUFFIXES, check_output_folder
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import InputFileError, OutputError
-from lanewarden.image_files import read_image
+from lanewarden.image_files import IMAGE_SUFFIXES, read_image
 from lanewarden.perception.calibration import (
     Undistorter,
     load_calibration,
@@ -55,10 +55,8 @@ def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: s
     calibration = load_calibration(calibration_path)
     require_usable_calibration(calibration, calibration.image_size, config.calibration,
                                f"--calibration {calibration_path}")
-    out = Path(out_dir)
-    check_output_folder(out)
+    out = create_output_folder(Path(out_dir))
     undistorter = Undistorter(calibration)
-    out.mkdir(exist_ok=True)
     failures: list[str] = []
     width, height = calibration.image_size
     for name in images:

@@ -28,9 +28,9 @@ SEEDS = (0, 1)
 #: on resolution. Tiled-floor bends run at the camera's native 640x480: perception does not yet
 #: hold the lane through them at 320x240 (see docs/scenarios.md, "Known gaps").
 FAST = {"simulation": {"width_px": 320, "height_px": 240, "texture_mm_per_px": 5.0}}
-NATIVE_ONLY = {"lecture", "s-curve"}
+NATIVE_ONLY = {"lecture", "s-curve", "wide-bends"}
 #: The demo test already runs `lecture` seed 0 at 640x480; here another seed.
-SEEDS_FOR = {"lecture": (1,)}
+SEEDS_FOR = {"lecture": (1,), "wide-bends": (1,)}
 
 
 @cache
