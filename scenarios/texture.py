@@ -91,25 +91,18 @@ STRIP_ROWS = 128
 
 class _SmoothNoise:
     """Zero-mean, unit-ish noise varying over `cell_px` pixels: a random grid (drawn once),
-    bicubic-interpolated at any pixel, so it can be evaluated one strip of rows at a time."""
+    bicubic-upsampled to the floor's size once (float32: the one full-size float layer kept,
+    so the floor is the same as when it was painted whole) and read one strip at a time."""
 
     def __init__(self, rng: np.random.Generator, shape: tuple[int, int], cell_px: float) -> None:
         h, w = shape
         gh, gw = max(2, int(h / cell_px) + 2), max(2, int(w / cell_px) + 2)
         grid = rng.standard_normal((gh, gw)).astype(np.float32)
-        # Across the columns once (gh x w is small); down the rows per strip.
-        self._cols = np.asarray(cv2.resize(grid, (w, gh), interpolation=cv2.INTER_CUBIC),
+        self._full = np.asarray(cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC),
                                 dtype=np.float32)
-        self._scale_y = gh / h
-        self._w = w
 
     def rows(self, r0: int, r1: int) -> F32:
-        ys = ((np.arange(r0, r1, dtype=np.float32) + 0.5) * self._scale_y - 0.5)
-        map_y = np.ascontiguousarray(np.broadcast_to(ys[:, None], (r1 - r0, self._w)))
-        map_x = np.ascontiguousarray(np.broadcast_to(
-            np.arange(self._w, dtype=np.float32)[None, :], (r1 - r0, self._w)))
-        return np.asarray(cv2.remap(self._cols, map_x, map_y, cv2.INTER_CUBIC,
-                                    borderMode=cv2.BORDER_REPLICATE), dtype=np.float32)
+        return self._full[r0:r1]
 
 
 class _FineNoise:
