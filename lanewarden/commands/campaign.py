@@ -39,7 +39,7 @@ EXAMPLES = """\b
 Examples:
   lanewarden campaign --spec default --out campaign-out --runs 200
   lanewarden campaign --spec my-spec.yaml --out big --runs 5000 --scheduler tcp://10.0.0.5:8786
-  lanewarden sim --case campaign-out/cases/r00042.yaml      # rerun one case, with video
+  lanewarden sim --case campaign-out/cases/r00042.yaml
 """
 
 

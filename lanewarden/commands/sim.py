@@ -93,7 +93,7 @@ Examples:
   lanewarden sim --scenario lane-ends
   lanewarden sim --scenario lecture --controller lecture --seed 3 --out out/lecture
   lanewarden sim --scenario my-track.yaml --no-video --check
-  lanewarden sim --case campaign-out/cases/r00042.yaml   # one campaign run, exactly, with video
+  lanewarden sim --case campaign-out/cases/r00042.yaml
 """
 
 
