@@ -21,6 +21,7 @@ from lanewarden.documents import allowed_range, read_yaml_document, validation_e
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
 from lanewarden.supervisor.config import SupervisorConfig
 
@@ -35,6 +36,7 @@ class LanewardenConfig(BaseModel):
     supervisor: SupervisorConfig = SupervisorConfig()
     actuation: ActuationConfig = ActuationConfig()
     simulation: SimulationConfig = SimulationConfig()
+    campaign: CampaignConfig = CampaignConfig()
 
     @model_validator(mode="after")
     def _sections_agree(self) -> Self:

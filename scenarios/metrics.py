@@ -89,10 +89,14 @@ class TapeVisibility:
         self._max_range_m = 8.0
 
     def visible(self, pose: Pose2D) -> bool:
-        if len(self._samples) == 0:
+        return self.visible_points(pose, self._samples)
+
+    def visible_points(self, pose: Pose2D, samples: FloatArray) -> bool:
+        """Is any of `samples` (N, 2) world metres inside the ROI at `pose`?"""
+        if len(samples) == 0:
             return False
         c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
-        rel = self._samples - (pose.x_m, pose.y_m)
+        rel = samples - (pose.x_m, pose.y_m)
         fx = rel[:, 0] * c + rel[:, 1] * s
         fy = -rel[:, 0] * s + rel[:, 1] * c
         near = (fx > 0.0) & (fx < self._max_range_m) & (np.abs(fy) < self._max_range_m)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -57,6 +58,9 @@ class RunRequest:
     progress: bool = True
     progress_position: int = 0
     source: str | None = None
+    #: more metrics from the finished run (e.g. a campaign case's outcome); a module-level
+    #: function, so the request stays picklable
+    judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
 
 
 def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyped-def]
@@ -106,6 +110,8 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         bar.close()
     write_run_plot(out / "plot.png", result, config)
     metrics = dict(result.metrics)
+    if request.judge is not None:
+        metrics.update(request.judge(result, config))
     expect = getattr(request.spec.expect, request.controller, None)
     failures = None if expect is None else check_expectation(metrics, expect)
     outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]

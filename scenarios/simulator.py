@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,19 +31,25 @@ from lanewarden.actuation.sim_base import SimBase, SimBaseParams
 from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.errors import ScenarioError
-from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
+from lanewarden.scenarios.fault_link import FaultyLink
+from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
 from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
-from lanewarden.scenarios.texture import GroundTexture, paint_ground
-from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+from lanewarden.scenarios.texture import (
+    GroundTexture,
+    paint_ground,
+    paint_ground_cached,
+    with_marks,
+)
 from lanewarden.scenarios.world import World, build_world
 from lanewarden.supervisor.loop import StepRecord
 
 if TYPE_CHECKING:
     from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
+    from lanewarden.scenarios.video import VideoRecorder
 
 U8 = NDArray[np.uint8]
 
@@ -69,6 +75,10 @@ class SimulationResult:
     records: list[StepRecord]
     trace: RunTrace
     end_reason: str
+    #: the first frame where each fault took effect (by its place in the scenario's list)
+    fault_effects: dict[int, FaultEffect] = field(default_factory=dict)
+    #: (index, kind, from_s, to_s) while each fault that took effect was acting
+    fault_windows: list[tuple[int, str, float, float]] = field(default_factory=list)
 
 
 def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
@@ -127,8 +137,14 @@ class Simulation:
         sim = config.simulation
         self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
-        self.texture: GroundTexture = paint_ground(
-            self.world, sim.texture_mm_per_px / 1000.0, seed, color=sim.perception_color)
+        # The painted floor depends only on these (and is reused by a campaign's worker); floor
+        # faults are painted over a copy.
+        floor_key = spec.model_dump_json(include={"floor", "tape", "lane", "lighting"}) + repr(
+            sim.world_margin_m)
+        self.texture: GroundTexture = with_marks(
+            paint_ground_cached(self.world, floor_key, sim.texture_mm_per_px / 1000.0, seed,
+                                color=sim.perception_color),
+            floor_marks(self.world, spec.faults))
         self.renderer = CameraRenderer(
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
@@ -138,10 +154,11 @@ class Simulation:
                                  debug_tap=video_path is not None)
         self.detector = self.stack.detector
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
+        self.link = FaultyLink(self.base, config.actuation.write_timeout_s, seed)
         shape: tuple[int, ...] = (h, w, 3) if sim.perception_color else (h, w)
         self.sim_camera = SimCamera(shape, camera_pool_size(spec.faults, sim.camera_rate_hz))
-        self.faults = FaultSchedule(spec.faults)
-        self.loop = self.stack.connect(self.sim_camera, self.base, record)
+        self.faults = FaultSchedule(spec.faults, self.world, shape)
+        self.loop = self.stack.connect(self.sim_camera, self.link, record)
         self.roi_polygon_px = self._roi_polygon()
         self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
         self._video: VideoRecorder | None = None
@@ -154,9 +171,9 @@ class Simulation:
         self._display: CameraRenderer | None = None
         self.display_texture: GroundTexture | None = None
         if video_path is not None:
-            self.display_texture = paint_ground(
+            self.display_texture = with_marks(paint_ground(
                 self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
-                color=True)
+                color=True), floor_marks(self.world, spec.faults))
             self._display = CameraRenderer(
                 self.display_texture, self.camera, noise_sigma=0.0, exposure_s=0.0, seed=seed,
                 distorted=False)
@@ -176,6 +193,8 @@ class Simulation:
         ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
         video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
         if self._video_path is not None:
+            from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+
             assert self.display_texture is not None
             map_view = MapView(self.world, self.display_texture, sim.video.map_size_px,
                                roi_ground_outline(self.camera, self.roi_polygon_px))
@@ -193,14 +212,21 @@ class Simulation:
         ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
         try:
-            for k in range(ticks):
+            # A run whose time is up while DEGRADED goes on until the supervisor decides (back
+            # to following, or HALT), at most its DEGRADED time budget: otherwise undecided.
+            overtime = int(math.ceil(self.config.supervisor.degraded_budget_s / dt)) + 2
+            for k in range(ticks + overtime):
+                if k >= ticks and (not records or records[-1].state != "DEGRADED"):
+                    break
                 now = k * dt
                 pose, velocity = self._capture(k, now)
                 if k == 0:
                     self.loop.start(now)
                 if self.faults.loop_stalled:
+                    self.faults.stalled_tick(k, now)
                     continue
                 record = self.loop.step(now)
+                self.faults.observe(k, now, self.sim_camera, self.link, self.visibility, pose)
                 records.append(record)
                 times.append(now)
                 poses.append((pose.x_m, pose.y_m, pose.theta_rad))
@@ -216,6 +242,8 @@ class Simulation:
                 if self._progress is not None:
                     self._progress(now)
                 reason = ending.check(now, record.state, pose, self.base.velocity.linear_m_s)
+                if reason == "halted" and self.faults.pending:
+                    continue  # every fault is applied, even after a halt (or it is unproven)
                 if reason is not None:
                     end_reason = reason
                     break
@@ -235,12 +263,14 @@ class Simulation:
         if self._video is not None and self._video.poster_shows is not None:
             metrics["video_poster"] = {"shows": self._video.poster_shows,
                                        "time_s": self._video.poster_time_s}
+        run_end = float(times[-1]) if times else 0.0
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
-                                records, trace, end_reason)
+                                records, trace, end_reason, dict(self.faults.effects),
+                                self.faults.windows(run_end))
 
     def _capture(self, k: int, now: float) -> tuple[Pose2D, VelocityCommand]:
         """Faults due now, the base moved to now, and the camera's frame at the true pose."""
-        self.faults.apply(now, self.sim_camera, self.base, self.loop)
+        self.faults.apply(now, self.sim_camera, self.link, self.loop, k)
         self.base.advance_to(now)
         pose = self.base.pose
         velocity = self.base.velocity
@@ -251,6 +281,7 @@ class Simulation:
             self.renderer.render_bgr(pose, buffer, motion, noise)
         else:
             self.renderer.render_gray(pose, buffer, motion, noise)
+        self.faults.after_render(k, now, buffer)
         self.sim_camera.capture(k, now)
         return pose, velocity
 

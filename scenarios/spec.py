@@ -61,7 +61,27 @@ FaultKind = Literal[
     "wheel_drop",
     "base_link_loss",
     "operator_stop",
+    # perception hazards on the floor (placed at a lane position, painted into the world)
+    "tape_patch",
+    "floor_mark",
+    "shadow_edge",
+    # perception hazards in the camera's image (a time window)
+    "glare_sweep",
+    "occlusion",
+    "lens_smudge",
+    "exposure_jump",
+    # the camera driver
+    "frame_rate_collapse",
+    "timestamp_jump",
+    # the base and its serial link
+    "link_garbage",
+    "checksum_storm",
+    "write_blocks",
+    "low_battery",
 ]
+
+#: Fault kinds that are things on the floor: placed by `at_m` (lane position), not by time.
+FLOOR_FAULT_KINDS = ("tape_patch", "floor_mark", "shadow_edge")
 
 
 class _Model(BaseModel):
@@ -261,7 +281,9 @@ class CameraSpec(_Model):
 
 
 class FaultSpec(_Model):
-    """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run).
+    """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run); the
+    floor hazards (tape_patch, floor_mark, shadow_edge) are placed at lane position `at_m`
+    instead and are there for the whole run.
 
     - camera_freeze: the camera keeps delivering the same image (with fresh indices and times).
     - camera_drop: no new frames at all (the newest one ages).
@@ -274,13 +296,54 @@ class FaultSpec(_Model):
     - bumper / cliff / wheel_drop: the base reports these bits (`bits`, Kobuki layout).
     - base_link_loss: the base's feedback stops arriving.
     - operator_stop: the operator presses stop (instantaneous).
+    - tape_patch: a piece of lane tape `length_m` long on the floor, its centre line starting
+      `offset_m` left of the lane centre at `at_m`, turned `angle_deg` from the lane direction
+      (0: a second tape beside the lane).
+    - floor_mark: a scuff mark or a cable across the floor at `at_m`: a stripe `width_m` wide,
+      turned `angle_deg` from straight across, darkened by `intensity` (1: as dark as the tape).
+    - shadow_edge: from `at_m` for `length_m` the floor on the `side` of a line `offset_m` left
+      of the lane centre is in shadow (light times 1 - 0.7 * `intensity`): a sharp light edge.
+    - glare_sweep: a bright reflection (`intensity`: up to that fraction of full white added)
+      sweeps across the image from the `side` edge to the other during the fault.
+    - occlusion: something in front of the lens hides the `side` tape from the bottom of the image
+      up to `intensity` of the image height.
+    - lens_smudge: the image is blurred (Gaussian, sigma 0.5 + 6 * `intensity` pixels).
+    - exposure_jump: the image is multiplied by 4 ** (2 * `intensity` - 1) (0.25x .. 4x).
+    - frame_rate_collapse: the camera delivers only `rate_hz` frames per second.
+    - timestamp_jump: the driver's clock jumps: frames are stamped `jump_s` later (or earlier).
+    - link_garbage: `intensity` * 64 random bytes arrive between feedback packets on the serial
+      link (the real framing parser has to resync).
+    - checksum_storm: a fraction `intensity` of the feedback packets arrive with a bad checksum.
+    - write_blocks: writing commands to the serial port blocks: the base keeps executing the
+      command it had; after `actuation.write_timeout_s` the link counts as lost.
+    - low_battery: the battery voltage the base reports drops to `battery_v`.
     """
 
     kind: FaultKind
-    at_s: Annotated[float, Field(ge=0.0)]
-    duration_s: Annotated[float | None, Field(gt=0.0)] = None
+    at_s: Annotated[float, Field(ge=0.0, le=600.0)] = 0.0
+    duration_s: Annotated[float | None, Field(gt=0.0, le=600.0)] = None
     latency_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.5
     bits: Annotated[int, Field(ge=1, le=7)] = 2
+    at_m: Annotated[float | None, Field(ge=0.0, le=MAX_LANE_LENGTH_M)] = None
+    offset_m: Annotated[float, Field(ge=-3.0, le=3.0)] = 0.0
+    length_m: Annotated[float, Field(gt=0.0, le=20.0)] = 1.0
+    width_m: Annotated[float, Field(gt=0.0, le=0.2)] = 0.01
+    angle_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = 0.0
+    side: Literal["left", "right"] = "left"
+    intensity: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    rate_hz: Annotated[float, Field(gt=0.0, le=120.0)] = 5.0
+    jump_s: Annotated[float, Field(ge=-10.0, le=10.0)] = -0.5
+    battery_v: Annotated[float, Field(ge=0.0, le=20.0)] = 12.0
+
+    @model_validator(mode="after")
+    def _placed(self) -> FaultSpec:
+        on_floor = self.kind in FLOOR_FAULT_KINDS
+        if on_floor and self.at_m is None:
+            raise ValueError(f"a {self.kind} fault lies on the floor: expected at_m (lane "
+                             "position, metres), not a time")
+        if not on_floor and self.at_m is not None:
+            raise ValueError(f"at_m: a {self.kind} fault happens at a time: expected at_s")
+        return self
 
 
 class Expectation(_Model):
@@ -332,22 +395,23 @@ class ScenarioSpec(_Model):
         return self
 
 
+def merge_overrides(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """`base` with `extra` merged over it, mapping by mapping (a config-file-shaped override)."""
+    out = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            out[key] = merge_overrides(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
 def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) -> ModelT:
     """`config` (a pydantic model) with a scenario's `config:` block merged over it, validated
     again; a bad key is a ScenarioError naming the file and `config.<key>`."""
     if not overrides:
         return config
-
-    def merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-        out = dict(base)
-        for key, value in extra.items():
-            if isinstance(value, Mapping) and isinstance(out.get(key), dict):
-                out[key] = merge(out[key], value)
-            else:
-                out[key] = value
-        return out
-
-    merged = merge(config.model_dump(), overrides)
+    merged = merge_overrides(config.model_dump(), overrides)
     try:
         return type(config).model_validate(merged)
     except ValidationError as exc:

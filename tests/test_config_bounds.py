@@ -38,7 +38,8 @@ def refusal(path: tuple[str, ...], value: Any) -> str:
 
 def test_the_walk_sees_every_section() -> None:
     sections = {path[0] for path in NUMERIC_KEYS}
-    assert sections == {"perception", "calibration", "supervisor", "actuation", "simulation"}
+    assert sections == {"perception", "calibration", "supervisor", "actuation", "simulation",
+                        "campaign"}
     assert len(NUMERIC_KEYS) >= 120
 
 

@@ -63,6 +63,10 @@ RUN_ELSEWHERE = {
     ("lanewarden replay ../shared/data/donkeycar-tub --config "
      "tests/perception/donkeycar_camera.yaml"):
         "tests/operator/test_replay_sources.py (the same tub and config)",
+    "lanewarden campaign --spec default --out campaign-out --runs 1000":
+        "tests/campaign/test_campaign_cli.py and test_dask.py (small specs; 1000 runs take hours)",
+    "lanewarden sim --case campaign-out/cases/r00042.yaml":
+        "tests/campaign/test_campaign_cli.py (a case of a campaign it runs first)",
 }
 #: Need hardware: parsed, not run.
 NEEDS_HARDWARE = {
@@ -220,7 +224,7 @@ def _help_examples() -> list[str]:
 
 def test_every_help_example_parses() -> None:
     examples = _help_examples()
-    assert len(examples) == 17
+    assert len(examples) == 21
     for example in examples:
         argv, _ = argv_of(example)
         assert parse_only(argv).params, example  # parsed down to the command that runs

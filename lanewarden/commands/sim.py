@@ -93,6 +93,7 @@ Examples:
   lanewarden sim --scenario lane-ends
   lanewarden sim --scenario lecture --controller lecture --seed 3 --out out/lecture
   lanewarden sim --scenario my-track.yaml --no-video --check
+  lanewarden sim --case campaign-out/cases/r00042.yaml
 """
 
 
@@ -101,8 +102,12 @@ def _interrupted(out: Path) -> Interrupted:
 
 
 @click.command("sim", epilog=_scenario_list() + "\n\n" + SIM_EXAMPLES)
-@click.option("--scenario", "scenario", required=True, metavar="NAME|FILE",
+@click.option("--scenario", "scenario", default=None, metavar="NAME|FILE",
               help="A library scenario (names below) or a scenario YAML file.")
+@click.option("--case", "case_file", default=None, metavar="FILE",
+              type=click.Path(dir_okay=False),
+              help="Rerun one campaign case (DIR/cases/<id>.yaml) exactly: its scenario, faults, "
+              "seed, controller and config; prints its outcome class.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
@@ -115,22 +120,32 @@ def _interrupted(out: Path) -> Interrupted:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--check", is_flag=True,
               help="Exit with code 2 if the scenario's expected outcome is not met.")
-def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
-                config_path: str | None, no_video: bool, quiet: bool, check: bool) -> None:
+def sim_command(scenario: str | None, case_file: str | None, controller: str, seed: int,
+                out_dir: str | None, config_path: str | None, no_video: bool, quiet: bool,
+                check: bool) -> None:
     """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4 (and its
     poster.jpg), plot.png and report.html."""
-    config = load_config(config_path)
-    spec = _load_scenario(scenario)
-    out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
+    if case_file is not None:
+        request = _case_request(case_file, scenario, config_path, out_dir, no_video, quiet)
+        spec, controller, out = request.spec, request.controller, request.out_dir
+    else:
+        if scenario is None:
+            raise UsageError("sim: expected --scenario NAME|FILE (or --case FILE)")
+        config = load_config(config_path)
+        spec = _load_scenario(scenario)
+        out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
+        request = RunRequest(
+            spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
+            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario)
     create_output_folder(out)
     try:
-        metrics = run_to_directory(RunRequest(
-            spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario))
+        metrics = run_to_directory(request)
     except KeyboardInterrupt:
         raise _interrupted(out) from None
     for line in _summary_lines(metrics):
         click.echo(line)
+    if case_file is not None:
+        click.echo(f"  outcome: {metrics.get('outcome')} ({metrics.get('outcome_reason')})")
     met = metrics.get("expectation_met")
     if met is not None:
         failures = metrics.get("expectation_failures") or []
@@ -211,6 +226,27 @@ def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
         pool.join()
         signal.signal(signal.SIGTERM, previous)
     return results
+
+
+def _case_request(case_file: str, scenario: str | None, config_path: str | None,
+                  out_dir: str | None, no_video: bool, quiet: bool) -> RunRequest:
+    """The run a campaign case describes; --scenario and --config would change it: refused."""
+    from lanewarden.scenarios.campaign.cases import load_case
+    from lanewarden.scenarios.campaign.run_case import case_config, judge_metrics
+
+    if scenario is not None or config_path is not None:
+        raise UsageError("--case: the case file holds the scenario and the config; drop "
+                         "--scenario and --config")
+    try:
+        case = load_case(case_file)
+        spec = case.scenario_spec(case_file)
+        config = case_config(case, case_file)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
+    out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"case-{case.id}"
+    return RunRequest(spec=spec, config=config, controller=case.controller, seed=case.seed,
+                      out_dir=out, build_stack=build_stack, video=not no_video,
+                      progress=not quiet, source=case_file, judge=judge_metrics)
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:

@@ -73,7 +73,8 @@ def test_posters_show_the_outcome(demo_out: Path) -> None:
     assert isinstance(poster, dict) and poster["shows"] == "the halt"
     halt_time = supervised["halt_time_s"]
     assert isinstance(halt_time, float)
-    assert 0.0 <= poster["time_s"] - halt_time <= 1 / 15 + 1e-9  # the first video frame in HALT
+    # metrics' times are rounded to 0.1 ms, the poster's is not
+    assert -1e-4 <= poster["time_s"] - halt_time <= 1 / 15 + 1e-4  # the first video frame in HALT
     last = lecture["video_poster"]
     assert isinstance(last, dict) and last["shows"] == "the last frame"
-    assert 0.0 <= lecture["sim_time_s"] - last["time_s"] < 1 / 15  # type: ignore[operator]
+    assert -1e-4 <= lecture["sim_time_s"] - last["time_s"] < 1 / 15  # type: ignore[operator]
