@@ -201,6 +201,21 @@ class SupervisorConfig(BaseModel):
         le=1.0,
         description="No base feedback for this long gives BASE_LINK_LOST (HALT), s",
     )
+    battery_low_v: float = Field(
+        default=14.0,
+        ge=0.0,
+        le=20.0,
+        description="Base battery below this gives BATTERY_LOW (WARN), V (the Kobuki driver's "
+        "low level for its 14.8 V pack)",
+    )
+    battery_critical_v: float = Field(
+        default=13.2,
+        ge=0.0,
+        le=20.0,
+        description="Base battery below this gives BATTERY_CRITICAL (HALT, latched like a "
+        "bumper), V (the Kobuki driver's dangerous level); 0 switches the check off for a base "
+        "that reports no battery",
+    )
     lane_lost_halt_s: float = Field(
         default=0.2,
         gt=0.0,
@@ -342,6 +357,11 @@ class SupervisorConfig(BaseModel):
             self.base_feedback_late_s < self.base_link_timeout_s,
             f"base_feedback_late_s ({self.base_feedback_late_s}) must be below "
             f"base_link_timeout_s ({self.base_link_timeout_s})",
+        )
+        require(
+            self.battery_critical_v < self.battery_low_v,
+            f"battery_critical_v ({self.battery_critical_v}) must be below battery_low_v "
+            f"({self.battery_low_v})",
         )
         require(
             self.loop_overrun_s > self.camera_period_s,

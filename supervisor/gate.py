@@ -4,8 +4,10 @@ Every command that reaches a base leaves through `SafetyGate.step`. A controller
 one, the lecture's baseline, `base drive`'s fixed command) only says what it would like to send;
 the gate decides what is sent, by the same rules for all of them:
 
-- Physical hazards latch HALT: operator stop, bumper, cliff, wheel drop and a lost base link
-  (raised by the loop when the base fails, or base feedback older than `base_link_timeout_s`).
+- Physical hazards latch HALT: operator stop, bumper, cliff, wheel drop, a critically low
+  battery (below `battery_critical_v`; below `battery_low_v` only a BATTERY_LOW warning) and a
+  lost base link (raised by the loop when the base fails, or base feedback older than
+  `base_link_timeout_s`).
   The latch holds, hazard gone or not, until a start or resume request in a later step without
   a hazard. Nothing moves before the first start either.
 - HALT is an exact zero: while the gate is latched, whenever the controller itself says HALT, and
@@ -31,13 +33,14 @@ from lanewarden.actuation.base import STOP, VelocityCommand
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput
 from lanewarden.supervisor.events import Event, halt_reason, ordered
-from lanewarden.supervisor.hazards import base_hazard_events, feedback_age_s
+from lanewarden.supervisor.hazards import base_hazard_events, battery_events, feedback_age_s
 from lanewarden.supervisor.limiter import CommandLimiter, CommandLimits
 from lanewarden.supervisor.state_machine import NOT_STARTED_REASON
 
 #: The hazards that latch HALT at the gate, whatever the controller (priority order of `Event`).
 PHYSICAL_HAZARDS: frozenset[Event] = frozenset({
     Event.OPERATOR_STOP, Event.BUMPER, Event.CLIFF, Event.WHEEL_DROP, Event.BASE_LINK_LOST,
+    Event.BATTERY_CRITICAL,
 })  # fmt: skip
 
 #: The state name of a halted step, in outputs and records.
@@ -57,6 +60,7 @@ class SafetyGate:
     ) -> None:
         self.controller = controller
         self._link_timeout_s = config.base_link_timeout_s
+        self._battery_v = (config.battery_low_v, config.battery_critical_v)
         self._limiter = CommandLimiter(limits or CommandLimits.for_driving(config))
         self._latched: str | None = NOT_STARTED_REASON
         self._first_now: float | None = None
@@ -75,8 +79,9 @@ class SafetyGate:
     def step(self, inputs: ControlInputs, now: float) -> ControlOutput:
         clock_ok = math.isfinite(now) and (self._last_now is None or now >= self._last_now)
         at = now if clock_ok else self._last_now
-        hazards = {} if at is None else self._hazards(inputs, at)
-        details = {**inputs.event_details, **hazards}
+        found = {} if at is None else self._hazards(inputs, at)
+        details = {**inputs.event_details, **found}
+        hazards = {e: d for e, d in found.items() if e in PHYSICAL_HAZARDS}  # the rest: warnings
         if hazards:
             self._latched = halt_reason(hazards, details)
         elif inputs.start_requested or inputs.resume_requested:
@@ -84,13 +89,13 @@ class SafetyGate:
         wanted = self.controller.step(
             replace(
                 inputs,
-                events=inputs.events | hazards.keys(),
+                events=inputs.events | found.keys(),
                 event_details=MappingProxyType(details),
                 previous_command=self._limiter.last,
             ),
             now,
         )
-        events = {*wanted.events, *hazards}
+        events = {*wanted.events, *found}
         dt = 0.0
         if not clock_ok:
             events.add(Event.CLOCK_INVALID)
@@ -109,11 +114,13 @@ class SafetyGate:
         return replace(wanted, command=command, events=ordered(events))
 
     def _hazards(self, inputs: ControlInputs, now: float) -> dict[Event, str]:
-        """This step's physical hazards, each with its detail ('' for none). `now` is valid."""
+        """This step's physical hazards and the base's warnings (BATTERY_LOW), each with its
+        detail ('' for none). `now` is valid."""
         if self._first_now is None:
             self._first_now = now
         found = {e: inputs.event_details.get(e, "") for e in inputs.events if e in PHYSICAL_HAZARDS}
         found.update(base_hazard_events(inputs.feedback))
+        found.update(battery_events(inputs.feedback, *self._battery_v))
         age = feedback_age_s(inputs.feedback, self._first_now, now)
         if not math.isfinite(age) or age > self._link_timeout_s:
             found.setdefault(Event.BASE_LINK_LOST, "")

@@ -1,5 +1,7 @@
 """The base's safety sensors as events, and the age of its feedback. Pure.
 
+Battery: below `battery_critical_v` a HALT event (BATTERY_CRITICAL), below `battery_low_v` a
+WARN (BATTERY_LOW).
 Bumper, cliff and wheel drop: any bit set is a HALT event (see `supervisor.events.EVENT_TABLE`),
 with the sides named as detail (bit layout: `actuation.base.BaseFeedback`). The feedback's age
 (now - the time it was received; before any feedback, since the first step) is what the
@@ -33,6 +35,17 @@ def base_hazard_events(feedback: BaseFeedback | None) -> dict[Event, str]:
         for event, value in bits.items()
         if value
     }
+
+
+def battery_events(feedback: BaseFeedback | None, low_v: float,
+                   critical_v: float) -> dict[Event, str]:
+    """BATTERY_CRITICAL below `critical_v`, else BATTERY_LOW below `low_v`, with the voltage as
+    detail; empty when the base reports no battery."""
+    volts = None if feedback is None else feedback.battery_v
+    if volts is None or volts >= low_v:
+        return {}
+    detail = f"{volts:.1f} V"
+    return {Event.BATTERY_CRITICAL if volts < critical_v else Event.BATTERY_LOW: detail}
 
 
 def feedback_age_s(feedback: BaseFeedback | None, first_step_s: float, now: float) -> float:

@@ -65,7 +65,7 @@ ANSWERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "link_garbage": ("BASE_LINK_LOST",),
     "checksum_storm": ("BASE_LINK_LOST",),
     "write_blocks": ("BASE_LINK_LOST",),
-    "low_battery": ("LOW_BATTERY",),
+    "low_battery": ("BATTERY_CRITICAL",),
 })
 
 

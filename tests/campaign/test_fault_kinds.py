@@ -41,7 +41,7 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
     "link_garbage": ({"at_s": T, "duration_s": 1.5, "intensity": 1.0}, "nominal", None),
     "checksum_storm": ({"at_s": T, "intensity": 1.0}, "safe_halt", "BASE_LINK_LOST"),
     "write_blocks": ({"at_s": T, "duration_s": 1.0}, "safe_halt", "BASE_LINK_LOST"),
-    "low_battery": ({"at_s": T, "battery_v": 12.0}, "nominal", None),
+    "low_battery": ({"at_s": T, "battery_v": 12.0}, "safe_halt", "BATTERY_CRITICAL"),
 }
 
 

@@ -34,6 +34,8 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "CLIFF": ("HALT", "cliff sensor triggered"),
     "WHEEL_DROP": ("HALT", "wheel dropped"),
     "BASE_LINK_LOST": ("HALT", "no feedback from the base (link lost)"),
+    "BATTERY_CRITICAL": (
+        "HALT", "battery below battery_critical_v: charge it before the base browns out"),
     "CAMERA_ERROR": ("HALT", "the frame source raised an error"),
     "PERCEPTION_ERROR": ("HALT", "perception raised an error"),
     "MALFORMED_OBSERVATION": (
@@ -55,6 +57,7 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "REPEATED_OUTLIERS": ("DEGRADE", "slope-sum outliers repeated within outliers_window_frames"),
     "INNOVATION_OUTLIER": ("WARN", "slope-sum measurement rejected by the gate"),
     "LOOP_OVERRUN": ("WARN", "control step came later than loop_overrun_s"),
+    "BATTERY_LOW": ("WARN", "battery below battery_low_v: charge it soon"),
 }  # fmt: skip
 
 
@@ -125,6 +128,16 @@ def _feedback_bits(**bits: int) -> Callable[[], Provoked]:
         rig = _engaged()
         now = rig.clock.now() + DT
         return _from("FOLLOW", rig.step(feedback=BaseFeedback(received_at_s=now, **bits)))
+
+    return provoke
+
+
+def _battery(volts: float) -> Callable[[], Provoked]:
+    def provoke() -> Provoked:
+        rig = _engaged()
+        now = rig.clock.now() + DT
+        return _from("FOLLOW", rig.step(feedback=BaseFeedback(received_at_s=now,
+                                                              battery_v=volts)))
 
     return provoke
 
@@ -263,6 +276,7 @@ PROVOKERS: dict[Event, Callable[[], Provoked]] = {
     Event.CLIFF: _feedback_bits(cliff=4),
     Event.WHEEL_DROP: _feedback_bits(wheel_drop=1),
     Event.BASE_LINK_LOST: _base_link_lost,
+    Event.BATTERY_CRITICAL: _battery(13.1),  # the Kobuki driver's dangerous level is 13.2 V
     Event.CAMERA_ERROR: _camera_error,
     Event.PERCEPTION_ERROR: _perception_error,
     Event.MALFORMED_OBSERVATION: _malformed,
@@ -280,6 +294,7 @@ PROVOKERS: dict[Event, Callable[[], Provoked]] = {
     Event.LANE_LOW_CONFIDENCE: _low_confidence,
     Event.REPEATED_OUTLIERS: _repeated_outliers,
     Event.INNOVATION_OUTLIER: _innovation_outlier,
+    Event.BATTERY_LOW: _battery(13.9),  # below the low level 14.0 V, above the dangerous one
     Event.LOOP_OVERRUN: _loop_overrun,
 }
 

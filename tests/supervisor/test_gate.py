@@ -143,8 +143,12 @@ def test_nothing_non_zero_leaves_while_halted_on_a_simulated_base() -> None:
           "event_details": {Event.BASE_LINK_LOST: "/dev/ttyUSB0: write failed"}},
          "BASE_LINK_LOST: no feedback from the base (link lost) (/dev/ttyUSB0: write failed)"),
         ({"feedback_age_s": 0.21}, "BASE_LINK_LOST: no feedback from the base (link lost)"),
+        ({"feedback_bits": {"battery_v": 13.1}},
+         "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the base browns "
+         "out (13.1 V)"),
     ],
-    ids=["operator-stop", "bumper", "cliff", "wheel-drop", "link-lost-by-loop", "link-lost-by-age"],
+    ids=["operator-stop", "bumper", "cliff", "wheel-drop", "link-lost-by-loop", "link-lost-by-age",
+         "battery-critical"],
 )
 def test_each_physical_hazard_halts_at_once_and_latches_until_resume(
     hazard: dict[str, object], reason: str
@@ -163,6 +167,23 @@ def test_each_physical_hazard_halts_at_once_and_latches_until_resume(
     assert all((o.state, o.command) == ("HALT", STOP) for o in later)
     resumed = gate.step(_inputs(now + 11 * DT, resume_requested=True), now + 11 * DT)
     assert resumed.state == "FOLLOW" and resumed.command.linear_m_s == pytest.approx(LINEAR_STEP)
+
+
+def test_a_low_battery_only_warns_and_never_releases_a_latch() -> None:
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    _run(gate, 20, start=DT)
+    now = 21 * DT
+    low = BaseFeedback(received_at_s=now, battery_v=13.9)  # below 14.0, above 13.2
+    out = gate.step(_inputs(now, feedback=low), now)
+    assert out.state == "FOLLOW" and Event.BATTERY_LOW in out.events and not out.command.is_stop
+    bumped = gate.step(_inputs(now + DT, feedback=BaseFeedback(received_at_s=now + DT, bumper=1)),
+                       now + DT)
+    assert bumped.command == STOP
+    # a warning alone in a later step must not count as "no hazard" and unlatch the HALT
+    later = gate.step(_inputs(now + 2 * DT, feedback=BaseFeedback(received_at_s=now + 2 * DT,
+                                                                  battery_v=13.9)), now + 2 * DT)
+    assert (later.state, later.command) == ("HALT", STOP)
 
 
 def test_a_resume_in_the_same_step_as_a_hazard_does_not_release() -> None:

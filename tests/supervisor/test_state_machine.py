@@ -87,6 +87,7 @@ BUMPER                      HALT        HALT        HALT        HALT        HALT
 CLIFF                       HALT        HALT        HALT        HALT        HALT
 WHEEL_DROP                  HALT        HALT        HALT        HALT        HALT
 BASE_LINK_LOST              HALT        HALT        HALT        HALT        HALT
+BATTERY_CRITICAL            HALT        HALT        HALT        HALT        HALT
 CAMERA_ERROR                HALT        HALT        HALT        HALT        HALT
 PERCEPTION_ERROR            HALT        HALT        HALT        HALT        HALT
 MALFORMED_OBSERVATION       HALT        HALT        HALT        HALT        HALT
@@ -105,6 +106,7 @@ LANE_LOW_CONFIDENCE         DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
 REPEATED_OUTLIERS           DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
 INNOVATION_OUTLIER          FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
 LOOP_OVERRUN                FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+BATTERY_LOW                 FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
 """)
 
 
