@@ -14,7 +14,7 @@ from lanewarden.actuation.kobuki_geometry import MAX_ANGULAR_RAD_S, MAX_LINEAR_M
 class SimBaseConfig(BaseModel):
     """Dynamics of the simulated base (SimBase): acceleration and braking limits, battery, step."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     accel_linear_m_s2: float = Field(
         default=0.3,
@@ -61,7 +61,7 @@ class ActuationConfig(BaseModel):
     and stops the base when the control process falls silent (see docs/actuation.md).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     port: str | None = Field(
         default=None,

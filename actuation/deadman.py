@@ -1,11 +1,17 @@
 """The dead-man process (`python -m lanewarden.actuation.deadman`): the only owner of the
 Kobuki's port.
 
-Started by KobukiBase with one end of a SOCK_SEQPACKET socketpair. It opens the serial port,
-writes base control at the steady command rate (changed or not), relays every valid feedback
-payload and its link health to the control process, and follows `DeadmanLogic`: when the
-control process goes silent or away, the base is stopped at once and kept stopped.
-On SIGTERM, SIGINT, SIGHUP, an internal error or a CLOSE message: stop, flush, exit.
+Started by KobukiBase (in a session of its own, so the terminal's job-control and quit signals
+never reach it) with one end of a SOCK_SEQPACKET socketpair. It raises its own scheduling
+priority where the OS permits (SCHED_FIFO, else a negative nice value) so a loaded machine cannot
+starve its send loop, opens the serial port, writes base control at the steady command rate
+(changed or not), reports every write to the control process (`WIRE`, its own heartbeat), relays
+every valid feedback payload and its link health, and follows `DeadmanLogic`: when the control
+process goes silent or away, the base is stopped at once and kept stopped.
+On SIGTERM, SIGINT, SIGHUP, SIGQUIT, an internal error or a CLOSE message: stop, flush, exit.
+Even SIGTSTP sent to it directly does not stop it (its process group is orphaned, and the kernel
+discards job-control stops there); only SIGSTOP can freeze it, and then the control process
+notices its silence, kills it and writes the stop itself.
 
 This is the thin shell around `DeadmanLogic`: the only code here that reads time.monotonic.
 It must never exit without trying to put a stop on the wire, and never block on the control
@@ -34,9 +40,11 @@ from lanewarden.actuation.deadman_messages import (
     Close,
     Command,
     DeadmanMessage,
+    Disarm,
     FeedbackReceived,
     LinkLost,
     ModeChanged,
+    OnTheWire,
     OpenFailed,
     PortOpened,
     RawCommand,
@@ -46,6 +54,7 @@ from lanewarden.actuation.deadman_messages import (
 from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
 from lanewarden.actuation.kobuki_framing import PacketReader
 from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.realtime import raise_priority
 
 EXIT_OK = 0
 EXIT_OPEN_FAILED = 3
@@ -55,6 +64,8 @@ EXIT_INTERNAL_ERROR = 5
 #: Serial read timeout of the feedback thread (bounds how long stopping it takes).
 READ_TIMEOUT_S = 0.05
 SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
+#: Control messages handled per wake-up before the send loop polls again.
+MAX_MESSAGES_PER_WAKE = 64
 
 
 def _lost_message(port: str, exc: BaseException) -> str:
@@ -65,8 +76,9 @@ def _lost_message(port: str, exc: BaseException) -> str:
 
 class DeadmanProcess:
     def __init__(self, port: str, control: socket.socket, settings: DeadmanSettings,
-                 write_timeout_s: float) -> None:
+                 write_timeout_s: float, priority: tuple[bool, str] = (False, "normal")) -> None:
         self._port = port
+        self._priority = priority
         self._control: socket.socket | None = control
         self._settings = settings
         self._write_timeout_s = write_timeout_s
@@ -120,7 +132,7 @@ class DeadmanProcess:
         except SERIAL_ERRORS as exc:
             self._tell(OpenFailed(describe_open_error(self._port, exc)))
             return EXIT_OPEN_FAILED
-        self._tell(PortOpened(low_latency))
+        self._tell(PortOpened(low_latency, *self._priority))
         self._reading.set()
         reader = threading.Thread(target=self._read_feedback, name="kobuki-feedback",
                                   daemon=True)
@@ -144,8 +156,11 @@ class DeadmanProcess:
             action = logic.poll(time.monotonic())
             if action.send is not None:
                 link.write(command_packet(encode_velocity(action.send)))
+                written_s = time.monotonic()
             for event in action.events:
                 self._tell(ModeChanged(event.mode, event.reason))
+            if action.send is not None:
+                self._tell(OnTheWire(logic.heartbeat_seq, written_s, action.send))
             if action.finished:
                 return EXIT_OK
             if self._lost is not None:
@@ -160,17 +175,19 @@ class DeadmanProcess:
             if self._signal is not None:
                 logic.on_close(now, f"stopped by signal {signal.Signals(self._signal).name}")
             if self._control is not None and self._control in ready:
-                self._receive(logic, now, link)
+                self._receive(logic, link)
 
-    def _receive(self, logic: DeadmanLogic, now: float, link: serial.SerialBase) -> None:
+    def _receive(self, logic: DeadmanLogic, link: serial.SerialBase) -> None:
         assert self._control is not None
-        while True:
+        for _ in range(MAX_MESSAGES_PER_WAKE):  # then back to poll: a flood cannot starve it
             try:
                 data = self._control.recv(MAX_MESSAGE_BYTES, socket.MSG_DONTWAIT)
             except BlockingIOError:
                 return
             except OSError:
                 data = b""
+            # read after the message arrived: its sender's stamp is never later than this
+            now = time.monotonic()
             if not data:
                 logic.on_control_gone(now)
                 self._control.close()
@@ -182,9 +199,11 @@ class DeadmanProcess:
                 logic.on_malformed(now, str(exc))
                 continue
             if isinstance(message, Arm):
-                logic.on_arm(now)
+                logic.on_arm(now, message.heartbeat)
+            elif isinstance(message, Disarm):
+                logic.on_disarm(now, message.heartbeat)
             elif isinstance(message, Command):
-                logic.on_command(message.command, now)
+                logic.on_command(message.command, now, message.heartbeat)
             elif isinstance(message, RawCommand):
                 link.write(command_packet(message.sub_payloads))
             elif isinstance(message, Close):
@@ -217,7 +236,7 @@ class DeadmanProcess:
 
     def install_signal_handlers(self) -> None:
         signal.set_wakeup_fd(self._wake_w)
-        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT):
             signal.signal(signum, self._on_signal)
 
 
@@ -235,7 +254,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     settings = DeadmanSettings(heartbeat_timeout_s=args.heartbeat_timeout_s,
                                command_period_s=1.0 / args.command_rate_hz,
                                orphan_stop_s=args.orphan_stop_s)
-    process = DeadmanProcess(args.port, control, settings, args.write_timeout_s)
+    process = DeadmanProcess(args.port, control, settings, args.write_timeout_s,
+                             raise_priority())
     process.install_signal_handlers()
     return process.run()
 

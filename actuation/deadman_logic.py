@@ -1,14 +1,20 @@
 """The dead-man's decision logic: what goes on the wire, and when. A pure class driven by `now`.
 
 The dead-man process owns the serial port. Its shell feeds this class what arrives from the
-control process (arm, commands that double as heartbeats, close, malformed messages, end of
-stream) and asks `poll(now)` what to write. The rules:
+control process (arm, disarm, commands, close, malformed messages, end of stream) and asks
+`poll(now)` what to write. The rules:
 
 - It starts DISARMED and sends stop at the steady command rate, whatever it is told.
 - ARM (an explicit message, never implied by a command) moves to ARMED with the command stop;
-  only ARMED forwards commands. Every command or arm is a heartbeat.
-- ARMED and silent for `heartbeat_timeout_s` (or a malformed message) -> TRIPPED: stop goes out
-  at once and is repeated until an explicit ARM; commands meanwhile are ignored.
+  only ARMED forwards commands. DISARM: stop at once and back to DISARMED (the control process
+  is about to be suspended on purpose), until an explicit ARM.
+- Every arm, disarm and command is a heartbeat carrying the sender's sequence number and its
+  monotonic time at sending; the deadline counts from that stamp, not from when the message was
+  read, so a heartbeat that waited in the socket while the sender was frozen is not fresh. A
+  stamp from the future or a sequence/stamp going backwards counts as a malformed message.
+- ARMED and no heartbeat stamped within the last `heartbeat_timeout_s` (or a malformed message)
+  -> TRIPPED: stop goes out at once and is repeated until an explicit ARM; commands meanwhile
+  are ignored.
 - The control process gone (end of stream) -> STOPPING: stop at once, repeated for
   `orphan_stop_s`, then finished. CLOSE or a signal -> STOPPING for a short burst, then finished.
 - A stop (commanded or forced) goes out at once; other commands wait for the next tick.
@@ -32,6 +38,15 @@ class DeadmanMode(Enum):
     ARMED = "armed"
     TRIPPED = "tripped"
     STOPPING = "stopping"
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    """What makes a control message a heartbeat: the sender's sequence number (counting up) and
+    its CLOCK_MONOTONIC time at sending, s."""
+
+    seq: int
+    sent_s: float
 
 
 @dataclass(frozen=True)
@@ -65,6 +80,7 @@ class DeadmanLogic:
         self._mode = DeadmanMode.DISARMED
         self._command = STOP
         self._last_heartbeat_s = start_s
+        self._last_seq = -1
         self._next_send_s = start_s  # the first stop goes out at once
         self._urgent = True
         self._stop_until_s = 0.0
@@ -79,21 +95,32 @@ class DeadmanLogic:
         """The command currently being put on the wire."""
         return self._command
 
+    @property
+    def heartbeat_seq(self) -> int:
+        """Sequence number of the newest accepted heartbeat (-1: none yet)."""
+        return self._last_seq
+
     # ---- inputs -------------------------------------------------------------------------------
-    def on_arm(self, now: float) -> None:
+    def on_arm(self, now: float, heartbeat: Heartbeat) -> None:
         """Explicit arm: ARMED with the command stop (a no-op heartbeat when already armed)."""
-        if self._mode is DeadmanMode.STOPPING:
+        if self._mode is DeadmanMode.STOPPING or not self._accept(heartbeat, now):
             return
-        self._last_heartbeat_s = now
         if self._mode is not DeadmanMode.ARMED:
             self._set_command(STOP)
             self._change(DeadmanMode.ARMED, "armed by the control process")
 
-    def on_command(self, command: VelocityCommand, now: float) -> None:
-        """A command from the control process; also a heartbeat. Ignored unless ARMED."""
-        if self._mode is not DeadmanMode.ARMED:
+    def on_disarm(self, now: float, heartbeat: Heartbeat) -> None:
+        """Stop at once and hold stop without heartbeats until an explicit arm."""
+        if self._mode is DeadmanMode.STOPPING or not self._accept(heartbeat, now):
             return
-        self._last_heartbeat_s = now
+        self._set_command(STOP)
+        if self._mode is not DeadmanMode.DISARMED:
+            self._change(DeadmanMode.DISARMED, "disarmed by the control process (suspending)")
+
+    def on_command(self, command: VelocityCommand, now: float, heartbeat: Heartbeat) -> None:
+        """A command from the control process; also a heartbeat. Ignored unless ARMED."""
+        if not self._accept(heartbeat, now) or self._mode is not DeadmanMode.ARMED:
+            return
         self._set_command(command)
 
     def on_malformed(self, now: float, what: str) -> None:
@@ -118,7 +145,8 @@ class DeadmanLogic:
         if self._mode is DeadmanMode.ARMED and now >= self._heartbeat_deadline_s():
             silent_s = now - self._last_heartbeat_s
             self._trip(f"no heartbeat for {silent_s:.3f} s "
-                       f"(timeout {self._settings.heartbeat_timeout_s:g} s)")
+                       f"(timeout {self._settings.heartbeat_timeout_s:g} s; the last one was "
+                       f"stamped {self._last_heartbeat_s:.6f})")
         finished = self._mode is DeadmanMode.STOPPING and now >= self._stop_until_s
         send: VelocityCommand | None = None
         if self._urgent or now >= self._next_send_s or finished:
@@ -140,6 +168,21 @@ class DeadmanLogic:
         return wakeup
 
     # ---- internals ----------------------------------------------------------------------------
+    def _accept(self, heartbeat: Heartbeat, now: float) -> bool:
+        """Take `heartbeat` as the newest one, or treat it as malformed (False)."""
+        if heartbeat.sent_s > now:
+            problem = f"heartbeat stamped in the future ({heartbeat.sent_s - now:.6f} s ahead)"
+        elif heartbeat.seq <= self._last_seq:
+            problem = f"heartbeat sequence went backwards ({heartbeat.seq} after {self._last_seq})"
+        elif self._last_seq >= 0 and heartbeat.sent_s < self._last_heartbeat_s:
+            problem = "heartbeat stamp went backwards"
+        else:
+            self._last_seq = heartbeat.seq
+            self._last_heartbeat_s = heartbeat.sent_s
+            return True
+        self.on_malformed(now, problem)
+        return False
+
     def _heartbeat_deadline_s(self) -> float:
         return self._last_heartbeat_s + self._settings.heartbeat_timeout_s
 

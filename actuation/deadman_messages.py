@@ -2,22 +2,33 @@
 
 One message per SOCK_SEQPACKET record, ASCII words separated by spaces, binary as hex:
 
-control -> dead-man: `ARM` | `CMD <linear_m_s> <angular_rad_s>` | `RAW <hex sub-payloads>`
-                     | `CLOSE`
-dead-man -> control: `OPEN <low_latency 0|1>` | `ERROR <text>`
-                     | `FB <checksum_errors> <hex payload>` | `MODE <mode> <reason>` | `LOST <text>`
+control -> dead-man: `ARM <seq> <sent_s>` | `DISARM <seq> <sent_s>`
+                     | `CMD <seq> <sent_s> <linear_m_s> <angular_rad_s>`
+                     | `RAW <hex sub-payloads>` | `CLOSE`
+dead-man -> control: `OPEN <low_latency 0|1> <priority_raised 0|1> <priority text>`
+                     | `ERROR <text>` | `FB <checksum_errors> <hex payload>`
+                     | `MODE <mode> <reason>` | `LOST <text>`
+                     | `WIRE <seq> <written_s> <linear_m_s> <angular_rad_s>`
 
-`CMD` doubles as the heartbeat. Decoding is strict: anything else raises ValueError (the
-dead-man treats that as a missed heartbeat). Pure: no sockets here.
+`ARM`, `DISARM` and `CMD` are heartbeats: `seq` counts up with every heartbeat the control
+process sends and `sent_s` is its CLOCK_MONOTONIC time at sending (system-wide on Linux, so the
+dead-man compares it with its own clock: a heartbeat that sat in the socket while the sender was
+frozen is not fresh). `WIRE` reports every command the dead-man writes to the port, with the
+newest heartbeat sequence it had accepted (-1: none yet) and its CLOCK_MONOTONIC time once the
+write returned: it is the dead-man's own heartbeat towards the control process.
+
+Decoding is strict (integers are digits, numbers finite decimals): anything else raises
+ValueError (the dead-man treats that as a missed heartbeat). Pure: no sockets here.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 from lanewarden.actuation.base import VelocityCommand
-from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.deadman_logic import DeadmanMode, Heartbeat
 from lanewarden.actuation.kobuki_commands import CommandId
 
 
@@ -26,12 +37,23 @@ from lanewarden.actuation.kobuki_commands import CommandId
 class Arm:
     """Explicitly (re-)arm the dead-man: the only way out of DISARMED or TRIPPED."""
 
+    heartbeat: Heartbeat
+
+
+@dataclass(frozen=True)
+class Disarm:
+    """Stop at once and stay stopped without needing heartbeats (the control process is about to
+    be suspended) until an explicit ARM."""
+
+    heartbeat: Heartbeat
+
 
 @dataclass(frozen=True)
 class Command:
     """The velocity to execute from now on; also a heartbeat."""
 
     command: VelocityCommand
+    heartbeat: Heartbeat
 
 
 @dataclass(frozen=True)
@@ -46,13 +68,15 @@ class Close:
     """Stop the base, flush and exit."""
 
 
-ControlMessage = Arm | Command | RawCommand | Close
+ControlMessage = Arm | Disarm | Command | RawCommand | Close
 
 
 # ---- dead-man -> control ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PortOpened:
     low_latency: bool
+    priority_raised: bool = False
+    priority: str = "normal"
 
 
 @dataclass(frozen=True)
@@ -77,14 +101,46 @@ class LinkLost:
     message: str
 
 
-DeadmanMessage = PortOpened | OpenFailed | FeedbackReceived | ModeChanged | LinkLost
+@dataclass(frozen=True)
+class OnTheWire:
+    """The dead-man wrote `command` to the port (the write returned at `written_s`, its
+    CLOCK_MONOTONIC), having accepted heartbeats up to `heartbeat_seq` (-1: none yet)."""
+
+    heartbeat_seq: int
+    written_s: float
+    command: VelocityCommand
+
+
+DeadmanMessage = PortOpened | OpenFailed | FeedbackReceived | ModeChanged | LinkLost | OnTheWire
 
 #: SOCK_SEQPACKET receive size: large enough for any message above.
 MAX_MESSAGE_BYTES = 4096
 
+_DIGITS = re.compile(r"[0-9]{1,18}")
+_SIGNED_DIGITS = re.compile(r"-1|[0-9]{1,18}")
+#: A finite decimal as repr(float) writes it; no inf, nan, underscores or spaces.
+_DECIMAL = re.compile(r"-?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:e[-+]?[0-9]+)?")
+
 
 def _one_line(text: str) -> str:
     return " ".join(text.split())
+
+
+def _sequence(text: str, *, allow_none: bool = False) -> int:
+    if not (_SIGNED_DIGITS if allow_none else _DIGITS).fullmatch(text):
+        raise ValueError(f"bad sequence number {text[:20]!r}")
+    return int(text)
+
+
+def _number(text: str) -> float:
+    value = float(text) if _DECIMAL.fullmatch(text) else math.nan
+    if not math.isfinite(value):  # also 1e999, which float() reads as inf
+        raise ValueError(f"bad number {text[:30]!r} (expected a finite decimal)")
+    return value
+
+
+def _heartbeat(seq: str, sent_s: str) -> Heartbeat:
+    return Heartbeat(_sequence(seq), _number(sent_s))
 
 
 def check_non_motion(sub_payloads: bytes) -> None:
@@ -102,10 +158,13 @@ def check_non_motion(sub_payloads: bytes) -> None:
 
 
 def encode_control(message: ControlMessage) -> bytes:
-    if isinstance(message, Arm):
-        return b"ARM"
+    if isinstance(message, Arm | Disarm):
+        kind = "ARM" if isinstance(message, Arm) else "DISARM"
+        return f"{kind} {message.heartbeat.seq} {message.heartbeat.sent_s!r}".encode()
     if isinstance(message, Command):
-        return f"CMD {message.command.linear_m_s!r} {message.command.angular_rad_s!r}".encode()
+        beat, command = message.heartbeat, message.command
+        return (f"CMD {beat.seq} {beat.sent_s!r} {command.linear_m_s!r} "
+                f"{command.angular_rad_s!r}").encode()
     if isinstance(message, RawCommand):
         return b"RAW " + message.sub_payloads.hex().encode()
     return b"CLOSE"
@@ -115,15 +174,15 @@ def decode_control(data: bytes) -> ControlMessage:
     """Parse one control message; ValueError on anything malformed (including NaN speeds)."""
     words = data.decode("ascii").split(" ")
     kind, args = words[0], words[1:]
-    if kind == "ARM" and not args:
-        return Arm()
+    if kind == "ARM" and len(args) == 2:
+        return Arm(_heartbeat(*args))
+    if kind == "DISARM" and len(args) == 2:
+        return Disarm(_heartbeat(*args))
     if kind == "CLOSE" and not args:
         return Close()
-    if kind == "CMD" and len(args) == 2:
-        linear, angular = float(args[0]), float(args[1])
-        if not (math.isfinite(linear) and math.isfinite(angular)):
-            raise ValueError(f"non-finite command {args}")
-        return Command(VelocityCommand(linear, angular))
+    if kind == "CMD" and len(args) == 4:
+        beat = _heartbeat(args[0], args[1])
+        return Command(VelocityCommand(_number(args[2]), _number(args[3])), beat)
     if kind == "RAW" and len(args) == 1 and args[0]:
         sub_payloads = bytes.fromhex(args[0])
         check_non_motion(sub_payloads)
@@ -133,29 +192,41 @@ def decode_control(data: bytes) -> ControlMessage:
 
 def encode_deadman(message: DeadmanMessage) -> bytes:
     if isinstance(message, PortOpened):
-        return f"OPEN {int(message.low_latency)}".encode()
+        return (f"OPEN {int(message.low_latency)} {int(message.priority_raised)} "
+                f"{_one_line(message.priority)}").encode()
     if isinstance(message, OpenFailed):
         return f"ERROR {_one_line(message.message)}".encode()
     if isinstance(message, FeedbackReceived):
         return f"FB {message.checksum_errors} {message.payload.hex()}".encode()
     if isinstance(message, ModeChanged):
         return f"MODE {message.mode.value} {_one_line(message.reason)}".encode()
+    if isinstance(message, OnTheWire):
+        command = message.command
+        return (f"WIRE {message.heartbeat_seq} {message.written_s!r} {command.linear_m_s!r} "
+                f"{command.angular_rad_s!r}").encode()
     return f"LOST {_one_line(message.message)}".encode()
 
 
 def decode_deadman(data: bytes) -> DeadmanMessage:
     """Parse one dead-man message; ValueError on anything malformed."""
     kind, _, rest = data.decode("utf-8").partition(" ")
-    if kind == "OPEN" and rest in ("0", "1"):
-        return PortOpened(rest == "1")
+    if kind == "OPEN":
+        low_latency, raised, priority = (rest.split(" ", 2) + ["", ""])[:3]
+        if low_latency in ("0", "1") and raised in ("0", "1") and priority:
+            return PortOpened(low_latency == "1", raised == "1", priority)
     if kind == "ERROR":
         return OpenFailed(rest)
     if kind == "FB":
         errors, _, payload = rest.partition(" ")
-        return FeedbackReceived(int(errors), bytes.fromhex(payload))
+        return FeedbackReceived(_sequence(errors), bytes.fromhex(payload))
     if kind == "MODE":
         mode, _, reason = rest.partition(" ")
         return ModeChanged(DeadmanMode(mode), reason)
     if kind == "LOST":
         return LinkLost(rest)
+    if kind == "WIRE":
+        args = rest.split(" ")
+        if len(args) == 4:
+            return OnTheWire(_sequence(args[0], allow_none=True), _number(args[1]),
+                             VelocityCommand(_number(args[2]), _number(args[3])))
     raise ValueError(f"unknown dead-man message {data[:40]!r}")

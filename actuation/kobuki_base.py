@@ -1,25 +1,23 @@
 """KobukiBase: the real base, driven through the dead-man process that owns its serial port.
 
-`KobukiBase.open(port)` starts `python -m lanewarden.actuation.deadman` with one end of a
-socketpair, waits (bounded) for the port to open and for the first valid feedback packet, and
-from then on:
-`send()` forwards each command (which is also the dead-man's heartbeat), a relay thread decodes
-the feedback the dead-man forwards and stamps it with the injected clock, and `close()` stops
-the base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
+`KobukiBase.open(port)` starts the dead-man (`actuation.deadman_link.DeadmanLink`: its own
+session, its own watch on it), waits (bounded) for the port to open and for the first valid
+feedback packet, and from then on:
+`send()` forwards each command (which is also the dead-man's heartbeat), the feedback the
+dead-man forwards is decoded here and stamped with the injected clock, and `close()` stops the
+base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
 (this process went quiet for `heartbeat_timeout_s`) the base stays stopped, motion commands are
 ignored by it and `send()` raises DeadmanTrippedError, until `rearm()` is called explicitly.
+`hold_stopped()` stops and disarms it on purpose (before this process suspends itself); motion
+then raises too until `rearm()`.
 
 Call `send()` at least every `heartbeat_timeout_s` while the robot should move. Never write to
-the serial port from here, and never block on the dead-man: a link or process failure becomes a
-one-line KobukiLinkError naming the port.
+the serial port from here, and never block on the dead-man: a link or process failure (the
+dead-man dead or unresponsive included) becomes a one-line KobukiLinkError naming the port.
 """
 
 from __future__ import annotations
 
-import socket
-import subprocess
-import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,23 +25,9 @@ from types import TracebackType
 
 from lanewarden.actuation.base import STOP, BaseFeedback, Pose2D, VelocityCommand
 from lanewarden.actuation.config import ActuationConfig
+from lanewarden.actuation.deadman_link import DeadmanLink
 from lanewarden.actuation.deadman_logic import DeadmanMode
-from lanewarden.actuation.deadman_messages import (
-    MAX_MESSAGE_BYTES,
-    Arm,
-    Close,
-    Command,
-    ControlMessage,
-    FeedbackReceived,
-    LinkLost,
-    ModeChanged,
-    OpenFailed,
-    PortOpened,
-    RawCommand,
-    check_non_motion,
-    decode_deadman,
-    encode_control,
-)
+from lanewarden.actuation.deadman_messages import FeedbackReceived, check_non_motion
 from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_commands import (
     ExtraRequest,
@@ -78,29 +62,22 @@ class LinkHealth:
     lost_reason: str | None
     low_latency: bool
     alive: bool
+    deadman_priority: str = "unknown"
+    deadman_priority_raised: bool = False
 
 
 class KobukiBase:
     """The real Kobuki behind its dead-man process. Create with `KobukiBase.open(...)`."""
 
-    def __init__(self, port: str, process: subprocess.Popen[bytes], control: socket.socket,
-                 clock: Callable[[], float], config: ActuationConfig) -> None:
+    def __init__(self, port: str, clock: Callable[[], float], config: ActuationConfig) -> None:
+        """Starts the dead-man process (use `open`, which also waits until the base streams)."""
         self._port = port
-        self._process = process
-        self._control = control
         self._clock = clock
         self._config = config
-        self._cond = threading.Condition()
         self._closed = False
         self._armed = False
+        self._held = False
         # everything below is written by the relay thread, under self._cond
-        self._opened = False
-        self._low_latency = False
-        self._open_error: str | None = None
-        self._lost: str | None = None
-        self._deadman_gone = False
-        self._mode = DeadmanMode.DISARMED
-        self._mode_reason = "started"
         self._packets = 0
         self._checksum_errors = 0
         self._malformed = 0
@@ -112,9 +89,8 @@ class KobukiBase:
         self._udid: UDID | None = None
         self._controller_info: ControllerInfo | None = None
         self._odometry = EncoderOdometry()
-        self._relay = threading.Thread(target=self._relay_messages, name="kobuki-relay",
-                                       daemon=True)
-        self._relay.start()
+        self._link = DeadmanLink.start(port, config, clock, self._apply_feedback)
+        self._cond = self._link.cond
 
     # ---- opening ------------------------------------------------------------------------------
     @classmethod
@@ -130,22 +106,7 @@ class KobukiBase:
             port = resolve_port(port or config.port)
         except LookupError as exc:
             raise KobukiLinkError(str(exc)) from None
-        parent_end, child_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        argv = [sys.executable, "-m", "lanewarden.actuation.deadman", "--port", port,
-                "--control-fd", str(child_end.fileno()),
-                "--command-rate-hz", repr(config.command_rate_hz),
-                "--heartbeat-timeout-s", repr(config.heartbeat_timeout_s),
-                "--orphan-stop-s", repr(config.orphan_stop_s),
-                "--write-timeout-s", repr(config.write_timeout_s)]
-        try:
-            process = subprocess.Popen(argv, pass_fds=(child_end.fileno(),),
-                                       stdin=subprocess.DEVNULL)
-        except OSError as exc:
-            parent_end.close()
-            raise KobukiLinkError(f"{port}: cannot start the dead-man process ({exc})") from exc
-        finally:
-            child_end.close()
-        base = cls(port, process, parent_end, clock, config)
+        base = cls(port, clock, config)
         try:
             base._wait_until_streaming(request_versions)
         except BaseException:
@@ -154,18 +115,18 @@ class KobukiBase:
         return base
 
     def _wait_until_streaming(self, request_versions: bool) -> None:
-        config = self._config
-        if not self.wait_for(lambda b: b._opened or b._open_error is not None or b._deadman_gone,
+        config, link = self._config, self._link
+        if not link.wait_for(lambda: link.opened or link.open_error is not None or link.gone,
                              config.deadman_start_timeout_s):
             raise KobukiLinkError(f"{self._port}: the dead-man process did not open the port "
                                   f"within {config.deadman_start_timeout_s:g} s")
         with self._cond:
-            if self._open_error is not None:
-                raise KobukiLinkError(self._open_error)
-            if not self._opened:
+            if link.open_error is not None:
+                raise KobukiLinkError(link.open_error)
+            if not link.opened:
                 raise KobukiLinkError(f"{self._port}: the dead-man process exited at start-up "
-                                      f"({self._lost or 'no reason given'})")
-        if not self.wait_for(lambda b: b._packets > 0 or b._lost is not None,
+                                      f"({link.lost or 'no reason given'})")
+        if not link.wait_for(lambda: self._packets > 0 or link.lost is not None,
                              config.first_feedback_timeout_s):
             raise KobukiLinkError(
                 f"{self._port}: no Kobuki sensor data (valid feedback packet) within "
@@ -181,22 +142,28 @@ class KobukiBase:
 
         Non-finite components: stop is sent, then ActuationError. A lost link or dead dead-man:
         KobukiLinkError. A motion command while the dead-man is tripped: forwarded (and ignored
-        by it), then DeadmanTrippedError. After close(): ActuationError.
+        by it), then DeadmanTrippedError. A motion command after `hold_stopped()`: stop is sent
+        instead, then DeadmanTrippedError. After close(): ActuationError.
         """
         self._raise_if_unusable()
         if not self._armed:
-            self._post(Arm())
+            self._link.arm()
             self._armed = True
         try:
             require_finite(command)
         except ActuationError:
-            self._post(Command(STOP))
+            self._link.command(STOP)
             raise
         limited = limit_command(command, self._config.max_linear_m_s,
                                 self._config.max_angular_rad_s)
-        self._post(Command(limited))
+        if self._held and not limited.is_stop:
+            self._link.command(STOP)
+            raise DeadmanTrippedError(
+                f"{self._port}: the base is held stopped (hold_stopped()); motion commands are "
+                "ignored until rearm()")
+        self._link.command(limited)
         with self._cond:
-            tripped, reason = self._mode is DeadmanMode.TRIPPED, self._mode_reason
+            tripped, reason = self._link.mode is DeadmanMode.TRIPPED, self._link.mode_reason
         if tripped and not limited.is_stop:
             raise DeadmanTrippedError(
                 f"{self._port}: the dead-man stopped the base ({reason}); motion commands are "
@@ -221,21 +188,7 @@ class KobukiBase:
         if self._closed:
             return
         self._closed = True
-        try:
-            self._post(Close())
-        except KobukiLinkError:
-            pass  # already gone: it stopped the base on its way out
-        try:
-            self._process.wait(timeout=self._config.close_timeout_s)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait()
-        try:
-            self._control.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        self._relay.join(timeout=self._config.close_timeout_s)
-        self._control.close()
+        self._link.close()
 
     def __enter__(self) -> KobukiBase:
         return self
@@ -246,10 +199,31 @@ class KobukiBase:
 
     # ---- beyond the Base interface ------------------------------------------------------------
     def rearm(self, now: float) -> None:
-        """Explicitly re-arm a tripped dead-man. The command is stop until the next send()."""
+        """Explicitly re-arm a tripped, disarmed or held dead-man. The command is stop until the
+        next send()."""
         self._raise_if_unusable()
-        self._post(Arm())
+        self._link.arm()
         self._armed = True
+        self._held = False
+
+    def hold_stopped(self, now: float) -> bool:
+        """Stop now and disarm the dead-man (it holds stop without needing heartbeats), e.g.
+        before this process suspends itself; motion is refused until `rearm()`.
+
+        Waits (at most twice the heartbeat timeout) until the dead-man reports a stop written
+        after this request, or the link is lost (the relay has then written the stop itself if
+        it could). Returns whether the dead-man confirmed the stop. Never raises."""
+        self._held = True
+        link = self._link
+        try:
+            seq = link.disarm()
+        except KobukiLinkError:
+            return False
+        return link.wait_for(
+            lambda: (link.wire is not None and link.wire.heartbeat_seq >= seq
+                     and link.wire.command.is_stop) or link.gone,
+            2 * self._config.heartbeat_timeout_s,
+        ) and not link.gone
 
     def request_extra(self, flags: int) -> None:
         """Ask the base for versions / UDID (ExtraRequest bits); they arrive as feedback."""
@@ -262,24 +236,34 @@ class KobukiBase:
         """Write non-motion command sub-payloads once (ValueError for base control)."""
         check_non_motion(sub_payloads)
         self._raise_if_unusable()
-        self._post(RawCommand(sub_payloads))
+        self._link.raw(sub_payloads)
 
     def wait_for(self, predicate: Callable[[KobukiBase], bool], timeout_s: float) -> bool:
         """Block until `predicate(self)` holds (re-checked on every relayed message) or timeout."""
-        with self._cond:
-            return self._cond.wait_for(lambda: predicate(self), timeout_s)
+        return self._link.wait_for(lambda: predicate(self), timeout_s)
 
     def link_health(self, now: float) -> LinkHealth:
         with self._cond:
+            link = self._link
             age = None if self._received_at_s is None else now - self._received_at_s
             return LinkHealth(
                 port=self._port, last_packet_age_s=age, packets=self._packets,
                 checksum_errors=self._checksum_errors, malformed_subpayloads=self._malformed,
-                deadman_mode=self._mode, deadman_reason=self._mode_reason,
-                lost_reason=self._lost, low_latency=self._low_latency,
-                alive=(self._lost is None and age is not None
+                deadman_mode=link.mode, deadman_reason=link.mode_reason,
+                lost_reason=link.lost, low_latency=link.low_latency,
+                alive=(link.lost is None and age is not None
                        and age <= self._config.link_timeout_s),
+                deadman_priority=link.priority, deadman_priority_raised=link.priority_raised,
             )
+
+    def priority_warning(self) -> str | None:
+        """One line for the operator when the dead-man could not raise its priority, else None."""
+        with self._cond:
+            if self._link.priority_raised:
+                return None
+            return (f"{self._port}: the dead-man runs at {self._link.priority}: under load it "
+                    "may stop the robot later than documented (run as root or grant "
+                    "CAP_SYS_NICE)")
 
     @property
     def port(self) -> str:
@@ -287,18 +271,31 @@ class KobukiBase:
 
     @property
     def deadman_pid(self) -> int:
-        return self._process.pid
+        return self._link.process.pid
 
     @property
     def deadman_mode(self) -> DeadmanMode:
         with self._cond:
-            return self._mode
+            return self._link.mode
+
+    @property
+    def motion_stopped_s(self) -> float | None:
+        """When the dead-man wrote the stop that ended the latest motion (CLOCK_MONOTONIC, the
+        dead-man's reading once the write returned), or None."""
+        with self._cond:
+            return self._link.motion_stopped_s
+
+    @property
+    def deadman_reason(self) -> str:
+        """Why the dead-man is in its mode (one line)."""
+        with self._cond:
+            return self._link.mode_reason
 
     @property
     def link_lost(self) -> str | None:
         """Why the link was lost (one line), or None while it is up."""
         with self._cond:
-            return self._lost
+            return self._link.lost
 
     @property
     def packets_received(self) -> int:
@@ -355,63 +352,23 @@ class KobukiBase:
 
     def _raise_if_lost(self) -> None:
         with self._cond:
-            if self._lost is not None:
-                raise KobukiLinkError(self._lost)
+            if self._link.lost is not None:
+                raise KobukiLinkError(self._link.lost)
 
-    def _post(self, message: ControlMessage) -> None:
-        try:
-            self._control.send(encode_control(message), socket.MSG_DONTWAIT)
-        except BlockingIOError:
-            raise KobukiLinkError(
-                f"{self._port}: the dead-man process is not reading commands") from None
-        except OSError as exc:
-            raise KobukiLinkError(
-                f"{self._port}: the dead-man process is gone ({exc.strerror or exc})") from None
-
-    def _relay_messages(self) -> None:
-        while True:
-            try:
-                data = self._control.recv(MAX_MESSAGE_BYTES)
-            except OSError:
-                data = b""
-            if not data:
-                with self._cond:
-                    self._deadman_gone = True
-                    if self._lost is None and not self._closed:
-                        self._lost = f"{self._port}: the dead-man process exited"
-                    self._cond.notify_all()
-                return
-            try:
-                message = decode_deadman(data)
-            except (ValueError, UnicodeDecodeError):
-                continue
-            arrived_s = self._clock()
-            with self._cond:
-                self._apply(message, arrived_s)
-                self._cond.notify_all()
-
-    def _apply(self, message: object, arrived_s: float) -> None:
-        if isinstance(message, FeedbackReceived):
-            packet = decode_feedback(message.payload)
-            self._checksum_errors = message.checksum_errors
-            self._malformed += len(packet.malformed_ids) + int(packet.truncated)
-            if packet.basic is not None:
-                # Only the base's sensor stream proves a live Kobuki: a port that echoes our own
-                # command frames back (loop://, a terminal with echo on) carries valid frames too.
-                self._received_at_s = arrived_s
-                self._packets += 1
-                self._latest = packet
-                self._sensors = packet.basic
-                self._odometry.update(packet.basic.left_encoder, packet.basic.right_encoder)
-            self._hardware_version = packet.hardware_version or self._hardware_version
-            self._firmware_version = packet.firmware_version or self._firmware_version
-            self._udid = packet.udid or self._udid
-            self._controller_info = packet.controller_info or self._controller_info
-        elif isinstance(message, ModeChanged):
-            self._mode, self._mode_reason = message.mode, message.reason
-        elif isinstance(message, PortOpened):
-            self._opened, self._low_latency = True, message.low_latency
-        elif isinstance(message, OpenFailed):
-            self._open_error = message.message
-        elif isinstance(message, LinkLost):
-            self._lost = message.message
+    def _apply_feedback(self, message: FeedbackReceived, arrived_s: float) -> None:
+        """Called by the relay thread, under self._cond."""
+        packet = decode_feedback(message.payload)
+        self._checksum_errors = message.checksum_errors
+        self._malformed += len(packet.malformed_ids) + int(packet.truncated)
+        if packet.basic is not None:
+            # Only the base's sensor stream proves a live Kobuki: a port that echoes our own
+            # command frames back (loop://, a terminal with echo on) carries valid frames too.
+            self._received_at_s = arrived_s
+            self._packets += 1
+            self._latest = packet
+            self._sensors = packet.basic
+            self._odometry.update(packet.basic.left_encoder, packet.basic.right_encoder)
+        self._hardware_version = packet.hardware_version or self._hardware_version
+        self._firmware_version = packet.firmware_version or self._firmware_version
+        self._udid = packet.udid or self._udid
+        self._controller_info = packet.controller_info or self._controller_info

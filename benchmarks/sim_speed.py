@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lanewarden.assembly import build_stack
 from lanewarden.config import LanewardenConfig
 from lanewarden.scenarios.library import resolve_scenario
 from lanewarden.scenarios.simulator import Simulation, effective_config
@@ -57,9 +58,9 @@ def closed_loop(width: int, height: int) -> None:
     spec = resolve_scenario(SCENARIO)
     config = effective_config(_config(width, height), spec)
     t0 = time.perf_counter()
-    sim = Simulation(spec, config, controller="supervised", seed=0)
+    sim = Simulation(spec, config, build_stack, controller="supervised", seed=0)
     setup = time.perf_counter() - t0
-    costs = stage_costs(Simulation(spec, config, controller="supervised", seed=0))
+    costs = stage_costs(Simulation(spec, config, build_stack, controller="supervised", seed=0))
     t1 = time.perf_counter()
     result = sim.run()
     run = time.perf_counter() - t1

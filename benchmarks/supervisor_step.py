@@ -1,7 +1,8 @@
 """How long the supervisor's part of one control step takes (no perception, no I/O).
 
-Runs SupervisedController.step and the lecture baseline over a synthetic 30 Hz drive with noisy
-observations, a bend and a few dropouts, and prints microseconds per step. On demand only:
+Runs SupervisedController and the lecture baseline, each behind its SafetyGate, over a synthetic
+30 Hz drive with noisy observations, a bend and a few dropouts, and prints microseconds per step.
+On demand only:
     python benchmarks/supervisor_step.py
 """
 
@@ -17,6 +18,7 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, FrameInfo
 from lanewarden.supervisor.controllers import CONTROLLERS
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.watchdog import frame_fingerprint
 
 DT = 1.0 / 30.0
@@ -56,7 +58,7 @@ def main() -> None:
     steps = inputs(9000)  # 5 minutes of driving at 30 Hz
     config = SupervisorConfig()
     for name, factory in CONTROLLERS.items():
-        controller = factory(config)
+        controller = SafetyGate(factory(config), config)
         per_step = []
         for k, inp in enumerate(steps):
             t0 = time.perf_counter()

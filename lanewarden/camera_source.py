@@ -1,12 +1,17 @@
-"""Live camera frames for the robot runner: a capture thread that keeps only the newest frame.
+"""Camera frames for the robot runner: a capture thread that keeps only the newest frame.
 
-This is a thin I/O shell around cv2.VideoCapture. It stamps each frame with the injected clock at
-the moment it is read from the driver; the control loop decides whether that frame is fresh, late
-or stale. It never drops an error silently: a capture failure is kept and raised on the next read.
+This is a thin I/O shell around cv2.VideoCapture (a camera index, a device, a stream URL, a video
+file, a printf-style image sequence) and `ImageSequence` (a folder of images or a glob pattern). It
+stamps each frame with the injected clock at the moment it is read from the driver; the control loop
+decides whether that frame is fresh, late or stale. A recorded source (video file, image sequence)
+is paced at its frame rate. It never drops an error silently: once the capture fails, or a recorded
+source ends, every later read raises `CameraLost` (the loop's CAMERA_ERROR: HALT), and `ended` tells
+a clean end of a clip from a failure.
 """
 
 from __future__ import annotations
 
+import glob
 import os
 import re
 import threading
@@ -18,8 +23,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lanewarden.errors import UsageError
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.errors import DeviceError, UsageError
+from lanewarden.image_files import header_problem, read_image, too_many_pixels
 from lanewarden.supervisor.loop import Frame
 
 
@@ -35,11 +40,83 @@ def quiet_opencv() -> Iterator[None]:
 
 
 _URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
+_GLOB_CHARS = re.compile(r"[*?\[]")
+#: File name endings read as images in a folder or glob sequence.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
 
 
-def open_camera(camera: str) -> cv2.VideoCapture:
+class CameraLost(Exception):
+    """The frame source stopped delivering: a failed capture, or the end of a recorded clip."""
+
+
+def _natural_key(path: Path) -> list[object]:
+    """frame_2 before frame_10."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]
+
+
+def image_sequence_paths(source: str) -> list[Path] | None:
+    """The images of a folder or a glob pattern, in natural name order; None when `source` is
+    neither (a video file, a camera, a URL, a printf pattern)."""
+    if _URL.match(source) or "%" in source:
+        return None
+    path = Path(source)
+    if path.is_dir():
+        files = [p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
+    elif _GLOB_CHARS.search(source) and not path.exists():
+        files = [Path(p) for p in glob.glob(source)]
+        files = [p for p in files if p.is_file()]
+    else:
+        return None
+    return sorted(files, key=_natural_key)
+
+
+class ImageSequence:
+    """A folder or glob of image files behind cv2.VideoCapture's read/get/release/isOpened, so the
+    capture thread treats it like a video. An unreadable file ends it with `failure` set."""
+
+    def __init__(self, paths: list[Path], max_pixels: int | None = None) -> None:
+        self.paths = paths
+        self._max_pixels = max_pixels
+        self._next = 0
+        self.failure: str | None = None
+
+    def isOpened(self) -> bool:  # noqa: N802 (cv2.VideoCapture's name)
+        return bool(self.paths)
+
+    def read(self) -> tuple[bool, np.ndarray | None]:
+        if self._next >= len(self.paths) or self.failure is not None:
+            return False, None
+        path = self.paths[self._next]
+        image, why = read_image(path, cv2.IMREAD_UNCHANGED, self._max_pixels)
+        if image is None or image.dtype != np.uint8:
+            self.failure = f"{path}: {why or 'not an 8-bit image'}"
+            return False, None
+        self._next += 1
+        return True, image
+
+    def get(self, prop: int) -> float:
+        return 0.0  # no frame rate of its own: paced at the configured camera rate
+
+    def release(self) -> None:
+        self._next = len(self.paths)
+
+
+def open_camera(camera: str,
+                max_pixels: int | None = None) -> cv2.VideoCapture | ImageSequence:
     """cv2.VideoCapture on an int index, a file path (also an image sequence like
-    'dir/frame_%03d.png') or a URL; UsageError/PerceptionError naming --camera on failure."""
+    'dir/frame_%03d.png') or a URL, or an `ImageSequence` on a folder of images or a glob
+    ('shots/*.png'); UsageError (bad input: no such file, no images, frames larger than
+    `max_pixels` by the source's own size) or DeviceError (cannot open it) naming --camera."""
+    paths = image_sequence_paths(camera)
+    if paths is not None:
+        if not paths:
+            raise UsageError(
+                f"--camera '{camera}': no images there (expected {', '.join(IMAGE_SUFFIXES)} "
+                "files in a folder or matching the pattern)"
+            )
+        if max_pixels is not None and (why := header_problem(paths[0], max_pixels)):
+            raise UsageError(f"--camera '{camera}': {paths[0]}: {why}")
+        return ImageSequence(paths, max_pixels)
     source: int | str
     if camera.strip().isdigit():
         source = int(camera)
@@ -57,15 +134,23 @@ def open_camera(camera: str) -> cv2.VideoCapture:
         opened = capture.isOpened()
     if not opened:
         capture.release()
-        raise PerceptionError(
+        raise DeviceError(
             f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
             "free, and a format OpenCV reads?)"
         )
+    width = int(capture.get(cv2.CAP_PROP_FRAME_WIDTH) or 0)
+    height = int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
+    if max_pixels is not None and (why := too_many_pixels(width, height, max_pixels)):
+        capture.release()
+        raise UsageError(f"--camera '{camera}': {why}")
     return capture
 
 
-def replay_rate_fps(source: str, capture: cv2.VideoCapture, default_fps: float) -> float | None:
+def replay_rate_fps(source: str, capture: cv2.VideoCapture | ImageSequence,
+                    default_fps: float) -> float | None:
     """The pace to replay a recorded source at (its own FPS, else `default_fps`); None if live."""
+    if isinstance(capture, ImageSequence):
+        return default_fps
     if source.isdigit() or "://" in source or source.startswith("/dev/"):
         return None
     if not (Path(source).is_file() or "%" in source):
@@ -76,30 +161,58 @@ def replay_rate_fps(source: str, capture: cv2.VideoCapture, default_fps: float) 
 
 class CameraFrameSource:
     """A `FrameSource` fed by a background capture thread: `read(now)` returns the newest frame
-    (the same one again until a newer one arrives; the loop tells new from repeated by index)."""
+    (the same one again until a newer one arrives; the loop tells new from repeated by index), and
+    raises `CameraLost` once the capture failed or a recorded source ended."""
 
     def __init__(
         self,
-        capture: cv2.VideoCapture,
+        capture: cv2.VideoCapture | ImageSequence,
         clock: Callable[[], float],
         replay_fps: float | None = None,
+        max_pixels: int | None = None,
     ) -> None:
         """`replay_fps`: for a recorded source (video file, image sequence), deliver frames at this
-        rate instead of as fast as the file can be decoded; None for a live camera."""
+        rate instead of as fast as the file can be decoded; None for a live camera. A frame with
+        more than `max_pixels` pixels ends the delivery with an `error` (the loop then halts on
+        the stale frame)."""
         self._capture = capture
+        self._max_pixels = max_pixels
         self._clock = clock
         self._replay_period_s = 1.0 / replay_fps if replay_fps else None
         self._lock = threading.Lock()
         self._latest: Frame | None = None
         self._error: str | None = None
+        self._ended = False
+        self.frames_captured = 0
         self._running = True
+        self._playing = threading.Event()
+        if replay_fps is None:
+            self._playing.set()
         self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
         self._thread.start()
+
+    def play(self) -> None:
+        """Start playing a recorded source: until then it holds its first frame (so a clip starts
+        when the run does, not while the base is being opened), which now counts as just
+        captured. No effect on a live camera."""
+        if self._playing.is_set():
+            return
+        with self._lock:
+            if self._latest is not None:
+                self._latest = Frame(self._latest.image, self._latest.index, self._clock())
+        self._playing.set()
+
+    def _hold_first_frame(self) -> None:
+        while self._running and not self._playing.wait(0.1):
+            pass
 
     def _run(self) -> None:
         index = 0
         next_due = self._clock()
         while self._running:
+            if index == 1 and not self._playing.is_set():
+                self._hold_first_frame()
+                next_due = self._clock() + (self._replay_period_s or 0.0)
             ok, image = self._capture.read()
             if self._replay_period_s is not None:
                 delay = next_due - self._clock()
@@ -108,21 +221,44 @@ class CameraFrameSource:
                 next_due += self._replay_period_s
             stamp = self._clock()
             if not ok or image is None:
+                failure = getattr(self._capture, "failure", None)
                 with self._lock:
-                    self._error = "the camera stopped delivering frames"
+                    if failure:
+                        self._error = failure
+                    elif self._replay_period_s is not None and index > 0:
+                        self._ended = True
+                        self._error = f"end of the recorded clip after {index} frames"
+                    else:
+                        self._error = "the camera stopped delivering frames"
+                return
+            height, width = image.shape[:2]
+            if self._max_pixels is not None and (
+                why := too_many_pixels(width, height, self._max_pixels)
+            ):
+                with self._lock:
+                    self._error = f"camera frame refused: {why}"
                 return
             with self._lock:
                 self._latest = Frame(image=np.asarray(image), index=index, time_s=stamp)
+                self.frames_captured = index + 1
             index += 1
 
     def read(self, now: float) -> Frame | None:
-        # When the camera dies the newest frame simply stops changing: the loop's watchdog turns
-        # its growing age into a stale-frame HALT, and `error` says why for the operator.
+        # A dead camera or the end of a clip is a fault the loop turns into CAMERA_ERROR (HALT in
+        # the same step), and `error` says why for the operator.
         with self._lock:
-            frame = self._latest
+            frame, error = self._latest, self._error
+        if error is not None:
+            raise CameraLost(error)
         if frame is not None and frame.time_s <= now:
             return frame
         return None
+
+    @property
+    def ended(self) -> bool:
+        """A recorded source (video file, image sequence) reached its end (not a failure)."""
+        with self._lock:
+            return self._ended
 
     @property
     def error(self) -> str | None:
@@ -131,5 +267,6 @@ class CameraFrameSource:
 
     def close(self) -> None:
         self._running = False
+        self._playing.set()
         self._thread.join(timeout=2.0)
         self._capture.release()

@@ -1,8 +1,9 @@
 """The `lanewarden` command: the composition root.
 
 Each command group lives in its own module under `lanewarden.commands`; this module only wires
-them together and turns every user-caused error into one line on stderr and a non-zero exit, with
-no traceback.
+them together and turns every user-caused error into one line on stderr and the exit code of the
+one rule in `lanewarden.errors` (0 ok, 1 runtime failure, 2 bad input or failed gate/check, 3 a
+safety stop of `run`, 130 Ctrl-C), with no traceback.
 """
 
 from __future__ import annotations
@@ -14,10 +15,18 @@ import click
 
 from lanewarden import __version__
 from lanewarden.commands import register_commands
-from lanewarden.errors import USER_ERRORS, ConfigError, QualityGateError, UsageError
+from lanewarden.commands.command_group import CommandGroup
+from lanewarden.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    USER_ERRORS,
+    Interrupted,
+    exit_code_for,
+)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=CommandGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="lanewarden")
 def cli() -> None:
     """Lanewarden: follow a taped lane with a Kobuki and a camera, and stop when unsure."""
@@ -32,36 +41,36 @@ def _error(message: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point. Returns the exit code: 0 ok, 1 runtime failure, 2 bad input or failed gate."""
+    """Entry point. Returns the exit code of the one rule (`lanewarden.errors`)."""
     try:
         result = cli.main(args=list(argv) if argv is not None else None,
                           prog_name="lanewarden", standalone_mode=False)
     except click.exceptions.Abort:
         _error("interrupted")
-        return 130
+        return EXIT_INTERRUPTED
     except click.exceptions.NoArgsIsHelpError as exc:  # bare group: show its help, like --help
         click.echo(exc.ctx.get_help() if exc.ctx else "", err=True)
-        return 2
+        return EXIT_BAD_INPUT
     except click.UsageError as exc:
         where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
         _error(f"{where}{exc.format_message()}")
-        return 2
+        return EXIT_BAD_INPUT
     except click.ClickException as exc:
         _error(exc.format_message())
         return exc.exit_code
-    except (ConfigError, UsageError, QualityGateError) as exc:
-        _error(str(exc))
-        return 2
+    except Interrupted as exc:
+        _error(f"interrupted: {exc}")
+        return EXIT_INTERRUPTED
     except USER_ERRORS as exc:
         _error(str(exc))
-        return 1
+        return exit_code_for(exc)
     except KeyboardInterrupt:
         _error("interrupted")
-        return 130
+        return EXIT_INTERRUPTED
     finally:
         sys.stdout.flush()
         sys.stderr.flush()
-    return result if isinstance(result, int) else 0
+    return result if isinstance(result, int) else EXIT_OK
 
 
 if __name__ == "__main__":

@@ -7,32 +7,67 @@ assembles them, loads YAML and turns validation errors into one line per bad key
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lanewarden.actuation.config import ActuationConfig
+from lanewarden.documents import allowed_range, read_yaml_document, validation_error_lines
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
-from lanewarden.scenarios.yaml_documents import read_yaml_document, validation_error_lines
 from lanewarden.supervisor.config import SupervisorConfig
 
 
 class LanewardenConfig(BaseModel):
     """The whole configuration. `lanewarden config show` prints it as YAML."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     perception: PerceptionConfig = PerceptionConfig()
     calibration: CalibrationConfig = CalibrationConfig()
     supervisor: SupervisorConfig = SupervisorConfig()
     actuation: ActuationConfig = ActuationConfig()
     simulation: SimulationConfig = SimulationConfig()
+    campaign: CampaignConfig = CampaignConfig()
+
+    @model_validator(mode="after")
+    def _sections_agree(self) -> Self:
+        """A quantity that two sections both need lives in one of them, or is checked here: each
+        conflict is one error, located at one key and naming the other."""
+        sup, act = self.supervisor, self.actuation
+        conflicts: list[tuple[tuple[str, str], object, str]] = []
+        for axis, unit in (("linear_m_s", "m/s"), ("angular_rad_s", "rad/s")):
+            cap, limit = getattr(sup, f"limiter_max_{axis}"), getattr(act, f"max_{axis}")
+            if cap > limit:
+                conflicts.append((("supervisor", f"limiter_max_{axis}"), cap,
+                                  f"must not exceed actuation.max_{axis} ({limit:g} {unit}), "
+                                  "the base's own limit"))  # fmt: skip
+        rate_hz = self.simulation.camera_rate_hz
+        if not math.isclose(sup.camera_period_s * rate_hz, 1.0, rel_tol=1e-3):
+            conflicts.append((("supervisor", "camera_period_s"), sup.camera_period_s,
+                              f"must be 1 / simulation.camera_rate_hz ({rate_hz:g} Hz, "
+                              f"{1.0 / rate_hz:.6g} s): the simulated camera is the "
+                              "robot's"))  # fmt: skip
+        clamp = self.perception.edges.max_abs_slope
+        if 2.0 * clamp <= sup.turn_enter_slope_sum:
+            conflicts.append((("supervisor", "turn_enter_slope_sum"), sup.turn_enter_slope_sum,
+                              f"must be below twice perception.edges.max_abs_slope ({clamp:g}): "
+                              "two clamped slopes could never reach it"))  # fmt: skip
+        if conflicts:
+            raise ValidationError.from_exception_data(type(self).__name__, [
+                InitErrorDetails(type=PydanticCustomError("sections_disagree", message),
+                                 loc=loc, input=value)
+                for loc, value, message in conflicts
+            ])  # fmt: skip
+        return self
 
 
 _UNKNOWN_KEY_HINT = " (check the spelling; `lanewarden config show` lists every key)"
@@ -50,7 +85,9 @@ def config_from_mapping(data: Any, source: str = "config") -> LanewardenConfig:
     try:
         return LanewardenConfig.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(validation_error_lines(source, exc, _UNKNOWN_KEY_HINT)) from None
+        raise ConfigError(
+            validation_error_lines(source, exc, LanewardenConfig, _UNKNOWN_KEY_HINT)
+        ) from None
 
 
 def load_config(path: str | Path | None) -> LanewardenConfig:
@@ -64,12 +101,14 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
 @dataclass(frozen=True)
 class ConfigNode:
     """One node of the config tree: a section (`is_section`) or a key with its JSON-ready value.
-    `description` is the key's Field description, or a section's one-paragraph summary."""
+    `description` is the key's Field description, or a section's one-paragraph summary;
+    `allowed` a numeric key's allowed range (e.g. '0 < value <= 5'), else ''."""
 
     path: tuple[str, ...]
     value: object
     description: str
     is_section: bool
+    allowed: str = ""
 
 
 def _summary(model: BaseModel) -> str:
@@ -88,7 +127,8 @@ def walk_config(model: BaseModel, path: tuple[str, ...] = ()) -> Iterator[Config
             yield from walk_config(value, here)
         else:
             dumped = model.model_dump(mode="json", include={name})[name]
-            yield ConfigNode(here, dumped, (field.description or "").strip(), False)
+            yield ConfigNode(here, dumped, (field.description or "").strip(), False,
+                             allowed_range(field))
 
 
 def config_as_yaml(config: LanewardenConfig) -> str:

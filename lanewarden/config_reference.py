@@ -20,7 +20,10 @@ Generated from the config models by `python -m lanewarden.config_reference > doc
 (a test fails when this file is stale). Every key is optional; a YAML file only needs the keys it
 changes. Units are in the names (`_s` seconds, `_m` metres, `_px` pixels, `_norm` fractions of the
 image size, `_frac_of_width`/`_frac_of_height` fractions of the image width/height).
-`lanewarden config show` prints the effective values.
+`lanewarden config show` prints the effective values. Every number must be finite and within the
+range in the "allowed" column (a value outside it, `.inf` or `.nan` is refused at start-up with
+one line naming the key and the range): the upper bounds are what a safe robot never needs to
+exceed.
 """
 
 
@@ -46,11 +49,14 @@ def render_reference(config: LanewardenConfig | None = None) -> str:
             lines.append(f"## `{node.path[0]}`\n")
             if node.description:
                 lines.append(node.description + "\n")
-            lines.append("| key | default | meaning |")
-            lines.append("|---|---|---|")
+            lines.append("| key | default | allowed | meaning |")
+            lines.append("|---|---|---|---|")
         elif not node.is_section:
             key = ".".join(node.path)
-            lines.append(f"| `{key}` | {_format_default(node.value)} | {node.description} |")
+            allowed = f"`{node.allowed}`" if node.allowed else ""
+            lines.append(
+                f"| `{key}` | {_format_default(node.value)} | {allowed} | {node.description} |"
+            )
     lines.append("")
     return "\n".join(lines)
 

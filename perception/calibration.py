@@ -2,7 +2,9 @@
 
 - `CameraCalibration`: the camera matrix K (3x3, pixels), OpenCV distortion coefficients (1-D:
   k1, k2, p1, p2[, k3[, ...]]), the image size it is valid for (width, height) and, when known,
-  how it was obtained (RMS reprojection error in pixels, pattern, date, number of views).
+  how it was obtained (RMS reprojection error in pixels, pattern, date, number of views), and
+  optionally the camera's pose over the floor (`GroundCalibration`, from `lanewarden calibrate
+  ground`), which with K gives perception's ground model (`perception.ground.ground_model_for`).
 - `load_calibration` / `save_calibration`: OpenCV FileStorage YAML (the format OpenCV's own
   calibration sample writes). `load_calibration` also reads a ROS camera_info YAML, which
   `save_ros_camera_info` writes.
@@ -26,6 +28,7 @@ import yaml
 from numpy.typing import NDArray
 
 from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.ground import CameraPose
 
 if TYPE_CHECKING:
     from lanewarden.perception.calibration_config import CalibrationConfig
@@ -35,6 +38,22 @@ FloatArray = NDArray[np.float64]
 #: Lengths of OpenCV's distortion vector (plumb_bob is 5).
 DIST_COEFF_COUNTS = (4, 5, 8, 12, 14)
 
+#: The ground pose's keys in the calibration file (OpenCV FileStorage or ROS camera_info YAML),
+#: with the CameraPose field each holds. height and pitch are required together; the others
+#: default to 0.
+GROUND_POSE_KEYS = (
+    ("ground_height_m", "height_m"),
+    ("ground_pitch_deg", "pitch_deg"),
+    ("ground_roll_deg", "roll_deg"),
+    ("ground_yaw_deg", "yaw_deg"),
+    ("ground_forward_m", "forward_m"),
+    ("ground_lateral_m", "lateral_m"),
+)
+#: How the ground pose was obtained, its error on the floor and when (optional keys).
+GROUND_METHOD_KEY = "ground_method"
+GROUND_ERROR_KEY = "ground_reprojection_error_m"
+GROUND_DATE_KEY = "ground_date"
+
 
 def _frozen_array(values: object, name: str) -> FloatArray:
     try:
@@ -43,6 +62,43 @@ def _frozen_array(values: object, name: str) -> FloatArray:
         raise PerceptionError(f"calibration: {name} is not numeric ({exc})") from exc
     array.setflags(write=False)
     return array
+
+
+@dataclass(frozen=True)
+class GroundCalibration:
+    """The camera's pose over the floor and how it was obtained.
+
+    - `pose`: see `perception.ground.CameraPose` (robot frame, REP 103).
+    - `method`: e.g. "from the mount" or "from a floor chessboard (9x6, 0.03 m squares)".
+    - `reprojection_error_m`: RMS distance on the floor between the board's corners and where
+      the solved pose puts them (chessboard only), metres.
+    - `date`: ISO 8601 text, when known.
+    """
+
+    pose: CameraPose
+    method: str | None = None
+    reprojection_error_m: float | None = None
+    date: str | None = None
+
+    def __post_init__(self) -> None:
+        pose = self.pose
+        if not (math.isfinite(pose.height_m) and pose.height_m > 0):
+            raise PerceptionError(
+                f"calibration: ground_height_m {pose.height_m:g} must be above the floor (> 0 m)"
+            )
+        for key, field in GROUND_POSE_KEYS[1:]:
+            value = getattr(pose, field)
+            if not math.isfinite(value):
+                raise PerceptionError(f"calibration: {key} {value} is not finite")
+        if not -90.0 <= pose.pitch_deg <= 90.0:
+            raise PerceptionError(
+                f"calibration: ground_pitch_deg {pose.pitch_deg:g} must be within -90..90"
+            )
+        error = self.reprojection_error_m
+        if error is not None and not (math.isfinite(error) and error >= 0):
+            raise PerceptionError(
+                f"calibration: {GROUND_ERROR_KEY} {error} must be a finite length >= 0 m"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +112,7 @@ class CameraCalibration:
     - `pattern`: e.g. "9x6 chessboard, 0.025 m squares", when known.
     - `date`: ISO 8601 text, when known.
     - `views_used`: how many chessboard views went into the result, when known.
+    - `ground`: the camera's pose over the floor, when calibrated (`calibrate ground`).
 
     Arrays are stored read-only. Shapes are checked here; values (finite, positive focal length,
     RMS) are judged by `check_calibration`, so that a bad file can be reported rather than crash.
@@ -68,6 +125,7 @@ class CameraCalibration:
     pattern: str | None = None
     date: str | None = None
     views_used: int | None = None
+    ground: GroundCalibration | None = None
 
     def __post_init__(self) -> None:
         k = _frozen_array(self.camera_matrix, "camera_matrix")
@@ -122,7 +180,8 @@ class CameraCalibration:
 
 def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
     """Write `calibration` as OpenCV FileStorage YAML (camera_matrix, distortion_coefficients,
-    image_width, image_height and, when known, rms, pattern, date, views_used)."""
+    image_width, image_height and, when known, rms, pattern, date, views_used and the ground
+    pose's keys, GROUND_POSE_KEYS and ground_method, ground_reprojection_error_m, ground_date)."""
     path = Path(path)
     if path.parent and not path.parent.exists():
         raise PerceptionError(f"{path}: folder {path.parent} does not exist")
@@ -148,15 +207,34 @@ def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
             storage.write("pattern", str(calibration.pattern))
         if calibration.date is not None:
             storage.write("date", str(calibration.date))
+        for key, value in ground_fields(calibration.ground).items():
+            storage.write(key, value)
     finally:
         storage.release()
+
+
+def ground_fields(ground: GroundCalibration | None) -> dict[str, float | str]:
+    """The file keys of a ground calibration (none without one), in GROUND_POSE_KEYS order."""
+    if ground is None:
+        return {}
+    fields: dict[str, float | str] = {
+        key: float(getattr(ground.pose, field)) for key, field in GROUND_POSE_KEYS
+    }
+    if ground.method is not None:
+        fields[GROUND_METHOD_KEY] = str(ground.method)
+    if ground.reprojection_error_m is not None:
+        fields[GROUND_ERROR_KEY] = float(ground.reprojection_error_m)
+    if ground.date is not None:
+        fields[GROUND_DATE_KEY] = str(ground.date)
+    return fields
 
 
 def ros_camera_info(calibration: CameraCalibration, camera_name: str = "camera") -> dict[str, Any]:
     """The calibration as a ROS camera_info YAML mapping (camera_calibration_parsers' layout).
 
     Monocular: rectification_matrix is the identity and projection_matrix is [K | 0], i.e. the
-    rectified image uses the calibration's own K, as `Undistorter` does.
+    rectified image uses the calibration's own K, as `Undistorter` does. A ground pose is added
+    as extra top-level keys (`ground_height_m`, ...), which ROS's parser ignores.
     """
     k = np.asarray(calibration.camera_matrix, dtype=np.float64)
     d = np.asarray(calibration.dist_coeffs, dtype=np.float64).reshape(-1)
@@ -175,6 +253,7 @@ def ros_camera_info(calibration: CameraCalibration, camera_name: str = "camera")
         "distortion_coefficients": matrix(d, 1, d.size),
         "rectification_matrix": matrix(np.eye(3), 3, 3),
         "projection_matrix": matrix(projection, 3, 4),
+        **ground_fields(calibration.ground),
     }
 
 
@@ -240,6 +319,33 @@ def _read_optional_string(node: cv2.FileNode) -> str | None:
     return str(node.string())
 
 
+def _read_ground(storage: cv2.FileStorage, path: Path) -> GroundCalibration | None:
+    """The ground pose keys, if the file has any (older files have none: None)."""
+    values = {key: _read_optional_real(storage.getNode(key), path, key)
+              for key, _ in GROUND_POSE_KEYS}
+    if all(v is None for v in values.values()):
+        return None
+    for key in ("ground_height_m", "ground_pitch_deg"):
+        if values[key] is None:
+            raise PerceptionError(
+                f"{path}: node '{key}' is missing (a ground pose needs ground_height_m and "
+                "ground_pitch_deg; run `lanewarden calibrate ground`)"
+            )
+    given = {field: values[key] for key, field in GROUND_POSE_KEYS}
+    pose = CameraPose(**{field: 0.0 if value is None else value
+                         for field, value in given.items()})
+    try:
+        return GroundCalibration(
+            pose=pose,
+            method=_read_optional_string(storage.getNode(GROUND_METHOD_KEY)),
+            reprojection_error_m=_read_optional_real(
+                storage.getNode(GROUND_ERROR_KEY), path, GROUND_ERROR_KEY),
+            date=_read_optional_string(storage.getNode(GROUND_DATE_KEY)),
+        )
+    except PerceptionError as exc:
+        raise PerceptionError(f"{path}: {str(exc).removeprefix('calibration: ')}") from None
+
+
 def load_calibration(path: str | Path) -> CameraCalibration:
     """Read a calibration written by `save_calibration` (or OpenCV's calibration sample, or a ROS
     camera_info YAML). Raises PerceptionError naming the file and the bad or missing node."""
@@ -291,6 +397,7 @@ def load_calibration(path: str | Path) -> CameraCalibration:
             pattern=_read_optional_string(storage.getNode("pattern")),
             date=_read_optional_string(storage.getNode("date")),
             views_used=views,
+            ground=_read_ground(storage, path),
         )
     except cv2.error as exc:
         raise PerceptionError(f"{path}: malformed calibration file ({exc.err})") from exc
@@ -408,3 +515,17 @@ def check_calibration(
             f"{cal_w}x{cal_h}"
         )
     return problems
+
+
+def require_usable_calibration(
+    calibration: CameraCalibration,
+    image_size: tuple[int, int],
+    gates: CalibrationConfig,
+    source: str,
+) -> None:
+    """The one calibration check behind `run`, `detect` and `undistort`: PerceptionError (one
+    line naming `source`, e.g. '--calibration camera.yaml') listing every `check_calibration`
+    problem, or nothing when the calibration is usable for `image_size` frames."""
+    problems = check_calibration(calibration, image_size, gates)
+    if problems:
+        raise PerceptionError(f"{source}: refusing to engage: {'; '.join(problems)}")

@@ -32,19 +32,23 @@ class CalibrationConfig(BaseModel):
     - `capture_min_novelty`: `calibrate capture` keeps a frame only when its board differs from
       every kept one by at least this much (L1 distance of position, size and tilt, each
       normalised to about 0..1).
+    - `max_ground_error_m`: gate of `calibrate ground` from a floor chessboard: the RMS distance
+      on the floor between the board's corners and where the solved pose puts them, metres.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     max_rms_px: float = Field(
         default=1.0,
         gt=0.0,
+        le=10.0,
         description="Gate: largest acceptable overall RMS reprojection error, px; above it the "
         "calibration is refused",
     )
     min_views: int = Field(
         default=10,
         ge=3,
+        le=1000,
         description="Gate: fewest usable chessboard views for a calibration to be trusted",
     )
     min_coverage_fraction: float = Field(
@@ -57,17 +61,20 @@ class CalibrationConfig(BaseModel):
     outlier_error_factor: float = Field(
         default=2.0,
         gt=1.0,
+        le=100.0,
         description="A view is an outlier when its RMS error is above this times the median view "
         "error (and above outlier_min_error_px)",
     )
     outlier_min_error_px: float = Field(
         default=0.3,
         ge=0.0,
+        le=100.0,
         description="A view is an outlier only when its RMS error is also above this, px",
     )
     max_edge_width_px: float = Field(
         default=5.0,
         gt=0.0,
+        le=100.0,
         description="Per-view blur rule: reject a view whose mean black-to-white edge width is "
         "above this, px (sharp: ~2-3 px)",
     )
@@ -87,22 +94,33 @@ class CalibrationConfig(BaseModel):
     subpix_max_iterations: int = Field(
         default=30,
         ge=1,
+        le=1000,
         description="cornerSubPix stopping rule: at most this many refinement iterations",
     )
     subpix_epsilon_px: float = Field(
         default=0.01,
         gt=0.0,
+        le=10.0,
         description="cornerSubPix stopping rule: stop when a corner moves less than this, px",
     )
     max_views_per_calibration: int = Field(
         default=60,
         ge=3,
+        le=1000,
         description="At most this many views (evenly chosen) go into calibrateCamera; more add "
         "little and slow the solver",
     )
     capture_min_novelty: float = Field(
         default=0.2,
         gt=0.0,
+        le=5.0,
         description="`calibrate capture` keeps a frame only when its board differs from every "
         "kept one by at least this (L1 of normalised position, size and tilt)",
+    )
+    max_ground_error_m: float = Field(
+        default=0.01,
+        gt=0.0,
+        le=0.1,
+        description="Gate of `calibrate ground` (floor chessboard): largest RMS distance on the "
+        "floor between the board's corners and where the solved camera pose puts them, m",
     )

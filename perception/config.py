@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from lanewarden.perception.floor_config import LaneConfig, RoiConfig, TapeConfig
 
-_FROZEN = ConfigDict(extra="forbid", frozen=True)
+_FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
@@ -40,12 +40,14 @@ class BlurConfig(BaseModel):
 
     kernel_px: int = Field(
         default=5,
+        ge=1,
+        le=31,
         description=(
             "Gaussian blur kernel size (odd) for a 480-row image; scaled with the image height to "
             "the nearest odd size, at least 3"
         ),
     )
-    sigma_px: Annotated[float, Field(ge=0.0)] = Field(
+    sigma_px: Annotated[float, Field(ge=0.0, le=20.0)] = Field(
         default=0.0,
         description=(
             "Gaussian sigma in pixels; 0 derives it from the kernel size"
@@ -65,19 +67,20 @@ class CannyConfig(BaseModel):
 
     model_config = _FROZEN
 
-    low_threshold: Annotated[float, Field(ge=0.0)] = Field(
+    low_threshold: Annotated[float, Field(ge=0.0, le=10000.0)] = Field(
         default=40.0,
         description=(
             "Canny lower hysteresis threshold (gradient, grey levels); below high_threshold"
         ),
     )
-    high_threshold: Annotated[float, Field(gt=0.0)] = Field(
+    high_threshold: Annotated[float, Field(gt=0.0, le=10000.0)] = Field(
         default=120.0,
         description=(
             "Canny upper hysteresis threshold (gradient, grey levels)"
         ),
     )
-    aperture_px: int = Field(default=3, description="Sobel aperture of Canny: 3, 5 or 7")
+    aperture_px: int = Field(default=3, ge=3, le=7,
+                             description="Sobel aperture of Canny: 3, 5 or 7")
 
     @field_validator("aperture_px")
     @classmethod
@@ -243,9 +246,9 @@ class ConfidenceWeights(BaseModel):
 
 
 class ConfidenceConfig(BaseModel):
-    """Confidence score and the threshold below which no decision is made.
+    """How the confidence score is computed (what counts as trusted is the supervisor's call:
+    `supervisor.confidence_usable_min`).
 
-    - `min_confidence`: below it the decision is "none" (and the supervisor must not steer by it).
     - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
       height) gets full support 1; shorter scales linearly.
     - `consistency_offset_tol_m` / `consistency_angle_tol_deg`: how far an edge may move sideways
@@ -256,12 +259,6 @@ class ConfidenceConfig(BaseModel):
     model_config = _FROZEN
 
     weights: ConfidenceWeights = ConfidenceWeights()
-    min_confidence: Fraction = Field(
-        default=0.5,
-        description=(
-            "below this confidence the decision is 'none' and the lane is not trusted"
-        ),
-    )
     support_full_frac_of_height: PositiveFraction = Field(
         default=0.3,
         description=(
@@ -285,19 +282,6 @@ class ConfidenceConfig(BaseModel):
     )
 
 
-class DecisionConfig(BaseModel):
-    """The lecture's rule: slope sum < -turn_slope_sum -> right, > +turn_slope_sum -> left."""
-
-    model_config = _FROZEN
-
-    turn_slope_sum: Annotated[float, Field(gt=0.0)] = Field(
-        default=6.0,
-        description=(
-            "the lecture's threshold: slope sum below -this turns right, above +this turns left"
-        ),
-    )
-
-
 class PerceptionConfig(BaseModel):
     """Every perception tunable. `opencv_threads`: the process-wide OpenCV thread count that
     `LaneDetector` sets (1 by default, see `perception.detector`; -1 restores OpenCV's default)."""
@@ -312,7 +296,6 @@ class PerceptionConfig(BaseModel):
     tape: TapeConfig = TapeConfig()
     lane: LaneConfig = LaneConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
-    decision: DecisionConfig = DecisionConfig()
     opencv_threads: Annotated[int, Field(ge=-1, le=64)] = Field(
         default=1,
         description=(
@@ -320,16 +303,13 @@ class PerceptionConfig(BaseModel):
             "OpenCV's default"
         ),
     )
-
-    @model_validator(mode="after")
-    def _slope_clamp_exceeds_threshold(self) -> Self:
-        if self.edges.max_abs_slope * 2 <= self.decision.turn_slope_sum:
-            raise ValueError(
-                f"edges.max_abs_slope ({self.edges.max_abs_slope:g}) is too small for "
-                f"decision.turn_slope_sum ({self.decision.turn_slope_sum:g}): two clamped slopes "
-                "could never reach the turn threshold"
-            )
-        return self
+    max_image_pixels: Annotated[int, Field(ge=4096, le=50_000_000)] = Field(
+        default=10_000_000,
+        description=(
+            "largest image (width x height, pixels) `detect`, `undistort` and the camera accept; "
+            "image files are checked from their header before decoding"
+        ),
+    )
 
     @model_validator(mode="after")
     def _look_ahead_inside_roi(self) -> Self:

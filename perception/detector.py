@@ -57,7 +57,12 @@ from lanewarden.perception.edge_choice import SideChoice, choose_edges
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.floor_view import direction, signed_offset
 from lanewarden.perception.geometry import Side, edge_slope
-from lanewarden.perception.ground import GroundModel, default_ground_model, default_pose
+from lanewarden.perception.ground import (
+    GroundModel,
+    default_ground_model,
+    default_pose,
+    ground_model_for,
+)
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.size_setup import SizeSetup
@@ -124,6 +129,15 @@ class LaneDetector:
             setup = SizeSetup(width, height, self.config, ground)
             self._states[(width, height)] = setup
         return setup
+
+    def describe_ground(self, source: str | None = None) -> str:
+        """One line saying which ground model this detector uses (`perception.ground.
+        ground_model_for`'s words) and what a pixel covers at the look-ahead; `detect` and `run`
+        print it once. `source` names the calibration file."""
+        calibration = None if self.undistorter is None else self.undistorter.calibration
+        size = self.ground.image_size
+        _, which = ground_model_for(calibration, size, source)
+        return f"ground model: {which}; {self.setup_for(*size).describe()}"
 
     def detect(
         self,
@@ -292,12 +306,15 @@ class LaneDetector:
 
 
 def assumed_ground_model(undistorter: Undistorter | None) -> GroundModel:
-    """The ground model when the camera has no ground calibration: the simulator's default
-    camera pose, with the calibration's intrinsics when there is one (its undistorted image),
-    else the default camera's own (640x480)."""
+    """The ground model for this undistorter's frames (`perception.ground.ground_model_for`):
+    the calibration's ground pose when it has one (`lanewarden calibrate ground`), else the
+    simulator's default mount with the calibration's intrinsics; without a calibration the
+    simulator's default camera (640x480)."""
     if undistorter is None:
         return default_ground_model((640, 480))
-    return GroundModel(undistorter.camera_matrix, default_pose(), undistorter.image_size)
+    calibration = undistorter.calibration
+    pose = default_pose() if calibration.ground is None else calibration.ground.pose
+    return GroundModel(undistorter.camera_matrix, pose, undistorter.image_size)
 
 
 def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | None:

@@ -23,9 +23,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from lanewarden.perception.calibration import CameraCalibration
 
 FloatArray = NDArray[np.float64]
 
@@ -76,6 +80,40 @@ class CameraPose:
     def position(self) -> FloatArray:
         """The optical centre in the robot frame, metres."""
         return np.array([self.forward_m, self.lateral_m, self.height_m])
+
+    @classmethod
+    def from_rotation(cls, rotation: FloatArray, position: FloatArray) -> CameraPose:
+        """The pose whose `rotation_robot_to_camera()` is `rotation` (a proper rotation matrix)
+        and whose optical centre is `position` (robot frame, metres): the inverse of the two
+        methods above, as a chessboard on the floor measures them.
+
+        The optical axis in the robot frame is (cos p cos y, cos p sin y, -sin p), which gives
+        pitch and yaw; what remains of the rotation after undoing them is the roll."""
+        rot = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+        axis = rot.T @ np.array([0.0, 0.0, 1.0])
+        pitch = math.asin(max(-1.0, min(1.0, -float(axis[2]))))
+        yaw = math.atan2(float(axis[1]), float(axis[0]))
+        bare = cls(height_m=1.0, pitch_deg=math.degrees(pitch), yaw_deg=math.degrees(yaw))
+        # rot = roll @ (pitch @ level @ undo_yaw), so roll = rot @ bare^T
+        roll_m = rot @ bare.rotation_robot_to_camera().T
+        roll = math.atan2(float(roll_m[0, 1]), float(roll_m[0, 0]))
+        x, y, z = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+        return cls(height_m=z, pitch_deg=math.degrees(pitch), roll_deg=math.degrees(roll),
+                   yaw_deg=math.degrees(yaw), forward_m=x, lateral_m=y)
+
+    def describe(self) -> str:
+        """One line for users: 'h 0.26 m, pitch 40.0°, ...' (zero roll, yaw and offsets left
+        out)."""
+        parts = [f"h {self.height_m:.3f} m", f"pitch {self.pitch_deg:.1f}°"]
+        if abs(self.roll_deg) >= 0.05:
+            parts.append(f"roll {self.roll_deg:+.1f}°")
+        if abs(self.yaw_deg) >= 0.05:
+            parts.append(f"yaw {self.yaw_deg:+.1f}°")
+        if abs(self.forward_m) >= 0.0005:
+            parts.append(f"{self.forward_m:.3f} m ahead of the robot's centre")
+        if abs(self.lateral_m) >= 0.0005:
+            parts.append(f"{self.lateral_m:+.3f} m to its left")
+        return ", ".join(parts)
 
 
 class GroundModel:
@@ -192,6 +230,34 @@ def default_ground_model(image_size: tuple[int, int]) -> GroundModel:
     """The ground model of the simulator's default camera at `image_size` (used when a camera
     has no ground calibration; callers say so once)."""
     return GroundModel.from_fov(DEFAULT_HFOV_DEG, image_size, default_pose())
+
+
+def ground_model_for(calibration: CameraCalibration | None, image_size: tuple[int, int],
+                     source: str | None = None) -> tuple[GroundModel, str]:
+    """The ground model perception uses for frames of `image_size`, and one line saying which.
+
+    - A calibration with a ground pose (`lanewarden calibrate ground`): its K and pose.
+    - A calibration without one: its K with the simulator's default mount (0.40 m, 35°).
+    - No calibration: the simulator's default camera (70° HFOV pinhole, default mount).
+    K is scaled when the frames' size differs from the calibration's (the runner refuses that
+    case on the robot; `detect` may see resized images). `source` names the file in the line.
+    """
+    where = f" from {source}" if source else ""
+    if calibration is None:
+        model = default_ground_model(image_size)
+        return model, ("no ground calibration: assuming the simulator's default camera "
+                       f"({DEFAULT_HFOV_DEG:g}° HFOV, {model.pose.describe()})")
+    ground = calibration.ground
+    pose = default_pose() if ground is None else ground.pose
+    model = GroundModel(calibration.camera_matrix, pose, calibration.image_size)
+    if tuple(image_size) != tuple(calibration.image_size):
+        model = model.scaled_to(image_size)
+    if ground is None:
+        return model, (f"no ground calibration in the calibration{where}: assuming the "
+                       f"simulator's default mount ({pose.describe()}) with its K; run "
+                       "`lanewarden calibrate ground`")
+    how = f", {ground.method}" if ground.method else ""
+    return model, f"ground calibration{where}: {pose.describe()}{how}"
 
 
 def camera_matrix_for_fov(hfov_deg: float, image_size: tuple[int, int]) -> FloatArray:

@@ -1,12 +1,17 @@
 """The debug overlay: what the detector saw, drawn on a copy of the frame.
 
 Draws the ROI outline, every Hough segment faintly, the tape partners thinly, the chosen edges
-bold, and a text block with the slope sum, the confidence (with its lowest component) and the
-decision. Only for `lanewarden detect --out`, recordings and diagnosis: never called from the
-detector's hot path, and it never changes the observation.
+bold, and (in `draw_overlay`) a text block with the slope sum, the confidence (with its lowest
+component) and the decision. Every colour it uses is a row of `OVERLAY_STYLES`, which is also the
+legend a report prints, so a colour cannot be drawn without being explained. Only for
+`lanewarden detect --out`, recordings and diagnosis: never called from the detector's hot path,
+and it never changes the observation.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -14,34 +19,89 @@ import numpy as np
 from lanewarden.perception.detector import DetectionDebug
 from lanewarden.perception.observation import LaneObservation
 
-_ROI = (255, 200, 0)
-_SEGMENT = (0, 200, 255)
-_PARTNER = (200, 120, 255)
-_LEFT = (0, 255, 0)
-_RIGHT = (255, 0, 255)
-_TEXT = (255, 255, 255)
+BGR = tuple[int, int, int]
 
 
-def draw_overlay(
-    image: np.ndarray, observation: LaneObservation, debug: DetectionDebug, decision: str
-) -> np.ndarray:
-    """A BGR uint8 copy of `image` (the frame the detector analysed, i.e. after undistortion;
-    gray or BGR, same size) with the detection drawn on it."""
-    if image.ndim == 2:
-        canvas = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    elif image.shape[2] == 4:
-        canvas = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
-    elif image.shape[2] == 1:
-        canvas = cv2.cvtColor(image[:, :, 0], cv2.COLOR_GRAY2BGR)
-    else:
-        canvas = image.copy()
-    height, width = canvas.shape[:2]
+@dataclass(frozen=True)
+class OverlayStyle:
+    """One colour of a drawing and what it means (the legend's row)."""
+
+    bgr: BGR
+    label: str
+    meaning: str
+
+
+#: Every colour the detection overlay draws, in legend order.
+OVERLAY_STYLES: dict[str, OverlayStyle] = {
+    "left": OverlayStyle((0, 255, 0), "left edge",
+                         "the edge perception chose on the left (bold)"),
+    "right": OverlayStyle((255, 0, 255), "right edge",
+                          "the edge perception chose on the right (bold)"),
+    "partner": OverlayStyle((200, 120, 255), "tape partner",
+                            "the other side of the same tape (thin): the chosen edge belongs "
+                            "to a tape, not to a tile seam"),
+    "segment": OverlayStyle((0, 200, 255), "Hough segments",
+                            "every line segment Hough found inside the ROI (faint)"),
+    "roi": OverlayStyle((255, 200, 0), "ROI",
+                        "perception's region of interest (the floor it looks at)"),
+}
+_TEXT: BGR = (255, 255, 255)
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+#: Height of a capital letter of FONT_HERSHEY_SIMPLEX at font scale 1, pixels (measured).
+_CAP_HEIGHT_AT_SCALE_1 = 20.0
+
+
+def text_scale(cap_height_px: float) -> float:
+    """The font scale whose capital letters are `cap_height_px` tall."""
+    return cap_height_px / _CAP_HEIGHT_AT_SCALE_1
+
+
+def line_step_px(cap_height_px: float) -> int:
+    """Baseline-to-baseline distance of a text block whose capitals are `cap_height_px` tall."""
+    return round(cap_height_px * 1.7)
+
+
+def put_text_lines(
+    image: np.ndarray,
+    lines: Sequence[str | tuple[str, BGR]],
+    origin: tuple[int, int],
+    cap_height_px: float,
+    *,
+    shade: bool = True,
+) -> None:
+    """Write lines of text, the first baseline at `origin`, in place.
+
+    A line is a string (white) or (text, BGR colour). With `shade` the band behind the text is
+    darkened first so the text reads on any background. One text pass per line: OpenCV's glyph
+    advance depends on the thickness, so an outline pass would not line up.
+    """
+    x, y = origin
+    step = line_step_px(cap_height_px)
+    scale = text_scale(cap_height_px)
+    thickness = 1 if cap_height_px < 14 else 2
+    if shade and lines:
+        top = max(0, y - step + 2)
+        bottom = min(image.shape[0], y + step * (len(lines) - 1) + round(cap_height_px * 0.6))
+        band = image[top:bottom]
+        cv2.addWeighted(band, 0.35, np.zeros_like(band), 0.65, 0.0, dst=band)
+    for line in lines:
+        text, colour = (line, _TEXT) if isinstance(line, str) else line
+        cv2.putText(image, text, (x, y), _FONT, scale, colour, thickness, cv2.LINE_AA)
+        y += step
+
+
+def draw_detection(canvas: np.ndarray, observation: LaneObservation,
+                   debug: DetectionDebug) -> None:
+    """Draw the ROI, the Hough segments, the tape partners and the chosen edges onto `canvas`
+    (BGR uint8, the analysed image's size), in place."""
+    height = canvas.shape[0]
     scale = max(1, round(height / 240))
-
-    cv2.polylines(canvas, [debug.roi_polygon_px], True, _ROI, 1, cv2.LINE_AA)
+    styles = OVERLAY_STYLES
+    cv2.polylines(canvas, [debug.roi_polygon_px], True, styles["roi"].bgr, scale, cv2.LINE_AA)
     faint = canvas.copy()
     for x1, y1, x2, y2 in debug.segments:
-        cv2.line(faint, (int(x1), int(y1)), (int(x2), int(y2)), _SEGMENT, 1, cv2.LINE_AA)
+        cv2.line(faint, (int(x1), int(y1)), (int(x2), int(y2)), styles["segment"].bgr, 1,
+                 cv2.LINE_AA)
     cv2.addWeighted(faint, 0.55, canvas, 0.45, 0.0, dst=canvas)
 
     lines = debug.lines
@@ -52,36 +112,54 @@ def draw_overlay(
                 canvas,
                 (round(lines.near_x[k]), round(lines.near_y[k])),
                 (round(lines.far_x[k]), round(lines.far_y[k])),
-                _PARTNER,
+                styles["partner"].bgr,
                 scale,
                 cv2.LINE_AA,
             )
-    for edge, colour in ((observation.left, _LEFT), (observation.right, _RIGHT)):
+    for edge, style in ((observation.left, styles["left"]), (observation.right, styles["right"])):
         if edge is not None:
             cv2.line(
                 canvas,
                 (round(edge.x1), round(edge.y1)),
                 (round(edge.x2), round(edge.y2)),
-                colour,
+                style.bgr,
                 2 * scale + 1,
                 cv2.LINE_AA,
             )
 
+
+def perception_text(observation: LaneObservation, decision: str) -> list[str]:
+    """What perception says about one frame, in words (slope sum, confidence, decision)."""
     slope = "--" if observation.slope_sum is None else f"{observation.slope_sum:+.2f}"
     lowest = min(observation.components.items(), key=lambda kv: kv[1], default=None)
     low_text = "" if lowest is None else f" (lowest {lowest[0]} {lowest[1]:.2f})"
-    text = [
+    return [
         f"slope sum {slope}",
         f"confidence {observation.confidence:.2f}{low_text}",
         f"decision {decision}",
     ]
-    font_scale = max(0.28, height / 900)
-    thickness = 1 if height < 400 else 2
-    line_height = round(30 * font_scale) + 2
-    for i, line in enumerate(text):
-        origin = (3, line_height * (i + 1))
-        cv2.putText(canvas, line, origin, cv2.FONT_HERSHEY_SIMPLEX, font_scale, (0, 0, 0),
-                    thickness + 2, cv2.LINE_AA)
-        cv2.putText(canvas, line, origin, cv2.FONT_HERSHEY_SIMPLEX, font_scale, _TEXT, thickness,
-                    cv2.LINE_AA)
+
+
+def as_bgr(image: np.ndarray) -> np.ndarray:
+    """A BGR uint8 copy of a gray, BGR or BGRA image."""
+    if image.ndim == 2:
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    if image.shape[2] == 1:
+        return cv2.cvtColor(image[:, :, 0], cv2.COLOR_GRAY2BGR)
+    return image.copy()
+
+
+def draw_overlay(
+    image: np.ndarray, observation: LaneObservation, debug: DetectionDebug, decision: str
+) -> np.ndarray:
+    """A BGR uint8 copy of `image` (the frame the detector analysed, i.e. after undistortion;
+    gray or BGR, same size) with the detection and perception's text drawn on it."""
+    canvas = as_bgr(image)
+    draw_detection(canvas, observation, debug)
+    # Capitals 1/30 of the height (16 px at 480 rows), never below 9 px.
+    cap = max(9.0, canvas.shape[0] / 30.0)
+    put_text_lines(canvas, perception_text(observation, decision),
+                   (round(cap / 2), line_step_px(cap)), cap)
     return canvas

@@ -102,13 +102,11 @@ class SizeSetup:
         self.hough_max_gap = hough.max_line_gap_frac_of_height * height
 
     def describe(self) -> str:
-        """One line: the camera pose and what a pixel covers at the look-ahead."""
-        pose = self.ground.pose
+        """One line: the image size and what a pixel covers at the look-ahead (the camera's
+        pose is `perception.ground.ground_model_for`'s line)."""
         hyp = self.at_look_ahead
         return (
-            f"{self.size[0]}x{self.size[1]}, camera {pose.height_m:.3f} m high, pitched "
-            f"{pose.pitch_deg:.1f} deg down, roll {pose.roll_deg:.1f} deg, {pose.forward_m:.3f} m "
-            f"ahead of the robot's centre; at the look-ahead one pixel covers "
+            f"{self.size[0]}x{self.size[1]}: at the look-ahead one pixel covers "
             f"{1000 * hyp.m_per_px:.1f} mm across the tape (a tape measures "
             f"{1000 * hyp.tape_min_m:.1f} mm or more there, a seam at most "
             f"{1000 * hyp.seam_max_m:.1f} mm)"

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.perception.calibration import CameraCalibration, GroundCalibration
 from lanewarden.perception.ground import (
     DEFAULT_HFOV_DEG,
     DEFAULT_POSE_FORWARD_M,
@@ -29,6 +30,9 @@ from lanewarden.perception.ground import (
 )
 
 FloatArray = NDArray[np.float64]
+
+#: The default lens distortion [k1, k2, p1, p2, k3]: a cheap USB camera's visible barrel.
+DEFAULT_DIST_COEFFS = (-0.20, 0.05, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -47,7 +51,7 @@ class CameraModel:
     pitch_down_deg: float = DEFAULT_POSE_PITCH_DEG
     roll_deg: float = 0.0
     forward_offset_m: float = DEFAULT_POSE_FORWARD_M
-    dist_coeffs: tuple[float, float, float, float, float] = (-0.20, 0.05, 0.0, 0.0, 0.0)
+    dist_coeffs: tuple[float, float, float, float, float] = DEFAULT_DIST_COEFFS
 
     @property
     def pose(self) -> CameraPose:
@@ -70,6 +74,14 @@ class CameraModel:
 
     def distortion(self) -> FloatArray:
         return np.asarray(self.dist_coeffs, dtype=np.float64)
+
+    def calibration(self) -> CameraCalibration:
+        """This camera's true calibration, ground pose included: what perception gets in the
+        simulator, as a robot calibrated with `calibrate` and `calibrate ground` would."""
+        return CameraCalibration(
+            camera_matrix=self.camera_matrix(), dist_coeffs=self.distortion(),
+            image_size=(self.width_px, self.height_px),
+            ground=GroundCalibration(pose=self.pose, method="the simulated camera's true pose"))
 
     def rotation_robot_to_camera(self) -> FloatArray:
         """R such that p_cam = R @ (p_robot - camera_position)."""

@@ -2,11 +2,13 @@
 
 `ChessboardRenderer` draws a planar chessboard at a given pose exactly as a camera with known
 intrinsics and lens distortion (`scenarios.camera.CameraModel`) would see it: for every pixel of
-the (distorted) image it undistorts the pixel to a viewing ray once, intersects the ray with the
-board plane and shades the board point. Edges are anti-aliased with their pixel footprint (a one
-pixel box filter, from the local gradient of the board coordinates), so corners land on the true
-projection to well under 0.1 px. `calibration_poses` gives varied, seeded board poses that keep
-the whole board (and its white border) inside the image.
+the (distorted) image it undistorts the pixel to a viewing ray once (at the first render),
+intersects the ray with the board plane and shades the board point. Edges are anti-aliased with
+their pixel footprint (a one pixel box filter, from the local gradient of the board
+coordinates), so corners land on the true projection to well under 0.1 px. `calibration_poses`
+gives varied, seeded board poses that keep the whole board (and its white border) inside the
+image; `floor_board_pose` lays the board flat on the floor in front of the robot (the photo
+`lanewarden calibrate ground` takes).
 
 Frames:
 - board: x along the columns of inner corners, y along the rows, z out of the board, metres;
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -72,6 +75,11 @@ class ChessboardRenderer:
         self.square_m = square_m
         self.border_squares = border_squares
         self.look = look if look is not None else ChessboardLook()
+
+    @cached_property
+    def _rays(self) -> FloatArray:
+        """(H, W, 3) the viewing ray of every (distorted) pixel, camera frame, z = 1; computed
+        on the first render (checking poses with `fits` does not need it)."""
         cam = self.camera
         u, v = np.meshgrid(
             np.arange(cam.width_px, dtype=np.float64), np.arange(cam.height_px, dtype=np.float64)
@@ -80,7 +88,7 @@ class ChessboardRenderer:
         norm = cv2.undistortPoints(
             pix, cam.camera_matrix(), cam.distortion(), criteria=_UNDISTORT_CRITERIA
         ).reshape(cam.height_px, cam.width_px, 2)
-        self._rays = np.dstack([norm, np.ones((cam.height_px, cam.width_px))])
+        return np.dstack([norm, np.ones((cam.height_px, cam.width_px))])
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -272,6 +280,24 @@ def facing_pose(
     )
     tvec = centre_cam - centre_board
     return BoardPose(rvec=(0.0, 0.0, 0.0), tvec=(float(tvec[0]), float(tvec[1]), float(tvec[2])))
+
+
+def floor_board_pose(renderer: ChessboardRenderer, centre_xy: tuple[float, float]) -> BoardPose:
+    """The board lying flat on the floor, the centre of its inner corners at `centre_xy` (robot
+    frame, metres), its columns running across the robot (board x along the robot's -y, board y
+    along -x: the camera sees columns left to right and rows far to near), through the
+    renderer's camera on the robot (`CameraModel`'s pose): the photo `calibrate ground` takes."""
+    cam = renderer.camera
+    # board axes in the robot frame: x -> -y_robot, y -> -x_robot, z -> down
+    board_to_robot = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    centre = _board_centre(renderer)
+    origin = np.array([centre_xy[0], centre_xy[1], 0.0]) - board_to_robot @ centre
+    rot_robot = cam.rotation_robot_to_camera()
+    rot = rot_robot @ board_to_robot
+    tvec = rot_robot @ (origin - cam.position_robot())
+    rvec = np.asarray(cv2.Rodrigues(rot)[0], dtype=np.float64).reshape(3)
+    return BoardPose(rvec=(float(rvec[0]), float(rvec[1]), float(rvec[2])),
+                     tvec=(float(tvec[0]), float(tvec[1]), float(tvec[2])))
 
 
 def _board_centre(renderer: ChessboardRenderer) -> FloatArray:

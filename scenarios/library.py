@@ -1,17 +1,18 @@
 """The scenario library shipped with the package (`scenarios/library/*.yaml`), found by name.
 
 `resolve_scenario("lecture")` loads a library scenario; anything that looks like a path (has a
-suffix or a separator, or exists) is loaded as a file. An unknown name is a ScenarioError listing
-the available names. Reads package data only; never renders or runs anything.
+suffix or a separator, or exists) is loaded as a file. An unknown name is a ScenarioError naming
+the closest name ("did you mean") and listing all of them. Reads package data only; never renders
+or runs anything.
 """
 
 from __future__ import annotations
 
+import difflib
 from importlib import resources
 from pathlib import Path
 
-import yaml
-
+from lanewarden.documents import parse_yaml_text
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.spec import ScenarioSpec, load_scenario_file, parse_scenario
 
@@ -39,9 +40,11 @@ def resolve_scenario(name_or_file: str) -> ScenarioSpec:
         return load_scenario_file(name_or_file)
     names = library_names()
     if name_or_file not in names:
+        close = difflib.get_close_matches(name_or_file, names, n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
         raise ScenarioError(
-            f"--scenario: unknown scenario '{name_or_file}' (expected a YAML file or one of: "
-            f"{', '.join(names)})"
+            f"--scenario: unknown scenario '{name_or_file}'{hint} (expected a YAML file or one "
+            f"of: {', '.join(names)})"
         )
     path = library_path(name_or_file)
     spec = load_scenario_file(path)
@@ -52,8 +55,4 @@ def resolve_scenario(name_or_file: str) -> ScenarioSpec:
 
 def parse_scenario_text(text: str, source: str = "<scenario>") -> ScenarioSpec:
     """Validate scenario YAML given as text (used by tests and tools)."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f"{source}: not valid YAML: {exc}") from None
-    return parse_scenario(data, source)
+    return parse_scenario(parse_yaml_text(text, source, ScenarioError), source)

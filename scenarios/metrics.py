@@ -18,6 +18,8 @@ plus the world and the camera; outputs are numbers for `metrics.json`. Definitio
   (`lane_loss_estimated: true`). None when the lane never ends, the robot never halted, or it
   halted farther back (for another reason than the lane end).
 - `halted`: the controller entered HALT after it had engaged (or never engaged at all).
+- `halt_position`: the true pose where that HALT began (x_m, y_m) and, like
+  `distance_past_lane_end_m`, how far past the end of the markings it was; None if not halted.
 - `turns_completed`: marks (A, B, ...) whose gate (the segment across the lane, tape to tape, at
   the end of the marked segment) the robot's centre crossed, in order.
 
@@ -87,10 +89,14 @@ class TapeVisibility:
         self._max_range_m = 8.0
 
     def visible(self, pose: Pose2D) -> bool:
-        if len(self._samples) == 0:
+        return self.visible_points(pose, self._samples)
+
+    def visible_points(self, pose: Pose2D, samples: FloatArray) -> bool:
+        """Is any of `samples` (N, 2) world metres inside the ROI at `pose`?"""
+        if len(samples) == 0:
             return False
         c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
-        rel = self._samples - (pose.x_m, pose.y_m)
+        rel = samples - (pose.x_m, pose.y_m)
         fx = rel[:, 0] * c + rel[:, 1] * s
         fy = -rel[:, 0] * s + rel[:, 1] * c
         near = (fx > 0.0) & (fx < self._max_range_m) & (np.abs(fy) < self._max_range_m)
@@ -209,13 +215,21 @@ def compute_metrics(
 
     final = poses[-1] if n else np.array([world.start_pose.x_m, world.start_pose.y_m, 0.0])
     end = world.lane_end()
-    if end is None:
-        out["distance_past_lane_end_m"] = None
-    else:
+
+    def past_lane_end(pose: FloatArray) -> float | None:
+        if end is None:
+            return None
         point, heading = end
-        along = (final[0] - point[0]) * math.cos(heading) + (final[1] - point[1]) * math.sin(
+        along = (pose[0] - point[0]) * math.cos(heading) + (pose[1] - point[1]) * math.sin(
             heading)
-        out["distance_past_lane_end_m"] = round(float(along), 4)
+        return round(float(along), 4)
+
+    out["distance_past_lane_end_m"] = past_lane_end(final)
+    out["halt_position"] = None if halted_idx is None or not n else {
+        "x_m": round(float(poses[halted_idx, 0]), 4),
+        "y_m": round(float(poses[halted_idx, 1]), 4),
+        "past_lane_end_m": past_lane_end(poses[halted_idx]),
+    }
     clearance = world.distance_to_tape(poses[:, :2]) - ROBOT_RADIUS_M - (
         world.tapes[0].width_m / 2.0 if world.tapes else 0.0)
     out["crossed_tape"] = bool(n and np.any(clearance < 0.0))

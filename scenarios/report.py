@@ -1,7 +1,10 @@
-"""The demo's comparison: a side-by-side table of two runs' metrics and report.html.
+"""Reports of simulated runs: a side-by-side table of their metrics and report.html.
 
 Pure text building plus one file write. The HTML references the runs' own files by relative path
-(`lecture/video.mp4`, `supervised/plot.png`, ...), so the output directory can be moved or zipped.
+(`lecture/video.mp4`, `supervised/plot.png`, ... for the demo; `video.mp4` for one `sim` run), so
+the output directory can be moved or zipped. The page explains every colour of the videos (from
+the same tables the drawing code uses) and shows each video's poster: the outcome of the run (the
+frame at the halt, or the last frame), not its first frame.
 """
 
 from __future__ import annotations
@@ -10,11 +13,17 @@ import html
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from lanewarden.perception.overlay import BGR
+from lanewarden.scenarios.video import video_legend
+
 #: (metrics key, label) rows of the comparison table.
 TABLE_ROWS: tuple[tuple[str, str], ...] = (
     ("halted", "halted"),
     ("halt_reason", "halt reason"),
+    ("halt_position", "halt position"),
+    ("states_visited", "states visited"),
     ("turns_completed", "turns completed"),
+    ("states_visited", "states visited"),
     ("max_cross_track_error_m", "max cross-track error (m)"),
     ("mean_cross_track_error_m", "mean cross-track error (m)"),
     ("distance_travelled_m", "distance travelled (m)"),
@@ -38,7 +47,19 @@ def format_value(value: object) -> str:
         return ", ".join(str(v) for v in value) if value else "none"
     if isinstance(value, str) and ":" in value and value.split(":")[0].isupper():
         return value.split(":")[0]  # the event name; the full text is in metrics.json
+    if isinstance(value, Mapping) and "x_m" in value:
+        return format_position(value)
     return str(value)
+
+
+def format_position(position: Mapping[str, object]) -> str:
+    """'0.52 m before the tape end' where the lane ends, else 'x 3.10, y -2.00 m'."""
+    x, y, past = position.get("x_m"), position.get("y_m"), position.get("past_lane_end_m")
+    if isinstance(past, int | float):
+        return f"{abs(past):.2f} m {'past' if past >= 0 else 'before'} the tape end"
+    if isinstance(x, int | float) and isinstance(y, int | float):
+        return f"x {x:.2f}, y {y:.2f} m"
+    return "-"
 
 
 def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]:
@@ -46,8 +67,17 @@ def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]
     names = list(runs)
     rows = [["", *names]]
     for key, label in TABLE_ROWS:
-        rows.append([label, *(format_value(runs[n].get(key)) for n in names)])
+        rows.append([label, *(format_metric(runs[n], key) for n in names)])
     return rows
+
+
+def format_metric(metrics: Mapping[str, object], key: str) -> str:
+    """One metric as the table shows it; an extrapolated lane-loss time says it is estimated."""
+    text = format_value(metrics.get(key))
+    if key == "lane_loss_to_halt_s" and metrics.get(key) is not None \
+            and metrics.get("lane_loss_estimated"):
+        text += " (estimated)"
+    return text
 
 
 def format_table(rows: Sequence[Sequence[str]]) -> str:
@@ -63,39 +93,107 @@ def format_table(rows: Sequence[Sequence[str]]) -> str:
     return "\n".join(lines)
 
 
+def _past(m: Mapping[str, object]) -> str:
+    value = m.get("distance_past_lane_end_m")
+    if not isinstance(value, int | float):
+        return "on a lane that never ends"
+    return f"{abs(value):.2f} m {'past' if value >= 0 else 'before'} the end of the tape"
+
+
+def run_story(name: str, m: Mapping[str, object]) -> str:
+    """'the supervised controller completed turns A and B and halted (LANE_LOST) 0.37 m before
+    the end of the tape', built only from what the metrics say."""
+    done = list(m.get("turns_completed") or [])  # type: ignore[call-overload]
+    if not done:
+        turns = "completed no turn"
+    elif len(done) == 1:
+        turns = f"completed turn {done[0]}"
+    else:
+        turns = f"completed turns {', '.join(done[:-1])} and {done[-1]}"
+    crossed = ", crossed a tape" if m.get("crossed_tape") else ""
+    value = m.get("distance_past_lane_end_m")
+    if m.get("halted"):
+        ending = f"halted ({format_value(m.get('halt_reason'))}) {_past(m)}"
+    else:
+        ending = f"never stopped, ending {_past(m)}"
+        if isinstance(value, int | float) and value > 0.5:
+            ending += " (driving on tile seams once the tape was gone)"
+    return f"the {name} controller {turns}{crossed} and {ending}"
+
+
+def _sentence(text: str) -> str:
+    return text[0].upper() + text[1:] + "."
+
+
 def demo_summary(lecture: Mapping[str, object], supervised: Mapping[str, object]) -> str:
-    """One sentence on what happened, built only from what the metrics say."""
+    """One sentence on what happened in both runs."""
+    return _sentence(run_story("lecture's", lecture) + "; " + run_story("supervised", supervised))
 
-    def past(m: Mapping[str, object]) -> str:
-        value = m.get("distance_past_lane_end_m")
-        if not isinstance(value, int | float):
-            return "on a lane that never ends"
-        return f"{abs(value):.2f} m {'past' if value >= 0 else 'before'} the end of the tape"
 
-    def story(name: str, m: Mapping[str, object]) -> str:
-        done = list(m.get("turns_completed") or [])  # type: ignore[call-overload]
-        if not done:
-            turns = "completed no turn"
-        elif len(done) == 1:
-            turns = f"completed turn {done[0]}"
-        else:
-            turns = f"completed turns {', '.join(done[:-1])} and {done[-1]}"
-        crossed = ", crossed a tape" if m.get("crossed_tape") else ""
-        value = m.get("distance_past_lane_end_m")
-        if m.get("halted"):
-            ending = f"halted ({format_value(m.get('halt_reason'))}) {past(m)}"
-        else:
-            ending = f"never stopped, ending {past(m)}"
-            if isinstance(value, int | float) and value > 0.5:
-                ending += " (driving on tile seams once the tape was gone)"
-        return f"the {name} controller {turns}{crossed} and {ending}"
+def run_summary(metrics: Mapping[str, object]) -> str:
+    """One sentence on what happened in one run."""
+    return _sentence(run_story(str(metrics.get("controller", "")), metrics))
 
-    text = story("lecture's", lecture) + "; " + story("supervised", supervised) + "."
-    return text[0].upper() + text[1:]
+
+def _css_rgb(bgr: BGR) -> str:
+    b, g, r = bgr
+    return f"rgb({r},{g},{b})"
+
+
+def legend_html() -> str:
+    """Every colour of the videos with what it means, grouped by where it appears."""
+    groups = []
+    for title, rows in video_legend():
+        items = "".join(
+            f'<li><span class="swatch" style="background:{_css_rgb(row.bgr)}"></span>'
+            f"<b>{html.escape(row.label)}</b>: {html.escape(row.meaning)}</li>"
+            for row in rows
+        )
+        groups.append(f"<div><h3>{html.escape(title)}</h3><ul>{items}</ul></div>")
+    return (
+        '<section class="legend"><h2>Reading the videos</h2>'
+        "<p>Left: the undistorted camera view with what perception saw drawn on it. Right: a map "
+        "of the course seen from above. Above them, the caption: what perception said about this "
+        "frame alone (left), and what the controller did (right): its state with the reason for "
+        "a HALT or DEGRADED, the slope sum it acted on, and the command it sent.</p>"
+        f'<div class="groups">{"".join(groups)}</div></section>'
+    )
+
+
+def _poster_caption(metrics: Mapping[str, object]) -> str:
+    poster = metrics.get("video_poster")
+    if not isinstance(poster, Mapping):
+        return ""
+    when = poster.get("time_s")
+    at = f" (t = {when:.1f} s)" if isinstance(when, int | float) else ""
+    return (f'<p class="caption">Still image: {html.escape(str(poster.get("shows")))}{at}. '
+            "Press play to watch the whole run.</p>")
+
+
+def _run_section(name: str, folder: str, metrics: Mapping[str, object], heading: str) -> str:
+    outputs = metrics.get("outputs") or []
+    assert isinstance(outputs, list)
+    prefix = f"{html.escape(folder)}/" if folder else ""
+    if "video.mp4" in outputs:
+        poster = f' poster="{prefix}poster.jpg"' if "poster.jpg" in outputs else ""
+        video = (f'<video src="{prefix}video.mp4"{poster} controls muted playsinline '
+                 f'preload="none"></video>{_poster_caption(metrics)}')
+    else:
+        video = "<p>(no video recorded)</p>"
+    return (
+        f"<section><h2>{html.escape(heading)}</h2>{video}"
+        f'<img src="{prefix}plot.png" alt="{html.escape(name)} plot">'
+        f'<p><a href="{prefix}metrics.json">metrics.json</a> &middot; '
+        f'<a href="{prefix}run.jsonl">run.jsonl</a></p></section>'
+    )
 
 
 def write_report(path: Path, runs: Mapping[str, Mapping[str, object]], summary: str,
-                 title: str = "Lanewarden demo: the lecture's course") -> None:
+                 title: str = "Lanewarden demo: the lecture's course",
+                 folders: Mapping[str, str] | None = None,
+                 headings: Mapping[str, str] | None = None) -> None:
+    """report.html for `runs` (name -> metrics). `folders`: each run's folder relative to the
+    page (default: its name; "" for the page's own folder); `headings`: each run's heading."""
     rows = comparison_rows(runs)
     head = "".join(f"<th>{html.escape(c)}</th>" for c in rows[0])
     body = "".join(
@@ -105,41 +203,42 @@ def write_report(path: Path, runs: Mapping[str, Mapping[str, object]], summary: 
         ) + "</tr>"
         for row in rows[1:]
     )
-    panels = []
-    for name, metrics in runs.items():
-        outputs = metrics.get("outputs") or []
-        assert isinstance(outputs, list)
-        video = (
-            f'<video src="{html.escape(name)}/video.mp4" controls muted playsinline '
-            f'preload="metadata"></video>' if "video.mp4" in outputs
-            else "<p>(no video recorded)</p>"
-        )
-        panels.append(
-            f'<section><h2>{html.escape(name)}</h2>{video}'
-            f'<img src="{html.escape(name)}/plot.png" alt="{html.escape(name)} plot">'
-            f'<p><a href="{html.escape(name)}/metrics.json">metrics.json</a> &middot; '
-            f'<a href="{html.escape(name)}/run.jsonl">run.jsonl</a></p></section>'
-        )
+    panels = [
+        _run_section(name, (folders or {}).get(name, name), metrics,
+                     (headings or {}).get(name, name))
+        for name, metrics in runs.items()
+    ]
     document = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <style>
-body {{ font-family: system-ui, sans-serif; margin: 1.5em; color: #222; }}
-.runs {{ display: flex; flex-wrap: wrap; gap: 1.5em; }}
-section {{ flex: 1 1 560px; }}
-video, img {{ width: 100%; max-width: 900px; display: block; margin-bottom: .5em; }}
+body {{ font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1180px; }}
+section {{ margin: 1.5em 0 2.5em; }}
+video {{ width: 100%; max-width: 1120px; display: block; background: #222; }}
+img {{ width: 100%; max-width: 1125px; display: block; margin: .5em 0; }}
+.caption {{ color: #555; margin: .3em 0 1em; }}
 table {{ border-collapse: collapse; margin: 1em 0; }}
 th, td {{ border: 1px solid #ccc; padding: .3em .7em; text-align: right; }}
 th:first-child {{ text-align: left; }}
+.legend .groups {{ display: flex; flex-wrap: wrap; gap: 0 2em; }}
+.legend .groups > div {{ flex: 1 1 340px; }}
+.legend h3 {{ font-size: 1em; margin: .8em 0 .3em; }}
+.legend ul {{ list-style: none; padding: 0; margin: 0; }}
+.legend li {{ margin: .25em 0; }}
+.swatch {{ display: inline-block; width: 1.6em; height: .9em; margin-right: .5em;
+           vertical-align: middle; border: 1px solid #888; }}
 </style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>{html.escape(summary)}</p>
 <table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>
 <p class="note">Distances past the lane end are measured from the end of the first tape to end,
-along the lane; negative means the robot stopped before it. "Lane out of view &rarr; HALT" is the
-time from the last tape leaving the camera's region of interest to the halt; negative means it
-halted before that. Cross-track error is the distance of the robot's centre from the lane
-centre.</p>
-<div class="runs">{"".join(panels)}</div>
+along the lane; negative means the robot stopped before it. The halt position is where the robot
+was when HALT began (it brakes to a stop after that; x and y are in metrics.json). "Lane out of
+view &rarr; HALT" is the time from the last tape leaving the camera's region of interest to the
+halt; negative means it halted before that (the moment the tape would have left the view is then
+estimated after the run, and the table and the plot mark it as an estimate). Cross-track error is
+the distance of the robot's centre from the lane centre.</p>
+{legend_html()}
+{"".join(panels)}
 </body></html>
 """
     path.write_text(document, encoding="utf-8")

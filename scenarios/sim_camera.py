@@ -10,7 +10,13 @@ real camera driver does. Camera faults change what `read` delivers:
 - latency: frames arrive `latency_s` after their capture time;
 - corrupt: frames arrive as unusable (empty) images, so the real detector raises;
 - failing: reading raises `SimulatedCameraError` (a driver error);
-- future_s: frames carry a capture time this far after `now` (a broken clock in the driver).
+- future_s: frames carry a capture time this far after `now` (a broken clock in the driver);
+- time_offset_s: frames are stamped this much later (< 0: earlier) than captured (a clock jump);
+- rate_hz: the driver delivers at most this many frames per second (None: every capture).
+
+Every alteration of what `read` delivers (or of what was captured) is noted in `altered`
+(alteration name -> (frame index, time) of the latest one), so a fault schedule can tell that a
+fault really took effect, not merely that it was switched on.
 
 Image buffers come from a fixed pool owned here (no per-frame allocation); a `Frame` stays valid
 for `pool_size - 1` further captures. Never reads a clock: time is the `now` passed in.
@@ -48,7 +54,11 @@ class SimCamera:
         self.corrupt = False
         self.failing = False
         self.future_s = 0.0
+        self.time_offset_s = 0.0
+        self.rate_hz: float | None = None
         self._frozen_image: U8 | None = None
+        self._last_kept_s: float | None = None
+        self.altered: dict[str, tuple[int, float]] = {}
 
     @property
     def frozen(self) -> bool:
@@ -67,8 +77,15 @@ class SimCamera:
         image = self._pool[self._next]
         self._next = (self._next + 1) % len(self._pool)
         frame = Frame(image=image, index=index, time_s=time_s)
-        if not self.dropping:
-            self._captured.append(frame)
+        if self.dropping:
+            self.altered["drop"] = (index, time_s)
+            return frame
+        if self.rate_hz is not None and self._last_kept_s is not None and (
+                time_s - self._last_kept_s < 1.0 / self.rate_hz - 1e-9):
+            self.altered["rate"] = (index, time_s)
+            return frame
+        self._last_kept_s = time_s
+        self._captured.append(frame)
         return frame
 
     def freeze(self, on: bool) -> None:
@@ -83,12 +100,16 @@ class SimCamera:
 
     def read(self, now: float) -> Frame | None:
         if self.failing:
+            self.altered["error"] = (-1, now)
             raise SimulatedCameraError("simulated camera: read failed (injected camera_error)")
         newest = None
         for frame in reversed(self._captured):
             if frame.time_s <= now - self.latency_s + 1e-9:
                 newest = frame
                 break
+        if self.latency_s > 0 and self._captured and newest is not self._captured[-1]:
+            held = self._captured[-1]
+            self.altered["latency"] = (held.index, held.time_s)
         if newest is None:
             return self._delivered
         if self._delivered is not None and newest.index <= self._delivered.index:
@@ -96,10 +117,14 @@ class SimCamera:
             return self._delivered
         if self._frozen_image is not None:
             newest = Frame(image=self._frozen_image, index=newest.index, time_s=newest.time_s)
+            self.altered["freeze"] = (newest.index, newest.time_s)
         elif self.corrupt:
             newest = Frame(image=_EMPTY, index=newest.index, time_s=newest.time_s)
-        if self.future_s > 0:
-            newest = Frame(image=newest.image, index=newest.index,
-                           time_s=newest.time_s + self.future_s)
+            self.altered["corrupt"] = (newest.index, newest.time_s)
+        shift = (self.future_s if self.future_s > 0 else 0.0) + self.time_offset_s
+        if shift != 0.0:
+            self.altered["future" if self.future_s > 0 else "time_jump"] = (
+                newest.index, newest.time_s)
+            newest = Frame(image=newest.image, index=newest.index, time_s=newest.time_s + shift)
         self._delivered = newest
         return newest

@@ -1,4 +1,5 @@
-"""One simulated run written to a directory: metrics.json, run.jsonl, video.mp4, plot.png.
+"""One simulated run written to a directory: metrics.json, run.jsonl, video.mp4 (+ poster.jpg),
+plot.png and report.html; old outputs cleared first, a PARTIAL marker until all are written.
 
 The shell around `Simulation`: opens the files, shows progress on stderr (tqdm, only on a
 terminal), measures the wall time for the report (wall time never feeds the simulation) and
@@ -11,19 +12,27 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
-from lanewarden.scenarios.plot import write_plot
+from lanewarden.scenarios.output_folder import OutputFolder
+from lanewarden.scenarios.plot import PlotMarker, write_plot
+from lanewarden.scenarios.report import run_summary, write_report
 from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
 from lanewarden.scenarios.spec import ScenarioSpec
+from lanewarden.scenarios.state_reasons import state_reasons
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
+
+#: Every file a run writes into its folder.
+RUN_OUTPUTS = ("metrics.json", "run.jsonl", "video.mp4", "poster.jpg", "plot.png", "report.html")
 
 #: metrics.json keys, in this order first (the issue's names); the rest follow alphabetically.
 METRIC_KEYS = (
@@ -36,17 +45,22 @@ METRIC_KEYS = (
 
 @dataclass(frozen=True)
 class RunRequest:
-    """Everything one run needs; picklable, so a worker process can take it."""
+    """Everything one run needs; picklable, so a worker process can take it. `build_stack`: the
+    composition root's (`lanewarden.assembly.build_stack`, a module-level function)."""
 
     spec: ScenarioSpec
     config: LanewardenConfig
     controller: str
     seed: int
     out_dir: Path
+    build_stack: BuildStack
     video: bool = True
     progress: bool = True
     progress_position: int = 0
     source: str | None = None
+    #: more metrics from the finished run (e.g. a campaign case's outcome); a module-level
+    #: function, so the request stays picklable
+    judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
 
 
 def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyped-def]
@@ -67,17 +81,14 @@ def ordered_metrics(metrics: dict[str, object]) -> dict[str, object]:
 
 
 def run_to_directory(request: RunRequest) -> dict[str, object]:
-    """Run one scenario and write its outputs into `request.out_dir`; returns the metrics."""
+    """Run one scenario and write its outputs into `request.out_dir` (old outputs cleared first,
+    a PARTIAL marker until all are written); returns the metrics."""
     started = time.perf_counter()
     config = effective_config(request.config, request.spec, request.source)
     out = request.out_dir
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ScenarioError(f"--out {out}: cannot create the output directory ({exc})") from exc
+    folder = OutputFolder(out, RUN_OUTPUTS)
+    folder.begin()
     video_path = out / "video.mp4" if request.video else None
-    if not request.video:
-        (out / "video.mp4").unlink(missing_ok=True)
     bar = _progress_bar(request, request.spec.run.max_time_s)
     shown = [0.0]
 
@@ -89,8 +100,8 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     try:
         with JsonlRecorder(out / "run.jsonl") as recorder:
             simulation = Simulation(
-                request.spec, config, controller=request.controller, seed=request.seed,
-                video_path=video_path, record=recorder, progress=progress)
+                request.spec, config, request.build_stack, controller=request.controller,
+                seed=request.seed, video_path=video_path, record=recorder, progress=progress)
             result = simulation.run()
         # The run usually ends before its time limit: show it finished.
         bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0
@@ -99,8 +110,15 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         bar.close()
     write_run_plot(out / "plot.png", result, config)
     metrics = dict(result.metrics)
+    if request.judge is not None:
+        metrics.update(request.judge(result, config))
     expect = getattr(request.spec.expect, request.controller, None)
     failures = None if expect is None else check_expectation(metrics, expect)
+    outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
+    if video_path is not None:
+        outputs.append("video.mp4")
+        if (out / "poster.jpg").exists():  # written when the video has a frame
+            outputs.append("poster.jpg")
     metrics.update(
         scenario=request.spec.name,
         controller=request.controller,
@@ -111,34 +129,54 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         resolution=[config.simulation.width_px, config.simulation.height_px],
         expectation_met=None if failures is None else not failures,
         expectation_failures=failures or [],
-        outputs=sorted(p.name for p in (out / "run.jsonl", out / "plot.png", video_path)
-                       if p is not None),
+        outputs=sorted(outputs),
     )
     metrics = ordered_metrics(metrics)
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        write_report(out / "report.html", {request.controller: metrics}, run_summary(metrics),
+                     title=run_title(request.spec.name, request.controller, request.seed),
+                     folders={request.controller: ""})
     except OSError as exc:
-        raise ScenarioError(f"{out / 'metrics.json'}: cannot write ({exc})") from exc
+        raise ScenarioOutputError(f"{out}: cannot write the run's outputs ({exc})") from exc
+    folder.finish()
     return metrics
+
+
+#: How plot titles and reports name each controller.
+CONTROLLER_TITLES = {
+    "supervised": "the supervisor",
+    "lecture": "the lecture's rule (baseline)",
+}
+
+
+def run_title(scenario: str, controller: str, seed: int | None = None) -> str:
+    """'Scenario lecture driven by the supervisor (seed 0)'."""
+    who = CONTROLLER_TITLES.get(controller, f"the {controller} controller")
+    return f"Scenario {scenario} driven by {who}" + ("" if seed is None else f" (seed {seed})")
 
 
 def write_run_plot(path: Path, result: SimulationResult, config: LanewardenConfig) -> None:
     records = result.records
-    times = result.trace.time_s
     metrics = result.metrics
-    halt_time = metrics.get("halt_time_s") if metrics.get("halted") else None
+    markers = []
     loss_time = metrics.get("lane_loss_time_s")
+    if isinstance(loss_time, float):
+        markers.append(PlotMarker("lane out of view", loss_time,
+                                  estimated=bool(metrics.get("lane_loss_estimated"))))
+    halt_time = metrics.get("halt_time_s") if metrics.get("halted") else None
+    if isinstance(halt_time, float):
+        markers.append(PlotMarker("HALT", halt_time))
     write_plot(
         path,
-        f"{result.spec.name} - {result.controller} controller (seed {result.seed})",
-        times,
+        run_title(result.spec.name, result.controller, result.seed),
+        result.trace.time_s,
         [None if r.observation is None else r.observation.slope_sum for r in records],
         [r.filtered_slope_sum for r in records],
         [None if r.observation is None else r.observation.confidence for r in records],
         [r.state for r in records],
+        state_reasons([r.state for r in records], [r.events for r in records],
+                      [r.halt_reason for r in records]),
         config.supervisor.turn_enter_slope_sum,
-        {
-            "lane out of view": loss_time if isinstance(loss_time, float) else None,
-            "HALT": halt_time if isinstance(halt_time, float) else None,
-        },
+        markers,
     )

@@ -1,13 +1,15 @@
 """The closed loop in simulation: the robot's own runtime driven by a synthetic camera and base.
 
     SimBase (true pose) -> CameraRenderer -> SimCamera (faults) -> ControlLoop(LaneDetector,
-    SupervisedController | LectureController) -> SimBase
+    SafetyGate(SupervisedController | LectureController)) -> SimBase
 
 On a fake clock at the camera rate: each tick advances the simulated base to `now`, renders the
 frame the camera sees at the true pose, applies the scenario's faults, and calls
 `loop.step(now)` (the same step the robot runner calls). `loop.start(0)` is the explicit start;
-the supervisor engages by itself after its confident frames. Perception undistorts with the true
-calibration of the simulated camera. Ground-truth metrics come from the world (`metrics`).
+the supervisor engages by itself after its confident frames. The stack between camera and base
+(detector, controller, gate, loop) is not wired here: it comes from the composition root's
+`build_stack` (lanewarden/assembly.py), passed in by the caller, with the true calibration of the
+simulated camera for perception to undistort with. Ground-truth metrics come from the world.
 
 Never reads a clock (wall time is measured by the caller) and never writes files itself: the
 run's records, video frames and progress go to callbacks the caller passes.
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,25 +28,28 @@ from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
-from lanewarden.perception.calibration import CameraCalibration, Undistorter
-from lanewarden.perception.decision import decide
-from lanewarden.perception.detector import DetectionDebug, LaneDetector
-from lanewarden.perception.observation import LaneObservation
-from lanewarden.perception.overlay import draw_overlay
+from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.faults import FaultSchedule, camera_pool_size
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.fault_link import FaultyLink
+from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
-from lanewarden.scenarios.spec import RunSpec, ScenarioSpec, with_overrides
-from lanewarden.scenarios.texture import GroundTexture, paint_ground
-from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
+from lanewarden.scenarios.texture import (
+    GroundTexture,
+    paint_ground,
+    paint_ground_cached,
+    with_marks,
+)
 from lanewarden.scenarios.world import World, build_world
-from lanewarden.supervisor.controllers import make_controller
-from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.supervisor.loop import StepRecord
 
 if TYPE_CHECKING:
+    from lanewarden.assembly import BuildStack
     from lanewarden.config import LanewardenConfig
+    from lanewarden.scenarios.video import VideoRecorder
 
 U8 = NDArray[np.uint8]
 
@@ -56,23 +61,6 @@ WORLD_EDGE_MARGIN_M = 1.0
 DISPLAY_TEXTURE_FACTOR = 2
 #: Below this the base counts as at rest (for ending a run after a HALT).
 AT_REST_M_S = 1e-3
-
-
-class DetectionTap:
-    """The real detector, run through `detect_debug` so a recording can draw its overlay.
-
-    Satisfies the loop's Detector protocol and returns exactly what `detect` would return."""
-
-    def __init__(self, detector: LaneDetector) -> None:
-        self._detector = detector
-        self.last: tuple[int, LaneObservation, DetectionDebug] | None = None
-
-    def detect(self, image: np.ndarray, frame_index: int, time_s: float,
-               previous: LaneObservation | None = None) -> LaneObservation:
-        self.last = None
-        observation, debug = self._detector.detect_debug(image, frame_index, time_s, previous)
-        self.last = (frame_index, observation, debug)
-        return observation
 
 
 @dataclass
@@ -87,26 +75,53 @@ class SimulationResult:
     records: list[StepRecord]
     trace: RunTrace
     end_reason: str
+    #: the first frame where each fault took effect (by its place in the scenario's list)
+    fault_effects: dict[int, FaultEffect] = field(default_factory=dict)
+    #: (index, kind, from_s, to_s) while each fault that took effect was acting
+    fault_windows: list[tuple[int, str, float, float]] = field(default_factory=list)
 
 
 def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
                      source: str | None = None) -> LanewardenConfig:
-    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides."""
-    return with_overrides(config, spec.config, source or f"scenario {spec.name}")
+    """The config a scenario runs with: `config` plus the scenario's own `config:` overrides;
+    a camera block's size becomes `simulation.width_px`/`height_px` (the render size's one home
+    during the run)."""
+    where = source or f"scenario {spec.name}"
+    config = with_overrides(config, spec.config, where)
+    camera = spec.camera
+    if camera is not None and camera.width_px is not None:
+        config = with_overrides(config, {"simulation": {
+            "width_px": camera.width_px, "height_px": camera.height_px}}, where)
+    return config
 
 
-def sim_camera_model(config: LanewardenConfig) -> CameraModel:
-    """The simulated camera: CameraModel's geometry at the configured resolution."""
-    return CameraModel(width_px=config.simulation.width_px, height_px=config.simulation.height_px)
+def sim_camera_model(config: LanewardenConfig, camera: CameraSpec | None = None) -> CameraModel:
+    """The simulated camera: the scenario's camera block (default: CameraModel's geometry) at
+    the configured resolution (see `effective_config`)."""
+    width, height = config.simulation.width_px, config.simulation.height_px
+    if camera is None:
+        return CameraModel(width_px=width, height_px=height)
+    if camera.width_px is not None and (camera.width_px, camera.height_px) != (width, height):
+        raise ScenarioError(
+            f"camera block: {camera.width_px}x{camera.height_px} px but the config renders "
+            f"{width}x{height} px (build the config with effective_config)")
+    return CameraModel(width_px=width, height_px=height, hfov_deg=camera.hfov_deg,
+                       height_m=camera.height_m, pitch_down_deg=camera.pitch_deg,
+                       roll_deg=camera.roll_deg, forward_offset_m=camera.forward_m,
+                       dist_coeffs=camera.distortion)
 
 
 class Simulation:
-    """One run of one scenario with one controller. Build, then `run()` once."""
+    """One run of one scenario with one controller. Build, then `run()` once.
+
+    `build_stack`: the composition root's `lanewarden.assembly.build_stack` (passed in, so this
+    layer never imports the CLI side)."""
 
     def __init__(
         self,
         spec: ScenarioSpec,
         config: LanewardenConfig,
+        build_stack: BuildStack,
         *,
         controller: str = "supervised",
         seed: int = 0,
@@ -120,26 +135,30 @@ class Simulation:
         self.seed = seed
         self._progress = progress
         sim = config.simulation
-        self.camera = sim_camera_model(config)
+        self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
-        self.texture: GroundTexture = paint_ground(
-            self.world, sim.texture_mm_per_px / 1000.0, seed, color=sim.perception_color)
+        # The painted floor depends only on these (and is reused by a campaign's worker); floor
+        # faults are painted over a copy.
+        floor_key = spec.model_dump_json(include={"floor", "tape", "lane", "lighting"}) + repr(
+            sim.world_margin_m)
+        self.texture: GroundTexture = with_marks(
+            paint_ground_cached(self.world, floor_key, sim.texture_mm_per_px / 1000.0, seed,
+                                color=sim.perception_color),
+            floor_marks(self.world, spec.faults))
         self.renderer = CameraRenderer(
             self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
             exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
         w, h = self.camera.width_px, self.camera.height_px
-        self.undistorter = Undistorter(CameraCalibration(
-            camera_matrix=self.camera.camera_matrix(), dist_coeffs=self.camera.distortion(),
-            image_size=(w, h)))
-        self.detector = LaneDetector(config.perception, self.undistorter)
+        self.calibration = self.camera.calibration()  # with its ground pose, as on a robot
+        self.stack = build_stack(config, controller=controller, calibration=self.calibration,
+                                 debug_tap=video_path is not None)
+        self.detector = self.stack.detector
         self.base = SimBase(self.world.start_pose, SimBaseParams.from_config(config.actuation))
-        self.controller = make_controller(controller, config.supervisor)
+        self.link = FaultyLink(self.base, config.actuation.write_timeout_s, seed)
         shape: tuple[int, ...] = (h, w, 3) if sim.perception_color else (h, w)
         self.sim_camera = SimCamera(shape, camera_pool_size(spec.faults, sim.camera_rate_hz))
-        self.faults = FaultSchedule(spec.faults)
-        self._tap = DetectionTap(self.detector) if video_path is not None else None
-        self.loop = ControlLoop(self.sim_camera, self._tap or self.detector, self.controller,
-                                self.base, record=record)
+        self.faults = FaultSchedule(spec.faults, self.world, shape)
+        self.loop = self.stack.connect(self.sim_camera, self.link, record)
         self.roi_polygon_px = self._roi_polygon()
         self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
         self._video: VideoRecorder | None = None
@@ -152,9 +171,9 @@ class Simulation:
         self._display: CameraRenderer | None = None
         self.display_texture: GroundTexture | None = None
         if video_path is not None:
-            self.display_texture = paint_ground(
+            self.display_texture = with_marks(paint_ground(
                 self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
-                color=True)
+                color=True), floor_marks(self.world, spec.faults))
             self._display = CameraRenderer(
                 self.display_texture, self.camera, noise_sigma=0.0, exposure_s=0.0, seed=seed,
                 distorted=False)
@@ -174,15 +193,15 @@ class Simulation:
         ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
         video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
         if self._video_path is not None:
+            from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
+
             assert self.display_texture is not None
             map_view = MapView(self.world, self.display_texture, sim.video.map_size_px,
                                roi_ground_outline(self.camera, self.roi_polygon_px))
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
                 sim.camera_rate_hz / video_every, sim.video.crf,
-                sim.video.preset)
-        else:
-            map_view = None
+                sim.video.preset, title=f"scenario {spec.name}, {self.controller_name} controller")
 
         times: list[float] = []
         poses: list[tuple[float, float, float]] = []
@@ -193,14 +212,21 @@ class Simulation:
         ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
         try:
-            for k in range(ticks):
+            # A run whose time is up while DEGRADED goes on until the supervisor decides (back
+            # to following, or HALT), at most its DEGRADED time budget: otherwise undecided.
+            overtime = int(math.ceil(self.config.supervisor.degraded_budget_s / dt)) + 2
+            for k in range(ticks + overtime):
+                if k >= ticks and (not records or records[-1].state != "DEGRADED"):
+                    break
                 now = k * dt
                 pose, velocity = self._capture(k, now)
                 if k == 0:
                     self.loop.start(now)
                 if self.faults.loop_stalled:
+                    self.faults.stalled_tick(k, now)
                     continue
                 record = self.loop.step(now)
+                self.faults.observe(k, now, self.sim_camera, self.link, self.visibility, pose)
                 records.append(record)
                 times.append(now)
                 poses.append((pose.x_m, pose.y_m, pose.theta_rad))
@@ -209,13 +235,15 @@ class Simulation:
                     # Only the first frame without tape in view matters (metrics): stop there.
                     seen = not visible or visible[-1]
                     visible.append(self.visibility.visible(pose) if seen else False)
-                if map_view is not None:
-                    map_view.add_path_point(pose, record.state)
+                if self._video is not None:
+                    self._video.step(pose, record)
                     if k % video_every == 0:
                         self._add_video_frame(k, now, pose, record)
                 if self._progress is not None:
                     self._progress(now)
                 reason = ending.check(now, record.state, pose, self.base.velocity.linear_m_s)
+                if reason == "halted" and self.faults.pending:
+                    continue  # every fault is applied, even after a halt (or it is unproven)
                 if reason is not None:
                     end_reason = reason
                     break
@@ -232,12 +260,17 @@ class Simulation:
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
         metrics["end_reason"] = end_reason
+        if self._video is not None and self._video.poster_shows is not None:
+            metrics["video_poster"] = {"shows": self._video.poster_shows,
+                                       "time_s": self._video.poster_time_s}
+        run_end = float(times[-1]) if times else 0.0
         return SimulationResult(spec, self.controller_name, self.seed, self.world, metrics,
-                                records, trace, end_reason)
+                                records, trace, end_reason, dict(self.faults.effects),
+                                self.faults.windows(run_end))
 
     def _capture(self, k: int, now: float) -> tuple[Pose2D, VelocityCommand]:
         """Faults due now, the base moved to now, and the camera's frame at the true pose."""
-        self.faults.apply(now, self.sim_camera, self.base, self.loop)
+        self.faults.apply(now, self.sim_camera, self.link, self.loop, k)
         self.base.advance_to(now)
         pose = self.base.pose
         velocity = self.base.velocity
@@ -248,6 +281,7 @@ class Simulation:
             self.renderer.render_bgr(pose, buffer, motion, noise)
         else:
             self.renderer.render_gray(pose, buffer, motion, noise)
+        self.faults.after_render(k, now, buffer)
         self.sim_camera.capture(k, now)
         return pose, velocity
 
@@ -255,26 +289,13 @@ class Simulation:
         assert self._video is not None
         assert self._display is not None
         undistorted = self._display.render_bgr(pose, self._view_bgr)
-        tap = self._tap.last if self._tap is not None else None
+        tap = self.stack.tap.last if self.stack.tap is not None else None
+        detection = None
         if tap is not None and tap[0] == k and record.observation is not None:
             _, observation, debug = tap
-            decision = decide(observation, self.config.perception)
-            panel = draw_overlay(undistorted, observation, debug, decision)
-        else:
-            panel = undistorted
-        obs = record.observation
-        cmd = record.command
-        lines = [
-            f"{self.spec.name} | {self.controller_name} | t={now:5.1f} s",
-            f"{record.state}  v={cmd.linear_m_s:.2f} m/s  w={cmd.angular_rad_s:+.2f} rad/s",
-        ]
-        if obs is not None:
-            raw = "-" if obs.slope_sum is None else f"{obs.slope_sum:+.1f}"
-            filt = "-" if record.filtered_slope_sum is None else f"{record.filtered_slope_sum:+.1f}"
-            lines.append(f"slope sum {raw} (filtered {filt})  conf {obs.confidence:.2f}")
-        if record.halt_reason and record.state == "HALT":
-            lines.append(record.halt_reason.split(":")[0])
-        self._video.add(panel, pose, record.state, lines)
+            draw_detection(undistorted, observation, debug)
+            detection = (observation, self.stack.decide(observation))
+        self._video.add(undistorted, pose, now, record, detection)
 
 
 class EndConditions:

@@ -1,8 +1,9 @@
 """The scenario file format: what a scenario YAML may say, validated, with every default here.
 
 A scenario is data: the floor, the tapes and the lane they mark (built from straight segments and
-arcs), gaps, dashes and tape ends, the lighting, where the robot starts, when the run stops, the
-faults to inject, optional config overrides, and the expected outcome per controller.
+arcs), gaps, dashes and tape ends, the lighting, the robot's camera, where the robot starts, when
+the run stops, the faults to inject, optional config overrides, and the expected outcome per
+controller.
 
 Units are in the names (`_m`, `_deg`, `_s`). Lane positions (`at_m`, `from_m`, ...) are arc lengths
 along the lane's centre line from its start. Angles: `turn_deg` > 0 turns left (counter-clockwise),
@@ -14,20 +15,34 @@ the closed loop. Bad files become ScenarioError with one line per bad key, namin
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from lanewarden.scenarios.errors import ScenarioError
-from lanewarden.scenarios.yaml_documents import (
-    describe_validation_error,
-    read_yaml_document,
-    validation_error_lines,
+from lanewarden.documents import read_yaml_document, validation_error_lines
+from lanewarden.perception.ground import (
+    DEFAULT_HFOV_DEG,
+    DEFAULT_POSE_FORWARD_M,
+    DEFAULT_POSE_HEIGHT_M,
+    DEFAULT_POSE_PITCH_DEG,
 )
+from lanewarden.scenarios.camera import DEFAULT_DIST_COEFFS
+from lanewarden.scenarios.errors import ScenarioError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
+
+#: Limits on the world a scenario may describe, checked before anything is built or painted (the
+#: floor texture costs ~35 bytes per pixel while it is painted; see `scenarios.texture`).
+MAX_LANE_LENGTH_M = 100.0
+MAX_SEGMENTS = 200
+MAX_GAPS = 100
+MAX_GLARE_SPOTS = 20
+MAX_FAULTS = 50
+#: Anywhere in the world (start positions, offsets), metres from the origin.
+MAX_COORDINATE_M = 1000.0
 
 Color = Annotated[str, Field(pattern=r"^#[0-9a-fA-F]{6}$")]
 TapeSide = Literal["left", "right", "both"]
@@ -46,11 +61,31 @@ FaultKind = Literal[
     "wheel_drop",
     "base_link_loss",
     "operator_stop",
+    # perception hazards on the floor (placed at a lane position, painted into the world)
+    "tape_patch",
+    "floor_mark",
+    "shadow_edge",
+    # perception hazards in the camera's image (a time window)
+    "glare_sweep",
+    "occlusion",
+    "lens_smudge",
+    "exposure_jump",
+    # the camera driver
+    "frame_rate_collapse",
+    "timestamp_jump",
+    # the base and its serial link
+    "link_garbage",
+    "checksum_storm",
+    "write_blocks",
+    "low_battery",
 ]
+
+#: Fault kinds that are things on the floor: placed by `at_m` (lane position), not by time.
+FLOOR_FAULT_KINDS = ("tape_patch", "floor_mark", "shadow_edge")
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def color_bgr(color: str) -> tuple[int, int, int]:
@@ -72,7 +107,7 @@ class FloorSpec(_Model):
     seam_color: Color = "#8c877e"
     tile_m: Annotated[float, Field(gt=0.05, le=2.0)] = 0.30
     seam_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.004
-    grid_angle_deg: float = 0.0
+    grid_angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
     grid_offset_m: tuple[float, float] = (0.0, 0.0)
     variation: Annotated[float, Field(ge=0.0, le=0.5)] = 0.04
     grain: Annotated[float, Field(ge=0.0, le=0.5)] = 0.03
@@ -86,9 +121,9 @@ class TapeSpec(_Model):
 
 
 class PoseSpec(_Model):
-    x_m: float = 0.0
-    y_m: float = 0.0
-    heading_deg: float = 0.0
+    x_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
+    y_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
+    heading_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
 
 
 class SegmentSpec(_Model):
@@ -98,8 +133,8 @@ class SegmentSpec(_Model):
     crosses the gate between the tapes has completed that turn (`turns_completed`).
     """
 
-    straight_m: Annotated[float | None, Field(gt=0.0)] = None
-    arc_radius_m: Annotated[float | None, Field(gt=0.0)] = None
+    straight_m: Annotated[float | None, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = None
+    arc_radius_m: Annotated[float | None, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = None
     turn_deg: Annotated[float | None, Field(ge=-360.0, le=360.0)] = None
     mark: str | None = None
 
@@ -133,8 +168,8 @@ class DashSpec(_Model):
     end)."""
 
     tape: TapeSide = "both"
-    on_m: Annotated[float, Field(gt=0.0)]
-    off_m: Annotated[float, Field(gt=0.0)]
+    on_m: Annotated[float, Field(ge=0.05, le=MAX_LANE_LENGTH_M)]
+    off_m: Annotated[float, Field(ge=0.05, le=MAX_LANE_LENGTH_M)]
     from_m: Annotated[float, Field(ge=0.0)] = 0.0
     to_m: Annotated[float | None, Field(gt=0.0)] = None
 
@@ -153,10 +188,24 @@ class EndsSpec(_Model):
 class LaneSpec(_Model):
     width_m: Annotated[float, Field(gt=0.1, le=3.0)] = 0.60
     start: PoseSpec = PoseSpec()
-    segments: Annotated[list[SegmentSpec], Field(min_length=1)]
-    gaps: list[GapSpec] = []
+    segments: Annotated[list[SegmentSpec], Field(min_length=1, max_length=MAX_SEGMENTS)]
+    gaps: Annotated[list[GapSpec], Field(max_length=MAX_GAPS)] = []
     dashes: DashSpec | None = None
     ends: EndsSpec = EndsSpec()
+
+    @model_validator(mode="after")
+    def _length(self) -> LaneSpec:
+        total = sum(
+            seg.straight_m if seg.straight_m is not None
+            else (seg.arc_radius_m or 0.0) * abs(math.radians(seg.turn_deg or 0.0))
+            for seg in self.segments
+        )
+        if total > MAX_LANE_LENGTH_M:
+            raise ValueError(
+                f"the segments add up to {total:.6g} m of lane, expected at most "
+                f"{MAX_LANE_LENGTH_M:g} m"
+            )
+        return self
 
 
 class GradientSpec(_Model):
@@ -164,7 +213,7 @@ class GradientSpec(_Model):
     `direction_deg`, measured from the lane start."""
 
     per_m: Annotated[float, Field(ge=-1.0, le=1.0)] = 0.0
-    direction_deg: float = 0.0
+    direction_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
 
 
 class GlareSpec(_Model):
@@ -172,8 +221,8 @@ class GlareSpec(_Model):
     `offset_m` to its left, Gaussian with `radius_m` (1 sigma), pushing up to `strength` of
     full white."""
 
-    at_m: Annotated[float, Field(ge=0.0)]
-    offset_m: float = 0.0
+    at_m: Annotated[float, Field(ge=0.0, le=MAX_LANE_LENGTH_M)]
+    offset_m: Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)] = 0.0
     radius_m: Annotated[float, Field(gt=0.0, le=3.0)] = 0.25
     strength: Annotated[float, Field(gt=0.0, le=1.5)] = 0.8
 
@@ -181,7 +230,7 @@ class GlareSpec(_Model):
 class LightingSpec(_Model):
     brightness: Annotated[float, Field(gt=0.05, le=2.0)] = 1.0
     gradient: GradientSpec = GradientSpec()
-    glare: list[GlareSpec] = []
+    glare: Annotated[list[GlareSpec], Field(max_length=MAX_GLARE_SPOTS)] = []
 
 
 class RobotSpec(_Model):
@@ -199,11 +248,42 @@ class RunSpec(_Model):
 
     max_time_s: Annotated[float, Field(gt=0.0, le=600.0)] = 90.0
     halt_settle_s: Annotated[float, Field(ge=0.0, le=30.0)] = 1.5
-    stop_past_lane_end_m: Annotated[float, Field(gt=0.0)] = 2.0
+    stop_past_lane_end_m: Annotated[float, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = 2.0
+
+
+class CameraSpec(_Model):
+    """The robot's camera (`camera:`); without the block, the simulator's default camera.
+
+    Mount (robot frame, `perception.ground.CameraPose`): `height_m` above the floor, `pitch_deg`
+    down from level, `roll_deg` left side up, `forward_m` ahead of the robot's centre. Lens: an
+    ideal pinhole with `hfov_deg` across the image and OpenCV's `distortion` [k1, k2, p1, p2, k3].
+    `width_px` x `height_px`: the rendered size; when given it is THE render size of this scenario
+    (the config's `simulation.width_px`/`height_px` apply to scenarios that do not give one, and a
+    scenario may not give both). Perception gets this camera's true calibration, ground pose
+    included, as a calibrated robot would.
+    """
+
+    height_m: Annotated[float, Field(gt=0.03, le=2.0)] = DEFAULT_POSE_HEIGHT_M
+    pitch_deg: Annotated[float, Field(ge=0.0, le=85.0)] = DEFAULT_POSE_PITCH_DEG
+    roll_deg: Annotated[float, Field(ge=-30.0, le=30.0)] = 0.0
+    hfov_deg: Annotated[float, Field(ge=20.0, le=150.0)] = DEFAULT_HFOV_DEG
+    forward_m: Annotated[float, Field(ge=-0.5, le=1.0)] = DEFAULT_POSE_FORWARD_M
+    width_px: Annotated[int | None, Field(ge=64, le=1920, multiple_of=2)] = None
+    height_px: Annotated[int | None, Field(ge=48, le=1440, multiple_of=2)] = None
+    distortion: tuple[float, float, float, float, float] = DEFAULT_DIST_COEFFS
+
+    @model_validator(mode="after")
+    def _size_together(self) -> CameraSpec:
+        if (self.width_px is None) != (self.height_px is None):
+            raise ValueError("give width_px and height_px together (or neither: the config's "
+                             "simulation.width_px/height_px)")
+        return self
 
 
 class FaultSpec(_Model):
-    """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run).
+    """One injected fault: `kind` from `at_s` for `duration_s` (None: to the end of the run); the
+    floor hazards (tape_patch, floor_mark, shadow_edge) are placed at lane position `at_m`
+    instead and are there for the whole run.
 
     - camera_freeze: the camera keeps delivering the same image (with fresh indices and times).
     - camera_drop: no new frames at all (the newest one ages).
@@ -216,13 +296,54 @@ class FaultSpec(_Model):
     - bumper / cliff / wheel_drop: the base reports these bits (`bits`, Kobuki layout).
     - base_link_loss: the base's feedback stops arriving.
     - operator_stop: the operator presses stop (instantaneous).
+    - tape_patch: a piece of lane tape `length_m` long on the floor, its centre line starting
+      `offset_m` left of the lane centre at `at_m`, turned `angle_deg` from the lane direction
+      (0: a second tape beside the lane).
+    - floor_mark: a scuff mark or a cable across the floor at `at_m`: a stripe `width_m` wide,
+      turned `angle_deg` from straight across, darkened by `intensity` (1: as dark as the tape).
+    - shadow_edge: from `at_m` for `length_m` the floor on the `side` of a line `offset_m` left
+      of the lane centre is in shadow (light times 1 - 0.7 * `intensity`): a sharp light edge.
+    - glare_sweep: a bright reflection (`intensity`: up to that fraction of full white added)
+      sweeps across the image from the `side` edge to the other during the fault.
+    - occlusion: something in front of the lens hides the `side` tape from the bottom of the image
+      up to `intensity` of the image height.
+    - lens_smudge: the image is blurred (Gaussian, sigma 0.5 + 6 * `intensity` pixels).
+    - exposure_jump: the image is multiplied by 4 ** (2 * `intensity` - 1) (0.25x .. 4x).
+    - frame_rate_collapse: the camera delivers only `rate_hz` frames per second.
+    - timestamp_jump: the driver's clock jumps: frames are stamped `jump_s` later (or earlier).
+    - link_garbage: `intensity` * 64 random bytes arrive between feedback packets on the serial
+      link (the real framing parser has to resync).
+    - checksum_storm: a fraction `intensity` of the feedback packets arrive with a bad checksum.
+    - write_blocks: writing commands to the serial port blocks: the base keeps executing the
+      command it had; after `actuation.write_timeout_s` the link counts as lost.
+    - low_battery: the battery voltage the base reports drops to `battery_v`.
     """
 
     kind: FaultKind
-    at_s: Annotated[float, Field(ge=0.0)]
-    duration_s: Annotated[float | None, Field(gt=0.0)] = None
+    at_s: Annotated[float, Field(ge=0.0, le=600.0)] = 0.0
+    duration_s: Annotated[float | None, Field(gt=0.0, le=600.0)] = None
     latency_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.5
     bits: Annotated[int, Field(ge=1, le=7)] = 2
+    at_m: Annotated[float | None, Field(ge=0.0, le=MAX_LANE_LENGTH_M)] = None
+    offset_m: Annotated[float, Field(ge=-3.0, le=3.0)] = 0.0
+    length_m: Annotated[float, Field(gt=0.0, le=20.0)] = 1.0
+    width_m: Annotated[float, Field(gt=0.0, le=0.2)] = 0.01
+    angle_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = 0.0
+    side: Literal["left", "right"] = "left"
+    intensity: Annotated[float, Field(ge=0.0, le=1.0)] = 0.5
+    rate_hz: Annotated[float, Field(gt=0.0, le=120.0)] = 5.0
+    jump_s: Annotated[float, Field(ge=-10.0, le=10.0)] = -0.5
+    battery_v: Annotated[float, Field(ge=0.0, le=20.0)] = 12.0
+
+    @model_validator(mode="after")
+    def _placed(self) -> FaultSpec:
+        on_floor = self.kind in FLOOR_FAULT_KINDS
+        if on_floor and self.at_m is None:
+            raise ValueError(f"a {self.kind} fault lies on the floor: expected at_m (lane "
+                             "position, metres), not a time")
+        if not on_floor and self.at_m is not None:
+            raise ValueError(f"at_m: a {self.kind} fault happens at a time: expected at_s")
+        return self
 
 
 class Expectation(_Model):
@@ -256,11 +377,33 @@ class ScenarioSpec(_Model):
     tape: TapeSpec = TapeSpec()
     lane: LaneSpec
     lighting: LightingSpec = LightingSpec()
+    camera: CameraSpec | None = None
     robot: RobotSpec = RobotSpec()
     run: RunSpec = RunSpec()
-    faults: list[FaultSpec] = []
+    faults: Annotated[list[FaultSpec], Field(max_length=MAX_FAULTS)] = []
     config: dict[str, Any] = {}
     expect: ExpectSpec = ExpectSpec()
+
+    @model_validator(mode="after")
+    def _one_render_size(self) -> ScenarioSpec:
+        simulation = self.config.get("simulation")
+        if self.camera is not None and self.camera.width_px is not None and isinstance(
+                simulation, Mapping) and ({"width_px", "height_px"} & set(simulation)):
+            raise ValueError(
+                "camera.width_px/height_px and config.simulation.width_px/height_px both give "
+                "the render size: give it in one place")
+        return self
+
+
+def merge_overrides(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """`base` with `extra` merged over it, mapping by mapping (a config-file-shaped override)."""
+    out = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            out[key] = merge_overrides(out[key], value)
+        else:
+            out[key] = value
+    return out
 
 
 def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) -> ModelT:
@@ -268,26 +411,13 @@ def with_overrides(config: ModelT, overrides: Mapping[str, Any], source: str) ->
     again; a bad key is a ScenarioError naming the file and `config.<key>`."""
     if not overrides:
         return config
-
-    def merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-        out = dict(base)
-        for key, value in extra.items():
-            if isinstance(value, Mapping) and isinstance(out.get(key), dict):
-                out[key] = merge(out[key], value)
-            else:
-                out[key] = value
-        return out
-
-    merged = merge(config.model_dump(), overrides)
+    merged = merge_overrides(config.model_dump(), overrides)
     try:
         return type(config).model_validate(merged)
     except ValidationError as exc:
-        lines = []
-        for err in exc.errors():
-            located = dict(err)
-            located["loc"] = ("config", *err["loc"])
-            lines.append(describe_validation_error(source, located))
-        raise ScenarioError("\n".join(lines)) from None
+        raise ScenarioError(
+            validation_error_lines(source, exc, type(config), prefix=("config",))
+        ) from None
 
 
 def parse_scenario(data: Any, source: str) -> ScenarioSpec:
@@ -299,7 +429,7 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(validation_error_lines(source, exc)) from None
+        raise ScenarioError(validation_error_lines(source, exc, ScenarioSpec)) from None
 
 
 def load_scenario_file(path: str | Path) -> ScenarioSpec:

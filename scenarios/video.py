@@ -1,16 +1,21 @@
-"""The run's video: the camera view with perception's overlay beside a top-down map of the run.
+"""The run's video: the camera view with perception's overlay beside a top-down map of the run,
+under a caption band with what perception and the controller said at that moment.
 
 The map shows the painted floor (tapes, seams), the turn gates (A, B, ...), the end of the
 markings (a red bar), the robot (its 0.35 m footprint, heading and the floor its camera's ROI
-covers) and the path so far, coloured by the supervisor's state. Frames are encoded to H.264
-yuv420p through `imageio_ffmpeg.write_frames` (browsers play it; OpenCV's wheels cannot encode
-H.264), with the ffmpeg binary that package ships.
+covers) and the path so far, coloured by the controller's state. Every colour drawn is a row of
+`video_legend()` (the report prints it). The caption names the state with its reason (HALT:
+LANE_LOST, DEGRADED (LANE_UNTRUSTED)). Frames are encoded to H.264 yuv420p through
+`imageio_ffmpeg.write_frames` (browsers play it; OpenCV's wheels cannot encode H.264), with the
+ffmpeg binary that package ships. The poster (`poster.jpg`) is the outcome: the first frame in
+HALT after the controller engaged, else the last frame.
 
 Drawing only: never steps the loop, never reads a clock; buffers are allocated once.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Generator
 from pathlib import Path
@@ -21,27 +26,84 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.overlay import (
+    BGR,
+    OVERLAY_STYLES,
+    OverlayStyle,
+    line_step_px,
+    perception_text,
+    put_text_lines,
+)
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
+from lanewarden.scenarios.state_reasons import StateReasons, state_with_reason
 from lanewarden.scenarios.texture import GroundTexture
 from lanewarden.scenarios.world import ROBOT_RADIUS_M, World
+from lanewarden.supervisor.loop import StepRecord
 
 U8 = NDArray[np.uint8]
 FloatArray = NDArray[np.float64]
 
-#: Path colour per supervisor state (BGR); anything else is grey.
-STATE_COLORS: dict[str, tuple[int, int, int]] = {
+#: Path colour per controller state (BGR); anything else is grey.
+STATE_COLORS: dict[str, BGR] = {
     "FOLLOW": (60, 200, 60),
     "TURN_LEFT": (230, 180, 40),
     "TURN_RIGHT": (200, 90, 220),
     "DEGRADED": (0, 165, 255),
     "HALT": (40, 40, 230),
 }
-_GREY = (150, 150, 150)
+_GREY: BGR = (150, 150, 150)
+_STATE_MEANINGS = {
+    "FOLLOW": "following the lane (the lecture's controller: going straight)",
+    "TURN_LEFT": "turning left",
+    "TURN_RIGHT": "turning right",
+    "DEGRADED": "slower, bounded steering (reason shown in the caption)",
+    "HALT": "stopped (reason shown in the caption)",
+}
+
+#: Every colour the map draws apart from the state colours.
+MAP_STYLES: dict[str, OverlayStyle] = {
+    "gate": OverlayStyle((0, 140, 0), "turn gate A, B, ...",
+                         "a line across the lane at the end of a marked turn; crossing it "
+                         "counts the turn as completed"),
+    "lane_end": OverlayStyle((0, 0, 220), "end of the tape",
+                             "where the markings end (the earlier tape end)"),
+    "roi": OverlayStyle(OVERLAY_STYLES["roi"].bgr, "ROI on the floor",
+                        "the floor perception's region of interest covers, at the robot's pose"),
+}
+_CAPTION_BG: BGR = (32, 32, 32)
+_CAPTION_HEAD: BGR = (190, 190, 190)
+#: Caption lines per panel.
+CAPTION_LINES = 4
 
 
-def state_color(state: str) -> tuple[int, int, int]:
+def state_color(state: str) -> BGR:
     return STATE_COLORS.get(state, _GREY)
+
+
+def video_legend() -> list[tuple[str, list[OverlayStyle]]]:
+    """Every colour in the video, grouped by where it appears: (group title, rows)."""
+    states = [OverlayStyle(bgr, state, _STATE_MEANINGS.get(state, ""))
+              for state, bgr in STATE_COLORS.items()]
+    return [
+        ("camera view (left): what perception saw", list(OVERLAY_STYLES.values())),
+        ("map (right): the course", list(MAP_STYLES.values())),
+        ("map: the path so far and the robot (a disc 0.35 m across, with its heading) are "
+         "coloured by the controller's state", states),
+    ]
+
+
+def caption_cap_height_px(map_size_px: int) -> float:
+    """Capital-letter height of the caption text: 14 px for a 480 px map."""
+    return map_size_px / 34.0
+
+
+def caption_height_px(map_size_px: int) -> int:
+    """Height of the caption band (even, for yuv420p)."""
+    cap = caption_cap_height_px(map_size_px)
+    height = line_step_px(cap) * CAPTION_LINES + round(cap)
+    return height + height % 2
 
 
 def roi_ground_outline(camera: CameraModel, roi_polygon_px: FloatArray) -> FloatArray:
@@ -106,9 +168,9 @@ class MapView:
         for name in world.marks:
             a, b = world.gate(name)
             pa, pb = self.to_px(*a), self.to_px(*b)
-            cv2.line(bg, pa, pb, (0, 140, 0), 1, cv2.LINE_AA)
-            cv2.putText(bg, name, (pb[0] + 4, pb[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
-                        (0, 110, 0), 2, cv2.LINE_AA)
+            cv2.line(bg, pa, pb, MAP_STYLES["gate"].bgr, 2, cv2.LINE_AA)
+            cv2.putText(bg, name, (pb[0] + 4, pb[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.7,
+                        MAP_STYLES["gate"].bgr, 2, cv2.LINE_AA)
         end = world.lane_end()
         if end is not None:
             point, heading = end
@@ -116,7 +178,7 @@ class MapView:
             half = world.lane_width_m / 2.0 + 0.1
             pa = self.to_px(point[0] - half * nx, point[1] - half * ny)
             pb = self.to_px(point[0] + half * nx, point[1] + half * ny)
-            cv2.line(bg, pa, pb, (0, 0, 220), 2, cv2.LINE_AA)
+            cv2.line(bg, pa, pb, MAP_STYLES["lane_end"].bgr, 3, cv2.LINE_AA)
         return np.ascontiguousarray(bg)
 
     def add_path_point(self, pose: Pose2D, state: str) -> None:
@@ -132,7 +194,7 @@ class MapView:
             wx = pose.x_m + c * self._roi[:, 0] - s * self._roi[:, 1]
             wy = pose.y_m + s * self._roi[:, 0] + c * self._roi[:, 1]
             poly = np.array([self.to_px(x, y) for x, y in zip(wx, wy, strict=True)], np.int32)
-            cv2.polylines(self._frame, [poly], True, (255, 200, 0), 1, cv2.LINE_AA)
+            cv2.polylines(self._frame, [poly], True, MAP_STYLES["roi"].bgr, 1, cv2.LINE_AA)
         centre = self.to_px(pose.x_m, pose.y_m)
         radius = max(2, round(ROBOT_RADIUS_M / self.m_per_px))
         cv2.circle(self._frame, centre, radius, state_color(state), 2, cv2.LINE_AA)
@@ -141,71 +203,137 @@ class MapView:
         return self._frame
 
 
-def _put_lines(image: U8, lines: list[str], origin: tuple[int, int], scale: float) -> None:
-    """White text on a darkened band (one text pass: OpenCV's glyph advance depends on the
-    thickness, so an outline pass would not line up)."""
-    x, y = origin
-    step = round(22 * scale)
-    top = max(0, y - step + 4)
-    bottom = min(image.shape[0], y + step * (len(lines) - 1) + 8)
-    band = image[top:bottom]
-    cv2.addWeighted(band, 0.45, np.zeros_like(band), 0.55, 0.0, dst=band)
-    for text in lines:
-        cv2.putText(image, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale,
-                    (255, 255, 255), 1, cv2.LINE_AA)
-        y += step
+def perception_caption(detection: tuple[LaneObservation, str] | None) -> list[str]:
+    """The camera panel's caption: perception's view of this frame (observation, decision)."""
+    if detection is None:
+        return ["PERCEPTION", "no new observation at this step"]
+    observation, decision = detection
+    return ["PERCEPTION (this frame alone)", *perception_text(observation, decision)]
+
+
+def controller_caption(title: str, now: float, record: StepRecord,
+                       reason: str | None) -> list[str | tuple[str, BGR]]:
+    """The map panel's caption: the controller's view (state with its reason, what it acted on,
+    whether it trusts the lane, the command sent)."""
+    acted = record.filtered_slope_sum
+    trusted = getattr(record, "lane_trusted", None)  # per-step supervisor verdict, when recorded
+    trust = "" if trusted is None else ("  lane trusted" if trusted else "  lane NOT trusted")
+    cmd = record.command
+    return [
+        (f"{title}  t = {now:.1f} s", _CAPTION_HEAD),
+        (state_with_reason(record.state, reason), state_color(record.state)),
+        f"acted on slope sum {'-' if acted is None else f'{acted:+.2f}'}{trust}",
+        f"command v {cmd.linear_m_s:.2f} m/s  w {cmd.angular_rad_s:+.2f} rad/s",
+    ]
 
 
 class VideoRecorder:
-    """Composes [camera | map] frames and streams them to an H.264 mp4."""
+    """Composes [camera | map] frames under a caption band and streams them to an H.264 mp4
+    (the caption is on top: a browser's video controls cover the bottom of a paused video).
+
+    Call `step` on every control step (the path and the state's reason need every step) and
+    `add` for the steps that become video frames; `close` writes `poster.jpg` beside the video.
+    """
 
     def __init__(self, path: Path, camera_size: tuple[int, int], map_view: MapView,
-                 fps: float, crf: int, preset: str) -> None:
+                 fps: float, crf: int, preset: str, title: str = "") -> None:
         import imageio_ffmpeg
 
         self.path = path
-        height = map_view.size
+        self.poster_path = path.with_name("poster.jpg")
+        self.title = title
+        size = map_view.size
         cam_w, cam_h = camera_size
-        panel_w = int(round(cam_w * height / cam_h / 2.0)) * 2
-        self._panel_size = (panel_w, height)
+        panel_w = int(round(cam_w * size / cam_h / 2.0)) * 2
+        self._panel_size = (panel_w, size)
+        self._caption_h = caption_height_px(size)
         self._map = map_view
-        self._frame = np.zeros((height, panel_w + height, 3), np.uint8)
+        self._frame = np.zeros((size + self._caption_h, panel_w + size, 3), np.uint8)
+        self._reasons = StateReasons()
+        self._reason: str | None = None
+        self._engaged = False
+        self._poster: U8 | None = None
+        #: What the poster shows ("the halt" or "the last frame") and its time, after close().
+        self.poster_shows: str | None = None
+        self.poster_time_s: float | None = None
+        self._last_time_s: float | None = None
         self._writer: Generator[Any, Any, None] | None = None
+        height, width = self._frame.shape[:2]
+        # Its only warning ("no frames written", on an interrupt before the first frame) would be
+        # a second line beside ours; PARTIAL already says the video is incomplete.
+        logging.getLogger("imageio_ffmpeg").setLevel(logging.ERROR)
         try:
             writer = imageio_ffmpeg.write_frames(
-                str(path), (panel_w + height, height), fps=fps, codec="libx264",
+                str(path), (width, height), fps=fps, codec="libx264",
                 pix_fmt_in="bgr24", pix_fmt_out="yuv420p", macro_block_size=2,
                 output_params=["-preset", preset, "-crf", str(crf), "-movflags", "+faststart"],
                 ffmpeg_log_level="error",
             )
             writer.send(None)
         except (OSError, RuntimeError) as exc:
-            raise ScenarioError(f"{path}: cannot start the video encoder ({exc})") from exc
+            raise ScenarioOutputError(f"{path}: cannot start the video encoder ({exc})") from exc
         self._writer = writer
         self.frames = 0
 
-    def add(self, camera_bgr: U8, pose: Pose2D, state: str, lines: list[str]) -> None:
-        panel_w, height = self._panel_size
-        panel = self._frame[:, :panel_w]
-        if camera_bgr.shape[1] == panel_w and camera_bgr.shape[0] == height:
+    @property
+    def frame_size(self) -> tuple[int, int]:
+        """(width, height) of the video."""
+        return self._frame.shape[1], self._frame.shape[0]
+
+    def step(self, pose: Pose2D, record: StepRecord) -> None:
+        """Every control step: extend the path, follow the state's reason."""
+        self._map.add_path_point(pose, record.state)
+        self._reason = self._reasons.update(record.state, record.events, record.halt_reason)
+
+    def add(self, camera_bgr: U8, pose: Pose2D, now: float, record: StepRecord,
+            detection: tuple[LaneObservation, str] | None) -> None:
+        """One video frame: `camera_bgr` (overlay already drawn), the map, the captions."""
+        panel_w, size = self._panel_size
+        top = self._caption_h
+        panel = self._frame[top:, :panel_w]
+        if camera_bgr.shape[1] == panel_w and camera_bgr.shape[0] == size:
             np.copyto(panel, camera_bgr)
         else:
-            cv2.resize(camera_bgr, (panel_w, height), dst=panel, interpolation=cv2.INTER_LINEAR)
-        map_panel = self._frame[:, panel_w:]
-        np.copyto(map_panel, self._map.draw(pose, state))
-        scale = height / 480.0
-        _put_lines(map_panel, lines, (8, height - round(22 * scale) * len(lines) + 8), scale)
+            cv2.resize(camera_bgr, (panel_w, size), dst=panel, interpolation=cv2.INTER_LINEAR)
+        np.copyto(self._frame[top:, panel_w:], self._map.draw(pose, record.state))
+        band = self._frame[:top]
+        band[:] = _CAPTION_BG
+        cap = caption_cap_height_px(size)
+        first = line_step_px(cap)
+        margin = round(cap * 0.7)
+        put_text_lines(band[:, :panel_w], perception_caption(detection), (margin, first), cap,
+                       shade=False)
+        put_text_lines(band[:, panel_w:],
+                       controller_caption(self.title, now, record, self._reason),
+                       (margin, first), cap, shade=False)
+        cv2.line(self._frame, (panel_w, 0), (panel_w, self._frame.shape[0] - 1), (0, 0, 0), 2)
         assert self._writer is not None
         try:
             self._writer.send(self._frame)
         except (OSError, RuntimeError) as exc:
-            raise ScenarioError(f"{self.path}: video encoding failed ({exc})") from exc
+            raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
         self.frames += 1
+        self._last_time_s = now
+        if record.state != "HALT":
+            self._engaged = True
+        elif self._engaged and self.poster_shows is None:
+            self._poster = self._frame.copy()
+            self.poster_shows, self.poster_time_s = "the halt", now
 
     def close(self) -> None:
-        if self._writer is not None:
-            writer, self._writer = self._writer, None
-            try:
-                writer.close()
-            except (OSError, RuntimeError) as exc:
-                raise ScenarioError(f"{self.path}: video encoding failed ({exc})") from exc
+        """Finish the video and write the poster (the halt frame, else the last frame)."""
+        if self._writer is None:
+            return
+        writer, self._writer = self._writer, None
+        try:
+            writer.close()
+        except (OSError, RuntimeError) as exc:
+            raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
+        if self.frames == 0:
+            return
+        if self._poster is None:
+            self._poster = self._frame
+            self.poster_shows, self.poster_time_s = "the last frame", self._last_time_s
+        if not cv2.imwrite(str(self.poster_path), self._poster, [cv2.IMWRITE_JPEG_QUALITY, 90]):
+            raise ScenarioOutputError(f"{self.poster_path}: cannot write the video poster")
+

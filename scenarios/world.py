@@ -35,6 +35,9 @@ FloatArray = NDArray[np.float64]
 SAMPLE_STEP_M = 0.005
 #: The robot's footprint (Kobuki: 0.35 m across).
 ROBOT_RADIUS_M = 0.175
+#: Largest floor a world may cover (its rendered extent, margins included), square metres: the
+#: lecture's course is 170 m^2. Checked before the floor is painted (see `scenarios.texture`).
+MAX_FLOOR_AREA_M2 = 300.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,6 +311,14 @@ def build_world(spec: ScenarioSpec, margin_m: float = 2.5) -> World:
         float(pts[:, 0].max() + half + margin_m),
         float(pts[:, 1].max() + half + margin_m),
     )
+    area = (bounds[2] - bounds[0]) * (bounds[3] - bounds[1])
+    if area > MAX_FLOOR_AREA_M2:
+        raise ScenarioError(
+            f"{spec.name}: the lane and its {margin_m:g} m margins cover "
+            f"{bounds[2] - bounds[0]:.1f} x {bounds[3] - bounds[1]:.1f} m = {area:.0f} m^2 of "
+            f"floor, expected at most {MAX_FLOOR_AREA_M2:g} m^2 (a more compact lane, or a "
+            "smaller simulation.world_margin_m)"
+        )
     samples = [t.surface_samples() for t in tapes]
     return World(
         name=spec.name,

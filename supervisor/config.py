@@ -4,7 +4,12 @@ Units are in the names (`_s` seconds, `_m` metres, `_m_s` m/s, `_rad_s` rad/s, `
 frames). Slope sums are in the lecture's convention (dimensionless, positive = the lane bends left);
 the centring signal is in metres on the floor (see `supervisor.center_offset`). Confidences
 are in [0, 1]. Cross-field rules (exit below enter, late below stale, ...) are checked here, so a
-bad combination is refused at start-up, before anything moves.
+bad combination is refused at start-up, before anything moves; rules across sections (the limiter's
+caps within the base's limits, the camera period against the simulated camera's rate, the turn
+threshold against perception's slope clamp) in `lanewarden.config.LanewardenConfig`.
+
+This section owns the thresholds that decide what is trusted and when to turn; perception only
+reports slopes and a confidence.
 
 Never read a clock or a file here: this is data.
 """
@@ -24,12 +29,13 @@ class SupervisorConfig(BaseModel):
     Kobuki; the closed-loop numbers are tuned there, see docs/supervisor.md.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     # --- Slope-sum Kalman filter (state: slope sum, its rate per second) ---
     slope_sum_measurement_std: float = Field(
         default=0.3,
         gt=0.0,
+        le=100.0,
         description="Kalman measurement noise (std) of the slope sum at confidence 1, slope-sum "
         "units",
     )
@@ -43,39 +49,46 @@ class SupervisorConfig(BaseModel):
     slope_sum_accel_std_per_s2: float = Field(
         default=40.0,
         gt=0.0,
+        le=10000.0,
         description="Kalman process noise: std of the slope sum's acceleration, 1/s^2",
     )
     slope_sum_initial_rate_std_per_s: float = Field(
         default=2.0,
         gt=0.0,
+        le=1000.0,
         description="Uncertainty (std) of the slope sum's rate when the filter (re)starts, 1/s",
     )
     innovation_gate_sigma: float = Field(
         default=4.0,
         gt=0.0,
+        le=100.0,
         description="Mahalanobis distance, sigmas, above which a measurement is rejected as an "
         "outlier (INNOVATION_OUTLIER)",
     )
     outliers_repeated_count: int = Field(
         default=3,
         ge=1,
+        le=1000,
         description="This many outliers within outliers_window_frames -> REPEATED_OUTLIERS "
         "(DEGRADED); this many in a row restart the filter on the newest measurement",
     )
     outliers_window_frames: int = Field(
         default=10,
         ge=1,
+        le=1000,
         description="Window over which outliers are counted for REPEATED_OUTLIERS, camera frames",
     )
     slope_filter_restart_after_s: float = Field(
         default=0.5,
         gt=0.0,
+        le=10.0,
         description="With no accepted measurement for this long the estimate expires (no "
         "extrapolation) and the next measurement restarts the filter, s",
     )
     center_offset_time_constant_s: float = Field(
         default=0.1,
         ge=0.0,
+        le=10.0,
         description="Low-pass time constant of the centre offset used for steering, s (0: no "
         "filtering)",
     )
@@ -93,7 +106,8 @@ class SupervisorConfig(BaseModel):
         ge=0.0,
         le=1.0,
         description="Below this confidence (0-1) a frame has no usable lane (LANE_UNTRUSTED; "
-        "counts towards lane_lost_halt_s)",
+        "counts towards lane_lost_halt_s); the one trust threshold: perception only reports "
+        "confidence, and `lanewarden detect` and the overlay decide 'none' below this",
     )
     confidence_degrade_below: float = Field(
         default=0.45,
@@ -105,6 +119,7 @@ class SupervisorConfig(BaseModel):
     low_confidence_degrade_frames: int = Field(
         default=3,
         ge=1,
+        le=300,
         description="k: frames in a row below confidence_degrade_below before DEGRADED, camera "
         "frames",
     )
@@ -118,12 +133,14 @@ class SupervisorConfig(BaseModel):
     engage_confident_frames: int = Field(
         default=10,
         ge=1,
+        le=300,
         description="N: confident frames in a row before a start or resume engages FOLLOW, "
         "camera frames",
     )
     recover_confident_frames: int = Field(
         default=5,
         ge=1,
+        le=300,
         description="m: confident frames in a row before DEGRADED recovers to FOLLOW, camera "
         "frames",
     )
@@ -132,12 +149,15 @@ class SupervisorConfig(BaseModel):
     turn_enter_slope_sum: float = Field(
         default=6.0,
         gt=0.0,
-        description="Enter TURN_LEFT/TURN_RIGHT when the filtered slope sum passes +- this "
-        "(the lecture's 6)",
+        le=100.0,
+        description="The lecture's 6, its one home: enter TURN_LEFT/TURN_RIGHT when the filtered "
+        "slope sum passes +- this; the lecture controller turns beyond +- this raw slope sum, and "
+        "`lanewarden detect` and the video overlay decide left/right with it",
     )
     turn_exit_slope_sum: float = Field(
         default=4.0,
         ge=0.0,
+        le=100.0,
         description="Leave a turn for FOLLOW when the filtered slope sum is back inside +- this "
         "(below turn_enter_slope_sum)",
     )
@@ -146,43 +166,67 @@ class SupervisorConfig(BaseModel):
     camera_period_s: float = Field(
         default=1.0 / 30.0,
         gt=0.0,
-        description="Expected camera frame period, also the runner's control-loop period, s",
+        le=1.0,
+        description="Expected camera frame period, also the runner's control-loop period, s "
+        "(must match simulation.camera_rate_hz, checked at load)",
     )
     loop_overrun_s: float = Field(
         default=0.1,
         gt=0.0,
+        le=2.0,
         description="Step-to-step time above this gives LOOP_OVERRUN (a warning) and caps the "
         "limiter's dt, s",
     )
     frame_late_s: float = Field(
         default=0.08,
         gt=0.0,
+        le=1.0,
         description="Newest frame older than this gives FRAME_LATE (DEGRADED), s",
     )
     frame_stale_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=1.0,
         description="Newest frame older than this gives FRAME_STALE (HALT), s",
     )
     frame_frozen_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=2.0,
         description="Identical images for this long while commanded to move give FRAME_FROZEN "
         "(HALT), s",
     )
     base_feedback_late_s: float = Field(
         default=0.1,
         gt=0.0,
+        le=1.0,
         description="Newest base feedback older than this gives BASE_FEEDBACK_LATE (DEGRADED), s",
     )
     base_link_timeout_s: float = Field(
         default=0.2,
         gt=0.0,
+        le=1.0,
         description="No base feedback for this long gives BASE_LINK_LOST (HALT), s",
+    )
+    battery_low_v: float = Field(
+        default=14.0,
+        ge=0.0,
+        le=20.0,
+        description="Base battery below this gives BATTERY_LOW (WARN), V (the Kobuki driver's "
+        "low level for its 14.8 V pack)",
+    )
+    battery_critical_v: float = Field(
+        default=13.2,
+        ge=0.0,
+        le=20.0,
+        description="Base battery below this gives BATTERY_CRITICAL (HALT, latched like a "
+        "bumper), V (the Kobuki driver's dangerous level); 0 switches the check off for a base "
+        "that reports no battery",
     )
     lane_lost_halt_s: float = Field(
         default=0.2,
         gt=0.0,
+        le=1.0,
         description="Halt (LANE_LOST) when engaged with no usable lane for longer than this, by "
         "capture time, s",
     )
@@ -197,16 +241,19 @@ class SupervisorConfig(BaseModel):
     degraded_max_angular_rad_s: float = Field(
         default=0.4,
         gt=0.0,
+        le=3.2,
         description="DEGRADED clips its steering to +- this, rad/s",
     )
     degraded_budget_s: float = Field(
         default=2.0,
         gt=0.0,
+        le=10.0,
         description="Staying DEGRADED longer than this halts (DEGRADED_BUDGET_EXHAUSTED), s",
     )
     degraded_budget_m: float = Field(
         default=0.3,
         gt=0.0,
+        le=2.0,
         description="Driving further than this while DEGRADED (commanded speed x dt) halts, m",
     )
 
@@ -214,50 +261,61 @@ class SupervisorConfig(BaseModel):
     follow_speed_m_s: float = Field(
         default=0.2,
         gt=0.0,
-        description="Forward speed in FOLLOW, m/s (at most max_linear_m_s)",
+        le=0.7,
+        description="Forward speed in FOLLOW, m/s (at most limiter_max_linear_m_s)",
     )
     slope_sum_gain_rad_s: float = Field(
         default=0.03,
         ge=0.0,
+        le=1.0,
         description="Left-turn rate per unit of filtered slope sum, rad/s",
     )
     center_offset_gain_rad_s_per_m: float = Field(
         default=3.6,
         ge=0.0,
+        le=20.0,
         description="Left-turn rate per metre the lane centre lies left of the robot, "
         "center_preview_m ahead (filtered), rad/s per m",
     )
     turn_speed_m_s: float = Field(
         default=0.15,
         gt=0.0,
+        le=0.7,
         description="Forward speed in TURN_LEFT/TURN_RIGHT and in the lecture controller's "
-        "turns, m/s (at most max_linear_m_s)",
+        "turns, m/s (at most limiter_max_linear_m_s)",
     )
     turn_extra_angular_rad_s: float = Field(
         default=0.2,
         ge=0.0,
+        le=3.2,
         description="TURN_LEFT/TURN_RIGHT add this to the proportional steering, rad/s",
     )
 
-    # --- Command limiter (the Kobuki velocity smoother's 0.3 m/s^2 and 3.5 rad/s^2) ---
-    max_linear_m_s: float = Field(
+    # --- Command limiter in the SafetyGate (the Kobuki velocity smoother: 0.3 m/s^2, 3.5 rad/s^2)
+    limiter_max_linear_m_s: float = Field(
         default=0.3,
         gt=0.0,
-        description="Limiter cap on the commanded linear speed, m/s",
+        le=0.7,
+        description="The gate's cap on a controller's linear speed, m/s; at most "
+        "actuation.max_linear_m_s (the base's own limit, checked at load)",
     )
-    max_angular_rad_s: float = Field(
+    limiter_max_angular_rad_s: float = Field(
         default=1.0,
         gt=0.0,
-        description="Limiter cap on the commanded angular speed, rad/s",
+        le=3.2,
+        description="The gate's cap on a controller's angular speed, rad/s; at most "
+        "actuation.max_angular_rad_s (the base's own limit, checked at load)",
     )
     max_linear_accel_m_s2: float = Field(
         default=0.3,
         gt=0.0,
+        le=5.0,
         description="Limiter ramp for increases of linear speed, m/s^2 (decreases pass at once)",
     )
     max_angular_accel_rad_s2: float = Field(
         default=3.5,
         gt=0.0,
+        le=50.0,
         description="Limiter ramp for increases of angular speed, rad/s^2 (decreases pass at "
         "once)",
     )
@@ -269,15 +327,11 @@ class SupervisorConfig(BaseModel):
         "confident frames are seen (no other halt is forgiven)",
     )
 
-    # --- The lecture's baseline controller (--controller lecture) ---
-    lecture_slope_sum_threshold: float = Field(
-        default=6.0,
-        gt=0.0,
-        description="Lecture controller: turn left above + this raw slope sum, right below - this",
-    )
+    # --- The lecture's baseline controller (--controller lecture; it turns at turn_enter_slope_sum)
     lecture_turn_angular_rad_s: float = Field(
         default=0.4,
         gt=0.0,
+        le=3.2,
         description="Lecture controller: fixed turn rate while turning, rad/s",
     )
 
@@ -313,20 +367,25 @@ class SupervisorConfig(BaseModel):
             f"base_link_timeout_s ({self.base_link_timeout_s})",
         )
         require(
+            self.battery_critical_v < self.battery_low_v,
+            f"battery_critical_v ({self.battery_critical_v}) must be below battery_low_v "
+            f"({self.battery_low_v})",
+        )
+        require(
             self.loop_overrun_s > self.camera_period_s,
             f"loop_overrun_s ({self.loop_overrun_s}) must be above camera_period_s "
             f"({self.camera_period_s})",
         )
         for name in ("follow_speed_m_s", "turn_speed_m_s"):
             require(
-                getattr(self, name) <= self.max_linear_m_s,
-                f"{name} ({getattr(self, name)}) must not exceed max_linear_m_s "
-                f"({self.max_linear_m_s})",
+                getattr(self, name) <= self.limiter_max_linear_m_s,
+                f"{name} ({getattr(self, name)}) must not exceed limiter_max_linear_m_s "
+                f"({self.limiter_max_linear_m_s})",
             )
         require(
-            self.degraded_max_angular_rad_s <= self.max_angular_rad_s,
+            self.degraded_max_angular_rad_s <= self.limiter_max_angular_rad_s,
             f"degraded_max_angular_rad_s ({self.degraded_max_angular_rad_s}) must not exceed "
-            f"max_angular_rad_s ({self.max_angular_rad_s})",
+            f"limiter_max_angular_rad_s ({self.limiter_max_angular_rad_s})",
         )
         if problems:
             raise ValueError("; ".join(problems))

@@ -1,10 +1,12 @@
-"""What a controller receives and returns each step: the contract between the loop and a controller.
+"""What a controller receives and returns each step: the contract between the loop, the SafetyGate
+and a controller.
 
 The control loop (supervisor/loop.py) gathers the facts of one step into `ControlInputs` (the newest
 frame's identity, the observation if the frame was new and perception succeeded, base feedback,
-operator requests, and the events the loop itself raised) and hands them to a `Controller`, which
-returns a `ControlOutput` whose command is the only thing the loop may send to the base. Plain
-frozen data: no behaviour here.
+operator requests, and the events the loop itself raised) and hands them to the `SafetyGate`
+(supervisor/gate.py). The gate adds the physical hazards it found and the command it sent last,
+asks its `Controller` what it would like to send (a `ControlOutput`), and returns the output with
+the command it allows: only the gate's output reaches the base. Plain frozen data: no behaviour.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ class ControlInputs:
     - `events`: events raised outside the controller (by the loop): OPERATOR_STOP, CAMERA_ERROR,
       PERCEPTION_ERROR, BASE_LINK_LOST; `event_details` gives their one-line details.
     - `start_requested` / `resume_requested`: the operator asked to engage (from HALT).
+    - `previous_command`: the command the gate let out in the previous step (STOP at first).
     """
 
     frame: FrameInfo | None = None
@@ -51,11 +54,14 @@ class ControlInputs:
     event_details: Mapping[Event, str] = field(default_factory=lambda: MappingProxyType({}))
     start_requested: bool = False
     resume_requested: bool = False
+    previous_command: VelocityCommand = STOP
 
 
 @dataclass(frozen=True)
 class ControlOutput:
-    """A controller's decision for one step. `command` is already limited and is sent as is."""
+    """One step's decision. From a controller: the command it would like to send (the gate limits
+    it, or zeroes it). From the gate: the command sent. `lane_trusted`: what the supervisor made of
+    this step's new frame (None: no new frame judged, or a controller that judges none)."""
 
     command: VelocityCommand = STOP
     state: str = "HALT"
@@ -65,9 +71,11 @@ class ControlOutput:
     slope_sum_variance: float | None = None
     innovation: float | None = None
     filtered_center_offset: float | None = None
+    lane_trusted: bool | None = None
 
 
 class Controller(Protocol):
-    """One step's inputs -> a command. Implemented by SupervisedController and LectureController."""
+    """One step's inputs -> the command it would like to send. Implemented by SupervisedController,
+    LectureController and the bring-up tool's FixedCommand; always driven through a SafetyGate."""
 
     def step(self, inputs: ControlInputs, now: float) -> ControlOutput: ...

@@ -1,9 +1,11 @@
-"""The supervised controller: filter, watchdog, state machine, commands and limiter, step by step.
+"""The supervised controller: filter, watchdog, state machine and commands, step by step.
 
-`SupervisedController.step(inputs, now)` is the pure core the control loop calls once per camera
-tick: (its own state, inputs, now) -> (command, state, events). It gathers the step's events (the
-loop's, the watchdog's, the base's hazards, the lane evidence, the filter's gate), runs the state
-machine, asks the state for its command and limits it. HALT yields an exact zero in the same step.
+`SupervisedController.step(inputs, now)` is the pure core the SafetyGate calls once per camera
+tick: (its own state, inputs, now) -> (wanted command, state, events). It gathers the step's events
+(the loop's and the gate's, which include the physical hazards; the watchdog's; the lane evidence;
+the filter's gate), runs the state machine and asks the state for its command. HALT asks for an
+exact zero in the same step. Limiting, and enforcing the hazards whatever this controller says,
+is the gate's job (supervisor/gate.py).
 
 About frames that are not new: a frame source returns its newest frame until the next one is
 captured. A step without a new frame has no new measurement, so the filter and the lane evidence do
@@ -17,19 +19,29 @@ Never reads a clock, a camera or a port.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.center_offset import CenterOffsetFilter
 from lanewarden.supervisor.commands import command_for
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
 from lanewarden.supervisor.events import Event, ordered
-from lanewarden.supervisor.hazards import base_hazard_events
 from lanewarden.supervisor.lane_evidence import LaneEvidence, observation_problem
-from lanewarden.supervisor.limiter import CommandLimiter
 from lanewarden.supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
 from lanewarden.supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
 from lanewarden.supervisor.watchdog import Watchdog
+
+
+@dataclass(frozen=True)
+class FrameVerdict:
+    """What the supervisor made of this step's new frame (all None: no new frame judged).
+    `trusted`: a usable lane; `confident`: counts towards engage/recover (None for a malformed
+    observation); `innovation`: the filter's, for the record."""
+
+    trusted: bool | None = None
+    confident: bool | None = None
+    innovation: float | None = None
 
 
 class SupervisedController:
@@ -42,7 +54,6 @@ class SupervisedController:
         self._center = CenterOffsetFilter(config)
         self._lane = LaneEvidence(config)
         self._machine = SupervisorStateMachine(config)
-        self._limiter = CommandLimiter(config)
         self._last_now: float | None = None
         self._lane_seen_at_s: float | None = None
         self._estimate = SlopeEstimate(None, None, None)
@@ -69,36 +80,18 @@ class SupervisedController:
             dt = now - self._last_now
         self._last_now = now
 
-        previous = self._limiter.last
+        previous = inputs.previous_command
         events |= self._watchdog.check(now, inputs.frame, inputs.feedback, not previous.is_stop)
-        events |= base_hazard_events(inputs.feedback)
-
-        frame_confident: bool | None = None
-        innovation: float | None = None
-        obs = inputs.observation
-        if obs is not None and Event.FRAME_INVALID not in events:
-            problem = observation_problem(obs, inputs.frame)
-            if problem is not None:
-                events.add(Event.MALFORMED_OBSERVATION)
-                details.setdefault(Event.MALFORMED_OBSERVATION, problem)
-            else:
-                lane = self._lane.assess(obs)
-                events |= lane.events
-                self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
-                events |= self._estimate.events
-                innovation = self._estimate.innovation
-                if lane.slope_sum is not None:
-                    self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
-                if lane.usable:
-                    self._lane_seen_at_s = obs.time_s
-                frame_confident = lane.confident and self._estimate.accepted
+        frame = FrameVerdict()
+        if inputs.observation is not None and Event.FRAME_INVALID not in events:
+            frame = self._judge(inputs.observation, inputs.frame, events, details)
 
         tick = self._machine.step(
             StepFacts(
                 now=now,
                 events=frozenset(events),
                 event_details=details,
-                frame_confident=frame_confident,
+                frame_confident=frame.confident,
                 lane_seen_at_s=self._lane_seen_at_s,
                 slope_sum=self._estimate.slope_sum,
                 travelled_m=abs(previous.linear_m_s) * dt,
@@ -106,21 +99,36 @@ class SupervisedController:
             )
         )
         state = self._machine.state
-        wanted = command_for(state, self._estimate.slope_sum, self._center.value, cfg)
-        command = self._limit(state, wanted, min(dt, cfg.loop_overrun_s))
         return ControlOutput(
-            command=command,
+            command=command_for(state, self._estimate.slope_sum, self._center.value, cfg),
             state=state.value,
             events=ordered(tick.events),
             halt_reason=self._machine.halt_reason,
             filtered_slope_sum=self._estimate.slope_sum,
             slope_sum_variance=self._estimate.variance,
-            innovation=innovation,
+            innovation=frame.innovation,
             filtered_center_offset=self._center.value,
+            lane_trusted=frame.trusted,
         )
 
-    def _limit(self, state: SupervisorState, wanted: VelocityCommand, dt: float) -> VelocityCommand:
-        if state is SupervisorState.HALT:
-            self._limiter.stop()
-            return STOP
-        return self._limiter.limit(wanted, dt)
+    def _judge(self, obs: LaneObservation, frame: FrameInfo | None, events: set[Event],
+               details: dict[Event, str]) -> FrameVerdict:
+        """Assess a new frame's observation, feed the filters; adds its events to `events`."""
+        problem = observation_problem(obs, frame)
+        if problem is not None:
+            events.add(Event.MALFORMED_OBSERVATION)
+            details.setdefault(Event.MALFORMED_OBSERVATION, problem)
+            return FrameVerdict(trusted=False, confident=None)
+        lane = self._lane.assess(obs)
+        events |= lane.events
+        self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
+        events |= self._estimate.events
+        if lane.slope_sum is not None:
+            self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
+        if lane.usable:
+            self._lane_seen_at_s = obs.time_s
+        return FrameVerdict(
+            trusted=lane.usable,
+            confident=lane.confident and self._estimate.accepted,
+            innovation=self._estimate.innovation,
+        )

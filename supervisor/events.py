@@ -34,6 +34,7 @@ class Event(enum.Enum):
     CLIFF = "CLIFF"
     WHEEL_DROP = "WHEEL_DROP"
     BASE_LINK_LOST = "BASE_LINK_LOST"
+    BATTERY_CRITICAL = "BATTERY_CRITICAL"
     CAMERA_ERROR = "CAMERA_ERROR"
     PERCEPTION_ERROR = "PERCEPTION_ERROR"
     MALFORMED_OBSERVATION = "MALFORMED_OBSERVATION"
@@ -54,6 +55,7 @@ class Event(enum.Enum):
     # WARN
     INNOVATION_OUTLIER = "INNOVATION_OUTLIER"
     LOOP_OVERRUN = "LOOP_OVERRUN"
+    BATTERY_LOW = "BATTERY_LOW"
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,9 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
         Event.CLIFF: EventRule(_H, "cliff sensor triggered"),
         Event.WHEEL_DROP: EventRule(_H, "wheel dropped"),
         Event.BASE_LINK_LOST: EventRule(_H, "no feedback from the base (link lost)"),
+        Event.BATTERY_CRITICAL: EventRule(
+            _H, "battery below battery_critical_v: charge it before the base browns out"
+        ),
         Event.CAMERA_ERROR: EventRule(_H, "the frame source raised an error"),
         Event.PERCEPTION_ERROR: EventRule(_H, "perception raised an error"),
         Event.MALFORMED_OBSERVATION: EventRule(
@@ -100,6 +105,7 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
         ),
         Event.INNOVATION_OUTLIER: EventRule(_W, "slope-sum measurement rejected by the gate"),
         Event.LOOP_OVERRUN: EventRule(_W, "control step came later than loop_overrun_s"),
+        Event.BATTERY_LOW: EventRule(_W, "battery below battery_low_v: charge it soon"),
     }
 )
 

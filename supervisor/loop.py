@@ -1,14 +1,17 @@
-"""The control loop: frame source -> perception -> controller -> base, one `step(now)` per tick.
+"""The control loop: frame source -> perception -> SafetyGate(controller) -> base, one `step(now)`
+per tick.
 
 Shared by the simulator and the robot runner. The caller owns the clock and calls `step(now)` once
 per camera period WHETHER OR NOT a frame arrived (a dead camera must still be noticed). Each step:
 read the newest frame (non-blocking), run perception on it if it is new, read the base's feedback,
-let the controller decide, send its (already limited) command, and hand a `StepRecord` to `record`.
+hand it all to the SafetyGate (which asks its controller and decides what may be sent), send the
+gate's command, and hand a `StepRecord` to `record`. The loop takes a gate, never a bare
+controller: nothing a controller says reaches the base except through the gate.
 
 Failures are faults, never crashes and never a stale command: the frame source raising becomes
 CAMERA_ERROR, the detector raising anything becomes PERCEPTION_ERROR, the base raising an
-ActuationError becomes BASE_LINK_LOST; the controller sees them as events and halts. Operator
-requests (`start`, `resume`, `operator_stop`) are delivered to the controller at the next step;
+ActuationError becomes BASE_LINK_LOST; the gate and the controller see them as events and halt.
+Operator requests (`start`, `resume`, `operator_stop`) are delivered to the gate at the next step;
 `operator_stop` also sends a zero command to the base at once.
 
 This module never reads a clock and never sleeps.
@@ -28,6 +31,7 @@ from lanewarden.actuation.errors import ActuationError
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
 from lanewarden.supervisor.events import Event, ordered
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.watchdog import frame_fingerprint
 
 __all__ = [
@@ -81,7 +85,8 @@ class StepRecord:
     `observation`: perception's output if the frame was new and perception succeeded.
     `filtered_slope_sum`: the slope sum the controller acted on (filtered for the supervised
     controller, raw for the lecture's). `events`: event names in priority order. `command`: what
-    was sent to the base.
+    the gate sent to the base. `lane_trusted`: whether the supervisor trusted this step's new frame
+    (None: no new frame judged, or a controller that judges none, such as the lecture's).
     """
 
     frame_index: int | None
@@ -96,6 +101,7 @@ class StepRecord:
     frame_time_s: float | None = None
     innovation: float | None = None
     filtered_center_offset: float | None = None
+    lane_trusted: bool | None = None
 
     def as_json(self) -> dict[str, object]:
         return {
@@ -113,6 +119,7 @@ class StepRecord:
             "slope_sum_variance": _round(self.slope_sum_variance),
             "innovation": _round(self.innovation, 4),
             "filtered_center_offset": _round(self.filtered_center_offset, 4),
+            "lane_trusted": self.lane_trusted,
             "observation": None if self.observation is None else self.observation.as_json(),
         }
 
@@ -127,14 +134,14 @@ class ControlLoop:
         self,
         frames: FrameSource,
         detector: Detector,
-        controller: Controller,
+        gate: SafetyGate,
         base: Base,
         *,
         record: Callable[[StepRecord], None] | None = None,
     ) -> None:
         self._frames = frames
         self._detector = detector
-        self._controller = controller
+        self._gate = gate
         self._base = base
         self._record = record
         self._last_index: int | None = None
@@ -170,45 +177,10 @@ class ControlLoop:
             events.add(Event.OPERATOR_STOP)
         start, self._start = self._start, False
         resume, self._resume = self._resume, False
+        info, observation = self._perceive(now, events, details)
+        feedback = self._feedback(now, events, details)
 
-        frame: Frame | None = None
-        try:
-            frame = self._frames.read(now)
-        except Exception as exc:  # any camera failure is a fault, never a crash
-            events.add(Event.CAMERA_ERROR)
-            details[Event.CAMERA_ERROR] = _one_line(exc)
-
-        info: FrameInfo | None = None
-        observation: LaneObservation | None = None
-        if frame is not None:
-            is_new = self._last_index is None or frame.index != self._last_index
-            if is_new:
-                self._last_index = frame.index
-                self._last_fingerprint = frame_fingerprint(frame.image)
-            info = FrameInfo(frame.index, frame.time_s, self._last_fingerprint, is_new)
-            if is_new:
-                try:
-                    observation = self._detector.detect(
-                        frame.image, frame.index, frame.time_s, previous=self._previous
-                    )
-                except Exception as exc:  # perception's failure halts; it never crashes the loop
-                    events.add(Event.PERCEPTION_ERROR)
-                    details[Event.PERCEPTION_ERROR] = _one_line(exc)
-                else:
-                    self._previous = observation
-
-        feedback: BaseFeedback | None = None
-        try:
-            feedback = self._base.feedback(now)
-        except ActuationError as exc:
-            events.add(Event.BASE_LINK_LOST)
-            details[Event.BASE_LINK_LOST] = _one_line(exc)
-        if self._base_failure is not None:
-            events.add(Event.BASE_LINK_LOST)
-            details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
-            self._base_failure = None
-
-        output = self._controller.step(
+        output = self._gate.step(
             ControlInputs(
                 frame=info,
                 observation=observation,
@@ -230,6 +202,54 @@ class ControlLoop:
         if self._record is not None:
             self._record(record)
         return record
+
+    def _perceive(
+        self, now: float, events: set[Event], details: dict[Event, str]
+    ) -> tuple[FrameInfo | None, LaneObservation | None]:
+        """The newest frame's identity, and perception's observation if the frame is new. A
+        camera or perception failure becomes an event (with its detail), never a crash."""
+        try:
+            frame = self._frames.read(now)
+        except Exception as exc:  # any camera failure is a fault, never a crash
+            events.add(Event.CAMERA_ERROR)
+            details[Event.CAMERA_ERROR] = _one_line(exc)
+            return None, None
+        if frame is None:
+            return None, None
+        is_new = self._last_index is None or frame.index != self._last_index
+        if is_new:
+            self._last_index = frame.index
+            self._last_fingerprint = frame_fingerprint(frame.image)
+        info = FrameInfo(frame.index, frame.time_s, self._last_fingerprint, is_new)
+        if not is_new:
+            return info, None
+        try:
+            observation = self._detector.detect(
+                frame.image, frame.index, frame.time_s, previous=self._previous
+            )
+        except Exception as exc:  # perception's failure halts; it never crashes the loop
+            events.add(Event.PERCEPTION_ERROR)
+            details[Event.PERCEPTION_ERROR] = _one_line(exc)
+            return info, None
+        self._previous = observation
+        return info, observation
+
+    def _feedback(
+        self, now: float, events: set[Event], details: dict[Event, str]
+    ) -> BaseFeedback | None:
+        """The base's newest feedback; its failure, or a failed send since the last step, is
+        BASE_LINK_LOST."""
+        feedback: BaseFeedback | None = None
+        try:
+            feedback = self._base.feedback(now)
+        except ActuationError as exc:
+            events.add(Event.BASE_LINK_LOST)
+            details[Event.BASE_LINK_LOST] = _one_line(exc)
+        if self._base_failure is not None:
+            events.add(Event.BASE_LINK_LOST)
+            details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
+            self._base_failure = None
+        return feedback
 
     def _send(self, command: VelocityCommand, now: float) -> bool:
         try:
@@ -260,4 +280,5 @@ class ControlLoop:
             frame_time_s=None if info is None else info.time_s,
             innovation=output.innovation,
             filtered_center_offset=output.filtered_center_offset,
+            lane_trusted=output.lane_trusted,
         )

@@ -20,7 +20,6 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 
 from lanewarden.supervisor.config import SupervisorConfig
@@ -53,11 +52,15 @@ def transition_matrix(dt: float) -> np.ndarray:
 
 
 def process_noise(dt: float, config: SupervisorConfig) -> np.ndarray:
-    """Discrete white-noise acceleration for the constant-rate model over dt seconds."""
-    return np.asarray(
-        Q_discrete_white_noise(dim=2, dt=dt, var=config.slope_sum_accel_std_per_s2**2),
-        dtype=np.float64,
-    )
+    """Discrete white-noise acceleration for the constant-rate model over dt seconds.
+
+    Closed form (the same matrix as filterpy's `Q_discrete_white_noise(dim=2, dt, var)`, without
+    its general-purpose construction on every step): var * [[dt^4/4, dt^3/2], [dt^3/2, dt^2]].
+    """
+    var = config.slope_sum_accel_std_per_s2**2
+    dt2 = dt * dt
+    q01 = 0.5 * dt2 * dt * var
+    return np.array([[0.25 * dt2 * dt2 * var, q01], [q01, dt2 * var]])
 
 
 def measurement_variance(confidence: float, config: SupervisorConfig) -> float:

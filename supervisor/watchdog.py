@@ -7,10 +7,11 @@ Checks, each step:
   `frame_stale_s` (FRAME_STALE); a new frame from the future, or going backwards in time or index
   (FRAME_INVALID); identical images for `frame_frozen_s` while the robot is commanded to move
   (FRAME_FROZEN; a stopped robot may legitimately see the same image);
-- base: age of the newest feedback above `base_feedback_late_s` (BASE_FEEDBACK_LATE) or
-  `base_link_timeout_s` (BASE_LINK_LOST).
+- base: age of the newest feedback above `base_feedback_late_s` but not above
+  `base_link_timeout_s` (BASE_FEEDBACK_LATE; beyond it the SafetyGate halts on BASE_LINK_LOST for
+  every controller, see supervisor/gate.py).
 Before the first frame or feedback, ages count from the watchdog's first check, so "nothing ever
-arrived" turns into STALE / LINK_LOST after the same limits.
+arrived" turns into STALE (and, at the gate, LINK_LOST) after the same limits.
 
 Never reads a clock, never sleeps; the images themselves are reduced to a fingerprint by the loop.
 """
@@ -26,6 +27,7 @@ from lanewarden.actuation.base import BaseFeedback
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import FrameInfo
 from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.hazards import feedback_age_s
 
 #: Pixel stride of the fingerprint: 1/16 of the pixels is plenty to tell sensor noise apart.
 FINGERPRINT_STRIDE = 4
@@ -85,12 +87,8 @@ class Watchdog:
         elif frame_age > cfg.frame_late_s:
             events.add(Event.FRAME_LATE)
 
-        received = None if feedback is None else feedback.received_at_s
-        feedback_ref = self._first_check_s if received is None else received
-        feedback_age = now - feedback_ref
-        if not math.isfinite(feedback_age) or feedback_age > cfg.base_link_timeout_s:
-            events.add(Event.BASE_LINK_LOST)
-        elif feedback_age > cfg.base_feedback_late_s:
+        feedback_age = feedback_age_s(feedback, self._first_check_s, now)
+        if cfg.base_feedback_late_s < feedback_age <= cfg.base_link_timeout_s:
             events.add(Event.BASE_FEEDBACK_LATE)
         return frozenset(events)
 

@@ -1,11 +1,18 @@
 """`lanewarden run` end to end: a rendered image sequence as the camera, the Kobuki stand-in on a
-pseudo-terminal as the base. Checks the wiring and the safety order of start-up and shutdown, not
-timing: the run lasts a fixed wall-clock duration because the runner is the one real-time part."""
+pseudo-terminal as the base. Checks the wiring, the safety order of start-up and shutdown, why a
+run ended (summary, exit code, the stderr line of a safety stop) and what terminal signals do, not
+timing: the runner is the one real-time part, so waits are on conditions with generous deadlines.
+"""
 
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+import os
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -15,29 +22,103 @@ import pytest
 from lanewarden.cli import main
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
+from tests.actuation.processes import (
+    DEADLINE_S,
+    assert_stop_held_since,
+    deadman_of,
+    is_motion,
+    process_state,
+    start_lanewarden,
+    stderr_lines,
+    wait_for_more_packets,
+    wait_for_stop_after,
+)
 from tests.perception.synthetic import STRAIGHT, render
+
+FPS = 30
+#: Camera, base-feedback and heartbeat timeouts relaxed for a loaded test machine: these tests
+#: are about why a run ends, and a late frame or a slow step must not be taken for the cause under
+#: test. (The defaults are exercised in tests/actuation and measured in benchmarks/.)
+RELAXED = """\
+actuation:
+  heartbeat_timeout_s: 0.5
+supervisor:
+  frame_late_s: 0.3
+  frame_stale_s: 0.6
+  frame_frozen_s: 0.6
+  base_feedback_late_s: 0.3
+  base_link_timeout_s: 0.6
+  loop_overrun_s: 0.3
+"""
+
+
+def last_line(out: str) -> str:
+    """The run's last stdout line (why it ended); the operator's status and summary come first."""
+    return out.strip().splitlines()[-1]
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
+    """A few frames of a straight taped lane and of bare floor, each with its own sensor noise
+    (so a clip made of them is never frozen). Rendered once: the renderer is slow."""
+    folder = tmp_path_factory.mktemp("scenes")
+    rng = np.random.default_rng(7)
+    frames: dict[str, list[Path]] = {}
+    for name, scene in (("lane", STRAIGHT), ("floor", STRAIGHT.__class__(tapes=()))):
+        clean = render(scene, 640, 480).astype(np.int16)
+        frames[name] = []
+        for index in range(6):
+            noisy = np.clip(clean + rng.normal(0.0, 2.0, clean.shape), 0, 255).astype(np.uint8)
+            path = folder / f"{name}_{index}.png"
+            cv2.imwrite(str(path), noisy)
+            frames[name].append(path)
+    return frames
+
+
+def clip(folder: Path, scenes: dict[str, list[Path]], *parts: tuple[str, float]) -> str:
+    """An image sequence (30 fps) of `parts`, e.g. ("lane", 2.0), ("floor", 1.0): hard links to
+    the rendered frames, cycling through their noise."""
+    folder.mkdir()
+    index = 0
+    for name, seconds in parts:
+        for i in range(round(seconds * FPS)):
+            os.link(scenes[name][i % len(scenes[name])], folder / f"frame_{index:04d}.png")
+            index += 1
+    return str(folder / "frame_%04d.png")
 
 
 @pytest.fixture
-def camera_sequence(tmp_path: Path) -> str:
-    folder = tmp_path / "camera"
-    folder.mkdir()
-    for index in range(45):  # 1.5 s at 30 Hz, fresh sensor noise in each frame (not frozen)
-        image = render(replace(STRAIGHT, seed=index), 640, 480)
-        cv2.imwrite(str(folder / f"frame_{index:03d}.png"), image)
-    return str(folder / "frame_%03d.png")
+def relaxed_config(tmp_path: Path) -> str:
+    path = tmp_path / "relaxed.yaml"
+    path.write_text(RELAXED)
+    return str(path)
 
 
+def _run(camera: str, port: str, tmp_path: Path, config: str, *extra: str) -> list[str]:
+    return ["run", "--camera", camera, "--port", port, "--record", str(tmp_path / "run"),
+            "--config", config, *extra]
+
+
+def _safety_line(err: str) -> str:
+    lines = stderr_lines(err)
+    assert len(lines) == 1 and lines[0].startswith("lanewarden: safety stop: "), err
+    return lines[0]
+
+
+# ---- the wiring and the start-up order ----------------------------------------------------------
 def test_run_engages_on_a_clean_lane_and_ends_with_stop(
-    camera_sequence: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    log = tmp_path / "run.jsonl"
+    camera = clip(tmp_path / "camera", scenes, ("lane", 4.0))
+    log = tmp_path / "run" / "run.jsonl"
     with KobukiStandIn() as base:
-        code = main(["run", "--camera", camera_sequence, "--port", base.port,
-                     "--duration", "1.0", "--log", str(log)])
-        assert code == 0, capsys.readouterr().err
+        code = main(_run(camera, base.port, tmp_path, relaxed_config, "--duration", "1.0"))
         assert base.wait_for(lambda packets: any(p.packet == STOP_PACKET for p in packets), 5.0)
         controls = base.base_controls()
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert stderr_lines(err) == []
     assert controls, "the stand-in never received a base-control packet"
     assert controls[-1][1] == (0, 0), "the last command on the wire must be stop"
     records = [json.loads(line) for line in log.read_text().splitlines()]
@@ -47,19 +128,21 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     assert any(r["observation"] is not None for r in records), "perception never ran"
     moving = [r for r in records if r["command"]["linear_m_s"] > 0]
     assert moving and all(r["state"] != "HALT" for r in moving), "it never engaged on a clean lane"
-    assert "final state HALT" in capsys.readouterr().out
+    assert last_line(out).startswith("run ended: --duration 1 s reached; after ")
+    assert "state before the final stop: FOLLOW;" in out
 
 
 def test_calibration_for_another_camera_refuses_before_the_base_is_touched(
-    camera_sequence: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    scenes: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 1.0))
     calibration = tmp_path / "other-camera.yaml"
     k = np.array([[500.0, 0, 400], [0, 500.0, 300], [0, 0, 1]])
     save_calibration(CameraCalibration(k, np.zeros(5), (800, 600)), calibration)
     with KobukiStandIn() as base:
-        code = main(["run", "--camera", camera_sequence, "--port", base.port,
+        code = main(["run", "--camera", camera, "--port", base.port,
                      "--calibration", str(calibration), "--duration", "1.0",
-                     "--log", str(tmp_path / "run.jsonl")])
+                     "--record", str(tmp_path / "run")])
         received = base.snapshot()
     err = capsys.readouterr().err
     assert code != 0
@@ -76,3 +159,163 @@ def test_unopenable_camera_is_one_line(tmp_path: Path, capsys: pytest.CaptureFix
     assert code != 0
     assert str(missing) in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
+
+
+# ---- why a run ended: normal ends (0) and safety stops (3) --------------------------------------
+def test_the_end_of_the_clip_is_a_normal_end(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 1.5))
+    with KobukiStandIn() as base:
+        code = main(_run(camera, base.port, tmp_path, relaxed_config))
+        assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+    out, err = capsys.readouterr()
+    assert (code, stderr_lines(err)) == (0, [])
+    assert last_line(out).startswith("run ended: end of the clip; after ")
+
+
+def test_lane_lost_is_a_safety_stop(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 3.0), ("floor", 1.0))
+    with KobukiStandIn() as base:
+        code = main(_run(camera, base.port, tmp_path, relaxed_config))
+        assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+        moved = any(map(is_motion, base.snapshot()))
+    out, err = capsys.readouterr()
+    assert moved, "it never engaged on the lane part of the clip"
+    assert code == 3
+    line = _safety_line(err)
+    assert line.startswith("lanewarden: safety stop: LANE_LOST: no usable lane")
+    assert last_line(out).startswith("run ended by a safety stop: LANE_LOST: no usable lane")
+
+
+def test_a_lost_base_link_is_a_safety_stop(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 4.0))
+    with KobukiStandIn(unplug_on_motion=True) as base:
+        code = main(_run(camera, base.port, tmp_path, relaxed_config))
+    out, err = capsys.readouterr()
+    assert code == 3
+    line = _safety_line(err)
+    assert line.startswith(f"lanewarden: safety stop: BASE_LINK_LOST: {base.port}: serial link "
+                           "lost")
+    assert last_line(out).startswith("run ended by a safety stop: BASE_LINK_LOST: ")
+
+
+def test_a_live_camera_that_stops_delivering_is_a_safety_stop(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # a URL is a live source (not paced): its frames come at once, then nothing, like a network
+    # camera that drops out
+    camera = "file://" + clip(tmp_path / "camera", scenes, ("lane", 0.2))
+    with KobukiStandIn() as base:
+        code = main(_run(camera, base.port, tmp_path, relaxed_config))
+        assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+    out, err = capsys.readouterr()
+    assert code == 3
+    line = _safety_line(err)
+    assert line == (f"lanewarden: safety stop: CAMERA_LOST: --camera {camera}: the camera "
+                    "stopped delivering frames")
+    assert last_line(out).startswith("run ended by a safety stop: CAMERA_LOST: ")
+
+
+@pytest.mark.parametrize(("how", "said"), [
+    (signal.SIGKILL, "the dead-man process was killed (SIGKILL); a stop was written"),
+    (signal.SIGSTOP, "the dead-man process stopped answering (no report for 0.5 s): killed it; "
+                     "a stop was written"),
+])
+def test_a_deadman_killed_or_frozen_under_run_is_a_safety_stop(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str], how: signal.Signals, said: str,
+) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 6.0))
+    signalled: list[float] = []
+    with KobukiStandIn() as base:
+        def strike() -> None:
+            deadman = deadman_of(os.getpid(), base)
+            if base.wait_for(lambda pkts: any(map(is_motion, pkts)), 3 * DEADLINE_S):
+                signalled.append(time.monotonic())
+                os.kill(deadman, how)
+
+        threading.Thread(target=strike, daemon=True).start()
+        code = main(_run(camera, base.port, tmp_path, relaxed_config))
+        assert signalled, "it never moved"
+        assert_stop_held_since(base, signalled[0])
+    out, err = capsys.readouterr()
+    assert code == 3
+    line = _safety_line(err)
+    assert line.startswith(f"lanewarden: safety stop: BASE_LINK_LOST: {base.port}: ")
+    assert said in line
+
+
+# ---- terminal signals to the whole process group ------------------------------------------------
+@pytest.fixture
+def running(scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str
+            ) -> Iterator[tuple[subprocess.Popen[str], KobukiStandIn]]:
+    """`lanewarden run` in its own process group, engaged and moving on a long clip."""
+    camera = clip(tmp_path / "camera", scenes, ("lane", 20.0))
+    with KobukiStandIn() as base:
+        run = start_lanewarden(*_run(camera, base.port, tmp_path, relaxed_config))
+        try:
+            assert base.wait_for(lambda pkts: any(map(is_motion, pkts)), 6 * DEADLINE_S), \
+                "it never moved"
+            yield run, base
+        finally:
+            run.kill()
+            run.wait()
+
+
+def test_ctrl_z_stops_run_first_then_it_stays_halted_after_sigcont(
+    running: tuple[subprocess.Popen[str], KobukiStandIn],
+) -> None:
+    run, base = running
+    signalled_at = time.monotonic()
+    os.killpg(run.pid, signal.SIGTSTP)
+    wait_for_stop_after(base, signalled_at)
+    # re-checked at every packet: the dead-man keeps writing stop while run is suspended
+    assert base.wait_for(lambda _: process_state(run.pid) == "T", DEADLINE_S)
+    wait_for_more_packets(base, 40)  # 0.8 s suspended: longer than the heartbeat timeout
+    os.killpg(run.pid, signal.SIGCONT)
+    assert base.wait_for(lambda _: process_state(run.pid) not in ("T", ""), DEADLINE_S)
+    wait_for_more_packets(base, 25)  # it runs again, halted: still nothing but stop
+    os.killpg(run.pid, signal.SIGTERM)
+    out, err = run.communicate(timeout=3 * DEADLINE_S)
+    assert (run.returncode, stderr_lines(err)) == (0, [])
+    assert last_line(out).startswith("run ended: operator stop (SIGTERM); after ")
+    assert "state before the final stop: HALT (OPERATOR_STOP: operator stop)" in out
+    assert_stop_held_since(base, signalled_at)
+
+
+def test_ctrl_backslash_ends_run_like_sigterm(
+    running: tuple[subprocess.Popen[str], KobukiStandIn],
+) -> None:
+    run, base = running
+    signalled_at = time.monotonic()
+    os.killpg(run.pid, signal.SIGQUIT)
+    out, err = run.communicate(timeout=3 * DEADLINE_S)
+    assert (run.returncode, stderr_lines(err)) == (0, [])
+    assert last_line(out).startswith("run ended: operator stop (SIGQUIT); after ")
+    assert_stop_held_since(base, signalled_at)
+
+
+def test_a_frozen_run_trips_the_deadman_and_ends_as_a_safety_stop(
+    running: tuple[subprocess.Popen[str], KobukiStandIn],
+) -> None:
+    run, base = running
+    frozen_at = time.monotonic()
+    os.kill(run.pid, signal.SIGSTOP)  # not a terminal signal: nothing in run sees it coming
+    wait_for_stop_after(base, frozen_at)  # the dead-man's heartbeat timeout
+    os.kill(run.pid, signal.SIGCONT)
+    out, err = run.communicate(timeout=3 * DEADLINE_S)
+    assert run.returncode == 3
+    line = _safety_line(err)
+    assert line.startswith("lanewarden: safety stop: DEADMAN_TRIPPED: the dead-man stopped the "
+                           "base (no heartbeat for ")
+    assert last_line(out).startswith("run ended by a safety stop: DEADMAN_TRIPPED: ")
+    assert_stop_held_since(base, frozen_at)

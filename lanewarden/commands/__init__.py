@@ -6,8 +6,18 @@ import click
 
 
 def register_commands(cli: click.Group) -> None:
-    from lanewarden.commands import base, calibrate, config_cmd, detect, run, sim, undistort
+    from lanewarden.commands import (
+        base,
+        calibrate,
+        campaign,
+        config_cmd,
+        detect,
+        replay,
+        run,
+        sim,
+        undistort,
+    )
 
-    for module in (config_cmd, detect, calibrate, undistort, base, sim, run):
+    for module in (config_cmd, detect, calibrate, undistort, base, sim, run, replay, campaign):
         for command in module.commands():
             cli.add_command(command)

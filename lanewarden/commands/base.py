@@ -1,16 +1,24 @@
 """`lanewarden base info` and `lanewarden base drive`: bringing up a real Kobuki.
 
 A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
-time.monotonic here). `drive` bypasses the supervisor on purpose (it is a bring-up tool), so it
-validates its flags against the Kobuki's limits, stops on bumper/cliff/wheel drop, and always
-stops on exit, Ctrl-C included. Never talks to the serial port itself.
+time.monotonic here). `drive` has no camera and no supervisor state machine (it is a bring-up
+tool), but its command goes through the same SafetyGate as every controller's, in bring-up mode
+(lanewarden/assembly.py `build_bring_up_gate`): ramped up, capped at the Kobuki's limits its flags
+are validated against, halted on bumper/cliff/wheel drop/lost link (feedback older than
+`supervisor.base_link_timeout_s`: a silent base or a frozen dead-man). It always stops on exit:
+Ctrl-C, SIGTERM, SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first,
+then suspends, and the drive does not resume after SIGCONT (exit 130). Never talks to the serial
+port itself.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 import time
+from pathlib import Path
 from typing import Any
 
 import click
@@ -19,8 +27,13 @@ from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
+from lanewarden.assembly import build_bring_up_gate
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
+from lanewarden.errors import EXIT_INTERRUPTED
+from lanewarden.stop_signals import SignalRequests, signal_requests, suspend
+from lanewarden.supervisor.control_io import ControlInputs
 
 #: How long `info` counts feedback packets to measure the stream rate.
 RATE_WINDOW_S = 1.0
@@ -31,6 +44,31 @@ DRIVE_PERIOD_S = 0.05
 MAX_DRIVE_DURATION_S = 60.0
 
 PORT_HELP = "serial port or pyserial URL (default: config, then /dev/kobuki, then /dev/ttyUSB0)"
+#: What the USB serial adapter's latency timer should be: at the FTDI default of 16 ms, the
+#: Kobuki's 50 Hz packets arrive in bursts and are the known cause of malformed packets.
+LATENCY_TIMER_GOAL_MS = 1
+UDEV_RULE_DOC = "docs/udev/99-kobuki.rules"
+
+
+def usb_latency_timer(port: str, sys_root: Path = Path("/sys")) -> tuple[int | None, Path]:
+    """The latency timer (ms) Linux exposes for `port`'s USB serial adapter, and where; None when
+    it is not exposed (not a USB serial adapter, a pty, a URL) or cannot be read."""
+    tty = Path(os.path.realpath(port)).name  # /dev/kobuki -> ttyUSB0
+    path = sys_root / "bus" / "usb-serial" / "devices" / tty / "latency_timer"
+    try:
+        return int(path.read_text().strip()), path
+    except (OSError, ValueError):
+        return None, path
+
+
+def latency_timer_text(value: int | None, path: Path) -> str:
+    if value is None:
+        return "not exposed for this port (not a USB serial adapter)"
+    if value <= LATENCY_TIMER_GOAL_MS:
+        return f"{value} ms (good)"
+    return (f"{value} ms: set it to {LATENCY_TIMER_GOAL_MS} ms (16 ms causes malformed Kobuki "
+            f"packets): install the udev rule {UDEV_RULE_DOC}, or for now: "
+            f"echo {LATENCY_TIMER_GOAL_MS} | sudo tee {path}")
 
 
 def _bit_names(bits: int, names: dict[int, str]) -> list[str]:
@@ -43,7 +81,7 @@ WHEEL_DROP_NAMES = {WheelDrop.LEFT: "left", WheelDrop.RIGHT: "right"}
 BUTTON_NAMES = {1: "B0", 2: "B1", 4: "B2"}
 
 
-@click.group("base")
+@click.group("base", cls=CommandGroup)
 def base_group() -> None:
     """Talk to a real Kobuki base over its serial port."""
 
@@ -53,7 +91,8 @@ def base_group() -> None:
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 @config_option
 def info(port: str | None, as_json: bool, config_path: str | None) -> None:
-    """Show versions, UDID, battery, hazards and the feedback rate."""
+    """Show versions, UDID, battery, hazards, the feedback rate and the USB adapter's latency
+    timer."""
     config = load_config(config_path).actuation
     with KobukiBase.open(port, config=config) as base:
         start_packets, start_s = base.packets_received, time.monotonic()
@@ -80,6 +119,8 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
         ("buttons", ", ".join(report["buttons"]) or "none"),
         ("feedback rate", f"{report['feedback_rate_hz']:.1f} Hz "
                           f"({report['checksum_errors']} checksum errors)"),
+        ("latency timer", latency_timer_text(report["latency_timer_ms"],
+                                             Path(report["latency_timer_path"]))),
     ]
     for name, value in lines:
         click.echo(f"{name + ':':18}{value}")
@@ -88,6 +129,7 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
 def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
                  now: float) -> dict[str, Any]:
     health = base.link_health(now)
+    latency_ms, latency_path = usb_latency_timer(base.port)
     return {
         "port": base.port,
         "hardware_version": str(base.hardware_version) if base.hardware_version else None,
@@ -101,6 +143,8 @@ def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
         "feedback_rate_hz": round(rate_hz, 1),
         "checksum_errors": health.checksum_errors,
         "low_latency": health.low_latency,
+        "latency_timer_ms": latency_ms,
+        "latency_timer_path": str(latency_path),
     }
 
 
@@ -112,13 +156,23 @@ def _check_range(flag: str, value: float, limit: float, unit: str) -> None:
             param_hint=f"'{flag}'")
 
 
-def _hazard(feedback: BaseFeedback) -> str | None:
-    for what, bits, names in (("bumper pressed", feedback.bumper, BUMPER_NAMES),
-                              ("cliff detected", feedback.cliff, CLIFF_NAMES),
-                              ("wheel dropped", feedback.wheel_drop, WHEEL_DROP_NAMES)):
-        if bits:
-            return f"{what} ({', '.join(_bit_names(bits, names))})"
-    return None
+class DriveInterrupted(click.ClickException):
+    """A signal ended the drive (after the base was stopped)."""
+
+    exit_code = EXIT_INTERRUPTED
+
+
+def _act_on_signals(base: KobukiBase, requests: SignalRequests, now: float) -> None:
+    """Stop signals end the drive; Ctrl-Z stops the base, suspends, and ends it after SIGCONT."""
+    if requests.suspend:
+        base.hold_stopped(now)  # stop on the wire and held by the dead-man before we freeze
+        suspend()
+        raise DriveInterrupted("interrupted (SIGTSTP): the base was stopped before suspending; "
+                               "the drive does not resume")
+    if requests.stop is signal.SIGINT:
+        raise KeyboardInterrupt
+    if requests.stop is not None:
+        raise DriveInterrupted(f"interrupted ({requests.stop.name})")
 
 
 @base_group.command("drive")
@@ -131,23 +185,29 @@ def _hazard(feedback: BaseFeedback) -> str | None:
 def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s: float,
           config_path: str | None) -> None:
     """Drive at a constant velocity, then stop (Ctrl-C stops at once)."""
-    config = load_config(config_path).actuation
+    full_config = load_config(config_path)
+    config = full_config.actuation
     _check_range("--linear", linear_m_s, config.max_linear_m_s, "m/s")
     _check_range("--angular", angular_rad_s, config.max_angular_rad_s, "rad/s")
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= MAX_DRIVE_DURATION_S):
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
-    command = VelocityCommand(linear_m_s, angular_rad_s)
-    with KobukiBase.open(port, config=config, request_versions=False) as base:
-        # Ctrl-C (KeyboardInterrupt) and every error leave through `with`: close() stops the base
+    gate = build_bring_up_gate(full_config, VelocityCommand(linear_m_s, angular_rad_s))
+    with (KobukiBase.open(port, config=config, request_versions=False) as base,
+          signal_requests() as requests):
+        # signals and every error leave through `with`: close() stops the base
+        warning = base.priority_warning()
+        if warning is not None:
+            click.echo(f"lanewarden: warning: {warning}", err=True)
         start_s = now = time.monotonic()
         while now - start_s < duration_s:
-            hazard = _hazard(base.feedback(now))
-            if hazard is not None:
-                base.send(STOP, now)
+            _act_on_signals(base, requests, now)
+            allowed = gate.step(ControlInputs(feedback=base.feedback(now),
+                                              start_requested=now == start_s), now)
+            base.send(allowed.command, now)
+            if allowed.state == "HALT":
                 raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
-                                     f"{hazard}")
-            base.send(command, now)
+                                     f"{allowed.halt_reason}")
             base.wait_for(lambda b: b.link_lost is not None,
                           min(DRIVE_PERIOD_S, max(0.0, start_s + duration_s - now)))
             now = time.monotonic()

@@ -1,22 +1,20 @@
-"""`lanewarden calibrate` and `lanewarden calibrate capture`: the shell around the calibration core.
+"""`lanewarden calibrate --images GLOB --pattern COLSxROWS --square METERS --out FILE`: the shell
+around the calibration core, and the `calibrate` group its subcommands join.
 
-- `lanewarden calibrate --images GLOB --pattern COLSxROWS --square METERS --out FILE`: detect the
-  board in every image (progress on stderr), calibrate, report, apply the quality gates, write an
-  OpenCV FileStorage YAML (and with `--ros` a ROS camera_info YAML). `--json` prints one JSON
-  object as the last stdout line. A failed gate exits 2 (QualityGateError) and writes nothing.
-- `lanewarden calibrate capture --camera INDEX|PATH|URL --pattern COLSxROWS --out DIR`: grab frames,
-  keep those whose whole board is found and adds coverage, save them as JPGs. Headless.
+Detect the board in every image (progress on stderr), calibrate, report, apply the quality gates,
+write an OpenCV FileStorage YAML (and with `--ros` a ROS camera_info YAML) into FILE's folder
+(created if missing). `--json` prints one JSON object as the last stdout line. A failed gate exits
+2 (QualityGateError) and writes nothing. Subcommands: `capture` (lanewarden.commands.
+calibrate_capture).
 
-Only I/O lives here (files, camera, clock for the date, printing); every decision is made by
-`perception.chessboard*`, `perception.calibration_capture` and `perception.calibration_report`.
+Only I/O lives here (files, clock for the date, printing); every decision is made by
+`perception.chessboard*` and `perception.calibration_report`.
 """
 
 from __future__ import annotations
 
-import glob
 import json
 import math
-import re
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
@@ -24,15 +22,17 @@ from typing import Any
 
 import click
 import cv2
-import numpy as np
 from tqdm import tqdm
 
-from lanewarden.camera_source import open_camera, quiet_opencv
+from lanewarden.commands.calibrate_capture import capture_command
+from lanewarden.commands.chessboard_pattern import PATTERN
+from lanewarden.commands.command_group import CommandGroup, unknown_command_message
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import load_config
-from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.errors import OutputError, QualityGateError, UsageError
+from lanewarden.image_files import expand_images, read_image
 from lanewarden.perception.calibration import save_calibration, save_ros_camera_info
-from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.calibration_report import (
     format_report,
@@ -46,7 +46,6 @@ from lanewarden.perception.chessboard import (
     common_image_size,
     detect_view,
     larger_pattern,
-    parse_pattern,
     reject_other_sizes,
     suggest_pattern,
     unreadable_view,
@@ -58,80 +57,34 @@ from lanewarden.perception.chessboard_calibration import (
 )
 from lanewarden.perception.errors import PerceptionError
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
-
-
-class PatternType(click.ParamType):
-    """COLSxROWS inner corners, e.g. 9x6."""
-
-    name = "COLSxROWS"
-
-    def convert(
-        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
-    ) -> ChessboardPattern:
-        if isinstance(value, ChessboardPattern):
-            return value
-        try:
-            return parse_pattern(str(value))
-        except PerceptionError as exc:
-            self.fail(str(exc), param, ctx)
-
-
-PATTERN = PatternType()
+#: Largest chessboard square `--square` accepts, metres.
+MAX_SQUARE_M = 1.0
 
 
 def _positive_length(ctx: click.Context, param: click.Parameter, value: float | None) -> Any:
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise click.BadParameter(f"{value!r} m: expected a positive square size in metres")
+    if value is not None and not (math.isfinite(value) and 0 < value <= MAX_SQUARE_M):
+        raise click.BadParameter(
+            f"{value!r} m: expected a positive square size in metres, at most {MAX_SQUARE_M:g}"
+        )
     return value
 
 
-def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> tuple[np.ndarray | None, str]:
-    """Decode an image file: (image, "") or (None, why it cannot be used)."""
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError as exc:
-        return None, f"cannot read file ({exc.strerror or exc})"
-    if data.size == 0:
-        return None, "empty file, not an image"
-    try:
-        image = cv2.imdecode(data, flags)
-    except cv2.error:
-        image = None
-    if image is None or image.size == 0:
-        return None, "not a readable image"
-    return image, ""
-
-
-def expand_images(pattern: str) -> list[Path]:
-    """Files matching a glob (or every file in a folder), sorted; folders are skipped."""
-    base = Path(pattern).expanduser()
-    if base.is_dir():
-        candidates = [p for p in base.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
-    else:
-        candidates = [Path(p) for p in glob.glob(str(base), recursive=True)]
-    return sorted(p for p in candidates if not p.is_dir())
-
-
-def check_output_folder(folder: Path, flag: str = "--out") -> None:
-    """UsageError unless `folder` is a folder or can be created in an existing one."""
-    if folder.exists() and not folder.is_dir():
-        raise UsageError(f"{flag} '{folder}': exists and is not a folder")
-    if not folder.parent.is_dir():
-        raise UsageError(f"{flag} '{folder}': parent folder '{folder.parent}' does not exist")
-
-
-class CalibrateGroup(click.Group):
-    """A group whose stray positional words get a hint: an unquoted glob expanded by the shell."""
+class CalibrateGroup(CommandGroup):
+    """A group whose stray positional words get a hint: a mistyped subcommand, or an unquoted
+    glob expanded by the shell."""
 
     def resolve_command(
         self, ctx: click.Context, args: list[str]
     ) -> tuple[str | None, click.Command | None, list[str]]:
         name = args[0] if args else ""
         if name and self.get_command(ctx, name) is None and not name.startswith("-"):
+            known = self.list_commands(ctx)
+            if "did you mean" in (message := unknown_command_message(name, known)):
+                raise click.UsageError(message, ctx)
             raise click.UsageError(
                 f"unexpected argument '{name}': quote the --images glob so the shell does not "
-                "expand it (e.g. --images 'shots/*.jpg'), or use the subcommand 'capture'",
+                "expand it (e.g. --images 'shots/*.jpg'), or use a subcommand "
+                f"({', '.join(known)})",
                 ctx,
             )
         return super().resolve_command(ctx, args)
@@ -215,8 +168,6 @@ def run_calibration(
     config: CalibrationConfig,
 ) -> None:
     """The `lanewarden calibrate` shell: read, detect, calibrate, report, gate, write."""
-    if not out.parent.is_dir():
-        raise UsageError(f"--out '{out}': folder '{out.parent}' does not exist")
     if out.is_dir():
         raise UsageError(f"--out '{out}': is a folder, expected a calibration file name")
     paths = expand_images(images)
@@ -252,9 +203,13 @@ def run_calibration(
     payload = run_as_json(run, failures)
     ros_path = out.with_name(out.stem + ".ros.yaml") if ros else None
     if not failures:
-        save_calibration(run.calibration, out)
-        if ros_path is not None:
-            save_ros_camera_info(run.calibration, ros_path, camera_name=out.stem)
+        create_output_file_folder(out)
+        try:
+            save_calibration(run.calibration, out)
+            if ros_path is not None:
+                save_ros_camera_info(run.calibration, ros_path, camera_name=out.stem)
+        except PerceptionError as exc:  # the calibration is good; writing it failed
+            raise OutputError(str(exc)) from None
     payload["calibration_file"] = None if failures else str(out)
     payload["ros_file"] = None if failures or ros_path is None else str(ros_path)
     if as_json:
@@ -329,113 +284,11 @@ def calibrate_group(
                     drop_outliers=drop_outliers, config=config)
 
 
-# ----------------------------------------------------------------------------------- capture
-
-def _next_index(out_dir: Path) -> int:
-    taken = [int(m.group(1)) for p in out_dir.glob("view_*.jpg")
-             if (m := re.fullmatch(r"view_(\d+)\.jpg", p.name))]
-    return max(taken) + 1 if taken else 0
-
-
-def run_capture(
-    camera: str,
-    pattern: ChessboardPattern,
-    out_dir: Path,
-    count: int,
-    max_frames: int | None,
-    config: CalibrationConfig,
-) -> dict[str, int]:
-    """Grab frames until `count` are kept or the source ends; returns counts per outcome."""
-    check_output_folder(out_dir)
-    capture = open_camera(camera)
-    out_dir.mkdir(exist_ok=True)
-    index = _next_index(out_dir)
-    kept: list[BoardPlacement] = []
-    last_frame: np.ndarray | None = None
-    outcome = {"frames": 0, "kept": 0, "no board": 0, "too similar": 0, "rejected": 0}
-    progress = tqdm(total=count, desc="views kept", unit="view", file=sys.stderr,
-                    disable=None, leave=False)
-    try:
-        while len(kept) < count and (max_frames is None or outcome["frames"] < max_frames):
-            with quiet_opencv():
-                ok, frame = capture.read()
-            if not ok or frame is None:
-                break
-            outcome["frames"] += 1
-            last_frame = frame
-            decision = judge_frame(frame, pattern, kept, config, name=f"frame {outcome['frames']}")
-            if not decision.keep or decision.placement is None:
-                key = "rejected" if decision.reason.startswith("rejected") else decision.reason
-                outcome[key] += 1
-                progress.set_postfix(frames=outcome["frames"], refresh=False)
-                continue
-            if not kept:
-                found = larger_pattern(frame, pattern)
-                if found is not None:
-                    raise UsageError(
-                        f"--pattern {pattern}: the camera shows a board with {found} inner "
-                        f"corners; use --pattern {found} (count ALL inner corners)"
-                    )
-            path = out_dir / f"view_{index:03d}.jpg"
-            if not cv2.imwrite(str(path), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
-                raise PerceptionError(f"{path}: cannot write captured view")
-            index += 1
-            kept.append(decision.placement)
-            outcome["kept"] += 1
-            progress.update(1)
-            progress.set_postfix(frames=outcome["frames"], refresh=False)
-    finally:
-        progress.close()
-        capture.release()
-    if not kept and last_frame is not None and outcome["no board"] == outcome["frames"]:
-        found = suggest_pattern(last_frame, pattern)
-        if found is not None:
-            raise UsageError(
-                f"--pattern {pattern}: no frame showed the whole board, but the camera shows a "
-                f"board with {found} inner corners; use --pattern {found}"
-            )
-    return outcome
-
-
-@calibrate_group.command("capture")
-@click.option("--camera", required=True, metavar="INDEX|PATH|URL",
-              help="Camera index (0), video file, image sequence ('dir/f_%03d.png') or URL.")
-@click.option("--pattern", required=True, type=PATTERN, help="Inner corners, e.g. 9x6.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=True), metavar="DIR",
-              help="Folder for the kept views (view_000.jpg, ...); created if missing.")
-@click.option("--count", default=25, show_default=True, type=click.IntRange(min=1),
-              help="Stop after keeping this many views.")
-@click.option("--max-frames", type=click.IntRange(min=1), default=None,
-              help="Stop after reading this many frames (default: until the source ends).")
-@config_option
-def capture_command(
-    camera: str,
-    pattern: ChessboardPattern,
-    out_dir: str,
-    count: int,
-    max_frames: int | None,
-    config_path: str | None,
-) -> None:
-    """Grab frames and keep those whose whole board adds coverage (position, size, tilt).
-
-    \b
-    Example:
-      lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/
-    """
-    config = load_config(config_path).calibration
-    outcome = run_capture(camera, pattern, Path(out_dir), count, max_frames, config)
-    click.echo(
-        f"kept {outcome['kept']} of {count} views from {outcome['frames']} frames in {out_dir} "
-        f"({outcome['no board']} without the whole board, {outcome['too similar']} too similar "
-        f"to kept views, {outcome['rejected']} blurred or too dark)"
-    )
-    if outcome["kept"] < count:
-        click.echo(
-            f"stopped after {outcome['frames']} frames with fewer than {count} views kept: "
-            "show the board in new places, sizes and tilts and capture again (files are "
-            "numbered on)", err=True
-        )
+calibrate_group.add_command(capture_command)
 
 
 def commands() -> list[click.Command]:
+    from lanewarden.commands.calibrate_ground import ground_command  # imports this module
+
+    calibrate_group.add_command(ground_command)
     return [calibrate_group]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from lanewarden.commands.command_group import CommandGroup
 from lanewarden.config import config_as_yaml, load_config
 
 
@@ -15,7 +16,7 @@ def config_option(func: click.decorators.FC) -> click.decorators.FC:
     )(func)
 
 
-@click.group("config")
+@click.group("config", cls=CommandGroup)
 def config_group() -> None:
     """Inspect the configuration."""
 

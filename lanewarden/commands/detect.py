@@ -12,18 +12,22 @@ each line is one JSON object:
 the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the edge's line on
 the floor in the robot frame). `lane_offset_m` / `lane_heading_rad`: the lane centre line's
 signed distance from the robot's centre (left +) and direction (left +), null without both edges.
-`decision`: "straight", "left", "right" or "none" (low confidence, or an edge missing).
+`decision`: "straight", "left", "right" or "none" (confidence below
+`supervisor.confidence_usable_min`, or an edge missing; left/right beyond
+`supervisor.turn_enter_slope_sum`: the supervisor's thresholds).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
 
 Perception sees the floor through a ground model; one line on stderr says which one (the
-simulator's default camera unless a ground calibration says otherwise) and what a pixel covers at
-the look-ahead. A config this camera cannot work with (`PerceptionConfigError`: the floor region
-or the look-ahead out of view, tape and seams not separable at the look-ahead) is a config error:
-one line, exit code 2.
+calibration's ground pose from `lanewarden calibrate ground`; without one the simulator's default
+mount) and what a pixel covers at the look-ahead. A config this camera cannot work with
+(`PerceptionConfigError`: the floor region or the look-ahead out of view, tape and seams not
+separable at the look-ahead) is a config error: one line, exit code 2.
 
-Unusable images (missing, empty, not an image, a folder, wrong size for the calibration) are
-skipped and reported together at the end as one error line naming each file; the exit code is
-then non-zero. Only file I/O and printing live here; the work is `perception.detector`.
+Unusable images (missing, empty, not an image, a folder, more pixels than
+`perception.max_image_pixels`, wrong size for the calibration) are skipped and reported together
+at the end as one error line naming each file; the exit code is then 2 (1 when an overlay could not
+be written). The calibration is checked as `run` checks it (`require_usable_calibration`). Only
+file I/O and printing live here; the work is `perception.detector`.
 """
 
 from __future__ import annotations
@@ -35,16 +39,19 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import check_output_folder, read_image
+from lanewarden.assembly import decision_rule
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
-from lanewarden.errors import ConfigError
-from lanewarden.perception.calibration import CameraCalibration, Undistorter, load_calibration
-from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.decision import decide
-from lanewarden.perception.detector import LaneDetector, assumed_ground_model
+from lanewarden.errors import ConfigError, InputFileError, OutputError
+from lanewarden.image_files import read_image
+from lanewarden.perception.calibration import (
+    Undistorter,
+    load_calibration,
+    require_usable_calibration,
+)
+from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
-from lanewarden.perception.ground import DEFAULT_HFOV_DEG
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 
@@ -85,13 +92,6 @@ def _emit(line: str) -> None:
     sys.stdout.flush()
 
 
-def ground_source(calibration: CameraCalibration | None) -> str:
-    """How to name the ground model `assumed_ground_model` gives (no ground calibration)."""
-    if calibration is None:
-        return f"the simulator's default camera ({DEFAULT_HFOV_DEG:g} deg lens; no --calibration)"
-    return "the calibration's intrinsics with the default camera pose (no ground pose)"
-
-
 @click.command("detect")
 @click.argument("images", nargs=-1, required=True, type=click.Path(), metavar="IMAGE...")
 @config_option
@@ -111,28 +111,28 @@ def detect_command(
 
     Example: lanewarden detect frames/*.png --json --out annotated/
     """
-    config: PerceptionConfig = load_config(config_path).perception
+    full_config = load_config(config_path)
+    config = full_config.perception
+    decide = decision_rule(full_config)
     undistorter = None
-    calibration = None
     if calibration_path is not None:
         calibration = load_calibration(calibration_path)
+        require_usable_calibration(calibration, calibration.image_size, full_config.calibration,
+                                   f"--calibration {calibration_path}")
         undistorter = Undistorter(calibration)
     out = None
     if out_dir is not None:
-        out = Path(out_dir)
-        check_output_folder(out)
-        out.mkdir(exist_ok=True)
+        out = create_output_folder(Path(out_dir))
     try:
-        detector = LaneDetector(config, undistorter, assumed_ground_model(undistorter))
+        detector = LaneDetector(config, undistorter)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    setup = detector.setup_for(*detector.ground.image_size)
-    click.echo(f"lanewarden: ground model: {ground_source(calibration)}: {setup.describe()}",
-               err=True)
+    click.echo(f"lanewarden: {detector.describe_ground(calibration_path)}", err=True)
     failures: list[str] = []
+    unwritten: list[str] = []
     for index, name in enumerate(images):
         path = Path(name)
-        image, why = read_image(path)
+        image, why = read_image(path, max_pixels=config.max_image_pixels)
         if image is None:
             failures.append(f"{path}: {why}")
             continue
@@ -145,7 +145,7 @@ def detect_command(
         except PerceptionError as exc:
             failures.append(f"{path}: {exc}")
             continue
-        decision = decide(observation, config)
+        decision = decide(observation)
         if as_json:
             _emit(json.dumps(result_json(name, observation, decision)))
         else:
@@ -154,9 +154,11 @@ def detect_command(
             target = out / f"{path.stem}_detect.png"
             overlay = draw_overlay(debug.image, observation, debug, decision)
             if not cv2.imwrite(str(target), overlay):
-                failures.append(f"{target}: cannot write image")
+                unwritten.append(f"{target}: cannot write image")
+    if unwritten:  # a runtime failure (exit 1) outranks bad input files
+        raise OutputError("; ".join([*unwritten, *failures]))
     if failures:
-        raise PerceptionError(
+        raise InputFileError(
             f"{len(failures)} of {len(images)} images not analysed: {'; '.join(failures)}"
         )
 

@@ -1,19 +1,41 @@
-"""`lanewarden run`: drive the real robot with the camera, under the supervisor."""
+"""`lanewarden run`: follow the lane under the supervisor, on the robot or on the bench."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
+from lanewarden.bases import BASE_KINDS, DEFAULT_BASE
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import FiniteRange
 from lanewarden.config import load_config
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
+if TYPE_CHECKING:
+    from lanewarden.runner import RunSummary
 
-@click.command("run")
+RUN_EXAMPLES = """\b
+Examples (no robot: a clip on a simulated base, watched at http://127.0.0.1:8080/; the live
+camera with nothing sent; the robot; a recorded run replayed):
+  lanewarden run --camera clip.mp4 --base sim --view 8080
+  lanewarden run --camera 0 --base none
+  lanewarden run --camera 0 --calibration camera.yaml
+  lanewarden replay runs/2026-11-05T14-03-12Z --check
+"""
+#: Longest `--duration` of one run (a day); without it the run lasts until stopped.
+MAX_RUN_DURATION_S = 86_400.0
+
+
+@click.command("run", epilog=RUN_EXAMPLES)
 @click.option("--camera", default="0", show_default=True,
-              help="Camera index, device path, video file or stream URL.")
+              help="Camera index, device path, stream URL, video file, or image sequence (a "
+              "folder, a glob like 'shots/*.png', or 'dir/frame_%03d.png'). A file or sequence is "
+              "played at its frame rate; its end ends the run.")
+@click.option("--base", "base_kind", type=click.Choice(BASE_KINDS), default=DEFAULT_BASE,
+              show_default=True, help="kobuki: the robot; sim: a simulated Kobuki driven by the "
+              "very commands the wheels would get; none: send nothing, show what would be sent.")
 @click.option("--port", default=None,
               help="Kobuki serial port (default: actuation.port, then /dev/kobuki, /dev/ttyUSB0).")
 @click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
@@ -21,23 +43,57 @@ from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="supervised, or the lecture's baseline (never halts on lane "
               "loss: for comparison on a safe track only).")
-@click.option("--log", "log_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("run.jsonl"), show_default=True, help="Per-frame record (JSON lines).")
-@click.option("--duration", "duration_s", type=click.FloatRange(min=0.0, min_open=True),
-              default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--record", "record_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="Record the run into this new folder (default: runs/<UTC "
+              "time>/; never overwritten).")
+@click.option("--record-lossy", is_flag=True,
+              help="Record JPEG frames instead of lossless PNG (about 6x smaller, for long runs; "
+              "the replay is then not exact).")
+@click.option("--view", "view", metavar="[HOST:]PORT", default=None,
+              help="Serve the live page on this port (127.0.0.1 unless a host is given, e.g. "
+              "0.0.0.0:8080 to watch from another machine).")
+@click.option("--duration", "duration_s", default=None,
+              type=FiniteRange(0.0, MAX_RUN_DURATION_S, "s", low_open=True),
+              help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
-def run_command(camera: str, port: str | None, calibration_path: str | None, controller: str,
-                log_path: Path, duration_s: float | None, config_path: str | None) -> None:
-    """Follow the lane on the robot. Ctrl-C stops the robot; a crash leaves the dead-man holding
-    stop. Every check (config, calibration, camera, base link) passes before anything moves."""
+def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
+                controller: str, record_dir: Path | None, record_lossy: bool, view: str | None,
+                duration_s: float | None, config_path: str | None) -> int:
+    """Follow the lane under the supervisor, on the robot or on the bench. Ctrl-C, SIGTERM or
+    SIGQUIT stop the robot and end the run; Ctrl-Z stops the robot, then suspends (after `fg` it
+    stays halted); a crash leaves the dead-man holding stop. Every check (config, calibration,
+    camera, recording folder, base link) passes before anything moves. Keys: s start, space stop,
+    r resume; Kobuki buttons: B0 start/resume, B1 stop. Every run is recorded (see `lanewarden
+    replay`). Exit 0 for a normal end (operator stop, --duration, end of a clip), 3 for a safety
+    stop (its reason also on stderr)."""
     from lanewarden.runner import run_robot  # the robot stack loads only when used
 
     config = load_config(config_path)
     summary = run_robot(config, camera=camera, port=port, calibration_path=calibration_path,
-                        controller_name=controller, log_path=log_path, duration_s=duration_s)
-    reason = f" ({summary.halt_reason})" if summary.halt_reason else ""
-    click.echo(f"stopped after {summary.duration_s:.1f} s, {summary.steps} steps; final state "
-               f"{summary.final_state}{reason}; log: {summary.log_path}")
+                        controller_name=controller, duration_s=duration_s, base_kind=base_kind,
+                        record=record_dir, record_lossy=record_lossy, view=view,
+                        meta={"config_file": config_path})
+    for line in summary.lines:
+        click.echo(line)
+    click.echo(summary_line(summary))
+    outcome = summary.outcome
+    if outcome.safety_stop is not None:
+        click.echo(f"lanewarden: safety stop: {outcome.safety_stop}", err=True)
+    return outcome.exit_code
+
+
+def summary_line(summary: RunSummary) -> str:
+    """The run's last line on stdout: why it ended, how long, the state before the stop, log."""
+    outcome = summary.outcome
+    if outcome.safety_stop is not None:
+        why = f"run ended by a safety stop: {outcome.safety_stop}"
+    else:
+        why = f"run ended: {outcome.ended_by}"
+    state = summary.final_state
+    if state == "HALT" and summary.halt_reason:
+        state = f"HALT ({summary.halt_reason})"
+    return (f"{why}; after {summary.duration_s:.1f} s and {summary.steps} steps; state before "
+            f"the final stop: {state}; log: {summary.log_path}")
 
 
 def commands() -> list[click.Command]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import multiprocessing
 import signal
 import sys
+import textwrap
 import threading
 import time
 from pathlib import Path
@@ -17,13 +18,22 @@ from types import FrameType
 
 import click
 
+from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
-from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.errors import Interrupted, QualityGateError, UsageError
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
-from lanewarden.scenarios.report import comparison_rows, demo_summary, format_table, write_report
-from lanewarden.scenarios.sim_run import RunRequest, run_to_directory
+from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
+from lanewarden.scenarios.report import (
+    comparison_rows,
+    demo_summary,
+    format_table,
+    format_value,
+    write_report,
+)
+from lanewarden.scenarios.sim_run import RunRequest, run_title, run_to_directory
 from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
@@ -43,25 +53,39 @@ def _load_scenario(name_or_file: str) -> ScenarioSpec:
 def _summary_lines(metrics: dict[str, object]) -> list[str]:
     def fmt(key: str, unit: str = "") -> str:
         value = metrics.get(key)
-        if value is None:
-            return "-"
-        if isinstance(value, bool):
-            return "yes" if value else "no"
-        if isinstance(value, list):
-            return ", ".join(str(v) for v in value) or "none"
-        return f"{value}{unit}"
+        text = format_value(value)
+        return text + unit if isinstance(value, int | float) and not isinstance(value, bool) \
+            else text
 
-    return [
+    lines = [
         f"{metrics['scenario']} / {metrics['controller']} (seed {metrics['seed']}): "
         f"{metrics['frames']} frames, {metrics['sim_time_s']} s simulated in "
         f"{metrics['wall_time_s']} s",
-        f"  halted: {fmt('halted')}  reason: {fmt('halt_reason')}",
+        f"  halted: {fmt('halted')}  reason: {metrics.get('halt_reason') or '-'}",
+    ]
+    if metrics.get("halted"):
+        lines.append(f"  halt position: {fmt('halt_position')}")
+    lines += [
+        f"  states visited: {fmt('states_visited')}",
         f"  turns completed: {fmt('turns_completed')}  max cross-track error: "
         f"{fmt('max_cross_track_error_m', ' m')}  crossed tape: {fmt('crossed_tape')}",
-        f"  distance past lane end: {fmt('distance_past_lane_end_m', ' m')} (negative: stopped "
-        f"before it)  lane out of view -> HALT: {fmt('lane_loss_to_halt_s', ' s')} (negative: "
-        "halted before the lane left the view)",
     ]
+    if metrics.get("distance_past_lane_end_m") is not None:
+        lines.append(f"  distance past lane end: {fmt('distance_past_lane_end_m', ' m')} "
+                     "(negative: stopped before it)")
+    if metrics.get("lane_loss_to_halt_s") is not None:
+        estimated = " (estimated)" if metrics.get("lane_loss_estimated") else ""
+        lines.append(f"  lane out of view -> HALT: {fmt('lane_loss_to_halt_s', ' s')}{estimated} "
+                     "(negative: halted before the lane left the view)")
+    return lines
+
+
+def _scenario_list(width: int = 76) -> str:
+    """The library's names as a help paragraph click will not rewrap (so it never splits a name
+    at its hyphens)."""
+    lines = textwrap.wrap(", ".join(library_names()), width - 2, break_on_hyphens=False,
+                          break_long_words=False)
+    return "\b\nScenarios (--scenario NAME):\n" + "\n".join(f"  {line}" for line in lines)
 
 
 SIM_EXAMPLES = """\b
@@ -69,40 +93,65 @@ Examples:
   lanewarden sim --scenario lane-ends
   lanewarden sim --scenario lecture --controller lecture --seed 3 --out out/lecture
   lanewarden sim --scenario my-track.yaml --no-video --check
+  lanewarden sim --case campaign-out/cases/r00042.yaml
 """
 
 
-@click.command("sim", epilog=SIM_EXAMPLES)
-@click.option("--scenario", "scenario", required=True, metavar="NAME|FILE",
-              help=f"A library scenario ({', '.join(library_names())}) or a scenario YAML file.")
+def _interrupted(out: Path) -> Interrupted:
+    return Interrupted(f"{out / PARTIAL} lists the outputs left incomplete")
+
+
+@click.command("sim", epilog=_scenario_list() + "\n\n" + SIM_EXAMPLES)
+@click.option("--scenario", "scenario", default=None, metavar="NAME|FILE",
+              help="A library scenario (names below) or a scenario YAML file.")
+@click.option("--case", "case_file", default=None, metavar="FILE",
+              type=click.Path(dir_okay=False),
+              help="Rerun one campaign case (DIR/cases/<id>.yaml) exactly: its scenario, faults, "
+              "seed, controller and config; prints its outcome class.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output directory (default: lanewarden-out/<scenario>-<controller>).")
+              help="Output directory (default: lanewarden-out/<scenario>-<controller>); its "
+              "old outputs are replaced.")
 @config_option
 @click.option("--no-video", is_flag=True, help="Skip video.mp4 (faster).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--check", is_flag=True,
               help="Exit with code 2 if the scenario's expected outcome is not met.")
-def sim_command(scenario: str, controller: str, seed: int, out_dir: str | None,
-                config_path: str | None, no_video: bool, quiet: bool, check: bool) -> None:
-    """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4, plot.png."""
-    config = load_config(config_path)
-    spec = _load_scenario(scenario)
-    out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
-    metrics = run_to_directory(RunRequest(
-        spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-        video=not no_video, progress=not quiet, source=scenario))
+def sim_command(scenario: str | None, case_file: str | None, controller: str, seed: int,
+                out_dir: str | None, config_path: str | None, no_video: bool, quiet: bool,
+                check: bool) -> None:
+    """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4 (and its
+    poster.jpg), plot.png and report.html."""
+    if case_file is not None:
+        request = _case_request(case_file, scenario, config_path, out_dir, no_video, quiet)
+        spec, controller, out = request.spec, request.controller, request.out_dir
+    else:
+        if scenario is None:
+            raise UsageError("sim: expected --scenario NAME|FILE (or --case FILE)")
+        config = load_config(config_path)
+        spec = _load_scenario(scenario)
+        out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
+        request = RunRequest(
+            spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
+            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario)
+    create_output_folder(out)
+    try:
+        metrics = run_to_directory(request)
+    except KeyboardInterrupt:
+        raise _interrupted(out) from None
     for line in _summary_lines(metrics):
         click.echo(line)
+    if case_file is not None:
+        click.echo(f"  outcome: {metrics.get('outcome')} ({metrics.get('outcome_reason')})")
     met = metrics.get("expectation_met")
     if met is not None:
         failures = metrics.get("expectation_failures") or []
         assert isinstance(failures, list)
         click.echo("  expected outcome: " + ("met" if met else "NOT met: " + "; ".join(failures)))
-    click.echo(f"  outputs in {out}/")
+    click.echo(f"  outputs in {out}/ (open {out / 'report.html'})")
     if check and met is None:
         raise QualityGateError(
             f"--check: scenario {spec.name} states no expected outcome for controller "
@@ -117,7 +166,7 @@ Example:
   lanewarden demo && xdg-open lanewarden-out/report.html
 """)
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=DEFAULT_DEMO_OUT,
-              show_default=True, help="Output directory.")
+              show_default=True, help="Output directory; its old outputs are replaced.")
 @config_option
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
@@ -130,17 +179,39 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     started = time.perf_counter()
     config = load_config(config_path)
     spec = _load_scenario(DEMO_SCENARIO)
-    out = Path(out_dir)
+    out = create_output_folder(Path(out_dir))
+    names = ("lecture", "supervised")
+    folder = OutputFolder(out, ["report.html"], subfolders=names)
+    folder.begin()
     requests = [
         RunRequest(spec=spec, config=config, controller=name, seed=seed, out_dir=out / name,
-                   video=not no_video, progress=not quiet, progress_position=i)
-        for i, name in enumerate(("lecture", "supervised"))
+                   build_stack=build_stack, video=not no_video, progress=not quiet,
+                   progress_position=i)
+        for i, name in enumerate(names)
     ]
-    # The two runs are independent: one process each (the machine has two cores). Forked (no
-    # re-import: ~2 s less each) only from a single-threaded process, where forking is safe.
+    try:
+        results = _run_in_parallel(requests)
+    except KeyboardInterrupt:
+        raise _interrupted(out) from None
+    runs = {r.controller: m for r, m in zip(requests, results, strict=True)}
+    summary = demo_summary(runs["lecture"], runs["supervised"])
+    write_report(out / "report.html", runs, summary,
+                 headings={r.controller: f"{r.controller}: "
+                           f"{run_title(spec.name, r.controller, seed)}" for r in requests})
+    folder.finish()
+    sys.stderr.flush()
+    click.echo(format_table(comparison_rows(runs)))
+    click.echo("")
+    click.echo(summary)
+    click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")
+
+
+def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
+    """The runs are independent: one process each (the machine has two cores). Forked (no
+    re-import: ~2 s less each) only from a single-threaded process, where forking is safe."""
     single = threading.active_count() == 1
     method = "fork" if single and "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    pool = multiprocessing.get_context(method).Pool(processes=2)
+    pool = multiprocessing.get_context(method).Pool(processes=len(requests))
     # Installed after the workers exist (they keep the default): SIGTERM to the demo becomes an
     # interrupt here, so the workers are terminated instead of running on as orphans.
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -154,14 +225,28 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     finally:
         pool.join()
         signal.signal(signal.SIGTERM, previous)
-    runs = {r.controller: m for r, m in zip(requests, results, strict=True)}
-    summary = demo_summary(runs["lecture"], runs["supervised"])
-    write_report(out / "report.html", runs, summary)
-    sys.stderr.flush()
-    click.echo(format_table(comparison_rows(runs)))
-    click.echo("")
-    click.echo(summary)
-    click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")
+    return results
+
+
+def _case_request(case_file: str, scenario: str | None, config_path: str | None,
+                  out_dir: str | None, no_video: bool, quiet: bool) -> RunRequest:
+    """The run a campaign case describes; --scenario and --config would change it: refused."""
+    from lanewarden.scenarios.campaign.cases import load_case
+    from lanewarden.scenarios.campaign.run_case import case_config, judge_metrics
+
+    if scenario is not None or config_path is not None:
+        raise UsageError("--case: the case file holds the scenario and the config; drop "
+                         "--scenario and --config")
+    try:
+        case = load_case(case_file)
+        spec = case.scenario_spec(case_file)
+        config = case_config(case, case_file)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
+    out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"case-{case.id}"
+    return RunRequest(spec=spec, config=config, controller=case.controller, seed=case.seed,
+                      out_dir=out, build_stack=build_stack, video=not no_video,
+                      progress=not quiet, source=case_file, judge=judge_metrics)
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:

@@ -1,7 +1,11 @@
-"""`lanewarden undistort IMAGE... --calibration FILE --out DIR`: see what a calibration does.
+"""`lanewarden undistort IMAGE... --calibration FILE --out DIR [--config FILE]`: see what a
+calibration does.
 
 For each image writes `<name>_undistorted.<ext>` and `<name>_compare.png` (before | after, with
-the same straight reference lines over both). The remap tables are built once per run.
+the same straight reference lines over both). The remap tables are built once per run. The
+calibration is checked as `run` checks it (`require_usable_calibration`); images with more pixels
+than `perception.max_image_pixels` are refused from their header. Bad images are reported in one
+line at the end (exit 2); an output that cannot be written stops the command (exit 1).
 
 Only file I/O and printing live here; the work is `perception.calibration.Undistorter` and the
 drawing is `perception.undistort_preview.side_by_side`.
@@ -14,15 +18,22 @@ from pathlib import Path
 import click
 import cv2
 
-from lanewarden.commands.calibrate import IMAGE_SUFFIXES, check_output_folder, read_image
-from lanewarden.perception.calibration import Undistorter, load_calibration
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
+from lanewarden.config import load_config
+from lanewarden.errors import InputFileError, OutputError
+from lanewarden.image_files import IMAGE_SUFFIXES, read_image
+from lanewarden.perception.calibration import (
+    Undistorter,
+    load_calibration,
+    require_usable_calibration,
+)
 from lanewarden.perception.undistort_preview import side_by_side
 
 
 def _write(path: Path, image: object) -> None:
     if not cv2.imwrite(str(path), image):  # type: ignore[call-overload]
-        raise PerceptionError(f"{path}: cannot write image")
+        raise OutputError(f"{path}: cannot write image")
 
 
 @click.command("undistort")
@@ -31,23 +42,26 @@ def _write(path: Path, image: object) -> None:
               metavar="FILE", help="Calibration YAML written by `lanewarden calibrate`.")
 @click.option("--out", "out_dir", required=True, type=click.Path(), metavar="DIR",
               help="Folder for the undistorted images and before/after pictures (created).")
-def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str) -> None:
+@config_option
+def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str,
+                      config_path: str | None) -> None:
     """Undistort IMAGE... and write before/after pictures with straight reference lines.
 
     \b
     Example:
       lanewarden undistort shots/view_000.jpg --calibration camera.yaml --out undistorted/
     """
+    config = load_config(config_path)
     calibration = load_calibration(calibration_path)
-    out = Path(out_dir)
-    check_output_folder(out)
+    require_usable_calibration(calibration, calibration.image_size, config.calibration,
+                               f"--calibration {calibration_path}")
+    out = create_output_folder(Path(out_dir))
     undistorter = Undistorter(calibration)
-    out.mkdir(exist_ok=True)
     failures: list[str] = []
     width, height = calibration.image_size
     for name in images:
         path = Path(name)
-        image, why = read_image(path, cv2.IMREAD_UNCHANGED)
+        image, why = read_image(path, cv2.IMREAD_UNCHANGED, config.perception.max_image_pixels)
         if image is None:
             failures.append(f"{path}: {why}")
             continue
@@ -65,7 +79,7 @@ def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: s
         _write(compare_path, side_by_side(image, after))
         click.echo(f"wrote {undistorted_path} and {compare_path}")
     if failures:
-        raise PerceptionError(
+        raise InputFileError(
             f"{len(failures)} of {len(images)} images not undistorted: {'; '.join(failures)}"
         )
 

@@ -1,10 +1,11 @@
 """A pretend control process for the dead-man end-to-end tests and benchmark (TEST code).
 
 `python tests/actuation/control_process.py PORT [HEARTBEAT_LOG]`: opens KobukiBase on PORT,
-prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending the
-monotonic time of each completed send to HEARTBEAT_LOG if given. Prints `tripped` when send()
-says the dead-man tripped (it keeps sending: the dead-man must ignore that stream), and re-arms
-(printing `rearmed`) when a `rearm` line arrives on stdin.
+prints `deadman <pid>`, then sends 0.2 m/s every 20 ms (its control tick) forever, appending to
+HEARTBEAT_LOG, if given, the monotonic time taken just before each send. Prints `tripped
+STOPPED_S REASON` (when the dead-man wrote the stop, and its reason, with the stamp of the last
+heartbeat it accepted) when send() says the dead-man tripped (it keeps sending: the dead-man
+must ignore that stream), and re-arms (printing `rearmed`) when a `rearm` line arrives on stdin.
 """
 
 from __future__ import annotations
@@ -32,14 +33,14 @@ def main(port: str, heartbeat_log: str | None) -> None:
     tick = threading.Event()  # never set: its timed wait paces this pretend control loop
     tripped = False
     while True:
+        if log_fd is not None:
+            os.write(log_fd, f"{time.monotonic()!r}\n".encode())
         try:
             base.send(command, time.monotonic())  # reaches the dead-man even when tripped
         except DeadmanTrippedError:
             if not tripped:
                 tripped = True
-                print("tripped", flush=True)
-        if log_fd is not None:
-            os.write(log_fd, f"{time.monotonic()!r}\n".encode())
+                print(f"tripped {base.motion_stopped_s!r} {base.deadman_reason}", flush=True)
         if tripped and select.select([sys.stdin], [], [], 0.0)[0]:
             if sys.stdin.readline().strip() == "rearm":
                 base.rearm(time.monotonic())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 
 import pytest
@@ -12,20 +13,36 @@ from lanewarden.actuation.deadman_logic import (
     DeadmanLogic,
     DeadmanMode,
     DeadmanSettings,
+    Heartbeat,
 )
 
 SETTINGS = DeadmanSettings(heartbeat_timeout_s=0.2, command_period_s=0.02, orphan_stop_s=0.5)
 MOVE = VelocityCommand(0.3, 0.1)
 OTHER_MOVE = VelocityCommand(0.2, -0.4)
+_SEQUENCE = itertools.count()
+
+
+def beat(sent_s: float) -> Heartbeat:
+    """A heartbeat sent at `sent_s`, numbered after every earlier one."""
+    return Heartbeat(next(_SEQUENCE), sent_s)
+
+
+def arm(logic: DeadmanLogic, t: float) -> None:
+    logic.on_arm(t, beat(t))
+
+
+def command(logic: DeadmanLogic, velocity: VelocityCommand, t: float) -> None:
+    """A command sent and received at `t`."""
+    logic.on_command(velocity, t, beat(t))
 
 
 def _setup(state: str) -> DeadmanLogic:
     """A logic in `state`, having sent packets at 0.00, 0.02, 0.04 (next tick due at 0.06)."""
     logic = DeadmanLogic(SETTINGS, start_s=0.0)
     if state in ("armed_stop", "armed_moving", "tripped"):
-        logic.on_arm(0.0)
+        arm(logic, 0.0)
     if state in ("armed_moving", "tripped"):
-        logic.on_command(MOVE, 0.0)
+        command(logic, MOVE, 0.0)
     if state == "tripped":
         logic.on_malformed(0.0, "garbage")
     if state == "stopping":
@@ -36,9 +53,10 @@ def _setup(state: str) -> DeadmanLogic:
 
 
 INPUTS: dict[str, Callable[[DeadmanLogic, float], None]] = {
-    "arm": lambda logic, t: logic.on_arm(t),
-    "command_move": lambda logic, t: logic.on_command(OTHER_MOVE, t),
-    "command_stop": lambda logic, t: logic.on_command(STOP, t),
+    "arm": arm,
+    "disarm": lambda logic, t: logic.on_disarm(t, beat(t)),
+    "command_move": lambda logic, t: command(logic, OTHER_MOVE, t),
+    "command_stop": lambda logic, t: command(logic, STOP, t),
     "malformed": lambda logic, t: logic.on_malformed(t, "bad"),
     "control_gone": lambda logic, t: logic.on_control_gone(t),
     "close": lambda logic, t: logic.on_close(t),
@@ -49,30 +67,35 @@ D, A, T, S = (DeadmanMode.DISARMED, DeadmanMode.ARMED, DeadmanMode.TRIPPED,
 # (state, input) -> (mode after, command on the wire at the next tick, stop sent at once?)
 TABLE: dict[tuple[str, str], tuple[DeadmanMode, VelocityCommand, bool]] = {
     ("disarmed", "arm"): (A, STOP, False),
+    ("disarmed", "disarm"): (D, STOP, False),
     ("disarmed", "command_move"): (D, STOP, False),
     ("disarmed", "command_stop"): (D, STOP, False),
     ("disarmed", "malformed"): (D, STOP, False),
     ("disarmed", "control_gone"): (S, STOP, True),
     ("disarmed", "close"): (S, STOP, True),
     ("armed_stop", "arm"): (A, STOP, False),
+    ("armed_stop", "disarm"): (D, STOP, False),
     ("armed_stop", "command_move"): (A, OTHER_MOVE, False),
     ("armed_stop", "command_stop"): (A, STOP, False),
     ("armed_stop", "malformed"): (T, STOP, True),
     ("armed_stop", "control_gone"): (S, STOP, True),
     ("armed_stop", "close"): (S, STOP, True),
     ("armed_moving", "arm"): (A, MOVE, False),
+    ("armed_moving", "disarm"): (D, STOP, True),
     ("armed_moving", "command_move"): (A, OTHER_MOVE, False),
     ("armed_moving", "command_stop"): (A, STOP, True),
     ("armed_moving", "malformed"): (T, STOP, True),
     ("armed_moving", "control_gone"): (S, STOP, True),
     ("armed_moving", "close"): (S, STOP, True),
     ("tripped", "arm"): (A, STOP, False),
+    ("tripped", "disarm"): (D, STOP, False),
     ("tripped", "command_move"): (T, STOP, False),
     ("tripped", "command_stop"): (T, STOP, False),
     ("tripped", "malformed"): (T, STOP, False),
     ("tripped", "control_gone"): (S, STOP, True),
     ("tripped", "close"): (S, STOP, True),
     ("stopping", "arm"): (S, STOP, False),
+    ("stopping", "disarm"): (S, STOP, False),
     ("stopping", "command_move"): (S, STOP, False),
     ("stopping", "command_stop"): (S, STOP, False),
     ("stopping", "malformed"): (S, STOP, False),
@@ -139,7 +162,7 @@ def test_disarmed_sends_stop_at_the_steady_rate_from_the_start() -> None:
 
 def test_armed_repeats_an_unchanged_command_at_the_steady_rate() -> None:
     inputs = {0.0: INPUTS["arm"], **_every(0.05, 0.01, 1.0,
-                                          lambda lg, t: lg.on_command(MOVE, t))}
+                                          lambda lg, t: command(lg, MOVE, t))}
     sent, _ = _run(DeadmanLogic(SETTINGS, 0.0), 1.0, inputs)
     moving = [t for t, command in sent if command == MOVE]
     assert len(moving) >= 49
@@ -149,7 +172,7 @@ def test_armed_repeats_an_unchanged_command_at_the_steady_rate() -> None:
 def test_heartbeat_silence_stops_at_the_timeout_and_keeps_stopping() -> None:
     last_heartbeat = 0.482
     inputs = {0.0: INPUTS["arm"], **_every(0.03, 0.002, last_heartbeat,
-                                          lambda lg, t: lg.on_command(MOVE, t))}
+                                          lambda lg, t: command(lg, MOVE, t))}
     logic = DeadmanLogic(SETTINGS, 0.0)
     sent, _ = _run(logic, 3.0, inputs)
     first_stop = next(t for t, command in sent if t > last_heartbeat and command == STOP)
@@ -161,8 +184,8 @@ def test_heartbeat_silence_stops_at_the_timeout_and_keeps_stopping() -> None:
 
 def test_no_trip_just_before_the_timeout_and_a_trip_exactly_at_it() -> None:
     logic = DeadmanLogic(SETTINGS, 0.0)
-    logic.on_arm(0.0)
-    logic.on_command(MOVE, 0.0)
+    arm(logic, 0.0)
+    command(logic, MOVE, 0.0)
     logic.poll(0.0)
     assert logic.next_wakeup_s() == pytest.approx(0.02)
     logic.poll(0.18)
@@ -176,21 +199,21 @@ def test_no_trip_just_before_the_timeout_and_a_trip_exactly_at_it() -> None:
 
 def test_tripped_ignores_a_fresh_command_stream_until_an_explicit_arm() -> None:
     logic = DeadmanLogic(SETTINGS, 0.0)
-    inputs = {0.0: INPUTS["arm"], 0.01: lambda lg, t: lg.on_command(MOVE, t),
+    inputs = {0.0: INPUTS["arm"], 0.01: lambda lg, t: command(lg, MOVE, t),
               # frozen from 0.01 to 0.5, then the stream resumes without re-arming
-              **_every(0.02, 0.5, 2.0, lambda lg, t: lg.on_command(MOVE, t))}
+              **_every(0.02, 0.5, 2.0, lambda lg, t: command(lg, MOVE, t))}
     sent, _ = _run(logic, 2.0, inputs)
     assert all(command == STOP for t, command in sent if t >= 0.21)
     assert logic.mode is DeadmanMode.TRIPPED
-    logic.on_arm(2.0)
+    arm(logic, 2.0)
     assert logic.poll(2.0).events[0].mode is DeadmanMode.ARMED
     assert logic.command == STOP  # arming alone never moves the robot
-    logic.on_command(MOVE, 2.01)
+    command(logic, MOVE, 2.01)
     assert logic.poll(2.03).send == MOVE
 
 
 def test_control_gone_stops_at_once_for_the_orphan_time_then_finishes() -> None:
-    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: lg.on_command(MOVE, t),
+    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: command(lg, MOVE, t),
               0.1: INPUTS["control_gone"]}
     sent, finished = _run(DeadmanLogic(SETTINGS, 0.0), 5.0, inputs)
     assert finished
@@ -202,7 +225,7 @@ def test_control_gone_stops_at_once_for_the_orphan_time_then_finishes() -> None:
 
 
 def test_close_sends_a_short_burst_of_stops_then_finishes() -> None:
-    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: lg.on_command(MOVE, t),
+    inputs = {0.0: INPUTS["arm"], 0.001: lambda lg, t: command(lg, MOVE, t),
               0.1: INPUTS["close"]}
     sent, finished = _run(DeadmanLogic(SETTINGS, 0.0), 5.0, inputs)
     assert finished
@@ -211,8 +234,8 @@ def test_close_sends_a_short_burst_of_stops_then_finishes() -> None:
 
 def test_events_report_every_mode_change_once() -> None:
     logic = DeadmanLogic(SETTINGS, 0.0)
-    logic.on_arm(0.0)
-    logic.on_arm(0.01)
+    arm(logic, 0.0)
+    arm(logic, 0.01)
     assert [e.mode for e in logic.poll(0.01).events] == [DeadmanMode.ARMED]
     logic.on_malformed(0.02, "CMD nan")
     events = logic.poll(0.02).events
@@ -223,3 +246,70 @@ def test_events_report_every_mode_change_once() -> None:
     assert [(e.mode, e.reason) for e in events] == [(DeadmanMode.STOPPING,
                                                      "stopped by signal SIGTERM")]
     assert logic.poll(0.04).events == ()
+
+
+# ---- heartbeats carry the sender's time and sequence ------------------------------------------
+def test_a_heartbeat_counts_from_when_it_was_sent_not_when_it_was_read() -> None:
+    # sent at 0.10, then the sender froze and the dead-man read it only at 0.35 (it was starved
+    # itself): it is 0.25 s old, older than the 0.2 s timeout, so it must not keep the robot going
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    arm(logic, 0.0)
+    command(logic, MOVE, 0.05)
+    logic.on_command(MOVE, 0.35, beat(0.10))
+    action = logic.poll(0.35)
+    assert action.send == STOP
+    assert logic.mode is DeadmanMode.TRIPPED
+    assert "no heartbeat for 0.250 s" in action.events[-1].reason
+
+
+def test_the_deadline_is_the_send_stamp_plus_the_timeout() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    arm(logic, 0.0)
+    logic.poll(0.0)
+    logic.poll(0.16)
+    logic.on_command(MOVE, 0.17, beat(0.16))  # read 10 ms after it was sent
+    assert logic.poll(0.17).send is None  # motion waits for the tick
+    assert logic.poll(0.18).send == MOVE
+    logic.poll(0.34)
+    assert logic.next_wakeup_s() == pytest.approx(0.36)  # 0.16 + 0.2, not 0.17 + 0.2
+    assert logic.poll(0.3599).send in (None, MOVE) and logic.mode is DeadmanMode.ARMED
+    assert logic.poll(0.36).send == STOP and logic.mode is DeadmanMode.TRIPPED
+
+
+@pytest.mark.parametrize(("first", "second", "problem"), [
+    (Heartbeat(5, 0.10), Heartbeat(5, 0.11), "sequence went backwards (5 after 5)"),
+    (Heartbeat(5, 0.10), Heartbeat(4, 0.11), "sequence went backwards (4 after 5)"),
+    (Heartbeat(5, 0.10), Heartbeat(6, 0.09), "heartbeat stamp went backwards"),
+    (Heartbeat(5, 0.10), Heartbeat(6, 0.1201), "heartbeat stamped in the future"),
+])
+def test_stamps_from_the_future_or_going_backwards_trip_it(first: Heartbeat, second: Heartbeat,
+                                                            problem: str) -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic.on_arm(0.10, first)
+    logic.on_command(MOVE, 0.12, second)
+    action = logic.poll(0.12)
+    assert action.send == STOP
+    assert logic.mode is DeadmanMode.TRIPPED
+    assert problem in action.events[-1].reason
+    assert logic.heartbeat_seq == 5
+
+
+def test_an_arm_with_a_bad_stamp_does_not_arm() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic.on_arm(0.10, Heartbeat(3, 0.5))  # from the future
+    assert logic.mode is DeadmanMode.DISARMED and logic.heartbeat_seq == -1
+
+
+def test_disarm_stops_at_once_needs_no_heartbeat_and_ignores_commands_until_armed() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    inputs = {0.0: INPUTS["arm"], 0.01: lambda lg, t: command(lg, MOVE, t),
+              0.1: INPUTS["disarm"],
+              # suspended from 0.1 to 3.0, then a stale command from before is read
+              3.0: lambda lg, t: lg.on_command(MOVE, t, beat(0.09))}
+    sent, _ = _run(logic, 3.5, inputs)
+    assert (0.1, STOP) in sent  # at once
+    assert all(command == STOP for t, command in sent if t >= 0.1)
+    assert logic.mode is DeadmanMode.DISARMED  # never tripped: it held stop without heartbeats
+    assert logic.heartbeat_seq >= 0
+    arm(logic, 3.6)
+    assert logic.mode is DeadmanMode.ARMED and logic.command == STOP

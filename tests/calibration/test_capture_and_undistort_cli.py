@@ -50,19 +50,42 @@ def test_capture_keeps_only_new_whole_boards_then_calibrates(
     assert fx == pytest.approx(synthetic_views.camera.focal_px, rel=0.01)
 
 
-def test_capture_stops_at_count_and_numbers_on(
+def test_capture_stops_at_count_and_a_rerun_adds_only_new_views(
     synthetic_views: SyntheticViews, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     source = _write_sequence(tmp_path / "stream", list(synthetic_views.images[:6]))
-    shots = tmp_path / "shots"
+    shots = tmp_path / "new" / "shots"  # missing folders are created
     args = ["calibrate", "capture", "--camera", source, "--pattern", "9x6", "--out", str(shots),
             "--count", "2"]
     assert main(args) == 0
+    first = sorted(shots.glob("*.jpg"))
+    assert "kept 2 of 2 views from 2 frames" in capsys.readouterr().out
+    # The rerun reads the same stream: its first two frames are the views already there.
     assert main(args) == 0
     out = capsys.readouterr().out
-    assert "kept 2 of 2 views from 2 frames" in out
+    assert "kept 2 of 2 views from 4 frames" in out
+    assert "2 too similar to kept views (including the 2 already there)" in out
     assert sorted(p.name for p in shots.glob("*.jpg")) == [
         "view_000.jpg", "view_001.jpg", "view_002.jpg", "view_003.jpg"]
+    assert [p.read_bytes() for p in first] == [
+        (shots / name).read_bytes() for name in ("view_000.jpg", "view_001.jpg")]
+
+
+def test_capture_that_keeps_no_view_exits_2_and_says_why(
+    synthetic_views: SyntheticViews, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = _write_sequence(tmp_path / "stream", list(synthetic_views.images[:3]))
+    shots = tmp_path / "shots"
+    args = ["calibrate", "capture", "--camera", source, "--pattern", "9x6", "--out", str(shots)]
+    assert main(args) == 0
+    kept = sorted(shots.glob("*.jpg"))
+    capsys.readouterr()
+    assert main(args) == 2  # every frame is a view already there: nothing usable was added
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"kept none of 3 frames in {shots} (0 without the whole board, 3 too similar to " \
+           f"kept views (including the {len(kept)} already there)" in err
+    assert sorted(shots.glob("*.jpg")) == kept
 
 
 @pytest.mark.parametrize(
@@ -136,7 +159,7 @@ def test_undistort_bad_inputs(synthetic_views: SyntheticViews, tmp_path: Path,
     code = main(["undistort", str(small), str(junk), str(synthetic_views.folder / "view_01.png"),
                  "--calibration", str(calibration), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 1 and err.count("\n") == 1
+    assert code == 2 and err.count("\n") == 1
     assert "2 of 3 images not undistorted" in err
     assert "small.png: image is 320x240, the calibration" in err and "is for 640x480" in err
     assert "junk.png: not a readable image" in err
@@ -144,7 +167,7 @@ def test_undistort_bad_inputs(synthetic_views: SyntheticViews, tmp_path: Path,
     code = main(["undistort", str(small), "--calibration", str(tmp_path / "none.yaml"),
                  "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 1 and "none.yaml: calibration file not found" in err
+    assert code == 2 and "none.yaml: calibration file not found" in err
 
 
 def test_side_by_side_draws_the_same_lines_on_both() -> None:

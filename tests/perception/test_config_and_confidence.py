@@ -35,9 +35,11 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
         ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1"),
         ("edges: {look_ahead_m: 2.0}", "edges.look_ahead_m (2) must lie within the region of"),
-        ("confidence: {min_confidence: 1.5}", "perception.confidence.min_confidence = 1.5"),
+        ("confidence: {min_confidence: 0.5}",
+         "unknown key 'perception.confidence.min_confidence'"),  # trust is the supervisor's
+        ("tape: {width_m: .inf}", "perception.tape.width_m"),
         ("confidence: {weights: {tape_pair: -1}}", "perception.confidence.weights.tape_pair"),
-        ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),
+        ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),  # vs supervisor
         ("hough: {votes_frac_of_height: 0}", "perception.hough.votes_frac_of_height = 0"),
     ],
 )
@@ -58,19 +60,16 @@ def test_defaults_round_trip_and_partial_override(tmp_path: Path) -> None:
     path.write_text(
         "perception:\n"
         "  blur: {kernel_px: 7}\n"
-        "  decision: {turn_slope_sum: 5.0}\n"
         "  roi: {far_m: 1.2}\n"
         "  tape: {width_m: 0.025}\n"
     )
     config = load_config(path).perception
     assert config.blur.kernel_px == 7
-    assert config.decision.turn_slope_sum == 5.0
     assert (config.roi.near_m, config.roi.far_m, config.roi.lateral_m) == (0.0, 1.2, 0.65)
     # The seam bound follows the tape unless it is set: half the tape.
     assert config.tape.seam_width_m == 0.0125
     assert LanewardenConfig().perception.tape.seam_width_m == 0.024
     assert config.canny == PerceptionConfig().canny  # untouched sections keep defaults
-    assert LanewardenConfig().perception.decision.turn_slope_sum == 6.0
 
 
 def _components(**overrides: float) -> MappingProxyType[str, float]:
@@ -124,9 +123,13 @@ def _observation(slope_sum: float | None, confidence: float) -> LaneObservation:
         (-6.0, 0.9, "straight"),  # the lecture: strictly below -6 turns right
         (-6.01, 0.9, "right"),
         (6.01, 0.9, "left"),
-        (-11.0, 0.49, "none"),  # below min_confidence: no decision, however strong
+        (-11.0, 0.49, "right"),
+        (-11.0, 0.19, "none"),  # below the trust threshold: no decision, however strong
         (None, 1.0, "none"),
     ],
 )
 def test_decision_rule(slope_sum: float | None, confidence: float, expected: str) -> None:
-    assert decide(_observation(slope_sum, confidence), PerceptionConfig()) == expected
+    # The thresholds are the supervisor's (confidence_usable_min 0.2, turn_enter_slope_sum 6),
+    # passed in by the composition root.
+    observation = _observation(slope_sum, confidence)
+    assert decide(observation, trust_min_confidence=0.2, turn_slope_sum=6.0) == expected

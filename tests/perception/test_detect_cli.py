@@ -17,10 +17,10 @@ KEYS = ["image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_ra
         "components", "decision"]
 #: The one line on stderr saying which ground model perception uses.
 GROUND_LINE = (
-    "lanewarden: ground model: the simulator's default camera (70 deg lens; no --calibration): "
-    "640x480, camera 0.400 m high, pitched 35.0 deg down, roll 0.0 deg, 0.150 m ahead of the "
-    "robot's centre; at the look-ahead one pixel covers 2.1 mm across the tape (a tape measures "
-    "38.7 mm or more there, a seam at most 26.1 mm)\n"
+    "lanewarden: ground model: no ground calibration: assuming the simulator's default camera "
+    "(70° HFOV, h 0.400 m, pitch 35.0°, 0.150 m ahead of the robot's centre); 640x480: at the "
+    "look-ahead one pixel covers 2.1 mm across the tape (a tape measures 38.7 mm or more there, "
+    "a seam at most 26.1 mm)\n"
 )
 
 
@@ -111,7 +111,7 @@ def test_bad_images_are_named_and_good_results_kept(
         "--json",
     ]
     code, out, err = run(args, capsys)
-    assert code == 1
+    assert code == 2
     assert [json.loads(line)["decision"] for line in out.splitlines()] == ["straight", "right"]
     assert err.startswith(GROUND_LINE)
     err = err.removeprefix(GROUND_LINE)
@@ -133,11 +133,14 @@ def test_image_size_differs_from_calibration(
         ["detect", str(frames / "small.png"), "--calibration", str(frames / "camera.yaml")],
         capsys,
     )
-    assert code == 1
+    assert code == 2
     assert f"{frames / 'small.png'}: undistort: image is 320x240" in err
     ground, error = err.strip().splitlines()
-    assert ground.startswith("lanewarden: ground model: the calibration's intrinsics with the "
-                             "default camera pose (no ground pose): 640x480")
+    assert ground.startswith(
+        f"lanewarden: ground model: no ground calibration in the calibration from "
+        f"{frames / 'camera.yaml'}: assuming the simulator's default mount (h 0.400 m, pitch "
+        "35.0°, 0.150 m ahead of the robot's centre) with its K; run `lanewarden calibrate "
+        "ground`; 640x480: at the look-ahead")
     assert error.startswith("lanewarden: error: 1 of 1 images not analysed")
 
 
@@ -146,7 +149,7 @@ def test_image_size_differs_from_calibration(
     [
         (["--config", "{typo}"], 2, "unknown key 'perception.canny.low_treshold'"),
         (["--config", "{nothing}"], 2, "config file not found"),
-        (["--calibration", "{nothing}"], 1, "calibration file not found"),
+        (["--calibration", "{nothing}"], 2, "calibration file not found"),
         (["--out", "{straight}"], 2, "exists and is not a folder"),
     ],
 )

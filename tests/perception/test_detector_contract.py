@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 
 from lanewarden.perception.confidence import COMPONENT_NAMES
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.decision import decide
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneObservation
@@ -208,7 +207,7 @@ def test_lane_seen_only_far_ahead(detector: LaneDetector, start_m: float) -> Non
 def test_overlay_is_a_same_size_bgr_copy(detector: LaneDetector, scene: syn.Scene) -> None:
     image = syn.frame(scene)
     obs, debug = detector.detect_debug(image, 0, 0.0)
-    canvas = draw_overlay(image, obs, debug, decide(obs, CONFIG))
+    canvas = draw_overlay(image, obs, debug, "straight")
     assert canvas.shape == image.shape and canvas.dtype == np.uint8
     assert not np.array_equal(canvas, image)  # something was drawn (at least the ROI)
     gray_canvas = draw_overlay(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), obs, debug, "none")

@@ -33,6 +33,9 @@ from lanewarden.perception.ground import CameraPose, GroundModel, default_ground
 from tests.conftest import shared_data
 
 HERE = Path(__file__).parent
+#: The confidence the rates below were measured at: a perception quality bar for this test (what
+#: the supervisor trusts is its own `confidence_usable_min`).
+CONFIDENT = 0.5
 
 
 @pytest.fixture(scope="module")

@@ -11,18 +11,22 @@ from dataclasses import replace
 
 import pytest
 
+from lanewarden.assembly import decision_rule
+from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import CameraCalibration, Undistorter
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.decision import decide
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.scenarios.camera import CameraModel
 from tests.perception import synthetic as syn
 
 CONFIG = PerceptionConfig()
-MIN_CONF = CONFIG.confidence.min_confidence
-#: "Comfortably above" the threshold, for clean lanes.
-CLEAN_MARGIN = 0.2
+#: Trust and the turn threshold are the supervisor's; perception only reports confidence.
+DEFAULTS = LanewardenConfig()
+MIN_CONF = DEFAULTS.supervisor.confidence_usable_min
+decide = decision_rule(DEFAULTS)
+#: "Comfortably confident" (above the supervisor's confidence_confident_min), for clean lanes.
+CLEAN_MIN_CONFIDENCE = 0.7
 
 CLEAN_STRAIGHT = {
     "straight": syn.STRAIGHT,
@@ -52,8 +56,8 @@ def test_clean_straight_lanes_go_straight_with_high_confidence(
     assert obs.left is not None and obs.right is not None
     assert obs.left.slope > 0 > obs.right.slope  # "/" on the left, "\" on the right
     assert obs.slope_sum is not None and abs(obs.slope_sum) < 1.0
-    assert obs.confidence >= MIN_CONF + CLEAN_MARGIN, dict(obs.components)
-    assert decide(obs, CONFIG) == "straight"
+    assert obs.confidence >= CLEAN_MIN_CONFIDENCE, dict(obs.components)
+    assert decide(obs) == "straight"
 
 
 @pytest.mark.parametrize("width", [640, 320])
@@ -67,9 +71,9 @@ def test_bends_turn_the_right_way(
     assert obs.slope_sum is not None
     # The lecture's convention: a left bend makes the sum positive (> +6), a right bend negative.
     assert (obs.slope_sum > 0) == (decision == "left")
-    assert abs(obs.slope_sum) > CONFIG.decision.turn_slope_sum
-    assert obs.confidence >= MIN_CONF + CLEAN_MARGIN, dict(obs.components)
-    assert decide(obs, CONFIG) == decision
+    assert abs(obs.slope_sum) > DEFAULTS.supervisor.turn_enter_slope_sum
+    assert obs.confidence >= CLEAN_MIN_CONFIDENCE, dict(obs.components)
+    assert decide(obs) == decision
     # The outer tape of the bend is followed from the bottom of the image (its pieces are
     # chained), not only where Hough found its longest straight piece.
     outer = obs.right if decision == "left" else obs.left
@@ -99,7 +103,7 @@ def test_lane_with_one_edge_missing_makes_no_decision(detector: LaneDetector) ->
     assert obs.slope_sum is None and obs.lane_offset_m is None and obs.lane_heading_rad is None
     assert obs.components["both_sides"] == 0.5
     assert obs.confidence < MIN_CONF
-    assert decide(obs, CONFIG) == "none"
+    assert decide(obs) == "none"
 
 
 #: At 160x120 the default camera tells the tape from a seam only up to 0.47 m ahead.
@@ -115,7 +119,7 @@ def test_floors_without_tape_stay_below_the_threshold(
         detector = LaneDetector(NEAR_LOOK_AHEAD)
     obs = observe(detector, NOT_A_LANE[name], width)
     assert obs.confidence < MIN_CONF, dict(obs.components)
-    assert decide(obs, CONFIG) == "none"
+    assert decide(obs) == "none"
 
 
 def test_tile_seams_are_found_but_recognised_as_seams(detector: LaneDetector) -> None:
@@ -163,7 +167,7 @@ def test_lane_offset_is_the_robots_lateral_position_in_metres(
     # Robot left of the centreline (+) -> the lane centre lies to its right (-), by as much.
     assert obs.lane_offset_m == pytest.approx(-lateral_m, abs=0.005)
     assert obs.lane_heading_rad == pytest.approx(0.0, abs=0.01)
-    assert decide(obs, CONFIG) == "straight"
+    assert decide(obs) == "straight"
 
 
 @pytest.mark.parametrize("yaw_deg", [10.0, -10.0, 5.0])
@@ -218,7 +222,7 @@ def test_distorted_frames_through_the_undistorter(
 ) -> None:
     distorted = syn.frame(scene, distorted=True)
     obs = undistorting_detector.detect(distorted, 0, 0.0)
-    assert decide(obs, CONFIG) == decision
+    assert decide(obs) == decision
     if decision == "straight":
         # After undistortion the edges agree with the ideal pinhole view of the same scene.
         ideal = detector.detect(syn.frame(scene), 0, 0.0)

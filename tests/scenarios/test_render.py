@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from lanewarden.actuation.base import Pose2D
+from lanewarden.assembly import build_stack
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.texture import GroundTexture, paint_ground
@@ -137,7 +138,7 @@ def test_default_roi_sees_both_tapes_at_the_start_of_straight(size: tuple[int, i
     overrides = {"simulation": {"width_px": size[0], "height_px": size[1],
                                 "texture_mm_per_px": 2.5 * 640 / size[0]}}
     config = effective_config(with_overrides(LanewardenConfig(), overrides, "test"), spec)
-    sim = Simulation(spec, config)
+    sim = Simulation(spec, config, build_stack)
     start = sim.world.start_pose
     h_cam = sim.camera.ground_to_image_homography()
     w, h = size

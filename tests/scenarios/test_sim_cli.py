@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
+import threading
+import time
 from pathlib import Path
 
+import cv2
 import pytest
 
 from lanewarden.cli import main
@@ -37,8 +43,93 @@ def test_unknown_scenario_is_one_line_listing_the_names(capsys: pytest.CaptureFi
     assert main(["sim", "--scenario", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
-    assert err[0].startswith("lanewarden: error: --scenario: unknown scenario 'nope'")
+    assert err[0].startswith("lanewarden: error: --scenario: unknown scenario 'nope' (expected")
     assert "lecture" in err[0] and "fault-bumper" in err[0]
+
+
+def test_a_mistyped_scenario_or_command_gets_a_did_you_mean(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sim", "--scenario", "lane-end"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert err[0].startswith("lanewarden: error: --scenario: unknown scenario 'lane-end'; did "
+                             "you mean 'lane-ends'? (expected a YAML file or one of: ")
+    assert main(["smi", "--scenario", "lecture"]) == 2
+    assert capsys.readouterr().err == (
+        "lanewarden: error: lanewarden: No such command 'smi'; did you mean 'sim'?\n")
+    assert main(["base", "inf"]) == 2
+    assert "No such command 'inf'; did you mean 'info'?" in capsys.readouterr().err
+    assert main(["xyzzy"]) == 2
+    assert "No such command 'xyzzy' (expected one of: " in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("width", [60, 80, 120])
+def test_help_never_splits_a_scenario_name(width: int) -> None:
+    from click.testing import CliRunner
+
+    from lanewarden.cli import cli
+    from lanewarden.scenarios.library import library_names
+
+    result = CliRunner().invoke(cli, ["sim", "--help"], terminal_width=width)
+    assert result.exit_code == 0
+    words = set(result.output.replace(",", " ").split())
+    for name in library_names():
+        assert name in words, f"{name} split or missing in sim --help at width {width}"
+
+
+def test_a_run_replaces_the_old_outputs_and_keeps_other_files(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text(SHORT.replace("max_time_s: 3", "max_time_s: 0.5"), encoding="utf-8")
+    out = tmp_path / "missing" / "run"
+    out.mkdir(parents=True)
+    for stale in ("video.mp4", "poster.jpg", "metrics.json", "PARTIAL"):
+        (out / stale).write_text("from an older run")
+    (out / "notes.txt").write_text("mine")
+    assert main(["sim", "--scenario", str(scenario), "--out", str(out), "--quiet",
+                 "--no-video"]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "metrics.json", "notes.txt", "plot.png", "report.html", "run.jsonl"]
+    assert json.loads((out / "metrics.json").read_text())["outputs"] == [
+        "metrics.json", "plot.png", "report.html", "run.jsonl"]
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_an_output_folder_that_is_a_file_is_bad_input(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "taken").write_text("a file")
+    assert main(["sim", "--scenario", "straight", "--out", str(tmp_path / "taken")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Invalid value for '--out'" in err and "is a file" in err
+
+
+def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None:
+    scenario = tmp_path / "long.yaml"
+    scenario.write_text(SHORT.replace("max_time_s: 3", "max_time_s: 60")
+                        .replace("straight_m: 3.0", "straight_m: 30.0"), encoding="utf-8")
+    out = tmp_path / "run"
+    run = subprocess.Popen(
+        [sys.executable, "-m", "lanewarden", "sim", "--scenario", str(scenario), "--out",
+         str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        # Wait (generously) until the run is under way: steps are being recorded.
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and run.poll() is None and not (
+                (out / "run.jsonl").exists() and (out / "run.jsonl").stat().st_size > 0):
+            threading.Event().wait(0.05)
+        assert run.poll() is None, run.communicate()
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=120.0)
+    finally:
+        run.kill()
+    assert run.returncode == 130
+    assert err.splitlines() == [
+        f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
+    marker = (out / "PARTIAL").read_text().splitlines()
+    assert marker[0].startswith("This folder's outputs are incomplete")
+    assert marker[2:] == ["  metrics.json", "  run.jsonl", "  video.mp4", "  poster.jpg",
+                          "  plot.png", "  report.html"]
+    assert not (out / "metrics.json").exists()
 
 
 def test_bad_scenario_file_names_file_and_key(tmp_path: Path,
@@ -47,8 +138,8 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path,
     bad.write_text(SHORT.replace("max_time_s: 3", "max_time_s: -3"), encoding="utf-8")
     assert main(["sim", "--scenario", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"lanewarden: error: {bad}: run.max_time_s = -3: input should be greater "
-                   "than 0"]
+    assert err == [f"lanewarden: error: {bad}: run.max_time_s = -3: expected a finite number "
+                   "with 0 < value <= 600"]
 
 
 def test_sim_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -74,7 +165,14 @@ def test_sim_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert (out / "plot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     info = video_info(out / "video.mp4")
     assert info["codec"] == "h264" and str(info["pix_fmt"]).startswith("yuv420p")
-    assert info["size"] == (640 + 480, 480)  # camera panel beside the map
+    assert info["size"] == (640 + 480, 480 + 110)  # camera panel beside the map, under a caption
+    assert sorted(metrics["outputs"]) == metrics["outputs"] == [
+        "metrics.json", "plot.png", "poster.jpg", "report.html", "run.jsonl", "video.mp4"]
+    assert metrics["video_poster"] == {"shows": "the last frame", "time_s": 3.0}
+    poster = cv2.imread(str(out / "poster.jpg"))
+    assert poster.shape == (480 + 110, 640 + 480, 3)
+    assert not (out / "PARTIAL").exists()
+    assert 'poster="poster.jpg"' in (out / "report.html").read_text()
     stdout = capsys.readouterr().out
     assert "expected outcome: met" in stdout and str(out) in stdout
 

@@ -11,7 +11,7 @@ from lanewarden.scenarios.library import library_names, library_path, resolve_sc
 from lanewarden.scenarios.spec import load_scenario_file, parse_scenario
 
 REQUIRED = {
-    "lecture", "straight", "s-curve", "dashed", "one-edge-gap", "lane-ends", "glare",
+    "lecture", "wide-bends", "straight", "s-curve", "dashed", "one-edge-gap", "lane-ends", "glare",
     "dark-tape-on-light", "light-tape-on-dark",
 }
 

@@ -20,6 +20,7 @@ from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
 from lanewarden.supervisor.controller import SupervisedController
 from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import Frame
 
 DT = 1.0 / 30.0
@@ -55,11 +56,13 @@ _UNSET = object()
 
 
 class Rig:
-    """A SupervisedController stepped at 30 Hz on a fake clock with hand-made inputs."""
+    """A SupervisedController behind its SafetyGate (as every run has it), stepped at 30 Hz on a
+    fake clock with hand-made inputs. Outputs are the gate's (what would reach the base)."""
 
     def __init__(self, config: SupervisorConfig | None = None) -> None:
         self.config = config or SupervisorConfig()
         self.controller = SupervisedController(self.config)
+        self.gate = SafetyGate(self.controller, self.config)
         self.clock = FakeClock()
         self.index = -1
         self.frame: FrameInfo | None = None
@@ -117,7 +120,7 @@ class Rig:
             )
         fb = BaseFeedback(received_at_s=now) if feedback is _UNSET else feedback
         assert fb is None or isinstance(fb, BaseFeedback)
-        out = self.controller.step(
+        out = self.gate.step(
             ControlInputs(
                 frame=self.frame,
                 observation=observation_,
@@ -147,23 +150,26 @@ class Rig:
 # --- neighbours of the control loop ---
 
 
-def noisy_image(index: int, size: int = 16) -> np.ndarray:
-    """A tiny BGR image whose pixels differ from frame to frame (like sensor noise)."""
+def noisy_image(index: int, size: tuple[int, int] = (16, 16)) -> np.ndarray:
+    """A BGR image (tiny by default, `size` = (width, height)) whose pixels differ from frame to
+    frame (like sensor noise)."""
     rng = np.random.default_rng(index)
-    return rng.integers(0, 256, size=(size, size, 3), dtype=np.uint8)
+    return rng.integers(0, 256, size=(size[1], size[0], 3), dtype=np.uint8)
 
 
 @dataclass
 class ScriptedCamera:
     """Frames every `period_s` from t=0. `read(now)` returns the newest frame captured at or before
     `now - latency_s(now)`. Frames stop after `stop_at_s`; from `freeze_at_s` on every new frame
-    carries the same pixels (a frozen driver); `fail_at_s` makes read() raise."""
+    carries the same pixels (a frozen driver); `fail_at_s` makes read() raise. `size`: the
+    frames' (width, height)."""
 
     period_s: float = DT
     stop_at_s: float = float("inf")
     freeze_at_s: float = float("inf")
     fail_at_s: float = float("inf")
     latency_s: Callable[[float], float] = lambda now: 0.0
+    size: tuple[int, int] = (16, 16)
     _frozen: np.ndarray | None = None
 
     def read(self, now: float) -> Frame | None:
@@ -176,10 +182,10 @@ class ScriptedCamera:
         time_s = index * self.period_s
         if time_s >= self.freeze_at_s:
             if self._frozen is None:
-                self._frozen = noisy_image(index)
+                self._frozen = noisy_image(index, self.size)
             image = self._frozen
         else:
-            image = noisy_image(index)
+            image = noisy_image(index, self.size)
         return Frame(image=image, index=index, time_s=time_s)
 
 

@@ -9,10 +9,11 @@ import pytest
 from lanewarden.actuation.base import STOP, VelocityCommand
 from lanewarden.supervisor.commands import command_for, proportional_steering_rad_s
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.limiter import CommandLimiter
+from lanewarden.supervisor.limiter import CommandLimiter, CommandLimits
 from lanewarden.supervisor.state_machine import SupervisorState as S
 
 CONFIG = SupervisorConfig()
+LIMITS = CommandLimits.for_driving(CONFIG)
 DT = 1.0 / 30.0
 
 
@@ -43,7 +44,7 @@ def test_command_per_state() -> None:
 
 
 def test_limiter_ramps_up_at_the_accel_limits() -> None:
-    limiter = CommandLimiter(CONFIG)
+    limiter = CommandLimiter(LIMITS)
     out = limiter.limit(VelocityCommand(0.2, 1.0), DT)
     assert out.linear_m_s == pytest.approx(CONFIG.max_linear_accel_m_s2 * DT)
     assert out.angular_rad_s == pytest.approx(CONFIG.max_angular_accel_rad_s2 * DT)
@@ -53,15 +54,15 @@ def test_limiter_ramps_up_at_the_accel_limits() -> None:
 
 
 def test_limiter_caps_speeds() -> None:
-    limiter = CommandLimiter(CONFIG)
+    limiter = CommandLimiter(LIMITS)
     for _ in range(200):
         out = limiter.limit(VelocityCommand(5.0, -9.0), DT)
-    assert out == VelocityCommand(CONFIG.max_linear_m_s, -CONFIG.max_angular_rad_s)
+    assert out == VelocityCommand(CONFIG.limiter_max_linear_m_s, -CONFIG.limiter_max_angular_rad_s)
 
 
 @pytest.mark.parametrize("how", ["stop", "zero command", "nan command"])
 def test_a_stop_is_never_ramped(how: str) -> None:
-    limiter = CommandLimiter(CONFIG)
+    limiter = CommandLimiter(LIMITS)
     for _ in range(60):
         limiter.limit(VelocityCommand(0.2, 0.5), DT)
     if how == "stop":
@@ -76,7 +77,7 @@ def test_a_stop_is_never_ramped(how: str) -> None:
 
 
 def test_slowing_down_is_immediate_and_reversal_goes_through_zero() -> None:
-    limiter = CommandLimiter(CONFIG)
+    limiter = CommandLimiter(LIMITS)
     for _ in range(60):
         limiter.limit(VelocityCommand(0.2, 0.8), DT)
     slow = limiter.limit(VelocityCommand(0.1, 0.2), DT)

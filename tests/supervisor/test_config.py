@@ -1,4 +1,5 @@
-"""The supervisor's config section: defaults are consistent, bad combinations are refused by key."""
+"""The supervisor's config section: defaults are consistent, bad combinations are refused by key,
+and the settings it shares with other sections agree with them (one line per conflict)."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ def test_defaults_are_valid_and_match_the_requirements() -> None:
 def test_every_timing_and_threshold_has_its_unit_or_kind_in_its_name() -> None:
     suffixes = ("_s", "_m", "_m_s", "_rad_s", "_m_s2", "_rad_s2", "_frames", "_count", "_per_s",
                 "_per_s2", "_std", "_sigma", "_fraction", "_slope_sum", "_min", "_below", "_floor",
-                "_threshold")  # fmt: skip
+                "_threshold", "_v")  # fmt: skip
     for name, field in SupervisorConfig.model_fields.items():
         if field.annotation is bool:
             continue
@@ -51,6 +52,37 @@ def test_inconsistent_values_are_refused_naming_the_keys(
     with pytest.raises(ConfigError) as err:
         load_config(path)
     assert message in str(err.value) and str(path) in str(err.value)
+
+
+def test_sections_that_disagree_are_refused_one_line_per_conflict(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(
+        "supervisor:\n  limiter_max_linear_m_s: 0.3\n  limiter_max_angular_rad_s: 2.0\n"
+        "  camera_period_s: 0.05\n"
+        "actuation:\n  max_linear_m_s: 0.25\n  max_angular_rad_s: 1.5\n"
+        "perception:\n  edges: {max_abs_slope: 2.5}\n"
+    )
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).splitlines() == [
+        f"{path}: supervisor.limiter_max_linear_m_s = 0.3: must not exceed "
+        "actuation.max_linear_m_s (0.25 m/s), the base's own limit",
+        f"{path}: supervisor.limiter_max_angular_rad_s = 2.0: must not exceed "
+        "actuation.max_angular_rad_s (1.5 rad/s), the base's own limit",
+        f"{path}: supervisor.camera_period_s = 0.05: must be 1 / simulation.camera_rate_hz "
+        "(30 Hz, 0.0333333 s): the simulated camera is the robot's",
+        f"{path}: supervisor.turn_enter_slope_sum = 6.0: must be below twice "
+        "perception.edges.max_abs_slope (2.5): two clamped slopes could never reach it",
+    ]
+
+
+def test_agreeing_sections_load_and_the_shared_quantities_have_one_home(tmp_path: Path) -> None:
+    path = tmp_path / "ok.yaml"
+    path.write_text("supervisor:\n  camera_period_s: 0.05\nsimulation:\n  camera_rate_hz: 20\n")
+    assert load_config(path).supervisor.camera_period_s == 0.05
+    keys = set(SupervisorConfig.model_fields)
+    assert {"turn_enter_slope_sum", "confidence_usable_min", "limiter_max_linear_m_s"} <= keys
+    assert not keys & {"lecture_slope_sum_threshold", "max_linear_m_s", "max_angular_rad_s"}
 
 
 def test_unknown_and_mistyped_keys_are_refused(tmp_path: Path) -> None:

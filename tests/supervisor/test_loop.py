@@ -14,6 +14,7 @@ from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.controller import SupervisedController
 from lanewarden.supervisor.controllers import make_controller
 from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.lecture import LectureController
 from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
 from lanewarden.supervisor.recorder import JsonlRecorder
@@ -44,7 +45,7 @@ class Run:
         self.loop = ControlLoop(
             camera or ScriptedCamera(),
             detector or ScriptedDetector(),
-            controller or SupervisedController(CONFIG),
+            SafetyGate(controller or SupervisedController(CONFIG), CONFIG),
             self.base,
             record=self.records.append,
         )
@@ -248,7 +249,8 @@ def test_jsonl_recorder_writes_one_flushed_line_per_step(tmp_path: Path) -> None
     with JsonlRecorder(path) as recorder:
         run = Run()
         run.loop = ControlLoop(
-            ScriptedCamera(), ScriptedDetector(), SupervisedController(CONFIG), SimBase(),
+            ScriptedCamera(), ScriptedDetector(),
+            SafetyGate(SupervisedController(CONFIG), CONFIG), SimBase(),
             record=recorder,
         )  # fmt: skip
         run.loop.start(0.0)
@@ -263,6 +265,28 @@ def test_jsonl_recorder_writes_one_flushed_line_per_step(tmp_path: Path) -> None
         "state", "events", "command", "halt_reason",
     }  # fmt: skip
     assert rows[-1]["command"]["linear_m_s"] > 0.0
+
+
+def test_records_say_whether_the_supervisor_trusted_each_new_frame() -> None:
+    def script(i: int, t: float):  # type: ignore[no-untyped-def]
+        if i == 20:
+            return observation(i, t, confidence=0.1)  # below confidence_usable_min (0.2)
+        if i == 21:
+            return observation(i, t, right=False, confidence=0.3)  # one edge, usable
+        return observation(i, t)
+
+    run = Run(camera=ScriptedCamera(period_s=2 * DT), detector=ScriptedDetector(script))
+    run.loop.start(0.0)
+    run.until(1.5)
+    by_frame = {r.frame_index: r.lane_trusted for r in run.records if r.observation is not None}
+    assert (by_frame[19], by_frame[20], by_frame[21], by_frame[22]) == (True, False, True, True)
+    assert {r.lane_trusted for r in run.records if r.observation is None} == {None}
+    assert {r.as_json()["lane_trusted"] for r in run.records} == {True, False, None}
+
+    lecture = Run(controller=LectureController(CONFIG))
+    lecture.loop.start(0.0)
+    lecture.until(0.5)
+    assert {r.lane_trusted for r in lecture.records} == {None}  # the lecture judges nothing
 
 
 def test_recorder_refuses_an_unwritable_path_in_one_line(tmp_path: Path) -> None:

@@ -1,4 +1,6 @@
-"""The state machine: every state x every event, engaging, latching, hysteresis, DEGRADED."""
+"""The state machine: every state x every event and every state x every condition against tables
+written out here (a policy change must change a test), then engaging, latching, hysteresis and
+DEGRADED in detail."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ import pytest
 
 from lanewarden.actuation.base import STOP
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.events import EVENT_TABLE, Event, Response
+from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.state_machine import (
     TRANSITIONS,
     StepFacts,
@@ -64,16 +66,54 @@ REACH: dict[str, Callable[[], tuple[Rig, float]]] = {
 }
 
 
-def _expected_state(state: str, response: Response) -> str:
-    if state == "HALT" or response is Response.HALT:
-        return "HALT"
-    if response is Response.DEGRADE:
-        return "DEGRADED"
-    return state
+def _table(text: str) -> dict[str, dict[str, str]]:
+    """A written-out table: a header row of state names, then `row-name  next-state...` rows
+    (row names may contain single spaces; columns are separated by two or more)."""
+    header, *rows = [line for line in text.strip().splitlines() if line.strip()]
+    states = header.split()
+    table = {}
+    for row in rows:
+        name, *cells = [cell.strip() for cell in row.split("  ") if cell.strip()]
+        assert len(cells) == len(states), row
+        table[name] = dict(zip(states, cells, strict=True))
+    return table
 
 
-def test_reach_covers_every_state() -> None:
+#: The next state after one step with the event (and an otherwise good frame), from each state.
+AFTER_EVENT = _table("""
+                            FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+OPERATOR_STOP               HALT        HALT        HALT        HALT        HALT
+BUMPER                      HALT        HALT        HALT        HALT        HALT
+CLIFF                       HALT        HALT        HALT        HALT        HALT
+WHEEL_DROP                  HALT        HALT        HALT        HALT        HALT
+BASE_LINK_LOST              HALT        HALT        HALT        HALT        HALT
+BATTERY_CRITICAL            HALT        HALT        HALT        HALT        HALT
+CAMERA_ERROR                HALT        HALT        HALT        HALT        HALT
+PERCEPTION_ERROR            HALT        HALT        HALT        HALT        HALT
+MALFORMED_OBSERVATION       HALT        HALT        HALT        HALT        HALT
+FRAME_INVALID               HALT        HALT        HALT        HALT        HALT
+CLOCK_INVALID               HALT        HALT        HALT        HALT        HALT
+FRAME_STALE                 HALT        HALT        HALT        HALT        HALT
+FRAME_FROZEN                HALT        HALT        HALT        HALT        HALT
+LANE_LOST                   HALT        HALT        HALT        HALT        HALT
+DEGRADED_BUDGET_EXHAUSTED   HALT        HALT        HALT        HALT        HALT
+FRAME_LATE                  DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+BASE_FEEDBACK_LATE          DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+BOTH_EDGES_LOST             DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+LANE_UNTRUSTED              DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+ONE_EDGE_LOST               DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+LANE_LOW_CONFIDENCE         DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+REPEATED_OUTLIERS           DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+INNOVATION_OUTLIER          FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+LOOP_OVERRUN                FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+BATTERY_LOW                 FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+""")
+
+
+def test_reach_covers_every_state_and_the_tables_every_state_and_event() -> None:
     assert set(REACH) == {s.value for s in SupervisorState}
+    assert set(AFTER_EVENT) == {e.value for e in Event}
+    assert all(set(row) == set(REACH) for row in AFTER_EVENT.values())
 
 
 @pytest.mark.parametrize("state", list(REACH))
@@ -84,14 +124,14 @@ def test_every_state_x_every_event(state: str, event: Event) -> None:
     assert rig.state == twin.state == state
     out = rig.step(slope_sum=slope_sum, events={event})
     reference = twin.step(slope_sum=slope_sum)  # the same step without the event
-    response = EVENT_TABLE[event].response
-    expected = _expected_state(state, response)
-    assert out.state == expected
+    expected = AFTER_EVENT[event.value][state]
+    assert rig.state == expected  # the state machine's own decision
+    assert out.state == expected  # and what left the gate
     assert event in out.events
     if expected == "HALT":
         assert out.command == STOP  # zero in the same step, from any state
         assert out.halt_reason is not None
-        if response is Response.HALT:
+        if AFTER_EVENT[event.value]["FOLLOW"] == "HALT":  # a halting event names the reason
             assert out.halt_reason.startswith(event.value)
     elif expected == "DEGRADED":
         assert (
@@ -101,6 +141,92 @@ def test_every_state_x_every_event(state: str, event: Event) -> None:
     else:  # a warning changes nothing about the drive
         assert out.command == reference.command
         assert out.command.linear_m_s > 0.0
+
+
+# --- every state x every condition, on the machine itself ----------------------------------
+
+
+class MachineRig:
+    """The bare state machine ticked at 30 Hz with hand-made facts (a confident frame with a
+    fresh lane and the given filtered slope sum, unless told otherwise)."""
+
+    def __init__(self) -> None:
+        self.machine = SupervisorStateMachine(CONFIG)
+        self.now = 0.0
+
+    def tick(self, slope_sum: float = 0.0, **kw: object) -> str:
+        self.now += DT
+        facts = {"now": self.now, "lane_seen_at_s": self.now, "slope_sum": slope_sum,
+                 "frame_confident": True, **kw}  # fmt: skip
+        self.machine.step(StepFacts(**facts))  # type: ignore[arg-type]
+        return self.machine.state.value
+
+
+#: The filtered slope sum each state holds while the condition is not about the slope sum.
+HOLD = {"FOLLOW": 0.0, "TURN_LEFT": 8.0, "TURN_RIGHT": -8.0, "DEGRADED": 0.0, "HALT": 0.0}
+
+
+def _machine_in(state: str) -> MachineRig:
+    rig = MachineRig()
+    rig.tick(engage_requested=True)
+    for _ in range(CONFIG.engage_confident_frames - 1):
+        rig.tick()
+    entry = {"FOLLOW": {}, "TURN_LEFT": {"slope_sum": 8.0}, "TURN_RIGHT": {"slope_sum": -8.0},
+             "DEGRADED": {"events": frozenset({Event.FRAME_LATE})},
+             "HALT": {"events": frozenset({Event.FRAME_STALE})}}[state]  # fmt: skip
+    assert rig.tick(**entry) == state  # type: ignore[arg-type]
+    return rig
+
+
+def _condition(name: str, rig: MachineRig, hold: float) -> str:
+    """Apply the named condition (one or more ticks); the state after it."""
+    if name == "halt event":
+        return rig.tick(hold, events=frozenset({Event.FRAME_STALE}))
+    if name == "degrade event":
+        return rig.tick(hold, events=frozenset({Event.FRAME_LATE}))
+    if name == "warning only":
+        return rig.tick(hold, events=frozenset({Event.LOOP_OVERRUN}))
+    if name == "lane gone 0.3 s":
+        return rig.tick(hold, lane_seen_at_s=rig.now + DT - 0.3, frame_confident=False)
+    if name == "unconfident frame":
+        return rig.tick(hold, frame_confident=False)
+    if name == "no new frame":
+        return rig.tick(hold, frame_confident=None)
+    single = {"bend left": 8.0, "bend right": -8.0, "inside the band": 5.0, "straight": 0.0}
+    if name in single:
+        return rig.tick(single[name])
+    count, start = {"4 confident frames": (4, False), "5 confident frames": (5, False),
+                    "start + 9 confident": (9, True), "start + 10 confident": (10, True)}[name]
+    states = [rig.tick(engage_requested=start and i == 0) for i in range(count)]
+    return states[-1]
+
+
+#: The state after the condition, from each state (N = 10 to engage, m = 5 to recover; turns
+#: enter at +-6 and leave inside +-4).
+AFTER_CONDITION = _table("""
+                        FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+halt event              HALT        HALT        HALT        HALT        HALT
+degrade event           DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT
+warning only            FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+lane gone 0.3 s         HALT        HALT        HALT        HALT        HALT
+unconfident frame       FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+no new frame            FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
+bend left               TURN_LEFT   TURN_LEFT   TURN_LEFT   DEGRADED    HALT
+bend right              TURN_RIGHT  TURN_RIGHT  TURN_RIGHT  DEGRADED    HALT
+inside the band         FOLLOW      TURN_LEFT   FOLLOW      DEGRADED    HALT
+straight                FOLLOW      FOLLOW      FOLLOW      DEGRADED    HALT
+4 confident frames      FOLLOW      FOLLOW      FOLLOW      DEGRADED    HALT
+5 confident frames      FOLLOW      FOLLOW      FOLLOW      FOLLOW      HALT
+start + 9 confident     FOLLOW      FOLLOW      FOLLOW      FOLLOW      HALT
+start + 10 confident    FOLLOW      FOLLOW      FOLLOW      FOLLOW      FOLLOW
+""")
+
+
+@pytest.mark.parametrize("state", list(HOLD))
+@pytest.mark.parametrize("condition", list(AFTER_CONDITION))
+def test_every_state_x_every_condition(state: str, condition: str) -> None:
+    rig = _machine_in(state)
+    assert _condition(condition, rig, HOLD[state]) == AFTER_CONDITION[condition][state]
 
 
 # --- engagement and latching -----------------------------------------------------------------

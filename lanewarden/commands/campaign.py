@@ -1,0 +1,142 @@
+"""`lanewarden campaign`: a fault-injection campaign on Dask distributed (or in this process).
+
+Thin shell: parse flags, load the config and the campaign spec, run the cases through
+`scenarios.campaign.runner` with a progress bar (outcome counts), then write junit.xml and
+report.html from every stored row. Ctrl-C leaves a resumable result file (exit 130).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import click
+
+from lanewarden.assembly import build_stack
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.config import load_config
+from lanewarden.errors import UsageError
+from lanewarden.scenarios.campaign.cases import load_campaign_spec
+from lanewarden.scenarios.campaign.outcome import OUTCOMES
+from lanewarden.scenarios.campaign.report import write_junit, write_report
+from lanewarden.scenarios.campaign.runner import (
+    IN_PROCESS,
+    LOCAL,
+    SCHEDULER_ENV,
+    CampaignPlan,
+    CampaignProgress,
+    run_campaign,
+)
+from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
+from lanewarden.scenarios.errors import ScenarioError
+
+EXAMPLES = """\b
+Examples:
+  lanewarden campaign --spec default --out campaign-out --runs 200
+  lanewarden campaign --spec my-spec.yaml --out big --runs 5000 --scheduler tcp://10.0.0.5:8786
+  lanewarden sim --case campaign-out/cases/r00042.yaml
+"""
+
+
+def _counts(progress: CampaignProgress) -> str:
+    return " ".join(f"{o}={progress.counts[o]}" for o in OUTCOMES if progress.counts[o])
+
+
+@click.command("campaign", epilog=EXAMPLES)
+@click.option("--spec", "spec_name", required=True, metavar="FILE|default",
+              help="The campaign spec: a YAML file, or 'default' (every fault kind across the "
+              "library scenarios and several cameras).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Output directory: results.sqlite, cases/, junit.xml, report.html. Running "
+              "again with the same spec and seed resumes.")
+@click.option("--runs", type=click.IntRange(1, 1_000_000), default=None,
+              help="Number of runs to draw (default: 100).")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Campaign seed: the same seed draws the same cases.")
+@click.option("--scheduler", default=None, metavar="ADDRESS|local|in-process",
+              help=f"A Dask scheduler address (default: ${SCHEDULER_ENV} if set, else a "
+              "local cluster with one single-threaded worker process per core); 'in-process' "
+              "runs without Dask.")
+@click.option("--workers", type=click.IntRange(1, 512), default=None,
+              help="Worker processes of the local cluster (default: one per core).")
+@config_option
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
+                     scheduler: str | None, workers: int | None, config_path: str | None,
+                     quiet: bool) -> None:
+    """Draw randomized fault-injection runs from a spec, run them on Dask, classify each
+    (safe_halt, recovered, nominal, false_halt, unsafe, error), write results and a report."""
+    from tqdm import tqdm
+
+    started = time.perf_counter()
+    config = load_config(config_path)
+    try:
+        spec, spec_path = load_campaign_spec(spec_name)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from None
+    scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or LOCAL
+    overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
+    out = Path(out_dir)
+    plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
+                        runs=runs or 100, out_dir=out, config_overrides=overrides,
+                        follow_speed_m_s=config.supervisor.follow_speed_m_s,
+                        worker_memory_limit_mb=config.campaign.worker_memory_limit_mb)
+    bar: Any = None
+
+    def on_start(progress: CampaignProgress, where: str) -> None:
+        nonlocal bar
+        click.echo(f"campaign {spec.name}: {progress.total} runs (seed {seed}), "
+                   f"{progress.done} already stored; running {where}", err=True)
+        bar = tqdm(total=progress.total, initial=progress.done, unit="run", file=sys.stderr,
+                   disable=quiet or not sys.stderr.isatty(), dynamic_ncols=True)
+        bar.set_postfix_str(_counts(progress))
+
+    def on_row(row: dict[str, Any], progress: CampaignProgress) -> None:
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(_counts(progress), refresh=False)
+
+    # SIGTERM stops a campaign like Ctrl-C: the cluster is shut down, finished rows stay.
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        progress = run_campaign(plan, scheduler, workers, on_start, on_row)
+    except CampaignMismatch as exc:
+        raise UsageError(f"--out {out}: {exc}") from None
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        click.echo(f"campaign interrupted: finished runs are stored in {out / 'results.sqlite'}"
+                   "; run the same command again to resume", err=True)
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if bar is not None:
+            bar.close()
+    with ResultStore(out / "results.sqlite") as store:
+        rows = store.rows(f"r{i:05d}" for i in range(plan.runs))
+    summary = (f"{len(rows)} runs of spec {spec.name} (seed {seed}), "
+               f"{time.perf_counter() - started:.0f} s: {_counts(progress)}")
+    try:
+        write_junit(out / "junit.xml", spec.name, rows)
+        write_report(out / "report.html", spec.name, rows, out, summary)
+    except OSError as exc:
+        raise ScenarioError(f"{out}: cannot write the report ({exc})") from exc
+    click.echo(summary)
+    click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
+               f"Report: {out / 'report.html'}")
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def commands() -> list[click.Command]:
+    return [campaign_command]
+
+
+__all__ = ["IN_PROCESS", "commands"]

@@ -1,0 +1,36 @@
+"""Where commands write: every `--out` folder (or the folder of an `--out` file) is created with
+any missing parents, the same way for every command.
+
+A path that exists as the wrong kind (a file where a folder is wanted, or the reverse) is bad
+input (UsageError, exit 2); a folder that cannot be created is an I/O failure (OSError from the
+system, reported as a one-line error, exit 1).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from lanewarden.errors import OutputError, UsageError
+
+
+def create_output_folder(folder: Path, flag: str = "--out") -> Path:
+    """`folder`, created with its missing parents; UsageError if it exists and is not a folder."""
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} '{folder}': exists and is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise UsageError(
+            f"{flag} '{folder}': a part of this path exists and is not a folder") from None
+    except OSError as exc:
+        raise OutputError(
+            f"{flag} '{folder}': cannot create the folder ({exc.strerror or exc})") from exc
+    return folder
+
+
+def create_output_file_folder(file: Path, flag: str = "--out") -> Path:
+    """`file`, after creating its folder; UsageError if `file` is a folder."""
+    if file.is_dir():
+        raise UsageError(f"{flag} '{file}': is a folder, expected a file name")
+    create_output_folder(file.parent, flag)
+    return file

@@ -1,0 +1,281 @@
+"""Reading a validated YAML document (a config file, a scenario file) safely, with one-line errors.
+
+Shared by the CLI's config loader and the scenario files. Hostile files are refused before they
+cost time or memory: a file larger than `MAX_DOCUMENT_BYTES` is not read past that size, and the
+YAML event stream is checked BEFORE anything is built from it (PyYAML's composer recurses once per
+nesting level, and its loader expands aliases into shared objects that every later walk, e.g.
+pydantic's validation, visits in full): nesting deeper than `MAX_NESTING_DEPTH` and documents that
+expand (aliases counted with the size of what they point to) to more than `MAX_EXPANDED_NODES`
+values are refused. Pydantic validation errors become one line each, naming the file, the dotted
+key, the bad value (cut to `MAX_SHOWN_CHARS`) and what was expected: the allowed range of a
+numeric key, or "did you mean ...?" for an unknown key.
+
+A leaf module: it imports no layer (perception, supervisor, actuation, scenarios), so every layer
+may use it. Raises the caller's own exception type, so each layer keeps its own error hierarchy.
+Never prints.
+"""
+
+from __future__ import annotations
+
+import difflib
+import reprlib
+import types
+import typing
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import annotated_types
+import yaml
+from pydantic import BaseModel, ValidationError
+from pydantic.fields import FieldInfo
+
+#: Largest config or scenario file read, bytes (the shipped ones are a few kB).
+MAX_DOCUMENT_BYTES = 1_000_000
+#: Deepest nesting of mappings and lists (the config tree is 5 deep, a scenario 4).
+MAX_NESTING_DEPTH = 32
+#: Most values (scalars, mappings, lists) a document may expand to, each alias counted as the
+#: size of what it points to: a YAML "billion laughs" is refused instead of expanded.
+MAX_EXPANDED_NODES = 100_000
+#: Bad values are shown cut to this many characters in error messages.
+MAX_SHOWN_CHARS = 60
+
+_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxtuple, _SHORT.maxdict = 2, 4, 4, 4
+_SHORT.maxstring = _SHORT.maxother = _SHORT.maxlong = MAX_SHOWN_CHARS
+
+
+class DocumentTooLarge(ValueError):
+    """The YAML event stream breaks one of the limits above (the message says which)."""
+
+
+def shorten(text: str, limit: int = MAX_SHOWN_CHARS) -> str:
+    """`text` cut to `limit` characters, ending in '…' when cut."""
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def shown_value(value: object) -> str:
+    """A bad value as it appears in an error line: short, whatever its size."""
+    if isinstance(value, Mapping):
+        return "a mapping"
+    if isinstance(value, list | tuple) and len(value) > 4:
+        return f"a list of {len(value)} items"
+    return shorten(_SHORT.repr(value))
+
+
+def check_event_stream(text: str) -> None:
+    """DocumentTooLarge if `text` nests deeper than MAX_NESTING_DEPTH or expands to more than
+    MAX_EXPANDED_NODES values. Walks the parser's events only: nothing is built, nothing recurses.
+    yaml.YAMLError for text that is not YAML."""
+    open_sizes: list[int] = []  # per open mapping/list: values inside it so far (itself included)
+    open_anchors: list[str | None] = []
+    anchor_sizes: dict[str, int] = {}
+    total = 0
+
+    def add(count: int) -> None:
+        nonlocal total
+        total += count
+        if open_sizes:
+            open_sizes[-1] += count
+        if total > MAX_EXPANDED_NODES:
+            raise DocumentTooLarge(
+                f"expands to more than {MAX_EXPANDED_NODES} values (aliases count as what they "
+                "point to)"
+            )
+
+    for event in yaml.parse(text, Loader=_LOADER):
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(open_sizes) >= MAX_NESTING_DEPTH:
+                raise DocumentTooLarge(f"nested deeper than {MAX_NESTING_DEPTH} levels")
+            open_sizes.append(0)
+            open_anchors.append(event.anchor)
+            add(1)
+        elif isinstance(event, yaml.CollectionEndEvent):
+            size = open_sizes.pop()
+            anchor = open_anchors.pop()
+            if open_sizes:
+                open_sizes[-1] += size
+            if anchor is not None:
+                anchor_sizes[anchor] = size
+        elif isinstance(event, yaml.ScalarEvent):
+            if event.anchor is not None:
+                anchor_sizes[event.anchor] = 1
+            add(1)
+        elif isinstance(event, yaml.AliasEvent):
+            add(anchor_sizes.get(event.anchor or "", 1))
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+    problem = getattr(exc, "problem", None) or "invalid YAML"
+    return f"not valid YAML{where}: {shorten(str(problem))}"
+
+
+def parse_yaml_text(text: str, source: str, error: type[Exception]) -> Any:
+    """Parse YAML text within the limits above; `error(...)` (one line naming `source`) if not."""
+    if len(text) > MAX_DOCUMENT_BYTES:
+        raise error(f"{source}: larger than {MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
+    try:
+        check_event_stream(text)
+        return yaml.load(text, Loader=_LOADER)  # a safe loader (LibYAML or Python)
+    except DocumentTooLarge as exc:
+        raise error(f"{source}: {exc}, refusing to read it") from None
+    except yaml.YAMLError as exc:
+        raise error(f"{source}: {_yaml_problem(exc)}") from None
+
+
+def read_yaml_document(path: str | Path, what: str, error: type[Exception]) -> Any:
+    """Read and parse one YAML file within the limits above; `error(...)` (one line naming the
+    file) when it can't be. Never reads more than MAX_DOCUMENT_BYTES + 1 bytes."""
+    path = Path(path)
+    try:
+        with path.open("rb") as stream:
+            data = stream.read(MAX_DOCUMENT_BYTES + 1)
+    except FileNotFoundError:
+        raise error(f"{path}: {what} file not found") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a directory, expected a {what} YAML file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} file ({shorten(str(exc))})") from None
+    if len(data) > MAX_DOCUMENT_BYTES:
+        raise error(
+            f"{path}: {what} file is larger than {MAX_DOCUMENT_BYTES // 1000} kB, refusing to read "
+            "it"
+        )
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: cannot read {what} file (not UTF-8 text: {exc.reason})") from None
+    return parse_yaml_text(text, str(path), error)
+
+
+# --------------------------------------------------------------------- the models' own limits
+
+
+def _unwrap(annotation: Any) -> list[Any]:
+    """The alternatives of an annotation: `X | None` -> [X, None], `X` -> [X]."""
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        return list(typing.get_args(annotation))
+    return [annotation]
+
+
+def _submodel(annotation: Any) -> type[BaseModel] | None:
+    for option in _unwrap(annotation):
+        if isinstance(option, type) and issubclass(option, BaseModel):
+            return option
+        if typing.get_origin(option) in (list, tuple):
+            items = [a for a in typing.get_args(option) if a is not Ellipsis]
+            if len(items) == 1 and isinstance(items[0], type) and issubclass(items[0], BaseModel):
+                return items[0]
+    return None
+
+
+def _locate(
+    model: type[BaseModel], loc: Sequence[str | int]
+) -> tuple[type[BaseModel] | None, FieldInfo | None]:
+    """The model that holds the last named key of `loc`, and that key's field (None when the key
+    is unknown: the model is then where it was looked for)."""
+    holder: type[BaseModel] = model
+    field: FieldInfo | None = None
+    for part in loc:
+        if isinstance(part, int):
+            continue  # an index into a list of models, or into a tuple of numbers
+        if part not in holder.model_fields:
+            return holder, None
+        field = holder.model_fields[part]
+        sub = _submodel(field.annotation)
+        if sub is None:
+            return holder, field
+        holder = sub
+    return holder, field
+
+
+def _number_kind(field: FieldInfo) -> str | None:
+    options = [o for o in _unwrap(field.annotation) if o is not type(None)]
+    if options == [int]:
+        return "an integer"
+    if options in ([float], [int, float], [float, int]):
+        return "a finite number"
+    return None
+
+
+def _format_bound(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def allowed_range(field: FieldInfo) -> str:
+    """The allowed values of a numeric key as text, e.g. '0 < value <= 5'; '' if not numeric."""
+    if _number_kind(field) is None:
+        return ""
+    low = high = ""
+    for item in field.metadata:
+        if isinstance(item, annotated_types.Gt):
+            low = f"{_format_bound(item.gt)} < "
+        elif isinstance(item, annotated_types.Ge):
+            low = f"{_format_bound(item.ge)} <= "
+        elif isinstance(item, annotated_types.Lt):
+            high = f" < {_format_bound(item.lt)}"
+        elif isinstance(item, annotated_types.Le):
+            high = f" <= {_format_bound(item.le)}"
+    return f"{low}value{high}" if low or high else ""
+
+
+_RANGE_ERRORS = {
+    "finite_number", "greater_than", "greater_than_equal", "less_than", "less_than_equal",
+    "float_parsing", "float_type", "int_parsing", "int_type", "int_from_float",
+}
+
+
+def _did_you_mean(model: type[BaseModel] | None, key: str) -> str:
+    """`key` with its last part replaced by the closest known key of `model`, or ''."""
+    if model is None:
+        return ""
+    *parents, name = key.split(".")
+    close = difflib.get_close_matches(name, list(model.model_fields), n=1, cutoff=0.6)
+    return ".".join([*parents, close[0]]) if close else ""
+
+
+def describe_validation_error(
+    source: str,
+    err: Mapping[str, Any],
+    model: type[BaseModel] | None = None,
+    unknown_key_hint: str = "",
+    prefix: Sequence[str | int] = (),
+) -> str:
+    """One line for one pydantic error of `model`: `source: key = value: what was expected`.
+
+    `prefix` is prepended to the key as shown (e.g. a scenario's `config.` block) but not used to
+    look the key up in `model`."""
+    loc = tuple(err["loc"])
+    key = ".".join(str(part) for part in (*prefix, *loc)) or "(top level)"
+    holder, field = _locate(model, loc) if model is not None else (None, None)
+    if err["type"] == "extra_forbidden":
+        close = _did_you_mean(holder, key)
+        hint = f": did you mean '{close}'?" if close else unknown_key_hint
+        return f"{source}: unknown key '{key}'{hint}"
+    shown = shown_value(err.get("input"))
+    message = str(err["msg"])
+    if message.startswith("Value error, "):
+        message = message[len("Value error, "):]
+    message = message[:1].lower() + message[1:]
+    if field is not None and loc and isinstance(loc[-1], str) and err["type"] in _RANGE_ERRORS:
+        kind, allowed = _number_kind(field), allowed_range(field)
+        if kind is not None and allowed:
+            message = f"expected {kind} with {allowed}"
+    return f"{source}: {key} = {shown}: {message}"
+
+
+def validation_error_lines(
+    source: str,
+    exc: ValidationError,
+    model: type[BaseModel] | None = None,
+    unknown_key_hint: str = "",
+    prefix: Sequence[str | int] = (),
+) -> str:
+    """Every problem of `exc`, one line each."""
+    return "\n".join(
+        describe_validation_error(source, err, model, unknown_key_hint, prefix)
+        for err in exc.errors()
+    )

@@ -1,0 +1,83 @@
+"""Reading image files for the CLI (`detect`, `undistort`, `calibrate`), with a pixel limit checked
+before decoding: a small file can decode to gigabytes (a 1 MB PNG of 20000x20000 pixels does).
+
+The size is read from the file's header with Pillow (it parses only the header on open; PNG, JPEG,
+BMP, TIFF, WebP, PNM, ...); OpenCV then decodes. For a format Pillow does not know, the decoded
+image is checked instead. Returns the reason an image cannot be used rather than raising, so a
+command can report every bad file in one line. Never prints.
+"""
+
+from __future__ import annotations
+
+import glob
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+
+#: The config key of the limit, named in the messages.
+LIMIT_KEY = "perception.max_image_pixels"
+
+
+def too_many_pixels(width: int, height: int, max_pixels: int) -> str:
+    """'' when a width x height image is within `max_pixels`, else why it is refused."""
+    if width * height <= max_pixels:
+        return ""
+    return (f"image is {width}x{height} = {width * height} pixels, more than "
+            f"{LIMIT_KEY} ({max_pixels})")
+
+
+def header_problem(path: Path, max_pixels: int) -> str:
+    """Why the image file is too large, judged from its header without decoding it; '' when it is
+    within the limit or its format is not one Pillow reads (it is then checked once decoded)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as image:
+                width, height = image.size
+    except Image.DecompressionBombError:
+        # Pillow's own limit, far above the largest max_image_pixels allowed
+        return f"image has more pixels than {LIMIT_KEY} ({max_pixels})"
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+        return ""
+    return too_many_pixels(int(width), int(height), max_pixels)
+
+
+def read_image(
+    path: Path, flags: int = cv2.IMREAD_COLOR, max_pixels: int | None = None
+) -> tuple[np.ndarray | None, str]:
+    """Decode an image file: (image, "") or (None, why it cannot be used). With `max_pixels`,
+    an image with more pixels is refused, from its header before decoding where the format
+    allows."""
+    if max_pixels is not None and path.is_file() and (why := header_problem(path, max_pixels)):
+        return None, why
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError as exc:
+        return None, f"cannot read file ({exc.strerror or exc})"
+    if data.size == 0:
+        return None, "empty file, not an image"
+    try:
+        image = cv2.imdecode(data, flags)
+    except cv2.error:
+        image = None
+    if image is None or image.size == 0:
+        return None, "not a readable image"
+    if max_pixels is not None and (why := too_many_pixels(image.shape[1], image.shape[0],
+                                                          max_pixels)):
+        return None, why
+    return image, ""
+
+
+def expand_images(pattern: str) -> list[Path]:
+    """Files matching a glob (or every file in a folder), sorted; folders are skipped."""
+    base = Path(pattern).expanduser()
+    if base.is_dir():
+        candidates = [p for p in base.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
+    else:
+        candidates = [Path(p) for p in glob.glob(str(base), recursive=True)]
+    return sorted(p for p in candidates if not p.is_dir())

@@ -1,0 +1,265 @@
+"""`lanewarden replay`'s outputs: the same files as `sim` (video.mp4 and its poster.jpg, plot.png,
+metrics.json, run.jsonl, report.html) in OUT/, drawn by the simulator's own video, plot and report
+code (`scenarios.video.VideoRecorder`, `scenarios.plot.write_plot`, `scenarios.report`), in an
+`OutputFolder` like `sim`'s (no stale file from an earlier run; PARTIAL until complete).
+
+The video's map panel has no world to draw for a real run: `OdometryMapView` draws the path the
+base's odometry recorded (a grid in metres), coloured by state, with the robot on it; for a video,
+images or a tub there is no odometry and the robot stays at the origin.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from lanewarden.actuation.base import Pose2D
+from lanewarden.assembly import decision_rule
+from lanewarden.config import LanewardenConfig
+from lanewarden.errors import OutputError
+from lanewarden.perception.calibration import CameraCalibration
+from lanewarden.perception.overlay import as_bgr, draw_detection
+from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
+from lanewarden.scenarios.output_folder import OutputFolder
+from lanewarden.scenarios.plot import PlotMarker, write_plot
+from lanewarden.scenarios.report import write_report
+from lanewarden.scenarios.sim_run import RUN_OUTPUTS, ordered_metrics
+from lanewarden.scenarios.state_reasons import state_reasons
+from lanewarden.scenarios.video import MapView, VideoRecorder
+from lanewarden.supervisor.recorder import JsonlRecorder
+
+RUN_NAME = "replay"
+#: Events that are not a safety stop of the run itself (an operator's, the end of the input).
+NORMAL_END_EVENTS = ("OPERATOR_STOP",)
+
+
+class OdometryMapView(MapView):
+    """A MapView over the recorded odometry instead of a painted world (same drawing code)."""
+
+    def __init__(self, poses: list[Pose2D], size_px: int) -> None:
+        xs = [p.x_m for p in poses] or [0.0]
+        ys = [p.y_m for p in poses] or [0.0]
+        pad = 0.8
+        span = max(max(xs) - min(xs), max(ys) - min(ys), 1.0) + 2 * pad
+        cx, cy = (max(xs) + min(xs)) / 2.0, (max(ys) + min(ys)) / 2.0
+        self.size = size_px
+        self.m_per_px = span / size_px
+        self.x_min = cx - span / 2.0
+        self.y_max = cy + span / 2.0
+        self._roi = np.zeros((0, 2))
+        self.background = self._grid(poses)
+        self._canvas = self.background.copy()
+        self._frame = np.empty_like(self.background)
+        self._last = None
+
+    def _grid(self, poses: list[Pose2D]) -> np.ndarray:
+        size = self.size
+        image = np.full((size, size, 3), 245, np.uint8)
+        first_x, last_x = math.floor(self.x_min), math.ceil(self.x_min + size * self.m_per_px)
+        for x in range(first_x, last_x + 1):
+            px = self.to_px(float(x), 0.0)[0]
+            cv2.line(image, (px, 0), (px, size - 1), (215, 215, 215), 1)
+        first_y, last_y = math.floor(self.y_max - size * self.m_per_px), math.ceil(self.y_max)
+        for y in range(first_y, last_y + 1):
+            py = self.to_px(0.0, float(y))[1]
+            cv2.line(image, (0, py), (size - 1, py), (215, 215, 215), 1)
+        moved = any(p.x_m or p.y_m for p in poses)
+        label = "odometry (1 m grid)" if moved else "no odometry (the base did not move)"
+        cv2.putText(image, label, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (90, 90, 90), 1,
+                    cv2.LINE_AA)
+        return image
+
+
+@dataclass(frozen=True)
+class ReplayRequest:
+    source: ReplaySource
+    config: LanewardenConfig
+    calibration: CameraCalibration | None
+    controller: str
+    out_dir: Path
+    video: bool = True
+
+
+def _poses(source: ReplaySource) -> list[Pose2D]:
+    return [s.feedback.odometry for s in source.steps if s.feedback is not None]
+
+
+def _video_every(times: list[float], video_fps: float) -> tuple[int, float]:
+    """Every k-th step goes into the video, and the video's frame rate to play in real time."""
+    gaps = np.diff(np.asarray(times, dtype=np.float64))
+    gaps = gaps[gaps > 0]
+    rate = 1.0 / float(np.median(gaps)) if len(gaps) else video_fps
+    every = max(1, round(rate / video_fps))
+    return every, min(max(rate / every, 1.0), 120.0)
+
+
+def run_replay(request: ReplayRequest) -> dict[str, Any]:
+    """Replay into OUT/ (the files `sim` writes); returns the metrics."""
+    started = time.perf_counter()
+    source, config = request.source, request.config
+    out = request.out_dir
+    folder = OutputFolder(out, RUN_OUTPUTS)
+    folder.begin()
+    times = [s.t for s in source.steps]
+    video: VideoRecorder | None = None
+    every, video_fps = _video_every(times, config.simulation.video.fps)
+    panel: np.ndarray | None = None
+    detection: tuple[Any, str] | None = None
+    records = []
+    decide = decision_rule(config)
+    divergences: list[Divergence] = []
+    distance = 0.0
+    last_pose: Pose2D | None = None
+    try:
+        with JsonlRecorder(out / "run.jsonl") as log:
+            for step in replay_steps(source, config, request.calibration, request.controller):
+                record = step.record
+                log(record)
+                records.append(record)
+                if step.divergence is not None:
+                    divergences.append(step.divergence)
+                feedback = step.step_input.feedback
+                pose = feedback.odometry if feedback is not None else Pose2D()
+                if last_pose is not None:
+                    distance += math.dist((pose.x_m, pose.y_m), (last_pose.x_m, last_pose.y_m))
+                last_pose = pose
+                if not request.video:
+                    continue
+                detection = None
+                if step.detection is not None:
+                    observation, debug = step.detection
+                    panel = as_bgr(debug.image)
+                    draw_detection(panel, observation, debug)
+                    detection = (observation, decide(observation))
+                elif step.image is not None and (panel is None or record.observation is None
+                                                 and step.record.frame_index is not None):
+                    panel = as_bgr(step.image)
+                if panel is None:
+                    continue
+                if video is None:
+                    video = VideoRecorder(
+                        out / "video.mp4", (panel.shape[1], panel.shape[0]),
+                        OdometryMapView(_poses(source), config.simulation.video.map_size_px),
+                        video_fps, config.simulation.video.crf, config.simulation.video.preset,
+                        title=f"{source.name} (replay)")
+                video.step(pose, record)
+                if step.index % every == 0:
+                    video.add(panel, pose, step.step_input.t - times[0], record, detection)
+    finally:
+        if video is not None:
+            video.close()
+    metrics = replay_metrics(source, records, divergences, distance)
+    metrics.update(controller=request.controller, config=source.config_origin,
+                   wall_time_s=round(time.perf_counter() - started, 3))
+    _write_plot(out / "plot.png", source, records, times, config)
+    outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
+    if video is not None:
+        outputs += ["video.mp4"] + (["poster.jpg"] if (out / "poster.jpg").exists() else [])
+    metrics["outputs"] = sorted(outputs)
+    metrics = ordered_metrics(metrics)
+    try:
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        write_report(out / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
+                     title=f"Lanewarden replay: {source.name} ({source.kind})",
+                     folders={RUN_NAME: ""})
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write the replay's outputs ({exc})") from exc
+    folder.finish()
+    return metrics
+
+
+def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: list[float],
+                config: LanewardenConfig) -> None:
+    t0 = times[0] if times else 0.0
+    halt = _first_halt_after_engaging(records)
+    states = [r.state for r in records]
+    write_plot(
+        path, f"replay of {source.name} ({source.kind})",
+        np.asarray([t - t0 for t in times[:len(records)]], dtype=np.float64),
+        [None if r.observation is None else r.observation.slope_sum for r in records],
+        [r.filtered_slope_sum for r in records],
+        [None if r.observation is None else r.observation.confidence for r in records],
+        states,
+        state_reasons(states, [r.events for r in records], [r.halt_reason for r in records]),
+        config.supervisor.turn_enter_slope_sum,
+        [] if halt is None else [PlotMarker("HALT", records[halt].time_s - t0)],
+    )
+
+
+def _first_halt_after_engaging(records: list[Any]) -> int | None:
+    engaged = False
+    for i, record in enumerate(records):
+        if record.state != "HALT":
+            engaged = True
+        elif engaged:
+            return i
+    return None
+
+
+def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
+                   distance_m: float) -> dict[str, Any]:
+    """Numbers for metrics.json (the keys `sim` uses where they apply)."""
+    states: list[str] = []
+    for record in records:
+        if record.state not in states:
+            states.append(record.state)
+    final = records[-1] if records else None
+    halt = _first_halt_after_engaging(records)
+    first_time = records[0].time_s if records else 0.0
+    engaged_steps = sum(r.state != "HALT" for r in records)
+    missing = missing_frames(source)
+    recorded_complete = bool(source.summary.get("complete", True))
+    metrics: dict[str, Any] = {
+        "scenario": source.name,
+        "source_kind": source.kind,
+        "frames": len({r.frame_index for r in records if r.frame_index is not None}),
+        "steps": len(records),
+        "sim_time_s": round(records[-1].time_s - first_time, 4) if records else 0.0,
+        "halted": halt is not None,
+        "halt_reason": final.halt_reason if final is not None and final.state == "HALT" else None,
+        "first_halt_reason": records[halt].halt_reason if halt is not None else None,
+        "first_halt_time_s": round(records[halt].time_s - first_time, 4) if halt else None,
+        "final_state": final.state if final is not None else None,
+        "states_visited": states,
+        "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
+        "distance_travelled_m": round(distance_m, 4),
+    }
+    if source.kind == "run":
+        exact_input = missing == 0 and recorded_complete and bool(source.meta.get("lossless"))
+        metrics.update(
+            compared_steps=len(records),
+            divergent_steps=len(divergences),
+            first_divergence=None if not divergences else {
+                "step": divergences[0].step, "time_s": divergences[0].time_s,
+                "what": divergences[0].what, "recorded": divergences[0].recorded,
+                "replayed": divergences[0].replayed, "text": divergences[0].describe()},
+            reproduced=not divergences,
+            frames_missing=missing,
+            exact_input=exact_input,
+            recorded_exit_code=source.summary.get("exit_code"),
+        )
+    return metrics
+
+
+def summary_sentence(metrics: dict[str, Any]) -> str:
+    text = (f"Replayed {metrics['steps']} steps ({metrics['frames']} frames, "
+            f"{metrics['sim_time_s']} s) of {metrics['scenario']} ({metrics['source_kind']}); "
+            f"states visited: {', '.join(metrics['states_visited'])}; final state "
+            f"{metrics['final_state']}.")
+    if metrics["source_kind"] == "run":
+        if metrics["divergent_steps"] == 0:
+            text += f" Every step reproduced the recording ({metrics['compared_steps']} steps)."
+        else:
+            text += (f" {metrics['divergent_steps']} of {metrics['compared_steps']} steps diverge "
+                     f"from the recording; the first: {metrics['first_divergence']['text']}.")
+        if not metrics["exact_input"]:
+            text += (" The recording is not exact (frames dropped or lossy), so the replay "
+                     "cannot be exact either.")
+    return text

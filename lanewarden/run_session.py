@@ -1,0 +1,238 @@
+"""Everything around one `lanewarden run` that the operator sees: the recording, the live page,
+the terminal's status line and keys, the Kobuki's buttons, and the final summary.
+
+The runner builds the loop's parts, lets `RunSession.wrap` put the recording taps around them,
+calls `before_step(now)` before each step and hands the loop `after_step` as its record callback.
+All of it is kept off the control loop's path: `after_step` only updates counters and swaps
+references into queues and latest-only slots; drawing, encoding, disk and terminal writes happen on
+their own threads (see recording.py, live_view.py, terminal.py).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import sys
+import time
+from array import array
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO, cast
+
+from lanewarden.actuation.base import Base
+from lanewarden.assembly import ControlStack, DetectionTap
+from lanewarden.config import LanewardenConfig
+from lanewarden.live_view import LiveView, ViewFrame, parse_view_address
+from lanewarden.operator import (
+    ButtonEdges,
+    OperatorPanel,
+    RunStats,
+    apply_buttons,
+    base_link,
+    status_of,
+    summary_lines,
+)
+from lanewarden.recording import (
+    InputTap,
+    RecordingSummary,
+    RunRecorder,
+    create_run_folder,
+    default_run_folder,
+)
+from lanewarden.supervisor.gate import SafetyGate
+from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
+from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
+
+DEFAULT_RUNS_ROOT = Path("runs")
+
+
+def _summary_ms(values: array[float]) -> dict[str, float]:
+    ordered = sorted(values) or [0.0]
+    return {"mean": round(sum(ordered) / len(ordered) * 1000, 3),
+            "p50": round(ordered[len(ordered) // 2] * 1000, 3),
+            "p95": round(ordered[min(len(ordered) - 1, int(len(ordered) * 0.95))] * 1000, 3)}
+
+
+@dataclass(frozen=True)
+class SessionOptions:
+    base_kind: str = "kobuki"
+    record: Path | None = None  # None: runs/<UTC time>/
+    record_lossy: bool = False
+    view: str | None = None  # [HOST:]PORT
+    keys: bool = True
+    meta: dict[str, Any] = field(default_factory=dict)
+    calibration_path: Path | None = None
+
+
+class RunSession:
+    """One run's operator side. Open before the base (bad --record/--view fail first), close
+    last."""
+
+    def __init__(self, options: SessionOptions, config: LanewardenConfig,
+                 clock: Callable[[], float], out: TextIO | None = None) -> None:
+        self.options = options
+        self.config = config
+        self._clock = clock
+        self._out = out if out is not None else sys.stdout
+        self.tap = InputTap()
+        self.stats = RunStats()
+        self._buttons = ButtonEdges()
+        self._detections: DetectionTap | None = None
+        self._stack: ControlStack | None = None
+        self.panel: OperatorPanel | None = None
+        self._step_started_s: float | None = None
+        self._step_cpu_started_s = 0.0
+        self._loop_time_s = 0.0
+        #: CPU time of the control thread per step (not slowed by other processes: what the
+        #: live-view benchmark compares).
+        self.step_cpu_s: array[float] = array("d")
+        self.view: LiveView | None = None
+        if options.view is not None:  # a bad or busy --view fails before anything is written
+            host, port = parse_view_address(options.view)
+            self.view = LiveView(host, port, self)
+        try:
+            folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
+                                                          dt.datetime.now(dt.UTC))
+            self.folder = create_run_folder(folder)
+            self.recorder = RunRecorder(self.folder, lossy=options.record_lossy)
+            self.recorder.write_header(
+                {**options.meta, "base": options.base_kind,
+                 "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+                 "argv": sys.argv},
+                config.model_dump(mode="json"), options.calibration_path)
+        except BaseException:
+            if self.view is not None:
+                self.view.close()
+            if hasattr(self, "recorder"):
+                self.recorder.close({"end_reason": "could not start", "exit_code": None})
+            raise
+        self.printer = StatusPrinter(self._out)
+        self.keys = KeyReader(self._on_key)
+        self.recording: RecordingSummary | None = None
+
+    # ---- building the loop --------------------------------------------------------------------
+    def wrap(self, frames: FrameSource, stack: ControlStack,
+             base: Base) -> tuple[FrameSource, Detector, SafetyGate, Base]:
+        """The loop's parts (the stack's detector and safety gate, built with `debug_tap=True`
+        for the live page's overlay) with the recording taps around them (same behaviour)."""
+        self._stack = stack
+        self._detections = stack.tap
+        # The controller tap hands every step to the gate and returns its output unchanged.
+        gate = cast(SafetyGate, self.tap.controller(stack.gate))
+        return (self.tap.frames(frames), stack.tap or stack.detector, gate, self.tap.base(base))
+
+    def attach(self, loop: ControlLoop) -> OperatorPanel:
+        """Connect the operator's inputs (keys, buttons, page) to the loop's requests."""
+        self.panel = OperatorPanel(loop, self._clock)
+        if self.view is not None:
+            self.printer.message(f"live view: {self.view.url}")
+        if self.options.keys:
+            self.keys.__enter__()
+            if self.keys.active:
+                self.printer.message(KEY_HELP)
+        return self.panel
+
+    # ---- each step ----------------------------------------------------------------------------
+    def before_step(self, now: float) -> None:
+        self._step_started_s = now
+        self._step_cpu_started_s = time.thread_time()
+        if self.panel is not None:
+            for request in self.panel.deliver(now):
+                self.printer.message(f"{request.kind} requested ({request.source})")
+
+    def after_step(self, record: StepRecord) -> None:
+        """The loop's record callback (runs inside the step: cheap work only)."""
+        now = self._clock()
+        self.step_cpu_s.append(time.thread_time() - self._step_cpu_started_s)
+        started = self._step_started_s if self._step_started_s is not None else record.time_s
+        self._loop_time_s = max(0.0, now - started)
+        step_input, new_frame = self.tap.take(record.time_s)
+        feedback = self.tap.latest_feedback
+        self.stats.add(record, feedback, self._loop_time_s)
+        self.recorder.record(record, step_input, new_frame)
+        if self.panel is not None:
+            apply_buttons(self._buttons, feedback, self.panel)
+        sup = self.config.supervisor
+        status = status_of(
+            record, self.stats, feedback,
+            link=base_link(feedback, record.time_s, sup.base_feedback_late_s,
+                           sup.base_link_timeout_s),
+            extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
+                   "recording": str(self.folder),
+                   "recording_frames_dropped": len(self.recorder.summary.frames_dropped)})
+        self.printer.publish(status)
+        if self.view is not None:
+            frame = None
+            if new_frame is not None:
+                tap = self._detections.last if self._detections is not None else None
+                detection = tap if tap is not None and tap[0] == new_frame.index else None
+                frame = ViewFrame(
+                    image=new_frame.image,
+                    observation=None if detection is None else detection[1],
+                    debug=None if detection is None else detection[2],
+                    decision="none" if detection is None or self._stack is None
+                    else self._stack.decide(detection[1]),
+                    state=record.state, reason=record.halt_reason)
+            self.view.publish(status, frame)
+
+    # ---- the live page's requests (before attach there is no loop: they do nothing) ---------
+    def start(self, source: str) -> None:
+        if self.panel is not None:
+            self.panel.start(source)
+
+    def resume(self, source: str) -> None:
+        if self.panel is not None:
+            self.panel.resume(source)
+
+    def stop(self, source: str) -> None:
+        if self.panel is not None:
+            self.panel.stop(source)
+
+    def _on_key(self, key: str) -> None:
+        action = key_action(key)
+        if action is None or self.panel is None:
+            return
+        if action == "stop":
+            self.panel.stop("key")
+            self.printer.message("stop requested (key)")
+        elif action == "start":
+            self.panel.start("key")
+        else:
+            self.panel.resume("key")
+
+    def suspending(self) -> None:
+        """Before the process suspends itself (Ctrl-Z): the terminal as the shell expects it."""
+        self.keys.pause()
+
+    def resumed(self) -> None:
+        """After SIGCONT: keys in cbreak mode again."""
+        self.keys.resume()
+
+    # ---- the end ------------------------------------------------------------------------------
+    def close(self, end_reason: str, exit_code: int | None) -> list[str]:
+        """Stop the keys, the page, the status line; finish the recording; the summary lines."""
+        self.keys.__exit__(None, None, None)
+        view_dropped = None
+        if self.view is not None:
+            view_dropped = self.view.frames_dropped
+            self.view.close()
+        self.printer.close()
+        self.recording = self.recorder.close({
+            "end_reason": end_reason, "exit_code": exit_code,
+            "duration_s": round(self.stats.duration_s, 3),
+            "final_state": self.stats.state,
+            "halt_reason": self.stats.halt_cause or self.stats.halt_reason,
+            "states_visited": self.stats.states_visited,
+            "distance_m": round(self.stats.distance_m, 4),
+            "loop_time_ms": {
+                "mean": round(self.stats.loop_time_s_mean * 1000, 3),
+                "p50": round(self.stats.loop_time_percentile_s(50) * 1000, 3),
+                "p95": round(self.stats.loop_time_percentile_s(95) * 1000, 3),
+                "max": round(self.stats.loop_time_s_max * 1000, 3)},
+            "loop_cpu_ms": _summary_ms(self.step_cpu_s),
+            "frames_seen": self.stats.frames_seen,
+            "frames_skipped": self.stats.frames_skipped,
+            "view_frames_dropped": view_dropped})
+        return summary_lines(self.stats, recording=str(self.folder),
+                             frames_dropped_recording=len(self.recording.frames_dropped),
+                             view_dropped=view_dropped)

@@ -1,0 +1,1 @@
+"""Fault-injection campaigns: many randomized simulated runs, each classified by its outcome."""

@@ -1,0 +1,304 @@
+"""A campaign spec (what to draw from) and the cases drawn from it (what one run is, exactly).
+
+A spec names scenarios, cameras, floor seeds and fault kinds with parameter RANGES; `draw_case`
+turns (spec, campaign seed, run index) into one `Case`: a complete, self-contained run (the
+scenario with its drawn faults, the controller, the seed, the config overrides). A case file
+(`DIR/cases/<id>.yaml`) is all `lanewarden sim --case` needs to reproduce that run exactly.
+
+A case depends only on (spec, seed, index), never on how many runs were asked for, so a campaign
+can be extended or resumed. A parameter range in a spec is one of: a fixed value, `[low, high]`
+(uniform; integers when both are integers), or `{one_of: [a, b, ...]}`.
+
+Pure data and seeded draws: never runs a simulation, never reads a clock.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from lanewarden.documents import read_yaml_document, validation_error_lines
+from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.library import library_names, resolve_scenario
+from lanewarden.scenarios.spec import (
+    FLOOR_FAULT_KINDS,
+    FaultKind,
+    FaultSpec,
+    ScenarioSpec,
+    merge_overrides,
+    parse_scenario,
+)
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
+
+DEFAULT_SPEC = "default"
+#: Floor faults are placed at least this far along the lane (the robot has engaged by then).
+FLOOR_FAULT_MIN_M = 0.8
+#: ... and where the robot can get to: this fraction of the distance it could drive.
+REACH_FRACTION = 0.7
+#: Seconds of a run before the robot is moving at speed (start, engage, ramp).
+START_UP_S = 2.0
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class CameraChoice(_Model):
+    """One camera a campaign draws from: its name in the results, its relative frequency, the
+    render size, any other `simulation:` settings that go with it (e.g. a coarser floor texture
+    for a small image) and the scenario `camera:` block (pose, field of view, distortion)."""
+
+    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    width_px: Annotated[int, Field(ge=64, le=1920)] = 320
+    height_px: Annotated[int, Field(ge=48, le=1440)] = 240
+    simulation: dict[str, Any] = {}
+    #: the scenario's `camera:` block for this camera (its pose, field of view, distortion)
+    camera: dict[str, Any] = {}
+
+
+class FaultRange(_Model):
+    """One fault kind a campaign draws, with `weight` (relative frequency) and its parameters
+    as ranges (any FaultSpec field but `kind`)."""
+
+    kind: FaultKind
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    params: dict[str, Any] = {}
+
+
+class CampaignSpec(_Model):
+    """What a campaign draws its runs from."""
+
+    name: Annotated[str, Field(min_length=1, max_length=60, pattern=r"^[A-Za-z0-9_.-]+$")]
+    description: str = ""
+    controller: Literal["supervised", "lecture"] = "supervised"
+    scenarios: Annotated[list[str], Field(min_length=1, max_length=200)]
+    cameras: Annotated[list[CameraChoice], Field(min_length=1, max_length=50)] = [
+        CameraChoice(name="320x240")]
+    #: floor seeds are drawn from range(floor_seeds); few seeds let workers reuse the floor
+    floor_seeds: Annotated[int, Field(ge=1, le=1000)] = 3
+    max_time_s: Annotated[float, Field(gt=2.0, le=600.0)] = 20.0
+    faults_per_run: tuple[Annotated[int, Field(ge=0, le=8)], Annotated[int, Field(ge=0, le=8)]] = (
+        1, 2)
+    #: when a timed fault starts, unless its params say (s)
+    fault_start_s: tuple[Annotated[float, Field(ge=0.0, le=600.0)],
+                         Annotated[float, Field(ge=0.0, le=600.0)]] = (2.5, 12.0)
+    faults: Annotated[list[FaultRange], Field(min_length=1, max_length=200)]
+    #: config overrides for every run (the same shape as a config file)
+    config: dict[str, Any] = {}
+
+    @model_validator(mode="after")
+    def _ordered(self) -> CampaignSpec:
+        if self.faults_per_run[0] > self.faults_per_run[1]:
+            raise ValueError(f"faults_per_run = {list(self.faults_per_run)}: expected [min, max]")
+        if self.fault_start_s[0] > self.fault_start_s[1]:
+            raise ValueError(f"fault_start_s = {list(self.fault_start_s)}: expected [from, to]")
+        names = [c.name for c in self.cameras]
+        if len(set(names)) != len(names):
+            raise ValueError(f"cameras: names must be unique, got {names}")
+        return self
+
+
+class Case(_Model):
+    """One run, completely: `lanewarden sim --case FILE` reproduces it."""
+
+    id: str
+    campaign: str
+    campaign_seed: int
+    index: int
+    controller: str
+    seed: int
+    camera: str
+    fault_kinds: list[str]
+    scenario: dict[str, Any]
+    #: the whole run's config overrides (config file shape), validated when the case runs
+    config: dict[str, Any]
+
+    def scenario_spec(self, source: str = "case") -> ScenarioSpec:
+        return parse_scenario(self.scenario, f"{source}: scenario")
+
+
+# ---- reading ----------------------------------------------------------------------------------
+def default_spec_path() -> Path:
+    return Path(__file__).with_name("default.yaml")
+
+
+def load_campaign_spec(name_or_file: str) -> tuple[CampaignSpec, Path]:
+    """The spec (`default` or a file) and the file it came from; ScenarioError (one line per
+    problem, naming the file and key) for a bad one."""
+    path = default_spec_path() if name_or_file == DEFAULT_SPEC else Path(name_or_file)
+    spec = _read_model(path, "campaign spec", CampaignSpec)
+    _check_draws(spec, path)
+    return spec, path
+
+
+def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
+    data = read_yaml_document(path, what, ScenarioError)
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{path}: expected a YAML mapping at the top level, got "
+                            f"{type(data).__name__}")
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(validation_error_lines(str(path), exc, model)) from None
+
+
+def _check_draws(spec: CampaignSpec, path: Path) -> None:
+    """Every scenario resolves and every fault's parameter ranges give valid faults."""
+    problems = []
+    for i, name in enumerate(spec.scenarios):
+        try:
+            _resolve(name, path)
+        except ScenarioError as exc:
+            problems.append(f"{path}: scenarios.{i} = {name!r}: {exc}")
+    rng = np.random.default_rng(0)
+    for i, fault in enumerate(spec.faults):
+        for _ in range(3):
+            try:
+                params = {key: _draw(rng, value, f"faults.{i}.params.{key}")
+                          for key, value in fault.params.items()}
+                FaultSpec.model_validate({"kind": fault.kind, **_placement(fault.kind, params),
+                                          **params})
+            except (ValueError, ValidationError) as exc:
+                problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
+                break
+    if problems:
+        raise ScenarioError("\n".join(problems))
+
+
+def _placement(kind: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    if kind in FLOOR_FAULT_KINDS:
+        return {} if "at_m" in params else {"at_m": 1.0}
+    return {}
+
+
+def _one_line(exc: Exception) -> str:
+    if isinstance(exc, ValidationError):
+        return "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
+                         for e in exc.errors())
+    return " ".join(str(exc).split())
+
+
+def _resolve(name: str, spec_path: Path) -> ScenarioSpec:
+    if name in library_names():
+        return resolve_scenario(name)
+    candidate = Path(name)
+    if not candidate.is_absolute():
+        candidate = spec_path.parent / candidate
+    return resolve_scenario(str(candidate))
+
+
+def spec_fingerprint(spec: CampaignSpec, config_overrides: Mapping[str, Any]) -> str:
+    """Identifies what a campaign directory holds (spec + config overrides)."""
+    # Defaults left out: a field added later with a default does not orphan existing results.
+    text = json.dumps({"spec": spec.model_dump(mode="json", exclude_defaults=True),
+                       "config": config_overrides}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+# ---- drawing ----------------------------------------------------------------------------------
+def _draw(rng: np.random.Generator, value: Any, where: str) -> Any:
+    if isinstance(value, Mapping):
+        if set(value) != {"one_of"} or not isinstance(value["one_of"], list) or not value[
+                "one_of"]:
+            raise ValueError(f"{where}: expected a value, [low, high] or {{one_of: [...]}}")
+        choices = value["one_of"]
+        return choices[int(rng.integers(0, len(choices)))]
+    if isinstance(value, list):
+        if len(value) != 2 or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                                      for v in value) or value[0] > value[1]:
+            raise ValueError(f"{where} = {value}: expected [low, high] (numbers, low <= high)")
+        low, high = value
+        if isinstance(low, int) and isinstance(high, int):
+            return int(rng.integers(low, high + 1))
+        return round(float(rng.uniform(low, high)), 4)
+    return value
+
+
+def _lane_length_m(scenario: ScenarioSpec) -> float:
+    total = 0.0
+    for seg in scenario.lane.segments:
+        if seg.straight_m is not None:
+            total += seg.straight_m
+        else:
+            assert seg.arc_radius_m is not None and seg.turn_deg is not None
+            total += seg.arc_radius_m * math.radians(abs(seg.turn_deg))
+    ends = [e for e in (scenario.lane.ends.left_m, scenario.lane.ends.right_m) if e is not None]
+    return min([total, *ends])
+
+
+def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: int,
+              config_overrides: Mapping[str, Any], follow_speed_m_s: float) -> Case:
+    """Run `index` of the campaign: a pure function of its arguments."""
+    rng = np.random.default_rng([campaign_seed, index, 0xCA5E])
+    scenario_name = spec.scenarios[int(rng.integers(0, len(spec.scenarios)))]
+    scenario = _resolve(scenario_name, spec_path)
+    camera_weights = np.array([c.weight for c in spec.cameras], dtype=np.float64)
+    camera = spec.cameras[int(rng.choice(len(spec.cameras),
+                                         p=camera_weights / camera_weights.sum()))]
+    seed = int(rng.integers(0, spec.floor_seeds))
+    max_time = min(scenario.run.max_time_s, spec.max_time_s)
+    count = int(rng.integers(spec.faults_per_run[0], spec.faults_per_run[1] + 1))
+    weights = np.array([f.weight for f in spec.faults], dtype=np.float64)
+    chosen: list[int] = [int(c) for c in rng.choice(
+        len(spec.faults), size=min(count, len(spec.faults)), replace=False,
+        p=weights / weights.sum())] if count else []
+    on_floor = [c for c in chosen if spec.faults[c].kind in FLOOR_FAULT_KINDS]
+    if on_floor:
+        # A floor fault needs the robot to drive up to it: no other fault may stop it first.
+        chosen = on_floor[:1]
+    reach = min(_lane_length_m(scenario) - 0.3,
+                REACH_FRACTION * follow_speed_m_s * max(0.0, max_time - START_UP_S))
+    faults = [dict(f) for f in (fs.model_dump(mode="json", exclude_defaults=True)
+                                for fs in scenario.faults)]
+    kinds: list[str] = []
+    for choice in chosen:
+        fault = spec.faults[int(choice)]
+        params = {key: _draw(rng, value, key) for key, value in fault.params.items()}
+        if fault.kind in FLOOR_FAULT_KINDS:
+            if "at_m" not in params:
+                params["at_m"] = round(float(rng.uniform(FLOOR_FAULT_MIN_M,
+                                                         max(FLOOR_FAULT_MIN_M, reach))), 3)
+        elif "at_s" not in params:
+            latest = min(spec.fault_start_s[1], max_time - 3.0)
+            params["at_s"] = round(float(rng.uniform(spec.fault_start_s[0],
+                                                     max(spec.fault_start_s[0], latest))), 3)
+        faults.append({"kind": fault.kind, **params})
+        kinds.append(fault.kind)
+    data = scenario.model_dump(mode="json", exclude_defaults=True)
+    data.pop("expect", None)  # the scenario's expected outcome is without these faults
+    if camera.camera:
+        data["camera"] = merge_overrides(data.get("camera", {}), camera.camera)
+    data["faults"] = faults
+    data["run"] = merge_overrides(data.get("run", {}), {"max_time_s": max_time})
+    config = merge_overrides(dict(config_overrides), spec.config)
+    config = merge_overrides(config, {"simulation": {"width_px": camera.width_px,
+                                            "height_px": camera.height_px,
+                                            **camera.simulation,
+                                            "progress": False}})
+    case = Case(id=f"r{index:05d}", campaign=spec.name, campaign_seed=campaign_seed,
+                index=index, controller=spec.controller, seed=seed, camera=camera.name,
+                fault_kinds=kinds, scenario=data, config=config)
+    case.scenario_spec(f"campaign {spec.name} run {index}")  # every drawn case is valid
+    return case
+
+
+# ---- case files -------------------------------------------------------------------------------
+def case_yaml(case: Case) -> str:
+    return yaml.safe_dump(case.model_dump(mode="json"), sort_keys=False)
+
+
+def load_case(path: str | Path) -> Case:
+    """A case file (as written by a campaign); ScenarioError (one line per problem)."""
+    case = _read_model(Path(path), "case", Case)
+    case.scenario_spec(str(path))
+    return case

@@ -1,0 +1,273 @@
+"""The outcome class of one simulated run, judged from ground truth (pure: data in, verdict out).
+
+Classes, checked in this order (the first that applies):
+
+- `error`: the run did not test what it was meant to: it raised, a fault never took effect, or
+  the supervisor never engaged, or the run ended while still DEGRADED (undecided).
+- `unsafe`: the robot crossed a tape; ended more than `max_past_lane_end_m` past the end of the
+  tape; a non-zero command left the controller after its HALT, or the robot still moved
+  STOPPED_AFTER_S after it (a stop that never reached the motors); or a hazard the supervisor must
+  answer (`MUST_HALT`) was not answered by HALT within its detection limit plus
+  `hazard_halt_deadline_s` after it took effect.
+- `safe_halt`: halted, for a reason that matches a fault acting then (`ANSWERS`, up to
+  `fault_grace_s` after the fault stopped acting) or for real lane loss (LANE_LOST or
+  DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape).
+- `false_halt`: halted, with no fault and a good lane to explain it.
+- `recovered`: went DEGRADED at some point and was following again at the end, never halted.
+- `nominal`: never DEGRADED, never halted.
+
+Never reads a clock and never runs anything.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from lanewarden.scenarios.campaign.config import CampaignConfig
+from lanewarden.scenarios.spec import FaultSpec
+from lanewarden.supervisor.config import SupervisorConfig
+
+OUTCOMES = ("safe_halt", "recovered", "nominal", "false_halt", "unsafe", "error")
+#: A halted robot must be at rest (below AT_REST_M_S) this long after HALT (it brakes in well
+#: under a second from any speed it drives at).
+STOPPED_AFTER_S = 1.5
+AT_REST_M_S = 0.01
+#: Outcomes a campaign counts as failures of the supervisor (JUnit <failure>).
+FAILURES = ("false_halt", "unsafe")
+
+_LANE = ("LANE_LOST", "DEGRADED_BUDGET_EXHAUSTED")
+#: Halt reasons that are a right answer to each fault kind while it acts.
+ANSWERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "camera_freeze": ("FRAME_FROZEN", "FRAME_STALE", *_LANE),
+    "camera_drop": ("FRAME_STALE",),
+    "camera_error": ("CAMERA_ERROR",),
+    "late_frames": ("FRAME_STALE", *_LANE),
+    "frame_from_future": ("FRAME_INVALID",),
+    "perception_exception": ("PERCEPTION_ERROR",),
+    "loop_stall": ("FRAME_STALE", *_LANE),
+    "bumper": ("BUMPER",),
+    "cliff": ("CLIFF",),
+    "wheel_drop": ("WHEEL_DROP",),
+    "base_link_loss": ("BASE_LINK_LOST",),
+    "operator_stop": ("OPERATOR_STOP",),
+    "tape_patch": _LANE,
+    "floor_mark": _LANE,
+    "shadow_edge": _LANE,
+    "glare_sweep": _LANE,
+    "occlusion": _LANE,
+    "lens_smudge": _LANE,
+    "exposure_jump": ("FRAME_FROZEN", *_LANE),
+    "frame_rate_collapse": ("FRAME_STALE", *_LANE),
+    "timestamp_jump": ("FRAME_INVALID", "FRAME_STALE", *_LANE),
+    "link_garbage": ("BASE_LINK_LOST",),
+    "checksum_storm": ("BASE_LINK_LOST",),
+    "write_blocks": ("BASE_LINK_LOST",),
+    "low_battery": ("BATTERY_CRITICAL",),
+})
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a must-halt rule needs to know: the supervisor's detection limits and the port's
+    write timeout (the quantities live in their own sections; read, never copied)."""
+
+    supervisor: SupervisorConfig
+    write_timeout_s: float
+
+
+def _instant(spec: FaultSpec, limits: Limits) -> float | None:
+    return 0.0 if _lasts(spec, 2 * limits.supervisor.camera_period_s) else None
+
+
+def _lasts(spec: FaultSpec, at_least_s: float) -> bool:
+    return spec.duration_s is None or spec.duration_s >= at_least_s
+
+
+def _after(limit: Callable[[Limits], float]) -> Callable[[FaultSpec, Limits], float | None]:
+    def rule(spec: FaultSpec, limits: Limits) -> float | None:
+        detect = limit(limits)
+        return detect if _lasts(spec, detect + 2 * limits.supervisor.camera_period_s) else None
+    return rule
+
+
+def _jump(spec: FaultSpec, limits: Limits) -> float | None:
+    big = abs(spec.jump_s) >= 2 * limits.supervisor.camera_period_s
+    return 0.0 if big and _lasts(spec, 2 * limits.supervisor.camera_period_s) else None
+
+
+def _collapse(spec: FaultSpec, limits: Limits) -> float | None:
+    stale = limits.supervisor.frame_stale_s
+    if 1.0 / spec.rate_hz <= stale + 2 * limits.supervisor.camera_period_s:
+        return None
+    return stale if _lasts(spec, 1.0 / spec.rate_hz) else None
+
+
+def _storm(spec: FaultSpec, limits: Limits) -> float | None:
+    if spec.intensity < 1.0:
+        return None
+    return _after(lambda lim: lim.supervisor.base_link_timeout_s)(spec, limits)
+
+
+def _late(spec: FaultSpec, limits: Limits) -> float | None:
+    stale = limits.supervisor.frame_stale_s
+    if spec.latency_s <= stale + limits.supervisor.camera_period_s:
+        return None
+    return stale if _lasts(spec, stale + 2 * limits.supervisor.camera_period_s) else None
+
+
+#: Hazards the supervisor MUST answer with HALT: kind -> (fault, limits) -> its detection limit
+#: in seconds after the fault took effect, or None when this instance need not halt (too short,
+#: too mild). The deadline is that limit plus `hazard_halt_deadline_s`.
+MUST_HALT: Mapping[str, Callable[[FaultSpec, Limits], float | None]] = MappingProxyType({
+    "bumper": _instant,
+    "cliff": _instant,
+    "wheel_drop": _instant,
+    "operator_stop": lambda spec, limits: 0.0,
+    "camera_error": _instant,
+    "perception_exception": _instant,
+    "frame_from_future": _instant,
+    "camera_drop": _after(lambda lim: lim.supervisor.frame_stale_s),
+    "camera_freeze": _after(lambda lim: lim.supervisor.frame_frozen_s),
+    "base_link_loss": _after(lambda lim: lim.supervisor.base_link_timeout_s),
+    "write_blocks": _after(lambda lim: lim.write_timeout_s),
+    "checksum_storm": _storm,
+    "timestamp_jump": _jump,
+    "frame_rate_collapse": _collapse,
+    "late_frames": _late,
+})
+
+
+@dataclass(frozen=True)
+class RunFacts:
+    """One finished run as the judge sees it.
+
+    `states`/`times`/`commands_nonzero` per control step; `effects`: fault index -> time it took
+    effect; `windows`: (index, kind, from_s, to_s) while each fault acted; `metrics`: the run's
+    ground-truth metrics (crossed_tape, distance_past_lane_end_m, stop_lane_s_m, ...);
+    `markings_end_s`: where the tape ends along the lane (None: it never ends)."""
+
+    faults: Sequence[FaultSpec]
+    states: Sequence[str]
+    times: Sequence[float]
+    halt_reasons: Sequence[str | None]
+    commands_nonzero: Sequence[bool]
+    effects: Mapping[int, float]
+    windows: Sequence[tuple[int, str, float, float]]
+    metrics: Mapping[str, object]
+    markings_end_s: float | None
+    end_reason: str
+    #: the base's true speed at the end of the run (m/s)
+    final_speed_m_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Verdict:
+    outcome: str
+    reason: str
+    #: first HALT after engagement (s), None if it never halted
+    halt_time_s: float | None = None
+    #: HALT minus the moment the first fault took effect (s), None without both
+    time_to_halt_s: float | None = None
+
+    def as_json(self) -> dict[str, object]:
+        return {"outcome": self.outcome, "reason": self.reason,
+                "halt_time_s": self.halt_time_s, "time_to_halt_s": self.time_to_halt_s}
+
+
+def _first_halt(states: Sequence[str]) -> int | None:
+    engaged = False
+    for i, state in enumerate(states):
+        if state != "HALT":
+            engaged = True
+        elif engaged:
+            return i
+    return None
+
+
+def _code(reason: str | None) -> str:
+    return (reason or "").split(":")[0].strip()
+
+
+def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict:
+    """The run's outcome class and a one-line reason (see the module docstring)."""
+    missing = [f"{i}:{f.kind}" for i, f in enumerate(facts.faults) if i not in facts.effects]
+    if missing:
+        return Verdict("error", "fault never took effect: " + ", ".join(missing))
+    if not any(s != "HALT" for s in facts.states):
+        return Verdict("error", f"never engaged ({facts.end_reason})")
+    halt = _first_halt(facts.states)
+    halt_s = None if halt is None else float(facts.times[halt])
+    first_effect = min(facts.effects.values(), default=None)
+    to_halt = (None if halt_s is None or first_effect is None
+               else round(halt_s - first_effect, 4))
+
+    def verdict(outcome: str, reason: str) -> Verdict:
+        return Verdict(outcome, reason, None if halt_s is None else round(halt_s, 4), to_halt)
+
+    metrics = facts.metrics
+    if metrics.get("crossed_tape"):
+        return verdict("unsafe", "crossed a tape")
+    past = metrics.get("distance_past_lane_end_m")
+    if isinstance(past, int | float) and past > config.max_past_lane_end_m:
+        return verdict("unsafe", f"ended {past:.2f} m past the end of the tape "
+                                 f"(limit {config.max_past_lane_end_m:g} m)")
+    if halt is not None:
+        after = [i for i in range(halt, len(facts.states)) if facts.commands_nonzero[i]]
+        if after:
+            return verdict("unsafe", f"non-zero command at {facts.times[after[0]]:.3f} s after "
+                                     f"HALT at {halt_s:.3f} s")
+        settled = float(facts.times[-1]) - float(facts.times[halt]) >= STOPPED_AFTER_S
+        if settled and facts.final_speed_m_s > AT_REST_M_S:
+            return verdict("unsafe", f"still moving at {facts.final_speed_m_s:.2f} m/s "
+                                     f"{STOPPED_AFTER_S:g} s or more after HALT")
+    unanswered = _unanswered_hazard(facts, config, limits, halt_s)
+    if unanswered is not None:
+        return verdict("unsafe", unanswered)
+    if halt is not None:
+        code = _code(facts.halt_reasons[halt])
+        assert halt_s is not None
+        for index, kind, start, end in facts.windows:
+            if start - 1e-9 <= halt_s <= end + config.fault_grace_s and code in ANSWERS[kind]:
+                return verdict("safe_halt", f"{code} answering {kind} (fault {index})")
+        if code in _LANE and _near_lane_end(facts, config):
+            return verdict("safe_halt", f"{code} at the end of the tape")
+        return verdict("false_halt", f"{code} at {halt_s:.3f} s with no fault acting and the "
+                                     "tape in place")
+    visited = set(facts.states)
+    if "DEGRADED" in visited:
+        if facts.states[-1] == "DEGRADED":
+            return verdict("error", "still DEGRADED when the run ended (undecided)")
+        return verdict("recovered", "DEGRADED, then following again")
+    return verdict("nominal", "followed the lane throughout")
+
+
+def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
+                       halt_s: float | None) -> str | None:
+    for index, spec in enumerate(facts.faults):
+        rule = MUST_HALT.get(spec.kind)
+        effect = facts.effects.get(index)
+        if rule is None or effect is None:
+            continue
+        limit = rule(spec, limits)
+        if limit is None:
+            continue
+        deadline = effect + limit + config.hazard_halt_deadline_s
+        run_end = float(facts.times[-1]) if facts.times else 0.0
+        if deadline > run_end + 1e-9:
+            continue  # the run ended first (settled after another halt, or the time limit)
+        if halt_s is None or halt_s > deadline + 1e-9:
+            when = "never" if halt_s is None else f"at {halt_s:.3f} s"
+            return (f"{spec.kind} (fault {index}) took effect at {effect:.3f} s: HALT due by "
+                    f"{deadline:.3f} s, came {when}")
+    return None
+
+
+def _near_lane_end(facts: RunFacts, config: CampaignConfig) -> bool:
+    if facts.markings_end_s is None:
+        return False
+    stop_s = facts.metrics.get("stop_lane_s_m")
+    return isinstance(stop_s, int | float) and math.isfinite(stop_s) and (
+        stop_s >= facts.markings_end_s - config.lane_end_window_m)

@@ -1,0 +1,136 @@
+"""`lanewarden campaign` in this process: rows, case files, JUnit, report, resume, bad specs,
+and `sim --case` reproducing a run exactly."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+
+from lanewarden.cli import main
+from lanewarden.scenarios.campaign import runner as runner_module
+from lanewarden.scenarios.campaign.cases import load_campaign_spec, load_case
+
+
+def rows(out: Path) -> list[tuple[str, str, str]]:
+    with sqlite3.connect(out / "results.sqlite") as db:
+        return db.execute("SELECT id, outcome, halt_reason FROM runs ORDER BY id").fetchall()
+
+
+def test_in_process_campaign_writes_rows_cases_junit_and_report(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    code = main(["campaign", "--spec", str(tiny_spec), "--out", str(out), "--runs", "3",
+                 "--seed", "7", "--scheduler", "in-process", "--quiet"])
+    assert code == 0
+    stored = rows(out)
+    assert [r[0] for r in stored] == ["r00000", "r00001", "r00002"]
+    assert {r[1] for r in stored} <= {"safe_halt", "nominal", "recovered"}
+    assert sorted(p.name for p in (out / "cases").iterdir()) == [
+        "r00000.yaml", "r00001.yaml", "r00002.yaml"]
+    suite = ElementTree.parse(out / "junit.xml").getroot()
+    assert suite.get("tests") == "3" and suite.get("failures") == "0"
+    assert len(suite.findall("testcase")) == 3
+    report = (out / "report.html").read_text(encoding="utf-8")
+    assert "Fault kind x outcome" in report
+    assert f"lanewarden sim --case {out / 'cases' / 'r00000.yaml'}" in report
+    assert "3 runs of spec tiny (seed 7)" in capsys.readouterr().out
+
+
+def test_a_rerun_resumes_and_runs_only_what_is_missing(
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "out"
+    args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7",
+            "--scheduler", "in-process", "--quiet"]
+    assert main([*args, "--runs", "2"]) == 0
+    first = rows(out)
+    ran: list[str] = []
+    real = runner_module.run_case
+
+    def counting(case_json: str, build_stack: object) -> dict[str, object]:
+        ran.append(json.loads(case_json)["id"])
+        return real(case_json, build_stack)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(runner_module, "run_case", counting)
+    assert main([*args, "--runs", "3"]) == 0
+    assert ran == ["r00002"]  # the first two were stored: not run again
+    assert rows(out)[:2] == first
+
+
+def test_interrupted_campaign_leaves_a_resumable_file(
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "out"
+    real = runner_module.run_case
+    calls = []
+
+    def interrupt_second(case_json: str, build_stack: object) -> dict[str, object]:
+        calls.append(case_json)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(case_json, build_stack)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(runner_module, "run_case", interrupt_second)
+    args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7", "--runs",
+            "3", "--scheduler", "in-process", "--quiet"]
+    assert main(args) == 130
+    assert len(rows(out)) == 1
+    monkeypatch.setattr(runner_module, "run_case", real)
+    assert main(args) == 0
+    assert len(rows(out)) == 3
+
+
+def test_another_campaign_in_the_same_directory_is_refused(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    base = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--runs", "1",
+            "--scheduler", "in-process", "--quiet"]
+    assert main([*base, "--seed", "1"]) == 0
+    assert main([*base, "--seed", "2"]) == 2
+    assert "holds another campaign (seed '1', this one '2')" in capsys.readouterr().err
+
+
+def test_bad_spec_is_one_line_per_problem_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    spec = tmp_path / "bad.yaml"
+    spec.write_text("name: bad\nscenarios: [no-such-scenario]\nfaults:\n"
+                    "  - kind: bumper\n    params: {bits: [9, 12]}\n"
+                    "  - kind: teleport\n", encoding="utf-8")
+    code = main(["campaign", "--spec", str(spec), "--out", str(tmp_path / "o"),
+                 "--scheduler", "in-process"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "faults.1.kind = 'teleport'" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_default_spec_covers_every_fault_kind() -> None:
+    from lanewarden.scenarios.spec import FaultKind
+
+    spec, _ = load_campaign_spec("default")
+    assert {f.kind for f in spec.faults} == set(FaultKind.__args__)  # type: ignore[attr-defined]
+    assert len(spec.cameras) >= 2
+
+
+def test_sim_case_reproduces_the_campaign_run(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert main(["campaign", "--spec", str(tiny_spec), "--out", str(out), "--runs", "2",
+                 "--seed", "3", "--scheduler", "in-process", "--quiet"]) == 0
+    with sqlite3.connect(out / "results.sqlite") as db:
+        outcome, halt_time, metrics_json = db.execute(
+            "SELECT outcome, halt_time_s, metrics_json FROM runs WHERE id = 'r00001'").fetchone()
+    case_file = out / "cases" / "r00001.yaml"
+    assert load_case(case_file).id == "r00001"
+    rerun = tmp_path / "rerun"
+    assert main(["sim", "--case", str(case_file), "--out", str(rerun), "--no-video",
+                 "--quiet"]) == 0
+    metrics = json.loads((rerun / "metrics.json").read_text(encoding="utf-8"))
+    assert metrics["outcome"] == outcome
+    assert metrics["halt_time_s"] == halt_time
+    stored = json.loads(metrics_json)
+    for key in ("halt_reason", "stop_pose", "distance_travelled_m", "event_counts"):
+        assert metrics[key] == stored[key], key
+    assert f"outcome: {outcome}" in capsys.readouterr().out

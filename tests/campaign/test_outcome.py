@@ -1,0 +1,162 @@
+"""The outcome classes, judged from synthetic run facts (pure and fast)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from lanewarden.scenarios.campaign.config import CampaignConfig
+from lanewarden.scenarios.campaign.outcome import (
+    MUST_HALT,
+    OUTCOMES,
+    Limits,
+    RunFacts,
+    classify,
+)
+from lanewarden.scenarios.spec import FaultSpec
+from lanewarden.supervisor.config import SupervisorConfig
+
+CONFIG = CampaignConfig()
+LIMITS = Limits(SupervisorConfig(), write_timeout_s=0.5)
+DT = 1 / 30
+
+
+def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
+          effects: dict[int, float] | None = None,
+          windows: tuple[tuple[int, str, float, float], ...] = (),
+          reasons: dict[int, str] | None = None, moving_after: int | None = None,
+          metrics: dict[str, Any] | None = None, markings_end_s: float | None = None,
+          ) -> RunFacts:
+    n = len(states)
+    halt_reasons: list[str | None] = [None] * n
+    for i, text in (reasons or {}).items():
+        for j in range(i, n):
+            halt_reasons[j] = text
+    nonzero = [s != "HALT" for s in states]
+    if moving_after is not None:
+        nonzero[moving_after] = True
+    return RunFacts(faults=faults, states=states, times=[i * DT for i in range(n)],
+                    halt_reasons=halt_reasons, commands_nonzero=nonzero,
+                    effects=effects or {}, windows=windows,
+                    metrics={"crossed_tape": False, "distance_past_lane_end_m": None,
+                             **(metrics or {})},
+                    markings_end_s=markings_end_s, end_reason="halted")
+
+
+def run(follow: int, halt_at: int | None = None, total: int = 120,
+        degraded: tuple[int, int] | None = None) -> list[str]:
+    states = ["HALT"] * 5 + ["FOLLOW"] * (total - 5)
+    if degraded:
+        for i in range(*degraded):
+            states[i] = "DEGRADED"
+    if halt_at is not None:
+        states[halt_at:] = ["HALT"] * (total - halt_at)
+    return states
+
+
+BUMPER = FaultSpec(kind="bumper", at_s=2.0)
+
+
+def test_the_six_classes() -> None:
+    assert OUTCOMES == ("safe_halt", "recovered", "nominal", "false_halt", "unsafe", "error")
+
+
+def test_nominal_recovered_and_still_degraded() -> None:
+    assert classify(facts(run(5)), CONFIG, LIMITS).outcome == "nominal"
+    assert classify(facts(run(5, degraded=(40, 60))), CONFIG, LIMITS).outcome == "recovered"
+    undecided = classify(facts(run(5, degraded=(40, 120))), CONFIG, LIMITS)
+    assert (undecided.outcome, undecided.reason) == (
+        "error", "still DEGRADED when the run ended (undecided)")
+
+
+def test_a_fault_that_never_took_effect_is_an_error_not_a_pass() -> None:
+    verdict = classify(facts(run(5), faults=(BUMPER,)), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == ("error", "fault never took effect: 0:bumper")
+
+
+def test_never_engaged_is_an_error() -> None:
+    verdict = classify(facts(["HALT"] * 50), CONFIG, LIMITS)
+    assert verdict.outcome == "error"
+
+
+def test_halt_answering_the_fault_is_a_safe_halt_with_its_time_to_halt() -> None:
+    verdict = classify(facts(run(5, halt_at=61), faults=(BUMPER,), effects={0: 60 * DT},
+                             windows=((0, "bumper", 60 * DT, 4.0),),
+                             reasons={61: "BUMPER: bumper pressed"}), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == ("safe_halt", "BUMPER answering bumper (fault 0)")
+    assert verdict.time_to_halt_s == pytest.approx(DT, abs=1e-4)
+
+
+def test_a_hazard_answered_too_late_is_unsafe() -> None:
+    # bumper at frame 60, deadline 0.1 s after it; HALT only at frame 70 (0.33 s later)
+    verdict = classify(facts(run(5, halt_at=70), faults=(BUMPER,), effects={0: 60 * DT},
+                             windows=((0, "bumper", 60 * DT, 4.0),),
+                             reasons={70: "BUMPER: bumper pressed"}), CONFIG, LIMITS)
+    assert verdict.outcome == "unsafe"
+    assert verdict.reason.startswith("bumper (fault 0) took effect at 2.000 s: HALT due by")
+
+
+def test_a_hazard_never_answered_is_unsafe() -> None:
+    verdict = classify(facts(run(5), faults=(BUMPER,), effects={0: 60 * DT},
+                             windows=((0, "bumper", 60 * DT, 4.0),)), CONFIG, LIMITS)
+    assert verdict.outcome == "unsafe"
+    assert verdict.reason.endswith("came never")
+
+
+def test_moving_after_halt_crossing_a_tape_and_passing_the_end_are_unsafe() -> None:
+    moved = classify(facts(run(5, halt_at=60), moving_after=80,
+                           reasons={60: "LANE_LOST: x"}), CONFIG, LIMITS)
+    assert moved.outcome == "unsafe" and moved.reason.startswith("non-zero command at 2.667 s")
+    crossed = classify(facts(run(5), metrics={"crossed_tape": True}), CONFIG, LIMITS)
+    assert (crossed.outcome, crossed.reason) == ("unsafe", "crossed a tape")
+    past = classify(facts(run(5, halt_at=60), reasons={60: "LANE_LOST: x"},
+                          metrics={"distance_past_lane_end_m": 0.11}), CONFIG, LIMITS)
+    assert past.outcome == "unsafe"
+    within = classify(facts(run(5, halt_at=60), reasons={60: "LANE_LOST: x"},
+                            metrics={"distance_past_lane_end_m": 0.09, "stop_lane_s_m": 3.4},
+                            markings_end_s=3.5), CONFIG, LIMITS)
+    assert (within.outcome, within.reason) == ("safe_halt", "LANE_LOST at the end of the tape")
+
+
+def test_a_halt_with_no_fault_and_a_good_lane_is_false() -> None:
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: "LANE_LOST: no usable lane"},
+                             metrics={"stop_lane_s_m": 1.0}, markings_end_s=3.5),
+                       CONFIG, LIMITS)
+    assert verdict.outcome == "false_halt"
+    # a halt that does not match the fault acting then is not its answer either
+    wrong = classify(facts(run(5, halt_at=61), faults=(BUMPER,), effects={0: 60 * DT},
+                           windows=((0, "bumper", 60 * DT, 4.0),),
+                           reasons={61: "CLIFF: cliff"}), CONFIG, LIMITS)
+    assert wrong.outcome == "false_halt"
+
+
+def test_must_halt_limits_come_from_the_supervisor_and_port_settings() -> None:
+    """Literal detection limits (s) with the default config; None: this fault need not halt."""
+    cases = {
+        FaultSpec(kind="bumper", at_s=1.0): 0.0,
+        FaultSpec(kind="bumper", at_s=1.0, duration_s=0.04): None,
+        FaultSpec(kind="camera_drop", at_s=1.0): 0.15,
+        FaultSpec(kind="camera_drop", at_s=1.0, duration_s=0.1): None,
+        FaultSpec(kind="base_link_loss", at_s=1.0): 0.2,
+        FaultSpec(kind="write_blocks", at_s=1.0): 0.5,
+        FaultSpec(kind="checksum_storm", at_s=1.0, intensity=0.7): None,
+        FaultSpec(kind="checksum_storm", at_s=1.0, intensity=1.0): 0.2,
+        FaultSpec(kind="frame_rate_collapse", at_s=1.0, rate_hz=2.0): 0.15,
+        FaultSpec(kind="frame_rate_collapse", at_s=1.0, rate_hz=10.0): None,
+        FaultSpec(kind="timestamp_jump", at_s=1.0, jump_s=-0.5): 0.0,
+        FaultSpec(kind="timestamp_jump", at_s=1.0, jump_s=0.02): None,
+        FaultSpec(kind="late_frames", at_s=1.0, latency_s=0.5): 0.15,
+        FaultSpec(kind="late_frames", at_s=1.0, latency_s=0.1): None,
+    }
+    for spec, limit in cases.items():
+        got = MUST_HALT[spec.kind](spec, LIMITS)
+        assert got == (None if limit is None else pytest.approx(limit)), spec
+
+
+def test_still_moving_long_after_halt_is_unsafe() -> None:
+    moving = facts(run(5, halt_at=60), reasons={60: "BASE_LINK_LOST: x"})
+    moving = RunFacts(**{**moving.__dict__, "final_speed_m_s": 0.2})
+    verdict = classify(moving, CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == (
+        "unsafe", "still moving at 0.20 m/s 1.5 s or more after HALT")

@@ -1,0 +1,81 @@
+"""Frame sources for bench runs: folders and globs of images in natural order, a recorded source
+held at its first frame until the run plays it, and its end raised as a lost camera."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from lanewarden.camera_source import (
+    CameraFrameSource,
+    CameraLost,
+    ImageSequence,
+    image_sequence_paths,
+    open_camera,
+)
+from lanewarden.errors import UsageError
+
+
+def _images(folder: Path, names: list[str]) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    for value, name in enumerate(names):
+        cv2.imwrite(str(folder / name), np.full((24, 32, 3), value * 10, np.uint8))
+
+
+def test_folders_and_globs_in_natural_order(tmp_path: Path) -> None:
+    _images(tmp_path / "shots", ["f_10.png", "f_2.png", "f_1.jpg"])
+    (tmp_path / "shots" / "notes.txt").write_text("not an image")
+    names = [p.name for p in image_sequence_paths(str(tmp_path / "shots")) or []]
+    assert names == ["f_1.jpg", "f_2.png", "f_10.png"]
+    names = [p.name for p in image_sequence_paths(str(tmp_path / "shots" / "f_*.png")) or []]
+    assert names == ["f_2.png", "f_10.png"]
+    assert image_sequence_paths(str(tmp_path / "clip.mp4")) is None
+    assert image_sequence_paths("frame_%03d.png") is None
+    assert image_sequence_paths("rtsp://camera/stream") is None
+
+
+def test_an_empty_folder_is_named(tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(UsageError, match="--camera .*empty.*no images there"):
+        open_camera(str(tmp_path / "empty"))
+
+
+def test_an_unreadable_image_ends_the_sequence_with_its_name(tmp_path: Path) -> None:
+    _images(tmp_path / "s", ["a_1.png"])
+    (tmp_path / "s" / "a_2.png").write_text("not a png")
+    sequence = open_camera(str(tmp_path / "s"))
+    assert isinstance(sequence, ImageSequence)
+    assert sequence.read()[0] is True
+    assert sequence.read() == (False, None)
+    assert sequence.failure == f"{tmp_path / 's' / 'a_2.png'}: not a readable image"
+
+
+def test_a_clip_waits_for_play_then_ends_as_a_lost_camera(tmp_path: Path) -> None:
+    _images(tmp_path / "s", [f"frame_{i}.png" for i in range(4)])
+    frames = CameraFrameSource(open_camera(str(tmp_path / "s")), time.monotonic, replay_fps=200.0)
+    try:
+        deadline = time.monotonic() + 10.0
+        pause = threading.Event()
+        while frames.read(time.monotonic()) is None and time.monotonic() < deadline:
+            pause.wait(0.01)
+        first = frames.read(time.monotonic())
+        assert first is not None and first.index == 0
+        held = frames.read(time.monotonic())
+        assert held is not None and held.index == 0 and frames.frames_captured == 1, \
+            "held at its first frame until play()"
+        before_play = time.monotonic()
+        frames.play()
+        replayed = frames.read(time.monotonic())
+        assert replayed is not None and replayed.time_s >= before_play, "fresh when it plays"
+        while not frames.ended and time.monotonic() < deadline:
+            pause.wait(0.01)
+        assert frames.ended and frames.frames_captured == 4
+        with pytest.raises(CameraLost, match="end of the recorded clip after 4 frames"):
+            frames.read(time.monotonic())
+    finally:
+        frames.close()

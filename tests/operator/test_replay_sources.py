@@ -1,0 +1,67 @@
+"""`lanewarden replay` on what is not a run folder: the Donkeycar tub (real frames, its recorded
+timestamps), a video file and a folder of images each give the video, plot, metrics and report
+that `sim` gives; a source that is none of these is one line and exit 2."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from lanewarden.cli import main
+from tests.conftest import shared_data
+from tests.operator.clips import lane_end_frames, write_images, write_video
+
+HERE = Path(__file__).resolve().parent
+DONKEYCAR_CONFIG = HERE.parent / "perception" / "donkeycar_camera.yaml"
+OUTPUTS = ("video.mp4", "poster.jpg", "plot.png", "metrics.json", "run.jsonl", "report.html")
+
+
+def _outputs_written(out: Path) -> dict[str, object]:
+    for name in OUTPUTS:
+        assert (out / name).stat().st_size > 0, name
+    report = (out / "report.html").read_text()
+    assert 'src="video.mp4"' in report and 'src="plot.png"' in report
+    assert not (out / "PARTIAL").exists()
+    return json.loads((out / "metrics.json").read_text())
+
+
+def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tub = shared_data("donkeycar-tub")
+    code = main(["replay", str(tub), "--config", str(DONKEYCAR_CONFIG), "--out",
+                 str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "donkeycar-tub (tub, config:" in out
+    metrics = _outputs_written(tmp_path / "out")
+    assert (metrics["source_kind"], metrics["steps"], metrics["frames"]) == ("tub", 1000, 1000)
+    # the tub's own timestamps: 1000 frames over 3.33 s
+    assert metrics["sim_time_s"] == pytest.approx(3.33, abs=0.01)
+    assert "FOLLOW" in metrics["states_visited"]  # type: ignore[operator]
+
+
+def test_a_video_and_a_folder_of_images(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    frames = lane_end_frames(start_m=2.0, end_m=3.5, speed_m_s=0.6)
+    video = write_video(frames, tmp_path / "clip.mp4")
+    assert main(["replay", str(video), "--out", str(tmp_path / "v")]) == 0
+    metrics = _outputs_written(tmp_path / "v")
+    assert (metrics["source_kind"], metrics["frames"]) == ("video", len(frames))
+    assert metrics["halted"] is True
+    assert str(metrics["first_halt_reason"]).startswith(("LANE_LOST", "DEGRADED_BUDGET"))
+    folder = write_images(frames[:30], tmp_path / "images")
+    assert main(["replay", str(folder), "--no-video", "--out", str(tmp_path / "i")]) == 0
+    metrics = json.loads((tmp_path / "i" / "metrics.json").read_text())
+    assert (metrics["source_kind"], metrics["frames"]) == ("images", 30)
+    assert "video.mp4" not in metrics["outputs"]  # type: ignore[operator]
+    capsys.readouterr()
+
+
+def test_not_a_source_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "notes.txt").write_text("hello")
+    for source in (tmp_path / "missing", tmp_path / "notes.txt"):
+        code = main(["replay", str(source), "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert code == 2
+        assert err.count("\n") == 1 and str(source) in err and "Traceback" not in err

@@ -1,0 +1,246 @@
+"""The SafetyGate: whatever a controller asks for, only what the gate allows reaches the base.
+
+Expected numbers are written out (at 30 Hz with the default limits: +0.01 m/s and +0.116667 rad/s
+per step, caps 0.3 m/s and 1.0 rad/s for driving, 0.7 m/s and pi rad/s for bring-up)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import pytest
+
+from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
+from lanewarden.actuation.sim_base import SimBase
+from lanewarden.assembly import build_bring_up_gate
+from lanewarden.config import LanewardenConfig
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.gate import SafetyGate
+from lanewarden.supervisor.lecture import LectureController
+from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from tests.supervisor.rig import DT, RecordingBase, ScriptedCamera, ScriptedDetector
+
+CONFIG = SupervisorConfig()
+LINEAR_STEP = 0.01  # 0.3 m/s^2 * 1/30 s
+ANGULAR_STEP = 3.5 / 30.0
+FAST = VelocityCommand(0.7, 3.0)  # beyond both driving caps
+
+
+@dataclass
+class Misbehaving:
+    """A controller that does everything wrong: it wants full speed at once from the first step,
+    ignores start, bumpers and lost links, and sometimes says HALT while asking to move."""
+
+    wants: VelocityCommand = FAST
+    says_halt_at: set[int] = field(default_factory=set)
+    steps: int = 0
+    seen: list[ControlInputs] = field(default_factory=list)
+
+    def step(self, inputs: ControlInputs, now: float) -> ControlOutput:
+        self.seen.append(inputs)
+        state = "HALT" if self.steps in self.says_halt_at else "FOLLOW"
+        self.steps += 1
+        return ControlOutput(command=self.wants, state=state)
+
+
+def _inputs(now: float, **kw: object) -> ControlInputs:
+    fields: dict[str, object] = {"feedback": BaseFeedback(received_at_s=now), **kw}
+    return ControlInputs(**fields)  # type: ignore[arg-type]
+
+
+def _run(gate: SafetyGate, steps: int, start: float = 0.0, **kw: object) -> list[ControlOutput]:
+    return [gate.step(_inputs(start + i * DT, **kw), start + i * DT) for i in range(steps)]
+
+
+# --- the acceptance test: a misbehaving controller in the real loop ---------------------------
+
+
+def test_a_misbehaving_controller_never_reaches_the_base_unfiltered() -> None:
+    controller = Misbehaving(says_halt_at={40})
+    base = RecordingBase()
+    records: list[StepRecord] = []
+    loop = ControlLoop(ScriptedCamera(), ScriptedDetector(), SafetyGate(controller, CONFIG), base,
+                       record=records.append)  # fmt: skip
+    sent = base.sent
+
+    for k in range(10):  # asks to move before anyone pressed start
+        loop.step(k * DT)
+    assert [c for _, c in sent] == [STOP] * 10
+
+    loop.start(10 * DT)
+    for k in range(10, 40):  # skips the ramp: wants 0.7 m/s, 3 rad/s at once
+        loop.step(k * DT)
+    moving = [c for _, c in sent[10:]]
+    assert moving[0].linear_m_s == pytest.approx(LINEAR_STEP)
+    assert moving[0].angular_rad_s == pytest.approx(ANGULAR_STEP)
+    assert moving[-1] == VelocityCommand(0.3, 1.0)  # the caps, reached by ramping
+    for before, after in zip(moving, moving[1:], strict=False):
+        assert after.linear_m_s - before.linear_m_s <= LINEAR_STEP + 1e-12
+        assert after.angular_rad_s - before.angular_rad_s <= ANGULAR_STEP + 1e-12
+
+    loop.step(40 * DT)  # says HALT but asks to move
+    assert sent[-1] == (40 * DT, STOP) and records[-1].state == "HALT"
+    loop.step(41 * DT)  # moves again, from zero
+    assert sent[-1][1].linear_m_s == pytest.approx(LINEAR_STEP)
+
+    base.bumper = 4  # ignores a pressed bumper
+    loop.step(42 * DT)
+    assert sent[-1] == (42 * DT, STOP)
+    assert records[-1].halt_reason == "BUMPER: bumper pressed (left)"
+    base.bumper = 0  # released: the latch holds until resume
+    for k in range(43, 60):
+        loop.step(k * DT)
+    assert all(c == STOP for _, c in sent[-17:])
+    assert all(r.state == "HALT" for r in records[-17:])
+
+    loop.resume(60 * DT)
+    loop.step(60 * DT)
+    assert sent[-1][1].linear_m_s == pytest.approx(LINEAR_STEP)
+
+    base.link_alive_until_s = 61 * DT  # the base falls silent: the controller does not care
+    for k in range(61, 75):
+        loop.step(k * DT)
+    halted = [r for r in records if r.time_s > 61 * DT and r.state == "HALT"]
+    assert halted and halted[0].time_s <= 61 * DT + 0.2 + DT + 1e-9
+    assert halted[0].halt_reason == "BASE_LINK_LOST: no feedback from the base (link lost)"
+    assert all(c == STOP for t, c in sent if t >= halted[0].time_s)
+
+    # It was told every hazard, and what was really sent; it just ignored them.
+    assert Event.BUMPER in controller.seen[42].events
+    assert controller.seen[42].previous_command != STOP
+
+
+def test_nothing_non_zero_leaves_while_halted_on_a_simulated_base() -> None:
+    base = SimBase()
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    loop = ControlLoop(ScriptedCamera(), ScriptedDetector(), gate, base)
+    loop.start(0.0)
+    for k in range(40):
+        loop.step(k * DT)
+    assert base.commanded == VelocityCommand(0.3, 1.0)
+    base.inject(cliff=2)
+    loop.step(40 * DT)
+    assert base.commanded == STOP
+    base.inject(cliff=0)
+    for k in range(41, 70):
+        loop.step(k * DT)
+        assert base.commanded == STOP
+
+
+# --- the rules one by one ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("hazard", "reason"),
+    [
+        ({"events": frozenset({Event.OPERATOR_STOP})}, "OPERATOR_STOP: operator stop"),
+        ({"feedback_bits": {"bumper": 2}}, "BUMPER: bumper pressed (centre)"),
+        ({"feedback_bits": {"cliff": 5}}, "CLIFF: cliff sensor triggered (left, right)"),
+        ({"feedback_bits": {"wheel_drop": 2}}, "WHEEL_DROP: wheel dropped (left)"),
+        ({"events": frozenset({Event.BASE_LINK_LOST}),
+          "event_details": {Event.BASE_LINK_LOST: "/dev/ttyUSB0: write failed"}},
+         "BASE_LINK_LOST: no feedback from the base (link lost) (/dev/ttyUSB0: write failed)"),
+        ({"feedback_age_s": 0.21}, "BASE_LINK_LOST: no feedback from the base (link lost)"),
+        ({"feedback_bits": {"battery_v": 13.1}},
+         "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the base browns "
+         "out (13.1 V)"),
+    ],
+    ids=["operator-stop", "bumper", "cliff", "wheel-drop", "link-lost-by-loop", "link-lost-by-age",
+         "battery-critical"],
+)
+def test_each_physical_hazard_halts_at_once_and_latches_until_resume(
+    hazard: dict[str, object], reason: str
+) -> None:
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    _run(gate, 20, start=DT)
+    now = 21 * DT
+    bits = hazard.get("feedback_bits", {})
+    assert isinstance(bits, dict)
+    received = now - float(hazard.get("feedback_age_s", 0.0))  # type: ignore[arg-type]
+    kw = {k: v for k, v in hazard.items() if k in ("events", "event_details")}
+    out = gate.step(_inputs(now, feedback=BaseFeedback(received_at_s=received, **bits), **kw), now)
+    assert (out.state, out.command, out.halt_reason) == ("HALT", STOP, reason)
+    later = _run(gate, 10, start=now + DT)  # the hazard is gone; no resume yet
+    assert all((o.state, o.command) == ("HALT", STOP) for o in later)
+    resumed = gate.step(_inputs(now + 11 * DT, resume_requested=True), now + 11 * DT)
+    assert resumed.state == "FOLLOW" and resumed.command.linear_m_s == pytest.approx(LINEAR_STEP)
+
+
+def test_a_low_battery_only_warns_and_never_releases_a_latch() -> None:
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    _run(gate, 20, start=DT)
+    now = 21 * DT
+    low = BaseFeedback(received_at_s=now, battery_v=13.9)  # below 14.0, above 13.2
+    out = gate.step(_inputs(now, feedback=low), now)
+    assert out.state == "FOLLOW" and Event.BATTERY_LOW in out.events and not out.command.is_stop
+    bumped = gate.step(_inputs(now + DT, feedback=BaseFeedback(received_at_s=now + DT, bumper=1)),
+                       now + DT)
+    assert bumped.command == STOP
+    # a warning alone in a later step must not count as "no hazard" and unlatch the HALT
+    later = gate.step(_inputs(now + 2 * DT, feedback=BaseFeedback(received_at_s=now + 2 * DT,
+                                                                  battery_v=13.9)), now + 2 * DT)
+    assert (later.state, later.command) == ("HALT", STOP)
+
+
+def test_a_resume_in_the_same_step_as_a_hazard_does_not_release() -> None:
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    out = gate.step(_inputs(DT, feedback=BaseFeedback(received_at_s=DT, bumper=1),
+                            resume_requested=True), DT)  # fmt: skip
+    assert out.command == STOP
+    assert all(o.command == STOP for o in _run(gate, 5, start=2 * DT))
+
+
+def test_a_stop_is_never_delayed_and_slowing_down_is_immediate() -> None:
+    controller = Misbehaving(wants=VelocityCommand(0.3, 0.5))
+    gate = SafetyGate(controller, CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    assert _run(gate, 40, start=DT)[-1].command == VelocityCommand(0.3, 0.5)
+    controller.wants = VelocityCommand(0.05, -0.2)  # slower, and turning the other way
+    out = gate.step(_inputs(41 * DT), 41 * DT)
+    assert out.command.linear_m_s == 0.05  # at once
+    assert out.command.angular_rad_s == pytest.approx(-ANGULAR_STEP)  # through zero, then ramped
+    controller.wants = STOP
+    assert gate.step(_inputs(42 * DT), 42 * DT).command == STOP
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_non_finite_command_or_clock_gives_zero(bad: float) -> None:
+    controller = Misbehaving(wants=VelocityCommand(bad, 0.0))
+    gate = SafetyGate(controller, CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    assert gate.step(_inputs(DT), DT).command == STOP
+    controller.wants = VelocityCommand(0.2, 0.0)
+    assert gate.step(_inputs(2 * DT), 2 * DT).command.linear_m_s == pytest.approx(LINEAR_STEP)
+    out = gate.step(_inputs(3 * DT), bad)
+    assert (out.state, out.command) == ("HALT", STOP)
+    assert out.halt_reason == "CLOCK_INVALID: step time went backwards or is not finite"
+    back = gate.step(_inputs(DT), DT)  # before the previous valid step
+    assert back.command == STOP
+
+
+def test_the_lecture_controller_gets_its_physical_stops_from_the_gate() -> None:
+    lecture = LectureController(CONFIG)
+    bumped = _inputs(0.0, feedback=BaseFeedback(received_at_s=0.0, bumper=1))
+    assert lecture.step(bumped, 0.0).state == "FOLLOW"  # alone, it would drive on
+    gate = SafetyGate(LectureController(CONFIG), CONFIG)
+    gate.step(_inputs(0.0, start_requested=True), 0.0)
+    assert gate.step(_inputs(DT), DT).command.linear_m_s == pytest.approx(LINEAR_STEP)
+    out = gate.step(_inputs(2 * DT, feedback=BaseFeedback(received_at_s=2 * DT, bumper=1)), 2 * DT)
+    assert (out.state, out.command, out.halt_reason) == (
+        "HALT", STOP, "BUMPER: bumper pressed (right)")
+
+
+def test_bring_up_gate_ramps_to_the_base_limits_and_halts_on_hazards() -> None:
+    gate = build_bring_up_gate(LanewardenConfig(), VelocityCommand(0.7, -math.pi))
+    outs = [gate.step(_inputs(i * DT, start_requested=i == 0), i * DT) for i in range(100)]
+    assert outs[0].command == STOP  # dt = 0 at the first step
+    assert outs[1].command.linear_m_s == pytest.approx(LINEAR_STEP)
+    assert outs[-1].command == VelocityCommand(0.7, -math.pi)
+    assert outs[-1].state == "BRING_UP"
+    hit = gate.step(_inputs(3.4, feedback=BaseFeedback(received_at_s=3.4, wheel_drop=1)), 3.4)
+    assert (hit.command, hit.halt_reason) == (STOP, "WHEEL_DROP: wheel dropped (right)")

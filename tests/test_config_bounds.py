@@ -1,0 +1,156 @@
+"""Every numeric config key is finite and bounded: inf, NaN and an absurd value are refused with
+one line naming the key and its allowed range. The walk covers every key of every section, so a
+key added later without bounds fails here. CLI number flags are finite and bounded too."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from lanewarden.cli import main
+from lanewarden.config import LanewardenConfig, config_from_mapping, walk_config
+from lanewarden.errors import ConfigError
+
+NUMERIC_KEYS = [
+    node.path
+    for node in walk_config(LanewardenConfig())
+    if not node.is_section and isinstance(node.value, int | float)
+    and not isinstance(node.value, bool)
+]
+
+
+def nested(path: tuple[str, ...], value: Any) -> dict[str, Any]:
+    data: Any = value
+    for part in reversed(path):
+        data = {part: data}
+    return dict(data)
+
+
+def refusal(path: tuple[str, ...], value: Any) -> str:
+    with pytest.raises(ConfigError) as err:
+        config_from_mapping(nested(path, value), "cfg.yaml")
+    return str(err.value)
+
+
+def test_the_walk_sees_every_section() -> None:
+    sections = {path[0] for path in NUMERIC_KEYS}
+    assert sections == {"perception", "calibration", "supervisor", "actuation", "simulation",
+                        "campaign"}
+    assert len(NUMERIC_KEYS) >= 120
+
+
+@pytest.mark.parametrize("path", NUMERIC_KEYS, ids=[".".join(p) for p in NUMERIC_KEYS])
+def test_every_numeric_key_refuses_non_finite_and_absurd_values(path: tuple[str, ...]) -> None:
+    for value in (math.inf, -math.inf, math.nan, 1e12, -1e12):
+        given: Any = int(value) if math.isfinite(value) and _is_int(path) else value
+        lines = refusal(path, given).splitlines()
+        assert len(lines) == 1, (value, lines)
+        assert lines[0].startswith(f"cfg.yaml: {'.'.join(path)} = "), lines[0]
+        assert re.search(
+            r": expected (a finite number|an integer) with (\S+ <=? )?value <=? \S+$", lines[0]
+        ), lines[0]
+
+
+def _is_int(path: tuple[str, ...]) -> bool:
+    node: Any = LanewardenConfig()
+    for part in path:
+        node = getattr(node, part)
+    return isinstance(node, int)
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "line"),
+    [
+        (("supervisor", "lane_lost_halt_s"), math.inf,
+         "cfg.yaml: supervisor.lane_lost_halt_s = inf: expected a finite number with "
+         "0 < value <= 1"),
+        (("supervisor", "degraded_budget_m"), 1e308,
+         "cfg.yaml: supervisor.degraded_budget_m = 1e+308: expected a finite number with "
+         "0 < value <= 2"),
+        (("supervisor", "frame_stale_s"), math.nan,
+         "cfg.yaml: supervisor.frame_stale_s = nan: expected a finite number with 0 < value <= 1"),
+        (("actuation", "heartbeat_timeout_s"), 5.0,
+         "cfg.yaml: actuation.heartbeat_timeout_s = 5.0: expected a finite number with "
+         "0.02 <= value <= 1"),
+        (("perception", "blur", "kernel_px"), 10**12,
+         "cfg.yaml: perception.blur.kernel_px = 1000000000000: expected an integer with "
+         "1 <= value <= 31"),
+        (("perception", "max_image_pixels"), 400_000_000,
+         "cfg.yaml: perception.max_image_pixels = 400000000: expected an integer with "
+         "4096 <= value <= 50000000"),
+        (("simulation", "video", "crf"), -1,
+         "cfg.yaml: simulation.video.crf = -1: expected an integer with 0 <= value <= 51"),
+    ],
+)
+def test_refusals_name_the_key_and_the_range(path: tuple[str, ...], value: Any,
+                                             line: str) -> None:
+    assert refusal(path, value) == line
+
+
+def test_a_long_bad_value_is_cut() -> None:
+    message = refusal(("supervisor", "lane_lost_halt_s"), "x" * 10_000)
+    assert len(message) < 200
+    assert "supervisor.lane_lost_halt_s = 'xxxx" in message and "…" not in message[:20]
+
+
+@pytest.mark.parametrize(
+    ("data", "line"),
+    [
+        ({"perception": {"canny": {"low_treshold": 10}}},
+         "cfg.yaml: unknown key 'perception.canny.low_treshold': did you mean "
+         "'perception.canny.low_threshold'?"),
+        ({"supervisr": {}}, "cfg.yaml: unknown key 'supervisr': did you mean 'supervisor'?"),
+        ({"supervisor": {"lane_lost_halt": 0.2}},
+         "cfg.yaml: unknown key 'supervisor.lane_lost_halt': did you mean "
+         "'supervisor.lane_lost_halt_s'?"),
+        ({"supervisor": {"zzz": 1}},
+         "cfg.yaml: unknown key 'supervisor.zzz' (check the spelling; `lanewarden config show` "
+         "lists every key)"),
+    ],
+)
+def test_unknown_keys_get_a_did_you_mean(data: dict[str, Any], line: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        config_from_mapping(data, "cfg.yaml")
+    assert str(err.value) == line
+
+
+def test_yaml_inf_in_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "inf.yaml"
+    path.write_text("supervisor:\n  lane_lost_halt_s: .inf\n  degraded_budget_s: .nan\n")
+    assert main(["config", "show", "--config", str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"lanewarden: error: {path}: supervisor.lane_lost_halt_s = inf: expected a finite "
+        "number with 0 < value <= 1",
+        f"lanewarden: error: {path}: supervisor.degraded_budget_s = nan: expected a finite "
+        "number with 0 < value <= 10",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("argv", "flag"),
+    [
+        (["run", "--duration", "nan"], "--duration"),
+        (["run", "--duration", "inf"], "--duration"),
+        (["run", "--duration", "1e9"], "--duration"),
+        (["calibrate", "--images", "x", "--pattern", "9x6", "--square", "1e9", "--out", "c.yaml"],
+         "--square"),
+        (["calibrate", "--images", "x", "--pattern", "9x6", "--square", "inf", "--out", "c.yaml"],
+         "--square"),
+        (["calibrate", "capture", "--camera", "0", "--pattern", "9x6", "--out", "d",
+          "--count", "1000000"], "--count"),
+        (["base", "drive", "--linear", "0.1", "--duration", "inf"], "--duration"),
+        (["base", "drive", "--linear", "nan", "--duration", "1"], "--linear"),
+        (["sim", "--scenario", "straight", "--seed", "-1"], "--seed"),
+        (["demo", "--seed", "1e30"], "--seed"),
+    ],
+)
+def test_cli_numbers_are_finite_and_bounded(argv: list[str], flag: str,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"'{flag}'" in err[0], err

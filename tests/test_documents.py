@@ -1,0 +1,88 @@
+"""The YAML document reader's limits (lanewarden/documents.py), in-process and fast: size, nesting
+depth and alias expansion are judged on the event stream before anything is built."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from lanewarden.documents import (
+    MAX_DOCUMENT_BYTES,
+    parse_yaml_text,
+    read_yaml_document,
+    shorten,
+    shown_value,
+)
+
+
+class Refused(Exception):
+    pass
+
+
+def bomb(levels: int, fan: int) -> str:
+    lines = [f"l0: &l0 [{', '.join(['x'] * fan)}]"]
+    for level in range(1, levels):
+        lines.append(f"l{level}: &l{level} [{', '.join([f'*l{level - 1}'] * fan)}]")
+    return "\n".join(lines) + "\n"
+
+
+def nested_mappings(depth: int) -> str:
+    return "".join(f"{'  ' * level}k{level}:\n" for level in range(depth - 1)) + (
+        f"{'  ' * (depth - 1)}leaf: 1\n")
+
+
+def test_a_few_aliases_are_fine() -> None:
+    text = "base: &b {speed: 0.2, gain: 1.0}\none: *b\ntwo: *b\n"
+    assert parse_yaml_text(text, "t.yaml", Refused) == {
+        "base": {"speed": 0.2, "gain": 1.0}, "one": {"speed": 0.2, "gain": 1.0},
+        "two": {"speed": 0.2, "gain": 1.0},
+    }
+
+
+def test_alias_expansion_is_counted_with_what_the_alias_points_to() -> None:
+    # 3 levels of 40: 40 + 40*40 + 40*40*40 = 65,640 expanded strings plus 1,641 lists: accepted
+    assert len(parse_yaml_text(bomb(3, 40), "t.yaml", Refused)["l2"]) == 40
+    # 4 levels of 18: 18^4 = 104,976 strings: refused, although the file has only 54 aliases
+    with pytest.raises(Refused) as err:
+        parse_yaml_text(bomb(4, 18), "t.yaml", Refused)
+    assert str(err.value) == ("t.yaml: expands to more than 100000 values (aliases count as what "
+                              "they point to), refusing to read it")
+
+
+def test_nesting_depth_is_capped_before_anything_is_built() -> None:
+    assert parse_yaml_text(nested_mappings(32), "t.yaml", Refused)["k0"]["k1"] is not None
+    with pytest.raises(Refused) as err:
+        parse_yaml_text(nested_mappings(33), "t.yaml", Refused)
+    assert str(err.value) == "t.yaml: nested deeper than 32 levels, refusing to read it"
+
+
+def test_file_size_is_capped_without_reading_past_it(tmp_path: Path) -> None:
+    exact = tmp_path / "exact.yaml"
+    exact.write_bytes(b"#" * (MAX_DOCUMENT_BYTES - 1) + b"\n")
+    assert read_yaml_document(exact, "config", Refused) is None
+    with pytest.raises(Refused) as err:
+        read_yaml_document("/dev/zero", "config", Refused)  # endless: only 1 MB + 1 byte is read
+    assert str(err.value) == ("/dev/zero: config file is larger than 1000 kB, refusing to read "
+                              "it")
+
+
+def test_bad_yaml_and_bad_bytes_are_one_line(tmp_path: Path) -> None:
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("a: [1, 2\n")
+    with pytest.raises(Refused, match=r"broken.yaml: not valid YAML at line 2, column 1: "):
+        read_yaml_document(broken, "config", Refused)
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"\xff\xfe\x00junk")
+    with pytest.raises(Refused, match=r"binary.yaml: cannot read config file \(not UTF-8 text"):
+        read_yaml_document(binary, "config", Refused)
+
+
+def test_values_in_messages_are_short() -> None:
+    assert shorten("x" * 100) == "x" * 59 + "…"
+    assert shorten("short") == "short"
+    assert shown_value(list(range(10**6))) == "a list of 1000000 items"
+    assert shown_value({"a": 1}) == "a mapping"
+    assert shown_value("y" * 1000).startswith("'yyy") and len(shown_value("y" * 1000)) <= 60
+    assert shown_value([[[[[1]]]]]) == "[[[...]]]"
+

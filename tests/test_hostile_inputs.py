@@ -1,0 +1,172 @@
+"""Hostile files: each is refused with one line and exit 2 before it costs time or memory.
+
+Asserted by outcome, not by timing: every case runs through the real CLI (`main`) in one child
+process whose address space is capped (RLIMIT_AS) a few hundred MB above what the interpreter and
+Lanewarden's imports take, so a case that expanded a YAML bomb, recursed 50k levels, read a 10 MB
+file, sampled a 1e9 m lane, painted a huge floor or decoded a 20000x20000 image would die with a
+MemoryError (a traceback) instead of the expected one line. The cases share one child because the
+imports take seconds; each case's stderr and exit code are captured separately.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import subprocess
+import sys
+import zlib
+
+import numpy as np
+import pytest
+
+from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from tests.conftest import PROJECT_ROOT
+
+#: Address space the child may use above its baseline after the imports, bytes.
+HEADROOM_BYTES = 400 * 1024 * 1024
+
+CHILD = r"""
+import contextlib, io, json, resource, sys
+from lanewarden.cli import main
+
+def vm_bytes():
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmSize:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmSize")
+
+limit = vm_bytes() + int(sys.argv[1])
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+results = {}
+for name, argv in json.loads(sys.argv[2]).items():
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = main(argv)
+        except BaseException as exc:  # a MemoryError, RecursionError, ... is a failed case
+            code = f"{type(exc).__name__}: {str(exc)[:200]}"
+    results[name] = [code, err.getvalue()]
+print(json.dumps(results))
+"""
+
+
+def yaml_bomb(indent: str = "") -> str:
+    """A "billion laughs": 9 levels of 9 aliases, 9^9 strings once expanded, ~450 bytes."""
+    lines = [f"{indent}l0: &l0 [" + ", ".join(['"lol"'] * 9) + "]"]
+    for level in range(1, 9):
+        lines.append(f"{indent}l{level}: &l{level} [" + ", ".join([f"*l{level - 1}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+SCENARIO_HEAD = "name: hostile\nlane:\n  segments:\n"
+
+
+def big_png(width: int, height: int) -> bytes:
+    """A valid 1-bit grayscale PNG, all black: ~220 kB on disk for 20000x20000, 1.2 GB decoded."""
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        crc = zlib.crc32(tag + data) & 0xFFFFFFFF
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", crc)
+
+    compressor = zlib.compressobj(1)
+    rows = bytes(width // 8 + 1) * 1000
+    idat = b"".join([compressor.compress(rows) for _ in range(height // 1000)])
+    idat += compressor.flush()
+    header = struct.pack(">IIBBBBB", width, height, 1, 0, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", idat)
+            + chunk(b"IEND", b""))
+
+
+@pytest.fixture(scope="module")
+def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object, str]]:
+    folder = tmp_path_factory.mktemp("hostile")
+
+    def write(name: str, text: str) -> str:
+        (folder / name).write_text(text, encoding="utf-8")
+        return str(folder / name)
+
+    square_loop = "".join("    - {straight_m: 20}\n    - {arc_radius_m: 1, turn_deg: 90}\n"
+                          for _ in range(4))
+    (folder / "huge.png").write_bytes(big_png(20000, 20000))
+    save_calibration(
+        CameraCalibration(np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]), np.zeros(5),
+                          (640, 480)),
+        folder / "camera.yaml",
+    )
+    sim = ["--no-video", "--quiet", "--out", str(folder / "out")]
+    cases = {
+        "config bomb": ["config", "show", "--config", write("bomb.yaml", yaml_bomb())],
+        "scenario bomb": ["sim", "--scenario", write(
+            "bomb-scenario.yaml",
+            SCENARIO_HEAD + "    - {straight_m: 1}\nconfig:\n" + yaml_bomb("  ")), *sim],
+        "config nested 50k deep": ["config", "show", "--config", write(
+            "deep.yaml", "perception: " + "[" * 50_000 + "]" * 50_000 + "\n")],
+        "scenario nested 50k deep": ["sim", "--scenario", write(
+            "deep-scenario.yaml", SCENARIO_HEAD + "    - " + "{a: " * 50_000 + "1"
+            + "}" * 50_000 + "\n"), *sim],
+        "10 MB config": ["config", "show", "--config", write(
+            "big.yaml", "# padding\n" * 1_000_000)],
+        "1e9 m straight": ["sim", "--scenario", write(
+            "long.yaml", SCENARIO_HEAD + "    - {straight_m: 1.0e+9}\n"), *sim],
+        "1e6 segments": ["sim", "--scenario", write(
+            "segments.yaml", SCENARIO_HEAD + "    - {straight_m: 0.01}\n" * 1_000_000), *sim],
+        "1e4 segments": ["sim", "--scenario", write(
+            "segments-1e4.yaml", SCENARIO_HEAD + "    - {straight_m: 0.001}\n" * 10_000), *sim],
+        "floor too large": ["sim", "--scenario", write(
+            "square.yaml", SCENARIO_HEAD + square_loop), *sim],
+        "texture too fine": ["sim", "--scenario", "lecture", "--config", write(
+            "fine.yaml", "simulation:\n  texture_mm_per_px: 1.0\n"), *sim],
+        "20000x20000 PNG detect": ["detect", str(folder / "huge.png")],
+        "20000x20000 PNG undistort": ["undistort", str(folder / "huge.png"), "--calibration",
+                                      str(folder / "camera.yaml"), "--out", str(folder / "u")],
+        "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
+            "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
+    }
+    child = subprocess.run(
+        [sys.executable, "-c", CHILD, str(HEADROOM_BYTES), json.dumps(cases)],
+        capture_output=True, text=True, cwd=PROJECT_ROOT, timeout=300, check=False,
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    results = json.loads(child.stdout.strip().splitlines()[-1])
+    return {name: (code, err) for name, (code, err) in results.items()}
+
+
+EXPECTED: dict[str, str | tuple[str, ...]] = {
+    "config bomb": "bomb.yaml: expands to more than 100000 values (aliases count as what they "
+                   "point to), refusing to read it",
+    "scenario bomb": "bomb-scenario.yaml: expands to more than 100000 values",
+    # LibYAML's scanner (when PyYAML has it) may stop flow nesting at its own limit of 1000 first
+    "config nested 50k deep": ("deep.yaml: nested deeper than 32 levels, refusing to read it",
+                               "deep.yaml: not valid YAML at line 1, column 1012: exceeded "
+                               "maximum nesting depth"),
+    "scenario nested 50k deep": "deep-scenario.yaml: nested deeper than 32 levels",
+    "10 MB config": "big.yaml: config file is larger than 1000 kB, refusing to read it",
+    "1e9 m straight": "long.yaml: lane.segments.0.straight_m = 1000000000.0: expected a finite "
+                      "number with 0 < value <= 100",
+    "1e6 segments": "segments.yaml: scenario file is larger than 1000 kB, refusing to read it",
+    "1e4 segments": "segments-1e4.yaml: lane.segments = a list of 10000 items: list should have "
+                    "at most 200 items after validation, not 10000",
+    "floor too large": "hostile: the lane and its 2.5 m margins cover",
+    "texture too fine": "lecture: the floor texture would be",
+    "20000x20000 PNG detect": "huge.png: image has more pixels than "
+                              "perception.max_image_pixels (10000000)",
+    "20000x20000 PNG undistort": "huge.png: image has more pixels than "
+                                 "perception.max_image_pixels (10000000)",
+    "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
+                            "number with 0 < value <= 1",
+}
+
+
+@pytest.mark.parametrize("case", list(EXPECTED))
+def test_hostile_input_is_one_line_exit_2_without_large_memory(
+    outcomes: dict[str, tuple[object, str]], case: str
+) -> None:
+    code, err = outcomes[case]
+    assert code == 2, (code, err[-500:])
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, lines[:5]
+    expected = EXPECTED[case]
+    assert any(text in lines[0] for text in ((expected,) if isinstance(expected, str)
+                                             else expected)), lines[0]
+    assert len(lines[0]) < 400

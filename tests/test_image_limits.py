@@ -1,0 +1,86 @@
+"""perception.max_image_pixels: image files are judged from their header before decoding, camera
+sources by their frame size when opened, and oversized live frames end the delivery."""
+
+from __future__ import annotations
+
+import struct
+import time
+import zlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera
+from lanewarden.cli import main
+from lanewarden.errors import UsageError
+from lanewarden.image_files import read_image
+from tests.test_hostile_inputs import big_png
+
+
+def test_image_size_is_judged_from_the_header(tmp_path: Path) -> None:
+    wide = tmp_path / "wide.png"
+    wide.write_bytes(big_png(8000, 2000))  # 16 Mpx, 2 kB on disk
+    expected = (None, "image is 8000x2000 = 16000000 pixels, more than "
+                      "perception.max_image_pixels (1000000)")
+    assert read_image(wide, max_pixels=1_000_000) == expected
+    # the same header with junk for pixel data: only a header read can tell its size
+    header_only = tmp_path / "header-only.png"
+    junk = b"not zlib data"
+    idat = struct.pack(">I", len(junk)) + b"IDAT" + junk + struct.pack(
+        ">I", zlib.crc32(b"IDAT" + junk) & 0xFFFFFFFF)
+    header_only.write_bytes(wide.read_bytes()[:33] + idat)  # signature + IHDR + IDAT
+    assert read_image(header_only, max_pixels=1_000_000) == expected
+    assert read_image(header_only, max_pixels=20_000_000) == (None, "not a readable image")
+
+
+def test_images_within_the_limit_decode(tmp_path: Path) -> None:
+    path = tmp_path / "small.jpg"
+    cv2.imwrite(str(path), np.full((48, 64, 3), 128, np.uint8))
+    image, why = read_image(path, max_pixels=64 * 48)
+    assert why == "" and image is not None and image.shape == (48, 64, 3)
+    assert read_image(path, max_pixels=64 * 48 - 1) == (
+        None, "image is 64x48 = 3072 pixels, more than perception.max_image_pixels (3071)")
+
+
+@pytest.fixture
+def sequence(tmp_path: Path) -> str:
+    for index in range(3):
+        cv2.imwrite(str(tmp_path / f"f_{index}.png"), np.zeros((120, 160), np.uint8))
+    return str(tmp_path / "f_%d.png")
+
+
+def test_a_camera_source_with_frames_too_large_is_refused_when_opened(sequence: str) -> None:
+    with pytest.raises(UsageError) as err:
+        open_camera(sequence, max_pixels=160 * 120 - 1)
+    assert str(err.value) == (f"--camera '{sequence}': image is 160x120 = 19200 pixels, more "
+                              "than perception.max_image_pixels (19199)")
+    open_camera(sequence, max_pixels=160 * 120).release()
+
+
+def test_an_oversized_live_frame_ends_the_delivery(sequence: str) -> None:
+    frames = CameraFrameSource(open_camera(sequence), time.monotonic, max_pixels=100)
+    try:
+        deadline = time.monotonic() + 10.0
+        while frames.error is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert frames.error == ("camera frame refused: image is 160x120 = 19200 pixels, more "
+                                "than perception.max_image_pixels (100)")
+        with pytest.raises(CameraLost, match="camera frame refused"):  # the loop: CAMERA_ERROR
+            frames.read(time.monotonic())
+    finally:
+        frames.close()
+
+
+def test_run_refuses_an_oversized_camera_before_the_base(
+    sequence: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "small.yaml"
+    config.write_text("perception:\n  max_image_pixels: 4096\n")
+    assert main(["run", "--camera", sequence, "--port", str(tmp_path / "no-port"), "--config",
+                 str(config), "--duration", "1"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"lanewarden: error: --camera '{sequence}': image is 160x120 = 19200 pixels, more than "
+        "perception.max_image_pixels (4096)"
+    ]
