@@ -17,11 +17,12 @@ signed distance from the robot's centre (left +) and direction (left +), null wi
 `supervisor.turn_enter_slope_sum`: the supervisor's thresholds).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
 
-Perception sees the floor through a ground model; one line on stderr says which one (the
-calibration's ground pose from `lanewarden calibrate ground`; without one the simulator's default
-mount) and what a pixel covers at the look-ahead. A config this camera cannot work with
-(`PerceptionConfigError`: the floor region or the look-ahead out of view, tape and seams not
-separable at the look-ahead) is a config error: one line, exit code 2.
+Perception sees the floor through a ground model; one line says which one (the calibration's
+ground pose from `lanewarden calibrate ground`; without one the simulator's default mount) and
+what a pixel covers at the look-ahead: the first line of the text output, on stderr with `--json`.
+A config this camera cannot work with (`PerceptionConfigError`: the floor region or the
+look-ahead out of view, tape and seams not separable at the look-ahead) is a config error: one
+line, exit code 2.
 
 Unusable images (missing, empty, not an image, a folder, more pixels than
 `perception.max_image_pixels`, wrong size for the calibration) are skipped and reported together
@@ -127,7 +128,12 @@ def detect_command(
         detector = LaneDetector(config, undistorter)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    click.echo(f"lanewarden: {detector.describe_ground(calibration_path)}", err=True)
+    # which ground model: the first line of the text output; with --json on stderr (stdout
+    # stays one JSON object per line)
+    if as_json:
+        click.echo(f"lanewarden: {detector.describe_ground(calibration_path)}", err=True)
+    else:
+        _emit(detector.describe_ground(calibration_path))
     failures: list[str] = []
     unwritten: list[str] = []
     for index, name in enumerate(images):

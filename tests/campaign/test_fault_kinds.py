@@ -32,8 +32,10 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
     "shadow_edge": ({"at_m": 2.5, "offset_m": 0.0, "length_m": 2.0, "intensity": 0.8},
                     "nominal", None),
     "glare_sweep": ({"at_s": T, "duration_s": 1.0, "intensity": 0.9}, "nominal", None),
+    # 60% of the right tape hidden for 1 s: no lane width, no verified pair on that side, so
+    # no trusted lane; LANE_LOST after lane_lost_halt_s (0.5 s)
     "occlusion": ({"at_s": T, "duration_s": 1.0, "intensity": 0.6, "side": "right"},
-                  "nominal", None),
+                  "safe_halt", "LANE_LOST"),
     "lens_smudge": ({"at_s": T, "intensity": 1.0}, "safe_halt", "LANE_LOST"),
     "exposure_jump": ({"at_s": T, "duration_s": 1.0, "intensity": 0.0}, "nominal", None),
     "frame_rate_collapse": ({"at_s": T, "rate_hz": 2.0}, "safe_halt", "FRAME_STALE"),

@@ -79,7 +79,8 @@ def test_text_output_and_overlays(
         capsys,
     )
     assert code == 0
-    assert out.splitlines()[0].startswith(f"{frames / 'straight.png'}: straight  slope sum")
+    assert out.splitlines()[0] == GROUND_LINE.removeprefix("lanewarden: ").rstrip("\n")
+    assert out.splitlines()[1].startswith(f"{frames / 'straight.png'}: straight  slope sum")
     big = cv2.imread(str(out_dir / "straight_detect.png"))
     small = cv2.imread(str(out_dir / "small_detect.png"))
     assert big is not None and big.shape == (480, 640, 3)
@@ -129,15 +130,16 @@ def test_bad_images_are_named_and_good_results_kept(
 def test_image_size_differs_from_calibration(
     frames: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, _, err = run(
+    code, out, err = run(
         ["detect", str(frames / "small.png"), "--calibration", str(frames / "camera.yaml")],
         capsys,
     )
     assert code == 2
     assert f"{frames / 'small.png'}: undistort: image is 320x240" in err
-    ground, error = err.strip().splitlines()
+    (ground,) = out.strip().splitlines()  # text mode: the ground line leads the output
+    (error,) = err.strip().splitlines()
     assert ground.startswith(
-        f"lanewarden: ground model: no ground calibration in the calibration from "
+        f"ground model: no ground calibration in the calibration from "
         f"{frames / 'camera.yaml'}: assuming the simulator's default mount (h 0.400 m, pitch "
         "35.0°, 0.150 m ahead of the robot's centre) with its K; run `lanewarden calibrate "
         "ground`; 640x480: at the look-ahead")

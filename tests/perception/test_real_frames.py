@@ -27,9 +27,10 @@ import pytest
 import yaml
 
 from lanewarden.config import config_from_mapping
+from lanewarden.perception.calibration import load_calibration
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.detector import LaneDetector
-from lanewarden.perception.ground import CameraPose, GroundModel, default_ground_model
+from lanewarden.perception.ground import GroundModel, default_ground_model, ground_model_for
 from tests.conftest import shared_data
 
 HERE = Path(__file__).parent
@@ -63,10 +64,8 @@ def _setup(name: str) -> tuple[PerceptionConfig, GroundModel]:
         config = PerceptionConfig.model_validate({"edges": {"look_ahead_m": 0.47}})
         return config, default_ground_model((160, 120))
     described = yaml.safe_load((HERE / name).read_text())
-    mount = described["ground"]
-    ground = GroundModel.from_fov(
-        mount["hfov_deg"], (160, 120),
-        CameraPose(height_m=mount["height_m"], pitch_deg=mount["pitch_deg"]))
+    calibration = load_calibration(HERE / "donkeycar_calibration.yaml")
+    ground, _ = ground_model_for(calibration, (160, 120))
     config = config_from_mapping({"perception": described["perception"]}, name).perception
     return config, ground
 
