@@ -7,8 +7,9 @@ HoughLinesP, with exactly the detector's parameters at each size (taken from
 `LaneDetector.setup_for`). The detector adds candidate lines, tape-vs-seam edge choice, bounded
 slopes and the confidence score. Both run on the same synthetic lane frames (the test suite's
 scenes: straight, both bends, dashed, tape on tiles, light tape on a dark floor) at 640x480 and
-320x240, with `cv2.setNumThreads(1)`. Floor and detector are timed in alternation and each keeps
-its best (minimum) time over the repeats, which is robust to other work on the machine.
+320x240, with `cv2.setNumThreads(1)`. Times are this process's CPU time (`time.process_time`,
+single-threaded), so other work on the machine does not count; floor and detector are timed in
+alternation and each keeps its best (minimum) time over the repeats.
 
 Target: detector <= 1.5x the floor at 640x480. Not a test: nothing here asserts a speed.
 """
@@ -73,11 +74,11 @@ def floor_pipeline(
 def best_ms_per_frame(
     work: Callable[[np.ndarray], object], frames: list[np.ndarray], loops: int
 ) -> float:
-    start = time.perf_counter()
+    start = time.process_time()
     for _ in range(loops):
         for frame in frames:
             work(frame)
-    return 1000.0 * (time.perf_counter() - start) / (loops * len(frames))
+    return 1000.0 * (time.process_time() - start) / (loops * len(frames))
 
 
 def measure(

@@ -40,7 +40,8 @@ def inputs(n: int, seed: int = 0) -> list[ControlInputs]:
             right=None if dropout else RIGHT,
             slope_sum=None if dropout else float(bend + rng.normal(0, 0.2)),
             confidence=0.0 if dropout else float(rng.uniform(0.6, 1.0)),
-            center_offset=None if dropout else float(rng.normal(0, 0.02)),
+            lane_offset_m=None if dropout else float(rng.normal(0, 0.01)),
+            lane_heading_rad=None if dropout else float(rng.normal(0, 0.02)),
         )
         out.append(
             ControlInputs(

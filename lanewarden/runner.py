@@ -120,6 +120,7 @@ def run_robot(
                                        f"--calibration {calibration_path}")
         stack = build_stack(config, controller=controller_name, calibration=calibration,
                             debug_tap=True)  # the live page draws the detection's overlay
+        print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
 
         session = RunSession(
             SessionOptions(base_kind=base_kind, record=record, record_lossy=record_lossy,

@@ -1,30 +1,34 @@
-"""The confidence score: how far the supervisor may trust this frame's slope sum.
+"""The confidence score: how far the supervisor may trust this frame's lane.
 
 Components (each in [0, 1], all reported in `LaneObservation.components`):
 - `both_sides`: 1 with a left and a right edge, 0.5 with one, 0 with none.
 - `support_left` / `support_right`: total length of the edge's Hough segments relative to
   `support_full_frac_of_height` of the image height (capped at 1): sparse evidence scores low.
-- `lane_width`: distance between the two edges at the ROI bottom (as a fraction of image width)
-  against the expected `width_at_bottom_frac_of_width`: 1 within the tolerance, 0 at twice it.
-  Catches a tape edge paired with a seam or a stray line.
-- `vanishing_point`: where the two edges' lines meet, against (0.5, `horizon_y_norm`): 1 within
-  the tolerances, 0 at twice them. Two lane edges on a flat floor meet at the horizon; random
-  lines don't.
-- `tape_pair_left` / `tape_pair_right`: the edge is one side of a tape (two parallel edges of
-  opposite polarity, tape-wide apart), not a seam or a lone line: the pair's width score; 0
-  unpaired, `tape.unverifiable_score` when the partner would lie outside the image.
-- `consistency`: agreement with the previous observation (edge position at the ROI bottom and edge
-  angle), when one is given; 1 when there is none or nothing to compare (neutral, not a check).
+- `lane_width`: distance between the two edges ON THE FLOOR against `lane.width_m -
+  tape.width_m` (the free width between the tapes): 1 within `lane.width_tolerance_m`, 0 at
+  twice it. Catches a tape edge paired with a seam or a stray line.
+- `parallel`: the angle between the two edges on the floor: 1 within
+  `lane.parallel_tolerance_deg`, 0 at twice it. Lane edges are parallel; random lines are not.
+- `tape_pair_left` / `tape_pair_right`: the edge is one side of a tape, not a seam or a lone
+  line: a verified pair's width score, a lone edge's profile fraction, `tape.unverifiable_score`
+  when its tape's far side is outside the image; 0 for a seam or a refuted line.
+- `verified_tape`: 1 when at least one side is a verified tape (two edges whose width on the
+  floor is a tape's, with a tape's band between them), else 0. Always a full gate (no weight):
+  edges nobody could check (at the image border) never make a lane confident on their own.
+- `consistency`: agreement with the previous observation (each reported edge's position and
+  direction on the floor), when one is given; 1 when there is none or nothing to compare
+  (neutral).
 
 Combination (a weighted geometric product, weights in `confidence.weights`):
 
     confidence = both_sides^w_b * support_left^(w_s/2) * support_right^(w_s/2) * lane_width^w_w
-                 * vanishing_point^w_v * tape_pair_left^(w_t/2) * tape_pair_right^(w_t/2)
-                 * consistency^w_c
+                 * parallel^w_p * tape_pair_left^(w_t/2) * tape_pair_right^(w_t/2)
+                 * verified_tape * consistency^w_c
 
 A weight of 1 makes a component a full gate (a 0 forces confidence 0), smaller weights soften it,
 0 ignores it. Per-side components share their weight. Components that need both edges are 0 when
-one is missing. The tile-grout-only floor, the lecture's failure, scores 0 through `tape_pair`.
+one is missing. The tile-grout-only floor, the lecture's failure, scores 0 through `tape_pair`
+and `verified_tape`.
 
 Pure function: no images, no clock.
 """
@@ -33,10 +37,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from types import MappingProxyType
 
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.geometry import intersect_lines, x_at_row
+from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 
 COMPONENT_NAMES = (
@@ -44,63 +49,71 @@ COMPONENT_NAMES = (
     "support_left",
     "support_right",
     "lane_width",
-    "vanishing_point",
+    "parallel",
     "tape_pair_left",
     "tape_pair_right",
+    "verified_tape",
     "consistency",
 )
 
-Line = tuple[float, float, float, float]
+
+@dataclass(frozen=True)
+class EdgeEvidence:
+    """What confidence needs of one chosen edge: its near line on the floor (`point`, unit
+    `direction` away from the robot, robot frame metres), its Hough support in pixels, its tape
+    score and whether it is a verified tape."""
+
+    point: Point
+    direction: Point
+    support_px: float
+    tape_score: float
+    verified: bool
 
 
 def _ramp(deviation: float, tolerance: float) -> float:
     """1 for |deviation| <= tolerance, linear down to 0 at twice the tolerance."""
+    if not math.isfinite(deviation):
+        return 0.0
     return min(1.0, max(0.0, 2.0 - abs(deviation) / tolerance))
+
+
+def floor_angle_deg(a: Point, b: Point) -> float:
+    """Angle between two floor directions, degrees in [0, 180]."""
+    return math.degrees(abs(math.atan2(a[0] * b[1] - a[1] * b[0], a[0] * b[0] + a[1] * b[1])))
 
 
 def lane_components(
     *,
-    size: tuple[int, int],
-    y_bottom: float,
-    left_line: Line | None,
-    right_line: Line | None,
-    left_support_px: float,
-    right_support_px: float,
-    left_tape: float,
-    right_tape: float,
+    height_px: int,
+    left: EdgeEvidence | None,
+    right: EdgeEvidence | None,
     config: PerceptionConfig,
 ) -> dict[str, float]:
-    """All components except `consistency`. Lines are (x1, y1, x2, y2) in pixels, through the
-    near part of each edge (where a bend has not yet curved it)."""
-    width, height = size
+    """All components except `consistency`."""
     cc = config.confidence
-    lane = config.lane
-    full = cc.support_full_frac_of_height * height
-    sides = (left_line is not None) + (right_line is not None)
+    full = cc.support_full_frac_of_height * height_px
+    sides = (left is not None) + (right is not None)
     comps = {
         "both_sides": sides / 2.0,
-        "support_left": min(1.0, left_support_px / full) if left_line is not None else 0.0,
-        "support_right": min(1.0, right_support_px / full) if right_line is not None else 0.0,
+        "support_left": min(1.0, left.support_px / full) if left is not None else 0.0,
+        "support_right": min(1.0, right.support_px / full) if right is not None else 0.0,
         "lane_width": 0.0,
-        "vanishing_point": 0.0,
-        "tape_pair_left": left_tape if left_line is not None else 0.0,
-        "tape_pair_right": right_tape if right_line is not None else 0.0,
+        "parallel": 0.0,
+        "tape_pair_left": left.tape_score if left is not None else 0.0,
+        "tape_pair_right": right.tape_score if right is not None else 0.0,
+        "verified_tape": 1.0 if any(e is not None and e.verified for e in (left, right)) else 0.0,
     }
-    if left_line is not None and right_line is not None:
-        x_left = x_at_row(*left_line, y_bottom)
-        x_right = x_at_row(*right_line, y_bottom)
-        lane_width = (x_right - x_left) / width
-        if lane_width > 0.0:
-            comps["lane_width"] = _ramp(
-                lane_width - lane.width_at_bottom_frac_of_width, lane.width_tolerance_frac_of_width
-            )
-        meet = intersect_lines(left_line, right_line)
-        if meet is not None:
-            vx = meet[0] / width - 0.5
-            vy = meet[1] / height - lane.horizon_y_norm
-            comps["vanishing_point"] = _ramp(vx, lane.vanishing_x_tolerance_norm) * _ramp(
-                vy, lane.vanishing_y_tolerance_norm
-            )
+    if left is not None and right is not None:
+        gap = 0.5 * (distance_to_line(left.point, right.point, right.direction)
+                     + distance_to_line(right.point, left.point, left.direction))
+        expected = config.lane.width_m - config.tape.width_m
+        # The left edge must lie left of the right one (a crossed pair is no lane).
+        left_of = (right.direction[0] * (left.point[1] - right.point[1])
+                   - right.direction[1] * (left.point[0] - right.point[0]))
+        if left_of > 0.0:
+            comps["lane_width"] = _ramp(gap - expected, config.lane.width_tolerance_m)
+        comps["parallel"] = _ramp(floor_angle_deg(left.direction, right.direction),
+                                  config.lane.parallel_tolerance_deg)
     return comps
 
 
@@ -108,35 +121,32 @@ def consistency_component(
     left: LaneEdge | None,
     right: LaneEdge | None,
     previous: LaneObservation | None,
-    size: tuple[int, int],
-    y_bottom: float,
+    view: FloorView,
     config: PerceptionConfig,
 ) -> float:
-    """Agreement with `previous`: per side present in both, the edge's column at the ROI bottom
-    and its angle; the worst side counts. 1 when there is nothing to compare."""
+    """Agreement with `previous`: per side present in both, the reported segment (near end to
+    the look-ahead) on the floor: how far its near end lies from the previous one's line and how
+    much it turned; the worst side counts. 1 when there is nothing to compare. (The reported
+    chord, not the near line: near Hough pieces come and go in a bend, the chord does not.)"""
     if previous is None:
         return 1.0
-    width = size[0]
     cc = config.confidence
     score = 1.0
     for now, before in ((left, previous.left), (right, previous.right)):
         if now is None or before is None:
             continue
-        shift = (
-            x_at_row(now.x1, now.y1, now.x2, now.y2, y_bottom)
-            - x_at_row(before.x1, before.y1, before.x2, before.y2, y_bottom)
-        ) / width
-        turn = _angle(now) - _angle(before)
+        a0, a1 = view.to_floor(now.x1, now.y1), view.to_floor(now.x2, now.y2)
+        b0, b1 = view.to_floor(before.x1, before.y1), view.to_floor(before.x2, before.y2)
+        da, db = direction(a0, a1), direction(b0, b1)
+        if not math.isfinite(sum((*a0, *b0, *da, *db))) or (0.0, 0.0) in (da, db):
+            continue
+        shift = distance_to_line(a0, b0, db)
+        turn = floor_angle_deg(da, db)
         score = min(
             score,
-            _ramp(shift, cc.consistency_offset_tol_frac_of_width)
-            * _ramp(turn, cc.consistency_angle_tol_deg),
+            _ramp(shift, cc.consistency_offset_tol_m) * _ramp(turn, cc.consistency_angle_tol_deg),
         )
     return score
-
-
-def _angle(edge: LaneEdge) -> float:
-    return math.degrees(math.atan2(edge.y1 - edge.y2, edge.x2 - edge.x1))
 
 
 def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
@@ -147,9 +157,10 @@ def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
         "support_left": w.support / 2.0,
         "support_right": w.support / 2.0,
         "lane_width": w.lane_width,
-        "vanishing_point": w.vanishing_point,
+        "parallel": w.parallel,
         "tape_pair_left": w.tape_pair / 2.0,
         "tape_pair_right": w.tape_pair / 2.0,
+        "verified_tape": 1.0,
         "consistency": w.consistency,
     }
     total = 1.0

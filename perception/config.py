@@ -1,13 +1,13 @@
 """Perception's section of the one validated config (`perception:` in the YAML file).
 
-Every default lives here, with units in the names. Conventions:
-- `*_norm`: normalised image coordinates, x = column / width, y = row / height (origin top-left,
-  y down), so one ROI fits every resolution. Values outside [0, 1] are allowed (a triangle whose
-  base corners lie outside the image is clipped by it).
-- `*_frac_of_height` / `*_frac_of_width`: a length in pixels expressed as a fraction of the image
-  height or width, so the same config works at 640x480, 320x240 and 160x120.
-- `*_deg`: degrees; `*_levels`: grey levels (0-255).
-- Pixel parameters the lecture's pipeline takes as integers (blur kernel) are given for a
+Every default lives here or in `perception.floor_config`, with units in the names:
+- floor geometry in metres (`tape`, `lane`, `roi`, `edges.look_ahead_m`): what the world looks
+  like, turned into pixels through the camera's ground model once per image size, so the same
+  config holds for any camera (`perception.floor_config`);
+- pixel knobs of the image processing (blur, Canny, Hough, merging and chaining Hough pieces,
+  sampling beside a line): `*_px` pixels, `*_frac_of_height` / `*_frac_of_width` a length in
+  pixels as a fraction of the image height or width (so they scale with the resolution),
+  `*_deg` degrees in the image, `*_levels` grey levels (0-255). The blur kernel is given for a
   480-row image and scaled with the image height (see `BlurConfig`).
 
 This module only declares and validates numbers: it never touches images.
@@ -15,62 +15,17 @@ This module only declares and validates numbers: it never touches images.
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Self
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from lanewarden.perception.floor_config import LaneConfig, RoiConfig, TapeConfig
 
 _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
 Weight = Annotated[float, Field(ge=0.0, le=4.0)]
-
-
-class RoiConfig(BaseModel):
-    """The region of interest, a polygon in normalised image coordinates.
-
-    Default: the lecture's triangle rising from the bottom edge. Its base corners lie outside the
-    image because with the default camera the lane's two tapes leave the image at its bottom
-    corners and converge towards the top centre: a triangle with its corners AT the bottom
-    corners would cut the tapes off. Inside the image it keeps the whole bottom and tapers to the
-    apex, dropping the top corners (walls, clutter beside the far lane).
-    """
-
-    model_config = _FROZEN
-
-    polygon_norm: tuple[tuple[float, float], ...] = Field(
-        default=((-0.6, 1.0), (1.6, 1.0), (0.5, 0.0)),
-        description=(
-            "ROI polygon [[x, y], ...] in normalised image coordinates (x = column/width, y = "
-            "row/height, y down); may extend outside the image. Default: the lecture's triangle "
-            "rising from the bottom edge, base corners outside the image so the default camera's "
-            "tapes stay inside"
-        ),
-    )
-
-    @field_validator("polygon_norm")
-    @classmethod
-    def _polygon(cls, value: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
-        if len(value) < 3:
-            raise ValueError(f"needs at least 3 vertices [x, y], got {len(value)}")
-        for x, y in value:
-            if not (math.isfinite(x) and math.isfinite(y)) or not (
-                -2.0 <= x <= 3.0 and -2.0 <= y <= 3.0
-            ):
-                raise ValueError(
-                    f"vertex [{x}, {y}] must be finite and within [-2, 3] (normalised image units)"
-                )
-        area2 = sum(
-            x0 * y1 - x1 * y0
-            for (x0, y0), (x1, y1) in zip(value, value[1:] + value[:1], strict=True)
-        )
-        if abs(area2) < 1e-6:
-            raise ValueError("polygon has zero area (vertices collinear or repeated)")
-        inside = [(x, y) for x, y in value if 0.0 <= y <= 1.0]
-        if not inside:
-            raise ValueError("polygon lies entirely above or below the image (all y outside 0..1)")
-        return value
 
 
 class BlurConfig(BaseModel):
@@ -194,12 +149,13 @@ class EdgesConfig(BaseModel):
       Hough's broken pieces of one edge).
     - `chain_gap_frac_of_height` / `chain_max_turn_deg`: a line whose near end starts within the
       gap of another's far end, turning by at most this much, continues it (a bending edge).
-    - `look_ahead_y_norm`: the reported edge (and so its slope) ends where the edge crosses this
-      image row, or at its far end if it stops short: every frame measures the same stretch of
-      floor (to about 0.87 m ahead with the default camera), so a bend reads steadily instead of
-      jumping with how far Hough happened to follow the curve. Farther (0.3: 1.1 m) makes the
-      lecture's +-6 trip early in gentle bends (R 2 m), where its fixed turn rate then
-      overshoots inside the bend in the closed loop.
+    - `look_ahead_m`: the reported edge (and so its slope) ends where the edge crosses the image
+      row that sees the floor this far ahead of the robot's centre, or at its far end if it stops
+      short: every frame measures the same stretch of floor, so a bend reads steadily instead of
+      jumping with how far Hough happened to follow the curve. Farther (1.1 m with the default
+      camera) makes the lecture's +-6 trip early in gentle bends (R 2 m), where its fixed turn
+      rate then overshoots inside the bend in the closed loop. It must lie in the camera's view,
+      and there the camera must tell the tape from a seam (checked at start-up).
     - `max_abs_slope`: the slope clamp (see `perception.geometry`).
     """
 
@@ -245,11 +201,12 @@ class EdgesConfig(BaseModel):
             "max turn between consecutive lines of one bending edge"
         ),
     )
-    look_ahead_y_norm: Annotated[float, Field(ge=-1.0, le=1.0)] = Field(
-        default=0.4,
+    look_ahead_m: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        default=0.87,
         description=(
-            "the reported edge (and its slope) ends where the edge crosses this image row "
-            "(normalised), or at its far end if shorter: a fixed stretch of floor every frame"
+            "the reported edge (and its slope) ends where the edge crosses the image row seeing "
+            "the floor this far ahead of the robot's centre, or at its far end if shorter: a "
+            "fixed stretch of floor every frame, metres"
         ),
     )
     max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = Field(
@@ -260,184 +217,12 @@ class EdgesConfig(BaseModel):
     )
 
 
-class TapeConfig(BaseModel):
-    """Telling a tape (two parallel edges of opposite polarity, tape-wide apart) from a seam.
-
-    - `width_min/max_frac_of_width`: the tape's width, measured horizontally and projected to the
-      bottom of the ROI using `LaneGeometryConfig.horizon_y_norm` (perspective makes far tape
-      thinner), as a fraction of image width. A 48 mm tape is ~8.6% with the default camera;
-      4 mm tile grout ~0.7%. `expected_width_frac_of_width` is the tape's usual width on the
-      same scale (used to tell whether a missing partner would be outside the image).
-    - `min_gap_px`: two edges closer than this (pixels, where measured) are the two sides of one
-      thin line (grout) however the perspective scales them: a resolution limit, not a length.
-    - `pair_angle_tol_deg`: the two edges of one tape converge slightly; at most this apart.
-    - `polarity_offset_frac_of_width`: how far either side of a line the brightness is sampled.
-    - `polarity_samples`: points sampled along each line (a cheap stand-in for Sobel sign).
-    - `min_contrast_levels`: a side difference smaller than this has no polarity (0).
-    - `min_band_fraction`: at least this fraction of the points sampled along a tape candidate
-      must show the band darker (or lighter) than the floor outside both edges (dashed tape
-      passes with its gaps).
-    - `min_profile_fraction`: an edge without a Hough partner counts as a tape edge when the
-      brightness profile across it looks like a tape on its outer side along at least this
-      fraction of its length (see `perception.edge_choice.tape_profile_fraction`).
-    - `unpaired_preference`: weight of an edge with no tape partner when choosing, relative to
-      one that is part of a tape (support is multiplied by it).
-    - `unverifiable_score`: tape score of an unpaired edge whose partner would lie outside the
-      image (cut off by the border), where the pair cannot be checked.
-    """
-
-    model_config = _FROZEN
-
-    expected_width_frac_of_width: PositiveFraction = Field(
-        default=0.086,
-        description=(
-            "usual tape width at the ROI bottom, fraction of image width (48 mm tape, default "
-            "camera: 0.086)"
-        ),
-    )
-    width_min_frac_of_width: PositiveFraction = Field(
-        default=0.035,
-        description=(
-            "narrowest tape width at the ROI bottom, fraction of image width (4 mm grout is "
-            "~0.007)"
-        ),
-    )
-    width_max_frac_of_width: PositiveFraction = Field(
-        default=0.18,
-        description=(
-            "widest tape width at the ROI bottom, fraction of image width"
-        ),
-    )
-    min_gap_px: Annotated[float, Field(ge=0.0, le=100.0)] = Field(
-        default=5.0,
-        description=(
-            "two edges closer than this (pixels, where measured) are the two sides of one thin "
-            "line, never a tape"
-        ),
-    )
-    pair_angle_tol_deg: Annotated[float, Field(gt=0.0, le=30.0)] = Field(
-        default=10.0,
-        description=(
-            "max angle between the two edges of one tape"
-        ),
-    )
-    polarity_offset_frac_of_width: PositiveFraction = Field(
-        default=0.006,
-        description=(
-            "how far either side of a line brightness is sampled for its polarity, fraction of "
-            "image width"
-        ),
-    )
-    polarity_samples: Annotated[int, Field(ge=1, le=64)] = Field(
-        default=6,
-        description=(
-            "points sampled along a line (polarity, tape band, tape profile)"
-        ),
-    )
-    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = Field(
-        default=8.0,
-        description=(
-            "smallest brightness difference that counts (polarity, tape band and profile), grey "
-            "levels"
-        ),
-    )
-    min_band_fraction: PositiveFraction = Field(
-        default=0.3,
-        description=(
-            "share of samples along a tape pair whose band must look like tape (uniform, darker "
-            "or lighter than the floor on both sides)"
-        ),
-    )
-    min_profile_fraction: PositiveFraction = Field(
-        default=0.6,
-        description=(
-            "share of samples along an unpaired edge whose brightness profile must show a tape on "
-            "its outer side"
-        ),
-    )
-    unpaired_preference: Fraction = Field(
-        default=0.1,
-        description=(
-            "value factor of a lone line refuted as a tape edge, against a tape (edge choice)"
-        ),
-    )
-    unverifiable_score: Fraction = Field(
-        default=0.6,
-        description=(
-            "tape score of an edge whose tape's far side lies outside the image (cannot be "
-            "checked)"
-        ),
-    )
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Self:
-        lo, mid, hi = (
-            self.width_min_frac_of_width,
-            self.expected_width_frac_of_width,
-            self.width_max_frac_of_width,
-        )
-        if not lo <= mid <= hi or lo == hi:
-            raise ValueError(
-                f"need width_min_frac_of_width ({lo:g}) <= expected_width_frac_of_width "
-                f"({mid:g}) <= width_max_frac_of_width ({hi:g}), min below max"
-            )
-        return self
-
-
-class LaneGeometryConfig(BaseModel):
-    """What a lane looks like from this camera (defaults: `scenarios.camera.CameraModel()`).
-
-    - `horizon_y_norm`: image row of the horizon (y_norm; negative = above the image). The two
-      edges of a straight lane meet there. Default camera: -0.167.
-    - `vanishing_y_tolerance_norm` / `vanishing_x_tolerance_norm`: the edges' intersection scores
-      1 within this distance of (0.5, horizon_y_norm), falling to 0 at twice the distance.
-    - `width_at_bottom_frac_of_width`: expected distance between the two chosen (inner) edges at
-      the bottom of the ROI; `width_tolerance_frac_of_width`: scores 1 within it, 0 at twice it.
-    """
-
-    model_config = _FROZEN
-
-    horizon_y_norm: Annotated[float, Field(ge=-3.0, le=0.9)] = Field(
-        default=-0.167,
-        description=(
-            "image row of the horizon, normalised (negative: above the image; default camera "
-            "-0.167)"
-        ),
-    )
-    vanishing_y_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
-        default=0.3,
-        description=(
-            "vanishing_point scores 1 within this vertical distance of the horizon, 0 at twice it "
-            "(normalised)"
-        ),
-    )
-    vanishing_x_tolerance_norm: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
-        default=0.3,
-        description=(
-            "vanishing_point scores 1 within this horizontal distance of the image centre, 0 at "
-            "twice it (normalised)"
-        ),
-    )
-    width_at_bottom_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
-        default=0.98,
-        description=(
-            "expected distance between the two (inner) edges at the ROI bottom, fraction of image "
-            "width"
-        ),
-    )
-    width_tolerance_frac_of_width: Annotated[float, Field(gt=0.0, le=3.0)] = Field(
-        default=0.3,
-        description=(
-            "lane_width scores 1 within this of the expected width, 0 at twice it"
-        ),
-    )
-
-
 class ConfidenceWeights(BaseModel):
     """Exponents of the confidence components: confidence = product of component ** weight.
 
     1 makes a component a full multiplicative gate, 0.5 softens it (0.25 ** 0.5 = 0.5), 0 ignores
-    it. See `perception.confidence` for what each component measures.
+    it. See `perception.confidence` for what each component measures. `verified_tape` has no
+    weight: it is always a full gate (no confident lane without a verified tape).
     """
 
     model_config = _FROZEN
@@ -450,9 +235,7 @@ class ConfidenceWeights(BaseModel):
         ),
     )
     lane_width: Weight = Field(default=0.5, description="exponent of the lane_width component")
-    vanishing_point: Weight = Field(
-        default=0.5, description="exponent of the vanishing_point component"
-    )
+    parallel: Weight = Field(default=0.5, description="exponent of the parallel component")
     tape_pair: Weight = Field(
         default=1.0,
         description=(
@@ -468,9 +251,9 @@ class ConfidenceConfig(BaseModel):
 
     - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
       height) gets full support 1; shorter scales linearly.
-    - `consistency_offset_tol_frac_of_width` / `consistency_angle_tol_deg`: how far an edge may
-      move (at the ROI bottom) and turn since the previous observation and still score 1; the
-      score falls to 0 at twice that.
+    - `consistency_offset_tol_m` / `consistency_angle_tol_deg`: how far an edge may move sideways
+      on the floor and turn since the previous observation and still score 1; the score falls to
+      0 at twice that.
     """
 
     model_config = _FROZEN
@@ -483,17 +266,18 @@ class ConfidenceConfig(BaseModel):
             "height"
         ),
     )
-    consistency_offset_tol_frac_of_width: PositiveFraction = Field(
-        default=0.08,
+    consistency_offset_tol_m: Annotated[float, Field(gt=0.0, le=1.0)] = Field(
+        default=0.05,
         description=(
-            "edge shift at the ROI bottom since the previous observation that still scores 1 (0 "
-            "at twice it), fraction of image width"
+            "sideways move of an edge on the floor since the previous observation that still "
+            "scores 1 (0 at twice it), metres"
         ),
     )
     consistency_angle_tol_deg: Annotated[float, Field(gt=0.0, le=90.0)] = Field(
         default=8.0,
         description=(
-            "edge turn since the previous observation that still scores 1 (0 at twice it)"
+            "turn of an edge on the floor since the previous observation that still scores 1 (0 "
+            "at twice it)"
         ),
     )
 
@@ -510,7 +294,7 @@ class PerceptionConfig(BaseModel):
     hough: HoughConfig = HoughConfig()
     edges: EdgesConfig = EdgesConfig()
     tape: TapeConfig = TapeConfig()
-    lane: LaneGeometryConfig = LaneGeometryConfig()
+    lane: LaneConfig = LaneConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
     opencv_threads: Annotated[int, Field(ge=-1, le=64)] = Field(
         default=1,
@@ -526,3 +310,22 @@ class PerceptionConfig(BaseModel):
             "image files are checked from their header before decoding"
         ),
     )
+
+    @model_validator(mode="after")
+    def _look_ahead_inside_roi(self) -> Self:
+        look, roi = self.edges.look_ahead_m, self.roi
+        if not roi.near_m <= look <= roi.far_m:
+            raise ValueError(
+                f"edges.look_ahead_m ({look:g}) must lie within the region of interest, "
+                f"roi.near_m ({roi.near_m:g}) to roi.far_m ({roi.far_m:g})"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _lane_wider_than_two_tapes(self) -> Self:
+        if self.lane.width_m <= 2.0 * self.tape.width_m:
+            raise ValueError(
+                f"lane.width_m ({self.lane.width_m:g}) must exceed two tape widths "
+                f"(tape.width_m {self.tape.width_m:g}): the tapes would overlap"
+            )
+        return self

@@ -5,11 +5,19 @@ Pipeline (the lecture's, made robust):
     [Undistorter.apply] -> gray -> Gaussian blur -> Canny -> ROI mask -> HoughLinesP
       -> candidate lines (perception.lines) -> one edge per side (perception.edge_choice)
       -> bounded slopes and their sum (perception.geometry) -> confidence (perception.confidence)
+      -> the lane's offset and heading on the floor (robot frame, metres and radians)
 
-Input: BGR uint8 (H, W, 3), BGRA (H, W, 4) or gray (H, W), any size of at least 16x16. Output
+Input: BGR uint8 (H, W, 3), BGRA (H, W, 4) or gray (H, W), any size of at least 16x16. Edge
 coordinates are pixels of the (undistorted) image, x right, y down; slopes use the lecture's
-y-up convention. Lengths in the config are fractions of the image size, so one config serves
-640x480, 320x240 and 160x120.
+y-up convention; offsets and headings are in the robot frame (x forward, y left).
+
+Geometry in metres: the detector sees the floor through a ground model
+(`perception.ground.GroundModel`: the camera's intrinsics and its pose over the floor; by default
+the simulator's camera). The config's floor geometry (tape and lane widths, the region of
+interest, the look-ahead) is turned into pixels once per image size by
+`perception.size_setup.SizeSetup`, which also refuses a camera that cannot tell the tape from a
+seam at the look-ahead distance (`PerceptionConfigError`; for the ground model's own image size
+already when the detector is built).
 
 Performance rules (the hot path is `detect`, once per camera frame):
 - Remap tables (in the Undistorter), the ROI mask and the gray/blur/edge buffers are made once per
@@ -38,27 +46,36 @@ from numpy.typing import NDArray
 
 from lanewarden.perception.calibration import Undistorter
 from lanewarden.perception.confidence import (
+    EdgeEvidence,
     combine,
     consistency_component,
     frozen_components,
     lane_components,
 )
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.edge_choice import SideChoice, choose_side
+from lanewarden.perception.edge_choice import SideChoice, choose_edges
 from lanewarden.perception.errors import PerceptionError
-from lanewarden.perception.geometry import Side, edge_slope, x_at_row
-from lanewarden.perception.lines import LineSet, build_line_set
+from lanewarden.perception.floor_view import direction, signed_offset
+from lanewarden.perception.geometry import Side, edge_slope
+from lanewarden.perception.ground import (
+    GroundModel,
+    default_ground_model,
+    default_pose,
+    ground_model_for,
+)
+from lanewarden.perception.lines import LineRow, LineSet, build_line_set
 from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
-_REFERENCE_HEIGHT_PX = 480
 
 
 @dataclass(frozen=True)
 class DetectionDebug:
     """What `detect_debug` adds to an observation, for overlays and diagnosis.
 
-    - `roi_polygon_px`: (K, 2) int32, the ROI polygon in pixels (may extend outside the image).
+    - `roi_polygon_px`: (K, 2) int32, the ROI (the floor region projected) in pixels, clipped
+      to the image.
     - `segments`: (N, 4) int32 Hough segments (x1, y1, x2, y2), pixels.
     - `lines`: the candidate lines they were grouped into.
     - `left` / `right`: the choice made on each side (chain of lines, tape partner), or None.
@@ -76,63 +93,51 @@ class DetectionDebug:
     image: np.ndarray
 
 
-class SizeSetup:
-    """Everything that depends only on the image size: computed once, reused every frame.
-
-    - `polygon_px` / `mask`: the ROI in pixels and its filled uint8 mask (255 inside).
-    - `y_bottom`: the ROI's bottom row (pixels).
-    - `gray`, `smooth`, `edges`: the preallocated stage buffers (OpenCV writes into them).
-    - `blur_kernel`: (k, k), `kernel_px` scaled to this height (odd, >= 3).
-    - `hough_votes`, `hough_min_length`, `hough_max_gap`: HoughLinesP's accumulator threshold,
-      minLineLength and maxLineGap in pixels at this size.
-    """
-
-    def __init__(self, width: int, height: int, config: PerceptionConfig) -> None:
-        self.size = (width, height)
-        self.polygon_px = np.array(
-            [[round(x * width), round(y * height)] for x, y in config.roi.polygon_norm],
-            dtype=np.int32,
-        )
-        self.mask = np.zeros((height, width), dtype=np.uint8)
-        cv2.fillPoly(self.mask, [self.polygon_px], 255)
-        lowest = max(y for _, y in config.roi.polygon_norm)
-        self.y_bottom = float(min(lowest, 1.0) * height)
-        self.gray = np.empty((height, width), dtype=np.uint8)
-        self.smooth = np.empty((height, width), dtype=np.uint8)
-        self.edges = np.empty((height, width), dtype=np.uint8)
-        k = config.blur.kernel_px
-        if k > 1:
-            k = max(3, 2 * round((k * height / _REFERENCE_HEIGHT_PX - 1) / 2) + 1)
-        self.blur_kernel = (k, k)
-        hough = config.hough
-        self.hough_votes = max(5, round(hough.votes_frac_of_height * height))
-        self.hough_min_length = max(3.0, hough.min_line_length_frac_of_height * height)
-        self.hough_max_gap = hough.max_line_gap_frac_of_height * height
-
-
 class LaneDetector:
     """Finds the two lane edges in a frame and says how far to trust them.
+
+    `ground`: the camera's ground model (undistorted pixels, any image size: it is scaled to each
+    frame's size); None: `assumed_ground_model(undistorter)`. Construction sets up the ground
+    model's own image size at once, so a config this camera cannot work with is refused here
+    (`PerceptionConfigError`), before any frame.
 
     `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the last
     observation) only feeds the `consistency` confidence component; the detector keeps no
     history of its own, so it is a pure function of its arguments and the config.
     """
 
-    def __init__(self, config: PerceptionConfig, undistorter: Undistorter | None = None) -> None:
+    def __init__(self, config: PerceptionConfig, undistorter: Undistorter | None = None,
+                 ground: GroundModel | None = None) -> None:
         self.config = config
         self.undistorter = undistorter
+        self.ground = assumed_ground_model(undistorter) if ground is None else ground
         cv2.setNumThreads(config.opencv_threads)
         self._states: dict[tuple[int, int], SizeSetup] = {}
         self._theta_rad = math.radians(config.hough.theta_deg)
+        self.setup_for(*self.ground.image_size)
 
     # ------------------------------------------------------------------------------ public
 
     def setup_for(self, width: int, height: int) -> SizeSetup:
-        """The per-size setup (mask, buffers, scaled pixel parameters), made on first use."""
+        """The per-size setup (ROI, look-ahead row, buffers, scaled pixel parameters), made on
+        first use; raises PerceptionConfigError when the config does not work at this size."""
         setup = self._states.get((width, height))
         if setup is None:
-            setup = self._states[(width, height)] = SizeSetup(width, height, self.config)
+            ground = self.ground
+            if ground.image_size != (width, height):
+                ground = ground.scaled_to((width, height))
+            setup = SizeSetup(width, height, self.config, ground)
+            self._states[(width, height)] = setup
         return setup
+
+    def describe_ground(self, source: str | None = None) -> str:
+        """One line saying which ground model this detector uses (`perception.ground.
+        ground_model_for`'s words) and what a pixel covers at the look-ahead; `detect` and `run`
+        print it once. `source` names the calibration file."""
+        calibration = None if self.undistorter is None else self.undistorter.calibration
+        size = self.ground.image_size
+        _, which = ground_model_for(calibration, size, source)
+        return f"ground model: {which}; {self.setup_for(*size).describe()}"
 
     def detect(
         self,
@@ -197,11 +202,11 @@ class LaneDetector:
         state = self.setup_for(width, height)
         segments = self._segments(image, state)
         config = self.config
-        lines = build_line_set(segments, state.smooth, state.y_bottom, config.edges, config.tape)
+        lines = build_line_set(segments, state.smooth, state.y_bottom, state.view, config.edges,
+                               config.tape)
         rows = lines.rows()
-        left = choose_side(rows, state.smooth, "left", state.y_bottom, config)
-        right = choose_side(rows, state.smooth, "right", state.y_bottom, config)
-        observation = self._observe(lines, left, right, state, frame_index, time_s, previous)
+        left, right = choose_edges(rows, state.smooth, state, config)
+        observation = self._observe(rows, left, right, state, frame_index, time_s, previous)
         return observation, state, segments, (lines, left, right), image
 
     def _segments(self, image: np.ndarray, state: SizeSetup) -> NDArray[np.int32] | None:
@@ -241,7 +246,7 @@ class LaneDetector:
 
     def _observe(
         self,
-        lines: LineSet,
+        rows: list[LineRow],
         left: SideChoice | None,
         right: SideChoice | None,
         state: SizeSetup,
@@ -250,34 +255,22 @@ class LaneDetector:
         previous: LaneObservation | None,
     ) -> LaneObservation:
         config = self.config
-        left_edge = self._edge(left, "left")
-        right_edge = self._edge(right, "right")
-        left_line = _near_line(lines, left)
-        right_line = _near_line(lines, right)
+        left_floor = _evidence(rows, left)
+        right_floor = _evidence(rows, right)
+        left_edge = self._edge(left, "left", left_floor)
+        right_edge = self._edge(right, "right", right_floor)
         components = lane_components(
-            size=state.size,
-            y_bottom=state.y_bottom,
-            left_line=left_line,
-            right_line=right_line,
-            left_support_px=0.0 if left is None else left.support_px,
-            right_support_px=0.0 if right is None else right.support_px,
-            left_tape=0.0 if left is None else left.tape_score,
-            right_tape=0.0 if right is None else right.tape_score,
-            config=config,
+            height_px=state.size[1], left=left_floor, right=right_floor, config=config
         )
         components["consistency"] = consistency_component(
-            left_edge, right_edge, previous, state.size, state.y_bottom, config
+            left_edge, right_edge, previous, state.view, config
         )
         slope_sum = None
-        center_offset = None
+        lane_offset = lane_heading = None
         if left_edge is not None and right_edge is not None:
             slope_sum = left_edge.slope + right_edge.slope
-            if left_line is not None and right_line is not None:
-                half = 0.5 * state.size[0]
-                mid = 0.5 * (
-                    x_at_row(*left_line, state.y_bottom) + x_at_row(*right_line, state.y_bottom)
-                )
-                center_offset = (mid - half) / half
+            if left_floor is not None and right_floor is not None:
+                lane_offset, lane_heading = _lane_centre(left_floor, right_floor)
         return LaneObservation(
             frame_index=frame_index,
             time_s=time_s,
@@ -286,12 +279,18 @@ class LaneDetector:
             slope_sum=slope_sum,
             confidence=combine(components, config),
             components=frozen_components(components),
-            center_offset=center_offset,
+            lane_offset_m=lane_offset,
+            lane_heading_rad=lane_heading,
         )
 
-    def _edge(self, choice: SideChoice | None, side: Side) -> LaneEdge | None:
+    def _edge(self, choice: SideChoice | None, side: Side,
+              floor: EdgeEvidence | None) -> LaneEdge | None:
         if choice is None:
             return None
+        offset = heading = None
+        if floor is not None:
+            offset = signed_offset(floor.point, floor.direction)
+            heading = math.atan2(floor.direction[1], floor.direction[0])
         return LaneEdge(
             x1=choice.x1,
             y1=choice.y1,
@@ -301,21 +300,46 @@ class LaneDetector:
                 choice.x1, choice.y1, choice.x2, choice.y2, side, self.config.edges.max_abs_slope
             ),
             support_px=choice.support_px,
+            offset_m=offset,
+            heading_rad=heading,
         )
 
 
-def _near_line(
-    lines: LineSet, choice: SideChoice | None
-) -> tuple[float, float, float, float] | None:
+def assumed_ground_model(undistorter: Undistorter | None) -> GroundModel:
+    """The ground model for this undistorter's frames (`perception.ground.ground_model_for`):
+    the calibration's ground pose when it has one (`lanewarden calibrate ground`), else the
+    simulator's default mount with the calibration's intrinsics; without a calibration the
+    simulator's default camera (640x480)."""
+    if undistorter is None:
+        return default_ground_model((640, 480))
+    calibration = undistorter.calibration
+    pose = default_pose() if calibration.ground is None else calibration.ground.pose
+    return GroundModel(undistorter.camera_matrix, pose, undistorter.image_size)
+
+
+def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | None:
+    """The chosen edge's near line on the floor (None when it has no floor position: it would
+    have to reach the horizon, which the ROI never does)."""
     if choice is None:
         return None
-    k = choice.near_line
-    return (
-        float(lines.near_x[k]),
-        float(lines.near_y[k]),
-        float(lines.far_x[k]),
-        float(lines.far_y[k]),
-    )
+    line = rows[choice.near_line]
+    near = (line.near_fx, line.near_fy)
+    d = direction(near, (line.far_fx, line.far_fy))
+    if not all(math.isfinite(v) for v in (*near, *d)) or d == (0.0, 0.0):
+        return None
+    return EdgeEvidence(point=near, direction=d, support_px=choice.support_px,
+                        tape_score=choice.tape_score, verified=choice.verified)
+
+
+def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]:
+    """(offset, heading) of the line midway between the two edges on the floor: its signed
+    distance from the robot's centre (left +) and its direction (radians, left +)."""
+    dx = left.direction[0] + right.direction[0]
+    dy = left.direction[1] + right.direction[1]
+    heading = math.atan2(dy, dx)
+    d = (math.cos(heading), math.sin(heading))
+    offset = 0.5 * (signed_offset(left.point, d) + signed_offset(right.point, d))
+    return offset, heading
 
 
 def _check_image(image: object) -> None:

@@ -1,69 +1,75 @@
 """Choosing the lane edge on each side: the lecture's open problem.
 
-For one side of the image (left: lines crossing the ROI bottom left of the image centre, leaning
-"/" or at most `max_past_vertical_deg` past vertical; right: mirror image):
+For one side of the image (left: lines crossing the ROI bottom left of where the robot's centre
+line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: mirror image):
 
-1. Tape pairs. Two candidate lines of nearly the same direction (`pair_angle_tol_deg`) and
-   opposite polarity are the two edges of one tape when
-   - their gap, measured horizontally at the nearest row both reach (the best-resolved one) and
-     projected to the ROI bottom through the horizon (perspective makes far tape thinner), is
-     tape-wide as a fraction of image width: a 48 mm tape is ~8.6% with the default camera, 4 mm
-     tile grout ~0.7%, so the two sides of a grout seam never pass;
-   - they are at least `min_gap_px` apart where measured: blur keeps the two sides of ANY thin
-     line a few pixels apart whatever the resolution (this keeps grout out at 160x120, where a
-     4 mm seam is a pixel wide);
-   - the band between them is uniform and differs from the floor just outside BOTH edges, in
-     the same direction, by more than those two floor samples differ (`_band_is_tape`): this
-     rejects the strip of floor between a seam and a tape (one "outside" is tape), and a band
-     with the real tape edge inside it.
-   Dark tape on a light floor (-1, +1) and light tape on a dark floor (+1, -1) both count; dashed
-   tape too (its dashes merge into one line per edge, see `perception.lines`).
-2. Single edges. A line without a verified partner (Hough often misses the outer edge of a
-   curving tape) is checked by the brightness profile across it (`tape_profile_fraction`): a
-   tape of the expected width on its outer side along at least `min_profile_fraction` of it
-   makes it a tape edge, scored by that fraction. When that side lies outside the image (a tape
-   at the border, the inner tape of a sharp bend) nothing can be checked: `unverifiable_score`.
-   Otherwise it is not a tape edge (score 0).
-3. Preference: a tape pair is worth (support of its inner edge's whole chain, see 5, plus its
-   outer edge's) x its width score; a single edge its chain's support x its profile fraction,
-   x `unverifiable_score`, or x `unpaired_preference` when refuted. A line with polarity 0
-   (same brightness on both sides: a thin line such as grout, not the edge of anything) is only
-   chosen when there is nothing else. The best one wins. Counting the chain matters in bends: a
-   curved tape breaks into short Hough pieces while a straight grout seam stays one long line.
-4. The reported edge is the tape's INNER edge (the one nearer the lane centre: a left tape's right
-   edge, a right tape's left edge), consistently, so the distance between the two reported edges
-   is the free lane width.
+1. Verified tapes. Two candidate lines of nearly the same direction (`pair_angle_tol_deg`) and
+   opposite polarity are the two edges of one tape when their distance ON THE FLOOR, measured
+   at the nearest row both reach (the best resolved) through the ground model, scores as tape
+   rather than seam (`perception.tape_rules.tape_width_score` at least
+   MIN_VERIFIED_WIDTH_SCORE: nearer the tape's width than the widest seam's), measured no
+   farther than the look-ahead (where the start-up check guarantees the camera can tell), and
+   the band between them looks
+   like tape (`perception.tape_rules.band_is_tape`). Dark tape on a light floor (-1, +1) and
+   light tape on a dark floor (+1, -1) both count; dashed tape too (its dashes merge into one
+   line per edge, see `perception.lines`).
+2. Which tapes: by closeness to the tape's width and to the lane's position, not by length. With
+   tapes on both sides, the pair of tapes of the same kind (both dark or both light) whose inner
+   edges lie `lane.width_m - tape.width_m` apart on the floor wins (`lane_fit`), then the best
+   width scores (1 within the tape's tolerance), then the nearest measurement (best resolved,
+   and where a bending tape's chain starts), then the widths closest to the tape's.
+3. Single edges, on a side without a verified tape. A line without a verified partner (Hough
+   often misses the outer edge of a curving tape) is checked by the brightness profile across it
+   (`perception.tape_rules.tape_profile_fraction`): a tape `width_m` wide on its outer side along
+   at least `min_profile_fraction` of it makes it a tape edge scored by that fraction. When that
+   side lies outside the image (a tape at the border, the inner tape of a sharp bend) nothing can
+   be checked: `unverifiable_score`. Otherwise it is not a tape edge (score 0). Among single
+   edges the value is the chain's support x that score (x `unpaired_preference` when refuted);
+   a line with polarity 0 (same brightness on both sides: grout, a crack) is only chosen when
+   there is nothing else. None of these is a verified tape (`SideChoice.verified`).
+4. The reported edge is the tape's INNER edge (the one nearer the lane centre: a left tape's
+   right edge, a right tape's left edge), consistently, so the distance between the two reported
+   edges is the free lane width.
 5. Bends: Hough fits straight pieces to a curved edge. From the chosen line the edge is followed
    both ways through lines of the same polarity whose end lies within `chain_gap_frac_of_height`
    of the current end (not running alongside it) and that turn by at most `chain_max_turn_deg`.
    The reported segment runs from the chain's nearest point to where it crosses the look-ahead
-   row (`look_ahead_y_norm`), or to its far end if shorter: the chord over a fixed stretch of
-   floor, which is what reacts to a bend ahead, steadily from frame to frame.
+   row (`SizeSetup.look_ahead_row`), or to its far end if shorter: the chord over a fixed
+   stretch of floor, which is what reacts to a bend ahead, steadily from frame to frame.
 
 Implementation note: a frame has a handful of candidate lines, so this works on plain Python
 floats (one `LineSet.rows()` conversion), which is several times faster than numpy on arrays of
-five elements. Pure function of a `LineSet`, the blurred frame and the config.
+five elements. Pure function of the lines, the blurred frame, the size setup and the config.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
 from lanewarden.perception.lines import LineRow
+from lanewarden.perception.size_setup import SizeSetup
+from lanewarden.perception.tape_rules import band_is_tape, tape_profile_fraction, tape_width_score
 
 _MAX_CHAIN_STEPS = 8
+#: Pairs band-checked per side (the check reads pixels), best width first.
 _MAX_TAPE_CHECKS = 4
-_CHAIN_BONUS_LIMIT = 4.0
+#: Verified tapes kept per side for the joint choice.
+_MAX_TAPES_KEPT = 3
+#: A pair verifies a tape only when its width is nearer the tape than the widest seam (the
+#: middle of the width score's ramp between the two hypotheses).
+MIN_VERIFIED_WIDTH_SCORE = 0.5
 _MAX_SINGLE_CHECKS = 3
-_MAX_TAPES_VALUED = 2
+#: A lone line's chain is assumed at most this many times as long as the line itself when
+#: deciding whether it is worth following and checking (singles come strongest first).
+_CHAIN_BONUS_LIMIT = 4.0
 
 
 @dataclass(frozen=True)
@@ -71,10 +77,14 @@ class SideChoice:
     """The edge chosen on one side.
 
     - `chain`: line indices of the edge, nearest first; `near_line` is chain[0] (used for the
-      lane width, vanishing point and centre offset, where a bend has not yet curved it).
-    - `partner`: the tape's other edge, None when the edge is not part of a tape.
-    - `tape_score`: in [0, 1], how tape-like the pair is (0 without a partner, or
-      `unverifiable_score` when the partner would be outside the image).
+      lane width, the parallel check and the metric offset and heading, where a bend has not yet
+      curved it).
+    - `partner`: the tape's other edge, None when the edge is not part of a verified tape.
+    - `verified`: a verified tape (a pair: width on the floor and band), the only evidence that
+      can make a lane confident.
+    - `tape_score`: in [0, 1], how tape-like the edge is: the pair's width score, a lone edge's
+      profile fraction, `unverifiable_score`, or 0.
+    - `tape_width_m`: the pair's width on the floor, metres (None for a lone edge).
     - `support_px`: total length of the chain's Hough segments.
     - `x1, y1` near end and `x2, y2` far end of the reported segment (pixels, y down).
     """
@@ -82,7 +92,9 @@ class SideChoice:
     side: Side
     chain: tuple[int, ...]
     partner: int | None
+    verified: bool
     tape_score: float
+    tape_width_m: float | None
     support_px: float
     x1: float
     y1: float
@@ -94,75 +106,234 @@ class SideChoice:
         return self.chain[0]
 
 
+@dataclass(frozen=True)
+class TapeCandidate:
+    """A pair of lines whose width on the floor verifies a tape: its `inner` and `outer` edges,
+    width score, width on the floor, whether it is darker than the floor, where its inner edge
+    was measured (`at`, floor metres), the image rows both edges cover (`rows`, for the band
+    check) and the configured tape width it is ranked against (`tape_width_m`)."""
+
+    inner: LineRow
+    outer: LineRow
+    score: float
+    width_m: float
+    dark: bool
+    at: Point
+    rows: tuple[float, float] = (0.0, 0.0)
+    tape_width_m: float = 0.0
+
+    def band_is_tape(self, smooth_gray: NDArray[np.uint8], config: PerceptionConfig) -> bool:
+        return band_is_tape(smooth_gray, self.inner, self.outer, *self.rows, config.tape)
+
+    def rank(self) -> tuple[float, float, float]:
+        """Best first: the width score (1 within the tape's tolerance), then the nearest
+        measurement, to the centimetre (the best resolved, and where a bending tape's chain
+        starts), then the width closest to the tape's."""
+        return self.score, -round(self.at[0], 2), -abs(self.width_m - self.tape_width_m)
+
+
 def side_candidates(
-    rows: list[LineRow], side: Side, width: int, config: PerceptionConfig
+    rows: list[LineRow], side: Side, centre_x: float, config: PerceptionConfig
 ) -> list[LineRow]:
-    """The lines that may be this side's edge."""
+    """The lines that may be this side's edge (`centre_x`: where the robot's centre line
+    crosses the ROI's bottom row)."""
     min_h = config.edges.min_angle_from_horizontal_deg
     past = config.edges.max_past_vertical_deg
-    centre = 0.5 * width
     if side == "left":
-        return [r for r in rows if r.x_bottom < centre and min_h <= r.angle_deg <= 90.0 + past]
-    return [r for r in rows if r.x_bottom >= centre and 90.0 - past <= r.angle_deg <= 180.0 - min_h]
+        return [r for r in rows if r.x_bottom < centre_x and min_h <= r.angle_deg <= 90.0 + past]
+    return [r for r in rows
+            if r.x_bottom >= centre_x and 90.0 - past <= r.angle_deg <= 180.0 - min_h]
 
 
-def tape_width_score(width_frac: float, gap_px: float, config: PerceptionConfig) -> float:
-    """1 inside [width_min, width_max], falling linearly to 0 at 0.75x the minimum and at 1.25x
-    the maximum; 0 when the two edges are closer than `min_gap_px` where measured."""
-    if gap_px < config.tape.min_gap_px:
-        return 0.0
-    lo = config.tape.width_min_frac_of_width
-    hi = config.tape.width_max_frac_of_width
-    rise = (width_frac - 0.75 * lo) / (0.25 * lo)
-    fall = (1.25 * hi - width_frac) / (0.25 * hi)
-    return min(1.0, max(0.0, min(rise, fall)))
-
-
-def choose_side(
+def choose_edges(
     rows: list[LineRow],
     smooth_gray: NDArray[np.uint8],
+    setup: SizeSetup,
+    config: PerceptionConfig,
+) -> tuple[SideChoice | None, SideChoice | None]:
+    """The left and right edges (None where a side has no candidate line). `rows` are the
+    frame's candidate lines, `smooth_gray` the blurred frame they came from."""
+    cands = {side: side_candidates(rows, side, setup.centre_x_bottom, config)
+             for side in ("left", "right")}
+    tapes = {side: tape_candidates(cands[side], side, setup.view, config)
+             for side in ("left", "right")}
+    # The band check reads pixels: only for the tapes the choice would take, each at most once.
+    checked: dict[int, bool] = {}
+
+    def band_ok(tape: TapeCandidate) -> bool:
+        key = id(tape)
+        if key not in checked:
+            checked[key] = tape.band_is_tape(smooth_gray, config)
+        return checked[key]
+
+    left_tape, right_tape = pick_tapes(tapes["left"], tapes["right"], config, band_ok)
+    left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config)
+    right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config)
+    return left, right
+
+
+def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
+                 config: PerceptionConfig) -> tuple[LineRow, LineRow, float, float, Point] | None:
+    """(inner, outer, width score, width on the floor in metres, measured point) of two lines
+    taken as one tape's edges, measured at the nearest image row both reach; None when they
+    share no rows or cannot be put on the floor."""
+    y_lo = max(a.far_y, b.far_y)
+    y_hi = min(a.near_y, b.near_y)
+    if y_hi <= y_lo:
+        return None
+    xa, xb = a.x_at(y_hi), b.x_at(y_hi)
+    inner, outer = (a, b) if (xa > xb) == (side == "left") else (b, a)
+    u = inner.x_at(y_hi)
+    at = view.to_floor(u, y_hi)
+    o_near = (outer.near_fx, outer.near_fy)
+    o_dir = direction(o_near, (outer.far_fx, outer.far_fy))
+    if not math.isfinite(sum((*at, *o_near, *o_dir))) or o_dir == (0.0, 0.0):
+        return None
+    width_m = distance_to_line(at, o_near, o_dir)
+    m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]))
+    score = tape_width_score(width_m, m_per_px, config.tape)
+    return inner, outer, score, width_m, at
+
+
+def tape_candidates(
+    cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig
+) -> list[TapeCandidate]:
+    """The pairs among one side's candidates whose width on the floor verifies a tape, best first
+    (`TapeCandidate.rank`), at most _MAX_TAPE_CHECKS; their bands are not checked yet. A pair is
+    only measured up to the look-ahead distance: there the camera is known to resolve tape from
+    seam (checked at start-up); farther on, pixels grow and a seam may measure as tape. Pairs
+    whose lines lie less than a third or more than three tape widths apart on the floor (from
+    one's near end) are skipped before being measured (a cheap filter: the measurement
+    decides)."""
+    angle_tol = config.tape.pair_angle_tol_deg
+    tape_width = config.tape.width_m
+    look_ahead = config.edges.look_ahead_m
+    found: list[TapeCandidate] = []
+    for i, a in enumerate(cand):
+        for b in cand[i + 1:]:
+            if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
+                continue
+            # Distance from a's near end to b's line on the floor (not yet where they are
+            # measured): a third to three tape widths, or no tape.
+            bx, by = b.far_fx - b.near_fx, b.far_fy - b.near_fy
+            rough = abs(bx * (a.near_fy - b.near_fy) - by * (a.near_fx - b.near_fx))
+            if not tape_width / 3.0 <= rough / max(math.hypot(bx, by), 1e-9) <= 3.0 * tape_width:
+                continue
+            pair = measure_pair(a, b, side, view, config)
+            if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
+                continue
+            inner, outer, score, width_m, at = pair
+            dark = (inner.polarity > 0) == (side == "left")
+            rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
+            found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
+    found.sort(key=TapeCandidate.rank, reverse=True)
+    return found[:_MAX_TAPE_CHECKS]
+
+
+def verified_tapes(
+    cand: list[LineRow],
+    smooth_gray: NDArray[np.uint8],
     side: Side,
-    y_bottom: float,
+    view: FloorView,
+    config: PerceptionConfig,
+) -> list[TapeCandidate]:
+    """The verified tapes among one side's candidates (width on the floor and band), best
+    first, at most _MAX_TAPES_KEPT (`tape_candidates`, then `band_is_tape`)."""
+    tapes = [t for t in tape_candidates(cand, side, view, config)
+             if t.band_is_tape(smooth_gray, config)]
+    return tapes[:_MAX_TAPES_KEPT]
+
+
+def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig) -> float:
+    """How well two tapes' inner edges match the lane's width on the floor: 1 within
+    `lane.width_tolerance_m` of `lane.width_m - tape.width_m`, 0 at twice it."""
+    r_near = (right.inner.near_fx, right.inner.near_fy)
+    r_dir = direction(r_near, (right.inner.far_fx, right.inner.far_fy))
+    gap = distance_to_line(left.at, r_near, r_dir)
+    expected = config.lane.width_m - config.tape.width_m
+    tol = config.lane.width_tolerance_m
+    return min(1.0, max(0.0, 2.0 - abs(gap - expected) / tol))
+
+
+def pick_tapes(
+    left: list[TapeCandidate],
+    right: list[TapeCandidate],
+    config: PerceptionConfig,
+    accept: Callable[[TapeCandidate], bool] = lambda tape: True,
+) -> tuple[TapeCandidate | None, TapeCandidate | None]:
+    """One tape per side among those `accept` takes (the band check, asked only of the tapes
+    that would be chosen): with tapes on both sides, the pair of the same kind (dark or light)
+    that best fits the lane's width, then the best width scores, then the nearest; otherwise
+    each side's best (`TapeCandidate.rank`)."""
+    combos = sorted(
+        ((lt.dark == rt.dark, lane_fit(lt, rt, config) * lt.score * rt.score,
+          lt.score * rt.score, lt.rank()[1] + rt.rank()[1], lt.rank()[2] + rt.rank()[2], -i, -j)
+         for i, lt in enumerate(left) for j, rt in enumerate(right)),
+        reverse=True,
+    )
+    for *_, i, j in combos:
+        if accept(left[i]) and accept(right[j]):
+            return left[i], right[j]
+    return (next((t for t in sorted(left, key=TapeCandidate.rank, reverse=True) if accept(t)),
+                 None),
+            next((t for t in sorted(right, key=TapeCandidate.rank, reverse=True) if accept(t)),
+                 None))
+
+
+def _side_choice(
+    rows: list[LineRow],
+    cand: list[LineRow],
+    tape: TapeCandidate | None,
+    smooth_gray: NDArray[np.uint8],
+    side: Side,
+    setup: SizeSetup,
     config: PerceptionConfig,
 ) -> SideChoice | None:
-    """The best edge on `side`, or None when there is no candidate line. `rows` are the frame's
-    candidate lines, `smooth_gray` the blurred frame they came from, `y_bottom` the ROI's
-    bottom row."""
     height, width = smooth_gray.shape[:2]
-    cand = side_candidates(rows, side, width, config)
+    size = (width, height)
+    if tape is not None:
+        chain = follow_edge(rows, tape.inner.line_id, size, config)
+        partner: int | None = tape.outer.line_id
+        verified, score, width_m = True, tape.score, tape.width_m
+    else:
+        single = _best_single(rows, cand, smooth_gray, side, setup, config)
+        if single is None:
+            return None
+        chain, score = single
+        partner, verified, width_m = None, False, None
+    near = rows[chain[0]]
+    x2, y2 = _chain_point_at(rows, chain, setup.look_ahead_row)
+    return SideChoice(
+        side=side, chain=chain, partner=partner, verified=verified, tape_score=score,
+        tape_width_m=width_m, support_px=sum(rows[k].support_px for k in chain),
+        x1=near.near_x, y1=near.near_y, x2=x2, y2=y2,
+    )
+
+
+def _best_single(
+    rows: list[LineRow],
+    cand: list[LineRow],
+    smooth_gray: NDArray[np.uint8],
+    side: Side,
+    setup: SizeSetup,
+    config: PerceptionConfig,
+) -> tuple[tuple[int, ...], float] | None:
+    """(chain, tape score) of the best lone edge on a side without a verified tape."""
     if not cand:
         return None
-    # A line with the same brightness on both sides (polarity 0) is a thin line (grout, a crack)
-    # or noise, not the edge of anything: it is only chosen when nothing else is there.
+    height, width = smooth_gray.shape[:2]
     polar = sorted((r for r in cand if r.polarity != 0), key=lambda r: -r.support_px)
     singles = polar or [max(cand, key=lambda r: r.support_px)]
     preference = config.tape.unpaired_preference
-    best: tuple[float, tuple[int, ...], int | None, float] | None = None  # value, chain, ...
-
-    # 1. Verified tape pairs. Their value counts the inner edge's whole chain: a bending tape
-    # breaks into short Hough pieces, a straight seam does not, and the tape must still win.
-    to_beat = singles[0].support_px * preference
-    pairs = _tape_pairs(cand, smooth_gray, side, y_bottom, to_beat, config)
-    for inner, outer, score in itertools.islice(pairs, _MAX_TAPES_VALUED):
-        chain = _follow_edge(rows, inner.line_id, (width, height), config)
-        value = (sum(rows[k].support_px for k in chain) + outer.support_px) * score
-        if best is None or value > best[0]:
-            best = (value, chain, outer.line_id, score)
-
-    # 2. Single edges, strongest first: valued by how much of their length the brightness
-    # profile across them shows a tape on their outer side (a curved or half-visible tape whose
-    # other edge Hough missed), `unpaired_preference` when that is below min_profile_fraction.
-    taken = set() if best is None else {*best[1], best[2]}
+    best: tuple[float, tuple[int, ...], float] | None = None
     for line in singles[:_MAX_SINGLE_CHECKS]:
         if best is not None and line.support_px * _CHAIN_BONUS_LIMIT <= best[0]:
-            break
-        if line.line_id in taken:  # part of the tape already valued: same chain, less value
-            continue
-        chain = _follow_edge(rows, line.line_id, (width, height), config)
+            break  # even a chain of four times its own length could not win
+        chain = follow_edge(rows, line.line_id, (width, height), config)
         support = sum(rows[k].support_px for k in chain)
         if best is not None and support <= best[0]:
             continue  # cannot win even as a perfect tape edge: skip the profile
-        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, y_bottom, config)
+        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, setup.view, config.tape)
         if fraction is None:
             # The tape's far side would be outside the image: nothing to check it against.
             score, factor = config.tape.unverifiable_score, config.tape.unverifiable_score
@@ -172,23 +343,9 @@ def choose_side(
             score, factor = 0.0, preference
         value = support * factor
         if best is None or value > best[0]:
-            best = (value, chain, None, score)
-
+            best = (value, chain, score)
     assert best is not None
-    _, chain, partner, score = best
-    near = rows[chain[0]]
-    x2, y2 = _chain_point_at(rows, chain, config.edges.look_ahead_y_norm * height)
-    return SideChoice(
-        side=side,
-        chain=chain,
-        partner=partner,
-        tape_score=score,
-        support_px=sum(rows[k].support_px for k in chain),
-        x1=near.near_x,
-        y1=near.near_y,
-        x2=x2,
-        y2=y2,
-    )
+    return best[1], best[2]
 
 
 def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tuple[float, float]:
@@ -213,147 +370,7 @@ def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tu
     return far.far_x, far.far_y
 
 
-def tape_profile_fraction(
-    smooth_gray: NDArray[np.uint8],
-    rows: list[LineRow],
-    chain: tuple[int, ...],
-    side: Side,
-    y_bottom: float,
-    config: PerceptionConfig,
-) -> float | None:
-    """Fraction of the points sampled along an edge where the brightness across it looks like
-    the INNER edge of a tape: a quarter, half and three quarters of an expected tape width
-    outwards (left for a left edge) the brightness is uniform and differs, in the same
-    direction, from both the lane floor half a width inwards and the floor 1.75 widths
-    outwards, by more than those two floor samples differ from each other. A seam fails (the
-    floor just beyond it is floor again), so does, mostly, a boundary between two floor shades.
-    None when most samples fall outside the image (a tape at the image border: its far side
-    cannot be seen)."""
-    height, width = smooth_gray.shape[:2]
-    horizon = config.lane.horizon_y_norm * height
-    tape_px = config.tape.expected_width_frac_of_width * width
-    c = config.tape.min_contrast_levels
-    out = -1.0 if side == "left" else 1.0
-    near_y = rows[chain[0]].near_y
-    far_y = rows[chain[-1]].far_y
-    n = config.tape.polarity_samples
-    seen = hidden = tape_like = 0
-    member = 0
-    for i in range(n):
-        y = near_y + (far_y - near_y) * (i + 0.5) / n
-        while member < len(chain) - 1 and rows[chain[member]].far_y > y:
-            member += 1
-        x = rows[chain[member]].x_at(y)
-        w = tape_px * (y - horizon) / (y_bottom - horizon)
-        if w < 3.0:
-            continue  # too far away to resolve a tape
-        lo, hi = (x - out * 0.5 * w, x + out * 1.75 * w)
-        if min(lo, hi) < 0.0 or max(lo, hi) > width - 1.0:
-            hidden += 1
-            continue
-        row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
-        inner = float(row[int(lo + 0.5)])
-        beyond = float(row[int(hi + 0.5)])
-        b1 = float(row[int(x + out * 0.25 * w + 0.5)])
-        b2 = float(row[int(x + out * 0.5 * w + 0.5)])
-        b3 = float(row[int(x + out * 0.75 * w + 0.5)])
-        seen += 1
-        floor = (inner, beyond)
-        step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
-        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step and abs(inner - beyond) < step:
-            tape_like += 1
-    if seen == 0 or hidden > seen:
-        return None if hidden else 0.0
-    return tape_like / seen
-
-
-def _tape_pairs(
-    cand: list[LineRow],
-    smooth_gray: NDArray[np.uint8],
-    side: Side,
-    y_bottom: float,
-    to_beat: float,
-    config: PerceptionConfig,
-) -> Iterator[tuple[LineRow, LineRow, float]]:
-    """Verified tapes among the candidates, as (inner edge, outer edge, tape score), best first
-    by the value of the two lines alone, which must beat `to_beat` up to the bonus the chain of
-    the inner edge may add (`_CHAIN_BONUS_LIMIT`). Only the `_MAX_TAPE_CHECKS` best pairs are
-    band-checked, lazily: the check reads pixels."""
-    height, width = smooth_gray.shape[:2]
-    horizon = config.lane.horizon_y_norm * height
-    angle_tol = config.tape.pair_angle_tol_deg
-    pairs: list[tuple[float, float, LineRow, LineRow, float, float]] = []
-    for i, a in enumerate(cand):
-        for b in cand[i + 1 :]:
-            if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
-                continue
-            y_lo = max(a.far_y, b.far_y)
-            y_hi = min(a.near_y, b.near_y)  # nearest row both reach: the best resolved
-            depth = y_hi - horizon
-            if y_hi <= y_lo or depth <= 1.0:
-                continue
-            xa = a.x_at(y_hi)
-            xb = b.x_at(y_hi)
-            gap_px = abs(xa - xb)
-            score = tape_width_score(gap_px * (y_bottom - horizon) / depth / width, gap_px, config)
-            value = (a.support_px + b.support_px) * score
-            if value * _CHAIN_BONUS_LIMIT > to_beat:
-                inner, outer = (a, b) if (xa > xb) == (side == "left") else (b, a)
-                pairs.append((value, score, inner, outer, y_lo, y_hi))
-    pairs.sort(key=lambda p: -p[0])
-    for _, score, inner, outer, y_lo, y_hi in pairs[:_MAX_TAPE_CHECKS]:
-        if _band_is_tape(smooth_gray, inner, outer, y_lo, y_hi, config):
-            yield inner, outer, score
-
-
-def _band_is_tape(
-    smooth_gray: NDArray[np.uint8],
-    a: LineRow,
-    b: LineRow,
-    y_lo: float,
-    y_hi: float,
-    config: PerceptionConfig,
-) -> bool:
-    """Whether the band between lines a and b looks like tape: along enough of it, the band (at
-    a quarter, half and three quarters across) differs from the floor just outside BOTH edges
-    (half a band width out) by more than `min_contrast_levels`, all in the same direction; the
-    band varies across, and the floor differs between its two sides, by less than that step.
-    A floor strip between a grout seam and a tape fails (one of its "outsides" is tape), so
-    does a band with a tape edge inside it (not uniform). Samples outside the image don't count
-    against it; at least `min_band_fraction` of the others must look like tape."""
-    height, width = smooth_gray.shape[:2]
-    n = config.tape.polarity_samples
-    c = config.tape.min_contrast_levels
-    seen = 0
-    tape_like = 0
-    for k in range(1, n + 1):
-        y = y_lo + (y_hi - y_lo) * k / (n + 1)
-        row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
-        xa = a.x_at(y)
-        xb = b.x_at(y)
-        lo, hi = (xa, xb) if xa < xb else (xb, xa)
-        half = 0.5 * (hi - lo)
-        # Three points across the band (a tape is uniform; a floor strip with a tape edge
-        # inside it is not) against the floor half a band width beyond each edge.
-        band = [float(row[min(width - 1, max(0, int(lo + f * (hi - lo) + 0.5)))])
-                for f in (0.25, 0.5, 0.75)]
-        outside = [
-            float(row[int(x + 0.5)]) for x in (lo - half, hi + half) if 0.0 <= x <= width - 1.0
-        ]
-        if not outside:
-            continue
-        seen += 1
-        # Darker (or lighter) than the floor on both sides by more than the contrast, and
-        # uniform: the spread across the band is smaller than its step to the floor.
-        spread = max(band) - min(band)
-        step = max(min(outside) - max(band), min(band) - max(outside))
-        floor_gap = max(outside) - min(outside)  # the floor on both sides is one floor
-        if step > c and spread < step and floor_gap < step:
-            tape_like += 1
-    return seen > 0 and tape_like >= config.tape.min_band_fraction * seen
-
-
-def _follow_edge(
+def follow_edge(
     rows: list[LineRow], start: int, size: tuple[int, int], config: PerceptionConfig
 ) -> tuple[int, ...]:
     """The chain of lines continuing `start` away from the robot and towards it: same polarity,
@@ -384,9 +401,12 @@ def _extend(
     A continuation starts about where the current line stops (overlapping it by at most a
     quarter of the gap), or, when it overlaps more, lies on it across the overlap (within
     `on_line_px`: the same edge split by Hough). A line running alongside at a few pixels is a
-    neighbour (a seam beside a tape edge), not the same edge."""
+    neighbour (a seam beside a tape edge), not the same edge. Across a gap, the step from one
+    line's end to the next one's must itself run within `max_turn` of the current direction: a
+    bending edge continues forwards, it does not jump sideways onto a seam beside it."""
     found: list[LineRow] = []
     overlap = 0.25 * gap
+    min_cos = math.cos(math.radians(max_turn))
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
@@ -397,16 +417,21 @@ def _extend(
                 if r.far_y >= current.far_y - 1.0:
                     continue
                 shared = r.near_y - current.far_y  # rows both lines cover
-                dist = math.hypot(r.near_x - current.far_x, r.near_y - current.far_y)
+                step_x, step_y = r.near_x - current.far_x, r.near_y - current.far_y
+                forward = current.ux * step_x + current.uy * step_y
             else:
                 if r.near_y <= current.near_y + 1.0:
                     continue
                 shared = current.near_y - r.far_y
-                dist = math.hypot(r.far_x - current.near_x, r.far_y - current.near_y)
+                step_x, step_y = r.far_x - current.near_x, r.far_y - current.near_y
+                forward = -(current.ux * step_x + current.uy * step_y)
+            dist = math.hypot(step_x, step_y)
             if shared > overlap:
                 mid = (current.far_y + shared / 2.0) if away else (current.near_y - shared / 2.0)
                 if abs(r.x_at(mid) - current.x_at(mid)) > on_line_px:
                     continue
+            elif dist > 2.0 * on_line_px and forward < min_cos * dist:
+                continue
             if dist <= best_dist:
                 best, best_dist = r, dist
         if best is None:

@@ -35,9 +35,6 @@ from lanewarden.perception.ground import GroundModel
 
 FloatArray = NDArray[np.float64]
 
-#: The lecture's lane: tape centres 0.60 m apart, 48 mm tape.
-DEFAULT_LANE_WIDTH_M = 0.60
-DEFAULT_TAPE_WIDTH_M = 0.048
 #: Bend radii whose slope sums `calibrate ground` reports.
 REPORTED_BEND_RADII_M = (0.5, 1.0)
 
@@ -60,7 +57,8 @@ class GroundSummary:
     - `look_ahead_y_px`: the row where lane edges are measured; `look_ahead_m`: the forward
       distance (robot frame) of the floor seen there (NaN if at or above the horizon).
     - `mm_per_px_across/along_at_look_ahead`: floor size of one pixel at that row's centre.
-    - `bends`: slope sums in bends (`REPORTED_BEND_RADII_M`)."""
+    - `bends`: slope sums in bends (`REPORTED_BEND_RADII_M`) on a lane `lane_width_m` between
+      tape centres, tape `tape_width_m` wide (perception's config)."""
 
     horizon_y_px: float
     look_ahead_y_px: float
@@ -68,6 +66,8 @@ class GroundSummary:
     mm_per_px_across_at_look_ahead: float
     mm_per_px_along_at_look_ahead: float
     bends: tuple[BendSlopeSums, ...]
+    lane_width_m: float
+    tape_width_m: float
 
     def as_json(self) -> dict[str, object]:
         return {
@@ -87,14 +87,15 @@ def _rounded(value: float | None, digits: int) -> float | None:
 
 
 def look_ahead_row(model: GroundModel, perception: PerceptionConfig) -> float:
-    """The image row where the detector measures lane edges (today `edges.look_ahead_y_norm` of
-    the image height; the one place to change when perception's look-ahead becomes a distance)."""
-    return perception.edges.look_ahead_y_norm * model.image_size[1]
+    """The image row where the detector measures lane edges: `edges.look_ahead_m` ahead of the
+    robot's centre on this camera (nan when that floor line is out of view)."""
+    return model.row_at_distance(perception.edges.look_ahead_m)
 
 
-def summarize_ground(model: GroundModel, perception: PerceptionConfig,
-                     lane_width_m: float = DEFAULT_LANE_WIDTH_M,
-                     tape_width_m: float = DEFAULT_TAPE_WIDTH_M) -> GroundSummary:
+def summarize_ground(model: GroundModel, perception: PerceptionConfig) -> GroundSummary:
+    """What this camera sees with this perception config (the bends on a lane of
+    `perception.lane.width_m` between tape centres, tape `perception.tape.width_m`)."""
+    lane_width_m, tape_width_m = perception.lane.width_m, perception.tape.width_m
     row = look_ahead_row(model, perception)
     u = model.image_size[0] / 2.0
     max_slope = perception.edges.max_abs_slope
@@ -110,6 +111,8 @@ def summarize_ground(model: GroundModel, perception: PerceptionConfig,
         mm_per_px_across_at_look_ahead=1000.0 * model.metres_per_px_across(u, row),
         mm_per_px_along_at_look_ahead=1000.0 * model.metres_per_px_along(u, row),
         bends=bends,
+        lane_width_m=lane_width_m,
+        tape_width_m=tape_width_m,
     )
 
 
@@ -204,8 +207,8 @@ def visible_chord(px: FloatArray, image_size: tuple[int, int],
 
 
 def bend_slope_sum(model: GroundModel, radius_m: float, turn: Turn, look_ahead_v: float,
-                   max_abs_slope: float, lane_width_m: float = DEFAULT_LANE_WIDTH_M,
-                   tape_width_m: float = DEFAULT_TAPE_WIDTH_M) -> float | None:
+                   max_abs_slope: float, lane_width_m: float,
+                   tape_width_m: float) -> float | None:
     """The strongest slope sum (most negative for a right bend, most positive for a left one)
     while the robot drives along the centre line into and through a 90 degree bend of
     `radius_m`, over the poses where both inner edges are measured; None when there is none."""
@@ -268,7 +271,7 @@ def draw_ground_check(
     look_ahead_v: float | None = None,
     corners_px: FloatArray | None = None,
     corners_floor: FloatArray | None = None,
-    lane_width_m: float = DEFAULT_LANE_WIDTH_M,
+    lane_width_m: float,
 ) -> NDArray[np.uint8]:
     """A BGR picture: `image` (undistorted; None: a blank frame of the model's size) with the
     floor grid every 0.1 m (thicker every 0.5 m, labelled with the forward distance), the

@@ -6,6 +6,9 @@ the per-frame work is a handful of vectorised operations rather than Python loop
 Pixels: x right, y down; each line runs from its NEAR end (larger y) to its FAR end, and its unit
 direction (ux, uy) points from near to far (uy <= 0).
 
+Each line also carries where its near and far ends lie on the floor (robot frame metres, through
+the ground model; NaN at or above the horizon), for the metric rules of edge choice.
+
 Polarity: the sign of (brightness right of the line - brightness left of it), sampled on the
 blurred image at a few points along the line, a cheap stand-in for the Sobel sign across it.
 +1 dark-to-light going right, -1 light-to-dark, 0 no clear contrast. The two edges of a tape have
@@ -23,7 +26,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from lanewarden.perception.config import EdgesConfig, TapeConfig
+from lanewarden.perception.config import EdgesConfig
+from lanewarden.perception.floor_config import TapeConfig
+from lanewarden.perception.floor_view import FloorView
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -40,6 +45,7 @@ class LineSet:
     - `support_px`: total length of its segments.
     - `polarity`: +1, -1 or 0 (see module docstring).
     - `x_bottom`: column where the line crosses the ROI's bottom row.
+    - `near_fx, near_fy, far_fx, far_fy`: its near and far ends on the floor, robot frame metres.
     - `segment_label`: for each input segment, the line it joined (-1: dropped as flat).
     """
 
@@ -55,6 +61,10 @@ class LineSet:
     support_px: FloatArray
     polarity: FloatArray
     x_bottom: FloatArray
+    near_fx: FloatArray
+    near_fy: FloatArray
+    far_fx: FloatArray
+    far_fy: FloatArray
     segment_label: IntArray
 
     def __len__(self) -> int:
@@ -72,6 +82,7 @@ class LineSet:
         columns = (
             self.angle_deg, self.cx, self.cy, self.ux, self.uy, self.near_x, self.near_y,
             self.far_x, self.far_y, self.support_px, self.polarity, self.x_bottom,
+            self.near_fx, self.near_fy, self.far_fx, self.far_fy,
         )
         values = zip(*(c.tolist() for c in columns), strict=True)
         return [LineRow(i, *row) for i, row in enumerate(values)]
@@ -93,6 +104,10 @@ class LineRow(NamedTuple):
     support_px: float
     polarity: float
     x_bottom: float
+    near_fx: float
+    near_fy: float
+    far_fx: float
+    far_fy: float
 
     def x_at(self, row: float) -> float:
         """Column where the line crosses image row `row`."""
@@ -106,7 +121,7 @@ def empty_line_set(segment_count: int = 0) -> LineSet:
     e = _EMPTY_F
     return LineSet(
         angle_deg=e, cx=e, cy=e, ux=e, uy=e, near_x=e, near_y=e, far_x=e, far_y=e,
-        support_px=e, polarity=e, x_bottom=e,
+        support_px=e, polarity=e, x_bottom=e, near_fx=e, near_fy=e, far_fx=e, far_fy=e,
         segment_label=np.full(segment_count, -1, dtype=np.intp),
     )
 
@@ -120,6 +135,7 @@ def build_line_set(
     segments: NDArray[np.int32] | None,
     smooth_gray: NDArray[np.uint8],
     y_bottom: float,
+    floor: FloorView,
     edges: EdgesConfig,
     tape: TapeConfig,
 ) -> LineSet:
@@ -128,7 +144,8 @@ def build_line_set(
     Near-horizontal segments are dropped. The remaining ones are clustered greedily, longest
     first: a segment joins a longer one's line when its direction is within
     `cluster_angle_tol_deg` and its midpoint lies within `cluster_offset_frac_of_width` of that
-    line (collinear pieces: Hough's broken edge, dashes of one tape).
+    line (collinear pieces: Hough's broken edge, dashes of one tape). `floor` is the ground
+    model of this image size (undistorted pixels).
     """
     if segments is None or len(segments) == 0:
         return empty_line_set()
@@ -205,6 +222,10 @@ def build_line_set(
     line_angle = np.degrees(np.arctan2(-luy, lux))
     x_bottom = lcx + (y_bottom - lcy) * lux / np.minimum(luy, -1e-9)
     polarity = _polarity(smooth_gray, near_x, near_y, far_x, far_y, lux, luy, tape)
+    ends_x, ends_y = floor.to_floor_many(np.concatenate([near_x, far_x]),
+                                         np.concatenate([near_y, far_y]))
+    near_fx, far_fx = ends_x[:n_lines], ends_x[n_lines:]
+    near_fy, far_fy = ends_y[:n_lines], ends_y[n_lines:]
     return LineSet(
         angle_deg=line_angle,
         cx=lcx,
@@ -218,6 +239,10 @@ def build_line_set(
         support_px=w_sum,
         polarity=polarity,
         x_bottom=x_bottom,
+        near_fx=near_fx,
+        near_fy=near_fy,
+        far_fx=far_fx,
+        far_fy=far_fy,
         segment_label=label,
     )
 

@@ -1,8 +1,12 @@
 """The lane observation: perception's only output, and the supervisor's only view of the image.
 
-Coordinate frame: image pixels, origin at the top-left corner, x to the right, y DOWN (OpenCV's
-convention). Slopes are reported in the lecture's convention, with y pointing UP (see
-`perception.geometry` for the definition and why a right bend makes the slope sum negative).
+Two frames:
+- image pixels (edges, slopes): origin at the top-left corner, x to the right, y DOWN (OpenCV's
+  convention) of the analysed (undistorted) image. Slopes are reported in the lecture's
+  convention, with y pointing UP (see `perception.geometry` for the definition and why a right
+  bend makes the slope sum negative).
+- the robot frame on the floor (offsets, headings): metres and radians, x forward, y LEFT
+  (REP 103), origin on the floor under the robot's centre, through the camera's ground model.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ class LaneEdge:
     (x1, y1) is the end nearest the robot (larger y, bottom of the image); (x2, y2) the far end.
     `slope` is the lecture-convention slope (y up), bounded, see `perception.geometry`.
     `support_px` is the total length, in pixels, of the Hough segments that voted for this edge.
+    On the floor (robot frame), the edge's near part is a line `offset_m` from the robot's
+    centre (signed: positive when it passes left of it) running at `heading_rad` from the robot's
+    heading (counter-clockwise, i.e. to the left, positive). None when not measured.
     """
 
     x1: float
@@ -27,15 +34,23 @@ class LaneEdge:
     y2: float
     slope: float
     support_px: float = 0.0
+    offset_m: float | None = None
+    heading_rad: float | None = None
 
-    def as_json(self) -> dict[str, float]:
+    def as_json(self) -> dict[str, float | None]:
         return {
             "x1": round(self.x1, 2),
             "y1": round(self.y1, 2),
             "x2": round(self.x2, 2),
             "y2": round(self.y2, 2),
             "slope": round(self.slope, 4),
+            "offset_m": _rounded(self.offset_m, 4),
+            "heading_rad": _rounded(self.heading_rad, 4),
         }
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    return None if value is None else round(value, digits)
 
 
 @dataclass(frozen=True)
@@ -47,11 +62,13 @@ class LaneObservation:
     - `confidence`: in [0, 1]; `components` names each factor that went into it (each in [0, 1]),
       so a log can say why confidence fell.
     - `frame_index`, `time_s`: the frame's index and capture time on the injected clock.
-    - `center_offset`: where the lane centre (midway between the two edges) crosses the bottom of
-      the region of interest, relative to the image centre, in half image widths: 0 centred,
-      positive when the lane centre lies right of the image centre (the robot is left of the lane
-      centre). None unless both edges exist. The slope sum alone barely sees a lateral offset;
-      this is the centring signal.
+    - `lane_offset_m`: the lane's centre line (midway between the two edges, on the floor) passes
+      this far from the robot's centre, metres, positive when it lies to the robot's LEFT (the
+      robot is right of the lane centre). None unless both edges exist.
+    - `lane_heading_rad`: the lane's direction relative to the robot's heading, radians,
+      positive when the lane runs off to the left (counter-clockwise). None unless both edges
+      exist. The slope sum barely sees a lateral offset; these two are the centring signal, in
+      units that do not depend on the camera.
     """
 
     frame_index: int
@@ -61,7 +78,8 @@ class LaneObservation:
     slope_sum: float | None
     confidence: float
     components: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
-    center_offset: float | None = None
+    lane_offset_m: float | None = None
+    lane_heading_rad: float | None = None
 
     @property
     def both_edges(self) -> bool:
@@ -76,5 +94,6 @@ class LaneObservation:
             "slope_sum": None if self.slope_sum is None else round(self.slope_sum, 4),
             "confidence": round(self.confidence, 4),
             "components": {k: round(v, 4) for k, v in self.components.items()},
-            "center_offset": None if self.center_offset is None else round(self.center_offset, 4),
+            "lane_offset_m": _rounded(self.lane_offset_m, 4),
+            "lane_heading_rad": _rounded(self.lane_heading_rad, 4),
         }

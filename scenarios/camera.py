@@ -131,8 +131,13 @@ class CameraModel:
         pix: FloatArray = np.stack([u.ravel(), v.ravel()], axis=1)
         if distorted:
             k = self.camera_matrix()
+            # OpenCV's default of 5 fixed-point iterations does not converge near the corners
+            # of a wide lens (120 deg with k1 -0.2: tapes bent outward there); iterate to
+            # convergence instead.
+            criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-9)
             pix = np.asarray(cv2.undistortPoints(pix.reshape(-1, 1, 2), k, self.distortion(),
-                                                 P=k), dtype=np.float64).reshape(-1, 2)
+                                                 None, None, k, criteria),
+                             dtype=np.float64).reshape(-1, 2)
         ground = self.ground.image_to_floor(pix)
         shape = (self.height_px, self.width_px)
         return ground[:, 0].reshape(shape), ground[:, 1].reshape(shape)

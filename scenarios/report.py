@@ -21,7 +21,6 @@ TABLE_ROWS: tuple[tuple[str, str], ...] = (
     ("halted", "halted"),
     ("halt_reason", "halt reason"),
     ("halt_position", "halt position"),
-    ("states_visited", "states visited"),
     ("turns_completed", "turns completed"),
     ("states_visited", "states visited"),
     ("max_cross_track_error_m", "max cross-track error (m)"),

@@ -2,10 +2,10 @@
 
 Signs (body frame, angular positive = left/counter-clockwise):
 - slope sum > 0 means the lane bends left (lecture: > +6 turn left) -> positive angular rate;
-- center_offset > 0 means the lane centre lies right of the image centre (the robot sits left of
-  the lane) -> turn right -> negative angular rate.
+- center_offset > 0 means the lane centre lies LEFT of the robot, `center_preview_m` ahead (metres,
+  robot frame, see `supervisor.center_offset`) -> turn left -> positive angular rate.
 So the proportional steering is
-    w = slope_sum_gain * slope_sum - center_offset_gain * center_offset.
+    w = slope_sum_gain * slope_sum + center_offset_gain * center_offset.
 
 FOLLOW: follow speed, proportional steering. TURN_LEFT/TURN_RIGHT: the lecture's thrust decision
 as an arc: turn speed, proportional steering plus/minus `turn_extra_angular_rad_s`. DEGRADED: a
@@ -22,12 +22,13 @@ from lanewarden.supervisor.state_machine import SupervisorState
 def proportional_steering_rad_s(
     slope_sum: float | None, center_offset: float | None, config: SupervisorConfig
 ) -> float:
-    """w from the filtered slope sum (bend feed-forward) and the centre offset (centring)."""
+    """w from the filtered slope sum (bend feed-forward) and the centre offset (centring:
+    metres, lane centre left of the robot +)."""
     w = 0.0
     if slope_sum is not None:
         w += config.slope_sum_gain_rad_s * slope_sum
     if center_offset is not None:
-        w -= config.center_offset_gain_rad_s * center_offset
+        w += config.center_offset_gain_rad_s_per_m * center_offset
     return w
 
 

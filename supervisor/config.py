@@ -2,7 +2,7 @@
 
 Units are in the names (`_s` seconds, `_m` metres, `_m_s` m/s, `_rad_s` rad/s, `_frames` camera
 frames). Slope sums are in the lecture's convention (dimensionless, positive = the lane bends left);
-`center_offset` is in half image widths (see `perception.observation.LaneObservation`). Confidences
+the centring signal is in metres on the floor (see `supervisor.center_offset`). Confidences
 are in [0, 1]. Cross-field rules (exit below enter, late below stale, ...) are checked here, so a
 bad combination is refused at start-up, before anything moves; rules across sections (the limiter's
 caps within the base's limits, the camera period against the simulated camera's rate, the turn
@@ -91,6 +91,13 @@ class SupervisorConfig(BaseModel):
         le=10.0,
         description="Low-pass time constant of the centre offset used for steering, s (0: no "
         "filtering)",
+    )
+    center_preview_m: float = Field(
+        default=0.36,
+        ge=0.0,
+        le=5.0,
+        description="The centring steers towards the lane centre this far ahead of the robot's "
+        "centre (combines the lane's offset and heading), m",
     )
 
     # --- Confidence thresholds and debounce (frames are new camera frames) ---
@@ -263,11 +270,12 @@ class SupervisorConfig(BaseModel):
         le=1.0,
         description="Left-turn rate per unit of filtered slope sum, rad/s",
     )
-    center_offset_gain_rad_s: float = Field(
-        default=1.0,
+    center_offset_gain_rad_s_per_m: float = Field(
+        default=3.6,
         ge=0.0,
-        le=10.0,
-        description="Right-turn rate per half image width of filtered centre offset, rad/s",
+        le=20.0,
+        description="Left-turn rate per metre the lane centre lies left of the robot, "
+        "center_preview_m ahead (filtered), rad/s per m",
     )
     turn_speed_m_s: float = Field(
         default=0.15,

@@ -124,7 +124,7 @@ class SupervisedController:
         self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
         events |= self._estimate.events
         if lane.slope_sum is not None:
-            self._center.step(obs.time_s, obs.center_offset)
+            self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
         if lane.usable:
             self._lane_seen_at_s = obs.time_s
         return FrameVerdict(

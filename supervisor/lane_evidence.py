@@ -53,8 +53,9 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
         return f"confidence {obs.confidence!r} is not in [0, 1]"
     if not _finite(obs.slope_sum):
         return f"slope_sum {obs.slope_sum!r} is not finite"
-    if not _finite(obs.center_offset):
-        return f"center_offset {obs.center_offset!r} is not finite"
+    if not (_finite(obs.lane_offset_m) and _finite(obs.lane_heading_rad)):
+        return (f"lane_offset_m {obs.lane_offset_m!r} / lane_heading_rad "
+                f"{obs.lane_heading_rad!r} is not finite")
     if obs.both_edges != (obs.slope_sum is not None):
         return "slope_sum must be given exactly when both edges are"
     for name, edge in (("left", obs.left), ("right", obs.right)):

@@ -30,7 +30,7 @@ def test_connect_builds_the_loop_that_sends_only_the_gates_output() -> None:
     records: list[StepRecord] = []
     stack = build_stack(config_from_mapping({}), controller="lecture", debug_tap=True)
     base = SimBase()
-    loop = stack.connect(ScriptedCamera(), base, records.append)
+    loop = stack.connect(ScriptedCamera(size=(320, 240)), base, records.append)
     for k in range(5):  # not started: the lecture would drive, the gate holds it
         loop.step(k * DT)
     assert base.commanded == STOP and [r.state for r in records] == ["HALT"] * 5

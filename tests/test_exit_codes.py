@@ -38,6 +38,7 @@ lane:
 run: {max_time_s: 0.2}
 config:
   simulation: {texture_mm_per_px: 10, width_px: 160, height_px: 120, world_margin_m: 1}
+  perception: {edges: {look_ahead_m: 0.45}}  # what 160x120 resolves tape from seam at
 """
 
 LONG_SCENARIO = """\

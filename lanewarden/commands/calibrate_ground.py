@@ -53,8 +53,6 @@ from lanewarden.perception.ground_calibration import (
     solve_floor_chessboard,
 )
 from lanewarden.perception.ground_report import (
-    DEFAULT_LANE_WIDTH_M,
-    DEFAULT_TAPE_WIDTH_M,
     GroundSummary,
     draw_ground_check,
     summarize_ground,
@@ -126,9 +124,9 @@ def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
     bends = "; ".join(f"R {b.radius_m:g} m: right {fmt(b.right)}, left {fmt(b.left)}"
                       for b in summary.bends)
     lines.append(
-        f"  strongest slope sum driving through a 90° bend (lane {DEFAULT_LANE_WIDTH_M:g} m, "
-        f"tape {DEFAULT_TAPE_WIDTH_M * 1000:g} mm): {bends} (the lecture turns beyond "
-        "+-perception.decision.turn_slope_sum)")
+        f"  strongest slope sum driving through a 90° bend (lane {summary.lane_width_m:g} m, "
+        f"tape {summary.tape_width_m * 1000:g} mm): {bends} (the lecture turns beyond "
+        "+-supervisor.turn_enter_slope_sum)")
     return lines
 
 
@@ -316,7 +314,8 @@ def ground_command(
             undistorted, model, [f"camera: {pose.describe()}", method],
             look_ahead_v=summary.look_ahead_y_px,
             corners_px=None if solution is None else solution.corners_px,
-            corners_floor=None if solution is None else solution.floor_points)
+            corners_floor=None if solution is None else solution.floor_points,
+            lane_width_m=config.perception.lane.width_m)
         save_calibration(updated, out)
         if ros_path is not None:
             save_ros_camera_info(updated, ros_path, camera_name=out.stem)

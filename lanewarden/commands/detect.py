@@ -5,13 +5,24 @@ soon as it is known (a bad image later in the list never loses the results alrea
 Images are analysed independently (no `previous`, so `consistency` is neutral). With `--json`
 each line is one JSON object:
 
-    {"image", "left", "right", "slope_sum", "confidence", "components", "decision"}
+    {"image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_rad", "confidence",
+     "components", "decision"}
 
-`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope"} (pixels of the analysed, i.e.
-undistorted, image; slope in the lecture's y-up convention). `decision`: "straight", "left",
-"right" or "none" (confidence below `supervisor.confidence_usable_min`, or an edge missing;
-left/right beyond `supervisor.turn_enter_slope_sum`: the supervisor's thresholds).
+`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad"} (pixels of
+the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the edge's line on
+the floor in the robot frame). `lane_offset_m` / `lane_heading_rad`: the lane centre line's
+signed distance from the robot's centre (left +) and direction (left +), null without both edges.
+`decision`: "straight", "left", "right" or "none" (confidence below
+`supervisor.confidence_usable_min`, or an edge missing; left/right beyond
+`supervisor.turn_enter_slope_sum`: the supervisor's thresholds).
 With `--out DIR`, `<name>_detect.png` overlays are written there too.
+
+Perception sees the floor through a ground model; one line says which one (the calibration's
+ground pose from `lanewarden calibrate ground`; without one the simulator's default mount) and
+what a pixel covers at the look-ahead: the first line of the text output, on stderr with `--json`.
+A config this camera cannot work with (`PerceptionConfigError`: the floor region or the
+look-ahead out of view, tape and seams not separable at the look-ahead) is a config error: one
+line, exit code 2.
 
 Unusable images (missing, empty, not an image, a folder, more pixels than
 `perception.max_image_pixels`, wrong size for the calibration) are skipped and reported together
@@ -33,7 +44,7 @@ from lanewarden.assembly import decision_rule
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
-from lanewarden.errors import InputFileError, OutputError
+from lanewarden.errors import ConfigError, InputFileError, OutputError
 from lanewarden.image_files import read_image
 from lanewarden.perception.calibration import (
     Undistorter,
@@ -41,7 +52,7 @@ from lanewarden.perception.calibration import (
     require_usable_calibration,
 )
 from lanewarden.perception.detector import LaneDetector
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 
@@ -54,6 +65,8 @@ def result_json(image: str, observation: LaneObservation, decision: str) -> dict
         "left": full["left"],
         "right": full["right"],
         "slope_sum": full["slope_sum"],
+        "lane_offset_m": full["lane_offset_m"],
+        "lane_heading_rad": full["lane_heading_rad"],
         "confidence": full["confidence"],
         "components": full["components"],
         "decision": decision,
@@ -111,7 +124,16 @@ def detect_command(
     out = None
     if out_dir is not None:
         out = create_output_folder(Path(out_dir))
-    detector = LaneDetector(config, undistorter)
+    try:
+        detector = LaneDetector(config, undistorter)
+    except PerceptionConfigError as exc:
+        raise ConfigError(str(exc)) from None
+    # which ground model: the first line of the text output; with --json on stderr (stdout
+    # stays one JSON object per line)
+    if as_json:
+        click.echo(f"lanewarden: {detector.describe_ground(calibration_path)}", err=True)
+    else:
+        _emit(detector.describe_ground(calibration_path))
     failures: list[str] = []
     unwritten: list[str] = []
     for index, name in enumerate(images):

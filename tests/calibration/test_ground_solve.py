@@ -186,8 +186,9 @@ def test_the_pose_is_recovered_from_its_rotation() -> None:
 def test_the_default_camera_summary() -> None:
     summary = summarize_ground(default_ground_model((640, 480)), PerceptionConfig())
     assert summary.horizon_y_px == pytest.approx(-80.0, abs=0.1)  # 240 - 457.0 tan 35
-    assert summary.look_ahead_y_px == 192.0
-    assert summary.look_ahead_m == pytest.approx(0.872, abs=0.002)
+    # perception's look-ahead, 0.87 m ahead of the robot's centre, lands on row 192.4
+    assert summary.look_ahead_m == pytest.approx(0.87, abs=1e-9)
+    assert summary.look_ahead_y_px == pytest.approx(192.4, abs=0.05)
     # 0.72 m ahead of the camera, 0.40 m below it: 0.824 m along the ray / 457.0 px
     assert summary.mm_per_px_across_at_look_ahead == pytest.approx(1.80, abs=0.01)
 
@@ -200,14 +201,15 @@ def test_sharp_bends_pass_the_lecture_threshold_and_wide_ones_do_not() -> None:
     k[0, 2] = 319.5
     model = GroundModel(k, default.pose, (640, 480))
     row, clamp = 192.0, PerceptionConfig().edges.max_abs_slope
-    sharp_right = bend_slope_sum(model, 0.5, "right", row, clamp)
-    sharp_left = bend_slope_sum(model, 0.5, "left", row, clamp)
-    wide_right = bend_slope_sum(model, 2.0, "right", row, clamp)
+    lane = (0.60, 0.048)  # the lecture's lane: tape centres 0.60 m apart, 48 mm tape
+    sharp_right = bend_slope_sum(model, 0.5, "right", row, clamp, *lane)
+    sharp_left = bend_slope_sum(model, 0.5, "left", row, clamp, *lane)
+    wide_right = bend_slope_sum(model, 2.0, "right", row, clamp, *lane)
     assert sharp_right is not None and sharp_left is not None and wide_right is not None
     # entering a sharp bend the inner edge swings past vertical: clamped at -12, the outer
     # edge leans at about +1
     assert sharp_right == pytest.approx(-11.04, abs=0.01)
     assert sharp_left == pytest.approx(-sharp_right, abs=1e-9)  # no roll: a mirror image
     assert wide_right == pytest.approx(-4.26, abs=0.01)  # inside the lecture's +-6
-    straight = bend_slope_sum(model, 1e4, "right", row, clamp)
+    straight = bend_slope_sum(model, 1e4, "right", row, clamp, *lane)
     assert straight is not None and abs(straight) < 0.01

@@ -15,6 +15,7 @@ from tests.operator.clips import lane_end_frames, write_images, write_video
 
 HERE = Path(__file__).resolve().parent
 DONKEYCAR_CONFIG = HERE.parent / "perception" / "donkeycar_camera.yaml"
+DONKEYCAR_CALIBRATION = HERE.parent / "perception" / "donkeycar_calibration.yaml"
 OUTPUTS = ("video.mp4", "poster.jpg", "plot.png", "metrics.json", "run.jsonl", "report.html")
 
 
@@ -29,7 +30,8 @@ def _outputs_written(out: Path) -> dict[str, object]:
 
 def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     tub = shared_data("donkeycar-tub")
-    code = main(["replay", str(tub), "--config", str(DONKEYCAR_CONFIG), "--out",
+    code = main(["replay", str(tub), "--config", str(DONKEYCAR_CONFIG), "--calibration",
+                 str(DONKEYCAR_CALIBRATION), "--out",
                  str(tmp_path / "out")])
     out = capsys.readouterr().out
     assert code == 0, out
@@ -38,7 +40,10 @@ def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert (metrics["source_kind"], metrics["steps"], metrics["frames"]) == ("tub", 1000, 1000)
     # the tub's own timestamps: 1000 frames over 3.33 s
     assert metrics["sim_time_s"] == pytest.approx(3.33, abs=0.01)
-    assert "FOLLOW" in metrics["states_visited"]  # type: ignore[operator]
+    # At 160x120 through that lens perception can verify tape only 0.15 m ahead and is confident
+    # on a few scattered frames (docs/perception.md), never on the run the supervisor needs to
+    # engage: it stays halted on this track, as it should.
+    assert metrics["states_visited"] == ["HALT"]
 
 
 def test_a_video_and_a_folder_of_images(tmp_path: Path,

@@ -8,7 +8,7 @@ from types import MappingProxyType
 
 import pytest
 
-from lanewarden.config import load_config
+from lanewarden.config import LanewardenConfig, load_config
 from lanewarden.errors import ConfigError
 from lanewarden.perception.confidence import COMPONENT_NAMES, combine
 from lanewarden.perception.config import PerceptionConfig
@@ -23,12 +23,21 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("canny: {low_threshold: 150, high_threshold: 100}", "must be below high_threshold"),
         ("canny: {aperture_px: 4}", "must be 3, 5 or 7"),
         ("canny: {low_treshold: 10}", "unknown key 'perception.canny.low_treshold'"),
-        ("roi: {polygon_norm: [[0, 1], [1, 1]]}", "needs at least 3 vertices"),
-        ("roi: {polygon_norm: [[0, 1], [0.5, 1], [1, 1]]}", "zero area"),
-        ("roi: {polygon_norm: [[0, 5], [1, 5], [0.5, 4]]}", "within [-2, 3]"),
-        ("tape: {width_min_frac_of_width: 0.2}", "width_min_frac_of_width (0.2) <="),
+        ("roi: {polygon_norm: [[0, 1], [1, 1]]}", "unknown key 'perception.roi.polygon_norm'"),
+        ("roi: {near_m: 2.0, far_m: 1.0}", "near_m (2) must be below far_m (1)"),
+        ("roi: {lateral_m: 0}", "perception.roi.lateral_m = 0"),
+        ("tape: {width_min_frac_of_width: 0.2}", "unknown key 'perception.tape.width_min_frac"),
+        ("tape: {width_m: 0.002}", "perception.tape.width_m = 0.002"),
+        ("tape: {max_seam_width_m: 0.045}", "max_seam_width_m (0.045) must be below the narrowest"),
+        ("tape: {width_m: 0.03, max_seam_width_m: 0.026}", "width_tolerance_fraction) = 0.0255"),
+        ("tape: {width_m: 0.06}\n  lane: {width_m: 0.11}", "lane.width_m (0.11) must exceed two"),
+        ("lane: {horizon_y_norm: 0.3}", "unknown key 'perception.lane.horizon_y_norm'"),
+        ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
+        ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1"),
+        ("edges: {look_ahead_m: 2.0}", "edges.look_ahead_m (2) must lie within the region of"),
         ("confidence: {min_confidence: 0.5}",
          "unknown key 'perception.confidence.min_confidence'"),  # trust is the supervisor's
+        ("tape: {width_m: .inf}", "perception.tape.width_m"),
         ("confidence: {weights: {tape_pair: -1}}", "perception.confidence.weights.tape_pair"),
         ("edges: {max_abs_slope: 2.5}", "two clamped slopes could never reach"),  # vs supervisor
         ("hough: {votes_frac_of_height: 0}", "perception.hough.votes_frac_of_height = 0"),
@@ -51,11 +60,15 @@ def test_defaults_round_trip_and_partial_override(tmp_path: Path) -> None:
     path.write_text(
         "perception:\n"
         "  blur: {kernel_px: 7}\n"
-        "  roi: {polygon_norm: [[0, 1], [1, 1], [0.5, 0.3]]}\n"
+        "  roi: {far_m: 1.2}\n"
+        "  tape: {width_m: 0.025}\n"
     )
     config = load_config(path).perception
     assert config.blur.kernel_px == 7
-    assert config.roi.polygon_norm == ((0.0, 1.0), (1.0, 1.0), (0.5, 0.3))
+    assert (config.roi.near_m, config.roi.far_m, config.roi.lateral_m) == (0.0, 1.2, 0.65)
+    # The seam bound follows the tape unless it is set: half the tape.
+    assert config.tape.seam_width_m == 0.0125
+    assert LanewardenConfig().perception.tape.seam_width_m == 0.024
     assert config.canny == PerceptionConfig().canny  # untouched sections keep defaults
 
 
@@ -66,6 +79,10 @@ def _components(**overrides: float) -> MappingProxyType[str, float]:
 
 
 def test_confidence_is_a_weighted_geometric_product() -> None:
+    assert COMPONENT_NAMES == (
+        "both_sides", "support_left", "support_right", "lane_width", "parallel",
+        "tape_pair_left", "tape_pair_right", "verified_tape", "consistency",
+    )
     config = PerceptionConfig()
     assert combine(_components(), config) == 1.0
     # Weight 0.5 on lane_width: 0.25 ** 0.5.
@@ -83,6 +100,8 @@ def test_confidence_is_a_weighted_geometric_product() -> None:
         }
     )
     assert combine(_components(tape_pair_right=0.0), ignore) == 1.0
+    # verified_tape has no weight: always a full gate.
+    assert combine(_components(verified_tape=0.0), ignore) == 0.0
 
 
 def _observation(slope_sum: float | None, confidence: float) -> LaneObservation:

@@ -13,7 +13,15 @@ from lanewarden.perception.calibration import CameraCalibration, save_calibratio
 from lanewarden.scenarios.camera import CameraModel
 from tests.perception import synthetic as syn
 
-KEYS = ["image", "left", "right", "slope_sum", "confidence", "components", "decision"]
+KEYS = ["image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_rad", "confidence",
+        "components", "decision"]
+#: The one line on stderr saying which ground model perception uses.
+GROUND_LINE = (
+    "lanewarden: ground model: no ground calibration: assuming the simulator's default camera "
+    "(70° HFOV, h 0.400 m, pitch 35.0°, 0.150 m ahead of the robot's centre); 640x480: at the "
+    "look-ahead one pixel covers 2.1 mm across the tape (a tape measures 38.7 mm or more there, "
+    "a seam at most 26.1 mm)\n"
+)
 
 
 @pytest.fixture(scope="module")
@@ -43,16 +51,23 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, 
 def test_json_lines(frames: Path, capsys: pytest.CaptureFixture[str]) -> None:
     images = [str(frames / n) for n in ("straight.png", "right.png", "tiles.jpg")]
     code, out, err = run(["detect", *images, "--json"], capsys)
-    assert code == 0 and err == ""
+    assert code == 0 and err == GROUND_LINE
     lines = [json.loads(line) for line in out.splitlines()]
     assert [list(line) for line in lines] == [KEYS] * 3
     assert [line["image"] for line in lines] == images
     assert [line["decision"] for line in lines] == ["straight", "right", "none"]
     straight, right, tiles = lines
-    assert set(straight["left"]) == {"x1", "y1", "x2", "y2", "slope"}
+    assert set(straight["left"]) == {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad"}
     assert straight["left"]["slope"] > 0 > straight["right"]["slope"]
+    # Metric outputs, robot frame: the inner tape edges 0.276 m either side, the lane straight
+    # ahead and centred.
+    assert straight["left"]["offset_m"] == pytest.approx(0.276, abs=0.005)
+    assert straight["right"]["offset_m"] == pytest.approx(-0.276, abs=0.005)
+    assert straight["lane_offset_m"] == pytest.approx(0.0, abs=0.005)
+    assert straight["lane_heading_rad"] == pytest.approx(0.0, abs=0.01)
+    assert tiles["lane_offset_m"] is not None  # two (seam) edges: measured, and not trusted
     assert right["slope_sum"] < -6
-    assert tiles["confidence"] < 0.5 and tiles["components"]["tape_pair_left"] == 0.0
+    assert tiles["confidence"] == 0.0 and tiles["components"]["verified_tape"] == 0.0
 
 
 def test_text_output_and_overlays(
@@ -64,7 +79,8 @@ def test_text_output_and_overlays(
         capsys,
     )
     assert code == 0
-    assert out.splitlines()[0].startswith(f"{frames / 'straight.png'}: straight  slope sum")
+    assert out.splitlines()[0] == GROUND_LINE.removeprefix("lanewarden: ").rstrip("\n")
+    assert out.splitlines()[1].startswith(f"{frames / 'straight.png'}: straight  slope sum")
     big = cv2.imread(str(out_dir / "straight_detect.png"))
     small = cv2.imread(str(out_dir / "small_detect.png"))
     assert big is not None and big.shape == (480, 640, 3)
@@ -98,6 +114,8 @@ def test_bad_images_are_named_and_good_results_kept(
     code, out, err = run(args, capsys)
     assert code == 2
     assert [json.loads(line)["decision"] for line in out.splitlines()] == ["straight", "right"]
+    assert err.startswith(GROUND_LINE)
+    err = err.removeprefix(GROUND_LINE)
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert err.startswith("lanewarden: error: 4 of 6 images not analysed")
     for name, why in [
@@ -112,13 +130,20 @@ def test_bad_images_are_named_and_good_results_kept(
 def test_image_size_differs_from_calibration(
     frames: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, _, err = run(
+    code, out, err = run(
         ["detect", str(frames / "small.png"), "--calibration", str(frames / "camera.yaml")],
         capsys,
     )
     assert code == 2
     assert f"{frames / 'small.png'}: undistort: image is 320x240" in err
-    assert len(err.strip().splitlines()) == 1
+    (ground,) = out.strip().splitlines()  # text mode: the ground line leads the output
+    (error,) = err.strip().splitlines()
+    assert ground.startswith(
+        f"ground model: no ground calibration in the calibration from "
+        f"{frames / 'camera.yaml'}: assuming the simulator's default mount (h 0.400 m, pitch "
+        "35.0°, 0.150 m ahead of the robot's centre) with its K; run `lanewarden calibrate "
+        "ground`; 640x480: at the look-ahead")
+    assert error.startswith("lanewarden: error: 1 of 1 images not analysed")
 
 
 @pytest.mark.parametrize(
@@ -151,6 +176,23 @@ def test_bad_options_are_one_line(
     assert out == ""
     assert expected in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_config_the_camera_cannot_resolve_is_refused_before_any_image(
+    frames: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 19 mm tape against seams up to 9.5 mm, judged 0.87 m ahead at 640x480 (2.1 mm per
+    pixel): the camera cannot tell them apart there; the line names the key and the distance
+    that would work."""
+    narrow = tmp_path / "narrow-tape.yaml"
+    narrow.write_text("perception:\n  tape: {width_m: 0.019}\n")
+    code, out, err = run(["detect", str(frames / "straight.png"), "--config", str(narrow)],
+                         capsys)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("lanewarden: error: perception.edges.look_ahead_m = 0.87: at 640x480 "
+                          "one pixel covers 2.1 mm of floor across the tape there")
+    assert err.strip().endswith("expected a look-ahead of 0.82 m or less for this camera")
 
 
 def test_no_images_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:

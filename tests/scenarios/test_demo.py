@@ -37,14 +37,13 @@ def test_supervised_run_follows_the_course_and_stops_at_the_end(demo_out: Path) 
     assert m["halted"] is True
     assert str(m["halt_reason"]).startswith(("LANE_LOST", "DEGRADED_BUDGET_EXHAUSTED"))
     assert isinstance(m["distance_past_lane_end_m"], float)
-    assert m["distance_past_lane_end_m"] <= 0.50
+    assert m["distance_past_lane_end_m"] <= 0.10
     assert m["crossed_tape"] is False
 
 
 def test_lecture_run_never_stops_and_wanders_past_the_end(demo_out: Path) -> None:
     m = metrics(demo_out, "lecture")
     assert m["controller"] == "lecture"
-    assert m["turns_completed"] == ["A", "B"]
     visited = m["states_visited"]
     assert isinstance(visited, list) and {"TURN_RIGHT", "TURN_LEFT"} <= set(visited)
     assert m["halted"] is False

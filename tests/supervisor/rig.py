@@ -36,9 +36,9 @@ def observation(
     confidence: float = 0.9,
     left: bool = True,
     right: bool = True,
-    center_offset: float = 0.0,
+    lane_offset_m: float = 0.0,
 ) -> LaneObservation:
-    """A well-formed observation (slope sum and centre offset only when both edges exist)."""
+    """A well-formed observation (slope sum and lane centre only when both edges exist)."""
     both = left and right
     return LaneObservation(
         frame_index=index,
@@ -47,7 +47,8 @@ def observation(
         right=RIGHT_EDGE if right else None,
         slope_sum=slope_sum if both else None,
         confidence=confidence,
-        center_offset=center_offset if both else None,
+        lane_offset_m=lane_offset_m if both else None,
+        lane_heading_rad=0.0 if both else None,
     )
 
 
@@ -79,7 +80,7 @@ class Rig:
         confidence: float = 0.9,
         left: bool = True,
         right: bool = True,
-        center_offset: float = 0.0,
+        lane_offset_m: float = 0.0,
         new_frame: bool = True,
         latency_s: float = 0.0,
         obs: object = _UNSET,
@@ -108,7 +109,7 @@ class Rig:
                     confidence=confidence,
                     left=left,
                     right=right,
-                    center_offset=center_offset,
+                    lane_offset_m=lane_offset_m,
                 )
             else:
                 assert obs is None or isinstance(obs, LaneObservation)
@@ -149,23 +150,26 @@ class Rig:
 # --- neighbours of the control loop ---
 
 
-def noisy_image(index: int, size: int = 16) -> np.ndarray:
-    """A tiny BGR image whose pixels differ from frame to frame (like sensor noise)."""
+def noisy_image(index: int, size: tuple[int, int] = (16, 16)) -> np.ndarray:
+    """A BGR image (tiny by default, `size` = (width, height)) whose pixels differ from frame to
+    frame (like sensor noise)."""
     rng = np.random.default_rng(index)
-    return rng.integers(0, 256, size=(size, size, 3), dtype=np.uint8)
+    return rng.integers(0, 256, size=(size[1], size[0], 3), dtype=np.uint8)
 
 
 @dataclass
 class ScriptedCamera:
     """Frames every `period_s` from t=0. `read(now)` returns the newest frame captured at or before
     `now - latency_s(now)`. Frames stop after `stop_at_s`; from `freeze_at_s` on every new frame
-    carries the same pixels (a frozen driver); `fail_at_s` makes read() raise."""
+    carries the same pixels (a frozen driver); `fail_at_s` makes read() raise. `size`: the
+    frames' (width, height)."""
 
     period_s: float = DT
     stop_at_s: float = float("inf")
     freeze_at_s: float = float("inf")
     fail_at_s: float = float("inf")
     latency_s: Callable[[float], float] = lambda now: 0.0
+    size: tuple[int, int] = (16, 16)
     _frozen: np.ndarray | None = None
 
     def read(self, now: float) -> Frame | None:
@@ -178,10 +182,10 @@ class ScriptedCamera:
         time_s = index * self.period_s
         if time_s >= self.freeze_at_s:
             if self._frozen is None:
-                self._frozen = noisy_image(index)
+                self._frozen = noisy_image(index, self.size)
             image = self._frozen
         else:
-            image = noisy_image(index)
+            image = noisy_image(index, self.size)
         return Frame(image=image, index=index, time_s=time_s)
 
 

@@ -17,11 +17,12 @@ LIMITS = CommandLimits.for_driving(CONFIG)
 DT = 1.0 / 30.0
 
 
-def test_signs_bend_left_turns_left_and_lane_centre_right_turns_right() -> None:
+def test_signs_bend_left_turns_left_and_lane_centre_left_turns_left() -> None:
     assert proportional_steering_rad_s(3.0, 0.0, CONFIG) > 0.0  # lane bends left -> turn left
     assert proportional_steering_rad_s(-3.0, 0.0, CONFIG) < 0.0
-    assert proportional_steering_rad_s(0.0, 0.2, CONFIG) < 0.0  # centre right of image -> right
-    assert proportional_steering_rad_s(0.0, -0.2, CONFIG) > 0.0
+    # Lane centre 5 cm left of the robot (metres, robot frame) -> turn left at 3.6 rad/s per m.
+    assert proportional_steering_rad_s(0.0, 0.05, CONFIG) == pytest.approx(0.18)
+    assert proportional_steering_rad_s(0.0, -0.05, CONFIG) == pytest.approx(-0.18)
     assert proportional_steering_rad_s(None, None, CONFIG) == 0.0
 
 
@@ -30,14 +31,14 @@ def test_command_per_state() -> None:
     follow = command_for(S.FOLLOW, 2.0, 0.1, CONFIG)
     assert follow.linear_m_s == CONFIG.follow_speed_m_s
     assert follow.angular_rad_s == pytest.approx(
-        CONFIG.slope_sum_gain_rad_s * 2.0 - CONFIG.center_offset_gain_rad_s * 0.1
+        CONFIG.slope_sum_gain_rad_s * 2.0 + CONFIG.center_offset_gain_rad_s_per_m * 0.1
     )
     left = command_for(S.TURN_LEFT, 7.0, 0.0, CONFIG)
     right = command_for(S.TURN_RIGHT, -7.0, 0.0, CONFIG)
     assert left.linear_m_s == right.linear_m_s == CONFIG.turn_speed_m_s
     assert left.angular_rad_s > command_for(S.FOLLOW, 7.0, 0.0, CONFIG).angular_rad_s > 0.0
     assert right.angular_rad_s == pytest.approx(-left.angular_rad_s)
-    degraded = command_for(S.DEGRADED, 50.0, -3.0, CONFIG)
+    degraded = command_for(S.DEGRADED, 50.0, 3.0, CONFIG)
     assert degraded.linear_m_s == CONFIG.follow_speed_m_s * CONFIG.degraded_speed_fraction
     assert degraded.angular_rad_s == CONFIG.degraded_max_angular_rad_s  # bounded
 

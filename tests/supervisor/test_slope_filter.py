@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -131,11 +133,31 @@ def test_nothing_before_the_first_measurement_and_restart_after_a_long_gap() -> 
 
 def test_center_offset_low_pass_holds_without_measurement() -> None:
     c = CenterOffsetFilter(CONFIG)
-    assert c.step(0.0, None) is None
-    assert c.step(0.0, 0.5) == 0.5
-    value = c.step(CONFIG.center_offset_time_constant_s, 0.0)
+    assert c.step(0.0, None, None) is None
+    assert c.step(0.0, 0.5, 0.0) == 0.5
+    value = c.step(CONFIG.center_offset_time_constant_s, 0.0, 0.0)
     assert value == pytest.approx(0.5 * np.exp(-1.0))
-    assert c.step(1.0, None) == value
+    assert c.step(1.0, None, None) == value
+    assert c.step(1.1, 0.2, math.nan) == value  # a non-finite measurement is no measurement
+
+
+@pytest.mark.parametrize(
+    ("offset_m", "heading_rad", "expected_m"),
+    [
+        (0.1, 0.0, 0.1),  # lane centre 10 cm to the left, straight ahead
+        (0.0, 0.2, 0.36 * math.tan(0.2)),  # through the robot, running off to the left
+        (-0.05, -0.1, -0.05 / math.cos(-0.1) + 0.36 * math.tan(-0.1)),
+        (0.0, 1.5, 0.36 * math.tan(math.radians(60.0))),  # bounded: taken as 60 deg
+    ],
+)
+def test_centring_looks_at_the_lane_centre_center_preview_m_ahead(
+    offset_m: float, heading_rad: float, expected_m: float
+) -> None:
+    """The centring signal is the lane centre's lateral position 0.36 m (center_preview_m)
+    ahead of the robot's centre, in metres: the same for every camera."""
+    assert CONFIG.center_preview_m == 0.36
+    assert CenterOffsetFilter(CONFIG).step(0.0, offset_m, heading_rad) == pytest.approx(
+        expected_m)
 
 
 def test_without_measurements_the_estimate_expires_instead_of_extrapolating() -> None:

@@ -1,0 +1,221 @@
+"""Perception's floor geometry in metres: the tape, the lane and the region of interest.
+
+These keys describe the world (what the tape and the lane are, which floor to look at), never the
+image: the detector turns them into pixels through the camera's ground model
+(`perception.ground.GroundModel`) once per image size, so one config holds for any camera.
+Lengths are metres on the floor, in the robot frame (REP 103: x forward, y left, origin under the
+robot's centre). Pixel knobs that describe the image processing (blur, Canny, Hough, sampling)
+stay in `perception.config`.
+
+This module only declares and validates numbers: it never touches images or a ground model.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Self
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+_FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
+PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
+
+
+class RoiConfig(BaseModel):
+    """The region of interest: a rectangle of floor in the robot frame, projected into the image.
+
+    It spans `near_m` to `far_m` ahead of the robot's centre and `lateral_m` to either side; the
+    image border and the horizon clip it. Default: from wherever the image starts to 1.6 m ahead,
+    wide enough for a 0.8 m lane seen with the robot off-centre or turned by 15 deg, and nothing
+    beyond (walls and clutter beside the lane stay out).
+    """
+
+    model_config = _FROZEN
+
+    near_m: Annotated[float, Field(ge=0.0, le=10.0)] = Field(
+        default=0.0,
+        description=(
+            "nearest floor the ROI covers, metres ahead of the robot's centre (the image bottom "
+            "usually clips it)"
+        ),
+    )
+    far_m: Annotated[float, Field(gt=0.0, le=20.0)] = Field(
+        default=1.6,
+        description="farthest floor the ROI covers, metres ahead of the robot's centre",
+    )
+    lateral_m: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        default=0.65,
+        description="the ROI spans this far to each side of the robot's centre line, metres",
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if not self.near_m < self.far_m:
+            raise ValueError(
+                f"near_m ({self.near_m:g}) must be below far_m ({self.far_m:g})"
+            )
+        return self
+
+
+class TapeConfig(BaseModel):
+    """The tape, and how a tape is told from a floor seam: by its width on the floor, in metres.
+
+    A candidate tape is two nearly parallel edges of opposite polarity with a uniform band between
+    them. Both edges are projected onto the floor through the ground model and the distance
+    between them is compared with two hypotheses (`perception.tape_rules.tape_width_score`):
+    - seam: at most `max_seam_width_m` (grout, joints, cracks), or as thin as the image can show
+      (`min_gap_px`: blur keeps the two sides of any thin line a few pixels apart);
+    - tape: `width_m`, give or take `width_tolerance_fraction` (wear, calibration error);
+    both widened by `width_error_px` pixels of measurement error at the measured spot. The score
+    is 0 up to the widest seam, 1 from the narrowest tape, linear between: if the two overlap
+    where the camera measures, nothing there passes as tape. At start-up the detector refuses a
+    camera that cannot separate them at the look-ahead distance (and says which distance would).
+
+    - `pair_angle_tol_deg`: the two edges of one tape converge slightly in the image; at most
+      this apart.
+    - `polarity_offset_frac_of_width`, `polarity_samples`, `min_contrast_levels`: how the
+      brightness either side of a line is sampled (a pixel knob: a few pixels beside the line).
+    - `min_band_fraction`: at least this fraction of the points sampled along a tape candidate
+      must show a uniform band darker (or lighter) than the floor outside both edges (dashed
+      tape passes with its gaps).
+    - `min_profile_fraction`: an edge without a Hough partner counts as a tape edge (not a
+      verified tape) when the brightness across it shows a band `width_m` wide on its outer side
+      along at least this fraction of its length.
+    - `unpaired_preference`: value factor of a lone line refuted as a tape edge when choosing.
+    - `unverifiable_score`: tape score of an edge whose tape's far side lies outside the image.
+      Such an edge never makes a lane confident on its own (see the `verified_tape` component).
+    """
+
+    model_config = _FROZEN
+
+    width_m: Annotated[float, Field(ge=0.005, le=0.2)] = Field(
+        default=0.048,
+        description="the tape's width on the floor, metres",
+    )
+    max_seam_width_m: Annotated[float | None, Field(gt=0.0, le=0.2)] = Field(
+        default=None,
+        description=(
+            "widest floor seam (grout, joint, crack) that must never pass as tape, metres; null: "
+            "half of width_m"
+        ),
+    )
+    width_tolerance_fraction: Annotated[float, Field(ge=0.0, le=0.5)] = Field(
+        default=0.15,
+        description=(
+            "a tape's measured width may differ from width_m by this fraction (wear, calibration "
+            "error), on top of width_error_px"
+        ),
+    )
+    width_error_px: Annotated[float, Field(ge=0.0, le=5.0)] = Field(
+        default=1.0,
+        description=(
+            "measurement error of a width between two detected edges, pixels (edge "
+            "localisation); converted to metres where each width is measured"
+        ),
+    )
+    min_gap_px: Annotated[float, Field(ge=0.0, le=20.0)] = Field(
+        default=5.0,
+        description=(
+            "two edges closer than this (pixels, where measured) may be the two sides of one "
+            "thin line: a seam's measured width is at least this many pixels"
+        ),
+    )
+    pair_angle_tol_deg: Annotated[float, Field(gt=0.0, le=30.0)] = Field(
+        default=10.0,
+        description="max angle between the two edges of one tape in the image",
+    )
+    polarity_offset_frac_of_width: PositiveFraction = Field(
+        default=0.006,
+        description=(
+            "how far either side of a line brightness is sampled for its polarity, fraction of "
+            "image width (at least 1.5 px)"
+        ),
+    )
+    polarity_samples: Annotated[int, Field(ge=1, le=64)] = Field(
+        default=6,
+        description="points sampled along a line (polarity, tape band, tape profile)",
+    )
+    min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = Field(
+        default=8.0,
+        description=(
+            "smallest brightness difference that counts (polarity, tape band and profile), grey "
+            "levels"
+        ),
+    )
+    min_band_fraction: PositiveFraction = Field(
+        default=0.3,
+        description=(
+            "share of samples along a tape pair whose band must look like tape (uniform, darker "
+            "or lighter than the floor on both sides)"
+        ),
+    )
+    min_profile_fraction: PositiveFraction = Field(
+        default=0.6,
+        description=(
+            "share of samples along an unpaired edge whose brightness profile must show a tape on "
+            "its outer side"
+        ),
+    )
+    unpaired_preference: Fraction = Field(
+        default=0.1,
+        description=(
+            "value factor of a lone line refuted as a tape edge, against a tape (edge choice)"
+        ),
+    )
+    unverifiable_score: Fraction = Field(
+        default=0.6,
+        description=(
+            "tape score of an edge whose tape's far side lies outside the image (cannot be "
+            "checked); never enough for a confident lane on its own"
+        ),
+    )
+
+    @property
+    def seam_width_m(self) -> float:
+        """The widest seam to reject, metres (`max_seam_width_m`, default half the tape)."""
+        return self.width_m / 2.0 if self.max_seam_width_m is None else self.max_seam_width_m
+
+    @model_validator(mode="after")
+    def _seam_below_tape(self) -> Self:
+        narrowest_tape = self.width_m * (1.0 - self.width_tolerance_fraction)
+        if not self.seam_width_m < narrowest_tape:
+            raise ValueError(
+                f"max_seam_width_m ({self.seam_width_m:g}) must be below the narrowest tape, "
+                f"width_m x (1 - width_tolerance_fraction) = {narrowest_tape:g} m: a seam that "
+                "wide cannot be told from the tape"
+            )
+        return self
+
+
+class LaneConfig(BaseModel):
+    """The lane: two tapes `width_m` apart (centre to centre) on a flat floor.
+
+    - `width_tolerance_m`: the `lane_width` component scores 1 while the distance between the two
+      reported (inner) edges on the floor is within this of `width_m - tape.width_m`, 0 at twice.
+      Pairs of tapes are also chosen by it.
+    - `parallel_tolerance_deg`: the `parallel` component scores 1 while the two edges' directions
+      on the floor differ by at most this, 0 at twice (lane edges are parallel; random lines
+      are not).
+    """
+
+    model_config = _FROZEN
+
+    width_m: Annotated[float, Field(gt=0.1, le=3.0)] = Field(
+        default=0.60,
+        description="distance between the two tapes' centre lines, metres",
+    )
+    width_tolerance_m: Annotated[float, Field(gt=0.0, le=1.0)] = Field(
+        default=0.10,
+        description=(
+            "lane_width scores 1 while the measured width is within this of the expected one, 0 "
+            "at twice it, metres"
+        ),
+    )
+    parallel_tolerance_deg: Annotated[float, Field(gt=0.0, le=45.0)] = Field(
+        default=12.0,
+        description=(
+            "parallel scores 1 while the two edges' directions on the floor differ by at most "
+            "this, 0 at twice it, degrees"
+        ),
+    )

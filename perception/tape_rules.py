@@ -1,0 +1,224 @@
+"""The rules that tell a tape from a floor seam. The robot's safety rests on them: once the tape
+ends, the lecture's pipeline follows tile seams; these rules are what refuse the seams.
+
+1. Width on the floor (`tape_width_score`): the distance between a candidate's two edges,
+   projected onto the floor through the ground model, against two hypotheses at the spot where it
+   is measured (`WidthHypotheses`): a seam measures at most `tape.seam_width_m` or the thinnest
+   line the image can show (`tape.min_gap_px` pixels), a tape at least `width_m` less its
+   tolerance; both widened by `width_error_px` pixels of measurement error, converted to metres
+   with the pixel size there. 0 up to the widest seam, 1 from the narrowest tape, linear between,
+   falling back to 0 above the widest tape. Where the two hypotheses overlap (far away, coarse
+   pixels) nothing scores: the camera cannot tell, so nothing passes as tape.
+2. Band (`band_is_tape`): between the two edges a uniform band, darker (or lighter) than the floor
+   beyond BOTH edges by more than those two floor samples differ from each other. A band with a
+   tape edge inside it fails (not uniform), so does a floor strip with tape on one side and floor
+   on the other. (A light strip between a dark tape and a wide seam does look like a light tape:
+   the choice of tapes rejects it, both tapes of a lane being of one kind.)
+3. Profile of a lone edge (`tape_profile_fraction`): an edge whose partner Hough missed is
+   checked by the brightness across it, where the tape's other side would be on the floor
+   (`width_m` outwards). It can make the edge a tape edge, never a verified tape: only a pair
+   (1 and 2) verifies a tape, and a lane needs one verified tape to be confident (`verified_tape`
+   in `perception.confidence`). None when that side is outside the image (unverifiable).
+
+Pure functions of pixels, lines, the floor view and the config: no state, no clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lanewarden.perception.floor_config import TapeConfig
+from lanewarden.perception.floor_view import FloorView, Point
+from lanewarden.perception.geometry import Side
+from lanewarden.perception.lines import LineRow
+
+#: A lone edge's profile is only read where the tape spans at least this many pixels.
+MIN_PROFILE_TAPE_PX = 3.0
+
+
+@dataclass(frozen=True)
+class WidthHypotheses:
+    """What a seam and a tape measure, in metres, where one pixel covers `m_per_px` of floor
+    across the line: a seam at most `seam_max_m`, a tape between `tape_min_m` and `tape_max_m`;
+    `error_m` is the measurement error there."""
+
+    m_per_px: float
+    error_m: float
+    seam_max_m: float
+    tape_min_m: float
+    tape_max_m: float
+
+    @property
+    def resolvable(self) -> bool:
+        """Whether a tape and a seam measure apart here by more than the measurement error (the
+        ramp between the two hypotheses is wider than one error unit)."""
+        return math.isfinite(self.m_per_px) and self.tape_min_m - self.seam_max_m > self.error_m
+
+
+def width_hypotheses(m_per_px: float, tape: TapeConfig) -> WidthHypotheses:
+    """The seam and tape hypotheses where one pixel covers `m_per_px` metres across a line."""
+    error = tape.width_error_px * m_per_px
+    return WidthHypotheses(
+        m_per_px=m_per_px,
+        error_m=error,
+        seam_max_m=max(tape.seam_width_m, tape.min_gap_px * m_per_px) + error,
+        tape_min_m=tape.width_m * (1.0 - tape.width_tolerance_fraction) - error,
+        tape_max_m=tape.width_m * (1.0 + tape.width_tolerance_fraction) + error,
+    )
+
+
+def tape_width_score(width_m: float, m_per_px: float, tape: TapeConfig) -> float:
+    """How tape-like a band `width_m` wide on the floor is, measured where one pixel covers
+    `m_per_px` metres across it: 0 at or below the widest seam, 1 from the narrowest to the
+    widest tape, linear between, falling to 0 at 1.5x the widest tape. 0 where the hypotheses
+    do not separate (nothing there can be told from a seam) and for non-finite input."""
+    if not (math.isfinite(width_m) and math.isfinite(m_per_px)) or m_per_px <= 0.0:
+        return 0.0
+    hyp = width_hypotheses(m_per_px, tape)
+    if not hyp.resolvable:
+        return 0.0
+    if width_m <= hyp.seam_max_m:
+        return 0.0
+    if width_m < hyp.tape_min_m:
+        return (width_m - hyp.seam_max_m) / (hyp.tape_min_m - hyp.seam_max_m)
+    if width_m <= hyp.tape_max_m:
+        return 1.0
+    return max(0.0, 1.0 - (width_m - hyp.tape_max_m) / (0.5 * hyp.tape_max_m))
+
+
+def band_is_tape(
+    smooth_gray: NDArray[np.uint8],
+    a: LineRow,
+    b: LineRow,
+    y_lo: float,
+    y_hi: float,
+    tape: TapeConfig,
+) -> bool:
+    """Whether the band between lines a and b (image rows y_lo..y_hi) looks like tape: along
+    enough of it, the band (at a quarter, half and three quarters across) is darker (or
+    lighter) than the floor beyond BOTH edges by more than `min_contrast_levels`; the band
+    varies across, and the floor differs between its two sides, by less than that step. The
+    floor beyond each edge is read 0.3 and 0.6 band widths out and the more floor-like of the
+    two counts (the lighter one beside a dark band), so a seam running close beside a tape does
+    not hide the floor. Samples whose outside points are all outside the image don't count
+    against it; at least `min_band_fraction` of the others must look like tape."""
+    height, width = smooth_gray.shape[:2]
+    n = tape.polarity_samples
+    c = tape.min_contrast_levels
+    seen = 0
+    tape_like = 0
+    for k in range(1, n + 1):
+        y = y_lo + (y_hi - y_lo) * k / (n + 1)
+        row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
+        xa = a.x_at(y)
+        xb = b.x_at(y)
+        lo, hi = (xa, xb) if xa < xb else (xb, xa)
+        w = hi - lo
+        band = [float(row[min(width - 1, max(0, int(lo + f * w + 0.5)))])
+                for f in (0.25, 0.5, 0.75)]
+        sides = [
+            [float(row[int(x + 0.5)]) for x in xs if 0.0 <= x <= width - 1.0]
+            for xs in ((lo - 0.3 * w, lo - 0.6 * w), (hi + 0.3 * w, hi + 0.6 * w))
+        ]
+        sides = [values for values in sides if values]
+        if not sides:
+            continue
+        seen += 1
+        spread = max(band) - min(band)
+        lighter = [max(values) for values in sides]  # the floor beside a dark band
+        darker = [min(values) for values in sides]  # the floor beside a light band
+        for floor, step in ((lighter, min(lighter) - max(band)),
+                            (darker, min(band) - max(darker))):
+            floor_gap = max(floor) - min(floor)  # the floor on both sides is one floor
+            if step > c and spread < step and floor_gap < step:
+                tape_like += 1
+                break
+    return seen > 0 and tape_like >= tape.min_band_fraction * seen
+
+
+def outward_normal(direction: Point, side: Side) -> Point:
+    """The floor normal pointing away from the lane centre for an edge on `side` running along
+    `direction` (away from the robot): left of the direction for a left edge, right for a
+    right one."""
+    dx, dy = direction
+    return (-dy, dx) if side == "left" else (dy, -dx)
+
+
+def tape_profile_fraction(
+    smooth_gray: NDArray[np.uint8],
+    rows: list[LineRow],
+    chain: tuple[int, ...],
+    side: Side,
+    view: FloorView,
+    tape: TapeConfig,
+) -> float | None:
+    """Fraction of the points sampled along an edge where the brightness across it looks like
+    the INNER edge of a tape: a quarter, half and three quarters of a tape width outwards (on
+    the floor, left for a left edge) the brightness is uniform and differs, in the same
+    direction, from both the lane floor half a width inwards and the floor 1.75 widths outwards,
+    by more than those two floor samples differ from each other. A seam fails (the floor just
+    beyond it is floor again), so does, mostly, a boundary between two floor shades. Points
+    where the tape would span fewer than MIN_PROFILE_TAPE_PX pixels are skipped. None when most
+    samples fall outside the image (a tape at the image border: its far side cannot be seen)."""
+    height, width = smooth_gray.shape[:2]
+    c = tape.min_contrast_levels
+    near_y = rows[chain[0]].near_y
+    far_y = rows[chain[-1]].far_y
+    n = tape.polarity_samples
+    seen = hidden = tape_like = 0
+    member = -1
+    outer: tuple[Point, Point] | None = None
+    for i in range(n):
+        y = near_y + (far_y - near_y) * (i + 0.5) / n
+        k = member
+        while k < len(chain) - 1 and (k < 0 or rows[chain[k]].far_y > y):
+            k += 1
+        if k != member:
+            member = k
+            outer = _outer_line(rows[chain[member]], side, view, tape.width_m)
+        if outer is None:
+            continue
+        line = rows[chain[member]]
+        x = line.x_at(y)
+        x_tape = view.line_column_at(outer[0], outer[1], y)
+        w = x_tape - x  # signed: outwards in the image
+        if not math.isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
+            continue
+        lo, hi = x - 0.5 * w, x + 1.75 * w
+        if min(lo, hi) < 0.0 or max(lo, hi) > width - 1.0:
+            hidden += 1
+            continue
+        row = smooth_gray[min(height - 1, max(0, int(y + 0.5)))]
+        inner = float(row[int(lo + 0.5)])
+        beyond = float(row[int(hi + 0.5)])
+        b1 = float(row[int(x + 0.25 * w + 0.5)])
+        b2 = float(row[int(x + 0.5 * w + 0.5)])
+        b3 = float(row[int(x + 0.75 * w + 0.5)])
+        seen += 1
+        floor = (inner, beyond)
+        step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
+        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step and abs(inner - beyond) < step:
+            tape_like += 1
+    if seen == 0 or hidden > seen:
+        return None if hidden else 0.0
+    return tape_like / seen
+
+
+def _outer_line(line: LineRow, side: Side, view: FloorView,
+                width_m: float) -> tuple[Point, Point] | None:
+    """Two floor points of the line `width_m` outwards of `line` on the floor (where the other
+    side of its tape would be), or None when the line has no floor position."""
+    a = (line.near_fx, line.near_fy)
+    b = (line.far_fx, line.far_fy)
+    if not math.isfinite(a[0] + a[1] + b[0] + b[1]):
+        return None
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    n = math.hypot(dx, dy)
+    if n < 1e-12:
+        return None
+    ox, oy = outward_normal((dx / n, dy / n), side)
+    return (a[0] + width_m * ox, a[1] + width_m * oy), (b[0] + width_m * ox, b[1] + width_m * oy)

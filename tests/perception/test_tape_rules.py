@@ -1,0 +1,402 @@
+"""The tape-vs-seam rules one by one, each with cases that fail if the rule is replaced by a
+constant: the width on the floor (`tape_width_score`, `measure_pair`), the band between two edges
+(`band_is_tape`), the lone edge's profile and the image border (`tape_profile_fraction`, the
+`verified_tape` gate), the choice of tapes (closeness to the tape's width, the lane's width, the
+same kind of tape on both sides), and the start-up refusal of a camera that cannot tell a tape
+from a seam at the look-ahead.
+
+Lines and pictures are made on the floor and projected through the default camera's ground model
+(`default_ground_model`, 640x480: 0.40 m high, 35 deg down, 70 deg lens, 0.15 m ahead of the
+robot's centre), so each case states its geometry in metres.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import cv2
+import numpy as np
+import pytest
+
+from lanewarden.perception.confidence import EdgeEvidence, combine, lane_components
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.edge_choice import (
+    TapeCandidate,
+    follow_edge,
+    measure_pair,
+    pick_tapes,
+    verified_tapes,
+)
+from lanewarden.perception.errors import PerceptionConfigError
+from lanewarden.perception.floor_config import TapeConfig
+from lanewarden.perception.floor_view import FloorView
+from lanewarden.perception.ground import CameraPose, GroundModel, default_ground_model
+from lanewarden.perception.lines import LineRow
+from lanewarden.perception.tape_rules import band_is_tape, tape_profile_fraction, tape_width_score
+
+CONFIG = PerceptionConfig()
+TAPE = CONFIG.tape  # 48 mm, seams up to 24 mm
+GROUND = default_ground_model((640, 480))
+VIEW = FloorView(GROUND)
+FLOOR, DARK = 180, 45
+
+
+def floor_line(a: tuple[float, float], b: tuple[float, float], polarity: float,
+               support: float = 150.0, line_id: int = 0) -> LineRow:
+    """The candidate line the detector would build for the floor line from a to b."""
+    (ua, va), (ub, vb) = VIEW.to_image(*a), VIEW.to_image(*b)
+    if va < vb:  # near end (larger image row) first
+        (ua, va, a), (ub, vb, b) = (ub, vb, b), (ua, va, a)
+    n = math.hypot(ub - ua, vb - va)
+    ux, uy = (ub - ua) / n, (vb - va) / n
+    cx, cy = 0.5 * (ua + ub), 0.5 * (va + vb)
+    return LineRow(
+        line_id=line_id, angle_deg=math.degrees(math.atan2(va - vb, ub - ua)), cx=cx, cy=cy,
+        ux=ux, uy=uy, near_x=ua, near_y=va, far_x=ub, far_y=vb, support_px=support,
+        polarity=polarity, x_bottom=cx + (480.0 - cy) * ux / uy,
+        near_fx=a[0], near_fy=a[1], far_fx=b[0], far_fy=b[1],
+    )
+
+
+def along(y: float, polarity: float, x0: float = 0.55, x1: float = 1.2, **kw: float) -> LineRow:
+    """A line running straight ahead at lateral position y (metres, left +)."""
+    return floor_line((x0, y), (x1, y), polarity, **kw)  # type: ignore[arg-type]
+
+
+@cache
+def _lateral_m(ground: GroundModel) -> np.ndarray:
+    """The floor's lateral position (robot y, metres) seen at every pixel (NaN above the
+    horizon)."""
+    width, height = ground.image_size
+    u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    pixels = np.column_stack([u.ravel(), v.ravel()])
+    return ground.image_to_floor(pixels)[:, 1].reshape(height, width)
+
+
+def floor_picture(bands: list[tuple[float, float, int]]) -> np.ndarray:
+    """Gray (480, 640) picture of a floor of level FLOOR with bands running straight ahead
+    between lateral positions (lo, hi) metres, of the given levels, lightly blurred."""
+    y = _lateral_m(GROUND)
+    image = np.full((480, 640), FLOOR, np.uint8)
+    for lo, hi, level in bands:
+        image[(y >= lo) & (y < hi)] = level
+    return np.asarray(cv2.GaussianBlur(image, (5, 5), 0), dtype=np.uint8)
+
+
+# ---- 1. the width on the floor ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("width_m", "m_per_px", "tape", "expected"),
+    [
+        # 2 mm per pixel: a seam measures at most 24 + 2 = 26 mm, a tape 40.8 - 2 = 38.8 mm on.
+        (0.048, 0.002, TAPE, 1.0),  # the tape
+        (0.024, 0.002, TAPE, 0.0),  # the widest seam
+        (0.004, 0.002, TAPE, 0.0),  # tile grout
+        (0.0324, 0.002, TAPE, 0.5),  # halfway between the two hypotheses
+        (0.0572, 0.002, TAPE, 1.0),  # the widest tape, 55.2 + 2 mm
+        (0.0858, 0.002, TAPE, 0.0),  # 1.5x that: a floor strip, not tape
+        # 6 mm per pixel: a seam may measure 36 mm, a tape 34.8 mm: no tape can be told apart
+        (0.048, 0.006, TAPE, 0.0),
+        # thin seams (4 mm) but coarse pixels (4 mm): two edges less than min_gap_px (5) apart,
+        # 20 mm + 4 mm error, may be one thin line
+        (0.022, 0.004, TapeConfig(max_seam_width_m=0.004), 0.0),
+        (0.048, 0.004, TapeConfig(max_seam_width_m=0.004), 1.0),
+        # a 19 mm tape (seams up to 9.5 mm) at 1.5 mm per pixel
+        (0.019, 0.0015, TapeConfig(width_m=0.019), 1.0),
+        (0.0095, 0.0015, TapeConfig(width_m=0.019), 0.0),
+        (math.nan, 0.002, TAPE, 0.0),
+    ],
+)
+def test_width_score_tells_tape_from_seam_in_metres(
+    width_m: float, m_per_px: float, tape: TapeConfig, expected: float
+) -> None:
+    assert tape_width_score(width_m, m_per_px, tape) == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("inner_y", "outer_y", "at_m", "width_m", "score"),
+    [
+        (0.276, 0.324, (0.55, 1.2), 0.048, 1.0),  # a 48 mm tape, 0.3 m left of the centre
+        (-0.276, -0.324, (0.55, 1.2), 0.048, 1.0),  # the right one
+        (0.300, 0.318, (0.55, 1.2), 0.018, 0.0),  # an 18 mm seam
+        (0.276, 0.300, (0.55, 1.2), 0.024, 0.0),  # a 24 mm seam: the widest allowed
+        # the same tape seen only 2.6-3.0 m ahead (about 8 mm per pixel there): unresolvable
+        (0.276, 0.324, (2.6, 3.0), 0.048, 0.0),
+    ],
+)
+def test_a_pair_is_measured_on_the_floor(
+    inner_y: float, outer_y: float, at_m: tuple[float, float], width_m: float, score: float
+) -> None:
+    side = "left" if inner_y > 0 else "right"
+    pol = 1.0 if side == "left" else -1.0  # dark tape: the inner edge goes dark -> light inwards
+    inner = along(inner_y, pol, *at_m, line_id=0)
+    outer = along(outer_y, -pol, *at_m, line_id=1)
+    measured = measure_pair(outer, inner, side, VIEW, CONFIG)
+    assert measured is not None
+    got_inner, got_outer, got_score, got_width, _ = measured
+    assert (got_inner.line_id, got_outer.line_id) == (0, 1)
+    assert got_width == pytest.approx(width_m, abs=5e-4)
+    assert got_score == pytest.approx(score, abs=1e-9)
+
+
+# ---- 2. the band between the edges -----------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("bands", "lines", "expected"),
+    [
+        # a dark tape, 0.276..0.324 m left, and its two edges
+        ([(0.276, 0.324, DARK)], (0.276, 0.324), True),
+        # a light tape on the same floor
+        ([(0.276, 0.324, 250)], (0.276, 0.324), True),
+        # a 12 mm seam runs 14 mm beside the tape: the floor beyond the seam still counts
+        ([(0.250, 0.262, 90), (0.276, 0.324, DARK)], (0.276, 0.324), True),
+        # the floor strip between a 4 mm seam (0.220..0.224) and the tape: tape on one side,
+        # floor on the other
+        ([(0.220, 0.224, 90), (0.276, 0.324, DARK)], (0.224, 0.276), False),
+        # the floor strip beside the tape, nothing on its other side
+        ([(0.276, 0.324, DARK)], (0.224, 0.276), False),
+        # a band with the tape's edge inside it (not uniform)
+        ([(0.276, 0.324, DARK)], (0.250, 0.300), False),
+        # too little contrast (5 grey levels, min_contrast_levels 8)
+        ([(0.276, 0.324, FLOOR - 5)], (0.276, 0.324), False),
+    ],
+)
+def test_band_between_the_edges_must_look_like_tape(
+    bands: list[tuple[float, float, int]], lines: tuple[float, float], expected: bool
+) -> None:
+    picture = floor_picture(bands)
+    a, b = along(lines[0], 1.0), along(lines[1], -1.0)
+    y_lo, y_hi = max(a.far_y, b.far_y), min(a.near_y, b.near_y)
+    assert band_is_tape(picture, a, b, y_lo, y_hi, TAPE) is expected
+
+
+def test_the_detector_band_checks_the_tape_it_chooses() -> None:
+    """A tape-wide band (0.276..0.324 m left) whose halves differ (45 and 130 grey levels), and a
+    real tape on the right: the left pair has a tape's width but not a tape's band, so it is not
+    a verified tape; the right one is."""
+    picture = floor_picture([(0.276, 0.300, DARK), (0.300, 0.324, 130), (-0.324, -0.276, DARK)])
+    _, debug = LaneDetector(CONFIG).detect_debug(picture, 0, 0.0)
+    assert debug.right is not None and debug.right.verified
+    assert debug.left is not None and not debug.left.verified and debug.left.partner is None
+
+
+# ---- 3. a lone edge, and the image border ----------------------------------------------------
+
+
+def test_lone_edge_profile_sees_a_tape_beyond_it_but_not_a_seam() -> None:
+    edge = along(0.276, 1.0)
+    tape = tape_profile_fraction(floor_picture([(0.276, 0.324, DARK)]), [edge], (0,), "left",
+                                 VIEW, TAPE)
+    seam = tape_profile_fraction(floor_picture([(0.276, 0.282, DARK)]), [edge], (0,), "left",
+                                 VIEW, TAPE)
+    wide_seam = tape_profile_fraction(floor_picture([(0.276, 0.300, DARK)]), [edge], (0,),
+                                      "left", VIEW, TAPE)
+    assert tape == 1.0
+    assert seam == 0.0 and wide_seam == 0.0
+
+
+def test_lone_edge_at_the_image_border_cannot_be_verified() -> None:
+    """The floor 1.75 tape widths beyond an edge along the image's left border is outside the
+    image: nothing to check it against (None: unverifiable)."""
+    # The floor line seen along column 12 from row 470 up to row 250.
+    a = VIEW.to_floor(12.0, 470.0)
+    b = VIEW.to_floor(12.0, 250.0)
+    edge = floor_line(a, b, 1.0)
+    picture = floor_picture([(a[1], a[1] + 0.048, DARK)])
+    assert tape_profile_fraction(picture, [edge], (0,), "left", VIEW, TAPE) is None
+
+
+def _edge(verified: bool, score: float, y: float) -> EdgeEvidence:
+    return EdgeEvidence(point=(0.6, y), direction=(1.0, 0.0), support_px=200.0,
+                        tape_score=score, verified=verified)
+
+
+def test_a_confident_lane_needs_a_verified_tape() -> None:
+    """Two edges nobody could check (both at the border, unverifiable_score 0.6 each) once
+    made a confident lane (0.6 > the old min_confidence 0.5) out of tile seams. Now confidence
+    is 0 without at least one verified tape; with one, the other side may be unverifiable."""
+    unverified = lane_components(height_px=480, left=_edge(False, 0.6, 0.276),
+                                 right=_edge(False, 0.6, -0.276), config=CONFIG)
+    assert unverified["verified_tape"] == 0.0
+    assert unverified["lane_width"] == 1.0 and unverified["parallel"] == 1.0
+    assert combine({**unverified, "consistency": 1.0}, CONFIG) == 0.0
+    one = lane_components(height_px=480, left=_edge(True, 1.0, 0.276),
+                          right=_edge(False, 0.6, -0.276), config=CONFIG)
+    assert one["verified_tape"] == 1.0
+    assert combine({**one, "consistency": 1.0}, CONFIG) == pytest.approx(0.6**0.5)
+
+
+def test_border_edges_alone_give_no_confidence_in_a_frame() -> None:
+    """A steep camera (0.30 m high, 80 deg down) sees a patch of floor about 0.4 m wide: a lane
+    whose inner edges run 1 cm inside the image's side borders, the tapes beyond them out of
+    view. Both edges are strong and in lane position, neither tape can be checked
+    (unverifiable_score 0.6 each): this made a 'confident' lane of 0.6 before; now 0."""
+    ground = GroundModel.from_fov(70.0, (640, 480),
+                                  CameraPose(height_m=0.30, pitch_deg=80.0, forward_m=0.15))
+    y = _lateral_m(ground)
+    image = np.where(np.abs(y) < 0.19, FLOOR, DARK).astype(np.uint8)
+    config = PerceptionConfig.model_validate(
+        {"lane": {"width_m": 0.428}, "edges": {"look_ahead_m": 0.2}})
+    obs = LaneDetector(config, ground=ground).detect(cv2.GaussianBlur(image, (5, 5), 0), 0, 0.0)
+    assert obs.left is not None and obs.right is not None
+    assert obs.left.offset_m == pytest.approx(0.19, abs=0.005)
+    assert obs.components["tape_pair_left"] == 0.6
+    assert obs.components["tape_pair_right"] == 0.6
+    assert obs.components["lane_width"] == 1.0 and obs.components["parallel"] == 1.0
+    assert obs.components["verified_tape"] == 0.0
+    assert obs.confidence == 0.0
+
+
+# ---- 4. which tapes --------------------------------------------------------------------------
+
+
+def test_tapes_are_ranked_by_closeness_to_the_tape_width_not_by_length() -> None:
+    """Two dark bands on the left: the 48 mm tape (short Hough support) and a 35 mm band
+    (four times the support). Both pass as tape (35 mm scores 0.69); the 48 mm one comes
+    first."""
+    picture = floor_picture([(0.276, 0.324, DARK), (0.400, 0.435, DARK)])
+    lines = [
+        along(0.276, 1.0, support=60.0, line_id=0), along(0.324, -1.0, support=60.0, line_id=1),
+        along(0.400, 1.0, support=240.0, line_id=2), along(0.435, -1.0, support=240.0, line_id=3),
+    ]
+    found = verified_tapes(lines, picture, "left", VIEW, CONFIG)
+    assert [(t.inner.line_id, t.outer.line_id) for t in found] == [(0, 1), (2, 3)]
+    assert found[0].score == 1.0 and found[1].score == pytest.approx(0.69, abs=0.02)
+
+
+@pytest.mark.parametrize(
+    ("band", "at_m", "found"),
+    [
+        ((0.276, 0.324), (0.55, 0.85), True),  # 48 mm, measured 0.55 m ahead
+        # 30 mm: nearer the widest seam (24 mm + error) than the tape: width score 0.35, no tape
+        ((0.276, 0.306), (0.55, 0.85), False),
+        # the 48 mm tape seen only 0.95-1.5 m ahead, beyond the look-ahead (0.87 m): the start-up
+        # check only guarantees tape and seam apart up to there
+        ((0.276, 0.324), (0.95, 1.5), False),
+    ],
+)
+def test_a_tape_is_verified_only_when_measured_clearly_and_near_enough(
+    band: tuple[float, float], at_m: tuple[float, float], found: bool
+) -> None:
+    picture = floor_picture([(band[0], band[1], DARK)])
+    lines = [along(band[0], 1.0, *at_m, line_id=0), along(band[1], -1.0, *at_m, line_id=1)]
+    assert bool(verified_tapes(lines, picture, "left", VIEW, CONFIG)) is found
+
+
+def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
+    """Hough pieces of one edge are chained across gaps; a piece of a seam 3 cm beside the edge,
+    whose end lies within the gap (29 px from the edge's near end), is not the same edge."""
+    edge = floor_line((0.60, 0.30), (1.60, 0.32), 1.0, line_id=0)
+    nearer_piece = floor_line((0.40, 0.296), (0.52, 0.298), 1.0, line_id=1)
+    seam_beside = floor_line((0.45, 0.27), (0.55, 0.27), 1.0, line_id=2)
+    assert follow_edge([edge, nearer_piece], 0, (640, 480), CONFIG) == (1, 0)
+    assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
+
+
+def test_measured_at_the_same_spot_the_width_closest_to_the_tape_wins() -> None:
+    """Grout running along a tape's inner edge: the tape (48 mm) and the tape with the grout
+    (54 mm, still within the tape's tolerance, score 1) are measured at the same spot; the
+    tape's own width wins, on either side, with or without a tape on the other side."""
+    with_grout, tape = _tape(0.270, 0.324), _tape(0.276, 0.324)
+    assert with_grout.score == tape.score == 1.0
+    assert pick_tapes([with_grout, tape], [], CONFIG)[0] is tape
+    right, right_with_grout = _tape(-0.276, -0.324), _tape(-0.270, -0.324)
+    assert pick_tapes([with_grout, tape], [right, right_with_grout], CONFIG) == (tape, right)
+
+
+def test_among_equally_good_tapes_the_nearest_measurement_wins() -> None:
+    """Two pieces of one bending tape, both 48 mm: the one measured 0.45 m ahead (where the
+    edge's chain starts) before the one measured 0.9 m ahead."""
+    far, near = _tape(0.276, 0.324, at_m=(0.9, 1.3)), _tape(0.276, 0.324, at_m=(0.45, 0.8))
+    assert far.score == near.score == 1.0
+    assert pick_tapes([far, near], [], CONFIG)[0] is near
+    right = _tape(-0.276, -0.324)
+    assert pick_tapes([far, near], [right], CONFIG)[0] is near
+
+
+def _tape(inner_y: float, outer_y: float, dark: bool = True,
+          at_m: tuple[float, float] = (0.55, 1.2)) -> TapeCandidate:
+    side = "left" if inner_y > 0 else "right"
+    measured = measure_pair(along(inner_y, 1.0, *at_m), along(outer_y, -1.0, *at_m), side, VIEW,
+                            CONFIG)
+    assert measured is not None
+    inner, outer, score, width_m, at = measured
+    return TapeCandidate(inner, outer, score, width_m, dark, at, tape_width_m=CONFIG.tape.width_m)
+
+
+def test_tapes_are_paired_by_the_lane_width() -> None:
+    """Two 48 mm tapes on the left, one where the lane's left tape belongs (inner edge 0.276 m)
+    and one 12 cm further out; the right tape at -0.276 m: the lane is 0.60 m wide."""
+    too_far, lane = _tape(0.396, 0.444), _tape(0.276, 0.324)
+    right = _tape(-0.276, -0.324)
+    left, chosen_right = pick_tapes([too_far, lane], [right], CONFIG)
+    assert left is lane and chosen_right is right
+    # With a 0.72 m lane the other one fits.
+    wide = PerceptionConfig.model_validate({"lane": {"width_m": 0.72}})
+    assert pick_tapes([too_far, lane], [right], wide)[0] is too_far
+
+
+def test_both_tapes_are_the_same_kind() -> None:
+    """A light 'tape' (a floor strip between two dark lines) 48 mm wide where the lane's tape
+    belongs, and a dark band 34 mm wide 5 cm off (width score 0.63); the right tape is dark: the
+    two dark tapes make the lane."""
+    strip, dark = _tape(0.276, 0.324, dark=False), _tape(0.326, 0.360, dark=True)
+    assert dark.score == pytest.approx(0.63, abs=0.03)
+    right = _tape(-0.276, -0.324, dark=True)
+    assert pick_tapes([strip, dark], [right], CONFIG)[0] is dark
+    # Without a right tape there is nothing to compare kinds with: the best width wins.
+    assert pick_tapes([strip, dark], [], CONFIG)[0] is strip
+
+
+# ---- 5. the camera must resolve them at the look-ahead ---------------------------------------
+
+
+def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
+    setup = LaneDetector(CONFIG).setup_for(640, 480)
+    hyp = setup.at_look_ahead
+    assert hyp.m_per_px == pytest.approx(0.0021, abs=5e-5)
+    assert (hyp.seam_max_m, hyp.tape_min_m) == pytest.approx((0.0261, 0.0387), abs=5e-4)
+    assert setup.look_ahead_row == pytest.approx(192.4, abs=0.1)
+
+
+@pytest.mark.parametrize(
+    ("size", "overrides", "message", "suggested"),
+    [
+        # 8.5 mm per pixel at 0.87 m: refused, 0.47 m would do
+        ((160, 120), {}, "perception.edges.look_ahead_m = 0.87: at 160x120 one pixel covers 8.5 "
+         "mm of floor across the tape there, too coarse to tell the 48 mm tape (tape.width_m) "
+         "from seams up to 24 mm (a tape may measure 32.3 mm, a seam 50.9 mm); expected a "
+         "look-ahead of 0.47 m or less for this camera", 0.47),
+        # a 19 mm tape at 160x120: nowhere in view
+        ((160, 120), {"tape": {"width_m": 0.019}, "edges": {"look_ahead_m": 0.45}},
+         "no distance in view (0.36 m on) resolves them: expected a higher resolution, a "
+         "narrower lens, a lower camera or a wider tape", None),
+        # closer than the image's bottom row (0.36 m ahead)
+        ((640, 480), {"edges": {"look_ahead_m": 0.2}}, "perception.edges.look_ahead_m = 0.2: "
+         "outside the camera's view at 640x480; expected a distance within the floor the "
+         "camera sees, 0.36 m to 3.25 m ahead of the robot's centre", 0.98),
+        ((640, 480), {"roi": {"near_m": 5.0, "far_m": 6.0}, "edges": {"look_ahead_m": 5.5}},
+         "perception.roi (near_m 5, far_m 6, lateral_m 0.65): this floor is not in the "
+         "camera's view at 640x480", None),
+    ],
+)
+def test_a_camera_that_cannot_tell_tape_from_seam_is_refused_at_start_up(
+    size: tuple[int, int], overrides: dict[str, object], message: str, suggested: float | None
+) -> None:
+    config = PerceptionConfig.model_validate(overrides)
+    with pytest.raises(PerceptionConfigError) as info:
+        LaneDetector(config, ground=default_ground_model(size))
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+    assert info.value.suggested_look_ahead_m == (
+        None if suggested is None else pytest.approx(suggested, abs=0.01))
+
+
+def test_the_suggested_look_ahead_works() -> None:
+    config = PerceptionConfig.model_validate({"edges": {"look_ahead_m": 0.47}})
+    setup = LaneDetector(config, ground=default_ground_model((160, 120))).setup_for(160, 120)
+    assert setup.at_look_ahead.resolvable
