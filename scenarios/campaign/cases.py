@@ -55,7 +55,9 @@ class _Model(BaseModel):
 class CameraChoice(_Model):
     """One camera a campaign draws from: its name in the results, its relative frequency, the
     render size, any other `simulation:` settings that go with it (e.g. a coarser floor texture
-    for a small image) and the scenario `camera:` block (pose, field of view, distortion)."""
+    for a small image), the scenario `camera:` block (pose, field of view, distortion) and
+    `config:` overrides a user of this camera sets (e.g. the look-ahead its start-up check
+    names: perception refuses a camera that cannot tell tape from seam at the look-ahead)."""
 
     name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
     weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
@@ -64,6 +66,8 @@ class CameraChoice(_Model):
     simulation: dict[str, Any] = {}
     #: the scenario's `camera:` block for this camera (its pose, field of view, distortion)
     camera: dict[str, Any] = {}
+    #: config overrides that go with this camera (config file shape), over the spec's `config:`
+    config: dict[str, Any] = {}
 
 
 class FaultRange(_Model):
@@ -280,7 +284,7 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
         data["camera"] = merge_overrides(data.get("camera", {}), camera.camera)
     data["faults"] = faults
     data["run"] = merge_overrides(data.get("run", {}), {"max_time_s": max_time})
-    config = merge_overrides(dict(config_overrides), spec.config)
+    config = merge_overrides(merge_overrides(dict(config_overrides), spec.config), camera.config)
     config = merge_overrides(config, {"simulation": {"width_px": camera.width_px,
                                             "height_px": camera.height_px,
                                             **camera.simulation,
