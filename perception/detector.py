@@ -111,6 +111,7 @@ class LaneDetector:
         self.config = config
         self.undistorter = undistorter
         self.ground = assumed_ground_model(undistorter) if ground is None else ground
+        self._ground_given = ground is not None
         cv2.setNumThreads(config.opencv_threads)
         self._states: dict[tuple[int, int], SizeSetup] = {}
         self._theta_rad = math.radians(config.hough.theta_deg)
@@ -136,7 +137,10 @@ class LaneDetector:
         print it once. `source` names the calibration file."""
         calibration = None if self.undistorter is None else self.undistorter.calibration
         size = self.ground.image_size
-        _, which = ground_model_for(calibration, size, source)
+        if self._ground_given:
+            which = f"the ground model given to the detector ({self.ground.pose.describe()})"
+        else:
+            _, which = ground_model_for(calibration, size, source)
         return f"ground model: {which}; {self.setup_for(*size).describe()}"
 
     def detect(

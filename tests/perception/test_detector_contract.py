@@ -17,6 +17,7 @@ from lanewarden.perception.confidence import COMPONENT_NAMES
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
+from lanewarden.perception.ground import CameraPose, GroundModel
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import draw_overlay
 from tests.perception import synthetic as syn
@@ -224,3 +225,12 @@ def test_overlay_draws_the_chosen_edges_bold(detector: LaneDetector) -> None:
     my = round((obs.left.y1 + obs.left.y2) / 2)
     b, g, r = canvas[my, mx].astype(int)
     assert g > 200 and b < 80 and r < 80
+
+
+def test_the_ground_line_names_a_ground_model_given_to_the_detector() -> None:
+    ground = GroundModel.from_fov(62.0, (320, 240),
+                                  CameraPose(height_m=0.26, pitch_deg=40.0, forward_m=0.15))
+    line = LaneDetector(CONFIG, ground=ground).describe_ground()
+    assert line.startswith("ground model: the ground model given to the detector (h 0.260 m, "
+                           "pitch 40.0°, 0.150 m ahead of the robot's centre); 320x240: at the "
+                           "look-ahead one pixel covers 3.6 mm across the tape")
