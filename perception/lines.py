@@ -149,102 +149,121 @@ def build_line_set(
     """
     if segments is None or len(segments) == 0:
         return empty_line_set()
+    seg, angle = _oriented_segments(segments)
+    min_h = edges.min_angle_from_horizontal_deg
+    kept = np.flatnonzero((angle >= min_h) & (angle <= 180.0 - min_h))
+    if len(kept) == 0:
+        return empty_line_set(len(seg))
     width = smooth_gray.shape[1]
+    offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
+    line_of = _cluster_collinear(seg[kept], angle[kept], edges.cluster_angle_tol_deg, offset_tol)
+    label = np.full(len(seg), -1, dtype=np.intp)
+    label[kept] = line_of
+    fit = _fit_lines(seg[kept], line_of)
+    x_bottom = fit.cx + (y_bottom - fit.cy) * fit.ux / np.minimum(fit.uy, -1e-9)
+    polarity = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y, fit.ux,
+                         fit.uy, tape)
+    count = len(fit.cx)
+    ends_x, ends_y = floor.to_floor_many(np.concatenate([fit.near_x, fit.far_x]),
+                                         np.concatenate([fit.near_y, fit.far_y]))
+    return LineSet(
+        angle_deg=np.degrees(np.arctan2(-fit.uy, fit.ux)),
+        cx=fit.cx,
+        cy=fit.cy,
+        ux=fit.ux,
+        uy=fit.uy,
+        near_x=fit.near_x,
+        near_y=fit.near_y,
+        far_x=fit.far_x,
+        far_y=fit.far_y,
+        support_px=fit.support_px,
+        polarity=polarity,
+        x_bottom=x_bottom,
+        near_fx=ends_x[:count],
+        near_fy=ends_y[:count],
+        far_fx=ends_x[count:],
+        far_fy=ends_y[count:],
+        segment_label=label,
+    )
+
+
+def _oriented_segments(segments: NDArray[np.int32]) -> tuple[FloatArray, FloatArray]:
+    """Segments (N, 4) as floats running near (bottom) -> far (top), and their angle from the
+    image's x axis with y up, degrees in [0, 180]."""
     seg = segments.reshape(-1, 4).astype(np.float64)
-    # Orient every segment near (bottom) -> far (top).
     flip = seg[:, 1] < seg[:, 3]
     if flip.any():
         seg[flip] = seg[flip][:, [2, 3, 0, 1]]
-    dx = seg[:, 2] - seg[:, 0]
-    dy_up = seg[:, 1] - seg[:, 3]
-    angle = np.degrees(np.arctan2(dy_up, dx))
-    min_h = edges.min_angle_from_horizontal_deg
-    keep = (angle >= min_h) & (angle <= 180.0 - min_h)
-    label = np.full(len(seg), -1, dtype=np.intp)
-    if not keep.any():
-        return empty_line_set(len(seg))
-    idx = np.flatnonzero(keep)
-    seg = seg[idx]
-    x1, y1, x2, y2 = seg.T
-    dx = dx[idx]
-    dy_up = dy_up[idx]
-    ang = angle[idx]
-    length = np.hypot(dx, dy_up)
-    ux = dx / length
-    uy = -dy_up / length
-    mx = 0.5 * (x1 + x2)
-    my = 0.5 * (y1 + y2)
+    angle = np.degrees(np.arctan2(seg[:, 1] - seg[:, 3], seg[:, 2] - seg[:, 0]))
+    return seg, angle
 
-    # Greedy leader clustering, longest first, on a precomputed compatibility matrix:
-    # compatible[i, j] = segment j lies on segment i's line (direction and offset).
-    offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
-    perp = np.abs(
-        (mx[None, :] - mx[:, None]) * uy[:, None] - (my[None, :] - my[:, None]) * ux[:, None]
-    )
-    compatible = (np.abs(ang[None, :] - ang[:, None]) <= edges.cluster_angle_tol_deg) & (
-        perp <= offset_tol
-    )
-    order = np.argsort(-length, kind="stable")
-    local = np.full(len(idx), -1, dtype=np.intp)
-    free = np.ones(len(idx), dtype=bool)
-    n_lines = 0
-    for lead in order.tolist():
-        if not free[lead]:
+
+def _cluster_collinear(seg: FloatArray, angle: FloatArray, angle_tol_deg: float,
+                       offset_tol_px: float) -> NDArray[np.intp]:
+    """Greedy leader clustering, longest segment first: the line index of every segment. A
+    segment joins the leader's line when its direction is within `angle_tol_deg` and its
+    midpoint within `offset_tol_px` of the leader's line (a precomputed compatibility matrix)."""
+    dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+    length = np.hypot(dx, dy)
+    dir_x, dir_y = dx / length, dy / length
+    mid_x, mid_y = 0.5 * (seg[:, 0] + seg[:, 2]), 0.5 * (seg[:, 1] + seg[:, 3])
+    off_line = np.abs((mid_x[None, :] - mid_x[:, None]) * dir_y[:, None]
+                      - (mid_y[None, :] - mid_y[:, None]) * dir_x[:, None])
+    compatible = ((np.abs(angle[None, :] - angle[:, None]) <= angle_tol_deg)
+                  & (off_line <= offset_tol_px))
+    line_of = np.full(len(seg), -1, dtype=np.intp)
+    free = np.ones(len(seg), dtype=bool)
+    lines = 0
+    for leader in np.argsort(-length, kind="stable").tolist():
+        if not free[leader]:
             continue
-        member = compatible[lead] & free
-        member[lead] = True
-        local[member] = n_lines
+        member = compatible[leader] & free
+        member[leader] = True
+        line_of[member] = lines
         free &= ~member
-        n_lines += 1
-    label[idx] = local
+        lines += 1
+    return line_of
 
-    # Support-weighted direction and centre per line.
-    w_sum = _sum_by(local, length, n_lines)
-    lux = _sum_by(local, dx, n_lines)  # = sum(ux * length)
-    luy = -_sum_by(local, dy_up, n_lines)
-    norm = np.hypot(lux, luy)
-    lux /= norm
-    luy /= norm
-    lcx = _sum_by(local, mx * length, n_lines) / w_sum
-    lcy = _sum_by(local, my * length, n_lines) / w_sum
-    # Extent along each line: its members' near ends project lowest and far ends highest (all
-    # members run near->far within a few degrees of the line), so min/max of those per line.
-    t_near = (x1 - lcx[local]) * lux[local] + (y1 - lcy[local]) * luy[local]
-    t_far = (x2 - lcx[local]) * lux[local] + (y2 - lcy[local]) * luy[local]
-    t_min = np.full(n_lines, np.inf)
-    t_max = np.full(n_lines, -np.inf)
-    np.minimum.at(t_min, local, np.minimum(t_near, t_far))
-    np.maximum.at(t_max, local, np.maximum(t_near, t_far))
-    near_x = lcx + t_min * lux
-    near_y = lcy + t_min * luy
-    far_x = lcx + t_max * lux
-    far_y = lcy + t_max * luy
-    line_angle = np.degrees(np.arctan2(-luy, lux))
-    x_bottom = lcx + (y_bottom - lcy) * lux / np.minimum(luy, -1e-9)
-    polarity = _polarity(smooth_gray, near_x, near_y, far_x, far_y, lux, luy, tape)
-    ends_x, ends_y = floor.to_floor_many(np.concatenate([near_x, far_x]),
-                                         np.concatenate([near_y, far_y]))
-    near_fx, far_fx = ends_x[:n_lines], ends_x[n_lines:]
-    near_fy, far_fy = ends_y[:n_lines], ends_y[n_lines:]
-    return LineSet(
-        angle_deg=line_angle,
-        cx=lcx,
-        cy=lcy,
-        ux=lux,
-        uy=luy,
-        near_x=near_x,
-        near_y=near_y,
-        far_x=far_x,
-        far_y=far_y,
-        support_px=w_sum,
-        polarity=polarity,
-        x_bottom=x_bottom,
-        near_fx=near_fx,
-        near_fy=near_fy,
-        far_fx=far_fx,
-        far_fy=far_fy,
-        segment_label=label,
-    )
+
+@dataclass(frozen=True)
+class _LineFit:
+    """Per line: the support-weighted unit direction (`ux`, `uy`: pixels, y down, pointing
+    far), centre (`cx`, `cy`), its near and far ends, and its support (total segment length)."""
+
+    ux: FloatArray
+    uy: FloatArray
+    cx: FloatArray
+    cy: FloatArray
+    near_x: FloatArray
+    near_y: FloatArray
+    far_x: FloatArray
+    far_y: FloatArray
+    support_px: FloatArray
+
+
+def _fit_lines(seg: FloatArray, line_of: NDArray[np.intp]) -> _LineFit:
+    """Each line from its member segments (oriented near -> far): direction and centre weighted
+    by length; its extent is the lowest and highest projection of its members' ends on it (all
+    members run near -> far within a few degrees of the line)."""
+    lines = int(line_of.max()) + 1
+    x1, y1, x2, y2 = seg.T
+    dx, dy = x2 - x1, y2 - y1
+    length = np.hypot(dx, dy)
+    support = _sum_by(line_of, length, lines)
+    ux, uy = _sum_by(line_of, dx, lines), _sum_by(line_of, dy, lines)  # sum(unit * length)
+    norm = np.hypot(ux, uy)
+    ux, uy = ux / norm, uy / norm
+    cx = _sum_by(line_of, 0.5 * (x1 + x2) * length, lines) / support
+    cy = _sum_by(line_of, 0.5 * (y1 + y2) * length, lines) / support
+    along_near = (x1 - cx[line_of]) * ux[line_of] + (y1 - cy[line_of]) * uy[line_of]
+    along_far = (x2 - cx[line_of]) * ux[line_of] + (y2 - cy[line_of]) * uy[line_of]
+    lowest = np.full(lines, np.inf)
+    highest = np.full(lines, -np.inf)
+    np.minimum.at(lowest, line_of, np.minimum(along_near, along_far))
+    np.maximum.at(highest, line_of, np.maximum(along_near, along_far))
+    return _LineFit(ux=ux, uy=uy, cx=cx, cy=cy,
+                    near_x=cx + lowest * ux, near_y=cy + lowest * uy,
+                    far_x=cx + highest * ux, far_y=cy + highest * uy, support_px=support)
 
 
 def _polarity(
