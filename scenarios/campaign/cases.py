@@ -240,6 +240,25 @@ def _lane_length_m(scenario: ScenarioSpec) -> float:
     return min([total, *ends])
 
 
+#: A fault that would start inside a loop stall starts this long after the stall ends instead.
+AFTER_STALL_S = 0.05
+
+
+def _not_inside_a_stall(faults: list[dict[str, Any]]) -> None:
+    """While the loop is stalled nothing is read or written, so a fault starting inside the
+    stall could end unseen (a 0.05 s blocked write inside a 0.3 s stall never blocks anything:
+    the run would be an `error`, the case's fault, not the supervisor's). Such a fault starts
+    just after the stall instead (a stall without a duration lasts to the end: left alone)."""
+    stalls = [(f["at_s"], f["at_s"] + f["duration_s"]) for f in faults
+              if f["kind"] == "loop_stall" and f.get("duration_s") is not None]
+    for fault in faults:
+        if fault["kind"] == "loop_stall" or "at_s" not in fault:
+            continue
+        for start, end in stalls:
+            if start <= fault["at_s"] < end:
+                fault["at_s"] = round(end + AFTER_STALL_S, 3)
+
+
 def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: int,
               config_overrides: Mapping[str, Any], follow_speed_m_s: float) -> Case:
     """Run `index` of the campaign: a pure function of its arguments."""
@@ -278,6 +297,7 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
                                                      max(spec.fault_start_s[0], latest))), 3)
         faults.append({"kind": fault.kind, **params})
         kinds.append(fault.kind)
+    _not_inside_a_stall(faults)
     data = scenario.model_dump(mode="json", exclude_defaults=True)
     data.pop("expect", None)  # the scenario's expected outcome is without these faults
     if camera.camera:

@@ -12,7 +12,7 @@ import pytest
 
 from lanewarden.cli import main
 from lanewarden.scenarios.campaign import runner as runner_module
-from lanewarden.scenarios.campaign.cases import load_campaign_spec, load_case
+from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec, load_case
 
 
 def rows(out: Path) -> list[tuple[str, str, str]]:
@@ -134,3 +134,15 @@ def test_sim_case_reproduces_the_campaign_run(
     for key in ("halt_reason", "stop_pose", "distance_travelled_m", "event_counts"):
         assert metrics[key] == stored[key], key
     assert f"outcome: {outcome}" in capsys.readouterr().out
+
+
+def test_a_fault_drawn_inside_a_loop_stall_starts_after_it() -> None:
+    """Run 957 of the default campaign drew a 0.05 s blocked write inside a 0.32 s loop stall:
+    nothing writes during a stall, so the fault never took effect (an `error` of the case's own
+    making). The drawer moves such a fault to just after the stall."""
+    spec, path = load_campaign_spec("default")
+    case = draw_case(spec, path, 0, 957, {}, 0.2)
+    assert case.scenario["faults"] == [
+        {"kind": "loop_stall", "duration_s": 0.3195, "at_s": 5.404},
+        {"kind": "write_blocks", "duration_s": 0.05, "at_s": 5.773},  # 5.404 + 0.3195 + 0.05
+    ]
