@@ -78,7 +78,8 @@ class BuildStack(Protocol):
 
     def __call__(self, config: LanewardenConfig, *, controller: str = ...,
                  calibration: CameraCalibration | None = ...,
-                 debug_tap: bool = ...) -> ControlStack: ...
+                 debug_tap: bool = ...,
+                 image_size: tuple[int, int] | None = ...) -> ControlStack: ...
 
 
 def decision_rule(config: LanewardenConfig) -> DecisionRule:
@@ -93,11 +94,16 @@ def build_stack(
     controller: str = DEFAULT_CONTROLLER,
     calibration: CameraCalibration | None = None,
     debug_tap: bool = False,
+    image_size: tuple[int, int] | None = None,
 ) -> ControlStack:
-    """The stack for one run; SupervisorError (one line) for an unknown controller name."""
+    """The stack for one run; SupervisorError (one line) for an unknown controller name.
+
+    `image_size`: the frames' (width, height) when known. Without a calibration the detector then
+    assumes the default camera at that size, so a config this camera cannot work with is refused
+    here, before anything moves (`PerceptionConfigError`, exit 2), not frame by frame."""
     chosen = make_controller(controller, config.supervisor)
     undistorter = Undistorter(calibration) if calibration is not None else None
-    detector = LaneDetector(config.perception, undistorter)
+    detector = LaneDetector(config.perception, undistorter, image_size=image_size)
     return ControlStack(
         detector=detector,
         controller=chosen,

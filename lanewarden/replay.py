@@ -371,7 +371,10 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
                  controller: str) -> Iterator[ReplayedStep]:
     """Run the loop over the source's steps; yields each replayed step (compared with the
     recording for a run folder)."""
-    stack = build_stack(config, controller=controller, calibration=calibration, debug_tap=True)
+    first = source.frames.image(0)
+    size = None if first is None else (first.shape[1], first.shape[0])
+    stack = build_stack(config, controller=controller, calibration=calibration, debug_tap=True,
+                        image_size=size)
     tap = stack.tap
     assert tap is not None
     frames = ScriptedFrames(source.frames)

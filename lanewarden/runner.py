@@ -119,7 +119,8 @@ def run_robot(
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")
         stack = build_stack(config, controller=controller_name, calibration=calibration,
-                            debug_tap=True)  # the live page draws the detection's overlay
+                            debug_tap=True,  # the live page draws the detection's overlay
+                            image_size=(width, height))
         print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
 
         session = RunSession(

@@ -97,9 +97,10 @@ class LaneDetector:
     """Finds the two lane edges in a frame and says how far to trust them.
 
     `ground`: the camera's ground model (undistorted pixels, any image size: it is scaled to each
-    frame's size); None: `assumed_ground_model(undistorter)`. Construction sets up the ground
-    model's own image size at once, so a config this camera cannot work with is refused here
-    (`PerceptionConfigError`), before any frame.
+    frame's size); None: `assumed_ground_model(undistorter, image_size)` (`image_size`: the
+    frames' size when known). Construction sets up the ground model's own image size at once, so
+    a config this camera cannot work with is refused here (`PerceptionConfigError`), before any
+    frame.
 
     `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the last
     observation) only feeds the `consistency` confidence component; the detector keeps no
@@ -107,10 +108,11 @@ class LaneDetector:
     """
 
     def __init__(self, config: PerceptionConfig, undistorter: Undistorter | None = None,
-                 ground: GroundModel | None = None) -> None:
+                 ground: GroundModel | None = None,
+                 image_size: tuple[int, int] | None = None) -> None:
         self.config = config
         self.undistorter = undistorter
-        self.ground = assumed_ground_model(undistorter) if ground is None else ground
+        self.ground = assumed_ground_model(undistorter, image_size) if ground is None else ground
         self._ground_given = ground is not None
         cv2.setNumThreads(config.opencv_threads)
         self._states: dict[tuple[int, int], SizeSetup] = {}
@@ -309,13 +311,14 @@ class LaneDetector:
         )
 
 
-def assumed_ground_model(undistorter: Undistorter | None) -> GroundModel:
+def assumed_ground_model(undistorter: Undistorter | None,
+                         image_size: tuple[int, int] | None = None) -> GroundModel:
     """The ground model for this undistorter's frames (`perception.ground.ground_model_for`):
     the calibration's ground pose when it has one (`lanewarden calibrate ground`), else the
     simulator's default mount with the calibration's intrinsics; without a calibration the
-    simulator's default camera (640x480)."""
+    simulator's default camera at `image_size` (the frames' size when known, else 640x480)."""
     if undistorter is None:
-        return default_ground_model((640, 480))
+        return default_ground_model(image_size or (640, 480))
     calibration = undistorter.calibration
     pose = default_pose() if calibration.ground is None else calibration.ground.pose
     return GroundModel(undistorter.camera_matrix, pose, undistorter.image_size)

@@ -199,8 +199,9 @@ def _unresolvable(view: FloorView, hyp: WidthHypotheses, near_m: float,
         f"perception.edges.look_ahead_m = {look_ahead:g}: at {size[0]}x{size[1]} one pixel covers "
         f"{1000 * hyp.m_per_px:.1f} mm of floor across the tape there, too coarse to tell the "
         f"{1000 * tape.width_m:g} mm tape (tape.width_m) from seams up to "
-        f"{1000 * tape.seam_width_m:g} mm (a tape may measure {1000 * hyp.tape_min_m:.1f} mm, a "
-        f"seam {1000 * hyp.seam_max_m:.1f} mm)"
+        f"{1000 * tape.seam_width_m:g} mm (with a pixel of measuring error either way a tape may "
+        f"measure as little as {1000 * hyp.tape_min_m:.1f} mm there and a seam as much as "
+        f"{1000 * hyp.seam_max_m:.1f} mm)"
     )
     start = math.floor((look_ahead - _SEARCH_STEP_M) / _SEARCH_STEP_M) * _SEARCH_STEP_M
     best = farthest_resolvable_m(view, max(near_m, 0.0), start, config)
@@ -208,7 +209,9 @@ def _unresolvable(view: FloorView, hyp: WidthHypotheses, near_m: float,
         return (f"{why}; no distance in view ({near_m:.2f} m on) resolves them: expected a "
                 "higher resolution, a narrower lens, a lower camera or a wider tape"), None
     best = round(best, 2)
-    return f"{why}; expected a look-ahead of {best:.2f} m or less for this camera", best
+    return (f"{why}; expected a look-ahead of {best:.2f} m or less for this camera (set "
+            f"perception.edges.look_ahead_m: {best:.2f} in a --config file, or use a higher "
+            "resolution)"), best
 
 
 def _range_text(near: float, far: float) -> str:

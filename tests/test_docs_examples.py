@@ -61,8 +61,9 @@ RUN_ELSEWHERE = {
         "tests/operator/test_replay_sources.py (a rendered clip)",
     "lanewarden replay 'shots/*.png'": "tests/operator/test_replay_sources.py (a folder of images)",
     ("lanewarden replay ../shared/data/donkeycar-tub --config "
-     "tests/perception/donkeycar_camera.yaml"):
-        "tests/operator/test_replay_sources.py (the same tub and config)",
+     "tests/perception/donkeycar_camera.yaml --calibration "
+     "tests/perception/donkeycar_calibration.yaml"):
+        "tests/operator/test_replay_sources.py (the same tub, config and calibration)",
     "lanewarden campaign --spec default --out campaign-out --runs 1000":
         "tests/campaign/test_campaign_cli.py and test_dask.py (small specs; 1000 runs take hours)",
     "lanewarden sim --case campaign-out/cases/r00042.yaml":

@@ -44,7 +44,8 @@ from lanewarden.perception.calibration import (
     save_ros_camera_info,
 )
 from lanewarden.perception.chessboard import ChessboardPattern, detect_view, suggest_pattern
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.ground import CameraPose, GroundModel
 from lanewarden.perception.ground_calibration import (
     FloorChessboardSolution,
@@ -94,6 +95,17 @@ def _refused(problems: list[str], out: Path) -> QualityGateError:
         f"calibrate ground: implausible result: {'; '.join(problems)}; nothing written to {out}")
 
 
+def perception_refusal(model: GroundModel, config: LanewardenConfig) -> str | None:
+    """What `detect`/`run` would say about this camera with this config (the detector's own
+    start-up check), or None when it works. The pose may well be right (the camera simply
+    looks elsewhere than perception's floor region): a warning, not a refusal."""
+    try:
+        LaneDetector(config.perception, ground=model)
+    except PerceptionConfigError as exc:
+        return str(exc)
+    return None
+
+
 def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
                    solution: FloorChessboardSolution | None, gate_m: float) -> list[str]:
     lines = [f"Ground calibration {method}:", f"  camera: {pose.describe()}"]
@@ -110,7 +122,7 @@ def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
     if math.isfinite(summary.look_ahead_m):
         lines.append(
             f"  look-ahead: row {summary.look_ahead_y_px:.0f} sees the floor "
-            f"{summary.look_ahead_m:.2f} m ahead of the robot's centre; one pixel there is "
+            f"{summary.look_ahead_m:.2f} m ahead of the robot's centre; one pixel at its centre is "
             f"{summary.mm_per_px_across_at_look_ahead:.1f} mm across and "
             f"{summary.mm_per_px_along_at_look_ahead:.1f} mm along")
     else:
@@ -330,6 +342,10 @@ def ground_command(
         for line in _summary_lines(pose, method, summary, solution,
                                    config.calibration.max_ground_error_m):
             click.echo(line)
+        refusal = perception_refusal(model, config)
+        if refusal is not None:
+            click.echo(f"  warning: with this config `detect` and `run` will refuse this camera: "
+                       f"{refusal}")
         if not problems:
             written = [str(out), *([str(ros_path)] if ros_path else []), str(check)]
             click.echo(f"Wrote {', '.join(written)}")

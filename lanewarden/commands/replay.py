@@ -18,7 +18,7 @@ REPLAY_EXAMPLES = """\b
 Examples:
   lanewarden replay runs/2026-11-05T14-03-12Z --check
   lanewarden replay clip.mp4 --out out/clip
-  lanewarden replay ../shared/data/donkeycar-tub --config donkeycar.yaml
+  lanewarden replay my-tub/ --config track.yaml --calibration tub-camera.yaml
 """
 
 

@@ -81,6 +81,25 @@ def test_from_the_mount_prints_what_it_means(
     assert "R 0.5 m: right -11.0, left +11.0; R 1 m: right -10.9, left +10.9" in stdout
     assert (tmp_path / "check.png").is_file() and (tmp_path / "grounded.ros.yaml").is_file()
     assert load_calibration(tmp_path / "grounded.ros.yaml").ground is not None
+    assert "warning" not in stdout  # perception works with this camera as configured
+
+
+def test_a_pose_perception_cannot_use_with_the_config_is_written_with_a_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Pitched 75° down the camera sees only the floor near the robot, not the 0.87 m
+    look-ahead: the pose may well be right, so it is written, and the output says what detect
+    and run will say about it."""
+    intrinsics = tmp_path / "default.yaml"
+    save_calibration(replace(CameraModel().calibration(), ground=None), intrinsics)
+    out = tmp_path / "grounded.yaml"
+    code, stdout, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.26",
+                             "--pitch-deg", "75", "--out", str(out))
+    assert code == 0, err
+    warning = next(line for line in stdout.splitlines() if "warning" in line)
+    assert warning.startswith("  warning: with this config `detect` and `run` will refuse this "
+                              "camera: perception.edges.look_ahead_m = 0.87: outside the "
+                              "camera's view at 640x480")
+    assert load_calibration(out).ground is not None
 
 
 def test_a_mount_that_sees_no_floor_is_refused(

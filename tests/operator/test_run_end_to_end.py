@@ -12,6 +12,7 @@ import os
 import signal
 from pathlib import Path
 
+import cv2
 import pytest
 
 from lanewarden.cli import main
@@ -23,6 +24,7 @@ from tests.operator.runs import (
     start_run,
     steps,
 )
+from tests.perception import synthetic as syn
 
 
 @pytest.fixture(scope="module")
@@ -206,3 +208,22 @@ def test_a_missing_robot_leaves_a_closed_recording(
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert (summary["steps"], summary["exit_code"]) == (0, None)
+
+
+def test_a_camera_perception_cannot_use_is_refused_before_anything_moves(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """160x120 frames and no calibration: the default camera at that size cannot tell tape from
+    seam at the default 0.87 m look-ahead. `run` says so at start-up (exit 2, one line naming the
+    key and the look-ahead that would work), never sits in HALT frame after frame."""
+    folder = tmp_path / "small"
+    folder.mkdir()
+    for index in range(3):
+        cv2.imwrite(str(folder / f"f_{index}.png"), syn.frame(syn.STRAIGHT, 160, 120))
+    code = main(["run", "--camera", str(folder / "f_%d.png"), "--base", "sim",
+                 "--record", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1
+    assert err[0].startswith("lanewarden: error: perception.edges.look_ahead_m = 0.87: at "
+                             "160x120 one pixel covers 8.5 mm")
+    assert "expected a look-ahead of 0.47 m or less" in err[0]

@@ -192,7 +192,9 @@ def test_a_config_the_camera_cannot_resolve_is_refused_before_any_image(
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert err.startswith("lanewarden: error: perception.edges.look_ahead_m = 0.87: at 640x480 "
                           "one pixel covers 2.1 mm of floor across the tape there")
-    assert err.strip().endswith("expected a look-ahead of 0.82 m or less for this camera")
+    assert err.strip().endswith("expected a look-ahead of 0.82 m or less for this camera (set "
+                                "perception.edges.look_ahead_m: 0.82 in a --config file, or use "
+                                "a higher resolution)")
 
 
 def test_no_images_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:

@@ -369,8 +369,10 @@ def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
         # 8.5 mm per pixel at 0.87 m: refused, 0.47 m would do
         ((160, 120), {}, "perception.edges.look_ahead_m = 0.87: at 160x120 one pixel covers 8.5 "
          "mm of floor across the tape there, too coarse to tell the 48 mm tape (tape.width_m) "
-         "from seams up to 24 mm (a tape may measure 32.3 mm, a seam 50.9 mm); expected a "
-         "look-ahead of 0.47 m or less for this camera", 0.47),
+         "from seams up to 24 mm (with a pixel of measuring error either way a tape may "
+         "measure as little as 32.3 mm there and a seam as much as 50.9 mm); expected a "
+         "look-ahead of 0.47 m or less for this camera (set perception.edges.look_ahead_m: "
+         "0.47 in a --config file, or use a higher resolution)", 0.47),
         # a 19 mm tape at 160x120: nowhere in view
         ((160, 120), {"tape": {"width_m": 0.019}, "edges": {"look_ahead_m": 0.45}},
          "no distance in view (0.36 m on) resolves them: expected a higher resolution, a "
