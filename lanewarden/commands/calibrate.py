@@ -187,10 +187,11 @@ def run_calibration(
     usable = sum(1 for v in views if v.accepted)
     if usable < MIN_VIEWS_TO_SOLVE:
         hint = _pattern_hint(paths, views, pattern) if usable == 0 else ""
+        rejections = summarize_rejections(views)
         message = (
             f"only {usable} of {len(views)} views are usable, need calibration.min_views "
-            f"{config.min_views} (at least {MIN_VIEWS_TO_SOLVE} to solve at all): "
-            f"{summarize_rejections(views)}{hint}; nothing written"
+            f"{config.min_views} (at least {MIN_VIEWS_TO_SOLVE} to solve at all)"
+            f"{': ' + rejections if rejections else ''}{hint}; nothing written"
         )
         if as_json:
             _emit_json(unsolved_as_json(views, image_size, [message]))
