@@ -14,6 +14,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import re
 from collections import Counter, defaultdict
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -21,6 +22,8 @@ from typing import Any
 from xml.etree import ElementTree
 
 from lanewarden.scenarios.campaign.outcome import FAILURES, OUTCOMES
+
+_ANSWERING = re.compile(r" answering (\w+) \(fault \d+\)")
 
 #: Order of badness for "worst cases" (first: worst).
 _SEVERITY = {"unsafe": 0, "false_halt": 1, "error": 2, "safe_halt": 3, "recovered": 4,
@@ -109,12 +112,19 @@ def _quantile(values: Sequence[float], q: float) -> float:
     return ordered[lo] + (ordered[hi] - ordered[lo]) * (pos - lo)
 
 
+def _answered_kinds(row: Mapping[str, Any]) -> list[str]:
+    """The fault kind a safe halt answered (its reason: "CODE answering KIND (fault N)"); every
+    kind of the run when the halt answered the lane's end instead."""
+    found = _ANSWERING.search(str(row.get("reason") or ""))
+    return [found.group(1)] if found else _kinds(row)
+
+
 def _time_to_halt(rows: Sequence[Mapping[str, Any]]) -> str:
     by_kind: dict[str, list[float]] = defaultdict(list)
     for row in rows:
         value = row.get("time_to_halt_s")
         if row["outcome"] == "safe_halt" and isinstance(value, int | float):
-            for kind in _kinds(row):
+            for kind in _answered_kinds(row):
                 by_kind[kind].append(float(value))
     lines = []
     for kind in sorted(by_kind):
@@ -125,8 +135,9 @@ def _time_to_halt(rows: Sequence[Mapping[str, Any]]) -> str:
             f"<td>{_quantile(values, 0.95):.3f}</td><td>{max(values):.3f}</td>"
             f"<td>{_histogram_svg(values)}</td></tr>")
     return ("<h2>Time to halt (safe halts)</h2><p>From the moment the run's first fault took "
-            "effect to HALT, seconds (negative: the run halted before, for another fault "
-            "or the lane end).</p><table><tr><th>fault kind</th><th>runs</th><th>min</th>"
+            "effect to HALT, seconds, under the fault kind the halt answered (negative: the "
+            "run halted before, for another fault or the lane end).</p><table><tr>"
+            "<th>fault kind</th><th>runs</th><th>min</th>"
             "<th>median</th><th>p95</th><th>max</th><th>distribution</th></tr>"
             f"{''.join(lines)}</table>")
 
