@@ -68,6 +68,9 @@ class CameraChoice(_Model):
     camera: dict[str, Any] = {}
     #: config overrides that go with this camera (config file shape), over the spec's `config:`
     config: dict[str, Any] = {}
+    #: scenarios this camera is never drawn with (a course it cannot see: the scenario's fault,
+    #: not the supervisor's; say why in the spec)
+    exclude_scenarios: list[str] = []
 
 
 class FaultRange(_Model):
@@ -164,6 +167,14 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
             _resolve(name, path)
         except ScenarioError as exc:
             problems.append(f"{path}: scenarios.{i} = {name!r}: {exc}")
+        if all(name in c.exclude_scenarios for c in spec.cameras):
+            problems.append(f"{path}: scenarios.{i} = {name!r}: every camera excludes it "
+                            "(cameras.*.exclude_scenarios)")
+    for i, camera in enumerate(spec.cameras):
+        for name in camera.exclude_scenarios:
+            if name not in spec.scenarios:
+                problems.append(f"{path}: cameras.{i}.exclude_scenarios: {name!r} is not one of "
+                                f"the spec's scenarios {spec.scenarios}")
     rng = np.random.default_rng(0)
     for i, fault in enumerate(spec.faults):
         for _ in range(3):
@@ -259,13 +270,44 @@ def _not_inside_a_stall(faults: list[dict[str, Any]]) -> None:
                 fault["at_s"] = round(end + AFTER_STALL_S, 3)
 
 
+#: Faults that act through the camera's frames, and through the base's serial link.
+CAMERA_STREAM_KINDS = frozenset({
+    "camera_freeze", "camera_drop", "camera_error", "late_frames", "frame_from_future",
+    "perception_exception", "frame_rate_collapse", "timestamp_jump", "exposure_jump",
+    "glare_sweep", "occlusion", "lens_smudge"})
+LINK_STREAM_KINDS = frozenset({
+    "base_link_loss", "link_garbage", "checksum_storm", "write_blocks", "bumper", "cliff",
+    "wheel_drop", "low_battery"})
+#: Without a duration these end their stream for good (no new frames, or a frozen image; no
+#: link): a fault on the same stream starting later could never take effect.
+STREAM_KILLERS = {"camera_freeze": CAMERA_STREAM_KINDS, "camera_drop": CAMERA_STREAM_KINDS,
+                  "camera_error": CAMERA_STREAM_KINDS, "base_link_loss": LINK_STREAM_KINDS}
+#: ... so such a fault starts at least this long after the other faults on its stream.
+AFTER_OTHERS_S = 0.5
+
+
+def _stream_loss_last(faults: list[dict[str, Any]]) -> None:
+    """A permanent loss of a stream (camera or link) starts after every other fault on that
+    stream has started (run 210 of the default campaign drew late frames 0.76 s after a
+    permanent camera error: they could never take effect, an `error` of the case's making)."""
+    for killer in faults:
+        stream = STREAM_KILLERS.get(killer["kind"])
+        if stream is None or killer.get("duration_s") is not None or "at_s" not in killer:
+            continue
+        others = [f["at_s"] for f in faults
+                  if f is not killer and f["kind"] in stream and "at_s" in f]
+        if others and killer["at_s"] < max(others) + AFTER_OTHERS_S:
+            killer["at_s"] = round(max(others) + AFTER_OTHERS_S, 3)
+
+
 def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: int,
               config_overrides: Mapping[str, Any], follow_speed_m_s: float) -> Case:
     """Run `index` of the campaign: a pure function of its arguments."""
     rng = np.random.default_rng([campaign_seed, index, 0xCA5E])
     scenario_name = spec.scenarios[int(rng.integers(0, len(spec.scenarios)))]
     scenario = _resolve(scenario_name, spec_path)
-    camera_weights = np.array([c.weight for c in spec.cameras], dtype=np.float64)
+    camera_weights = np.array([0.0 if scenario_name in c.exclude_scenarios else c.weight
+                               for c in spec.cameras], dtype=np.float64)
     camera = spec.cameras[int(rng.choice(len(spec.cameras),
                                          p=camera_weights / camera_weights.sum()))]
     seed = int(rng.integers(0, spec.floor_seeds))
@@ -298,6 +340,7 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
         faults.append({"kind": fault.kind, **params})
         kinds.append(fault.kind)
     _not_inside_a_stall(faults)
+    _stream_loss_last(faults)
     data = scenario.model_dump(mode="json", exclude_defaults=True)
     data.pop("expect", None)  # the scenario's expected outcome is without these faults
     if camera.camera:

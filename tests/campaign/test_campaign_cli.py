@@ -146,3 +146,22 @@ def test_a_fault_drawn_inside_a_loop_stall_starts_after_it() -> None:
         {"kind": "loop_stall", "duration_s": 0.3195, "at_s": 5.404},
         {"kind": "write_blocks", "duration_s": 0.05, "at_s": 5.773},  # 5.404 + 0.3195 + 0.05
     ]
+
+
+def test_a_permanent_stream_loss_starts_after_the_other_faults_on_that_stream() -> None:
+    """Run 210 of a first default campaign drew late frames 0.76 s after a permanent camera
+    error: they could never take effect (an `error` of the case's making). The loss now starts
+    0.5 s after the last other fault on its stream."""
+    spec, path = load_campaign_spec("default")
+    case = draw_case(spec, path, 0, 210, {}, 0.2)
+    assert case.scenario["faults"] == [
+        {"kind": "late_frames", "latency_s": 0.0722, "duration_s": 2.2918, "at_s": 7.87},
+        {"kind": "camera_error", "duration_s": None, "at_s": 8.37},  # was 7.11
+    ]
+
+
+def test_the_lecture_is_drawn_only_with_the_camera_that_can_drive_it() -> None:
+    spec, path = load_campaign_spec("default")
+    lecture = [draw_case(spec, path, 0, i, {}, 0.2) for i in range(400)]
+    cameras = {c.camera for c in lecture if c.scenario["name"] == "lecture"}
+    assert cameras == {"640x480"}
