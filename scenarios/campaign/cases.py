@@ -286,16 +286,30 @@ STREAM_KILLERS = {"camera_freeze": CAMERA_STREAM_KINDS, "camera_drop": CAMERA_ST
 AFTER_OTHERS_S = 0.5
 
 
+#: When two permanent losses of one stream are drawn, the earlier one lasts this long instead.
+SHORTENED_LOSS_S = 1.0
+
+
 def _stream_loss_last(faults: list[dict[str, Any]]) -> None:
     """A permanent loss of a stream (camera or link) starts after every other fault on that
     stream has started (run 210 of the default campaign drew late frames 0.76 s after a
-    permanent camera error: they could never take effect, an `error` of the case's making)."""
+    permanent camera error: they could never take effect, an `error` of the case's making).
+    Two permanent losses of one stream cannot both act (run 665: a camera error, then a freeze):
+    all but the last-starting one last SHORTENED_LOSS_S."""
+    permanent = [f for f in faults if f["kind"] in STREAM_KILLERS
+                 and f.get("duration_s") is None and "at_s" in f]
+    for lost in {STREAM_KILLERS[f["kind"]] for f in permanent}:
+        losses = sorted((f for f in permanent if STREAM_KILLERS[f["kind"]] is lost),
+                        key=lambda f: f["at_s"])
+        for earlier in losses[:-1]:
+            earlier["duration_s"] = SHORTENED_LOSS_S
     for killer in faults:
         stream = STREAM_KILLERS.get(killer["kind"])
         if stream is None or killer.get("duration_s") is not None or "at_s" not in killer:
             continue
-        others = [f["at_s"] for f in faults
-                  if f is not killer and f["kind"] in stream and "at_s" in f]
+        # after the others start, and after a (shortened) loss of the same stream ends
+        others = [f["at_s"] + (f.get("duration_s") or 0.0 if f["kind"] in STREAM_KILLERS else 0.0)
+                  for f in faults if f is not killer and f["kind"] in stream and "at_s" in f]
         if others and killer["at_s"] < max(others) + AFTER_OTHERS_S:
             killer["at_s"] = round(max(others) + AFTER_OTHERS_S, 3)
 

@@ -10,9 +10,11 @@ from xml.etree import ElementTree
 
 import pytest
 
+from lanewarden.assembly import build_stack
 from lanewarden.cli import main
 from lanewarden.scenarios.campaign import runner as runner_module
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec, load_case
+from lanewarden.scenarios.campaign.run_case import run_case
 
 
 def rows(out: Path) -> list[tuple[str, str, str]]:
@@ -165,3 +167,19 @@ def test_the_lecture_is_drawn_only_with_the_camera_that_can_drive_it() -> None:
     lecture = [draw_case(spec, path, 0, i, {}, 0.2) for i in range(400)]
     cameras = {c.camera for c in lecture if c.scenario["name"] == "lecture"}
     assert cameras == {"640x480"}
+
+
+def test_two_permanent_losses_of_the_camera_both_act() -> None:
+    """Run 665 drew a permanent camera error and then a permanent freeze: the freeze could never
+    act. The earlier loss now lasts 1 s and the freeze starts 0.5 s after it ends; run, both
+    take effect and the run is a safe halt, not an error."""
+    spec, path = load_campaign_spec("default")
+    case = draw_case(spec, path, 0, 665, {}, 0.2)
+    assert case.scenario["faults"] == [
+        {"kind": "camera_error", "duration_s": 1.0, "at_s": 5.486},
+        {"kind": "camera_freeze", "duration_s": None, "at_s": 6.986},
+    ]
+    row = run_case(case.model_dump_json(), build_stack)
+    assert (row["outcome"], row["halt_reason"].split(":")[0]) == ("safe_halt", "CAMERA_ERROR")
+    assert [e["kind"] for e in json.loads(row["effects_json"])] == ["camera_error",
+                                                                     "camera_freeze"]
