@@ -45,6 +45,7 @@ from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.metrics import points_in_polygon
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.spec import (
     EndsSpec,
@@ -189,22 +190,11 @@ def tape_edges_in_view(world: World, detector: LaneDetector, camera: CameraModel
         px = ground.floor_to_image(np.column_stack([rx, ry]))
         ok = np.isfinite(px).all(axis=1)
         inside = np.zeros(len(xs), bool)
-        inside[ok] = _in_polygon(px[ok], roi)
+        inside[ok] = points_in_polygon(px[ok], roi)
         inside &= rx <= look_ahead
         if inside.sum() * 0.01 < 0.2:
             return False
     return True
-
-
-def _in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    x, y = points[:, 0], points[:, 1]
-    inside = np.zeros(len(points), bool)
-    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
-        crosses = (y0 > y) != (y1 > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-        inside ^= crosses & (x < at)
-    return inside
 
 
 def no_tape_in_view(world: World, camera: CameraModel, pose: Pose2D) -> bool:
