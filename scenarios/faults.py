@@ -147,8 +147,14 @@ def floor_mark(world: World, spec: FaultSpec) -> tuple[FloorMark, FloatArray]:
         edge = world.centreline.offset(spec.at_m, s1, spec.offset_m)
         beyond = world.centreline.offset(spec.at_m, s1, far)
         polygon = np.vstack([edge, beyond[::-1]])
+        # In view when its edge is, or the shaded lane (its tapes, its centre): a shadow whose
+        # edge is out of view still darkens everything the camera sees of the lane.
+        lo, hi = sorted((spec.offset_m, far))
+        shaded = [world.centreline.offset(spec.at_m, s1, lateral)
+                  for lateral in (world.lane_width_m / 2.0, 0.0, -world.lane_width_m / 2.0)
+                  if lo <= lateral <= hi]
         return (FloorMark(polygon, "shade", factor=1.0 - SHADOW_DEPTH * spec.intensity),
-                edge)
+                np.vstack([edge, *shaded]))
     raise ValueError(f"not a floor fault: {spec.kind}")
 
 
