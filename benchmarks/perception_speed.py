@@ -30,9 +30,10 @@ import numpy as np
 # run as a script (`python benchmarks/perception_speed.py`).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lanewarden.assembly import decision_rule  # noqa: E402
+from lanewarden.config import LanewardenConfig  # noqa: E402
 from lanewarden.perception.calibration import CameraCalibration, Undistorter  # noqa: E402
 from lanewarden.perception.config import PerceptionConfig  # noqa: E402
-from lanewarden.perception.decision import decide  # noqa: E402
 from lanewarden.perception.detector import LaneDetector  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
 from lanewarden.scenarios.camera import CameraModel  # noqa: E402
@@ -137,9 +138,11 @@ def main() -> None:
     )
     distorted = [np.ascontiguousarray(syn.render(s, distorted=True)) for s in SCENES.values()]
 
+    decide = decision_rule(LanewardenConfig())  # the supervisor's thresholds, as `detect`'s
+
     def with_overlay(f: np.ndarray) -> object:
         obs, debug = detector.detect_debug(f, 0, 0.0)
-        return draw_overlay(debug.image, obs, debug, decide(obs, config))
+        return draw_overlay(debug.image, obs, debug, decide(obs))
 
     frames = [np.ascontiguousarray(syn.render(s)) for s in SCENES.values()]
     extra = measure(
