@@ -33,7 +33,7 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
                     "nominal", None),
     "glare_sweep": ({"at_s": T, "duration_s": 1.0, "intensity": 0.9}, "nominal", None),
     # 60% of the right tape hidden for 1 s: no lane width, no verified pair on that side, so
-    # no trusted lane; LANE_LOST after lane_lost_halt_s (0.5 s)
+    # no trusted lane; LANE_LOST after lane_lost_halt_s (0.2 s)
     "occlusion": ({"at_s": T, "duration_s": 1.0, "intensity": 0.6, "side": "right"},
                   "safe_halt", "LANE_LOST"),
     "lens_smudge": ({"at_s": T, "intensity": 1.0}, "safe_halt", "LANE_LOST"),
