@@ -87,9 +87,11 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
                         worker_memory_limit_mb=config.campaign.worker_memory_limit_mb)
     bar: Any = None
+    stored_at_start = 0
 
     def on_start(progress: CampaignProgress, where: str) -> None:
-        nonlocal bar
+        nonlocal bar, stored_at_start
+        stored_at_start = progress.done
         click.echo(f"campaign {spec.name}: {progress.total} runs (seed {seed}), "
                    f"{progress.done} already stored; running {where}", err=True)
         bar = tqdm(total=progress.total, initial=progress.done, unit="run", file=sys.stderr,
@@ -119,8 +121,9 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
             bar.close()
     with ResultStore(out / "results.sqlite") as store:
         rows = store.rows(f"r{i:05d}" for i in range(plan.runs))
-    summary = (f"{len(rows)} runs of spec {spec.name} (seed {seed}), "
-               f"{time.perf_counter() - started:.0f} s: {_counts(progress)}")
+    ran = f"{len(rows) - stored_at_start} run now" if stored_at_start else "all run now"
+    summary = (f"{len(rows)} runs of spec {spec.name} (seed {seed}; {ran}, "
+               f"{time.perf_counter() - started:.0f} s): {_counts(progress)}")
     try:
         write_junit(out / "junit.xml", spec.name, rows)
         write_report(out / "report.html", spec.name, rows, out, summary)

@@ -39,11 +39,12 @@ def test_in_process_campaign_writes_rows_cases_junit_and_report(
     report = (out / "report.html").read_text(encoding="utf-8")
     assert "Fault kind x outcome" in report
     assert f"lanewarden sim --case {out / 'cases' / 'r00000.yaml'}" in report
-    assert "3 runs of spec tiny (seed 7)" in capsys.readouterr().out
+    assert "3 runs of spec tiny (seed 7; all run now, " in capsys.readouterr().out
 
 
 def test_a_rerun_resumes_and_runs_only_what_is_missing(
-        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7",
             "--scheduler", "in-process", "--quiet"]
@@ -57,8 +58,10 @@ def test_a_rerun_resumes_and_runs_only_what_is_missing(
         return real(case_json, build_stack)  # type: ignore[arg-type]
 
     monkeypatch.setattr(runner_module, "run_case", counting)
+    capsys.readouterr()
     assert main([*args, "--runs", "3"]) == 0
     assert ran == ["r00002"]  # the first two were stored: not run again
+    assert "3 runs of spec tiny (seed 7; 1 run now, " in capsys.readouterr().out
     assert rows(out)[:2] == first
 
 
