@@ -22,6 +22,7 @@ Never reads a clock and never runs anything.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -191,6 +192,21 @@ def _code(reason: str | None) -> str:
     return (reason or "").split(":")[0].strip()
 
 
+_ANSWERING = re.compile(r" answering (\w+) \(fault \d+\)")
+
+
+def answering_reason(code: str, kind: str, index: int) -> str:
+    """A safe halt's reason: the halt code and the fault it answered."""
+    return f"{code} answering {kind} (fault {index})"
+
+
+def answered_kind(reason: str) -> str | None:
+    """The fault kind a safe halt answered, read back from `answering_reason`'s text (None for
+    any other reason, e.g. a halt at the end of the tape)."""
+    found = _ANSWERING.search(reason)
+    return found.group(1) if found else None
+
+
 def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict:
     """The run's outcome class and a one-line reason (see the module docstring)."""
     missing = [f"{i}:{f.kind}" for i, f in enumerate(facts.faults) if i not in facts.effects]
@@ -231,7 +247,7 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
         assert halt_s is not None
         for index, kind, start, end in facts.windows:
             if start - 1e-9 <= halt_s <= end + config.fault_grace_s and code in ANSWERS[kind]:
-                return verdict("safe_halt", f"{code} answering {kind} (fault {index})")
+                return verdict("safe_halt", answering_reason(code, kind, index))
         if code in _LANE and _near_lane_end(facts, config):
             return verdict("safe_halt", f"{code} at the end of the tape")
         return verdict("false_halt", f"{code} at {halt_s:.3f} s with no fault acting and the "

@@ -14,16 +14,13 @@ from __future__ import annotations
 import html
 import json
 import math
-import re
 from collections import Counter, defaultdict
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
 
-from lanewarden.scenarios.campaign.outcome import FAILURES, OUTCOMES
-
-_ANSWERING = re.compile(r" answering (\w+) \(fault \d+\)")
+from lanewarden.scenarios.campaign.outcome import FAILURES, OUTCOMES, answered_kind
 
 #: Order of badness for "worst cases" (first: worst).
 _SEVERITY = {"unsafe": 0, "false_halt": 1, "error": 2, "safe_halt": 3, "recovered": 4,
@@ -115,8 +112,8 @@ def _quantile(values: Sequence[float], q: float) -> float:
 def _answered_kinds(row: Mapping[str, Any]) -> list[str]:
     """The fault kind a safe halt answered (its reason: "CODE answering KIND (fault N)"); every
     kind of the run when the halt answered the lane's end instead."""
-    found = _ANSWERING.search(str(row.get("reason") or ""))
-    return [found.group(1)] if found else _kinds(row)
+    kind = answered_kind(str(row.get("reason") or ""))
+    return [kind] if kind is not None else _kinds(row)
 
 
 def _time_to_halt(rows: Sequence[Mapping[str, Any]]) -> str:
