@@ -156,10 +156,11 @@ def build_line_set(
         return empty_line_set(len(seg))
     width = smooth_gray.shape[1]
     offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
-    line_of = _cluster_collinear(seg[kept], angle[kept], edges.cluster_angle_tol_deg, offset_tol)
+    pieces = _Pieces.of(seg[kept], angle[kept])
+    line_of = _cluster_collinear(pieces, edges.cluster_angle_tol_deg, offset_tol)
     label = np.full(len(seg), -1, dtype=np.intp)
     label[kept] = line_of
-    fit = _fit_lines(seg[kept], line_of)
+    fit = _fit_lines(pieces, line_of)
     x_bottom = fit.cx + (y_bottom - fit.cy) * fit.ux / np.minimum(fit.uy, -1e-9)
     polarity = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y, fit.ux,
                          fit.uy, tape)
@@ -198,23 +199,42 @@ def _oriented_segments(segments: NDArray[np.int32]) -> tuple[FloatArray, FloatAr
     return seg, angle
 
 
-def _cluster_collinear(seg: FloatArray, angle: FloatArray, angle_tol_deg: float,
+@dataclass(frozen=True)
+class _Pieces:
+    """The kept segments, oriented near -> far, with what clustering and fitting both need:
+    their run (`dx`, `dy`: pixels, y down), length, midpoint and angle (degrees, y up)."""
+
+    seg: FloatArray
+    dx: FloatArray
+    dy: FloatArray
+    length: FloatArray
+    mid_x: FloatArray
+    mid_y: FloatArray
+    angle: FloatArray
+
+    @staticmethod
+    def of(seg: FloatArray, angle: FloatArray) -> _Pieces:
+        dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+        return _Pieces(seg=seg, dx=dx, dy=dy, length=np.hypot(dx, dy),
+                       mid_x=0.5 * (seg[:, 0] + seg[:, 2]), mid_y=0.5 * (seg[:, 1] + seg[:, 3]),
+                       angle=angle)
+
+
+def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
                        offset_tol_px: float) -> NDArray[np.intp]:
     """Greedy leader clustering, longest segment first: the line index of every segment. A
     segment joins the leader's line when its direction is within `angle_tol_deg` and its
     midpoint within `offset_tol_px` of the leader's line (a precomputed compatibility matrix)."""
-    dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-    length = np.hypot(dx, dy)
-    dir_x, dir_y = dx / length, dy / length
-    mid_x, mid_y = 0.5 * (seg[:, 0] + seg[:, 2]), 0.5 * (seg[:, 1] + seg[:, 3])
+    dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
+    mid_x, mid_y, angle = pieces.mid_x, pieces.mid_y, pieces.angle
     off_line = np.abs((mid_x[None, :] - mid_x[:, None]) * dir_y[:, None]
                       - (mid_y[None, :] - mid_y[:, None]) * dir_x[:, None])
     compatible = ((np.abs(angle[None, :] - angle[:, None]) <= angle_tol_deg)
                   & (off_line <= offset_tol_px))
-    line_of = np.full(len(seg), -1, dtype=np.intp)
-    free = np.ones(len(seg), dtype=bool)
+    line_of = np.full(len(angle), -1, dtype=np.intp)
+    free = np.ones(len(angle), dtype=bool)
     lines = 0
-    for leader in np.argsort(-length, kind="stable").tolist():
+    for leader in np.argsort(-pieces.length, kind="stable").tolist():
         if not free[leader]:
             continue
         member = compatible[leader] & free
@@ -241,20 +261,20 @@ class _LineFit:
     support_px: FloatArray
 
 
-def _fit_lines(seg: FloatArray, line_of: NDArray[np.intp]) -> _LineFit:
+def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp]) -> _LineFit:
     """Each line from its member segments (oriented near -> far): direction and centre weighted
     by length; its extent is the lowest and highest projection of its members' ends on it (all
     members run near -> far within a few degrees of the line)."""
     lines = int(line_of.max()) + 1
-    x1, y1, x2, y2 = seg.T
-    dx, dy = x2 - x1, y2 - y1
-    length = np.hypot(dx, dy)
+    x1, y1, x2, y2 = pieces.seg.T
+    length = pieces.length
     support = _sum_by(line_of, length, lines)
-    ux, uy = _sum_by(line_of, dx, lines), _sum_by(line_of, dy, lines)  # sum(unit * length)
+    ux = _sum_by(line_of, pieces.dx, lines)  # sum(unit * length)
+    uy = _sum_by(line_of, pieces.dy, lines)
     norm = np.hypot(ux, uy)
     ux, uy = ux / norm, uy / norm
-    cx = _sum_by(line_of, 0.5 * (x1 + x2) * length, lines) / support
-    cy = _sum_by(line_of, 0.5 * (y1 + y2) * length, lines) / support
+    cx = _sum_by(line_of, pieces.mid_x * length, lines) / support
+    cy = _sum_by(line_of, pieces.mid_y * length, lines) / support
     along_near = (x1 - cx[line_of]) * ux[line_of] + (y1 - cy[line_of]) * uy[line_of]
     along_far = (x2 - cx[line_of]) * ux[line_of] + (y2 - cy[line_of]) * uy[line_of]
     lowest = np.full(lines, np.inf)
