@@ -60,7 +60,6 @@ from lanewarden.perception.geometry import Side, edge_slope
 from lanewarden.perception.ground import (
     GroundModel,
     default_ground_model,
-    default_pose,
     ground_model_for,
 )
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
@@ -319,9 +318,9 @@ def assumed_ground_model(undistorter: Undistorter | None,
     simulator's default camera at `image_size` (the frames' size when known, else 640x480)."""
     if undistorter is None:
         return default_ground_model(image_size or (640, 480))
-    calibration = undistorter.calibration
-    pose = default_pose() if calibration.ground is None else calibration.ground.pose
-    return GroundModel(undistorter.camera_matrix, pose, undistorter.image_size)
+    model, _ = ground_model_for(undistorter.calibration, undistorter.image_size,
+                                camera_matrix=undistorter.camera_matrix)
+    return model
 
 
 def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | None:

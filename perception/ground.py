@@ -233,8 +233,11 @@ def default_ground_model(image_size: tuple[int, int]) -> GroundModel:
 
 
 def ground_model_for(calibration: CameraCalibration | None, image_size: tuple[int, int],
-                     source: str | None = None) -> tuple[GroundModel, str]:
+                     source: str | None = None,
+                     camera_matrix: FloatArray | None = None) -> tuple[GroundModel, str]:
     """The ground model perception uses for frames of `image_size`, and one line saying which.
+    `camera_matrix`: the undistorted image's K when it is not the calibration's own
+    (`Undistorter.camera_matrix`).
 
     - A calibration with a ground pose (`lanewarden calibrate ground`): its K and pose.
     - A calibration without one: its K with the simulator's default mount (0.40 m, 35°).
@@ -249,7 +252,8 @@ def ground_model_for(calibration: CameraCalibration | None, image_size: tuple[in
                        f"({DEFAULT_HFOV_DEG:g}° HFOV, {model.pose.describe()})")
     ground = calibration.ground
     pose = default_pose() if ground is None else ground.pose
-    model = GroundModel(calibration.camera_matrix, pose, calibration.image_size)
+    k = calibration.camera_matrix if camera_matrix is None else camera_matrix
+    model = GroundModel(k, pose, calibration.image_size)
     if tuple(image_size) != tuple(calibration.image_size):
         model = model.scaled_to(image_size)
     if ground is None:
