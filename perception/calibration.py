@@ -413,7 +413,9 @@ class Undistorter:
 
     The output is an ideal pinhole image of the same size whose intrinsics are `camera_matrix`
     (by default the calibration's own K, so pixel geometry near the centre is unchanged; pixels
-    mapped from outside the source image are black).
+    mapped from outside the source image are black). A calibration without distortion (a camera
+    or driver that delivers rectified frames) kept at its own K is the identity: `apply` returns
+    the frame itself (after its checks) instead of remapping every pixel onto itself.
     """
 
     def __init__(
@@ -423,6 +425,10 @@ class Undistorter:
         self.image_size: tuple[int, int] = calibration.image_size
         k_new = calibration.camera_matrix if new_camera_matrix is None else new_camera_matrix
         self.camera_matrix: FloatArray = _frozen_array(k_new, "new_camera_matrix")
+        #: True when the maps would send every pixel onto itself (no distortion, same K).
+        self.identity = bool(
+            not np.any(np.asarray(calibration.dist_coeffs))
+            and np.array_equal(self.camera_matrix, np.asarray(calibration.camera_matrix)))
         try:
             map_x, map_y = cv2.initUndistortRectifyMap(
                 np.asarray(calibration.camera_matrix),
@@ -449,6 +455,8 @@ class Undistorter:
                 f"undistort: image is {width}x{height}, the calibration is for "
                 f"{self.image_size[0]}x{self.image_size[1]}"
             )
+        if self.identity:
+            return image
         return cv2.remap(image, self._map_fixed, self._map_frac, cv2.INTER_LINEAR)
 
     def undistort_points(self, points_px: FloatArray) -> FloatArray:

@@ -51,6 +51,14 @@ class SimulationConfig(BaseModel):
         description="camera image width (the focal length scales with it)",
     )
     height_px: int = Field(default=480, ge=48, le=1440, description="camera image height")
+    rectified_frames: bool = Field(
+        default=False,
+        description="the simulated camera delivers rectified frames (no lens distortion, as from "
+        "a driver that rectifies, e.g. ROS image_proc): the floor is rendered straight into the "
+        "pinhole image and perception's calibration has no distortion, so perception skips its "
+        "undistortion remap (a campaign's default spec sets it: one remap per frame instead of "
+        "two; the undistortion itself is covered by the scenario and calibration tests)",
+    )
     texture_mm_per_px: float = Field(
         default=2.5, ge=1.0, le=10.0,
         description="resolution of the painted floor (finer: sharper and slower to paint)",

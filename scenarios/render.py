@@ -19,6 +19,8 @@ Never reads a clock, never touches the robot; allocations happen in __init__, no
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -33,6 +35,37 @@ F32 = NDArray[np.float32]
 
 #: Floor coordinate given to pixels that look above the horizon (maps outside any texture).
 _FAR_M = 1.0e5
+
+
+@dataclass(frozen=True)
+class _FloorGrid:
+    """What a camera's pixels see, fixed for the camera: `points` (H, W, 2) float32, the floor
+    point (robot frame) of every pixel (far away above the horizon), read-only; and image pixels
+    per metre of forward motion near the image centre (for motion blur)."""
+
+    points: F32
+    px_per_m_forward: float
+
+
+@lru_cache(maxsize=8)
+def _floor_grid(camera: CameraModel, distorted: bool) -> _FloorGrid:
+    """The camera's floor grid, computed once per camera (a campaign's worker renders many runs
+    through the same few cameras)."""
+    w, h = camera.width_px, camera.height_px
+    gx, gy = camera.pixel_ground_points(distorted=distorted)
+    sky = ~(np.isfinite(gx) & np.isfinite(gy))
+    gx = np.where(sky, _FAR_M, gx)
+    gy = np.where(sky, _FAR_M, gy)
+    # (H, W, 2) floor points; one cv2.transform per frame turns them into texture coordinates
+    # (a 2-channel map that cv2.remap takes directly).
+    points = np.ascontiguousarray(np.dstack([gx, gy]), dtype=np.float32)
+    points.setflags(write=False)
+    centre = np.array([[gx[h // 2, w // 2], 0.0], [gx[h // 2, w // 2] + 0.01, 0.0]])
+    px_per_m_forward = 0.0
+    if np.all(np.isfinite(centre)):
+        px = camera.project_ground(centre)
+        px_per_m_forward = float(abs(px[0, 1] - px[1, 1]) / 0.01)
+    return _FloorGrid(points, px_per_m_forward)
 
 
 class CameraRenderer:
@@ -61,13 +94,8 @@ class CameraRenderer:
         self.exposure_s = exposure_s
         w, h = camera.width_px, camera.height_px
         self.size = (w, h)
-        gx, gy = camera.pixel_ground_points(distorted=distorted)
-        sky = ~(np.isfinite(gx) & np.isfinite(gy))
-        gx = np.where(sky, _FAR_M, gx)
-        gy = np.where(sky, _FAR_M, gy)
-        # (H, W, 2) floor points; one cv2.transform per frame turns them into texture coordinates
-        # (a 2-channel map that cv2.remap takes directly).
-        self._ground = np.ascontiguousarray(np.dstack([gx, gy]), dtype=np.float32)
+        grid = _floor_grid(camera, distorted)
+        self._ground = grid.points
         self._map = np.empty((h, w, 2), np.float32)
         self._scratch_gray = np.empty((h, w), np.uint8)
         self._scratch_bgr = np.empty((h, w, 3), np.uint8)
@@ -75,29 +103,24 @@ class CameraRenderer:
         # The texture is also kept transposed: remap reads it along the image's rows, which run
         # across the robot's heading; facing along x they run down texture columns (a cache
         # miss per pixel), so then the transposed copy (columns as rows) is read instead.
-        self._gray_t = np.ascontiguousarray(texture.gray.T)
-        self._bgr_t = (None if texture.bgr is None
-                       else np.ascontiguousarray(texture.bgr.transpose(1, 0, 2)))
+        self._gray_t = texture.gray_transposed
+        self._bgr_t = texture.bgr_transposed
         self._transposed = False
-        # Motion blur scale: image pixels per metre of forward motion near the image centre, and
-        # per radian of yaw (the focal length).
-        centre = np.array([[gx[h // 2, w // 2], 0.0], [gx[h // 2, w // 2] + 0.01, 0.0]])
-        if np.all(np.isfinite(centre)):
-            px = camera.project_ground(centre)
-            self._px_per_m_forward = float(abs(px[0, 1] - px[1, 1]) / 0.01)
-        else:
-            self._px_per_m_forward = 0.0
+        self._px_per_m_forward = grid.px_per_m_forward
         self._px_per_rad = camera.focal_px
         rng = np.random.default_rng([seed, 0x401E])
         self._noise_rng = np.random.default_rng([seed, 0xF4A3E])
+        # Noise frames as (add, subtract) pairs, gray and (for a colour texture) BGR.
         self._noise: list[tuple[U8, U8, U8, U8]] = []
         if noise_sigma > 0:
             for _ in range(max(1, noise_bank_frames)):
                 n = np.rint(rng.normal(0.0, noise_sigma, (h, w))).astype(np.int16)
                 pos = np.clip(n, 0, 255).astype(np.uint8)
                 neg = np.clip(-n, 0, 255).astype(np.uint8)
-                pos3 = np.ascontiguousarray(np.repeat(pos[:, :, None], 3, axis=2))
-                neg3 = np.ascontiguousarray(np.repeat(neg[:, :, None], 3, axis=2))
+                pos3, neg3 = pos, neg  # never read: render_bgr needs a colour texture
+                if texture.bgr is not None:
+                    pos3 = np.ascontiguousarray(np.repeat(pos[:, :, None], 3, axis=2))
+                    neg3 = np.ascontiguousarray(np.repeat(neg[:, :, None], 3, axis=2))
                 self._noise.append((pos, neg, pos3, neg3))
 
     def _maps(self, pose: Pose2D) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -51,6 +52,17 @@ class GroundTexture:
     @property
     def shape(self) -> tuple[int, int]:
         return (int(self.gray.shape[0]), int(self.gray.shape[1]))
+
+    @cached_property
+    def gray_transposed(self) -> U8:
+        """`gray` stored transposed (columns as rows), made once per texture: the renderer reads
+        it when the robot faces along x (see `CameraRenderer`)."""
+        return np.ascontiguousarray(self.gray.T)
+
+    @cached_property
+    def bgr_transposed(self) -> U8 | None:
+        """`bgr` stored transposed, made once per texture (None without colour)."""
+        return None if self.bgr is None else np.ascontiguousarray(self.bgr.transpose(1, 0, 2))
 
     def world_to_px(self, points: FloatArray) -> FloatArray:
         """World metres (N, 2) -> texture pixel coordinates (N, 2) (col, row), pixel centres at

@@ -160,6 +160,24 @@ def test_undistorter_straightens_projected_line_and_checks_size() -> None:
         undistorter.apply(np.zeros((240, 320), np.uint8))
 
 
+def test_undistorter_without_distortion_passes_the_frame_through() -> None:
+    """A rectified camera (no distortion, own K): no remap, the frame itself; any distortion, or
+    another output K, and every pixel is remapped (a new image)."""
+    frame = np.random.default_rng(5).integers(0, 256, (480, 640), dtype=np.uint8)
+    rectified = Undistorter(_calibration(dist_coeffs=np.zeros(5)))
+    assert rectified.identity
+    assert rectified.apply(frame) is frame
+    with pytest.raises(PerceptionError, match="image is 320x240, the calibration is for 640x480"):
+        rectified.apply(np.zeros((240, 320), np.uint8))
+    slight = Undistorter(_calibration(dist_coeffs=np.array([0.0, 0.0, 0.0, 0.0, 1e-6])))
+    assert not slight.identity and slight.apply(frame) is not frame
+    shifted_k = CameraModel().camera_matrix()
+    shifted_k[0, 2] += 1.0
+    moved = Undistorter(_calibration(dist_coeffs=np.zeros(5)), new_camera_matrix=shifted_k)
+    assert not moved.identity
+    assert moved.apply(frame)[:, 1:].tolist() == frame[:, :-1].tolist()  # shifted by one column
+
+
 @given(st.binary(max_size=300))
 @settings(derandomize=True, max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -92,3 +92,24 @@ def test_bad_camera_blocks_name_the_key(camera: dict[str, object], extra: dict[s
                                         message: str) -> None:
     with pytest.raises(ScenarioError, match=message.replace(".", r"\.")):
         spec_from({"camera": camera, "lane": LANE, **extra})
+
+
+def test_rectified_frames_render_the_pinhole_image_that_perception_does_not_remap() -> None:
+    spec = spec_from({"camera": CAMERA, "lane": LANE, "floor": {"kind": "plain"},
+                      "run": {"max_time_s": 4}})
+    rectified = {"simulation": {"rectified_frames": True}}
+    config = effective_config(with_overrides(LanewardenConfig(), rectified, "test"), spec)
+    sim = Simulation(spec, config, build_stack)
+    assert sim.camera.dist_coeffs == (0.0, 0.0, 0.0, 0.0, 0.0)
+    assert sim.camera.pose == CameraPose(height_m=0.26, pitch_deg=40.0, roll_deg=2.0,
+                                         forward_m=0.10)
+    assert sim.detector.undistorter is not None and sim.detector.undistorter.identity
+    np.testing.assert_array_equal(sim.calibration.dist_coeffs, np.zeros(5))
+    # The tape's outer edge 0.8 m ahead (y 0.32 m, inside the 48 mm tape at 0.30 m) is tape in
+    # the pinhole image; the distorted render of this lens (-0.1 barrel) shows floor there.
+    image = sim.renderer.render_gray(sim.world.start_pose, np.empty((240, 320), np.uint8))
+    tape_u, tape_v = sim.camera.project_ground(np.array([[0.8, 0.32]]), distort=False)[0]
+    floor_u, floor_v = sim.camera.project_ground(np.array([[0.8, 0.0]]), distort=False)[0]
+    assert image[round(tape_v), round(tape_u)] < 80 < image[round(floor_v), round(floor_u)]
+    result = sim.run()
+    assert result.end_reason == "time limit" and result.trace.states[-1] == "FOLLOW"
