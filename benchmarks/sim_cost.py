@@ -4,9 +4,11 @@ RSS, at 640x480 and 320x240.
 Each resolution gets a fresh worker process (as a Dask worker would be) that runs the same 20 s
 run `--runs` times in a row: the first run pays for painting the floor, the next ones reuse it
 (`paint_ground_cached`), as a campaign's worker does. The run is the `straight` scenario with no
-fault (it drives the whole 20 s), supervised, no video, no plot, judged like a campaign run.
+fault (it drives the whole 20 s), supervised, no video, no plot, judged like a campaign run, with
+the default campaign spec's `config:` (rectified frames: one remap per frame); `--lens` renders
+the camera's lens distortion and lets perception undistort (as `lanewarden sim` does).
 
-    python benchmarks/sim_cost.py [--runs 3] [--scenario straight]
+    python benchmarks/sim_cost.py [--runs 3] [--scenario straight] [--lens]
 
 Prints CPU s per run (first and warm), peak RSS of the worker, and whether heavy modules
 (matplotlib, imageio_ffmpeg, dask) were imported. Targets at 320x240: <= 1.5 s CPU per warm run,
@@ -24,10 +26,11 @@ import time
 from typing import Any
 
 
-def _worker(scenario: str, width: int, height: int, runs: int) -> dict[str, Any]:
+def _worker(scenario: str, width: int, height: int, runs: int, lens: bool) -> dict[str, Any]:
     started = time.process_time()
     from lanewarden.assembly import build_stack
     from lanewarden.config import config_from_mapping
+    from lanewarden.scenarios.campaign.cases import DEFAULT_SPEC, load_campaign_spec
     from lanewarden.scenarios.campaign.run_case import judge
     from lanewarden.scenarios.library import resolve_scenario
     from lanewarden.scenarios.simulator import Simulation, effective_config
@@ -35,8 +38,13 @@ def _worker(scenario: str, width: int, height: int, runs: int) -> dict[str, Any]
     import_cpu = time.process_time() - started
     spec = resolve_scenario(scenario)
     spec = spec.model_copy(update={"run": spec.run.model_copy(update={"max_time_s": 20.0})})
-    config = effective_config(config_from_mapping(
-        {"simulation": {"width_px": width, "height_px": height, "progress": False}}), spec)
+    campaign_config = load_campaign_spec(DEFAULT_SPEC)[0].config
+    simulation = {**campaign_config.get("simulation", {}), "width_px": width,
+                  "height_px": height, "progress": False}
+    if lens:
+        simulation["rectified_frames"] = False
+    config = effective_config(config_from_mapping({**campaign_config, "simulation": simulation}),
+                              spec)
     cpu, sim_s = [], []
     for _ in range(runs):
         before = time.process_time()
@@ -46,7 +54,8 @@ def _worker(scenario: str, width: int, height: int, runs: int) -> dict[str, Any]
         sim_s.append(float(result.trace.time_s[-1]))
     heavy = [m for m in ("matplotlib", "imageio_ffmpeg", "dask", "distributed", "scipy")
              if m in sys.modules]
-    return {"resolution": f"{width}x{height}", "import_cpu_s": round(import_cpu, 2),
+    return {"resolution": f"{width}x{height}", "rectified": config.simulation.rectified_frames,
+            "import_cpu_s": round(import_cpu, 2),
             "cpu_s_per_run": [round(c, 2) for c in cpu], "simulated_s": sim_s,
             "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "heavy_modules_imported": heavy}
@@ -56,19 +65,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--scenario", default="straight")
+    parser.add_argument("--lens", action="store_true",
+                        help="render lens distortion and undistort in perception (sim's way)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     context = multiprocessing.get_context("spawn")
     results = []
     for width, height in ((640, 480), (320, 240)):
         with context.Pool(1) as pool:
-            results.append(pool.apply(_worker, (args.scenario, width, height, args.runs)))
+            results.append(pool.apply(_worker, (args.scenario, width, height, args.runs,
+                                                    args.lens)))
     if args.json:
         print(json.dumps(results, indent=2))
         return
     for r in results:
         warm = r["cpu_s_per_run"][1:] or r["cpu_s_per_run"]
-        print(f"{r['resolution']:>8}: first run {r['cpu_s_per_run'][0]:.2f} s CPU, warm runs "
+        frames = "rectified" if r["rectified"] else "lens"
+        print(f"{r['resolution']:>8} ({frames}): first run {r['cpu_s_per_run'][0]:.2f} s CPU, warm runs "
               f"{sum(warm) / len(warm):.2f} s CPU per {r['simulated_s'][0]:.0f} s simulated; "
               f"worker peak RSS {r['peak_rss_mb']:.0f} MB; imports {r['import_cpu_s']:.1f} s "
               f"CPU; heavy modules imported: {', '.join(r['heavy_modules_imported']) or 'none'}")

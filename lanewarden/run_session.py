@@ -209,8 +209,10 @@ class RunSession:
         self.keys.resume()
 
     # ---- the end ------------------------------------------------------------------------------
-    def close(self, end_reason: str, exit_code: int | None) -> list[str]:
-        """Stop the keys, the page, the status line; finish the recording; the summary lines."""
+    def close(self, end_reason: str, exit_code: int | None,
+              halt_reason: str | None = None) -> list[str]:
+        """Stop the keys, the page, the status line; finish the recording; the summary lines
+        (`halt_reason`: what the summary says halted the robot, when not the recorded cause)."""
         self.keys.__exit__(None, None, None)
         view_dropped = None
         if self.view is not None:
@@ -233,6 +235,6 @@ class RunSession:
             "frames_seen": self.stats.frames_seen,
             "frames_skipped": self.stats.frames_skipped,
             "view_frames_dropped": view_dropped})
-        return summary_lines(self.stats, recording=str(self.folder),
+        return summary_lines(self.stats, halt_reason=halt_reason, recording=str(self.folder),
                              frames_dropped_recording=len(self.recording.frames_dropped),
                              view_dropped=view_dropped)

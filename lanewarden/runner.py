@@ -136,6 +136,7 @@ def run_robot(
         fault: str | None = None
         clip_ended = False
         ended_by = "an error"
+        final_state = "HALT"
         outcome: RunOutcome | None = None
         started = clock.now()
         try:
@@ -202,8 +203,12 @@ def run_robot(
                     loop.step(now)
             outcome = watch.outcome(ended_by, fault=fault, clip_ended=clip_ended)
         finally:
-            lines = session.close(outcome.ended_by if outcome else ended_by,
-                                  outcome.exit_code if outcome else None)
+            ended = outcome.ended_by if outcome else ended_by
+            # Engaged when the run ended: the runner's own closing stop halted it, not a fault.
+            closing = f"by the end of the run ({ended}) while {final_state}" if (
+                final_state != "HALT") else None
+            lines = session.close(ended, outcome.exit_code if outcome else None,
+                                  halt_reason=closing)
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,

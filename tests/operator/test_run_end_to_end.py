@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 from pathlib import Path
 
@@ -161,6 +162,9 @@ def test_sigint_and_sigterm_end_with_stop_and_the_summary(
     assert process.returncode == 0, err
     assert f"run ended: operator stop ({sig.name})" in out.strip().splitlines()[-1]
     assert "distance (odometry)" in out and "states visited: HALT, FOLLOW" in out
+    # the runner's own closing stop is named as such, not as a bare OPERATOR_STOP
+    assert re.search(rf"  halted: by the end of the run \(operator stop \({sig.name}\)\) while "
+                     r"(FOLLOW|TURN_LEFT|TURN_RIGHT|DEGRADED)\n", out), out
     assert controls[-1][1] == (0, 0), "stop is the last command on the wire"
     assert steps(record)[-1]["state"] == "HALT"
 
