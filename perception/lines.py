@@ -14,11 +14,13 @@ blurred image at a few points along the line, a cheap stand-in for the Sobel sig
 +1 dark-to-light going right, -1 light-to-dark, 0 no clear contrast. The two edges of a tape have
 opposite polarities (dark tape on a light floor: -1 then +1; light tape: +1 then -1).
 
-Pure functions of their inputs: never draws, never allocates per segment in Python.
+Pure functions of their inputs: never draws. Per-segment arithmetic is numpy; the greedy
+clustering pass alone loops in Python, over ints used as bit sets (see `_cluster_collinear`).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -224,25 +226,36 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
                        offset_tol_px: float) -> NDArray[np.intp]:
     """Greedy leader clustering, longest segment first: the line index of every segment. A
     segment joins the leader's line when its direction is within `angle_tol_deg` and its
-    midpoint within `offset_tol_px` of the leader's line (a precomputed compatibility matrix)."""
+    midpoint within `offset_tol_px` of the leader's line (a precomputed compatibility matrix).
+
+    The greedy pass runs on Python ints used as bit sets (bit j: segment j), one per segment
+    for the segments compatible with it, plus the set of segments still free: a few dozen
+    segments make a few lines, and this saves the few numpy calls per line the pass needed."""
     dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
     mid_x, mid_y, angle = pieces.mid_x, pieces.mid_y, pieces.angle
     off_line = np.abs((mid_x[None, :] - mid_x[:, None]) * dir_y[:, None]
                       - (mid_y[None, :] - mid_y[:, None]) * dir_x[:, None])
     compatible = ((np.abs(angle[None, :] - angle[:, None]) <= angle_tol_deg)
                   & (off_line <= offset_tol_px))
-    line_of = np.full(len(angle), -1, dtype=np.intp)
-    free = np.ones(len(angle), dtype=bool)
+    count = len(angle)
+    row_bytes = (count + 7) // 8
+    packed = np.packbits(compatible, axis=1, bitorder="little").tobytes()
+    compatible_with = [int.from_bytes(packed[i * row_bytes:(i + 1) * row_bytes], "little")
+                       for i in range(count)]
+    line_of = [-1] * count
+    free = (1 << count) - 1
     lines = 0
     for leader in np.argsort(-pieces.length, kind="stable").tolist():
-        if not free[leader]:
+        if not (free >> leader) & 1:
             continue
-        member = compatible[leader] & free
-        member[leader] = True
-        line_of[member] = lines
+        member = (compatible_with[leader] & free) | (1 << leader)
         free &= ~member
+        while member:
+            lowest = member & -member
+            line_of[lowest.bit_length() - 1] = lines
+            member ^= lowest
         lines += 1
-    return line_of
+    return np.array(line_of, dtype=np.intp)
 
 
 @dataclass(frozen=True)
@@ -275,8 +288,10 @@ def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp]) -> _LineFit:
     ux, uy = ux / norm, uy / norm
     cx = _sum_by(line_of, pieces.mid_x * length, lines) / support
     cy = _sum_by(line_of, pieces.mid_y * length, lines) / support
-    along_near = (x1 - cx[line_of]) * ux[line_of] + (y1 - cy[line_of]) * uy[line_of]
-    along_far = (x2 - cx[line_of]) * ux[line_of] + (y2 - cy[line_of]) * uy[line_of]
+    # Each segment's line's centre and direction, gathered once for both ends.
+    seg_cx, seg_cy, seg_ux, seg_uy = cx[line_of], cy[line_of], ux[line_of], uy[line_of]
+    along_near = (x1 - seg_cx) * seg_ux + (y1 - seg_cy) * seg_uy
+    along_far = (x2 - seg_cx) * seg_ux + (y2 - seg_cy) * seg_uy
     lowest = np.full(lines, np.inf)
     highest = np.full(lines, -np.inf)
     np.minimum.at(lowest, line_of, np.minimum(along_near, along_far))
@@ -284,6 +299,14 @@ def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp]) -> _LineFit:
     return _LineFit(ux=ux, uy=uy, cx=cx, cy=cy,
                     near_x=cx + lowest * ux, near_y=cy + lowest * uy,
                     far_x=cx + highest * ux, far_y=cy + highest * uy, support_px=support)
+
+
+@functools.cache
+def _sample_fractions(k: int) -> FloatArray:
+    """Where `k` points are sampled along a line: the middles of k equal parts (0..1)."""
+    fractions = (np.arange(k, dtype=np.float64) + 0.5) / k
+    fractions.flags.writeable = False
+    return fractions
 
 
 def _polarity(
@@ -299,7 +322,7 @@ def _polarity(
     """Sign of (right side - left side) brightness, sampled at a few points along each line."""
     height, width = gray.shape[:2]
     k = tape.polarity_samples
-    frac = (np.arange(k, dtype=np.float64) + 0.5) / k
+    frac = _sample_fractions(k)
     px = near_x[:, None] + (far_x - near_x)[:, None] * frac
     py = near_y[:, None] + (far_y - near_y)[:, None] * frac
     offset = max(tape.polarity_offset_frac_of_width * width, 1.5)
@@ -311,7 +334,8 @@ def _polarity(
     ys = np.concatenate([py + ny, py - ny]) + 0.5
     cols = np.minimum(np.maximum(xs, 0.0), width - 1.0).astype(np.intp)
     rows = np.minimum(np.maximum(ys, 0.0), height - 1.0).astype(np.intp)
-    values = gray[rows, cols].astype(np.float64).mean(axis=1)
+    # The mean of k whole numbers: their sum is exact in any order.
+    values = gray[rows, cols].sum(axis=1, dtype=np.float64) / k
     n = len(near_x)
     mean = values[:n] - values[n:]
     threshold = tape.min_contrast_levels
