@@ -44,6 +44,9 @@ class FrameVerdict:
     innovation: float | None = None
 
 
+NO_FRAME_JUDGED = FrameVerdict()
+
+
 class SupervisedController:
     """The product's controller. One instance per run (it keeps the run's history)."""
 
@@ -82,7 +85,7 @@ class SupervisedController:
 
         previous = inputs.previous_command
         events |= self._watchdog.check(now, inputs.frame, inputs.feedback, not previous.is_stop)
-        frame = FrameVerdict()
+        frame = NO_FRAME_JUDGED
         if inputs.observation is not None and Event.FRAME_INVALID not in events:
             frame = self._judge(inputs.observation, inputs.frame, events, details)
 

@@ -57,6 +57,11 @@ class Event(enum.Enum):
     LOOP_OVERRUN = "LOOP_OVERRUN"
     BATTERY_LOW = "BATTERY_LOW"
 
+    # Members are singletons compared by identity: hash them by identity too, in C. (Enum's own
+    # __hash__ hashes the name in Python code, and events go through sets and dicts many times a
+    # step; Python randomises string hashes per process anyway, so no order depended on it.)
+    __hash__ = object.__hash__
+
 
 @dataclass(frozen=True)
 class EventRule:
@@ -113,19 +118,24 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
 LANE_LOSS_EVENTS: frozenset[Event] = frozenset({Event.LANE_LOST})
 
 
+#: Each event's response, read from `EVENT_TABLE` once (asked for many times a step).
+_RESPONSES: Mapping[Event, Response] = {e: rule.response for e, rule in EVENT_TABLE.items()}
+#: Each event's place in the priority (declaration) order of `Event`.
+_PRIORITY: Mapping[Event, int] = {e: i for i, e in enumerate(Event)}
+
+
 def response_of(event: Event) -> Response:
-    return EVENT_TABLE[event].response
+    return _RESPONSES[event]
 
 
 def worst_response(events: Iterable[Event]) -> Response | None:
     """The most severe response among `events` (None for no events)."""
-    return max((response_of(e) for e in events), default=None)
+    return max(map(_RESPONSES.__getitem__, events), default=None)
 
 
 def ordered(events: Iterable[Event]) -> tuple[Event, ...]:
     """Events in table (priority) order, without duplicates."""
-    present = set(events)
-    return tuple(e for e in Event if e in present)
+    return tuple(sorted(set(events), key=_PRIORITY.__getitem__))
 
 
 def halt_reason(events: Iterable[Event], details: Mapping[Event, str] | None = None) -> str | None:

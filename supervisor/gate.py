@@ -26,7 +26,6 @@ Pure: time is the `now` passed in; nothing here reads a clock, a camera or a por
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from types import MappingProxyType
 
 from lanewarden.actuation.base import STOP, VelocityCommand
@@ -86,15 +85,7 @@ class SafetyGate:
             self._latched = halt_reason(hazards, details)
         elif inputs.start_requested or inputs.resume_requested:
             self._latched = None
-        wanted = self.controller.step(
-            replace(
-                inputs,
-                events=inputs.events | found.keys(),
-                event_details=MappingProxyType(details),
-                previous_command=self._limiter.last,
-            ),
-            now,
-        )
+        wanted = self.controller.step(_told(inputs, found, details, self._limiter.last), now)
         events = {*wanted.events, *found}
         dt = 0.0
         if not clock_ok:
@@ -107,11 +98,10 @@ class SafetyGate:
         if halt:
             self._limiter.stop()
             reason = wanted.halt_reason if wanted.state == HALT else None
-            return replace(wanted, command=STOP, state=HALT, events=ordered(events),
-                           halt_reason=reason or self._latched or halt_reason(events)
-                           or CONTROLLER_HALT_REASON)  # fmt: skip
-        command = self._limiter.limit(wanted.command, dt)
-        return replace(wanted, command=command, events=ordered(events))
+            return _sent(wanted, STOP, HALT, ordered(events),
+                         reason or self._latched or halt_reason(events) or CONTROLLER_HALT_REASON)
+        return _sent(wanted, self._limiter.limit(wanted.command, dt), wanted.state,
+                     ordered(events), wanted.halt_reason)
 
     def _hazards(self, inputs: ControlInputs, now: float) -> dict[Event, str]:
         """This step's physical hazards and the base's warnings (BATTERY_LOW), each with its
@@ -125,3 +115,38 @@ class SafetyGate:
         if not math.isfinite(age) or age > self._link_timeout_s:
             found.setdefault(Event.BASE_LINK_LOST, "")
         return found
+
+
+# The two helpers below copy every field by name (cheaper than dataclasses.replace, which the gate
+# would call twice a step): a field added to ControlInputs or ControlOutput must be added here.
+
+
+def _told(inputs: ControlInputs, found: dict[Event, str], details: dict[Event, str],
+          previous_command: VelocityCommand) -> ControlInputs:
+    """`inputs` as the controller sees them: plus the gate's findings and its last command."""
+    return ControlInputs(
+        frame=inputs.frame,
+        observation=inputs.observation,
+        feedback=inputs.feedback,
+        events=inputs.events | found.keys(),
+        event_details=MappingProxyType(details),
+        start_requested=inputs.start_requested,
+        resume_requested=inputs.resume_requested,
+        previous_command=previous_command,
+    )
+
+
+def _sent(wanted: ControlOutput, command: VelocityCommand, state: str,
+          events: tuple[Event, ...], reason: str | None) -> ControlOutput:
+    """The controller's output with what the gate decides: command, state, events, halt reason."""
+    return ControlOutput(
+        command=command,
+        state=state,
+        events=events,
+        halt_reason=reason,
+        filtered_slope_sum=wanted.filtered_slope_sum,
+        slope_sum_variance=wanted.slope_sum_variance,
+        innovation=wanted.innovation,
+        filtered_center_offset=wanted.filtered_center_offset,
+        lane_trusted=wanted.lane_trusted,
+    )

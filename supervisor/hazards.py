@@ -26,7 +26,7 @@ _SIDES: Mapping[Event, tuple[tuple[int, str], ...]] = MappingProxyType({
 def base_hazard_events(feedback: BaseFeedback | None) -> dict[Event, str]:
     """BUMPER / CLIFF / WHEEL_DROP for every bit field with a bit set, each with the sides set
     ("left, centre"); empty for no feedback (missing feedback is a matter of its age)."""
-    if feedback is None:
+    if feedback is None or not (feedback.bumper or feedback.cliff or feedback.wheel_drop):
         return {}
     bits = {Event.BUMPER: feedback.bumper, Event.CLIFF: feedback.cliff,
             Event.WHEEL_DROP: feedback.wheel_drop}  # fmt: skip

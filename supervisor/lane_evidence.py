@@ -33,15 +33,18 @@ class LaneAssessment:
     """The measurement for the slope filter (None: predict only)."""
 
 
-def _finite(value: float | None) -> bool:
-    return value is None or (isinstance(value, int | float) and math.isfinite(value))
+def _finite(*values: float | None) -> bool:
+    """Every value is None or a finite number."""
+    for value in values:
+        if value is not None and not (isinstance(value, int | float) and math.isfinite(value)):
+            return False
+    return True
 
 
 def _edge_problem(name: str, edge: LaneEdge | None) -> str | None:
     if edge is None:
         return None
-    values = (edge.x1, edge.y1, edge.x2, edge.y2, edge.slope)
-    if not all(_finite(v) for v in values):
+    if not _finite(edge.x1, edge.y1, edge.x2, edge.y2, edge.slope):
         return f"{name} edge has a non-finite coordinate or slope"
     return None
 
@@ -53,7 +56,7 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
         return f"confidence {obs.confidence!r} is not in [0, 1]"
     if not _finite(obs.slope_sum):
         return f"slope_sum {obs.slope_sum!r} is not finite"
-    if not (_finite(obs.lane_offset_m) and _finite(obs.lane_heading_rad)):
+    if not _finite(obs.lane_offset_m, obs.lane_heading_rad):
         return (f"lane_offset_m {obs.lane_offset_m!r} / lane_heading_rad "
                 f"{obs.lane_heading_rad!r} is not finite")
     if obs.both_edges != (obs.slope_sum is not None):

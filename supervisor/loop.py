@@ -193,12 +193,12 @@ class ControlLoop:
             now,
         )
         self._stops_delivered = stop_requests
-        sent_events = set(output.events)
+        sent_events = output.events  # the gate's are in priority order already
         if not self._send(output.command, now):
-            sent_events.add(Event.BASE_LINK_LOST)
+            sent_events = ordered((*sent_events, Event.BASE_LINK_LOST))
         if self._stop_requests != stop_requests and not output.command.is_stop:
             self._send(STOP, now)  # a stop arrived during this step: it wins over our command
-        record = self._make_record(now, info, observation, output, ordered(sent_events))
+        record = self._make_record(now, info, observation, output, sent_events)
         if self._record is not None:
             self._record(record)
         return record

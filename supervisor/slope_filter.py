@@ -1,7 +1,8 @@
 """Kalman filter (filterpy) on the lane's slope sum, with outlier gating.
 
 State x = [slope_sum, rate_per_s] (constant-rate model). Time is the frames' capture time: F and Q
-are rebuilt from each step's dt and passed to `predict(F=..., Q=...)`. The measurement noise grows
+are built for each step's dt (once per distinct dt: a camera's frame intervals take few values)
+and passed to `predict(F=..., Q=...)`. The measurement noise grows
 as the observation's confidence falls (R = (std / max(confidence, floor))^2). A frame without a
 usable slope sum only predicts, so the variance grows. Before an update the innovation's Mahalanobis
 distance is checked: above `innovation_gate_sigma` the measurement is rejected and reported as
@@ -45,6 +46,10 @@ class SlopeEstimate:
     @property
     def outlier(self) -> bool:
         return Event.INNOVATION_OUTLIER in self.events
+
+
+#: How many distinct step lengths' F and Q a filter keeps (a camera's intervals take few values).
+MOTION_MODELS_KEPT = 64
 
 
 def transition_matrix(dt: float) -> np.ndarray:
@@ -93,6 +98,7 @@ class SlopeSumFilter:
         self._accepted_at_s: float | None = None
         self._rejections: deque[bool] = deque(maxlen=config.outliers_window_frames)
         self._last = SlopeEstimate(None, None, None)
+        self._motion_by_dt: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     @property
     def estimate(self) -> SlopeEstimate:
@@ -120,7 +126,8 @@ class SlopeSumFilter:
         dt = 0.0 if self._time_s is None else max(0.0, time_s - self._time_s)
         self._time_s = time_s if self._time_s is None else max(time_s, self._time_s)
         if dt > 0.0:
-            self._kf.predict(F=transition_matrix(dt), Q=process_noise(dt, cfg))
+            f, q = self._motion_model(dt)
+            self._kf.predict(F=f, Q=q)
         if not measured:
             if (
                 self._accepted_at_s is not None
@@ -133,8 +140,9 @@ class SlopeSumFilter:
         assert slope_sum is not None
 
         r = measurement_variance(confidence, cfg)
-        innovation = float(slope_sum - (self._kf.H @ self._kf.x)[0, 0])
-        s = float((self._kf.H @ self._kf.P @ self._kf.H.T)[0, 0] + r)
+        # H = [1, 0]: H x is the slope sum's estimate and H P H' its variance.
+        innovation = slope_sum - float(self._kf.x[0, 0])
+        s = float(self._kf.P[0, 0]) + r
         distance = abs(innovation) / math.sqrt(s)
         if distance > cfg.innovation_gate_sigma:
             self._rejections.append(True)
@@ -159,9 +167,21 @@ class SlopeSumFilter:
             return self._remember(self._snapshot(innovation, distance, False, frozenset(events)))
 
         self._rejections.append(False)
-        self._kf.update(np.array([[slope_sum]]), R=np.array([[r]]))
+        self._kf.update(np.array([[slope_sum]]), R=np.array([[r]]), H=self._kf.H)
         self._accepted_at_s = time_s
         return self._remember(self._snapshot(innovation, distance, True))
+
+    def _motion_model(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """F and Q for a step of `dt` seconds, read-only (filterpy's predict only reads them)."""
+        model = self._motion_by_dt.get(dt)
+        if model is None:
+            if len(self._motion_by_dt) >= MOTION_MODELS_KEPT:
+                self._motion_by_dt.clear()
+            model = (transition_matrix(dt), process_noise(dt, self._config))
+            for matrix in model:
+                matrix.flags.writeable = False
+            self._motion_by_dt[dt] = model
+        return model
 
     def _restart(
         self, time_s: float, slope_sum: float, confidence: float, events: frozenset[Event]

@@ -1,8 +1,9 @@
 """The fail-safe state machine (transitions): FOLLOW, TURN_LEFT, TURN_RIGHT, DEGRADED, HALT.
 
-One trigger, `tick`, fires once per control step. `TRANSITIONS` is the explicit table: for each
+One trigger, `tick`, serves every control step. `TRANSITIONS` is the explicit table: for each
 source state the rows are tried in order and the first whose named condition holds wins (so HALT
-beats DEGRADE beats recovery beats turning). No row matching means "stay". HALT is the initial state
+beats DEGRADE beats recovery beats turning). No row matching means "stay" (and a step where no row
+of the current state can match does not fire the trigger at all). HALT is the initial state
 and is latched: entering it disarms any engage request, and only a NEW start/resume request plus
 `engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again.
 A fresh HALT event while halted re-enters HALT (new reason, request disarmed again).
@@ -40,6 +41,8 @@ class SupervisorState(enum.Enum):
     DEGRADED = "DEGRADED"
     HALT = "HALT"
 
+    __hash__ = object.__hash__  # singletons: identity hash, in C (Enum's hashes the name in Python)
+
 
 S = SupervisorState
 ENGAGED_STATES: frozenset[SupervisorState] = frozenset(
@@ -63,6 +66,22 @@ TRANSITIONS: tuple[dict[str, Any], ...] = (
     {"trigger": "tick", "source": S.TURN_LEFT, "dest": S.FOLLOW, "conditions": "bend_left_ended"},
     {"trigger": "tick", "source": S.TURN_RIGHT, "dest": S.FOLLOW, "conditions": "bend_right_ended"},
 )  # fmt: skip
+
+
+def _conditions_by_source() -> dict[SupervisorState, tuple[str, ...]]:
+    """For each state, the named conditions of the `TRANSITIONS` rows that leave it, in order."""
+    names: dict[SupervisorState, list[str]] = {state: [] for state in SupervisorState}
+    for row in TRANSITIONS:
+        sources = row["source"] if isinstance(row["source"], list) else [row["source"]]
+        for source in sources:
+            names[source].append(row["conditions"])
+    return {state: tuple(conditions) for state, conditions in names.items()}
+
+
+#: What `tick` may do from each state: nothing unless one of these conditions holds.
+CONDITIONS_BY_SOURCE: Mapping[SupervisorState, tuple[str, ...]] = MappingProxyType(
+    _conditions_by_source()
+)
 
 
 def machine_arguments() -> dict[str, Any]:
@@ -103,10 +122,9 @@ class Tick:
 
     facts: StepFacts
     events: frozenset[Event]
-
-    @property
-    def worst(self) -> Response | None:
-        return worst_response(self.events)
+    #: The most severe response among `events` (None: no events), worked out once for all the
+    #: conditions that ask.
+    worst: Response | None
 
 
 class SupervisorStateMachine:
@@ -122,6 +140,10 @@ class SupervisorStateMachine:
         self.degraded_since_s: float | None = None
         self.degraded_travelled_m = 0.0
         self._machine = Machine(model=self, **machine_arguments())
+        self._conditions = {
+            state: tuple(getattr(self, name) for name in names)
+            for state, names in CONDITIONS_BY_SOURCE.items()
+        }
 
     @property
     def engaged(self) -> bool:
@@ -131,21 +153,22 @@ class SupervisorStateMachine:
         """Run one control step; returns the tick (facts + all events, including LANE_LOST and
         DEGRADED_BUDGET_EXHAUSTED raised here)."""
         cfg = self._config
-        events = set(facts.events)
+        raised: set[Event] = set()
         if self.engaged and (
             facts.lane_seen_at_s is None or facts.now - facts.lane_seen_at_s > cfg.lane_lost_halt_s
         ):
-            events.add(Event.LANE_LOST)
+            raised.add(Event.LANE_LOST)
         if self.state is S.DEGRADED and self.degraded_since_s is not None:
             self.degraded_travelled_m += abs(facts.travelled_m)
             if (
                 facts.now - self.degraded_since_s > cfg.degraded_budget_s
                 or self.degraded_travelled_m > cfg.degraded_budget_m
             ):
-                events.add(Event.DEGRADED_BUDGET_EXHAUSTED)
+                raised.add(Event.DEGRADED_BUDGET_EXHAUSTED)
         if facts.engage_requested and self.state is S.HALT:
             self.engage_armed = True
-        tick = Tick(facts, frozenset(events))
+        events = facts.events | raised if raised else facts.events
+        tick = Tick(facts, events, worst_response(events))
         worst = tick.worst
         if worst is not None and worst >= Response.DEGRADE:
             self.confident_streak = 0
@@ -153,8 +176,17 @@ class SupervisorStateMachine:
             self.confident_streak += 1
         elif facts.frame_confident is False:
             self.confident_streak = 0
-        self._machine.events["tick"].trigger(self, tick)
+        if self._may_fire(tick):
+            self._machine.events["tick"].trigger(self, tick)
         return tick
+
+    def _may_fire(self, tick: Tick) -> bool:
+        """Whether some row leaving the current state has its condition met. When none has,
+        transitions' `tick` would do nothing (no transition, no callback): it is not fired."""
+        for condition in self._conditions[self.state]:
+            if condition(tick):
+                return True
+        return False
 
     # --- named conditions (called by transitions with the Tick) ---
     def must_halt(self, tick: Tick) -> bool:
