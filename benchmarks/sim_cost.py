@@ -81,7 +81,8 @@ def main() -> None:
     for r in results:
         warm = r["cpu_s_per_run"][1:] or r["cpu_s_per_run"]
         frames = "rectified" if r["rectified"] else "lens"
-        print(f"{r['resolution']:>8} ({frames}): first run {r['cpu_s_per_run'][0]:.2f} s CPU, warm runs "
+        print(f"{r['resolution']:>8} ({frames}): first run {r['cpu_s_per_run'][0]:.2f} s CPU, "
+              f"warm runs "
               f"{sum(warm) / len(warm):.2f} s CPU per {r['simulated_s'][0]:.0f} s simulated; "
               f"worker peak RSS {r['peak_rss_mb']:.0f} MB; imports {r['import_cpu_s']:.1f} s "
               f"CPU; heavy modules imported: {', '.join(r['heavy_modules_imported']) or 'none'}")
