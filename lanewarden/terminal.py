@@ -39,8 +39,9 @@ def _num(value: Any, fmt: str, missing: str = "-") -> str:
 
 
 def format_status(status: dict[str, Any]) -> str:
-    """One line: 'FOLLOW  30.0 fps  conf 0.82  slope +1.20/+1.05  v 0.20 w +0.05  battery 16.2 V
-    link ok' (HALT shows its reason's event name)."""
+    """One line: 'FOLLOW  30.0 fps  conf 0.82 (weakest lane_width 0.75)  slope +1.20/+1.05  v 0.20
+    w +0.05  battery 16.2 V  link ok' (HALT shows its reason's event name; the weakest confidence
+    component below 1 says what holds perception back, e.g. while nothing engages)."""
     state = str(status.get("state"))
     reason = status.get("halt_reason")
     if state == "HALT" and reason:
@@ -50,10 +51,16 @@ def format_status(status: dict[str, Any]) -> str:
     filtered = _num(status.get("filtered_slope_sum"), "+.2f")
     linear = _num(command.get("linear_m_s"), ".2f")
     angular = _num(command.get("angular_rad_s"), "+.2f")
+    confidence = f"conf {_num(status.get('confidence'), '.2f')}"
+    components = status.get("components") or {}
+    if components:
+        name, value = min(components.items(), key=lambda item: item[1])
+        if value < 1.0:
+            confidence += f" (weakest {name} {value:.2f})"
     parts = [
         state,
         f"{_num(status.get('fps'), '.1f')} fps",
-        f"conf {_num(status.get('confidence'), '.2f')}",
+        confidence,
         f"slope {raw}/{filtered}",
         f"v {linear} w {angular}",
         f"battery {_num(status.get('battery_v'), '.1f', '?')} V",

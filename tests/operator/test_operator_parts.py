@@ -168,8 +168,11 @@ def test_status_and_summary_say_what_the_operator_needs() -> None:
         "fps": None, "loop_ms": 4.2, "loop_ms_max": 4.2, "base_link": "ok", "battery_v": 16.2,
         "distance_m": 0.0,
         "frames_skipped": 0, "frames_late": 0, "base": "sim"}
-    assert format_status(status) == ("HALT (LANE_LOST)  - fps  conf 0.81  slope -/+0.50  "
-                                     "v 0.00 w +0.25  battery 16.2 V  link ok")
+    assert format_status(status) == ("HALT (LANE_LOST)  - fps  conf 0.81 (weakest width 0.75)  "
+                                     "slope -/+0.50  v 0.00 w +0.25  battery 16.2 V  link ok")
+    # every component at 1: nothing named
+    whole = {**status, "components": {"edges": 1.0, "width": 1.0}}
+    assert "conf 0.81  slope" in format_status(whole)
     lines = summary_lines(stats, recording="runs/x",
                           frames_dropped_recording=2, view_dropped=5)
     assert lines == [
