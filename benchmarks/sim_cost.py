@@ -5,10 +5,10 @@ Each resolution gets a fresh worker process (as a Dask worker would be) that run
 run `--runs` times in a row: the first run pays for painting the floor, the next ones reuse it
 (`paint_ground_cached`), as a campaign's worker does. The run is the `straight` scenario with no
 fault (it drives the whole 20 s), supervised, no video, no plot, judged like a campaign run, with
-the default campaign spec's `config:` (rectified frames: one remap per frame); `--lens` renders
-the camera's lens distortion and lets perception undistort (as `lanewarden sim` does).
+the default campaign spec's `config:` (through the lens, perception undistorting);
+`--rectified` sets `simulation.rectified_frames` (one remap per frame instead of two).
 
-    python benchmarks/sim_cost.py [--runs 3] [--scenario straight] [--lens]
+    python benchmarks/sim_cost.py [--runs 3] [--scenario straight] [--rectified]
 
 Prints CPU s per run (first and warm), peak RSS of the worker, and whether heavy modules
 (matplotlib, imageio_ffmpeg, dask) were imported. Targets at 320x240: <= 1.5 s CPU per warm run,
@@ -26,7 +26,7 @@ import time
 from typing import Any
 
 
-def _worker(scenario: str, width: int, height: int, runs: int, lens: bool) -> dict[str, Any]:
+def _worker(scenario: str, width: int, height: int, runs: int, rectified: bool) -> dict[str, Any]:
     started = time.process_time()
     from lanewarden.assembly import build_stack
     from lanewarden.config import config_from_mapping
@@ -41,8 +41,8 @@ def _worker(scenario: str, width: int, height: int, runs: int, lens: bool) -> di
     campaign_config = load_campaign_spec(DEFAULT_SPEC)[0].config
     simulation = {**campaign_config.get("simulation", {}), "width_px": width,
                   "height_px": height, "progress": False}
-    if lens:
-        simulation["rectified_frames"] = False
+    if rectified:
+        simulation["rectified_frames"] = True
     config = effective_config(config_from_mapping({**campaign_config, "simulation": simulation}),
                               spec)
     cpu, sim_s = [], []
@@ -65,8 +65,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--scenario", default="straight")
-    parser.add_argument("--lens", action="store_true",
-                        help="render lens distortion and undistort in perception (sim's way)")
+    parser.add_argument("--rectified", action="store_true",
+                        help="simulation.rectified_frames: the pinhole image, no undistortion")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     context = multiprocessing.get_context("spawn")
@@ -74,7 +74,7 @@ def main() -> None:
     for width, height in ((640, 480), (320, 240)):
         with context.Pool(1) as pool:
             results.append(pool.apply(_worker, (args.scenario, width, height, args.runs,
-                                                    args.lens)))
+                                                    args.rectified)))
     if args.json:
         print(json.dumps(results, indent=2))
         return
