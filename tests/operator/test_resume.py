@@ -60,6 +60,11 @@ def assert_resumed_after_confident_frames(records: list[dict[str, Any]]) -> None
 def test_resume_from_the_kobuki_b0_button(gap_clip: Path, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     record = tmp_path / "run"
+    # This test is about resuming, not the dead-man: the run shares this process with pytest, and
+    # a loaded CI machine once stalled it 0.201 s, past the default 0.2 s heartbeat timeout (the
+    # dead-man's own tests keep the default).
+    patient = tmp_path / "patient-deadman.yaml"
+    patient.write_text("actuation:\n  heartbeat_timeout_s: 1.0\n", encoding="utf-8")
     with KobukiStandIn() as kobuki:
         def operator() -> None:
             if wait_until(lambda: halted_after_engaging(record), 30.0):
@@ -69,7 +74,7 @@ def test_resume_from_the_kobuki_b0_button(gap_clip: Path, tmp_path: Path,
                 kobuki.buttons = 0  # ... and up
 
         code = run_beside(operator, ["--camera", str(gap_clip), "--port", kobuki.port,
-                                     "--record", str(record)])
+                                     "--record", str(record), "--config", str(patient)])
     assert code == 0, capsys.readouterr().err
     records = steps(record)
     assert_resumed_after_confident_frames(records)
