@@ -284,8 +284,6 @@ STREAM_KILLERS = {"camera_freeze": CAMERA_STREAM_KINDS, "camera_drop": CAMERA_ST
                   "camera_error": CAMERA_STREAM_KINDS, "base_link_loss": LINK_STREAM_KINDS}
 #: ... so such a fault starts at least this long after the other faults on its stream.
 AFTER_OTHERS_S = 0.5
-
-
 #: When two permanent losses of one stream are drawn, the earlier one lasts this long instead.
 SHORTENED_LOSS_S = 1.0
 
@@ -308,7 +306,8 @@ def _stream_loss_last(faults: list[dict[str, Any]]) -> None:
         if stream is None or killer.get("duration_s") is not None or "at_s" not in killer:
             continue
         # after the others start, and after a (shortened) loss of the same stream ends
-        others = [f["at_s"] + (f.get("duration_s") or 0.0 if f["kind"] in STREAM_KILLERS else 0.0)
+        others = [f["at_s"] + ((f.get("duration_s") or 0.0) if f["kind"] in STREAM_KILLERS
+                               else 0.0)
                   for f in faults if f is not killer and f["kind"] in stream and "at_s" in f]
         if others and killer["at_s"] < max(others) + AFTER_OTHERS_S:
             killer["at_s"] = round(max(others) + AFTER_OTHERS_S, 3)
