@@ -11,6 +11,7 @@ import ast
 import os
 import subprocess
 import sys
+import tomllib
 import zipfile
 from pathlib import Path
 
@@ -23,8 +24,33 @@ LAYERS = ("perception", "supervisor", "actuation", "scenarios")
 
 def _python_files() -> list[Path]:
     roots = [PROJECT_ROOT / name for name in (*LAYERS, "lanewarden", "tests", "benchmarks")]
-    return [path for root in roots for path in root.rglob("*.py")
-            if "lanewarden/" + root.name not in str(path.relative_to(PROJECT_ROOT))]
+    return [path for root in roots for path in root.rglob("*.py")]
+
+
+def test_the_tree_has_no_symlinks() -> None:
+    """A clone must work where git checks symlinks out as plain files (Windows without developer
+    mode): the layers are mapped by setuptools' package-dir, not linked."""
+    listed = subprocess.run(["git", "ls-files", "-s"], cwd=PROJECT_ROOT, capture_output=True,
+                            text=True)
+    if listed.returncode != 0:
+        pytest.skip(f"not a git checkout: {listed.stderr.strip()[:80]}")
+    links = [line.split("\t", 1)[1] for line in listed.stdout.splitlines()
+             if line.startswith("120000 ")]
+    assert links == []
+
+
+def test_every_package_folder_is_listed_for_setuptools() -> None:
+    """pyproject lists the packages by hand (package-dir mapping); a new folder with an
+    __init__.py must be listed there or it is missing from the wheel."""
+    config = tomllib.loads((PROJECT_ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    mapping = {"lanewarden": "lanewarden", **config["package-dir"]}
+    expected = set()
+    for name, folder in mapping.items():
+        for init in (PROJECT_ROOT / folder).rglob("__init__.py"):
+            relative = init.parent.relative_to(PROJECT_ROOT / folder).parts
+            expected.add(".".join((name, *relative)))
+    assert set(config["packages"]) == expected
+    assert set(config["package-dir"]) == {f"lanewarden.{layer}" for layer in LAYERS}
 
 
 def test_no_code_imports_a_layer_by_its_bare_top_level_name() -> None:
