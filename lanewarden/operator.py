@@ -5,7 +5,9 @@ status and the final summary.
   requests. They go through the supervisor's own requests: Stop calls `ControlLoop.operator_stop`
   at once from the caller's thread (a zero command immediately, HALT at the next step); Start and
   Resume only arm (`ControlLoop.start` / `resume`, delivered by the control thread before its next
-  step), so the supervisor still needs its confident frames before anything moves.
+  step), so the supervisor still needs its confident frames before anything moves. Every request
+  is announced the same way, when it is made (`notify`: the terminal's "stop requested (page)").
+  It also says what the live page's buttons may offer: `started` and `armed`.
 - `ButtonEdges`: B0 = start/resume, B1 = stop, on the press (edge), not while held.
 - `RunStats`: duration, distance from odometry, states visited, frames seen/skipped/late, loop
   times, frame rate; fed one step at a time.
@@ -20,12 +22,13 @@ import math
 import threading
 from array import array
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from lanewarden.actuation.base import BaseFeedback
 from lanewarden.perception.observation import LaneObservation
+from lanewarden.supervisor.events import LANE_LOSS_EVENTS, Event, Response, response_of
 from lanewarden.supervisor.loop import StepRecord
 
 #: Kobuki button bits (BaseFeedback.buttons): B0 starts or resumes, B1 stops.
@@ -50,16 +53,37 @@ class OperatorRequest:
     time_s: float
 
 
-class OperatorPanel:
-    """Thread-safe entry point for operator requests (see the module docstring)."""
+def halting_events(events: Iterable[str]) -> set[Event]:
+    """The events of a step that halt (and so disarm any engage request made before them)."""
+    found = set()
+    for name in events:
+        try:
+            event = Event(name)
+        except ValueError:
+            continue
+        if response_of(event) is Response.HALT:
+            found.add(event)
+    return found
 
-    def __init__(self, loop: Engageable, clock: Callable[[], float]) -> None:
+
+class OperatorPanel:
+    """Thread-safe entry point for operator requests (see the module docstring).
+
+    `notify(request)` is called for every request as it is made (from the requesting thread).
+    `auto_resume_after_lane_loss`: the supervisor's setting (a LANE_LOST halt re-arms itself)."""
+
+    def __init__(self, loop: Engageable, clock: Callable[[], float], *,
+                 notify: Callable[[OperatorRequest], None] | None = None,
+                 auto_resume_after_lane_loss: bool = False) -> None:
         self._loop = loop
         self._clock = clock
+        self._notify = notify
+        self._auto_resume = auto_resume_after_lane_loss
         self._lock = threading.Lock()
         self._pending: list[OperatorRequest] = []
         self.history: deque[OperatorRequest] = deque(maxlen=20)
         self._started = False
+        self._armed = False
 
     def start(self, source: str) -> None:
         self._queue("start", source)
@@ -76,12 +100,42 @@ class OperatorPanel:
     def stop(self, source: str) -> None:
         now = self._clock()
         self._loop.operator_stop(now)
+        request = OperatorRequest("stop", source, now)
         with self._lock:
-            self.history.append(OperatorRequest("stop", source, now))
+            self.history.append(request)
+        if self._notify is not None:
+            self._notify(request)
 
     def _queue(self, kind: str, source: str) -> None:
+        request = OperatorRequest(kind, source, self._clock())
         with self._lock:
-            self._pending.append(OperatorRequest(kind, source, self._clock()))
+            self._pending.append(request)
+        if self._notify is not None:
+            self._notify(request)
+
+    @property
+    def started(self) -> bool:
+        """A start request has been made (delivered or about to be)."""
+        with self._lock:
+            return self._started or any(r.kind == "start" for r in self._pending)
+
+    @property
+    def armed(self) -> bool:
+        """A start or resume waits to engage the robot: made since it last halted and not
+        undone by a new halt (the supervisor's latch rule), or not delivered yet."""
+        with self._lock:
+            return self._armed or bool(self._pending)
+
+    def observe(self, state: str, events: Iterable[str]) -> None:
+        """After each step (the control thread): engaged, or a halting event in this step
+        (which disarms as the supervisor does; a lane-loss halt re-arms itself when
+        `auto_resume_after_lane_loss`), ends what `armed` said."""
+        if state != "HALT":
+            self._armed = False
+            return
+        halting = halting_events(events)
+        if halting:
+            self._armed = self._auto_resume and halting <= LANE_LOSS_EVENTS
 
     def deliver(self, now: float) -> list[OperatorRequest]:
         """Hand queued Start/Resume requests to the loop (the control thread, before a step)."""
@@ -90,6 +144,7 @@ class OperatorPanel:
             for request in pending:
                 self.history.append(request)
                 self._started = self._started or request.kind == "start"
+            self._armed = self._armed or bool(pending)
         for request in pending:
             if request.kind == "start":
                 self._loop.start(now)

@@ -87,9 +87,17 @@ class RunSession:
         #: live-view benchmark compares).
         self.step_cpu_s: array[float] = array("d")
         self.view: LiveView | None = None
-        if options.view is not None:  # a bad or busy --view fails before anything is written
-            host, port = parse_view_address(options.view)
-            self.view = LiveView(host, port, self)
+        self.printer = StatusPrinter(self._out)
+        try:
+            if options.view is not None:  # a bad or busy --view fails before anything is written
+                host, port = parse_view_address(options.view)
+                sup = config.supervisor
+                self.view = LiveView(host, port, self, log=self.printer.message, plot={
+                    "turn_enter_slope_sum": sup.turn_enter_slope_sum,
+                    "turn_exit_slope_sum": sup.turn_exit_slope_sum})
+        except BaseException:
+            self.printer.close()
+            raise
         try:
             folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
                                                           dt.datetime.now(dt.UTC))
@@ -103,10 +111,10 @@ class RunSession:
         except BaseException:
             if self.view is not None:
                 self.view.close()
+            self.printer.close()
             if hasattr(self, "recorder"):
                 self.recorder.close({"end_reason": "could not start", "exit_code": None})
             raise
-        self.printer = StatusPrinter(self._out)
         self.keys = KeyReader(self._on_key)
         self.recording: RecordingSummary | None = None
 
@@ -123,9 +131,17 @@ class RunSession:
 
     def attach(self, loop: ControlLoop) -> OperatorPanel:
         """Connect the operator's inputs (keys, buttons, page) to the loop's requests."""
-        self.panel = OperatorPanel(loop, self._clock)
+        self.panel = OperatorPanel(
+            loop, self._clock,
+            notify=lambda request: self.printer.message(
+                f"{request.kind} requested ({request.source})"),
+            auto_resume_after_lane_loss=self.config.supervisor.auto_resume_after_lane_loss)
         if self.view is not None:
             self.printer.message(f"live view: {self.view.url}")
+            if self.view.token is not None:
+                self.printer.message(
+                    f"live view: not bound to loopback: the page needs the token {self.view.token}"
+                    " (in the address above; anyone with it can start the robot)")
         if self.options.keys:
             self.keys.__enter__()
             if self.keys.active:
@@ -137,8 +153,7 @@ class RunSession:
         self._step_started_s = now
         self._step_cpu_started_s = time.thread_time()
         if self.panel is not None:
-            for request in self.panel.deliver(now):
-                self.printer.message(f"{request.kind} requested ({request.source})")
+            self.panel.deliver(now)  # each request was announced when it was made
 
     def after_step(self, record: StepRecord) -> None:
         """The loop's record callback (runs inside the step: cheap work only)."""
@@ -151,6 +166,7 @@ class RunSession:
         self.stats.add(record, feedback, self._loop_time_s)
         self.recorder.record(record, step_input, new_frame)
         if self.panel is not None:
+            self.panel.observe(record.state, record.events)
             apply_buttons(self._buttons, feedback, self.panel)
         sup = self.config.supervisor
         status = status_of(
@@ -159,7 +175,9 @@ class RunSession:
                            sup.base_link_timeout_s),
             extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
                    "recording": str(self.folder),
-                   "recording_frames_dropped": len(self.recorder.summary.frames_dropped)})
+                   "recording_frames_dropped": len(self.recorder.summary.frames_dropped),
+                   "started": self.panel is not None and self.panel.started,
+                   "armed": self.panel is not None and self.panel.armed})
         self.printer.publish(status)
         if self.view is not None:
             frame = None
@@ -194,7 +212,6 @@ class RunSession:
             return
         if action == "stop":
             self.panel.stop("key")
-            self.printer.message("stop requested (key)")
         elif action == "start":
             self.panel.start("key")
         else:

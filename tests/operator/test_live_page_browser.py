@@ -1,7 +1,15 @@
-"""The live page in a real headless browser (Debian's chromium + chromedriver, driven by selenium)
-during a real `lanewarden run --base sim --view`: it shows the camera image, the state follows the
-run, and its Stop button halts the run (OPERATOR_STOP). Skipped, with the reason, where chromium,
-chromedriver or selenium is absent (`apt-get install -y chromium chromium-driver`)."""
+"""The live page in a real headless browser (Debian's chromium + chromedriver, driven by selenium).
+
+- During a real `lanewarden run --base sim --view`: the page shows the camera image with the panel
+  of the same step, its plot updates, its buttons are enabled by the rule, and its Stop halts the
+  run (OPERATOR_STOP) and is announced on the terminal. A screenshot is saved in the test's folder.
+- Issue 18's attacks where a browser matters, against a halted robot (the view's requests record
+  what would reach it): another site's page (a second local server, another host name and port)
+  smuggling a POST /resume in the body of a no-cors fetch or a text/plain form; a DNS-rebinding
+  page (the same origin, then the view behind it); and on a non-loopback bind the token, taken
+  from the address once and never left in it.
+Skipped, with the reason, where chromium, chromedriver or selenium is absent (`apt-get install -y
+chromium chromium-driver`)."""
 
 from __future__ import annotations
 
@@ -9,19 +17,34 @@ import os
 import shutil
 import signal
 import tempfile
+import threading
 from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from lanewarden.live_view import LiveView
 from tests.operator.runs import free_port, long_lane_images, run_beside, steps, wait_until
+from tests.operator.test_live_view import Requests
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
+#: Every *.example name resolves to this machine in the test's browser (attacker sites).
+RESOLVER_RULES = "MAP *.example 127.0.0.1"
+#: This test is about the page, not the watchdog: Chromium shares the CPU with the run, so frames
+#: may come late on a loaded machine (the watchdog's own tests keep the defaults).
+PATIENT_CONFIG = """supervisor:
+  frame_late_s: 0.5
+  frame_stale_s: 1.0
+  frame_frozen_s: 2.0
+  base_feedback_late_s: 0.5
+  base_link_timeout_s: 1.0
+"""
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     if CHROMIUM is None or CHROMEDRIVER is None:
         pytest.skip("chromium and chromedriver not installed (apt-get install -y chromium "
@@ -35,9 +58,12 @@ def browser() -> Iterator[Any]:
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
-                 f"--user-data-dir={profile}", "--window-size=1200,900"):
+                 f"--user-data-dir={profile}", "--window-size=1200,900",
+                 f"--host-resolver-rules={RESOLVER_RULES}",
+                 "--disable-features=HttpsUpgrades,HttpsFirstBalancedModeAutoEnable"):
         options.add_argument(flag)
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver.set_script_timeout(20)
     try:
         yield driver
     finally:
@@ -45,22 +71,31 @@ def browser() -> Iterator[Any]:
         shutil.rmtree(profile, ignore_errors=True)
 
 
+def js(driver: Any, script: str, *args: Any) -> Any:
+    try:
+        return driver.execute_script(script, *args)
+    except Exception:  # noqa: BLE001 (the page may be loading)
+        return None
+
+
+# ---- the page during a real run -----------------------------------------------------------------
 def test_the_page_shows_the_run_and_its_stop_button_halts_it(
         browser: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from selenium.webdriver.common.by import By
 
     clip = long_lane_images(tmp_path, seconds=12.0)
     record = tmp_path / "run"
+    config = tmp_path / "patient.yaml"
+    config.write_text(PATIENT_CONFIG, encoding="utf-8")
     port = free_port()
     seen: dict[str, Any] = {}
+    live = "return window.lanewarden"
+
+    def buttons() -> dict[str, bool]:
+        return {b: browser.find_element(By.ID, b).is_enabled()
+                for b in ("start", "resume", "stop")}
 
     def operator() -> None:
-        def text(element_id: str) -> str:
-            try:
-                return str(browser.find_element(By.ID, element_id).text)
-            except Exception:  # noqa: BLE001 (the page may be reloading)
-                return ""
-
         def page_loaded() -> bool:
             try:
                 browser.get(f"http://127.0.0.1:{port}/")
@@ -68,29 +103,203 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
             except Exception:  # noqa: BLE001 (the server is not up yet)
                 return False
 
+        def following_with_its_frame() -> bool:
+            state = js(browser, live)
+            return bool(state and state["frameStatus"] and state["latest"]
+                        and state["latest"]["state"] == "FOLLOW"
+                        and state["frameStatus"]["state"] == "FOLLOW"
+                        and state["panelStep"] == state["frameStatus"]["step"]
+                        and len(state["plot"]["samples"]) > 10)
+
         try:
             if not wait_until(page_loaded, 30.0, poll_s=0.2):
                 return
-            seen["image"] = wait_until(lambda: browser.execute_script(
-                "const i = document.getElementById('frame');"
+            seen["image"] = wait_until(lambda: js(
+                browser, "const i = document.getElementById('frame');"
                 "return i.complete && i.naturalWidth > 0;"), 20.0)
-            seen["follow"] = wait_until(lambda: text("state") == "FOLLOW", 20.0)
-            browser.save_screenshot(str(tmp_path / "page.png"))
+            seen["follow"] = wait_until(following_with_its_frame, 30.0)
+            first = js(browser, live)
+            # The plot's data changes from one poll to a later one (counted polls, not time).
+            wait_until(lambda: js(browser, live)["polls"] >= first["polls"] + 3, 10.0)
+            later = js(browser, live)
+            seen["plot"] = (first["plot"]["lastStep"], later["plot"]["lastStep"],
+                            first["plot"]["draws"], later["plot"]["draws"])
+            seen["same_step"] = (js(browser, "return [window.lanewarden.panelStep, "
+                                    "document.getElementById('step').textContent]"),
+                                 later["frameStatus"]["step"])
+            seen["buttons_follow"] = buttons()
+            shot = tmp_path / "live-page.png"
+            browser.save_screenshot(str(shot))
+            seen["screenshot"] = shot
             browser.find_element(By.ID, "stop").click()
-            seen["halt"] = wait_until(lambda: text("state") == "HALT", 10.0)
-            seen["reason"] = text("reason")
+            seen["halt"] = wait_until(lambda: browser.find_element(By.ID, "state").text == "HALT"
+                                      and not buttons()["stop"], 10.0)
+            seen["reason"] = browser.find_element(By.ID, "reason").text
+            seen["buttons_halt"] = buttons()
+            browser.save_screenshot(str(tmp_path / "live-page-halted.png"))
         finally:
             os.kill(os.getpid(), signal.SIGINT)  # the operator's Ctrl-C ends the run
 
     code = run_beside(operator, ["--camera", str(clip), "--base", "sim", "--view", str(port),
-                                 "--record", str(record)])
-    assert code == 0, capsys.readouterr().err
+                                 "--record", str(record), "--config", str(config)])
+    out, err = capsys.readouterr()
+    with capsys.disabled():
+        print(f"\nscreenshots of the live page: {tmp_path / 'live-page.png'}, "
+              f"{tmp_path / 'live-page-halted.png'}")
+    assert code == 0, err
     assert seen.get("image"), f"the page never showed the camera image: {seen}"
-    assert seen.get("follow"), f"the page never showed FOLLOW: {seen}"
+    assert seen.get("follow"), f"the page never showed FOLLOW with its own frame's panel: {seen}"
+    before, after, draws_before, draws_after = seen["plot"]
+    assert after > before and draws_after > draws_before, f"the plot did not update: {seen}"
+    (panel_step, step_text), frame_step = seen["same_step"]
+    assert panel_step == frame_step and step_text == f"step {frame_step}", seen["same_step"]
+    assert seen["buttons_follow"] == {"start": False, "resume": False, "stop": True}
     assert seen.get("halt") and seen.get("reason", "").startswith("OPERATOR_STOP"), seen
+    assert seen["buttons_halt"] == {"start": False, "resume": True, "stop": False}
+    assert seen["screenshot"].stat().st_size > 10_000
+    assert "stop requested (page)" in out, "the page's stop is announced like the others"
+    assert "Traceback" not in out + err
     records = steps(record)
     stop = next(k for k, r in enumerate(records)
                 if "stop" in r["input"].get("requests", []))
     assert records[stop]["state"] == "HALT" and "OPERATOR_STOP" in records[stop]["events"]
     assert records[stop - 1]["state"] == "FOLLOW", "the page's Stop halted a moving run"
     assert all(r["command"]["linear_m_s"] == 0.0 for r in records[stop:])
+
+
+# ---- attacks from other pages -------------------------------------------------------------------
+class Site:
+    """A second local web server serving one page: another site (name and port) in the browser."""
+
+    def __init__(self, page: str, port: int = 0) -> None:
+        body = page.encode()
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_GET(self) -> None:  # noqa: N802
+                self.send_response(200)
+                self.send_header("Content-Type", "text/html; charset=utf-8")
+                self.send_header("Content-Length", str(len(body)))
+                self.end_headers()
+                self.wfile.write(body)
+
+            def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+                pass
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
+        self.port = int(self.server.server_address[1])
+        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+        self.thread.join(5)
+
+
+@pytest.fixture
+def halted_view() -> Iterator[tuple[LiveView, Requests]]:
+    """A view of a robot halted by the operator (what an attacker wants to resume)."""
+    requests = Requests()
+    view = LiveView("127.0.0.1", 0, requests, log=lambda line: None)
+    view.publish({"state": "HALT", "step": 1, "halt_reason": "OPERATOR_STOP: operator stop",
+                  "started": True, "armed": False}, None)
+    try:
+        yield view, requests
+    finally:
+        view.close()
+
+
+def _smuggled(port: int) -> str:
+    return (f"POST /resume HTTP/1.1\\r\\nHost: 127.0.0.1:{port}\\r\\nX-Lanewarden: 1\\r\\n"
+            "Content-Length: 0\\r\\n\\r\\n")
+
+
+def _reached(view: LiveView, refused: int) -> bool:
+    """The attack's request reached the view, was refused, and its connection is closed (so
+    anything smuggled in it would have been served by now)."""
+    return view.counts["refused"] >= refused and view.open_connections == 0
+
+
+@pytest.mark.parametrize("padding", [4096, 16])
+@pytest.mark.parametrize("how", ["no-cors fetch", "text/plain form"])
+def test_another_sites_page_cannot_smuggle_a_resume(
+        browser: Any, halted_view: tuple[LiveView, Requests], how: str, padding: int) -> None:
+    """Issue 18: a page on another site POSTs /stop with a body of padding then a complete POST
+    /resume with the header (4096 bytes: what the old server read; 16: within the limit)."""
+    view, requests = halted_view
+    target = f"http://127.0.0.1:{view.port}"
+    site = Site("<!doctype html><title>cat pictures</title><p>nothing to see")
+    try:
+        browser.get(f"http://attacker.example:{site.port}/")
+        smuggled = _smuggled(view.port)
+        if how == "no-cors fetch":
+            result = browser.execute_async_script(f"""
+                const done = arguments[arguments.length - 1];
+                fetch("{target}/stop", {{method: "POST", mode: "no-cors",
+                                         body: "a".repeat({padding}) + "{smuggled}"}})
+                  .then(() => done("sent"), (e) => done("failed: " + e));""")
+            assert result == "sent"
+        else:
+            browser.execute_script(f"""
+                const form = document.createElement("form");
+                form.method = "POST"; form.enctype = "text/plain"; form.action = "{target}/stop";
+                const field = document.createElement("input");
+                field.name = "x"; field.value = "a".repeat({padding - 2}) + "{smuggled}";
+                form.appendChild(field); document.body.appendChild(form); form.submit();""")
+        assert wait_until(lambda: _reached(view, 1), 20.0), view.counts
+        assert requests.calls == [], "nothing reached the robot: it never left HALT"
+    finally:
+        site.close()
+
+
+@pytest.mark.parametrize("bind", ["127.0.0.1", "0.0.0.0"])
+def test_a_dns_rebinding_page_is_refused(browser: Any, bind: str) -> None:
+    """The attacker's page is loaded from rebind.example:PORT, then the name points at the robot
+    (here: the view takes over the same address and port): the page's same-origin requests carry
+    the header they want, but name the attacker's host."""
+    port = free_port()
+    site = Site("<!doctype html><title>rebind</title>", port)
+    browser.get(f"http://rebind.example:{port}/")
+    site.close()
+    requests = Requests()
+    view = LiveView(bind, port, requests, log=lambda line: None)
+    view.publish({"state": "HALT", "step": 1, "started": True}, None)
+    try:
+        answers = browser.execute_async_script("""
+            const done = arguments[arguments.length - 1];
+            const post = (path) => fetch(path, {method: "POST", headers: {"X-Lanewarden": "1"}})
+              .then((r) => r.status, (e) => "failed: " + e);
+            Promise.all([post("/resume"), post("/start"), fetch("/status").then((r) => r.status)])
+              .then(done);""")
+        assert answers == [403, 403, 403]
+        assert requests.calls == []
+    finally:
+        view.close()
+
+
+def test_a_non_loopback_page_takes_the_token_from_the_address_once(browser: Any) -> None:
+    from selenium.webdriver.common.by import By
+
+    token = "T0k3n-" + "q" * 18
+    requests = Requests()
+    view = LiveView("0.0.0.0", 0, requests, log=lambda line: None, token=token)
+    view.publish({"state": "FOLLOW", "step": 3, "started": True, "armed": False}, None)
+    try:
+        assert view.url.endswith(f":{view.port}/#token={token}")
+        browser.get(f"http://127.0.0.1:{view.port}/#token={token}")
+        assert wait_until(lambda: (js(browser, "return window.lanewarden.polls") or 0) > 0, 20.0)
+        assert browser.current_url == f"http://127.0.0.1:{view.port}/", "token left the address"
+        assert wait_until(lambda: browser.find_element(By.ID, "stop").is_enabled(), 10.0)
+        browser.find_element(By.ID, "stop").click()
+        assert wait_until(lambda: requests.calls == [("stop", "page")], 10.0), requests.calls
+        # Another origin (localhost) has no token stored: the page asks for it.
+        browser.get(f"http://localhost:{view.port}/")
+        box = browser.find_element(By.ID, "tokenbox")
+        assert wait_until(lambda: box.get_attribute("class") == "needed", 10.0)
+        assert js(browser, "return window.lanewarden.polls") == 0
+        browser.find_element(By.ID, "token").send_keys(token)
+        browser.find_element(By.ID, "usetoken").click()
+        assert wait_until(lambda: (js(browser, "return window.lanewarden.polls") or 0) > 0, 20.0)
+        assert box.get_attribute("class") == ""
+    finally:
+        view.close()

@@ -1,62 +1,118 @@
 """The live view's server over real HTTP on loopback: the page is self-contained, the status and the
-annotated frame are served, buttons reach the operator's requests, and requests from elsewhere
-(another site's page, a rebound host name) are refused. The page in a real browser is in
-test_live_page_browser.py."""
+annotated frame (with its own step's status) are served, buttons reach the operator's requests,
+and every attack of issue 18 is refused at socket level: request smuggling through a body, bad
+`Content-Length`s, a foreign Host (DNS rebinding) or Origin, a missing or wrong token on a
+non-loopback bind, slow and many connections, huge headers, a GET with a body, unknown methods.
+For each: nothing reaches the operator's requests (the robot never leaves HALT), nothing is
+printed but one line, and what the server reads stays within its budget. The page in a real
+browser is in test_live_page_browser.py."""
 
 from __future__ import annotations
 
 import http.client
 import json
 import re
+import socket
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
 
 from lanewarden.errors import UsageError
-from lanewarden.live_view import LiveView, ViewFrame, annotate, parse_view_address
+from lanewarden.live_view import (
+    MAX_CONNECTIONS,
+    MAX_REQUEST_BYTES,
+    AccessRules,
+    LiveView,
+    ViewFrame,
+    annotate,
+    is_loopback,
+    json_text,
+    parse_view_address,
+    split_host,
+    url_name,
+)
+from tests.operator.runs import wait_until
+
+SMUGGLED_RESUME = b"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nX-Lanewarden: 1\r\n" \
+                  b"Content-Length: 0\r\n\r\n"
 
 
 class Requests:
+    """The operator's requests as the view calls them (the robot leaves HALT only through
+    start or resume)."""
+
     def __init__(self) -> None:
         self.calls: list[tuple[str, str]] = []
-        self.event = threading.Event()
 
     def start(self, source: str) -> None:
         self.calls.append(("start", source))
-        self.event.set()
 
     def resume(self, source: str) -> None:
         self.calls.append(("resume", source))
-        self.event.set()
 
     def stop(self, source: str) -> None:
         self.calls.append(("stop", source))
-        self.event.set()
+
+
+class View:
+    """A LiveView on loopback (or `host`) with its requests and the lines it printed."""
+
+    def __init__(self, host: str = "127.0.0.1", **options: Any) -> None:
+        self.requests = Requests()
+        self.lines: list[str] = []
+        self.server = LiveView(host, 0, self.requests, log=self.lines.append, **options)
+        self.port = self.server.port
+
+    def idle(self) -> bool:
+        """Every connection the server accepted is closed again."""
+        counts = self.server.counts
+        return self.server.open_connections == 0 and counts["closed"] > 0
 
 
 @pytest.fixture
-def view() -> Iterator[tuple[LiveView, Requests]]:
-    requests = Requests()
-    server = LiveView("127.0.0.1", 0, requests)
+def view() -> Iterator[View]:
+    v = View()
     try:
-        yield server, requests
+        yield v
     finally:
-        server.close()
+        v.server.close()
 
 
-def fetch(view: LiveView, method: str, path: str,
-          headers: dict[str, str] | None = None) -> tuple[int, bytes, str]:
-    connection = http.client.HTTPConnection("127.0.0.1", view.port, timeout=10)
+def fetch(port: int, method: str, path: str, headers: dict[str, str] | None = None,
+          host: str = "127.0.0.1") -> tuple[int, bytes, http.client.HTTPResponse]:
+    connection = http.client.HTTPConnection(host, port, timeout=10)
     try:
         connection.request(method, path, headers=headers or {})
         response = connection.getresponse()
-        return response.status, response.read(), response.getheader("Content-Type") or ""
+        return response.status, response.read(), response
     finally:
         connection.close()
 
 
+def exchange(port: int, data: bytes, *, host: str = "127.0.0.1") -> bytes:
+    """Send raw bytes, then read everything the server sends until it closes the connection."""
+    with socket.create_connection((host, port), timeout=10) as s:
+        s.sendall(data)
+        received = b""
+        while chunk := s.recv(65536):
+            received += chunk
+    return received
+
+
+def statuses(received: bytes) -> list[int]:
+    """The status codes of every HTTP response in `received`, in order."""
+    return [int(code) for code in re.findall(rb"HTTP/1\.[01] (\d{3}) ", received)]
+
+
+def post(path: str, port: int, body: bytes = b"", extra: bytes = b"") -> bytes:
+    return (f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nX-Lanewarden: 1\r\n"
+            f"Content-Length: {len(body)}\r\n").encode() + extra + b"\r\n" + body
+
+
+# ---- addresses and rules (pure) -----------------------------------------------------------------
 def test_view_address() -> None:
     assert parse_view_address("8080") == ("127.0.0.1", 8080)
     assert parse_view_address("0.0.0.0:8081") == ("0.0.0.0", 8081)
@@ -66,55 +122,421 @@ def test_view_address() -> None:
             parse_view_address(bad)
 
 
-def test_the_page_is_self_contained(view: tuple[LiveView, Requests]) -> None:
-    server, _ = view
-    status, body, content_type = fetch(server, "GET", "/")
-    assert status == 200 and content_type.startswith("text/html")
+def test_host_names_and_loopback() -> None:
+    assert split_host("127.0.0.1:8080") == ("127.0.0.1", 8080)
+    assert split_host("LocalHost:8080") == ("localhost", 8080)
+    assert split_host("[::1]:9000") == ("[::1]", 9000)
+    assert split_host("[::1]") == ("[::1]", 80)
+    assert split_host("robot") == ("robot", 80)
+    assert split_host("robot:80x") == ("robot", None)
+    assert split_host("robot:999999") == ("robot", None)
+    assert url_name("::1") == "[::1]"
+    assert url_name("::ffff:192.168.1.5") == "192.168.1.5"
+    assert url_name("Robot.Lab") == "robot.lab"
+    assert [is_loopback(h) for h in ("127.0.0.1", "127.0.0.2", "::1", "localhost",
+                                     "0.0.0.0", "::", "192.168.1.5", "robot")] == [
+        True, True, True, True, False, False, False, False]
+
+
+def test_access_rules_for_a_loopback_bind() -> None:
+    rules = AccessRules.for_bind("127.0.0.1", 8080)
+    assert rules.token is None, "a loopback bind needs no token"
+    ok = [["127.0.0.1:8080"], ["localhost:8080"], ["[::1]:8080"], ["LOCALHOST:8080"]]
+    assert [rules.host_problem(h, "127.0.0.1") for h in ok] == [None] * 4
+    for bad in (["evil.example:8080"], ["127.0.0.1:8081"], ["127.0.0.1"], [],
+                ["127.0.0.1:8080", "evil.example:8080"], [socket.gethostname() + ":8080"]):
+        assert rules.host_problem(bad, "127.0.0.1") is not None, bad
+    same = "127.0.0.1:8080"
+    assert rules.origin_problem("http://127.0.0.1:8080", "same-origin", same, True) is None
+    assert rules.origin_problem(None, None, same, True) is None, "curl: no Origin, the header"
+    assert rules.origin_problem(None, None, same, False) == "missing X-Lanewarden header"
+    for origin, site in (("http://evil.example", "cross-site"), ("null", None),
+                         ("http://127.0.0.1:9999", "same-site"), (None, "cross-site"),
+                         ("http://localhost:8080", None), ("https://127.0.0.1:8080", None)):
+        assert rules.origin_problem(origin, site, same, True) is not None, (origin, site)
+
+
+def test_access_rules_for_any_other_bind_need_the_token() -> None:
+    rules = AccessRules.for_bind("0.0.0.0", 8080, token="s3cret-token")
+    assert rules.token == "s3cret-token"
+    assert rules.token_problem("s3cret-token") is None
+    assert rules.token_problem(" s3cret-token ") is None
+    assert [rules.token_problem(t) for t in (None, "", "s3cret", "s3cret-token2", "é")] == [
+        "no token", "wrong token", "wrong token", "wrong token", "wrong token"]
+    assert rules.host_problem(["192.168.1.5:8080"], "192.168.1.5") is None, "its own address"
+    assert rules.host_problem(["192.168.1.6:8080"], "192.168.1.5") is not None
+    assert rules.host_problem([f"{socket.gethostname()}:8080"], "192.168.1.5") is None
+    assert rules.host_problem(["evil.example:8080"], "192.168.1.5") is not None
+    named = AccessRules.for_bind("robot.lab", 8080)
+    assert named.token is not None and len(named.token) >= 20, "a fresh random token"
+    assert named.token != AccessRules.for_bind("robot.lab", 8080).token
+    assert named.host_problem(["robot.lab:8080"], "10.0.0.2") is None, "the name it was bound to"
+
+
+# ---- what the page gets -------------------------------------------------------------------------
+def test_the_page_is_self_contained(view: View) -> None:
+    status, body, response = fetch(view.port, "GET", "/")
+    assert status == 200 and response.getheader("Content-Type", "").startswith("text/html")
     page = body.decode()
-    for needed in ('id="start"', 'id="stop"', 'id="resume"', 'id="frame"', "/status",
-                   "X-Lanewarden"):
+    for needed in ('id="start"', 'id="stop"', 'id="resume"', 'id="frame"', 'id="plot"',
+                   "/status", "X-Lanewarden", "X-Lanewarden-Token", "X-Lanewarden-Status"):
         assert needed in page
-    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", page), \
+    assert not re.search(r"""(src|href|action)\s*=\s*["']?(https?:)?//""", page), \
         "nothing may be fetched from elsewhere (offline, no CDN)"
     assert "<script src" not in page and "<link" not in page
+    assert response.getheader("Connection") == "close"
+    assert "frame-ancestors 'none'" in response.getheader("Content-Security-Policy", "")
+    assert response.getheader("X-Frame-Options") == "DENY", "no clickjacking of the buttons"
+    assert response.getheader("Referrer-Policy") == "no-referrer"
 
 
-def test_status_and_frame(view: tuple[LiveView, Requests]) -> None:
-    server, _ = view
-    status, body, _ = fetch(server, "GET", "/frame.jpg")
-    assert status == 503, "no frame yet"
+def _wait_for_frame(view: View, status: dict[str, Any], frame: ViewFrame) -> None:
+    def encoded() -> bool:
+        view.server.publish(status, frame)
+        return json.loads(fetch(view.port, "GET", "/status")[1])["frame_seq"] > 0
+
+    assert wait_until(encoded, 20.0, poll_s=0.05), "the encoder never encoded a frame"
+
+
+def test_the_frame_carries_the_status_of_its_own_step(view: View) -> None:
+    """Overlay and panel from one step: /frame.jpg's header holds the status the frame was
+    published with, even after later steps (without a new frame) changed the newest status."""
+    assert fetch(view.port, "GET", "/frame.jpg")[0] == 503, "no frame yet"
     image = np.full((120, 160, 3), 90, np.uint8)
-    server.publish({"state": "FOLLOW", "step": 7, "halt_reason": None},
-                   ViewFrame(image, None, None, "none", "FOLLOW", None))
-    _, body, content_type = fetch(server, "GET", "/status")
-    assert content_type == "application/json"
-    assert json.loads(body)["state"] == "FOLLOW"
-    for _ in range(200):  # the encoder runs on its own thread: wait for its first picture
-        if json.loads(fetch(server, "GET", "/status")[1])["frame_seq"] > 0:
-            break
-        server.publish({"state": "FOLLOW", "step": 8},
-                       ViewFrame(image, None, None, "none", "FOLLOW", None))
-        threading.Event().wait(0.05)
-    status, body, content_type = fetch(server, "GET", "/frame.jpg")
-    assert status == 200 and content_type == "image/jpeg"
+    frame = ViewFrame(image, None, None, "none", "FOLLOW", None)
+    _wait_for_frame(view, {"state": "FOLLOW", "step": 7, "confidence": 1.0}, frame)
+    view.server.publish({"state": "HALT", "step": 8, "confidence": 0.0}, None)
+    view.server.publish({"state": "HALT", "step": 9, "confidence": 0.0,
+                         "halt_reason": "LANE_LOST: gone"}, None)
+    status, body, response = fetch(view.port, "GET", "/frame.jpg")
+    assert status == 200 and response.getheader("Content-Type") == "image/jpeg"
     assert body[:2] == b"\xff\xd8"
+    assert json.loads(response.getheader("X-Lanewarden-Status", "")) == {
+        "state": "FOLLOW", "step": 7, "confidence": 1.0}
+    newest = json.loads(fetch(view.port, "GET", "/status")[1])
+    assert (newest["step"], newest["state"], newest["confidence"]) == (9, "HALT", 0.0)
 
 
-def test_buttons_reach_the_operator_requests(view: tuple[LiveView, Requests]) -> None:
-    server, requests = view
+def test_the_plot_gets_the_new_samples_of_the_last_ten_seconds() -> None:
+    v = View(plot={"turn_enter_slope_sum": 6.0, "turn_exit_slope_sum": 4.0})
+    try:
+        for step in range(1, 41):  # steps 0.5 s apart: 20 s of run time
+            v.server.publish({"step": step, "time_s": step * 0.5, "slope_sum": step * 0.1,
+                              "filtered_slope_sum": step * 0.05, "confidence": 0.5}, None)
+        plot = json.loads(fetch(v.port, "GET", "/status")[1])["plot"]
+        assert (plot["turn_enter_slope_sum"], plot["turn_exit_slope_sum"], plot["window_s"]) == (
+            6.0, 4.0, 10.0)
+        assert [s[0] for s in plot["samples"]] == list(range(20, 41)), "10 s back from 20 s"
+        assert plot["samples"][-1] == [40, 20.0, 4.0, 2.0, 0.5]
+        newer = json.loads(fetch(v.port, "GET", "/status?since=38")[1])["plot"]["samples"]
+        assert [s[0] for s in newer] == [39, 40]
+        assert json.loads(fetch(v.port, "GET", "/status?since=x")[1])["plot"]["samples"]
+    finally:
+        v.server.close()
+
+
+def test_a_non_finite_number_reaches_the_page_as_null() -> None:
+    assert json.loads(json_text({"a": float("nan"), "b": [float("inf"), 1.0]})) == {
+        "a": None, "b": [None, 1.0]}
+
+
+def test_buttons_reach_the_operator_requests(view: View) -> None:
     for action in ("stop", "start", "resume"):
-        status, body, _ = fetch(server, "POST", f"/{action}", {"X-Lanewarden": "1"})
+        status, body, response = fetch(view.port, "POST", f"/{action}", {"X-Lanewarden": "1"})
         assert status == 200 and json.loads(body) == {"ok": True, "request": action}
-    assert requests.calls == [("stop", "page"), ("start", "page"), ("resume", "page")]
-    assert fetch(server, "POST", "/launch", {"X-Lanewarden": "1"})[0] == 404
+        assert response.getheader("Connection") == "close"
+    origin = {"X-Lanewarden": "1", "Origin": f"http://127.0.0.1:{view.port}",
+              "Sec-Fetch-Site": "same-origin"}
+    assert fetch(view.port, "POST", "/stop", origin)[0] == 200, "the page's own request"
+    assert fetch(view.port, "POST", "/launch", {"X-Lanewarden": "1"})[0] == 404
+    assert view.requests.calls == [("stop", "page"), ("start", "page"), ("resume", "page"),
+                                   ("stop", "page")]
+    assert view.lines == []
 
 
-def test_requests_from_elsewhere_are_refused(view: tuple[LiveView, Requests]) -> None:
-    server, requests = view
-    assert fetch(server, "POST", "/start")[0] == 403, "a cross-site form post has no header"
-    assert fetch(server, "GET", "/status", {"Host": "evil.example:80"})[0] == 403
-    assert fetch(server, "POST", "/stop", {"Host": "evil.example", "X-Lanewarden": "1"})[0] == 403
-    assert requests.calls == []
+# ---- the attacks --------------------------------------------------------------------------------
+def test_a_body_is_never_served_as_a_second_request(view: View) -> None:
+    """Issue 18's smuggling: a cross-site POST /stop whose body is 4096 bytes of padding and then
+    a complete POST /resume with the header. Also a body within the limit followed by a second
+    request, and a second request right after a bodiless one: one response, then the server
+    closes; the second request is never served."""
+    smuggled = SMUGGLED_RESUME % view.port
+    attack = (f"POST /stop HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\n"
+              f"Content-Type: text/plain\r\nContent-Length: {4096 + len(smuggled)}\r\n"
+              "Origin: http://evil.example\r\n\r\n").encode() + b"a" * 4096 + smuggled
+    assert statuses(exchange(view.port, attack)) == [413]
+    small = b"a" * 64 + smuggled
+    within = (f"POST /stop HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\n"
+              f"Content-Length: {len(small)}\r\nOrigin: http://evil.example\r\n\r\n").encode()
+    assert statuses(exchange(view.port, within + small)) == [403], "the body was only a body"
+    assert view.requests.calls == []
+    received = exchange(view.port, post("/stop", view.port, b"0123456789") + smuggled)
+    assert statuses(received) == [200] and b"Connection: close" in received
+    received = exchange(view.port, post("/stop", view.port) + smuggled + smuggled)
+    assert statuses(received) == [200]
+    assert view.requests.calls == [("stop", "page"), ("stop", "page")], "never a resume"
+
+
+@pytest.mark.parametrize(("length", "expected"), [
+    ("-1", 400), ("abc", 400), ("+5", 400), ("1e3", 400), ("5 5", 400), ("0x10", 400),
+    ("99999999999", 400), ("2000", 413), (None, 411),
+])
+def test_a_bad_content_length_is_refused_before_reading(view: View, length: str | None,
+                                                        expected: int) -> None:
+    """Refused at once, whatever follows: the client keeps sending and never closes, and the
+    server still answers (the old server read a body of -1 until the client closed)."""
+    head = f"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\nX-Lanewarden: 1\r\n"
+    if length is not None:
+        head += f"Content-Length: {length}\r\n"
+    with socket.create_connection(("127.0.0.1", view.port), timeout=10) as s:
+        s.sendall(head.encode() + b"\r\n" + b"x" * 2000)
+        answer = s.recv(4096)  # the client has not closed: the server must answer anyway
+    assert statuses(answer) == [expected]
+    assert view.requests.calls == []
+    assert wait_until(view.idle, 10.0)
+    assert view.server.counts["largest_request"] <= MAX_REQUEST_BYTES
+
+
+def test_a_flood_after_a_negative_length_is_cut_off_within_the_budget(view: View) -> None:
+    """`Content-Length: -1` and then megabytes: the server answers 400, closes, and has read no
+    more than its budget (memory bounded); the client's sending fails, not the server."""
+    head = (f"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\nX-Lanewarden: 1\r\n"
+            "Content-Length: -1\r\n\r\n").encode()
+    with socket.create_connection(("127.0.0.1", view.port), timeout=10) as s:
+        s.sendall(head)
+        try:
+            for _ in range(64):
+                s.sendall(b"x" * 65536)  # 4 MiB unless the server has closed
+        except OSError:
+            pass  # the server closed the connection: expected
+        try:
+            answer = s.recv(4096)
+        except OSError:
+            answer = b""
+    assert statuses(answer) in ([400], []), answer[:200]
+    assert wait_until(view.idle, 10.0)
+    assert view.server.counts["largest_request"] <= MAX_REQUEST_BYTES
+    assert view.requests.calls == []
+
+
+@pytest.mark.parametrize("framing", [
+    "Transfer-Encoding: chunked\r\n", "Content-Length: 0\r\nContent-Length: 0\r\n",
+    "Content-Length: 0\r\nTransfer-Encoding: chunked\r\n",
+])
+def test_chunked_or_repeated_lengths_are_refused(view: View, framing: str) -> None:
+    data = (f"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\nX-Lanewarden: 1\r\n"
+            f"{framing}\r\n0\r\n\r\n").encode() + SMUGGLED_RESUME % view.port
+    assert statuses(exchange(view.port, data)) == [400]
+    assert view.requests.calls == []
+
+
+def test_a_foreign_host_or_origin_is_refused(view: View) -> None:
+    """DNS rebinding (Host: evil.example), another port, no Host, two Hosts, a foreign Origin,
+    a cross-site fetch, no header: refused, GET and POST."""
+    port = view.port
+    assert fetch(port, "GET", "/status", {"Host": "evil.example"})[0] == 403
+    assert fetch(port, "GET", "/", {"Host": f"evil.example:{port}"})[0] == 403
+    assert fetch(port, "GET", "/frame.jpg", {"Host": f"127.0.0.1:{port + 1}"})[0] == 403
+    assert fetch(port, "POST", "/resume", {"Host": f"evil.example:{port}",
+                                           "X-Lanewarden": "1"})[0] == 403
+    for headers in ({"Origin": "http://evil.example"}, {"Origin": "null"},
+                    {"Sec-Fetch-Site": "cross-site"}, {"Sec-Fetch-Site": "same-site"},
+                    {"Origin": f"http://localhost:{port}"}):
+        assert fetch(port, "POST", "/resume", {"X-Lanewarden": "1", **headers})[0] == 403
+    assert fetch(port, "POST", "/resume")[0] == 403, "a cross-site form post has no header"
+    no_host = b"POST /resume HTTP/1.0\r\nX-Lanewarden: 1\r\nContent-Length: 0\r\n\r\n"
+    assert statuses(exchange(port, no_host)) == [403]
+    two_hosts = (f"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nHost: evil.example\r\n"
+                 "X-Lanewarden: 1\r\nContent-Length: 0\r\n\r\n").encode()
+    assert statuses(exchange(port, two_hosts)) == [403]
+    assert view.requests.calls == []
+    assert fetch(port, "GET", "/status", {"Host": f"localhost:{port}"})[0] == 200
+
+
+def test_refused_requests_are_reported_in_one_line_now_and_then(view: View) -> None:
+    for _ in range(3):
+        fetch(view.port, "POST", "/resume", {"Host": f"evil.example:{view.port}",
+                                             "X-Lanewarden": "1"})
+    assert view.server.counts["refused"] == 3
+    assert view.lines == [f"live view: refused POST /resume from 127.0.0.1: unexpected Host "
+                          f"header 'evil.example:{view.port}'"], "the next two: counted, later"
+
+
+def test_a_non_loopback_bind_needs_the_token() -> None:
+    v = View("0.0.0.0", token="tok-" + "x" * 20)
+    try:
+        port, token = v.port, "tok-" + "x" * 20
+        assert v.server.url.endswith(f":{port}/#token={token}")
+        assert fetch(port, "GET", "/")[0] == 200, "the page itself: it asks for the token"
+        for method, path in (("GET", "/status"), ("GET", "/frame.jpg"), ("POST", "/resume"),
+                             ("POST", "/start")):
+            for given in ({}, {"X-Lanewarden-Token": "wrong"},
+                          {"X-Lanewarden-Token": token[:-1]}):
+                assert fetch(port, method, path, {"X-Lanewarden": "1", **given})[0] == 401
+        with_token = {"X-Lanewarden": "1", "X-Lanewarden-Token": token}
+        rebound = {**with_token, "Host": f"evil.example:{port}"}
+        assert fetch(port, "POST", "/resume", rebound)[0] == 403, "DNS rebinding with the token"
+        assert v.requests.calls == []
+        assert fetch(port, "GET", "/status", with_token)[0] == 200
+        assert fetch(port, "POST", "/stop", with_token)[0] == 200
+        # Another address of this machine (all of 127/8 reaches a 0.0.0.0 bind): its own name.
+        other = {**with_token, "Host": f"127.0.0.2:{port}"}
+        assert fetch(port, "POST", "/resume", other, host="127.0.0.2")[0] == 200
+        assert fetch(port, "POST", "/resume", other, host="127.0.0.1")[0] == 403
+        assert v.requests.calls == [("stop", "page"), ("resume", "page")]
+    finally:
+        v.server.close()
+
+
+def test_a_loopback_url_has_no_token(view: View) -> None:
+    assert view.server.url == f"http://127.0.0.1:{view.port}/"
+    assert view.server.token is None
+
+
+def test_a_slow_client_is_cut_off_at_its_deadline() -> None:
+    """Slowloris: a client sending its headers a byte at a time (each byte well within any
+    per-read timeout) is closed at the connection's deadline, before its request is complete."""
+    v = View(connection_deadline_s=0.5)
+    request = (f"GET /status HTTP/1.1\r\nHost: 127.0.0.1:{v.port}\r\n"
+               + "".join(f"X-Pad-{i}: {'y' * 20}\r\n" for i in range(12)) + "\r\n").encode()
+    sent = {"bytes": 0, "closed_by_server": False}
+    pause = threading.Event()
+    try:
+        with socket.create_connection(("127.0.0.1", v.port), timeout=30) as s:
+            def dribble() -> None:
+                for byte in request:  # about 400 bytes, 0.05 s apart: 20 s unless cut off
+                    try:
+                        s.sendall(bytes([byte]))
+                    except OSError:
+                        sent["closed_by_server"] = True
+                        return
+                    sent["bytes"] += 1
+                    pause.wait(0.05)
+
+            sender = threading.Thread(target=dribble, daemon=True)
+            sender.start()
+            answer = s.recv(4096)  # blocks until the server answers or closes
+            pause.set()
+            sender.join(10)
+        assert answer == b"", "closed without an answer"
+        assert sent["bytes"] < len(request), "cut off before the request was complete"
+        assert wait_until(v.idle, 10.0)
+        assert v.requests.calls == [] and v.lines == []
+    finally:
+        v.server.close()
+
+
+def test_many_connections_are_bounded() -> None:
+    """Three times MAX_CONNECTIONS idle connections: at most MAX_CONNECTIONS are served at once
+    (one thread each), the rest closed unserved; the control side's publish never waits; once
+    they are gone the page is served again."""
+    v = View(connection_deadline_s=60.0)  # none is cut off by its deadline meanwhile
+    before = threading.active_count()
+    idle = []
+    try:
+        for _ in range(3 * MAX_CONNECTIONS):
+            idle.append(socket.create_connection(("127.0.0.1", v.port), timeout=10))
+        counts = v.server.counts
+        assert wait_until(lambda: counts["busy"] + counts["peak_open"] >= 3 * MAX_CONNECTIONS,
+                          20.0), counts
+        assert counts["peak_open"] == MAX_CONNECTIONS
+        assert counts["busy"] == 2 * MAX_CONNECTIONS
+        assert threading.active_count() <= before + MAX_CONNECTIONS
+        v.server.publish({"state": "HALT", "step": 1}, None)
+    finally:
+        for s in idle:
+            s.close()
+    try:
+        assert wait_until(lambda: v.server.open_connections == 0, 20.0)
+        assert fetch(v.port, "GET", "/status")[0] == 200
+        assert v.requests.calls == []
+    finally:
+        v.server.close()
+
+
+def test_huge_headers_are_refused_within_the_budget(view: View) -> None:
+    many = (f"POST /resume HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\nX-Lanewarden: 1\r\n"
+            + "".join(f"X-Big-{i}: {'z' * 1000}\r\n" for i in range(200))
+            + "Content-Length: 0\r\n\r\n").encode()
+    long_line = b"GET /" + b"a" * 20000 + b" HTTP/1.1\r\n\r\n"
+    for data in (many, long_line):
+        with socket.create_connection(("127.0.0.1", view.port), timeout=10) as s:
+            try:
+                s.sendall(data)
+            except OSError:
+                pass  # the server may close while we still send
+            try:
+                answer = s.recv(4096)
+            except OSError:
+                answer = b""
+        assert statuses(answer) in ([431], []), answer[:200]
+    assert wait_until(view.idle, 10.0)
+    assert view.server.counts["largest_request"] <= MAX_REQUEST_BYTES
+    assert view.requests.calls == []
+
+
+def test_a_get_with_a_body_and_unknown_methods_are_refused(view: View) -> None:
+    port = view.port
+    get_body = (f"GET /status HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Length: "
+                f"{len(SMUGGLED_RESUME % port)}\r\n\r\n").encode() + SMUGGLED_RESUME % port
+    assert statuses(exchange(port, get_body)) == [400]
+    for method in ("PUT", "DELETE", "PATCH", "OPTIONS", "TRACE", "CONNECT", "HEAD", "RESUME"):
+        data = (f"{method} /resume HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nX-Lanewarden: 1\r\n"
+                "Content-Length: 0\r\n\r\n").encode()
+        assert statuses(exchange(port, data)) == [501], method
+    assert statuses(exchange(port, b"POST /resume HTTP/2.0\r\nContent-Length: 0\r\n\r\n")) == [505]
+    assert statuses(exchange(port, b"GET / HTTP/1.1\r\nHost\r\n\r\n")) == [403], "no Host"
+    assert statuses(exchange(port, b"POST /resume\r\n\r\n")) == [400], "HTTP/0.9"
+    assert statuses(exchange(port, b"GET /status\r\n\r\n")) == [505], "HTTP/0.9"
+    assert exchange(port, b"\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03" + bytes(range(256)))
+    assert view.requests.calls == []
+
+
+def test_bad_clients_print_no_traceback(view: View, capfd: pytest.CaptureFixture[str]) -> None:
+    """Clients that hang up mid-header or mid-body, reset, send garbage or nothing: no traceback,
+    no line on the terminal, and the next good request is served."""
+    port = view.port
+    partial = [b"GET /sta", f"POST /stop HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n".encode(),
+               post("/stop", port, b"x" * 50)[:-50] + b"short", b"",
+               b"\x00\xff" * 100 + b"\r\n\r\n", b"GET / HTTP/1.1\r\nHost: 127.0.0.1"]
+    for data in partial:
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(data)
+    for data in partial[:3]:  # the same, then a reset (RST) instead of a close
+        s = socket.create_connection(("127.0.0.1", port), timeout=10)
+        s.sendall(data)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+        s.close()
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:  # leaves unread
+        s.sendall(f"GET /status HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+    assert wait_until(lambda: view.server.open_connections == 0
+                      and view.server.counts["closed"] >= len(partial) + 4, 20.0)
+    assert fetch(port, "GET", "/status")[0] == 200
+    out, err = capfd.readouterr()
+    assert "Traceback" not in out + err and err == "", err
+    assert view.requests.calls == [] and view.lines == []
+
+
+def test_an_error_of_our_own_is_one_line(capfd: pytest.CaptureFixture[str]) -> None:
+    """A bug on our side while serving (here: the operator's requests raising) is said in one
+    line naming the error and where; no traceback; the server goes on."""
+    v = View()
+
+    def broken(source: str) -> None:
+        raise RuntimeError("the panel is broken")
+
+    v.requests.stop = broken  # type: ignore[method-assign]
+    try:
+        with pytest.raises((http.client.HTTPException, OSError)):
+            fetch(v.port, "POST", "/stop", {"X-Lanewarden": "1"})
+        assert wait_until(lambda: len(v.lines) == 1, 10.0)
+        assert re.fullmatch(r"live view: internal error answering a request: RuntimeError: the "
+                            r"panel is broken at test_live_view\.py:\d+ \(the run goes on; "
+                            r"please report it\)", v.lines[0]), v.lines
+        assert fetch(v.port, "GET", "/status")[0] == 200
+        assert "Traceback" not in "".join(capfd.readouterr())
+    finally:
+        v.server.close()
 
 
 def test_annotated_frame_shows_the_state_band() -> None:
