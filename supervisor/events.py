@@ -37,6 +37,7 @@ class Event(enum.Enum):
     BATTERY_CRITICAL = "BATTERY_CRITICAL"
     CAMERA_ERROR = "CAMERA_ERROR"
     PERCEPTION_ERROR = "PERCEPTION_ERROR"
+    CONTROLLER_ERROR = "CONTROLLER_ERROR"
     MALFORMED_OBSERVATION = "MALFORMED_OBSERVATION"
     FRAME_INVALID = "FRAME_INVALID"
     CLOCK_INVALID = "CLOCK_INVALID"
@@ -84,6 +85,9 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
         ),
         Event.CAMERA_ERROR: EventRule(_H, "the frame source raised an error"),
         Event.PERCEPTION_ERROR: EventRule(_H, "perception raised an error"),
+        Event.CONTROLLER_ERROR: EventRule(
+            _H, "the controller raised an error or returned a malformed output"
+        ),
         Event.MALFORMED_OBSERVATION: EventRule(
             _H, "perception returned a malformed observation (non-finite or out of range)"
         ),
@@ -138,11 +142,16 @@ def ordered(events: Iterable[Event]) -> tuple[Event, ...]:
     return tuple(sorted(set(events), key=_PRIORITY.__getitem__))
 
 
+def event_reason(event: Event, details: Mapping[Event, str] | None = None) -> str:
+    """`NAME: reason` of one event, with its detail in brackets if it has one."""
+    detail = None if details is None else details.get(event)
+    reason = f"{event.value}: {EVENT_TABLE[event].reason}"
+    return f"{reason} ({detail})" if detail else reason
+
+
 def halt_reason(events: Iterable[Event], details: Mapping[Event, str] | None = None) -> str | None:
     """Reason text of the highest-priority HALT event (with its detail, if any), or None."""
     for event in ordered(events):
         if response_of(event) is Response.HALT:
-            detail = (details or {}).get(event)
-            reason = f"{event.value}: {EVENT_TABLE[event].reason}"
-            return f"{reason} ({detail})" if detail else reason
+            return event_reason(event, details)
     return None

@@ -30,6 +30,7 @@ from lanewarden.actuation.base import STOP, Base, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
+from lanewarden.supervisor.errors import exception_line
 from lanewarden.supervisor.events import Event, ordered
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.watchdog import frame_fingerprint
@@ -124,11 +125,6 @@ class StepRecord:
         }
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
-
-
 class ControlLoop:
     def __init__(
         self,
@@ -212,7 +208,7 @@ class ControlLoop:
             frame = self._frames.read(now)
         except Exception as exc:  # any camera failure is a fault, never a crash
             events.add(Event.CAMERA_ERROR)
-            details[Event.CAMERA_ERROR] = _one_line(exc)
+            details[Event.CAMERA_ERROR] = exception_line(exc)
             return None, None
         if frame is None:
             return None, None
@@ -229,7 +225,7 @@ class ControlLoop:
             )
         except Exception as exc:  # perception's failure halts; it never crashes the loop
             events.add(Event.PERCEPTION_ERROR)
-            details[Event.PERCEPTION_ERROR] = _one_line(exc)
+            details[Event.PERCEPTION_ERROR] = exception_line(exc)
             return info, None
         self._previous = observation
         return info, observation
@@ -244,7 +240,7 @@ class ControlLoop:
             feedback = self._base.feedback(now)
         except ActuationError as exc:
             events.add(Event.BASE_LINK_LOST)
-            details[Event.BASE_LINK_LOST] = _one_line(exc)
+            details[Event.BASE_LINK_LOST] = exception_line(exc)
         if self._base_failure is not None:
             events.add(Event.BASE_LINK_LOST)
             details.setdefault(Event.BASE_LINK_LOST, self._base_failure)
@@ -255,7 +251,7 @@ class ControlLoop:
         try:
             self._base.send(command, now)
         except ActuationError as exc:
-            self._base_failure = _one_line(exc)
+            self._base_failure = exception_line(exc)
             return False
         return True
 

@@ -13,7 +13,8 @@ import pytest
 
 from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
+from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput
+from lanewarden.supervisor.controller import SupervisedController
 from lanewarden.supervisor.events import EVENT_TABLE, Event, Response, halt_reason, ordered
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
@@ -38,6 +39,7 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
         "HALT", "battery below battery_critical_v: charge it before the base browns out"),
     "CAMERA_ERROR": ("HALT", "the frame source raised an error"),
     "PERCEPTION_ERROR": ("HALT", "perception raised an error"),
+    "CONTROLLER_ERROR": ("HALT", "the controller raised an error or returned a malformed output"),
     "MALFORMED_OBSERVATION": (
         "HALT", "perception returned a malformed observation (non-finite or out of range)"),
     "FRAME_INVALID": (
@@ -92,15 +94,14 @@ def _loop_engaged(
     camera: ScriptedCamera | None = None,
     detector: ScriptedDetector | None = None,
     base: RecordingBase | None = None,
+    controller: Controller | None = None,
 ) -> tuple[ControlLoop, RecordingBase, list[StepRecord], float]:
-    from lanewarden.supervisor.controller import SupervisedController
-
     base = base or RecordingBase()
     records: list[StepRecord] = []
     loop = ControlLoop(
         camera or ScriptedCamera(),
         detector or ScriptedDetector(),
-        SafetyGate(SupervisedController(SupervisorConfig()), SupervisorConfig()),
+        SafetyGate(controller or SupervisedController(SupervisorConfig()), SupervisorConfig()),
         base,
         record=records.append,
     )
@@ -166,6 +167,31 @@ def _perception_error() -> Provoked:
     loop, _, _, now = _loop_engaged(detector=ScriptedDetector(script))
     record = loop.step(30 * DT)
     assert record.halt_reason is not None and "cv2.error" in record.halt_reason
+    return _from("FOLLOW", record)
+
+
+class _BugFrom:
+    """The supervised controller with a bug that strikes from `from_s` on. A controller's bug has
+    no real part to inject it into (camera, link, floor): this is the one fault that has to be
+    injected into the controller itself, and only ever around the real one."""
+
+    def __init__(self, from_s: float) -> None:
+        self.inner = SupervisedController(SupervisorConfig())
+        self.from_s = from_s
+
+    def step(self, inputs: ControlInputs, now: float) -> ControlOutput:
+        if now >= self.from_s:
+            raise ZeroDivisionError("float division by zero")
+        return self.inner.step(inputs, now)
+
+
+def _controller_error() -> Provoked:
+    loop, base, _, now = _loop_engaged(controller=_BugFrom(30 * DT))
+    record = loop.step(30 * DT)  # no traceback: a HALT, and a stop on the wire
+    assert base.sent[-1] == (30 * DT, STOP)
+    assert record.halt_reason == (
+        "CONTROLLER_ERROR: the controller raised an error or returned a malformed output "
+        "(_BugFrom raised ZeroDivisionError: float division by zero)")
     return _from("FOLLOW", record)
 
 
@@ -279,6 +305,7 @@ PROVOKERS: dict[Event, Callable[[], Provoked]] = {
     Event.BATTERY_CRITICAL: _battery(13.1),  # the Kobuki driver's dangerous level is 13.2 V
     Event.CAMERA_ERROR: _camera_error,
     Event.PERCEPTION_ERROR: _perception_error,
+    Event.CONTROLLER_ERROR: _controller_error,
     Event.MALFORMED_OBSERVATION: _malformed,
     Event.FRAME_INVALID: _frame_invalid,
     Event.CLOCK_INVALID: _clock_invalid,

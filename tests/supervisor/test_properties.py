@@ -1,6 +1,10 @@
 """Property: over random sequences of observations, feedback, faults, timing and operator requests,
-no non-zero command ever leaves while HALT is latched, and HALT is left only after a request made
-after the last fault plus N confident frames."""
+no non-zero command ever leaves the supervised stack while HALT is latched, and HALT is left only
+after a request made after the last fault plus N confident frames.
+
+This is the supervised controller behind its gate: the controller zeroes its own command in HALT,
+so this test alone would pass with the gate's latch removed. The gate's own rules are checked
+with hostile controllers, which halt for nothing, in test_gate_properties.py."""
 
 from __future__ import annotations
 

@@ -90,6 +90,7 @@ BASE_LINK_LOST              HALT        HALT        HALT        HALT        HALT
 BATTERY_CRITICAL            HALT        HALT        HALT        HALT        HALT
 CAMERA_ERROR                HALT        HALT        HALT        HALT        HALT
 PERCEPTION_ERROR            HALT        HALT        HALT        HALT        HALT
+CONTROLLER_ERROR            HALT        HALT        HALT        HALT        HALT
 MALFORMED_OBSERVATION       HALT        HALT        HALT        HALT        HALT
 FRAME_INVALID               HALT        HALT        HALT        HALT        HALT
 CLOCK_INVALID               HALT        HALT        HALT        HALT        HALT
