@@ -310,16 +310,17 @@ def status_of(record: StepRecord, stats: RunStats, feedback: BaseFeedback | None
     }
 
 
-def summary_lines(stats: RunStats, *, halt_reason: str | None = None,
+def summary_lines(stats: RunStats, *, stopped: str | None = None,
                   recording: str | None = None, frames_dropped_recording: int = 0,
                   view_dropped: int | None = None) -> list[str]:
     """The operator's summary printed when a run ends (before the runner's one line saying why it
-    ended). `halt_reason`: why it halted (default: the reason it entered its last HALT with, else
+    ended). `stopped`: what stopped the robot, from the run's end reason
+    (`run_outcome.EndReason.stop_line`; default: the reason it entered its last HALT with, else
     the last step's)."""
-    reason = halt_reason or stats.halt_cause or (
-        stats.halt_reason if stats.state == "HALT" else None)
+    reason = stats.halt_cause or (stats.halt_reason if stats.state == "HALT" else None)
+    first = stopped or (f"halted: {reason}" if reason else "never halted")
     lines = [
-        f"  halted: {reason}" if reason else "  never halted",
+        f"  {first}",
         f"  distance (odometry) {stats.distance_m:.2f} m; states visited: "
         f"{', '.join(stats.states_visited) or 'none'}",
         f"  frames: {stats.frames_seen} seen, {stats.frames_skipped} skipped by the loop, "

@@ -27,6 +27,7 @@ from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.overlay import as_bgr, draw_detection
 from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
+from lanewarden.run_outcome import CLIP_END, end_reason_of, recorded_loop_end
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.report import write_report
@@ -36,8 +37,6 @@ from lanewarden.scenarios.video import MapView, VideoRecorder
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 RUN_NAME = "replay"
-#: Events that are not a safety stop of the run itself (an operator's, the end of the input).
-NORMAL_END_EVENTS = ("OPERATOR_STOP",)
 
 
 class OdometryMapView(MapView):
@@ -210,8 +209,9 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
     for record in records:
         if record.state not in states:
             states.append(record.state)
-    final = records[-1] if records else None
     halt = _first_halt_after_engaging(records)
+    end = end_reason_of(((r.state, r.halt_reason, r.time_s, r.frame_time_s) for r in records),
+                        recorded_loop_end(source.summary) if source.kind == "run" else CLIP_END)
     first_time = records[0].time_s if records else 0.0
     engaged_steps = sum(r.state != "HALT" for r in records)
     missing = missing_frames(source)
@@ -223,10 +223,11 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "steps": len(records),
         "sim_time_s": round(records[-1].time_s - first_time, 4) if records else 0.0,
         "halted": halt is not None,
-        "halt_reason": final.halt_reason if final is not None and final.state == "HALT" else None,
+        "end_reason": end.text,
+        "halt_reason": end.halt_reason,
         "first_halt_reason": records[halt].halt_reason if halt is not None else None,
         "first_halt_time_s": round(records[halt].time_s - first_time, 4) if halt else None,
-        "final_state": final.state if final is not None else None,
+        "final_state": end.state if records else None,
         "states_visited": states,
         "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
         "distance_travelled_m": round(distance_m, 4),
@@ -252,7 +253,7 @@ def summary_sentence(metrics: dict[str, Any]) -> str:
     text = (f"Replayed {metrics['steps']} steps ({metrics['frames']} frames, "
             f"{metrics['sim_time_s']} s) of {metrics['scenario']} ({metrics['source_kind']}); "
             f"states visited: {', '.join(metrics['states_visited'])}; final state "
-            f"{metrics['final_state']}.")
+            f"{metrics['final_state']}; the run ended: {metrics['end_reason']}.")
     if metrics["source_kind"] == "run":
         if metrics["divergent_steps"] == 0:
             text += f" Every step reproduced the recording ({metrics['compared_steps']} steps)."

@@ -39,6 +39,7 @@ from lanewarden.recording import (
     create_run_folder,
     default_run_folder,
 )
+from lanewarden.run_outcome import EndReason, LoopEnd
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
@@ -117,6 +118,9 @@ class RunSession:
             raise
         self.keys = KeyReader(self._on_key)
         self.recording: RecordingSummary | None = None
+        #: the newest status; at the end, the last one published (with `end_reason`)
+        self._status: dict[str, Any] = {"state": "HALT", "end_reason": None}
+        self.final_status: dict[str, Any] = {}
 
     # ---- building the loop --------------------------------------------------------------------
     def wrap(self, frames: FrameSource, stack: ControlStack,
@@ -174,10 +178,11 @@ class RunSession:
             link=base_link(feedback, record.time_s, sup.base_feedback_late_s,
                            sup.base_link_timeout_s),
             extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
-                   "recording": str(self.folder),
+                   "recording": str(self.folder), "end_reason": None,
                    "recording_frames_dropped": len(self.recorder.summary.frames_dropped),
                    "started": self.panel is not None and self.panel.started,
                    "armed": self.panel is not None and self.panel.armed})
+        self._status = status
         self.printer.publish(status)
         if self.view is not None:
             frame = None
@@ -226,10 +231,15 @@ class RunSession:
         self.keys.resume()
 
     # ---- the end ------------------------------------------------------------------------------
-    def close(self, end_reason: str, exit_code: int | None,
-              halt_reason: str | None = None) -> list[str]:
-        """Stop the keys, the page, the status line; finish the recording; the summary lines
-        (`halt_reason`: what the summary says halted the robot, when not the recorded cause)."""
+    def close(self, end: EndReason, loop_end: LoopEnd, exit_code: int | None) -> list[str]:
+        """Publish the last status (with the end reason) to the terminal and the live page, stop
+        the keys, the page and the status line, finish the recording (summary.json: the end
+        reason and what ended the loop, so a replay decides the same); the summary lines."""
+        self.final_status = {**self._status, "end_reason": end.text,
+                             "exit_code": exit_code}
+        self.printer.publish(self.final_status)
+        if self.view is not None:
+            self.view.publish(self.final_status, None)
         self.keys.__exit__(None, None, None)
         view_dropped = None
         if self.view is not None:
@@ -237,10 +247,11 @@ class RunSession:
             self.view.close()
         self.printer.close()
         self.recording = self.recorder.close({
-            "end_reason": end_reason, "exit_code": exit_code,
+            "end_reason": end.text, "end": end.as_json(), "ended_by": loop_end.as_json(),
+            "exit_code": exit_code,
             "duration_s": round(self.stats.duration_s, 3),
-            "final_state": self.stats.state,
-            "halt_reason": self.stats.halt_cause or self.stats.halt_reason,
+            "final_state": end.state,
+            "halt_reason": end.halt_reason,
             "states_visited": self.stats.states_visited,
             "distance_m": round(self.stats.distance_m, 4),
             "loop_time_ms": {
@@ -252,6 +263,6 @@ class RunSession:
             "frames_seen": self.stats.frames_seen,
             "frames_skipped": self.stats.frames_skipped,
             "view_frames_dropped": view_dropped})
-        return summary_lines(self.stats, halt_reason=halt_reason, recording=str(self.folder),
+        return summary_lines(self.stats, stopped=end.stop_line, recording=str(self.folder),
                              frames_dropped_recording=len(self.recording.frames_dropped),
                              view_dropped=view_dropped)

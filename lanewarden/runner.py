@@ -12,15 +12,16 @@ finished (lanewarden/run_session.py: recording, live page, status line, keys, bu
 Ctrl-Z (SIGTSTP) stops the robot first (the dead-man holds the stop), then suspends the process;
 after SIGCONT the supervisor stays latched in HALT (OPERATOR_STOP) until an explicit start or
 resume. The run also ends by itself on a failure it cannot recover from: the base link or the
-dead-man lost, the dead-man tripped, a live camera gone. `RunSummary.outcome` says which
-(`run_outcome`: a normal end, exit 0, or a safety stop, exit 3).
+dead-man lost, the dead-man tripped, a live camera gone. `RunSummary.end` says why it ended
+(`run_outcome.end_reason`, the one place that decides: a normal end, exit 0, or a safety stop,
+exit 3).
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from lanewarden.actuation.base import Base
@@ -31,7 +32,7 @@ from lanewarden.bases import open_base
 from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
-from lanewarden.run_outcome import RunOutcome, RunWatch
+from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.stop_signals import signal_requests, suspend
 from lanewarden.supervisor.clock import MonotonicClock
@@ -44,17 +45,17 @@ FIRST_FRAME_TIMEOUT_S = 3.0
 
 @dataclass(frozen=True)
 class RunSummary:
-    """`final_state`/`halt_reason`: the supervisor's state and halt reason just before the
-    runner's own closing stop. `outcome`: why the run ended and its exit code. `lines`: the
-    operator's summary (distance, states visited, frames, recording)."""
+    """`end`: why the run ended and its exit code (`run_outcome.end_reason`). `lines`: the
+    operator's summary (what stopped the robot, distance, states visited, frames, recording).
+    `final_status`: the last status published to the terminal and the live page (with the end
+    reason as `end_reason`)."""
 
     steps: int
     duration_s: float
-    final_state: str
-    halt_reason: str | None
     log_path: Path
-    outcome: RunOutcome = RunOutcome("not run")
+    end: EndReason
     lines: tuple[str, ...] = ()
+    final_status: dict[str, object] = field(default_factory=dict)
 
 
 def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> tuple[int, int]:
@@ -133,11 +134,7 @@ def run_robot(
         last: StepRecord | None = None
         steps = 0
         watch = RunWatch()
-        fault: str | None = None
-        clip_ended = False
-        ended_by = "an error"
-        final_state = "HALT"
-        outcome: RunOutcome | None = None
+        loop_end = LoopEnd(LoopEndKind.ERROR, "an error")
         started = clock.now()
         try:
             with (
@@ -157,7 +154,8 @@ def run_robot(
                 try:
                     while True:
                         if requests.stop is not None:
-                            ended_by = f"operator stop ({requests.stop.name})"
+                            loop_end = LoopEnd(LoopEndKind.OPERATOR,
+                                               f"operator stop ({requests.stop.name})")
                             break
                         now = clock.now()
                         if requests.suspend:
@@ -171,7 +169,8 @@ def run_robot(
                             session.resumed()
                             continue
                         if duration_s is not None and now - started >= duration_s:
-                            ended_by = f"--duration {duration_s:g} s reached"
+                            loop_end = LoopEnd(LoopEndKind.DURATION,
+                                               f"--duration {duration_s:g} s reached")
                             break
                         session.before_step(now)
                         last = loop.step(now)
@@ -180,13 +179,14 @@ def run_robot(
                                       last.frame_time_s)
                         fault = _ending_fault(base, frames, camera, replay_fps is not None)
                         if fault is not None:
+                            loop_end = LoopEnd(LoopEndKind.FAILURE, fault)
                             break
                         if rearm_after_suspend and last.state == "HALT":
                             assert isinstance(base, KobukiBase)
                             base.rearm(now)  # still latched: only an explicit start/resume moves
                             rearm_after_suspend = False
                         if frames.error is not None:  # a recorded clip ran out
-                            ended_by, clip_ended = "end of the clip", True
+                            loop_end = LoopEnd(LoopEndKind.CLIP, "end of the clip")
                             break
                         next_tick += period
                         delay = next_tick - clock.now()
@@ -195,28 +195,22 @@ def run_robot(
                         else:
                             next_tick = clock.now()  # overrun: the watchdog sees it; no burst
                 finally:
-                    final_state = last.state if last else "HALT"
-                    final_reason = last.halt_reason if last else None
+                    loop_end = loop_end.with_steps(steps)  # the closing stop comes after these
                     now = clock.now()
                     loop.operator_stop(now)
                     session.before_step(now)
                     loop.step(now)
-            outcome = watch.outcome(ended_by, fault=fault, clip_ended=clip_ended)
         finally:
-            ended = outcome.ended_by if outcome else ended_by
-            # Engaged when the run ended: the runner's own closing stop halted it, not a fault.
-            closing = f"by the end of the run ({ended}) while {final_state}" if (
-                final_state != "HALT") else None
-            lines = session.close(ended, outcome.exit_code if outcome else None,
-                                  halt_reason=closing)
+            end = end_reason(watch, loop_end)
+            lines = session.close(end, loop_end, None if loop_end.kind is LoopEndKind.ERROR
+                                  else end.exit_code)
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,
-            final_state=final_state,
-            halt_reason=final_reason,
             log_path=session.folder / "run.jsonl",
-            outcome=outcome,
+            end=end,
             lines=tuple(lines),
+            final_status=session.final_status,
         )
     finally:
         frames.close()

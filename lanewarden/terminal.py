@@ -41,10 +41,14 @@ def _num(value: Any, fmt: str, missing: str = "-") -> str:
 def format_status(status: dict[str, Any]) -> str:
     """One line: 'FOLLOW  30.0 fps  conf 0.82 (weakest lane_width 0.75)  slope +1.20/+1.05  v 0.20
     w +0.05  battery 16.2 V  link ok' (HALT shows its reason's event name; the weakest confidence
-    component below 1 says what holds perception back, e.g. while nothing engages)."""
+    component below 1 says what holds perception back, e.g. while nothing engages). The run's
+    last status has its end reason (`end_reason`, run_outcome.py): 'ENDED: safety stop:
+    LANE_LOST: ...' in place of the state."""
     state = str(status.get("state"))
     reason = status.get("halt_reason")
-    if state == "HALT" and reason:
+    if status.get("end_reason"):
+        state = f"ENDED: {status['end_reason']}"
+    elif state == "HALT" and reason:
         state = f"HALT ({str(reason).split(':')[0]})"
     command = status.get("command") or {}
     raw = _num(status.get("slope_sum"), "+.2f")
@@ -82,7 +86,7 @@ class StatusPrinter:
         self._status: dict[str, Any] | None = None
         self._messages: deque[str] = deque(maxlen=MAX_PENDING_MESSAGES)
         self._closed = False
-        self._last_key: tuple[object, object] | None = None
+        self._last_key: tuple[object, object, object] | None = None
         self._last_plain_s = -float("inf")
         self._width = 0
         self._thread = threading.Thread(target=self._run, name="status-line", daemon=True)
@@ -130,7 +134,7 @@ class StatusPrinter:
             self._width = len(line)
             self._stream.flush()
             return
-        key = (status.get("state"), status.get("halt_reason"))
+        key = (status.get("state"), status.get("halt_reason"), status.get("end_reason"))
         now = time.monotonic()
         if key != self._last_key or now - self._last_plain_s >= PLAIN_EVERY_S:
             self._last_key, self._last_plain_s = key, now

@@ -30,6 +30,7 @@ TABLE_ROWS: tuple[tuple[str, str], ...] = (
     ("lane_loss_to_halt_s", "lane out of view -> HALT (s)"),
     ("crossed_tape", "crossed a tape"),
     ("final_state", "final state"),
+    ("end_reason", "run ended"),
     ("sim_time_s", "simulated time (s)"),
     ("wall_time_s", "wall time (s)"),
 )

@@ -76,24 +76,19 @@ def run_command(camera: str, base_kind: str, port: str | None, calibration_path:
     for line in summary.lines:
         click.echo(line)
     click.echo(summary_line(summary))
-    outcome = summary.outcome
-    if outcome.safety_stop is not None:
-        click.echo(f"lanewarden: safety stop: {outcome.safety_stop}", err=True)
-    return outcome.exit_code
+    end = summary.end
+    if end.safety_stop is not None:
+        click.echo(f"lanewarden: {end.text}", err=True)
+    return end.exit_code
 
 
 def summary_line(summary: RunSummary) -> str:
-    """The run's last line on stdout: why it ended, how long, the state before the stop, log."""
-    outcome = summary.outcome
-    if outcome.safety_stop is not None:
-        why = f"run ended by a safety stop: {outcome.safety_stop}"
-    else:
-        why = f"run ended: {outcome.ended_by}"
-    state = summary.final_state
-    if state == "HALT" and summary.halt_reason:
-        state = f"HALT ({summary.halt_reason})"
+    """The run's last line on stdout: why it ended, how long, the state it ended in, log."""
+    end = summary.end
+    why = (f"run ended by a {end.text}" if end.safety_stop is not None
+           else f"run ended: {end.text}")
     return (f"{why}; after {summary.duration_s:.1f} s and {summary.steps} steps; state before "
-            f"the final stop: {state}; log: {summary.log_path}")
+            f"the final stop: {end.state_text}; log: {summary.log_path}")
 
 
 def commands() -> list[click.Command]:

@@ -7,6 +7,7 @@ latencies are measured in benchmarks/, never asserted here."""
 
 from __future__ import annotations
 
+import html
 import json
 import os
 import re
@@ -22,8 +23,10 @@ from tests.operator.runs import (
     lane_then_end_video,
     long_lane_images,
     moving,
+    run_beside,
     start_run,
     steps,
+    wait_until,
 )
 from tests.perception import synthetic as syn
 
@@ -163,8 +166,8 @@ def test_sigint_and_sigterm_end_with_stop_and_the_summary(
     assert f"run ended: operator stop ({sig.name})" in out.strip().splitlines()[-1]
     assert "distance (odometry)" in out and "states visited: HALT, FOLLOW" in out
     # the runner's own closing stop is named as such, not as a bare OPERATOR_STOP
-    assert re.search(rf"  halted: by the end of the run \(operator stop \({sig.name}\)\) while "
-                     r"(FOLLOW|TURN_LEFT|TURN_RIGHT|DEGRADED)\n", out), out
+    assert re.search(rf"  stopped by the end of the run \(operator stop \({sig.name}\)\) "
+                     r"while (FOLLOW|TURN_LEFT|TURN_RIGHT|DEGRADED)\n", out), out
     assert controls[-1][1] == (0, 0), "stop is the last command on the wire"
     assert steps(record)[-1]["state"] == "HALT"
 
@@ -231,3 +234,99 @@ def test_a_camera_perception_cannot_use_is_refused_before_anything_moves(
     assert err[0].startswith("lanewarden: error: perception.edges.look_ahead_m = 0.87: at "
                              "160x120 one pixel covers 8.5 mm")
     assert "expected a look-ahead of 0.47 m or less" in err[0]
+
+
+# ---- one end reason, everywhere -----------------------------------------------------------------
+ENGAGED_STATES = ("FOLLOW", "TURN_LEFT", "TURN_RIGHT", "DEGRADED")
+
+
+def assert_one_end_reason(out: str, err: str, record: Path, replay_out: Path) -> str:
+    """The run's end reason is the same in every place that says it: the last status line, the
+    summary (its first line and its last), stderr (a safety stop only), summary.json and the
+    replay of the run folder (metrics.json, report.html). Returns it."""
+    summary = json.loads((record / "summary.json").read_text())
+    text = summary["end_reason"]
+    end = summary["end"]
+    assert end["text"] == text
+    status_lines = [line for line in out.splitlines() if line.startswith("[")]
+    assert status_lines[-1].split("] ", 1)[1].startswith(f"ENDED: {text}  "), status_lines[-1]
+    stopped = (f"  halted: {end['halt_reason']}" if end["state"] == "HALT"
+               else f"  stopped by the end of the run ({end['ended_by']}) while {end['state']}")
+    assert stopped + "\n" in out, out
+    last = out.strip().splitlines()[-1]
+    if end["safety_stop"] is not None:
+        assert summary["exit_code"] == 3
+        assert last.startswith(f"run ended by a {text}; after "), last
+        assert err.strip().splitlines() == [f"lanewarden: {text}"]
+        assert end["halt_reason"] in (None, end["safety_stop"])
+    else:
+        assert summary["exit_code"] == 0
+        assert last.startswith(f"run ended: {text}; after "), last
+        assert err.strip() == ""
+    state = end["state"] if end["halt_reason"] is None else f"HALT ({end['halt_reason']})"
+    assert f"; state before the final stop: {state}; log: " in last
+
+    assert main(["replay", str(record), "--no-video", "--out", str(replay_out)]) == 0
+    metrics = json.loads((replay_out / "metrics.json").read_text())
+    assert (metrics["end_reason"], metrics["final_state"], metrics["halt_reason"]) == (
+        text, end["state"], end["halt_reason"])
+    assert f"the run ended: {html.escape(text)}." in (replay_out / "report.html").read_text()
+    return str(text)
+
+
+def test_a_clip_whose_lane_ends_ends_by_the_halt_that_held(
+        clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    record = tmp_path / "run"
+    code = main(["run", "--camera", str(clip), "--base", "sim", "--record", str(record)])
+    out, err = capsys.readouterr()
+    text = assert_one_end_reason(out, err, record, tmp_path / "replay")
+    assert code == 3
+    assert text.startswith(("safety stop: LANE_LOST: ", "safety stop: DEGRADED_BUDGET")), text
+    assert "CAMERA_ERROR" not in text and "OPERATOR_STOP" not in text
+
+
+def test_a_clip_that_ends_while_following_ends_by_the_clip(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    camera = long_lane_images(tmp_path, seconds=3.0)
+    record = tmp_path / "run"
+    code = main(["run", "--camera", str(camera), "--base", "sim", "--record", str(record)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert assert_one_end_reason(out, err, record, tmp_path / "replay") == "end of the clip"
+    end = json.loads((record / "summary.json").read_text())["end"]
+    assert end["state"] in ENGAGED_STATES, "the clip's end is the run's end, not a halt"
+    assert "halted:" not in out
+
+
+def test_ctrl_c_ends_the_run_as_the_operators_stop(
+        long_lane: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    record = tmp_path / "run"
+
+    def operator() -> None:
+        if wait_until(lambda: any(r["state"] in ENGAGED_STATES for r in steps(record))):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    code = run_beside(operator, ["--camera", str(long_lane), "--base", "sim", "--record",
+                                 str(record)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert assert_one_end_reason(out, err, record, tmp_path / "replay") == \
+        "operator stop (SIGINT)"
+    assert json.loads((record / "summary.json").read_text())["end"]["state"] in ENGAGED_STATES
+
+
+def test_a_bumper_that_held_when_the_clip_ended_is_the_reason(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    camera = long_lane_images(tmp_path, seconds=4.0)
+    record = tmp_path / "run"
+    with KobukiStandIn() as kobuki:
+        def operator() -> None:
+            if kobuki.wait_for(moving, 30.0):
+                kobuki.set_sensors(bumper=1)
+
+        code = run_beside(operator, ["--camera", str(camera), "--port", kobuki.port,
+                                     "--record", str(record)])
+    out, err = capsys.readouterr()
+    assert code == 3, err
+    text = assert_one_end_reason(out, err, record, tmp_path / "replay")
+    assert text.startswith("safety stop: BUMPER"), text
