@@ -4,9 +4,12 @@ Renders a 640x480 clip of a straight lane, then runs `lanewarden run --camera CL
 several times, alternating: without `--view`, and with `--view` and the page open in headless
 Chromium (Debian's chromium + chromedriver, driven by selenium) for the whole run. Each run records
 its steps' wall time and the control thread's CPU time per step (summary.json; the CPU time is not
-inflated by other processes, so it is the figure to compare on a shared machine) and the run
-process's CPU time (rusage). Prints them and the with/without ratios. On demand only:
-    python benchmarks/live_view_overhead.py [--seconds 20] [--pairs 2]
+inflated by other processes, so it is the figure to compare on a shared machine), the run
+process's CPU time (rusage) and its peak resident memory (sampled from /proc). Prints them and the
+with/without ratios. `--attack` also throws issue 18's hostile clients at the page for the whole
+run (Content-Length -1 and a flood, smuggled requests, foreign Hosts, huge headers, slow and idle
+connections): the loop's step times and the memory must stay where they are. On demand only:
+    python benchmarks/live_view_overhead.py [--seconds 20] [--pairs 2] [--attack]
 """
 
 from __future__ import annotations
@@ -71,7 +74,69 @@ def renice_browser(driver, niceness: int) -> None:  # type: ignore[no-untyped-de
             pass
 
 
-def one_run(clip: Path, folder: Path, view: bool, niceness: int) -> dict[str, float]:
+def attack(port: int, stop: threading.Event) -> dict[str, int]:
+    """Hostile clients, one after another, until `stop`: what they got (counted)."""
+    import socket
+
+    host = f"Host: 127.0.0.1:{port}\r\n"
+    resume = f"POST /resume HTTP/1.1\r\n{host}X-Lanewarden: 1\r\nContent-Length: 0\r\n\r\n"
+    payloads = [
+        f"POST /resume HTTP/1.1\r\n{host}X-Lanewarden: 1\r\nContent-Length: -1\r\n\r\n".encode()
+        + b"x" * (1 << 20),
+        f"POST /stop HTTP/1.1\r\n{host}Content-Length: {4096 + len(resume)}\r\n\r\n".encode()
+        + b"a" * 4096 + resume.encode(),
+        f"POST /resume HTTP/1.1\r\nHost: evil.example:{port}\r\nX-Lanewarden: 1\r\n"
+        "Content-Length: 0\r\n\r\n".encode(),
+        f"GET /status HTTP/1.1\r\n{host}".encode() + b"X-Big: " + b"z" * 20000 + b"\r\n\r\n",
+    ]
+    counts = {"connections": 0, "answered": 0, "resumes_served": 0}
+    idle: list[socket.socket] = []
+    while not stop.is_set():
+        for payload in payloads:
+            try:
+                with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+                    counts["connections"] += 1
+                    try:
+                        s.sendall(payload)
+                    except OSError:
+                        pass
+                    answer = s.recv(200)
+                    counts["answered"] += bool(answer)
+                    counts["resumes_served"] += b'"request": "resume"' in answer
+            except OSError:
+                pass
+        try:  # idle and slow connections, held until the server cuts them off
+            while len(idle) < 12:
+                s = socket.create_connection(("127.0.0.1", port), timeout=5)
+                s.sendall(b"GET /status HTTP/1.1\r\n")
+                idle.append(s)
+        except OSError:
+            pass
+        if len(idle) >= 12:
+            for s in idle:
+                s.close()
+            idle.clear()
+        stop.wait(0.05)
+    for s in idle:
+        s.close()
+    return counts
+
+
+def peak_rss_mib(pid: int, stop: threading.Event, into: dict[str, float]) -> None:
+    """The process's resident memory, its peak over the run (VmRSS sampled every 0.1 s)."""
+    while not stop.is_set():
+        try:
+            for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    into["peak_rss_mib"] = max(into.get("peak_rss_mib", 0.0),
+                                               int(line.split()[1]) / 1024)
+        except OSError:
+            return
+        stop.wait(0.1)
+
+
+def one_run(clip: Path, folder: Path, view: bool, niceness: int,
+            hostile: bool = False) -> dict[str, float]:
     args = [sys.executable, "-m", "lanewarden", "run", "--camera", str(clip), "--base", "sim",
             "--record", str(folder)]
     port = free_port()
@@ -79,6 +144,18 @@ def one_run(clip: Path, folder: Path, view: bool, niceness: int) -> dict[str, fl
         args += ["--view", str(port)]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     process = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL)
+    memory: dict[str, float] = {}
+    done = threading.Event()
+    sampler = threading.Thread(target=peak_rss_mib, args=(process.pid, done, memory), daemon=True)
+    sampler.start()
+    attacked: dict[str, int] = {}
+    attacker = None
+    if view and hostile:
+        def attack_when_up() -> None:
+            attacked.update(attack(port, done))
+
+        attacker = threading.Thread(target=attack_when_up, daemon=True)
+        attacker.start()
     driver = None
     if view:
         driver = browser()
@@ -96,6 +173,9 @@ def one_run(clip: Path, folder: Path, view: bool, niceness: int) -> dict[str, fl
         watcher = threading.Thread(target=watch, daemon=True)
         watcher.start()
     process.wait()
+    done.set()
+    if attacker is not None:
+        attacker.join(10)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if driver is not None:
         stop.set()
@@ -106,7 +186,10 @@ def one_run(clip: Path, folder: Path, view: bool, niceness: int) -> dict[str, fl
     return {"mean": loop["mean"], "p50": loop["p50"], "p95": loop["p95"], "max": loop["max"],
             "cpu_mean": cpu["mean"], "cpu_p50": cpu["p50"], "cpu_p95": cpu["p95"],
             "cpu_s": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
-            "steps": summary["steps"], "view_dropped": summary.get("view_frames_dropped") or 0}
+            "steps": summary["steps"], "view_dropped": summary.get("view_frames_dropped") or 0,
+            "peak_rss_mib": memory.get("peak_rss_mib", 0.0),
+            "attack_connections": attacked.get("connections", 0),
+            "resumes_served": attacked.get("resumes_served", 0)}
 
 
 def main() -> None:
@@ -117,6 +200,8 @@ def main() -> None:
                         help="run Chromium at this niceness: 19 stands for a browser on another "
                         "machine (the page's cost to the robot is then only serving it); 0 puts "
                         "it on the robot's own cores")
+    parser.add_argument("--attack", action="store_true",
+                        help="with the page open, also throw hostile clients at it all along")
     options = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="lw-view-bench-"))
     started = time.perf_counter()
@@ -127,13 +212,19 @@ def main() -> None:
     results: dict[bool, list[dict[str, float]]] = {False: [], True: []}
     for pair in range(options.pairs):
         for view in (False, True):
-            result = one_run(clip, work / f"run-{pair}-{int(view)}", view, options.browser_nice)
+            result = one_run(clip, work / f"run-{pair}-{int(view)}", view, options.browser_nice,
+                             options.attack)
             results[view].append(result)
+            attacked = (f"; under attack: {result['attack_connections']:.0f} hostile "
+                        f"connections, {result['resumes_served']:.0f} resumes served"
+                        if view and options.attack else "")
             print(f"{'page open' if view else 'no page  '}: step mean {result['mean']:.2f} ms, "
                   f"p50 {result['p50']:.2f}, p95 {result['p95']:.2f}, max {result['max']:.1f}; "
                   f"{result['steps']:.0f} steps; step CPU mean {result['cpu_mean']:.2f} ms, "
-                  f"p95 {result['cpu_p95']:.2f}; run CPU {result['cpu_s']:.2f} s"
-                  + (f"; view frames dropped {result['view_dropped']:.0f}" if view else ""))
+                  f"p95 {result['cpu_p95']:.2f}; run CPU {result['cpu_s']:.2f} s; peak RSS "
+                  f"{result['peak_rss_mib']:.0f} MiB"
+                  + (f"; view frames dropped {result['view_dropped']:.0f}" if view else "")
+                  + attacked)
     for key in ("cpu_mean", "cpu_p50", "cpu_p95", "mean", "p50", "p95"):
         without = statistics.mean(r[key] for r in results[False])
         with_page = statistics.mean(r[key] for r in results[True])

@@ -217,6 +217,47 @@ def test_the_frame_carries_the_status_of_its_own_step(view: View) -> None:
     assert (newest["step"], newest["state"], newest["confidence"]) == (9, "HALT", 0.0)
 
 
+def test_every_frame_served_carries_its_own_steps_status(view: View) -> None:
+    """A run publishes a status every step and a frame every third: whatever the encoder and the
+    page catch, the picture served (its grey level says its step) and the status beside it are
+    of the same step, never the newest step's status with an older picture."""
+    fetch(view.port, "GET", "/status")  # a page is watching: the encoder works
+    done = threading.Event()
+
+    def run() -> None:
+        step = 0
+        while not done.is_set():
+            step += 1
+            frame = None
+            if step % 3 == 0:
+                image = np.full((48, 64), (step // 3) % 40 * 6, np.uint8)
+                frame = ViewFrame(image, None, None, "none", "FOLLOW", None)
+            view.server.publish({"state": "FOLLOW", "step": step}, frame)
+            done.wait(0.0005)
+
+    publisher = threading.Thread(target=run, daemon=True)
+    publisher.start()
+    served: dict[int, int] = {}
+
+    def collect() -> bool:
+        status, body, response = fetch(view.port, "GET", "/frame.jpg")
+        if status == 200:
+            import cv2
+
+            grey = int(cv2.imdecode(np.frombuffer(body, np.uint8), cv2.IMREAD_GRAYSCALE)[10, 10])
+            served[json.loads(response.getheader("X-Lanewarden-Status", ""))["step"]] = grey
+        return len(served) >= 8
+
+    try:
+        assert wait_until(collect, 30.0, poll_s=0.01), served
+    finally:
+        done.set()
+        publisher.join(5)
+    for step, grey in served.items():
+        assert step % 3 == 0, f"a frame served with the status of step {step} (no frame)"
+        assert abs(grey - (step // 3) % 40 * 6) <= 2, f"step {step}'s status, grey {grey}"
+
+
 def test_the_plot_gets_the_new_samples_of_the_last_ten_seconds() -> None:
     v = View(plot={"turn_enter_slope_sum": 6.0, "turn_exit_slope_sum": 4.0})
     try:
@@ -399,7 +440,7 @@ def test_a_slow_client_is_cut_off_at_its_deadline() -> None:
     v = View(connection_deadline_s=0.5)
     request = (f"GET /status HTTP/1.1\r\nHost: 127.0.0.1:{v.port}\r\n"
                + "".join(f"X-Pad-{i}: {'y' * 20}\r\n" for i in range(12)) + "\r\n").encode()
-    sent = {"bytes": 0, "closed_by_server": False}
+    sent = {"bytes": 0}
     pause = threading.Event()
     try:
         with socket.create_connection(("127.0.0.1", v.port), timeout=30) as s:
@@ -407,8 +448,7 @@ def test_a_slow_client_is_cut_off_at_its_deadline() -> None:
                 for byte in request:  # about 400 bytes, 0.05 s apart: 20 s unless cut off
                     try:
                         s.sendall(bytes([byte]))
-                    except OSError:
-                        sent["closed_by_server"] = True
+                    except OSError:  # closed by the server
                         return
                     sent["bytes"] += 1
                     pause.wait(0.05)
@@ -416,10 +456,11 @@ def test_a_slow_client_is_cut_off_at_its_deadline() -> None:
             sender = threading.Thread(target=dribble, daemon=True)
             sender.start()
             answer = s.recv(4096)  # blocks until the server answers or closes
-            pause.set()
+            sent_when_closed = sent["bytes"]
+            pause.set()  # the rest goes at once (the sender must end)
             sender.join(10)
         assert answer == b"", "closed without an answer"
-        assert sent["bytes"] < len(request), "cut off before the request was complete"
+        assert sent_when_closed < len(request), "cut off before the request was complete"
         assert wait_until(v.idle, 10.0)
         assert v.requests.calls == [] and v.lines == []
     finally:
