@@ -1,9 +1,13 @@
 """Shared test fixtures: the folder of shared real data, and paths into it (skip with a reason
-where absent).
+where absent); the `slow` marker, given from one list; hypothesis's profile for the mutation run.
 
 The data folder is `$LANEWARDEN_DATA` when set, else `../shared/data` next to the project root
 (where a worktree under /work finds it). It holds `chessboard/opencv-left/` and
 `donkeycar-tub/` (see its README.md).
+
+Slow tests are listed in one place, tests/slow_tests.txt (a test file, or a test by node id
+without its parameters), measured with `pytest --durations=0`: `pytest -m "not slow"` is the
+fast subset (DEVELOPERS.md); plain `pytest` runs everything.
 """
 
 from __future__ import annotations
@@ -12,10 +16,36 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import Phase, settings
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 DATA_ENV = "LANEWARDEN_DATA"
 DEFAULT_DATA = PROJECT_ROOT.parent / "shared" / "data"
+SLOW_TESTS = Path(__file__).with_name("slow_tests.txt")
+
+# The mutation run (tests/mutation/run.py) only needs to know that a property fails, not its
+# smallest counterexample: no shrinking, no explaining (the examples themselves stay the same).
+settings.register_profile("mutation", phases=(Phase.explicit, Phase.reuse, Phase.generate))
+
+
+def slow_tests(path: Path = SLOW_TESTS) -> tuple[str, ...]:
+    """The listed node ids (`tests/x.py` or `tests/x.py::test_y`), comments and blanks dropped."""
+    text = path.read_text(encoding="utf-8")
+    entries = (line.split("#", 1)[0].strip() for line in text.splitlines())
+    return tuple(entry for entry in entries if entry)
+
+
+def is_slow(nodeid: str, listed: tuple[str, ...]) -> bool:
+    """Whether `nodeid` is listed: itself, its file, or its test without the parameters."""
+    base = nodeid.split("[", 1)[0]
+    return any(base == entry or base.startswith(entry + "::") for entry in listed)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    listed = slow_tests()
+    for item in items:
+        if is_slow(item.nodeid, listed):
+            item.add_marker(pytest.mark.slow)
 
 
 def data_folder() -> Path:

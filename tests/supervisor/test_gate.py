@@ -7,7 +7,9 @@ way round. The random version, with hostile controllers: test_gate_properties.py
 
 from __future__ import annotations
 
+import importlib
 import math
+import sys
 from dataclasses import dataclass, field
 
 import pytest
@@ -312,6 +314,16 @@ def test_the_event_table_is_checked_against_the_gate() -> None:
     without_cliff = {e: rule for e, rule in EVENT_TABLE.items() if e is not Event.CLIFF}
     with pytest.raises(SupervisorError, match=r"it does not for CLIFF$"):
         check_event_table(without_cliff)
+
+
+def test_the_gate_refuses_to_load_beside_a_table_that_demotes_its_events(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    demoted = {**EVENT_TABLE, Event.WHEEL_DROP: EventRule(Response.DEGRADE, "wheel dropped")}
+    monkeypatch.setattr(event_policy, "EVENT_TABLE", demoted)
+    monkeypatch.delitem(sys.modules, "lanewarden.supervisor.gate")  # put back afterwards
+    with pytest.raises(SupervisorError, match=r"it does not for WHEEL_DROP$"):
+        importlib.import_module("lanewarden.supervisor.gate")
 
 
 @pytest.mark.parametrize("name", list(HAZARDS))
