@@ -24,12 +24,20 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from lanewarden.actuation.base import Base
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.assembly import build_stack
 from lanewarden.bases import open_base
-from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
+from lanewarden.camera_source import (
+    CameraFrameSource,
+    CameraLost,
+    open_camera,
+    replay_rate_fps,
+    require_camera_view,
+)
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
@@ -58,8 +66,8 @@ class RunSummary:
     final_status: dict[str, object] = field(default_factory=dict)
 
 
-def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> tuple[int, int]:
-    """The camera's image size (width, height), once its first frame arrived."""
+def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> np.ndarray:
+    """The camera's first frame, once it arrived."""
     deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
     problem = "the camera opened but delivered nothing"
     while clock.now() < deadline:
@@ -69,8 +77,7 @@ def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) 
             problem = str(exc)
             break
         if first is not None:
-            height, width = first.image.shape[:2]
-            return width, height
+            return first.image
         time.sleep(0.02)
     raise SupervisorError(f"--camera {camera}: no frame within {FIRST_FRAME_TIMEOUT_S:.0f} s "
                           f"({problem})")
@@ -115,7 +122,10 @@ def run_robot(
     replay_fps = replay_rate_fps(camera, capture, 1.0 / period)
     frames = CameraFrameSource(capture, clock.now, replay_fps, max_pixels=max_pixels)
     try:
-        width, height = _first_frame(frames, clock, camera)
+        first = _first_frame(frames, clock, camera)
+        height, width = first.shape[:2]
+        if replay_fps is not None:  # a file: a run's own video is not a camera's view
+            require_camera_view(first, camera)
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lanewarden.scenarios.camera_clip import CameraClipWriter, check_clip_target
 from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.output_folder import OutputFolder
@@ -58,6 +59,8 @@ class RunRequest:
     progress: bool = True
     progress_position: int = 0
     source: str | None = None
+    #: `--camera-out`: write the camera's raw view there too (scenarios.camera_clip)
+    camera_out: Path | None = None
     #: more metrics from the finished run (e.g. a campaign case's outcome); a module-level
     #: function, so the request stays picklable
     judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
@@ -72,6 +75,15 @@ def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyp
         disable=not enabled, file=sys.stderr, position=request.progress_position, leave=True,
         bar_format="{desc}: {bar} {n:.1f}/{total:.1f} s simulated [{elapsed}]",
     )
+
+
+def _camera_clip(request: RunRequest, config: LanewardenConfig) -> CameraClipWriter | None:
+    """The camera clip's writer (`--camera-out`), checked and opened before the run starts."""
+    if request.camera_out is None:
+        return None
+    sim = config.simulation
+    return CameraClipWriter(check_clip_target(request.camera_out), (sim.width_px, sim.height_px),
+                            sim.camera_rate_hz, sim.video.preset, gray=not sim.perception_color)
 
 
 def ordered_metrics(metrics: dict[str, object]) -> dict[str, object]:
@@ -89,6 +101,7 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     folder = OutputFolder(out, RUN_OUTPUTS)
     folder.begin()
     video_path = out / "video.mp4" if request.video else None
+    clip = _camera_clip(request, config)
     bar = _progress_bar(request, request.spec.run.max_time_s)
     shown = [0.0]
 
@@ -101,13 +114,20 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         with JsonlRecorder(out / "run.jsonl") as recorder:
             simulation = Simulation(
                 request.spec, config, request.build_stack, controller=request.controller,
-                seed=request.seed, video_path=video_path, record=recorder, progress=progress)
+                seed=request.seed, video_path=video_path, record=recorder, progress=progress,
+                camera_frames=None if clip is None else clip.add)
             result = simulation.run()
         # The run usually ends before its time limit: show it finished.
         bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0
         bar.update(bar.total - bar.n)
+    except BaseException:
+        if clip is not None:
+            clip.abort()
+        raise
     finally:
         bar.close()
+    camera_clip = None if clip is None else clip.close(
+        simulation.calibration, config.model_dump(mode="json", exclude_defaults=True))
     write_run_plot(out / "plot.png", result, config)
     metrics = dict(result.metrics)
     if request.judge is not None:
@@ -131,6 +151,8 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         expectation_failures=failures or [],
         outputs=sorted(outputs),
     )
+    if camera_clip is not None:
+        metrics["camera_clip"] = camera_clip
     metrics = ordered_metrics(metrics)
     try:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")

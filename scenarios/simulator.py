@@ -12,7 +12,7 @@ the supervisor engages by itself after its confident frames. The stack between c
 simulated camera for perception to undistort with. Ground-truth metrics come from the world.
 
 Never reads a clock (wall time is measured by the caller) and never writes files itself: the
-run's records, video frames and progress go to callbacks the caller passes.
+run's records, video frames, camera images and progress go to callbacks the caller passes.
 """
 
 from __future__ import annotations
@@ -133,12 +133,17 @@ class Simulation:
         video_path: Path | None = None,
         record: Callable[[StepRecord], None] | None = None,
         progress: Callable[[float], None] | None = None,
+        camera_frames: Callable[[U8, float], None] | None = None,
     ) -> None:
+        """`record`, `progress` and `camera_frames` are the caller's: each step's record, the
+        simulated time, and each captured camera image (the sensor's raw view, before any
+        driver fault) with its time."""
         self.spec = spec
         self.config = config
         self.controller_name = controller
         self.seed = seed
         self._progress = progress
+        self._camera_frames = camera_frames
         sim = config.simulation
         self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
@@ -288,6 +293,8 @@ class Simulation:
             self.renderer.render_gray(pose, buffer, motion, noise)
         self.faults.after_render(k, now, buffer)
         self.sim_camera.capture(k, now)
+        if self._camera_frames is not None:
+            self._camera_frames(buffer, now)
         return pose, velocity
 
     def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord) -> None:

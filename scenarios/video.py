@@ -106,6 +106,37 @@ def caption_height_px(map_size_px: int) -> int:
     return height + height % 2
 
 
+#: Map sizes a run video can have (`simulation.video.map_size_px`: 160..1440, multiple of 16).
+_MAP_SIZES = range(160, 1441, 16)
+#: A caption band is this share of pixels within `_BAND_TOLERANCE` grey levels of its colour.
+_BAND_SHARE = 0.7
+_BAND_TOLERANCE = 12
+#: ... and the 2-pixel black line between the panels stays darker than this (after H.264).
+_DIVIDER_MAX = 16
+
+
+def run_video_layout(image: U8) -> tuple[int, int] | None:
+    """(camera panel width, map size) when `image` is a frame of a run video (`VideoRecorder`:
+    the caption band on top of [camera view | map], as `sim`, `demo` and `replay` write), else
+    None. Its size must be one this layout gives, its top band mostly the caption's colour and
+    the divider between the panels dark: a camera's own frame is none of these."""
+    if image.ndim != 3 or image.shape[2] != 3:
+        return None
+    height, width = image.shape[:2]
+    for size in _MAP_SIZES:
+        band = caption_height_px(size)
+        panel_w = width - size
+        if size + band != height or panel_w < 2:
+            continue
+        top = image[:band].astype(np.int16)
+        share = float(np.mean(np.all(np.abs(top - np.int16(_CAPTION_BG[0])) <= _BAND_TOLERANCE,
+                                     axis=2)))
+        divider = float(image[band:, max(0, panel_w - 1):panel_w + 1].mean())
+        if share >= _BAND_SHARE and divider < _DIVIDER_MAX:
+            return panel_w, size
+    return None
+
+
 def roi_ground_outline(camera: CameraModel, roi_polygon_px: FloatArray) -> FloatArray:
     """The floor (robot frame, metres) the ROI covers: the ROI polygon clipped to the image,
     back-projected through the (undistorted) camera. (K, 2)."""

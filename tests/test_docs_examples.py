@@ -53,8 +53,13 @@ RUN_HERE: tuple[tuple[str, int], ...] = (
 #: Run by another test.
 RUN_ELSEWHERE = {
     "lanewarden demo": "tests/scenarios/test_demo.py (the same command, into a temporary --out)",
-    "lanewarden run --camera clip.mp4 --base sim --view 8080":
-        "tests/operator/test_live_page_browser.py (a rendered clip, --base sim, --view, a browser)",
+    "lanewarden sim --scenario lane-ends --camera-out clip.mp4":
+        "tests/operator/test_try_without_a_robot.py (README's block, run as written)",
+    ("lanewarden run --camera clip.mp4 --calibration clip.calibration.yaml --base sim --record "
+     "runs/first --view 8080"):
+        "tests/operator/test_try_without_a_robot.py (README's block, run as written)",
+    "lanewarden replay runs/first":
+        "tests/operator/test_try_without_a_robot.py (README's block, run as written)",
     "lanewarden replay runs/2026-11-05T14-03-12Z --check":
         "tests/operator/test_run_end_to_end.py (a run recorded by run --record, replay --check)",
     "lanewarden replay clip.mp4 --out out/clip":
@@ -225,7 +230,7 @@ def _help_examples() -> list[str]:
 
 def test_every_help_example_parses() -> None:
     examples = _help_examples()
-    assert len(examples) == 21
+    assert len(examples) == 23
     for example in examples:
         argv, _ = argv_of(example)
         assert parse_only(argv).params, example  # parsed down to the command that runs

@@ -17,9 +17,10 @@ if TYPE_CHECKING:
     from lanewarden.runner import RunSummary
 
 RUN_EXAMPLES = """\b
-Examples (no robot: a clip on a simulated base, watched at http://127.0.0.1:8080/; the live
-camera with nothing sent; the robot; a recorded run replayed):
-  lanewarden run --camera clip.mp4 --base sim --view 8080
+Examples (no robot: a camera clip from the simulator on a simulated base, watched at
+http://127.0.0.1:8080/; the live camera with nothing sent; the robot; a recorded run replayed):
+  lanewarden sim --scenario lane-ends --camera-out clip.mp4
+  lanewarden run --camera clip.mp4 --calibration clip.calibration.yaml --base sim --view 8080
   lanewarden run --camera 0 --base none
   lanewarden run --camera 0 --calibration camera.yaml
   lanewarden replay runs/2026-11-05T14-03-12Z --check

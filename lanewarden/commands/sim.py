@@ -13,6 +13,7 @@ import sys
 import textwrap
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 from types import FrameType
 
@@ -91,6 +92,7 @@ def _scenario_list(width: int = 76) -> str:
 SIM_EXAMPLES = """\b
 Examples:
   lanewarden sim --scenario lane-ends
+  lanewarden sim --scenario lane-ends --camera-out clip.mp4
   lanewarden sim --scenario lecture --controller lecture --seed 3 --out out/lecture
   lanewarden sim --scenario my-track.yaml --no-video --check
   lanewarden sim --case campaign-out/cases/r00042.yaml
@@ -120,13 +122,20 @@ def _interrupted(out: Path) -> Interrupted:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--check", is_flag=True,
               help="Exit with code 2 if the scenario's expected outcome is not met.")
+@click.option("--camera-out", "camera_out", type=click.Path(path_type=Path), default=None,
+              metavar="FILE",
+              help="Also write the robot camera's raw view (no overlay, no map) at the camera's "
+              "size and rate: a video when FILE ends in .mp4/.mkv/.avi/.mov, else a folder of "
+              "PNG frames; with FILE.calibration.yaml (and FILE.config.yaml when the config is "
+              "not the default) beside it, for `lanewarden run --camera FILE`.")
 def sim_command(scenario: str | None, case_file: str | None, controller: str, seed: int,
                 out_dir: str | None, config_path: str | None, no_video: bool, quiet: bool,
-                check: bool) -> None:
+                check: bool, camera_out: Path | None) -> None:
     """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4 (and its
-    poster.jpg), plot.png and report.html."""
+    poster.jpg), plot.png and report.html (and, with --camera-out, a camera clip)."""
     if case_file is not None:
         request = _case_request(case_file, scenario, config_path, out_dir, no_video, quiet)
+        request = replace(request, camera_out=camera_out)
         spec, controller, out = request.spec, request.controller, request.out_dir
     else:
         if scenario is None:
@@ -136,7 +145,8 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
         request = RunRequest(
             spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario)
+            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario,
+            camera_out=camera_out)
     create_output_folder(out)
     try:
         metrics = run_to_directory(request)
@@ -152,6 +162,14 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         assert isinstance(failures, list)
         click.echo("  expected outcome: " + ("met" if met else "NOT met: " + "; ".join(failures)))
     click.echo(f"  outputs in {out}/ (open {out / 'report.html'})")
+    clip = metrics.get("camera_clip")
+    if isinstance(clip, dict):
+        width, height = clip["size"]
+        click.echo(f"  camera clip: {clip['path']} ({width}x{height}, {clip['fps']:g} fps, "
+                   f"{clip['frames']} frames: the camera's raw view), calibration "
+                   f"{clip['calibration']}" + (f", config {clip['config']}" if clip['config']
+                                               else ""))
+        click.echo(f"  play it through the whole loop: {clip['run']}")
     if check and met is None:
         raise QualityGateError(
             f"--check: scenario {spec.name} states no expected outcome for controller "

@@ -268,6 +268,8 @@ def assert_one_end_reason(out: str, err: str, record: Path, replay_out: Path) ->
 
     assert main(["replay", str(record), "--no-video", "--out", str(replay_out)]) == 0
     metrics = json.loads((replay_out / "metrics.json").read_text())
+    assert summary["frames_dropped"] == 0, "a recording this small keeps every frame"
+    assert metrics["reproduced"]
     assert (metrics["end_reason"], metrics["final_state"], metrics["halt_reason"]) == (
         text, end["state"], end["halt_reason"])
     assert f"the run ended: {html.escape(text)}." in (replay_out / "report.html").read_text()

@@ -1,0 +1,177 @@
+"""A camera clip from the simulator (`lanewarden sim --camera-out FILE`): the robot camera's raw
+view, what its sensor captured each frame (through the lens, with sensor noise, motion blur and
+the scenario's image faults; no overlay, no map), at the camera's size and frame rate.
+
+- FILE with a video suffix (`VIDEO_SUFFIXES`): an H.264 video (imageio-ffmpeg's ffmpeg, as the
+  run's video.mp4), near-lossless (`CLIP_CRF`).
+- any other FILE: a folder of lossless PNG frames, `frame_000000.png` on (natural order).
+
+Beside it, what `lanewarden run` needs to see those frames as the simulated robot did: the
+camera's calibration, `<FILE without suffix>.calibration.yaml` (its lens and its pose over the
+floor, as `calibrate` and `calibrate ground` write them), and, when the run's config differs from
+the defaults (a scenario's own `config:` or `--config`), `<FILE without suffix>.config.yaml`.
+`run_command` is the command line that plays the clip back.
+
+Writing only: the frames come from the simulator's `camera_frames` callback; never runs the
+simulation, never reads a clock. The camera's own drop/freeze/latency faults act in its driver,
+after the sensor, so they are not in a clip (a clip plays at a constant rate).
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import shlex
+from collections.abc import Generator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
+
+#: FILE endings written as a video (what OpenCV and `lanewarden run --camera` read back).
+VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi", ".mov")
+#: x264 quality of a camera clip: near-lossless (the composite video.mp4 uses a coarser one).
+CLIP_CRF = 18
+_FRAME_NAME = re.compile(r"^frame_\d{6}\.png$")
+
+
+@dataclass(frozen=True)
+class ClipFiles:
+    """Where a clip and its companions go."""
+
+    clip: Path
+    calibration: Path
+    config: Path
+
+    @property
+    def is_video(self) -> bool:
+        return self.clip.suffix.lower() in VIDEO_SUFFIXES
+
+    @classmethod
+    def for_target(cls, target: Path) -> ClipFiles:
+        stem = target.with_suffix("") if target.suffix.lower() in VIDEO_SUFFIXES else target
+        return cls(target, stem.with_name(stem.name + ".calibration.yaml"),
+                   stem.with_name(stem.name + ".config.yaml"))
+
+
+def check_clip_target(target: Path) -> ClipFiles:
+    """The clip's files, or ScenarioError (one line naming --camera-out) when FILE cannot be
+    used: a folder where a video should go, a file where frames should go, or a folder holding
+    anything but an earlier clip's frames."""
+    files = ClipFiles.for_target(target)
+    where = f"--camera-out {target}"
+    if files.is_video:
+        if target.is_dir():
+            raise ScenarioError(f"{where}: is a folder (expected a video file name ending in "
+                                f"{', '.join(VIDEO_SUFFIXES)}, or a folder name for PNG frames)")
+        return files
+    if target.exists() and not target.is_dir():
+        raise ScenarioError(f"{where}: exists and is not a folder (a name without a video suffix "
+                            f"is a folder of PNG frames; for a video end it in "
+                            f"{', '.join(VIDEO_SUFFIXES)})")
+    if target.is_dir():
+        others = sorted(p.name for p in target.iterdir() if not _FRAME_NAME.match(p.name))
+        if others:
+            raise ScenarioError(f"{where}: the folder holds other files ({', '.join(others[:3])}"
+                                f"{', ...' if len(others) > 3 else ''}): expected a new or empty "
+                                "folder, or one with an earlier clip's frame_NNNNNN.png only")
+    return files
+
+
+class CameraClipWriter:
+    """Streams the camera's frames into `files.clip` (see the module docstring). `size`: (width,
+    height); `fps`: the camera's frame rate; `preset`: x264's speed preset for a video."""
+
+    def __init__(self, files: ClipFiles, size: tuple[int, int], fps: float, preset: str,
+                 gray: bool) -> None:
+        self.files = files
+        self.size = size
+        self.fps = fps
+        self.frames = 0
+        self._writer: Generator[Any, Any, None] | None = None
+        try:
+            files.clip.parent.mkdir(parents=True, exist_ok=True)
+            if files.is_video:
+                import imageio_ffmpeg
+
+                logging.getLogger("imageio_ffmpeg").setLevel(logging.ERROR)
+                writer = imageio_ffmpeg.write_frames(
+                    str(files.clip), size, fps=fps, codec="libx264",
+                    pix_fmt_in="gray" if gray else "bgr24", pix_fmt_out="yuv420p",
+                    macro_block_size=2, ffmpeg_log_level="error",
+                    output_params=["-preset", preset, "-crf", str(CLIP_CRF),
+                                   "-movflags", "+faststart"])
+                writer.send(None)
+                self._writer = writer
+            else:
+                files.clip.mkdir(exist_ok=True)
+                for old in files.clip.glob("frame_*.png"):
+                    old.unlink()
+        except (OSError, RuntimeError) as exc:
+            raise ScenarioOutputError(f"--camera-out {files.clip}: cannot write the camera clip "
+                                      f"({exc})") from exc
+
+    def add(self, image: NDArray[np.uint8], now: float) -> None:
+        """One camera frame (gray or BGR, at `size`)."""
+        try:
+            if self._writer is not None:
+                self._writer.send(np.ascontiguousarray(image))
+            elif not cv2.imwrite(str(self.files.clip / f"frame_{self.frames:06d}.png"), image,
+                                 [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+                raise OSError("cv2.imwrite failed")
+        except (OSError, RuntimeError) as exc:
+            raise ScenarioOutputError(f"--camera-out {self.files.clip}: cannot write frame "
+                                      f"{self.frames} ({exc})") from exc
+        self.frames += 1
+
+    def close(self, calibration: CameraCalibration,
+              config_overrides: Mapping[str, Any]) -> dict[str, object]:
+        """Finish the clip, write its calibration (and config, when not the defaults); what was
+        written (for metrics.json)."""
+        writer, self._writer = self._writer, None
+        try:
+            if writer is not None:
+                writer.close()
+            save_calibration(calibration, self.files.calibration)
+            if config_overrides:
+                self.files.config.write_text(
+                    "# the config this clip's run used (its scenario's config: and --config)\n"
+                    + yaml.safe_dump(dict(config_overrides), sort_keys=False), encoding="utf-8")
+            elif self.files.config.exists():
+                self.files.config.unlink()  # an earlier clip's: it would not be this run's
+        except (OSError, RuntimeError, PerceptionError) as exc:
+            raise ScenarioOutputError(f"--camera-out {self.files.clip}: cannot finish the camera "
+                                      f"clip ({exc})") from exc
+        return {"path": str(self.files.clip), "frames": self.frames,
+                "size": list(self.size), "fps": self.fps,
+                "calibration": str(self.files.calibration),
+                "config": str(self.files.config) if config_overrides else None,
+                "run": run_command(self.files, bool(config_overrides))}
+
+    def abort(self) -> None:
+        """After a failure or an interrupt: stop the encoder (the clip is incomplete)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            try:
+                writer.close()
+            except (OSError, RuntimeError):
+                pass
+
+
+def run_command(files: ClipFiles, with_config: bool) -> str:
+    """The command that plays the clip back through the whole loop on a simulated base."""
+    config = f" --config {_shell(files.config)}" if with_config else ""
+    return (f"lanewarden run --camera {_shell(files.clip)} --calibration "
+            f"{_shell(files.calibration)}{config} --base sim")
+
+
+def _shell(path: Path) -> str:
+    return shlex.quote(str(path))

@@ -1,0 +1,179 @@
+"""A camera clip from the simulator (`sim --camera-out`) played back by `run --camera`, and a run
+video (sim's composite video.mp4) refused as a camera, within seconds."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from lanewarden.actuation.base import STOP
+from lanewarden.cli import main
+from lanewarden.perception.calibration import load_calibration
+from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.texture import paint_ground
+from lanewarden.scenarios.video import MapView, VideoRecorder, run_video_layout
+from lanewarden.scenarios.world import build_world
+from lanewarden.supervisor.loop import StepRecord
+from tests.operator.clips import lane_end_frames
+from tests.scenarios.helpers import straight_spec
+
+#: 3 s on a straight lane with a 320x240 camera; its `config:` makes the run's config differ
+#: from the defaults, so the clip gets a config file beside it.
+SHORT = """\
+name: short
+lane:
+  segments:
+    - straight_m: 4.0
+run:
+  max_time_s: 3
+config:
+  simulation: {width_px: 320, height_px: 240, texture_mm_per_px: 5.0}
+"""
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("scenario") / "short.yaml"
+    path.write_text(SHORT, encoding="utf-8")
+    return path
+
+
+def _sim(scenario: Path, out: Path, camera_out: Path) -> dict[str, object]:
+    assert main(["sim", "--scenario", str(scenario), "--no-video", "--quiet", "--out", str(out),
+                 "--camera-out", str(camera_out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    clip = metrics["camera_clip"]
+    assert isinstance(clip, dict)
+    return clip
+
+
+def test_a_video_clip_is_the_cameras_view_at_its_size_and_rate_and_plays_in_run(
+        scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "clips" / "clip.mp4"  # a missing folder is created
+    clip = _sim(scenario, tmp_path / "sim", target)
+    out = capsys.readouterr().out
+    frames = 91  # 3 s at 30 fps, from t = 0
+    assert (clip["frames"], clip["size"], clip["fps"]) == (frames, [320, 240], 30.0)
+    assert clip["calibration"] == str(tmp_path / "clips" / "clip.calibration.yaml")
+    assert clip["config"] == str(tmp_path / "clips" / "clip.config.yaml")
+    assert clip["run"] == (f"lanewarden run --camera {target} --calibration "
+                           f"{tmp_path / 'clips' / 'clip.calibration.yaml'} --config "
+                           f"{tmp_path / 'clips' / 'clip.config.yaml'} --base sim")
+    assert f"  play it through the whole loop: {clip['run']}" in out
+    capture = cv2.VideoCapture(str(target))
+    assert (capture.get(cv2.CAP_PROP_FRAME_WIDTH), capture.get(cv2.CAP_PROP_FRAME_HEIGHT),
+            capture.get(cv2.CAP_PROP_FPS), capture.get(cv2.CAP_PROP_FRAME_COUNT)) == (
+                320, 240, 30.0, frames)
+    ok, first = capture.read()
+    capture.release()
+    assert ok and run_video_layout(first) is None, "the raw view: no caption band, no map"
+    calibration = load_calibration(str(clip["calibration"]))
+    assert calibration.image_size == (320, 240)
+    assert calibration.ground is not None, "with its pose over the floor"
+    assert np.allclose(calibration.dist_coeffs, CameraModel().dist_coeffs), "through the lens"
+
+    record = tmp_path / "run"
+    code = main([*str(clip["run"]).split()[1:], "--record", str(record)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    summary = json.loads((record / "summary.json").read_text())
+    assert summary["end_reason"] == "end of the clip"
+    assert "FOLLOW" in summary["states_visited"], "it engaged on the simulator's camera view"
+
+
+def test_a_folder_clip_is_png_frames(scenario: Path, tmp_path: Path) -> None:
+    target = tmp_path / "frames"
+    target.mkdir()
+    (target / "frame_000999.png").write_bytes(b"an earlier clip's frame: replaced")
+    clip = _sim(scenario, tmp_path / "sim", target)
+    names = sorted(p.name for p in target.iterdir())
+    assert names == [f"frame_{i:06d}.png" for i in range(91)]
+    assert clip["calibration"] == str(tmp_path / "frames.calibration.yaml")
+    image = cv2.imread(str(target / "frame_000000.png"), cv2.IMREAD_UNCHANGED)
+    assert image.shape == (240, 320), "the simulated camera is gray by default"
+
+
+def _folder_with_notes(path: Path) -> None:
+    path.mkdir()
+    (path / "notes.txt").write_text("mine")
+
+
+def _a_file(path: Path) -> None:
+    path.write_text("a file")
+
+
+@pytest.mark.parametrize(("make", "expected"), [
+    (_folder_with_notes, "the folder holds other files (notes.txt): expected a new or empty "
+                         "folder, or one with an earlier clip's frame_NNNNNN.png only"),
+    (_a_file, "exists and is not a folder (a name without a video suffix is a folder of PNG "
+              "frames; for a video end it in .mp4, .mkv, .avi, .mov)"),
+])
+def test_a_clip_never_overwrites_what_is_not_its_own(
+        make: Callable[[Path], None], expected: str, scenario: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "frames"
+    make(target)
+    assert main(["sim", "--scenario", str(scenario), "--no-video", "--quiet", "--out",
+                 str(tmp_path / "sim"), "--camera-out", str(target)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"lanewarden: error: --camera-out {target}: {expected}"]
+    assert not (tmp_path / "sim" / "metrics.json").exists(), "refused before the run"
+
+
+# ---- a run video is not a camera -----------------------------------------------------------------
+def _run_video(path: Path, camera_size: tuple[int, int], map_px: int) -> Path:
+    """A few frames of a run video (sim's video.mp4 layout) around a rendered lane view."""
+    world = build_world(straight_spec(2.0), margin_m=1.0)
+    recorder = VideoRecorder(path, camera_size, MapView(world, paint_ground(world, 0.02, 0),
+                                                        map_px), fps=15.0, crf=28,
+                             preset="ultrafast", title="scenario short")
+    views = lane_end_frames(start_m=1.0, end_m=1.2, size=camera_size)
+    for i, view in enumerate(views[:4]):
+        record = StepRecord(frame_index=i, time_s=i / 15, observation=None,
+                            filtered_slope_sum=None, slope_sum_variance=None, state="FOLLOW",
+                            events=(), command=STOP, halt_reason=None)
+        recorder.step(world.start_pose, record)
+        recorder.add(view, world.start_pose, i / 15, record, None)
+    recorder.close()
+    return path
+
+
+def test_sims_composite_video_is_refused_as_a_camera(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    video = _run_video(tmp_path / "video.mp4", (640, 480), 480)
+    record = tmp_path / "run"
+    code = main(["run", "--camera", str(video), "--base", "sim", "--record", str(record)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert err == [f"lanewarden: error: --camera {video}: a run video (1120x590: captions above "
+                   "a 640-pixel-wide camera panel and a 480-pixel map), not a camera's view "
+                   "(expected the camera's own frames: `lanewarden sim --scenario NAME "
+                   "--camera-out clip.mp4` writes them)"]
+    assert not record.exists(), "refused before anything was recorded or opened"
+
+
+@pytest.mark.parametrize(("camera_size", "map_px"), [((320, 240), 160), ((160, 120), 480)])
+def test_every_run_video_layout_is_recognised(camera_size: tuple[int, int], map_px: int,
+                                              tmp_path: Path) -> None:
+    capture = cv2.VideoCapture(str(_run_video(tmp_path / "v.mp4", camera_size, map_px)))
+    ok, frame = capture.read()
+    capture.release()
+    assert ok
+    panel_w = round(camera_size[0] * map_px / camera_size[1] / 2) * 2
+    assert run_video_layout(frame) == (panel_w, map_px)
+
+
+def test_camera_frames_are_not_taken_for_a_run_video() -> None:
+    rng = np.random.default_rng(3)
+    for size in ((320, 240), (640, 480), (1120, 590)):
+        view = lane_end_frames(start_m=1.0, end_m=1.0, size=size)[0]
+        assert run_video_layout(view) is None
+        noise = rng.integers(0, 256, (size[1], size[0], 3), dtype=np.uint8)
+        assert run_video_layout(noise) is None
+    dark = np.full((590, 1120, 3), 32, np.uint8)  # a caption-coloured band, but no dark divider
+    assert run_video_layout(dark) is None
