@@ -145,8 +145,9 @@ def parse_labels(text: str, source: str) -> LabelsTable:
 @dataclass(frozen=True)
 class LabelledFrame:
     """A frame to survey: `name` as the report shows it (a file path, or "frame 123"), its label,
-    its place in sequence order (`order`: the source's frame index for a video, run or tub; the
-    row for a labels file; the name order within a class folder) and the label's note."""
+    its place in sequence order (`order`: its place among the frames of a video, run or tub,
+    where a frame the camera dropped is no gap; the row for a labels file; the name order within
+    a class folder) and the label's note."""
 
     name: str
     expect: str

@@ -270,7 +270,7 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
     span = ReplaySource(kind=recording.kind, name=recording.name,
                         steps=camera_steps(frames.items()), frames=checked)
     decide = decision_rule(config)
-    keeper = PictureKeeper(i for i, f in labelled.items() if f.expect == LANE)
+    keeper = PictureKeeper(f.order for f in labelled.values() if f.expect == LANE)
     results: list[FrameResult] = []
     unread: list[str] = []
     halts: list[str] = []

@@ -125,25 +125,31 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
 
 
 def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, LabelledFrame]:
-    """The labelled frames by the recording's frame index; a label beyond the recording is an
-    error naming its line."""
+    """The labelled frames by the recording's frame index. A range labels the frames the
+    recording has within it (a run folder may lack frames the camera dropped); a frame index or a
+    range end beyond the recording, or a range without any frame, is an error naming its line."""
     available = sorted({s.frame[0] for s in source.steps if s.frame is not None})
     present = set(available)
+    # sequence order: the place among the recording's frames (a dropped frame is no gap)
+    position = {index: k for k, index in enumerate(available)}
     labelled: dict[int, LabelledFrame] = {}
     for row in table.rows:
         assert row.frames is not None
         first, last = row.frames
-        if not available or last > available[-1]:
-            missing: int | None = last  # checked first: a range is then within the recording
-        else:
-            missing = next((i for i in range(first, last + 1) if i not in present), None)
-        if missing is not None:
-            have = f"frames {available[0]}-{available[-1]}" if available else "no frames"
-            span = f"{first}" if first == last else f"{first}-{last}"
-            raise InputFileError(f"{table.source}:{row.line}: frames {span}: frame {missing} "
-                                 f"is not in {source.name} ({source.kind}, {have})")
-        for index in range(first, last + 1):
-            labelled[index] = LabelledFrame(f"frame {index}", row.expect, index, row.note)
+        span = f"{first}" if first == last else f"{first}-{last}"
+        have = f"frames {available[0]}-{available[-1]}" if available else "no frames"
+        if not available or last > available[-1] or (first == last and first not in present):
+            missing = last if not available or last > available[-1] else first
+            what = f"frame {first}" if first == last else f"frames {span}: frame {missing}"
+            raise InputFileError(f"{table.source}:{row.line}: {what} is not in {source.name} "
+                                 f"({source.kind}, {have})")
+        inside = [i for i in range(first, last + 1) if i in present]  # last is within the source
+        if not inside:
+            raise InputFileError(f"{table.source}:{row.line}: frames {span}: none of these "
+                                 f"frames is in {source.name} ({source.kind}, {have})")
+        for index in inside:
+            labelled[index] = LabelledFrame(f"frame {index}", row.expect, position[index],
+                                            row.note)
     return labelled
 
 

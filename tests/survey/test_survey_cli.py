@@ -103,8 +103,24 @@ def test_a_floor_folder_with_a_calibration(floor: Path, tmp_path: Path,
     assert "no-lane: 2 frames, 0 with a decision (0%), 0 confident, 0 false lanes" in out
     assert "lane: 3 frames, 3 with a decision (100%), 3 confident; longest confident run 3 " \
            "(lane/dashed.jpg .. lane/tiles-lane.jpg)" in out
-    assert "supervisor: engages on 3 of 3 lane stills held in view for 1.0 s" in out
+    # each still held in view after a start: the supervisor engages on its 10th confident frame
+    # in a row (engage_confident_frames 10 at 30 frames/s: 9 frame periods after the first)
+    assert ("supervisor: engages on 3 of 3 lane stills held in view for 1.0 s after a start "
+            "(after 0.30 s at the most)") in out
     assert (tmp_path / "lanewarden-out" / "survey-floor" / "report.html").exists()
+
+
+def test_stills_are_held_long_enough_for_the_supervisors_rule(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Needing 40 confident frames, each still is held 2.7 s (twice the 1.33 s they take) and the
+    supervisor engages on the 40th: the survey asks it, it does not restate its rule."""
+    config = tmp_path / "engage-40.yaml"
+    config.write_text("supervisor: {engage_confident_frames: 40}\n")
+    code, out, _ = _survey([str(floor), "--config", str(config), "--out", str(tmp_path / "o")],
+                           capsys)
+    assert code == 0
+    assert ("supervisor: engages on 3 of 3 lane stills held in view for 2.7 s after a start "
+            "(after 1.30 s at the most)") in out
 
 
 def test_json_prints_survey_json(floor: Path, tmp_path: Path,
