@@ -69,6 +69,15 @@ RUN_ELSEWHERE = {
      "tests/perception/donkeycar_camera.yaml --calibration "
      "tests/perception/donkeycar_calibration.yaml"):
         "tests/operator/test_replay_sources.py (the same tub, config and calibration)",
+    "lanewarden survey data/survey/rendered":
+        "tests/survey/test_survey_cli.py (the same command, into a temporary --out)",
+    "lanewarden survey floor/ --calibration camera.yaml":
+        "tests/survey/test_survey_cli.py (a floor/ of rendered photos, the simulated camera's "
+        "calibration)",
+    ("lanewarden survey ../shared/data/donkeycar-tub --labels data/survey/donkeycar-tub.csv "
+     "--config tests/perception/donkeycar_camera.yaml --calibration "
+     "tests/perception/donkeycar_calibration.yaml"):
+        "tests/survey/test_survey_real.py (the same tub, labels, config and calibration)",
     "lanewarden campaign --spec default --out campaign-out --runs 1000":
         "tests/campaign/test_campaign_cli.py and test_dask.py (small specs; 1000 runs take hours)",
     "lanewarden sim --case campaign-out/cases/r00042.yaml":

@@ -15,9 +15,11 @@ def register_commands(cli: click.Group) -> None:
         replay,
         run,
         sim,
+        survey,
         undistort,
     )
 
-    for module in (config_cmd, detect, calibrate, undistort, base, sim, run, replay, campaign):
+    for module in (config_cmd, detect, calibrate, undistort, base, sim, run, replay, survey,
+                   campaign):
         for command in module.commands():
             cli.add_command(command)

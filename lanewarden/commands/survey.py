@@ -1,0 +1,141 @@
+"""`lanewarden survey FOLDER [--labels FILE] [--calibration FILE] [--config FILE] [--out DIR]
+[--json]`: judge a camera on a real floor before trusting it with motors.
+
+FOLDER holds frames sorted by what they show (`lane/`, `no-lane/`), or a `labels.csv`; a video, a
+run folder, an image sequence or a Donkeycar tub works with `--labels FILE` (frame indices or
+ranges). Prints the figures per class, the verdict and whether the supervisor engaged, and writes
+OUT/report.html and OUT/survey.json. Exit 0 when SAFE (no decision on any no-lane frame), 3 when
+NOT SAFE (the false lanes named in one line on stderr), 2 for bad input (one line naming the file,
+line or flag and the value), 1 when an output cannot be written.
+
+A thin shell: `lanewarden.survey_source` finds the labelled frames, `lanewarden.survey_run` runs
+perception and the supervisor over them, `lanewarden.survey` judges, `lanewarden.survey_report`
+writes.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_folder
+from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP, ConfigError, OutputError, UsageError
+
+SURVEY_EXAMPLES = """\b
+Examples:
+  lanewarden survey floor/ --calibration camera.yaml
+  lanewarden survey clip.mp4 --labels clip-labels.csv --out out/clip-survey
+"""
+
+
+@click.command("survey", epilog=SURVEY_EXAMPLES)
+@click.argument("folder", metavar="FOLDER")
+@click.option("--labels", "labels_path", type=click.Path(dir_okay=False), default=None,
+              metavar="FILE", help="Labels for FOLDER's frames: file,expect[,note] (paths "
+              "relative to FOLDER) or frames,expect[,note] (frame indices or ranges of a video, "
+              "run folder, image sequence or Donkeycar tub). Default: FOLDER/labels.csv, else "
+              "the lane/ and no-lane/ sub-folders.")
+@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+              metavar="FILE", help="Camera calibration (default: a run folder's own, else none).")
+@config_option
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Output directory for report.html and survey.json (default: "
+              "lanewarden-out/survey-<folder name>).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print survey.json on stdout instead of the text summary.")
+def survey_command(folder: str, labels_path: str | None, calibration_path: str | None,
+                   config_path: str | None, out_dir: str | None, as_json: bool) -> int:
+    """Judge this camera on this floor before it drives: perception on frames labelled lane
+    (two tapes) or none (bare floor, seams, one tape, a tape's end, clutter, a dark frame), and
+    the real supervisor on the lane frames. Prints per class the frames with a decision, the
+    confident ones, the false lanes (a decision on a no-lane frame), the weakest confidence
+    components and the longest runs of confident frames; the verdict, SAFE or NOT SAFE, and
+    whether the supervisor engages. Exit 0 when SAFE, 3 when NOT SAFE."""
+    from tqdm import tqdm
+
+    from lanewarden.config import load_config
+    from lanewarden.perception.calibration import (
+        Undistorter,
+        load_calibration,
+        require_usable_calibration,
+    )
+    from lanewarden.perception.detector import LaneDetector
+    from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.replay import replay_config
+    from lanewarden.survey import NONE, judge, name_frames, summary_lines
+    from lanewarden.survey_report import OUTPUTS, write_outputs
+    from lanewarden.survey_run import survey_sequence, survey_stills
+    from lanewarden.survey_source import open_survey_source
+
+    config = load_config(config_path)
+    config_origin = config_path or "defaults"
+    source = open_survey_source(folder, labels_path, 1.0 / config.supervisor.camera_period_s,
+                                config.perception.max_image_pixels)
+    calibration = None
+    if source.sequence is not None:
+        config = replay_config(source.sequence, config_path)
+        config_origin = source.sequence.config_origin
+        calibration = source.sequence.calibration
+    if calibration_path is not None:
+        calibration = load_calibration(calibration_path)
+    if calibration is not None:
+        require_usable_calibration(calibration, calibration.image_size, config.calibration,
+                                   f"--calibration {calibration_path or 'of the recording'}")
+    frames = ([s.frame for s in source.stills] if source.sequence is None
+              else list(source.labelled.values()))
+    if not any(f.expect == NONE for f in frames):
+        raise UsageError(f"FOLDER '{folder}': no no-lane frame; a survey shows that perception "
+                         "sees no lane on bare floor, seams, one tape alone, a tape's end: put "
+                         "such frames in no-lane/ or label them none")
+    out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
+    create_output_folder(out)
+    try:
+        for name in OUTPUTS:  # a failed survey leaves no stale verdict behind
+            (out / name).unlink(missing_ok=True)
+    except OSError as exc:
+        raise OutputError(f"--out '{out}': cannot replace old outputs ({exc.strerror or exc})"
+                          ) from exc
+    try:
+        detector = LaneDetector(config.perception,
+                                Undistorter(calibration) if calibration is not None else None)
+    except PerceptionConfigError as exc:
+        raise ConfigError(str(exc)) from None
+    ground = detector.describe_ground(calibration_path)
+    click.echo(f"lanewarden: {ground}" if as_json else ground, err=as_json)
+    total = len(source.stills) if source.sequence is None else (
+        max(source.labelled) - min(source.labelled) + 1)
+    bar = tqdm(total=total, desc="survey", unit="frame", file=sys.stderr, disable=None,
+               leave=False)
+    try:
+        if source.sequence is None:
+            run = survey_stills(source.stills, config, calibration, detector, bar.update)
+        else:
+            run = survey_sequence(source, config, calibration, bar.update)
+    finally:
+        bar.close()
+    figures = judge(run.results, run.engage)
+    about = {"source": folder, "frames": source.description, "config": config_origin,
+             "calibration": calibration_path or ("the recording's" if calibration else "none"),
+             "ground_model": ground}
+    document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures)
+    if as_json:
+        click.echo(json.dumps(document))
+    else:
+        for line in summary_lines(figures):
+            click.echo(line)
+    click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)
+    verdict = figures.verdict
+    if not verdict.safe:
+        names = name_frames([r.frame.name for r in verdict.false_lanes])
+        click.echo(f"lanewarden: not safe: {len(verdict.false_lanes)} false lanes (a decision on "
+                   f"a no-lane frame): {names}", err=True)
+        return EXIT_SAFETY_STOP
+    return EXIT_OK
+
+
+def commands() -> list[click.Command]:
+    return [survey_command]

@@ -1,0 +1,488 @@
+"""`lanewarden survey`'s pure core: labelled frames and what perception and the supervisor made of
+them -> the figures per class and the verdict.
+
+A survey judges a camera on a real floor before it drives: frames labelled `lane` (two tapes in
+view) or `none` (bare floor, seams, one tape, a tape's end, clutter, a dark frame). Per class it
+counts the frames with a decision (perception's `decision` with the supervisor's thresholds: not
+"none"), the confident ones (the supervisor's own test, `supervisor.lane_evidence`: both edges and
+`confidence_confident_min`), the false lanes (any decision on a `none` frame), the weakest
+confidence components and the longest runs of confident frames in sequence order. The verdict:
+SAFE when no `none` frame got a decision, else NOT SAFE naming them; and whether the real
+supervisor engaged (`EngageFigures`, measured by `lanewarden.survey_run`).
+
+Also here: the labels file format (`parse_labels`), pure text in, rows out, with one-line errors
+naming the file, the line and the value.
+
+Pure: no images, no files, no clock, no printing.
+"""
+
+from __future__ import annotations
+
+import csv
+import statistics
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from lanewarden.errors import InputFileError
+
+LANE = "lane"
+NONE = "none"
+#: The labels, and the folder (and title) of each class.
+EXPECTS = (LANE, NONE)
+CLASS_FOLDERS = {LANE: "lane", NONE: "no-lane"}
+#: How many longest confident runs, frames named in one line, are reported.
+RUNS_SHOWN = 3
+NAMES_SHOWN = 12
+
+#: Largest labels file read, bytes, and most labelled rows in it.
+MAX_LABELS_BYTES = 1_000_000
+MAX_LABEL_ROWS = 100_000
+LABEL_HEADERS = {
+    ("file", "expect"): "file",
+    ("file", "expect", "note"): "file",
+    ("frames", "expect"): "frames",
+    ("frames", "expect", "note"): "frames",
+}
+HEADER_HELP = "file,expect[,note] (images) or frames,expect[,note] (a video, run or tub)"
+
+
+# ---- labels -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LabelRow:
+    """One row of a labels file: `file` (a path) or `frames` (first, last; inclusive)."""
+
+    line: int
+    expect: str
+    note: str
+    file: str | None = None
+    frames: tuple[int, int] | None = None
+
+
+@dataclass(frozen=True)
+class LabelsTable:
+    source: str
+    kind: str  # "file" or "frames"
+    rows: tuple[LabelRow, ...]
+
+
+def _expect(value: str, where: str) -> str:
+    expect = value.strip().lower()
+    if expect not in EXPECTS:
+        raise InputFileError(f"{where}: label '{value.strip()[:60]}': expected lane or none")
+    return expect
+
+
+def _frame_range(value: str, where: str) -> tuple[int, int]:
+    text = value.strip()
+    first, dash, last = text.partition("-")
+    try:
+        a = int(first)
+        b = int(last) if dash else a
+    except ValueError:
+        raise InputFileError(f"{where}: frames '{text[:60]}': expected a frame index (120) or an "
+                             "inclusive range (120-340)") from None
+    if a < 0 or b < a:
+        raise InputFileError(f"{where}: frames '{text[:60]}': expected 0 <= first <= last")
+    return a, b
+
+
+def parse_labels(text: str, source: str) -> LabelsTable:
+    """The rows of a labels file (`source` names it in errors). CSV with a header
+    (`HEADER_HELP`); blank lines and lines starting with '#' are skipped; the note is free text
+    (commas in it need no quotes). A frame or a file labelled twice is an error."""
+    header: str | None = None
+    with_note = False
+    rows: list[LabelRow] = []
+    files: dict[str, int] = {}
+    spans: list[tuple[int, int, int]] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        if not raw.strip() or raw.lstrip().startswith("#"):
+            continue
+        where = f"{source}:{number}"
+        fields = next(csv.reader([raw]))
+        if header is None:
+            names = tuple(f.strip().lower() for f in fields)
+            if names not in LABEL_HEADERS:
+                raise InputFileError(f"{where}: header '{raw.strip()[:60]}': expected "
+                                     f"{HEADER_HELP}")
+            header = LABEL_HEADERS[names]
+            with_note = len(names) == 3
+            continue
+        if len(fields) < 2 or (len(fields) > 2 and not with_note):
+            raise InputFileError(f"{where}: '{raw.strip()[:60]}': expected "
+                                 f"{'2 or 3' if with_note else '2'} columns")
+        if len(rows) >= MAX_LABEL_ROWS:
+            raise InputFileError(f"{where}: more than {MAX_LABEL_ROWS} labelled rows")
+        expect = _expect(fields[1], where)
+        note = ",".join(fields[2:]).strip()
+        if header == "file":
+            name = fields[0].strip()
+            if not name:
+                raise InputFileError(f"{where}: empty file name")
+            if name in files:
+                raise InputFileError(f"{where}: {name[:60]} is already labelled on line "
+                                     f"{files[name]}")
+            files[name] = number
+            rows.append(LabelRow(number, expect, note, file=name))
+        else:
+            first, last = _frame_range(fields[0], where)
+            for a, b, line in spans:
+                if first <= b and a <= last:
+                    raise InputFileError(f"{where}: frames {first}-{last} overlap frames {a}-{b} "
+                                         f"of line {line}")
+            spans.append((first, last, number))
+            rows.append(LabelRow(number, expect, note, frames=(first, last)))
+    if header is None:
+        raise InputFileError(f"{source}: no header; expected {HEADER_HELP}")
+    if not rows:
+        raise InputFileError(f"{source}: no labelled frames after the header")
+    return LabelsTable(source, header, tuple(rows))
+
+
+# ---- per-frame results ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LabelledFrame:
+    """A frame to survey: `name` as the report shows it (a file path, or "frame 123"), its label,
+    its place in sequence order (`order`: its place among the frames of a video, run or tub,
+    where a frame the camera dropped is no gap; the row for a labels file; the name order within
+    a class folder) and the label's note."""
+
+    name: str
+    expect: str
+    order: int
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What perception made of one labelled frame. `decision`: "straight", "left", "right" or
+    "none"; `confident`: the supervisor's test; `engaged_after_s`: for a lane still held in view,
+    how long the supervisor took to engage (None: it did not, or the frame was not held);
+    `engaged`: for a frame of a sequence, whether the supervisor was engaged at it."""
+
+    frame: LabelledFrame
+    decision: str
+    confidence: float
+    confident: bool
+    components: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    engaged_after_s: float | None = None
+    engaged: bool | None = None
+
+    @property
+    def has_decision(self) -> bool:
+        return self.decision != "none"
+
+    @property
+    def false_lane(self) -> bool:
+        return self.frame.expect == NONE and self.has_decision
+
+    @property
+    def weakest(self) -> tuple[str, float] | None:
+        """The lowest confidence component (the first of equals); None when none is below 1."""
+        lowest = min(self.components.items(), key=lambda kv: kv[1], default=None)
+        return lowest if lowest is not None and lowest[1] < 1.0 else None
+
+
+@dataclass(frozen=True)
+class ConfidentRun:
+    """Consecutive confident frames of one class in sequence order."""
+
+    first: str
+    last: str
+    length: int
+
+
+@dataclass(frozen=True)
+class ComponentFigure:
+    """One confidence component over a class: in how many frames it was the weakest, and its
+    median."""
+
+    name: str
+    weakest_in: int
+    median: float
+
+
+@dataclass(frozen=True)
+class ClassFigures:
+    expect: str
+    frames: int
+    decisions: int
+    confident: int
+    false_lanes: tuple[FrameResult, ...]
+    runs: tuple[ConfidentRun, ...]
+    components: tuple[ComponentFigure, ...]
+
+    @property
+    def longest_run(self) -> int:
+        return self.runs[0].length if self.runs else 0
+
+
+@dataclass(frozen=True)
+class EngageFigures:
+    """Whether the real supervisor engaged.
+
+    `how`: "held" (each lane still held in view for `window_s` at the camera rate after a start;
+    `attempts` stills, `engaged` of them engaged, `times_s` how long each took) or "sequence"
+    (the frames replayed in order at their own times, a start at the first and a resume after
+    every halt; `engaged` 1 or 0, `first_engaged` the frame and `times_s` the time after the start,
+    `engaged_lane_frames` of `lane_frames` with the supervisor engaged, `halts` where it halted
+    and why)."""
+
+    how: str
+    window_s: float
+    attempts: int
+    engaged: int
+    times_s: tuple[float, ...] = ()
+    first_engaged: str | None = None
+    engaged_lane_frames: int = 0
+    lane_frames: int = 0
+    halts: tuple[str, ...] = ()
+
+    @property
+    def would_engage(self) -> bool:
+        return self.engaged > 0
+
+
+@dataclass(frozen=True)
+class Verdict:
+    safe: bool
+    false_lanes: tuple[FrameResult, ...]
+    no_lane_frames: int
+    engage: EngageFigures | None
+
+    @property
+    def headline(self) -> str:
+        return "SAFE" if self.safe else "NOT SAFE"
+
+
+@dataclass(frozen=True)
+class SurveyFigures:
+    classes: Mapping[str, ClassFigures]
+    verdict: Verdict
+    results: tuple[FrameResult, ...]
+
+
+def confident_runs(results: Sequence[FrameResult]) -> list[ConfidentRun]:
+    """Runs of consecutive confident frames (`order` one apart), longest first (ties: earlier
+    first)."""
+    runs: list[tuple[int, int, FrameResult, FrameResult]] = []
+    start: FrameResult | None = None
+    previous: FrameResult | None = None
+    length = 0
+    for result in sorted(results, key=lambda r: r.frame.order):
+        follows = previous is not None and result.frame.order == previous.frame.order + 1
+        if result.confident and start is not None and follows:
+            length += 1
+        else:
+            if start is not None and previous is not None:
+                runs.append((length, start.frame.order, start, previous))
+            start, length = (result, 1) if result.confident else (None, 0)
+        previous = result
+    if start is not None and previous is not None:
+        runs.append((length, start.frame.order, start, previous))
+    runs.sort(key=lambda r: (-r[0], r[1]))
+    return [ConfidentRun(a.frame.name, b.frame.name, n) for n, _, a, b in runs]
+
+
+def component_figures(results: Sequence[FrameResult]) -> list[ComponentFigure]:
+    """Every component seen, most often the weakest first (then the lowest median)."""
+    values: dict[str, list[float]] = {}
+    weakest: dict[str, int] = {}
+    for result in results:
+        for name, value in result.components.items():
+            values.setdefault(name, []).append(value)
+        low = result.weakest
+        if low is not None:
+            weakest[low[0]] = weakest.get(low[0], 0) + 1
+    figures = [ComponentFigure(name, weakest.get(name, 0), statistics.median(v))
+               for name, v in values.items()]
+    figures.sort(key=lambda f: (-f.weakest_in, f.median, f.name))
+    return figures
+
+
+def class_figures(expect: str, results: Sequence[FrameResult]) -> ClassFigures:
+    mine = [r for r in results if r.frame.expect == expect]
+    return ClassFigures(
+        expect=expect,
+        frames=len(mine),
+        decisions=sum(r.has_decision for r in mine),
+        confident=sum(r.confident for r in mine),
+        false_lanes=tuple(r for r in mine if r.false_lane),
+        runs=tuple(confident_runs(mine)[:RUNS_SHOWN]),
+        components=tuple(component_figures(mine)),
+    )
+
+
+def judge(results: Iterable[FrameResult], engage: EngageFigures | None) -> SurveyFigures:
+    """The figures per class and the verdict (SAFE: no decision on any no-lane frame)."""
+    ordered = tuple(sorted(results, key=lambda r: r.frame.order))
+    classes = {expect: class_figures(expect, ordered) for expect in EXPECTS}
+    false_lanes = classes[NONE].false_lanes
+    verdict = Verdict(safe=classes[NONE].frames > 0 and not false_lanes, false_lanes=false_lanes,
+                      no_lane_frames=classes[NONE].frames, engage=engage)
+    return SurveyFigures(MappingProxyType(classes), verdict, ordered)
+
+
+# ---- words ------------------------------------------------------------------------------------
+def _compact(names: Sequence[str]) -> list[str]:
+    """"frame 6", "frame 7", "frame 8" -> "frames 6-8"; other names as they are."""
+    out: list[str] = []
+    run: list[int] = []
+
+    def flush() -> None:
+        if run:
+            out.append(f"frame {run[0]}" if len(run) == 1 else f"frames {run[0]}-{run[-1]}")
+            run.clear()
+
+    for name in names:
+        number = name.removeprefix("frame ")
+        if name.startswith("frame ") and number.isdigit():
+            if run and int(number) != run[-1] + 1:
+                flush()
+            run.append(int(number))
+        else:
+            flush()
+            out.append(name)
+    flush()
+    return out
+
+
+def name_frames(names: Sequence[str], limit: int = NAMES_SHOWN) -> str:
+    """Frames named in one line: consecutive frame numbers as ranges, at most `limit` items."""
+    items = _compact(names)
+    shown = ", ".join(items[:limit])
+    return shown + (f" and {len(items) - limit} more" if len(items) > limit else "")
+
+
+def _percent(part: int, whole: int) -> str:
+    return f"{100.0 * part / whole:.0f}%" if whole else "-"
+
+
+def class_line(figures: ClassFigures) -> str:
+    """One line per class for the terminal."""
+    title = CLASS_FOLDERS[figures.expect]
+    text = (f"{title}: {figures.frames} frames, {figures.decisions} with a decision "
+            f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
+    if figures.expect == NONE:
+        text += f", {len(figures.false_lanes)} false lanes"
+    if figures.runs:
+        run = figures.runs[0]
+        span = run.first if run.length == 1 else f"{run.first} .. {run.last}"
+        text += f"; longest confident run {run.length} ({span})"
+    else:
+        text += "; no confident frame"
+    weak = [c for c in figures.components if c.weakest_in][:3]
+    if weak:
+        text += "; weakest: " + ", ".join(f"{c.name} (in {c.weakest_in}, median {c.median:.2f})"
+                                          for c in weak)
+    return text
+
+
+def verdict_line(verdict: Verdict) -> str:
+    if verdict.no_lane_frames == 0:
+        return "verdict: NOT SAFE: no no-lane frame was surveyed"
+    if verdict.safe:
+        return (f"verdict: SAFE: no decision on any of the {verdict.no_lane_frames} no-lane "
+                "frames")
+    names = [r.frame.name for r in verdict.false_lanes]
+    return (f"verdict: NOT SAFE: {len(names)} false lanes (a decision on a no-lane frame): "
+            f"{name_frames(names)}")
+
+
+def engage_line(engage: EngageFigures | None) -> str:
+    if engage is None or engage.attempts == 0:
+        return "supervisor: no lane frame to engage on"
+    if engage.how == "held":
+        text = (f"supervisor: engages on {engage.engaged} of {engage.attempts} lane stills held "
+                f"in view for {engage.window_s:.1f} s after a start")
+        if engage.times_s:
+            text += f" (after {max(engage.times_s):.2f} s at the most)"
+        return text
+    if not engage.engaged:
+        return (f"supervisor: never engages on this sequence ({engage.window_s:.1f} s replayed, "
+                "started at its first frame and resumed after every halt)")
+    when = f"{engage.times_s[0]:.2f} s" if engage.times_s else "?"
+    text = (f"supervisor: engages at {engage.first_engaged} ({when} after the start); engaged "
+            f"on {engage.engaged_lane_frames} of {engage.lane_frames} lane frames "
+            f"({_percent(engage.engaged_lane_frames, engage.lane_frames)})")
+    if engage.halts:
+        text += (f"; {len(engage.halts)} halts ({', '.join(engage.halts[:3])}"
+                 f"{', ...' if len(engage.halts) > 3 else ''})")
+    return text
+
+
+def summary_lines(figures: SurveyFigures) -> list[str]:
+    return [*(class_line(figures.classes[e]) for e in EXPECTS), verdict_line(figures.verdict),
+            engage_line(figures.verdict.engage)]
+
+
+# ---- survey.json ------------------------------------------------------------------------------
+def _result_json(result: FrameResult) -> dict[str, Any]:
+    weakest = result.weakest
+    out: dict[str, Any] = {
+        "frame": result.frame.name,
+        "expect": result.frame.expect,
+        "decision": result.decision,
+        "confidence": round(result.confidence, 4),
+        "confident": result.confident,
+        "weakest": None if weakest is None else weakest[0],
+        "components": {k: round(v, 4) for k, v in result.components.items()},
+    }
+    if result.engaged_after_s is not None or result.engaged is not None:
+        out["engaged"] = bool(result.engaged) if result.engaged is not None else True
+    if result.engaged_after_s is not None:
+        out["engaged_after_s"] = round(result.engaged_after_s, 4)
+    if result.frame.note:
+        out["note"] = result.frame.note
+    return out
+
+
+def _class_json(figures: ClassFigures) -> dict[str, Any]:
+    return {
+        "frames": figures.frames,
+        "decisions": figures.decisions,
+        "confident": figures.confident,
+        "false_lanes": [r.frame.name for r in figures.false_lanes],
+        "longest_confident_runs": [{"first": r.first, "last": r.last, "frames": r.length}
+                                   for r in figures.runs],
+        "components": [{"name": c.name, "weakest_in": c.weakest_in,
+                        "median": round(c.median, 4)} for c in figures.components],
+    }
+
+
+def _engage_json(engage: EngageFigures | None) -> dict[str, Any] | None:
+    if engage is None:
+        return None
+    return {
+        "how": engage.how,
+        "would_engage": engage.would_engage,
+        "window_s": round(engage.window_s, 4),
+        "attempts": engage.attempts,
+        "engaged": engage.engaged,
+        "times_s": [round(t, 4) for t in engage.times_s],
+        "first_engaged": engage.first_engaged,
+        "engaged_lane_frames": engage.engaged_lane_frames,
+        "lane_frames": engage.lane_frames,
+        "halts": list(engage.halts),
+    }
+
+
+def survey_json(figures: SurveyFigures, about: Mapping[str, Any]) -> dict[str, Any]:
+    """survey.json: `about` (source, config, calibration, ground model), the verdict, the figures
+    per class and every frame's result."""
+    verdict = figures.verdict
+    return {
+        **about,
+        "verdict": {
+            "safe": verdict.safe,
+            "text": verdict_line(verdict).removeprefix("verdict: "),
+            "false_lanes": [r.frame.name for r in verdict.false_lanes],
+            "would_engage": verdict.engage is not None and verdict.engage.would_engage,
+            "engage_text": engage_line(verdict.engage).removeprefix("supervisor: "),
+        },
+        "classes": {CLASS_FOLDERS[e]: _class_json(figures.classes[e]) for e in EXPECTS},
+        "engage": _engage_json(verdict.engage),
+        "frames": [_result_json(r) for r in figures.results],
+    }

@@ -1,0 +1,186 @@
+"""`lanewarden survey`'s outputs: survey.json and a self-contained report.html (its pictures are
+embedded, so the page can be mailed or archived alone).
+
+The page: the verdict at the top (SAFE / NOT SAFE with the false lanes named, whether the
+supervisor engaged), the figures per class, the pictures of the false lanes and of the weakest
+lane frames (perception's overlay, with the colours explained from `perception.overlay.
+OVERLAY_STYLES`, the table the drawing uses), then one table per class with every frame. Text
+building is pure; `write_outputs` is the one place that writes.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from lanewarden.errors import OutputError
+from lanewarden.perception.overlay import OVERLAY_STYLES
+from lanewarden.survey import (
+    CLASS_FOLDERS,
+    EXPECTS,
+    NONE,
+    ClassFigures,
+    FrameResult,
+    SurveyFigures,
+    engage_line,
+    survey_json,
+    verdict_line,
+)
+from lanewarden.survey_run import FALSE_LANE_PICTURES, WEAK_PICTURES, Picture
+
+OUTPUTS = ("report.html", "survey.json")
+#: Rows of a class table shown in the page (all of them are in survey.json).
+MAX_TABLE_ROWS = 5000
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1180px; }
+.verdict { padding: .8em 1.2em; border-radius: 6px; margin: 1em 0; font-size: 1.15em; }
+.verdict b { font-size: 1.4em; margin-right: .4em; }
+.safe { background: #e3f4e1; border: 2px solid #3c8d3c; }
+.unsafe { background: #fbe3e1; border: 2px solid #c0392b; }
+.engage { margin: .4em 0 0; font-size: .9em; }
+table { border-collapse: collapse; margin: .8em 0 1.5em; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; vertical-align: top; }
+td.num { text-align: right; }
+tr.false td { background: #fbe3e1; }
+tr.confident td:first-child { border-left: 4px solid #3c8d3c; }
+.pictures { display: flex; flex-wrap: wrap; gap: 1em; }
+figure { margin: 0; width: 330px; }
+figure img { width: 320px; image-rendering: pixelated; border: 1px solid #888; }
+figcaption { font-size: .85em; }
+.about { color: #555; font-size: .9em; }
+.swatch { display: inline-block; width: 1.6em; height: .9em; margin-right: .5em;
+          vertical-align: middle; border: 1px solid #888; }
+.legend ul { list-style: none; padding: 0; }
+"""
+
+
+def _e(text: object) -> str:
+    return html.escape(str(text))
+
+
+def _css_rgb(bgr: tuple[int, int, int]) -> str:
+    b, g, r = bgr
+    return f"rgb({r},{g},{b})"
+
+
+def _summary_table(classes: Mapping[str, ClassFigures]) -> str:
+    head = ("<tr><th>class</th><th>frames</th><th>with a decision</th><th>confident</th>"
+            "<th>false lanes</th><th>longest confident runs</th><th>weakest components "
+            "(frames where weakest, median)</th></tr>")
+    rows = []
+    for expect in EXPECTS:
+        f = classes[expect]
+        runs = "<br>".join(_e(f"{r.length}: {r.first}" + (f" .. {r.last}" if r.length > 1
+                                                           else "")) for r in f.runs) or "-"
+        weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median:.2f}")
+                           for c in f.components if c.weakest_in) or "-"
+        false = str(len(f.false_lanes)) if expect == NONE else "-"
+        rows.append(f"<tr><th>{_e(CLASS_FOLDERS[expect])}</th><td class=num>{f.frames}</td>"
+                    f"<td class=num>{f.decisions}</td><td class=num>{f.confident}</td>"
+                    f"<td class=num>{false}</td><td>{runs}</td><td>{weak}</td></tr>")
+    return f"<table>{head}{''.join(rows)}</table>"
+
+
+def _figure(picture: Picture) -> str:
+    data = base64.b64encode(picture.jpeg).decode("ascii")
+    caption = "<br>".join(_e(line) for line in picture.caption)
+    return (f'<figure><img src="data:image/jpeg;base64,{data}" alt="{_e(picture.name)}">'
+            f"<figcaption><b>{_e(picture.name)}</b><br>{caption}</figcaption></figure>")
+
+
+def _pictures(title: str, pictures: Sequence[Picture], empty: str, note: str) -> str:
+    body = (f'<div class="pictures">{"".join(_figure(p) for p in pictures)}</div>'
+            if pictures else f"<p>{_e(empty)}</p>")
+    return f"<section><h2>{_e(title)}</h2><p>{_e(note)}</p>{body}</section>"
+
+
+def _legend() -> str:
+    items = "".join(
+        f'<li><span class="swatch" style="background:{_css_rgb(s.bgr)}"></span>'
+        f"<b>{_e(s.label)}</b>: {_e(s.meaning)}</li>" for s in OVERLAY_STYLES.values())
+    return (f'<section class="legend"><h2>Reading the pictures</h2><p>Each picture is the frame '
+            f"perception analysed (undistorted with the calibration) with what it saw drawn on "
+            f"it; the caption is what perception said about it.</p><ul>{items}</ul></section>")
+
+
+def _frame_row(result: FrameResult) -> str:
+    weakest = result.weakest
+    weak = "-" if weakest is None else f"{weakest[0]} {weakest[1]:.2f}"
+    if result.engaged_after_s is not None:
+        engaged = f"after {result.engaged_after_s:.2f} s"
+    elif result.engaged is None:
+        engaged = "-"
+    else:
+        engaged = "yes" if result.engaged else "no"
+    css = "false" if result.false_lane else ("confident" if result.confident else "")
+    return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(result.decision)}</td>'
+            f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
+            f"</td><td>{_e(weak)}</td><td>{engaged}</td><td>{_e(result.frame.note)}</td></tr>")
+
+
+def _class_table(expect: str, results: Sequence[FrameResult]) -> str:
+    mine = [r for r in results if r.frame.expect == expect]
+    shown = mine[:MAX_TABLE_ROWS]
+    cut = (f"<p>The first {MAX_TABLE_ROWS} of {len(mine)} frames; every frame is in "
+           "survey.json.</p>" if len(mine) > MAX_TABLE_ROWS else "")
+    head = ("<tr><th>frame</th><th>decision</th><th>confidence</th><th>confident</th>"
+            "<th>weakest component</th><th>supervisor engaged</th><th>note</th></tr>")
+    return (f"<section><h2>{_e(CLASS_FOLDERS[expect])} frames ({len(mine)})</h2>{cut}"
+            f"<table>{head}{''.join(_frame_row(r) for r in shown)}</table></section>")
+
+
+def report_html(figures: SurveyFigures, about: Mapping[str, Any],
+                false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture]) -> str:
+    verdict = figures.verdict
+    css = "safe" if verdict.safe else "unsafe"
+    text = verdict_line(verdict).removeprefix("verdict: ").removeprefix(verdict.headline)
+    about_rows = "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in about.items())
+    false_count = len(verdict.false_lanes)
+    false_note = (f"Any decision on a no-lane frame is a false lane: the supervisor would trust "
+                  f"it (a usable confidence also resets the lane-loss timer). Pictures of the "
+                  f"first {FALSE_LANE_PICTURES}; all {false_count} are named in the table below "
+                  "and in survey.json." if false_count > FALSE_LANE_PICTURES else
+                  "Any decision on a no-lane frame is a false lane: the supervisor would trust it "
+                  "(a usable confidence also resets the lane-loss timer).")
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>Lanewarden survey: {_e(about.get("source", ""))}</title><style>{_STYLE}</style></head><body>
+<h1>Lanewarden survey: {_e(about.get("source", ""))}</h1>
+<div class="verdict {css}"><b>{_e(verdict.headline)}</b>{_e(text.lstrip(": "))}
+<p class="engage">{_e(engage_line(verdict.engage))}</p></div>
+<ul class="about">{about_rows}</ul>
+{_summary_table(figures.classes)}
+<p class="about">A decision: perception's straight / left / right (confidence at least the
+supervisor's <code>confidence_usable_min</code> and both edges). Confident: the supervisor's own
+test (both edges, confidence at least <code>confidence_confident_min</code>); it engages after
+<code>engage_confident_frames</code> confident frames in a row. Runs are counted in sequence
+order.</p>
+{_pictures("False lanes", false_lane_pictures, "None: no no-lane frame got a decision.",
+           false_note)}
+{_pictures("Weakest lane frames", weak_pictures, "None: every lane frame was confident.",
+           f"Lane frames that are not confident: the least confident of each of up to "
+           f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")}
+{_legend()}
+{"".join(_class_table(e, figures.results) for e in EXPECTS)}
+</body></html>
+"""
+
+
+def write_outputs(out: Path, figures: SurveyFigures, about: Mapping[str, Any],
+                  false_lane_pictures: Sequence[Picture],
+                  weak_pictures: Sequence[Picture]) -> dict[str, Any]:
+    """Write OUT/survey.json and OUT/report.html; returns the JSON document."""
+    document = survey_json(figures, about)
+    page = report_html(figures, about, false_lane_pictures, weak_pictures)
+    try:
+        (out / "survey.json").write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+        (out / "report.html").write_text(page, encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write the survey's outputs ({exc.strerror or exc})"
+                          ) from exc
+    return document

@@ -1,0 +1,315 @@
+"""Running a survey: perception on every labelled frame, the real supervisor on the lane frames,
+on a fake clock; out come the per-frame results, the engage figures and the report's pictures.
+
+- Stills (class folders, a labels file of images): each image is analysed on its own, as
+  `lanewarden detect` does (no previous observation). Each lane still is then held in view at the
+  camera rate (`supervisor.camera_period_s`) after a start, through the very stack `run` drives
+  (`lanewarden.replay.replay_steps`: detector, supervised controller, SafetyGate), for `hold_s`
+  = max(1 s, twice the time `engage_confident_frames` take): the time until the supervisor leaves
+  HALT is the still's engage time. The supervisor itself decides; nothing here restates its rule.
+- A recording (a video, run folder, tub or image sequence with frame labels): its frames from the
+  first labelled one to the last, in order at their own times, through the same stack, with a
+  start at the first and a resume after every halt (an operator who resumes at once); each
+  labelled frame's result is the loop's own observation (with the previous one, as on the robot),
+  and the supervisor's state at it is recorded.
+
+Confident is the supervisor's test (`supervisor.lane_evidence.LaneEvidence`), the decision is
+`lanewarden.assembly.decision_rule`'s. Pictures (perception's own overlay drawing,
+`perception.overlay.draw_detection`) are kept for the first `FALSE_LANE_PICTURES` false lanes and,
+in `WEAK_PICTURES` stretches of the lane frames, the least confident lane frame of each that is not
+confident: memory stays bounded on a long recording. Never reads a clock, never prints (the caller
+passes a progress callback).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from functools import partial
+
+import cv2
+import numpy as np
+
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.assembly import DecisionRule, decision_rule
+from lanewarden.config import LanewardenConfig
+from lanewarden.errors import ConfigError, InputFileError
+from lanewarden.image_files import read_image, too_many_pixels
+from lanewarden.perception.calibration import CameraCalibration
+from lanewarden.perception.detector import DetectionDebug, LaneDetector
+from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.overlay import as_bgr, draw_detection, perception_text
+from lanewarden.replay import FrameStore, ReplayedStep, ReplaySource, replay_steps
+from lanewarden.run_record import StepInput
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.lane_evidence import LaneEvidence
+from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
+from lanewarden.survey import LANE, EngageFigures, FrameResult, LabelledFrame
+from lanewarden.survey_source import StillFrame, SurveySource, problems_line
+
+CONTROLLER = "supervised"
+#: Shortest time a lane still is held in view for the engage test, s.
+HOLD_MIN_S = 1.0
+FALSE_LANE_PICTURES = 24
+WEAK_PICTURES = 8
+#: Pictures of smaller frames are enlarged (nearest neighbour) to at least this many rows.
+PICTURE_MIN_ROWS = 240
+PICTURE_JPEG_QUALITY = 85
+
+Progress = Callable[[int], None]
+
+
+@dataclass(frozen=True)
+class Picture:
+    """An annotated frame for the report: JPEG bytes and perception's words about it."""
+
+    name: str
+    expect: str
+    confidence: float
+    caption: tuple[str, ...]
+    jpeg: bytes
+
+
+@dataclass
+class SurveyRun:
+    results: list[FrameResult]
+    engage: EngageFigures | None
+    false_lane_pictures: list[Picture] = field(default_factory=list)
+    weak_pictures: list[Picture] = field(default_factory=list)
+
+
+def hold_seconds(config: SupervisorConfig) -> float:
+    """How long a lane still is held in view for the engage test."""
+    return max(HOLD_MIN_S, 2.0 * config.engage_confident_frames * config.camera_period_s)
+
+
+def camera_steps(frames: Iterable[tuple[int, float]]) -> list[StepInput]:
+    """One loop step per (frame index, time): fresh base feedback, a start at the first step and
+    a resume at every other (it only counts in HALT)."""
+    return [StepInput(t=t, frame=(index, t), feedback=BaseFeedback(received_at_s=t),
+                      requests=("start",) if k == 0 else ("resume",))
+            for k, (index, t) in enumerate(frames)]
+
+
+def is_engaged(state: str) -> bool:
+    return SupervisorState(state) in ENGAGED_STATES
+
+
+def frame_result(frame: LabelledFrame, observation: LaneObservation, decide: DecisionRule,
+                 supervisor: SupervisorConfig, *, engaged_after_s: float | None = None,
+                 engaged: bool | None = None) -> FrameResult:
+    return FrameResult(
+        frame=frame, decision=decide(observation), confidence=observation.confidence,
+        confident=LaneEvidence(supervisor).assess(observation).confident,
+        components=observation.components, engaged_after_s=engaged_after_s, engaged=engaged)
+
+
+def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug) -> Picture:
+    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame."""
+    canvas = as_bgr(debug.image)
+    draw_detection(canvas, observation, debug)
+    if canvas.shape[0] < PICTURE_MIN_ROWS:
+        scale = math.ceil(PICTURE_MIN_ROWS / canvas.shape[0])
+        canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
+    assert ok, "OpenCV could not encode a picture"
+    return Picture(result.frame.name, result.frame.expect, result.confidence,
+                   tuple(perception_text(observation, result.decision)), data.tobytes())
+
+
+class PictureKeeper:
+    """The pictures the report shows, bounded (see the module docstring). `lane_orders`: the
+    sequence order of every lane frame, to split them into stretches."""
+
+    def __init__(self, lane_orders: Iterable[int]) -> None:
+        ordered = sorted(lane_orders)
+        self._rank = {order: i for i, order in enumerate(ordered)}
+        self._lanes = max(1, len(ordered))
+        self.false_lanes: list[Picture] = []
+        self._weak: dict[int, tuple[tuple[float, int], Picture]] = {}
+
+    def offer(self, result: FrameResult, draw: Callable[[], Picture]) -> None:
+        if result.false_lane:
+            if len(self.false_lanes) < FALSE_LANE_PICTURES:
+                self.false_lanes.append(draw())
+        elif result.frame.expect == LANE and not result.confident:
+            stretch = self._rank[result.frame.order] * WEAK_PICTURES // self._lanes
+            key = (result.confidence, result.frame.order)
+            if stretch not in self._weak or key < self._weak[stretch][0]:
+                self._weak[stretch] = (key, draw())
+
+    @property
+    def weak(self) -> list[Picture]:
+        return [self._weak[k][1] for k in sorted(self._weak)]
+
+
+class HeldImage(FrameStore):
+    """The same image for every frame index: a still held in front of the camera."""
+
+    def __init__(self, image: np.ndarray) -> None:
+        self._image = image
+
+    def image(self, index: int) -> np.ndarray | None:
+        return self._image
+
+
+class CheckedFrames(FrameStore):
+    """A recording's frames, each checked as it is decoded: more pixels than the limit, or a size
+    other than the calibration's, is a `problem` (the frame is not used); a frame that cannot be
+    read is remembered in `missing`. Problems are not raised here: the control loop would turn
+    them into a camera fault."""
+
+    def __init__(self, store: FrameStore, max_pixels: int,
+                 calibration: CameraCalibration | None) -> None:
+        self._store = store
+        self._max_pixels = max_pixels
+        self._size = None if calibration is None else calibration.image_size
+        self.problem: str | None = None
+        self.missing: set[int] = set()
+
+    def image(self, index: int) -> np.ndarray | None:
+        image = self._store.image(index)
+        if image is None:
+            self.missing.add(index)
+            return None
+        height, width = image.shape[:2]
+        if why := too_many_pixels(width, height, self._max_pixels):
+            self.problem = f"frame {index}: {why}"
+            return None
+        if self._size is not None and (width, height) != self._size:
+            self.problem = (f"frame {index} is {width}x{height}, the calibration is for "
+                            f"{self._size[0]}x{self._size[1]} images")
+            return None
+        return image
+
+    def close(self) -> None:
+        self._store.close()
+
+
+def _steps(source: ReplaySource, config: LanewardenConfig,
+           calibration: CameraCalibration | None) -> Iterator[ReplayedStep]:
+    """`replay_steps`, with a config this camera cannot work with as a ConfigError."""
+    try:
+        yield from replay_steps(source, config, calibration, CONTROLLER)
+    except PerceptionConfigError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def held_engage(image: np.ndarray, config: LanewardenConfig,
+                calibration: CameraCalibration | None, hold_s: float) -> float | None:
+    """Seconds after a start until the supervisor engages on `image` held in view (None: not
+    within `hold_s`)."""
+    period = config.supervisor.camera_period_s
+    count = math.floor(hold_s / period + 1e-9) + 1
+    held = ReplaySource(kind="images", name="held", steps=camera_steps(
+        (k, k * period) for k in range(count)), frames=HeldImage(image))
+    for step in replay_steps(held, config, calibration, CONTROLLER):
+        if is_engaged(step.record.state):
+            return step.step_input.t
+    return None
+
+
+def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
+                  calibration: CameraCalibration | None, detector: LaneDetector,
+                  progress: Progress) -> SurveyRun:
+    """Every still on its own, and every lane still held in view (see the module docstring).
+    An image that cannot be used is an InputFileError naming each, after all were tried."""
+    decide = decision_rule(config)
+    hold_s = hold_seconds(config.supervisor)
+    keeper = PictureKeeper(s.frame.order for s in stills if s.frame.expect == LANE)
+    results: list[FrameResult] = []
+    problems: list[str] = []
+    times: list[float] = []
+    attempts = 0
+    for still in stills:
+        progress(1)
+        image, why = read_image(still.path, max_pixels=config.perception.max_image_pixels)
+        if image is None:
+            problems.append(f"{still.frame.name}: {why}")
+            continue
+        try:
+            observation, debug = detector.detect_debug(image, still.frame.order, 0.0)
+        except PerceptionConfigError as exc:
+            raise ConfigError(f"{still.frame.name}: {exc}") from None
+        except PerceptionError as exc:
+            problems.append(f"{still.frame.name}: {exc}")
+            continue
+        engaged_after = None
+        if still.frame.expect == LANE:
+            attempts += 1
+            engaged_after = held_engage(image, config, calibration, hold_s)
+            if engaged_after is not None:
+                times.append(engaged_after)
+        result = frame_result(still.frame, observation, decide, config.supervisor,
+                              engaged_after_s=engaged_after,
+                              engaged=None if still.frame.expect != LANE else
+                              engaged_after is not None)
+        results.append(result)
+        keeper.offer(result, partial(picture, result, observation, debug))
+    if problems:
+        raise InputFileError(problems_line("frames cannot be used", len(stills), problems))
+    engage = EngageFigures(how="held", window_s=hold_s, attempts=attempts, engaged=len(times),
+                           times_s=tuple(times))
+    return SurveyRun(results, engage, keeper.false_lanes, keeper.weak)
+
+
+def survey_sequence(source: SurveySource, config: LanewardenConfig,
+                    calibration: CameraCalibration | None, progress: Progress) -> SurveyRun:
+    """The recording's labelled span through the loop (see the module docstring)."""
+    recording = source.sequence
+    assert recording is not None
+    labelled = source.labelled
+    first, last = min(labelled), max(labelled)
+    frames: dict[int, float] = {}
+    for recorded in recording.steps:
+        if recorded.frame is not None and first <= recorded.frame[0] <= last:
+            frames.setdefault(recorded.frame[0], recorded.frame[1])
+    checked = CheckedFrames(recording.frames, config.perception.max_image_pixels, calibration)
+    span = ReplaySource(kind=recording.kind, name=recording.name,
+                        steps=camera_steps(frames.items()), frames=checked)
+    decide = decision_rule(config)
+    keeper = PictureKeeper(f.order for f in labelled.values() if f.expect == LANE)
+    results: list[FrameResult] = []
+    unread: list[str] = []
+    halts: list[str] = []
+    first_engaged: tuple[str, float] | None = None
+    was_engaged = False
+    engaged_lane = 0
+    start_s = span.steps[0].t
+    for step in _steps(span, config, calibration):
+        progress(1)
+        if checked.problem is not None:
+            raise InputFileError(f"{recording.name}: {checked.problem}")
+        assert step.step_input.frame is not None
+        index = step.step_input.frame[0]
+        record = step.record
+        engaged = is_engaged(record.state)
+        if engaged and first_engaged is None:
+            first_engaged = (f"frame {index}", step.step_input.t - start_s)
+        if was_engaged and not engaged:
+            halts.append(f"frame {index} {record.halt_reason}")
+        was_engaged = engaged
+        frame = labelled.get(index)
+        if frame is None:
+            continue
+        if index in checked.missing or step.detection is None:
+            unread.append(frame.name)
+            continue
+        observation, debug = step.detection
+        result = frame_result(frame, observation, decide, config.supervisor, engaged=engaged)
+        results.append(result)
+        engaged_lane += engaged and frame.expect == LANE
+        keeper.offer(result, partial(picture, result, observation, debug))
+    if unread:
+        raise InputFileError(problems_line(f"labelled frames of {recording.name} could not be "
+                                           "read or analysed", len(labelled), unread))
+    engage = EngageFigures(
+        how="sequence", window_s=span.steps[-1].t - start_s, attempts=1,
+        engaged=int(first_engaged is not None),
+        times_s=() if first_engaged is None else (first_engaged[1],),
+        first_engaged=None if first_engaged is None else first_engaged[0],
+        engaged_lane_frames=engaged_lane,
+        lane_frames=sum(f.expect == LANE for f in labelled.values()), halts=tuple(halts))
+    return SurveyRun(results, engage, keeper.false_lanes, keeper.weak)

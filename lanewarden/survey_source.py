@@ -1,0 +1,207 @@
+"""Where a survey's labelled frames come from: class folders, a labels file, or a recording.
+
+`open_survey_source(FOLDER, labels)` recognises:
+- FOLDER with the class folders `lane/` and/or `no-lane/`: the images in each (natural name
+  order), labelled by the folder they are in; another sub-folder holding images is an error (an
+  unknown label), so a misspelt `nolane/` is not silently left out;
+- FOLDER with a `labels.csv` (or `--labels FILE` naming one): `file,expect[,note]` rows name
+  images by their path relative to FOLDER; the rows' order is the sequence order;
+- a recording with `--labels FILE` of `frames,expect[,note]` rows (a frame index or an inclusive
+  range `120-340`): a video, a folder or glob of images, a run folder (`lanewarden run --record`)
+  or a Donkeycar tub, opened by `lanewarden.replay.open_replay_source`, so every source replay
+  knows is a source a survey knows. Frame indices are the recording's own (a run folder's frame
+  numbers; a video's frames, a tub's records and an image sequence's files counted from 0).
+
+Bounded: a labels file larger than `survey.MAX_LABELS_BYTES` is refused unread; image files are
+checked against `perception.max_image_pixels` from their header before decoding (by
+`lanewarden.image_files`, as `detect` does). Every problem is one `InputFileError`/`UsageError`
+line naming the file (and line) and the value. Reads files, never decodes a video here, never
+prints.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lanewarden.camera_source import image_sequence_paths
+from lanewarden.errors import InputFileError, UsageError
+from lanewarden.image_files import header_problem
+from lanewarden.replay import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
+from lanewarden.survey import (
+    CLASS_FOLDERS,
+    MAX_LABELS_BYTES,
+    LabelledFrame,
+    LabelsTable,
+    parse_labels,
+)
+
+LABELS_NAME = "labels.csv"
+FOLDER_HELP = (f"a folder with lane/ and no-lane/ sub-folders of images, or with a {LABELS_NAME}"
+               f" (file,expect[,note]); or {SOURCE_HELP} with --labels FILE (frames,expect"
+               "[,note])")
+#: Bad files named in one error line before "and N more".
+PROBLEMS_SHOWN = 10
+
+
+@dataclass(frozen=True)
+class StillFrame:
+    frame: LabelledFrame
+    path: Path
+
+
+@dataclass
+class SurveySource:
+    """What to survey: `stills` (independent images) or `sequence` (a recording, with the
+    labelled frames by the recording's frame index in `labelled`)."""
+
+    name: str
+    description: str
+    stills: list[StillFrame] = field(default_factory=list)
+    sequence: ReplaySource | None = None
+    labelled: dict[int, LabelledFrame] = field(default_factory=dict)
+
+
+def problems_line(what: str, total: int, problems: list[str]) -> str:
+    """'2 of 19 frames cannot be used: a: why; b: why' (at most PROBLEMS_SHOWN named)."""
+    shown = "; ".join(problems[:PROBLEMS_SHOWN])
+    more = (f"; and {len(problems) - PROBLEMS_SHOWN} more" if len(problems) > PROBLEMS_SHOWN
+            else "")
+    return f"{len(problems)} of {total} {what}: {shown}{more}"
+
+
+def read_labels(path: Path) -> LabelsTable:
+    """The labels file at `path`, refused unread above MAX_LABELS_BYTES."""
+    try:
+        with path.open("rb") as handle:
+            data = handle.read(MAX_LABELS_BYTES + 1)
+    except FileNotFoundError:
+        raise InputFileError(f"--labels '{path}': no such file") from None
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if len(data) > MAX_LABELS_BYTES:
+        raise InputFileError(f"{path}: larger than {MAX_LABELS_BYTES} bytes; a labels file is "
+                             "one short line per image or frame range")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    return parse_labels(text, str(path))
+
+
+def _class_folders(folder: Path) -> list[StillFrame]:
+    """The images of FOLDER/lane and FOLDER/no-lane; an unknown sub-folder of images is an error."""
+    by_folder = {name: expect for expect, name in CLASS_FOLDERS.items()}
+    stills: list[StillFrame] = []
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
+        paths = image_sequence_paths(str(sub)) or []
+        if sub.name not in by_folder:
+            if paths:
+                close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
+                hint = f" (did you mean {close[0]}/?)" if close else ""
+                raise UsageError(f"{sub}: unknown class folder '{sub.name}' with {len(paths)} "
+                                 f"images; expected lane/ or no-lane/{hint}")
+            continue
+        for path in paths:
+            stills.append(StillFrame(LabelledFrame(f"{sub.name}/{path.name}",
+                                                   by_folder[sub.name], 0), path))
+    order = {"lane": 0, "none": 1}
+    stills.sort(key=lambda s: order[s.frame.expect])  # stable: name order within a class
+    return [StillFrame(LabelledFrame(s.frame.name, s.frame.expect, i), s.path)
+            for i, s in enumerate(stills)]
+
+
+def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
+    stills = []
+    for order, row in enumerate(table.rows):
+        assert row.file is not None
+        path = Path(row.file) if Path(row.file).is_absolute() else folder / row.file
+        if not path.is_file():
+            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: no such file "
+                                 f"(paths are relative to {folder})")
+        stills.append(StillFrame(LabelledFrame(row.file, row.expect, order, row.note), path))
+    return stills
+
+
+def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, LabelledFrame]:
+    """The labelled frames by the recording's frame index. A range labels the frames the
+    recording has within it (a run folder may lack frames the camera dropped); a frame index or a
+    range end beyond the recording, or a range without any frame, is an error naming its line."""
+    available = sorted({s.frame[0] for s in source.steps if s.frame is not None})
+    present = set(available)
+    # sequence order: the place among the recording's frames (a dropped frame is no gap)
+    position = {index: k for k, index in enumerate(available)}
+    labelled: dict[int, LabelledFrame] = {}
+    for row in table.rows:
+        assert row.frames is not None
+        first, last = row.frames
+        span = f"{first}" if first == last else f"{first}-{last}"
+        have = f"frames {available[0]}-{available[-1]}" if available else "no frames"
+        if not available or last > available[-1] or (first == last and first not in present):
+            missing = last if not available or last > available[-1] else first
+            what = f"frame {first}" if first == last else f"frames {span}: frame {missing}"
+            raise InputFileError(f"{table.source}:{row.line}: {what} is not in {source.name} "
+                                 f"({source.kind}, {have})")
+        inside = [i for i in range(first, last + 1) if i in present]  # last is within the source
+        if not inside:
+            raise InputFileError(f"{table.source}:{row.line}: frames {span}: none of these "
+                                 f"frames is in {source.name} ({source.kind}, {have})")
+        for index in inside:
+            labelled[index] = LabelledFrame(f"frame {index}", row.expect, position[index],
+                                            row.note)
+    return labelled
+
+
+def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
+    problems = [f"{name}: {why}" for name, path in paths
+                if (why := header_problem(path, max_pixels))]
+    if problems:
+        raise InputFileError(problems_line("frames cannot be used", len(paths), problems))
+
+
+def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
+                       max_pixels: int) -> SurveySource:
+    """Recognise FOLDER (and --labels), see the module docstring."""
+    path = Path(folder)
+    table = None
+    labels_path = Path(labels) if labels is not None else None
+    if labels_path is None:
+        if not path.exists():
+            raise UsageError(f"FOLDER '{folder}': no such folder; expected {FOLDER_HELP}")
+        if not path.is_dir():
+            raise UsageError(f"FOLDER '{folder}': a file; a video or a run needs --labels FILE "
+                             f"(frames,expect[,note]); expected {FOLDER_HELP}")
+        if (path / LABELS_NAME).is_file():
+            classes = [n for n in CLASS_FOLDERS.values() if (path / n).is_dir()]
+            if classes:
+                raise UsageError(f"FOLDER '{folder}': has both {LABELS_NAME} and "
+                                 f"{'/ and '.join(classes)}/: keep one way of labelling, or "
+                                 "name the labels with --labels")
+            labels_path = path / LABELS_NAME
+    if labels_path is not None:
+        table = read_labels(labels_path)
+    if table is None:
+        stills = _class_folders(path)
+        if not stills:
+            raise UsageError(f"FOLDER '{folder}': no images in lane/ or no-lane/ and no "
+                             f"{LABELS_NAME}; expected {FOLDER_HELP}")
+        _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
+        return SurveySource(path.name or folder, f"{folder} (class folders lane/, no-lane/)",
+                            stills=stills)
+    if table.kind == "file":
+        if not path.is_dir():
+            raise UsageError(f"FOLDER '{folder}': {table.source} names image files, so FOLDER "
+                             "must be the folder they are in")
+        stills = _labelled_files(path, table)
+        _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
+        return SurveySource(path.name or folder, f"{folder} (labels: {table.source})",
+                            stills=stills)
+    source = open_replay_source(folder, camera_rate_hz)
+    labelled = _labelled_frames(source, table)
+    if isinstance(source.frames, PathFrames):
+        first, last = min(labelled), max(labelled)
+        _check_headers([(f"frame {i}", p) for i, p in enumerate(source.frames.paths)
+                        if first <= i <= last], max_pixels)
+    return SurveySource(source.name, f"{folder} ({source.kind}; labels: {table.source})",
+                        sequence=source, labelled=labelled)

@@ -1,0 +1,167 @@
+"""The survey's pure core: the labels format, the figures per class and the verdict, on results
+written out by hand (no image, no detector). Expected answers are literals."""
+
+from __future__ import annotations
+
+import pytest
+
+from lanewarden.errors import InputFileError
+from lanewarden.survey import (
+    ComponentFigure,
+    ConfidentRun,
+    EngageFigures,
+    FrameResult,
+    LabelledFrame,
+    class_line,
+    component_figures,
+    confident_runs,
+    engage_line,
+    judge,
+    name_frames,
+    parse_labels,
+    survey_json,
+    verdict_line,
+)
+
+
+def result(name: str, expect: str, order: int, decision: str = "none", confidence: float = 0.0,
+           confident: bool = False, **components: float) -> FrameResult:
+    return FrameResult(LabelledFrame(name, expect, order), decision, confidence, confident,
+                       components)
+
+
+# ---- labels -----------------------------------------------------------------------------------
+def test_file_labels_with_comments_notes_and_commas_in_notes() -> None:
+    table = parse_labels(
+        "# my floor\n\nfile,expect,note\nlane/a.jpg,lane,two tapes, straight\n"
+        "b.png, NONE ,\n", "floor/labels.csv")
+    assert table.kind == "file"
+    assert [(r.line, r.file, r.expect, r.note) for r in table.rows] == [
+        (4, "lane/a.jpg", "lane", "two tapes, straight"), (5, "b.png", "none", "")]
+
+
+def test_frame_labels_single_frames_and_ranges() -> None:
+    table = parse_labels("frames,expect\n120-340,lane\n7,none\n", "clip.csv")
+    assert table.kind == "frames"
+    assert [(r.frames, r.expect) for r in table.rows] == [((120, 340), "lane"), ((7, 7), "none")]
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("", "clip.csv: no header; expected file,expect[,note] (images) or frames,expect[,note] "
+         "(a video, run or tub)"),
+    ("image,label\na.jpg,lane\n", "clip.csv:1: header 'image,label': expected file,expect[,note] "
+                                  "(images) or frames,expect[,note] (a video, run or tub)"),
+    ("file,expect\n", "clip.csv: no labelled frames after the header"),
+    ("file,expect\na.jpg,road\n", "clip.csv:2: label 'road': expected lane or none"),
+    ("file,expect\na.jpg\n", "clip.csv:2: 'a.jpg': expected 2 columns"),
+    ("file,expect\na.jpg,lane,straight\n", "clip.csv:2: 'a.jpg,lane,straight': expected 2 "
+                                           "columns"),
+    ("file,expect\n,lane\n", "clip.csv:2: empty file name"),
+    ("file,expect\na.jpg,lane\n# again\na.jpg,none\n",
+     "clip.csv:4: a.jpg is already labelled on line 2"),
+    ("frames,expect\nten,lane\n", "clip.csv:2: frames 'ten': expected a frame index (120) or an "
+                                  "inclusive range (120-340)"),
+    ("frames,expect\n40-30,lane\n", "clip.csv:2: frames '40-30': expected 0 <= first <= last"),
+    ("frames,expect\n-3,lane\n", "clip.csv:2: frames '-3': expected a frame index (120) or an "
+                                 "inclusive range (120-340)"),
+    ("frames,expect\n10-20,lane\n20-25,none\n",
+     "clip.csv:3: frames 20-25 overlap frames 10-20 of line 2"),
+])
+def test_bad_labels_are_one_line_naming_the_line_and_the_value(text: str, message: str) -> None:
+    with pytest.raises(InputFileError) as caught:
+        parse_labels(text, "clip.csv")
+    assert str(caught.value) == message
+
+
+# ---- figures ----------------------------------------------------------------------------------
+def test_confident_runs_are_consecutive_in_sequence_order_longest_first() -> None:
+    flags = {0: True, 1: True, 2: False, 3: True, 4: True, 5: True, 7: True, 8: True, 9: True}
+    results = [result(f"frame {i}", "lane", i, confident=c) for i, c in flags.items()]
+    # 7 does not follow 5 (frame 6 is not surveyed): two runs of three, the earlier first
+    assert confident_runs(results[::-1]) == [
+        ConfidentRun("frame 3", "frame 5", 3), ConfidentRun("frame 7", "frame 9", 3),
+        ConfidentRun("frame 0", "frame 1", 2)]
+    assert confident_runs([result("a", "lane", 0)]) == []
+
+
+def test_weakest_components_count_only_components_below_one() -> None:
+    results = [
+        result("a", "lane", 0, both_sides=1.0, tape_pair_left=0.0, parallel=0.5),
+        result("b", "lane", 1, both_sides=1.0, tape_pair_left=0.2, parallel=0.1),
+        result("c", "lane", 2, both_sides=1.0, tape_pair_left=1.0, parallel=1.0),
+    ]
+    assert results[2].weakest is None
+    assert results[1].weakest == ("parallel", 0.1)
+    # most often the weakest first, then the lowest median
+    assert component_figures(results) == [
+        ComponentFigure("tape_pair_left", 1, 0.2), ComponentFigure("parallel", 1, 0.5),
+        ComponentFigure("both_sides", 0, 1.0)]
+
+
+def test_a_decision_on_a_no_lane_frame_makes_it_not_safe_and_names_the_frames() -> None:
+    results = [
+        result("frame 10", "lane", 10, "straight", 0.9, True),
+        result("frame 11", "none", 11, "straight", 0.3),
+        result("frame 12", "none", 12, "left", 0.7, True),
+        result("frame 13", "none", 13),
+        result("frame 20", "none", 20, "right", 0.25),
+    ]
+    figures = judge(results, None)
+    assert not figures.verdict.safe
+    assert [r.frame.name for r in figures.verdict.false_lanes] == ["frame 11", "frame 12",
+                                                                   "frame 20"]
+    assert verdict_line(figures.verdict) == (
+        "verdict: NOT SAFE: 3 false lanes (a decision on a no-lane frame): frames 11-12, frame 20")
+    none = figures.classes["none"]
+    assert (none.frames, none.decisions, none.confident) == (4, 3, 1)
+    assert class_line(none) == ("no-lane: 4 frames, 3 with a decision (75%), 1 confident, 3 false "
+                                "lanes; longest confident run 1 (frame 12)")
+
+
+def test_no_decision_on_no_lane_frames_is_safe_and_lane_decisions_are_no_false_lanes() -> None:
+    results = [result("lane/a.jpg", "lane", 0, "left", 0.8, True),
+               result("no-lane/b.jpg", "none", 1, "none", 0.1)]
+    figures = judge(results, None)
+    assert figures.verdict.safe
+    assert verdict_line(figures.verdict) == ("verdict: SAFE: no decision on any of the 1 no-lane "
+                                             "frames")
+
+
+def test_without_no_lane_frames_nothing_is_safe() -> None:
+    figures = judge([result("lane/a.jpg", "lane", 0, "left", 0.8, True)], None)
+    assert not figures.verdict.safe
+    assert verdict_line(figures.verdict) == "verdict: NOT SAFE: no no-lane frame was surveyed"
+
+
+def test_frame_names_are_compacted_and_cut() -> None:
+    names = [f"frame {i}" for i in (1, 2, 3, 5, 8, 9)] + ["no-lane/x.jpg"]
+    assert name_frames(names) == "frames 1-3, frame 5, frames 8-9, no-lane/x.jpg"
+    assert name_frames(names, limit=2) == "frames 1-3, frame 5 and 2 more"
+
+
+def test_engage_lines() -> None:
+    held = EngageFigures("held", 1.0, 4, 3, (0.3, 0.3, 0.4))
+    assert engage_line(held) == ("supervisor: engages on 3 of 4 lane stills held in view for "
+                                 "1.0 s after a start (after 0.40 s at the most)")
+    sequence = EngageFigures("sequence", 3.3, 1, 1, (0.31,), "frame 41", 800, 892,
+                             ("frame 250 LANE_LOST",))
+    assert engage_line(sequence) == (
+        "supervisor: engages at frame 41 (0.31 s after the start); engaged on 800 of 892 lane "
+        "frames (90%); 1 halts (frame 250 LANE_LOST)")
+    never = EngageFigures("sequence", 3.3, 1, 0, lane_frames=892)
+    assert engage_line(never) == ("supervisor: never engages on this sequence (3.3 s replayed, "
+                                  "started at its first frame and resumed after every halt)")
+
+
+def test_survey_json_has_the_verdict_the_classes_and_every_frame() -> None:
+    results = [result("frame 1", "lane", 1, "straight", 0.9, True, both_sides=1.0),
+               result("frame 2", "none", 2, "right", 0.3, False, both_sides=0.5)]
+    document = survey_json(judge(results, None), {"source": "tub"})
+    assert document["source"] == "tub"
+    assert document["verdict"]["safe"] is False
+    assert document["verdict"]["false_lanes"] == ["frame 2"]
+    assert document["classes"]["no-lane"]["decisions"] == 1
+    assert document["classes"]["lane"]["longest_confident_runs"] == [
+        {"first": "frame 1", "last": "frame 1", "frames": 1}]
+    assert [f["frame"] for f in document["frames"]] == ["frame 1", "frame 2"]
+    assert document["frames"][1]["weakest"] == "both_sides"

@@ -1,0 +1,40 @@
+"""Frame labels against a recording whose camera dropped frames (a run folder records only what
+perception saw): a range labels the frames the recording has, a dropped frame is no gap in the
+sequence order, and a label for a frame the recording lacks is one line naming the line."""
+
+from __future__ import annotations
+
+import pytest
+
+from lanewarden.errors import InputFileError
+from lanewarden.replay import PathFrames, ReplaySource
+from lanewarden.run_record import StepInput
+from lanewarden.survey import parse_labels
+from lanewarden.survey_source import _labelled_frames
+
+#: frames 2, 5 and 6 were dropped; frame 3 came with two steps
+RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([]), steps=[
+    StepInput(t=k / 30.0, frame=None if i is None else (i, i / 30.0))
+    for k, i in enumerate((0, 1, 3, 3, None, 4, 7))])
+
+
+def test_ranges_label_the_frames_the_recording_has_in_sequence_order() -> None:
+    table = parse_labels("frames,expect,note\n0-4,lane,two tapes\n7,none,tiles\n", "run.csv")
+    labelled = _labelled_frames(RUN, table)
+    assert {i: (f.name, f.expect, f.order, f.note) for i, f in labelled.items()} == {
+        0: ("frame 0", "lane", 0, "two tapes"), 1: ("frame 1", "lane", 1, "two tapes"),
+        3: ("frame 3", "lane", 2, "two tapes"), 4: ("frame 4", "lane", 3, "two tapes"),
+        7: ("frame 7", "none", 4, "tiles")}
+
+
+@pytest.mark.parametrize(("labels", "message"), [
+    ("frames,expect\n2,lane\n", "run.csv:2: frame 2 is not in run-1 (run, frames 0-7)"),
+    ("frames,expect\n0-1,lane\n5-6,none\n",
+     "run.csv:3: frames 5-6: none of these frames is in run-1 (run, frames 0-7)"),
+    ("frames,expect\n4-9,lane\n", "run.csv:2: frames 4-9: frame 9 is not in run-1 (run, frames "
+                                  "0-7)"),
+])
+def test_labels_for_frames_the_recording_lacks(labels: str, message: str) -> None:
+    with pytest.raises(InputFileError) as caught:
+        _labelled_frames(RUN, parse_labels(labels, "run.csv"))
+    assert str(caught.value) == message
