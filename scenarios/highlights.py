@@ -11,8 +11,9 @@ surface's roughness (`FloorSpec.roughness_rad`: facets tilted that much turn the
 twice as much), which spreads it along the view direction 1 / sin^2(elevation of the view ray)
 times as far as across (a glossy floor draws streaks towards the camera); its peak is the light's
 `strength` times the surface's gloss (the floor texture's gloss layer, per pixel: grout and
-matte tape stay dark), spread over that area. It is projected into the image through the camera's real (distorted) projection,
-linearised at its centre, and added in frame levels (after exposure, so it saturates).
+matte tape stay dark), spread over that area. It is projected into the image through the
+camera's real (distorted) projection, linearised at its centre, and added in frame levels (after
+exposure, so it saturates).
 
 Never reads a clock; per frame only the few lights whose highlight is in view are drawn, each
 over its bounding box.

@@ -55,7 +55,10 @@ def step_texture(y_edge_m: float, res: float = RES, size_m: float = 8.0) -> Grou
     return texture
 
 
-def render(renderer: CameraRenderer, now: float | None, pose: Pose2D = Pose2D(),
+ORIGIN = Pose2D()
+
+
+def render(renderer: CameraRenderer, now: float | None, pose: Pose2D = ORIGIN,
            velocity: tuple[float, float] = (0.0, 0.0), noise: bool = True,
            color: bool = False) -> np.ndarray:
     w, h = renderer.size
