@@ -66,16 +66,10 @@ class SimulationConfig(BaseModel):
     world_margin_m: float = Field(
         default=2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
     )
-    noise_sigma_levels: float = Field(
-        default=2.0, ge=0.0, le=40.0,
-        description="sensor noise, standard deviation in grey levels (0: none)",
-    )
     noise_bank_frames: int = Field(
         default=12, ge=1, le=64,
-        description="precomputed noise frames, one drawn (seeded) per frame",
-    )
-    exposure_s: float = Field(
-        default=0.01, ge=0.0, le=0.1, description="shutter time used for motion blur (0: none)"
+        description="precomputed unit-noise frames, one drawn (seeded) per frame (the noise's "
+        "strength is the camera's: the scenario's camera.sensor)",
     )
     perception_color: bool = Field(
         default=False,

@@ -230,8 +230,7 @@ def compute_metrics(
         "y_m": round(float(poses[halted_idx, 1]), 4),
         "past_lane_end_m": past_lane_end(poses[halted_idx]),
     }
-    clearance = world.distance_to_tape(poses[:, :2]) - ROBOT_RADIUS_M - (
-        world.tapes[0].width_m / 2.0 if world.tapes else 0.0)
+    clearance = world.clearance_to_edges(poses[:, :2]) - ROBOT_RADIUS_M
     out["crossed_tape"] = bool(n and np.any(clearance < 0.0))
     finite = clearance[np.isfinite(clearance)]
     out["min_tape_clearance_m"] = round(float(finite.min()), 4) if len(finite) else None

@@ -30,9 +30,11 @@ from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
 from lanewarden.perception.overlay import draw_detection
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.camera_effects import CameraEffects
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.fault_link import FaultyLink
 from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
+from lanewarden.scenarios.highlights import Highlights
 from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
@@ -155,9 +157,14 @@ class Simulation:
             paint_ground_cached(self.world, floor_key, sim.texture_mm_per_px / 1000.0, seed,
                                 color=sim.perception_color),
             floor_marks(self.world, spec.faults))
+        camera_spec = spec.camera or CameraSpec()
+        channels = 3 if sim.perception_color else 1
+        self.effects = CameraEffects(
+            camera_spec, self.world.lighting, self.camera, channels=channels, seed=seed,
+            noise_bank_frames=sim.noise_bank_frames, frame_period_s=1.0 / sim.camera_rate_hz)
         self.renderer = CameraRenderer(
-            self.texture, self.camera, noise_sigma=sim.noise_sigma_levels,
-            exposure_s=sim.exposure_s, seed=seed, noise_bank_frames=sim.noise_bank_frames)
+            self.texture, self.camera, seed=seed, effects=self.effects,
+            highlights=self._highlights())
         w, h = self.camera.width_px, self.camera.height_px
         self.calibration = self.camera.calibration()  # with its ground pose, as on a robot
         self.stack = build_stack(config, controller=controller, calibration=self.calibration,
@@ -185,8 +192,19 @@ class Simulation:
                 self.world, DISPLAY_TEXTURE_FACTOR * sim.texture_mm_per_px / 1000.0, seed,
                 color=True), floor_marks(self.world, spec.faults))
             self._display = CameraRenderer(
-                self.display_texture, self.camera, noise_sigma=0.0, exposure_s=0.0, seed=seed,
-                distorted=False)
+                self.display_texture, self.camera, seed=seed, distorted=False,
+                effects=CameraEffects(camera_spec, self.world.lighting, self.camera,
+                                      channels=3, frame_period_s=1.0 / sim.camera_rate_hz,
+                                      display=True),
+                highlights=self._highlights())
+
+    def _highlights(self) -> Highlights | None:
+        """The ceiling lights' highlights on this world's glossy surfaces (None: no lights)."""
+        ceiling = self.world.lighting.ceiling
+        if ceiling is None:
+            return None
+        return Highlights(ceiling, self.camera, self.world.bounds,
+                          self.world.floor.roughness_rad)
 
     def _roi_polygon(self) -> NDArray[np.float64]:
         """Perception's ROI in undistorted pixels, asked from the detector itself (one detection
@@ -288,9 +306,9 @@ class Simulation:
         noise = self.renderer.next_noise_index()
         buffer = self.sim_camera.buffer()
         if self.config.simulation.perception_color:
-            self.renderer.render_bgr(pose, buffer, motion, noise)
+            self.renderer.render_bgr(pose, buffer, motion, noise, now)
         else:
-            self.renderer.render_gray(pose, buffer, motion, noise)
+            self.renderer.render_gray(pose, buffer, motion, noise, now)
         self.faults.after_render(k, now, buffer)
         self.sim_camera.capture(k, now)
         if self._camera_frames is not None:
@@ -300,7 +318,9 @@ class Simulation:
     def _add_video_frame(self, k: int, now: float, pose: Pose2D, record: StepRecord) -> None:
         assert self._video is not None
         assert self._display is not None
-        undistorted = self._display.render_bgr(pose, self._view_bgr)
+        velocity = self.base.velocity
+        undistorted = self._display.render_bgr(
+            pose, self._view_bgr, (velocity.linear_m_s, velocity.angular_rad_s), now=now)
         tap = self.stack.tap.last if self.stack.tap is not None else None
         detection = None
         if tap is not None and tap[0] == k and record.observation is not None:

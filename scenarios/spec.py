@@ -41,6 +41,7 @@ MAX_SEGMENTS = 200
 MAX_GAPS = 100
 MAX_GLARE_SPOTS = 20
 MAX_FAULTS = 50
+MAX_LIGHT_CHANGES = 20
 #: Anywhere in the world (start positions, offsets), metres from the origin.
 MAX_COORDINATE_M = 1000.0
 
@@ -94,30 +95,132 @@ def color_bgr(color: str) -> tuple[int, int, int]:
     return (value & 0xFF, (value >> 8) & 0xFF, (value >> 16) & 0xFF)
 
 
-class FloorSpec(_Model):
-    """The floor. `tiles`: square tiles with grout seams (the lecture's floor); `plain`: one colour
-    with faint blotches; `wood`: planks with grain along x; `noisy`: strong speckle.
+FloorKind = Literal["tiles", "plain", "wood", "noisy", "ceramic", "terrazzo", "foam",
+                    "parquet", "carpet", "concrete"]
 
-    `variation` is the spread of brightness between tiles/planks (fraction), `grain` the fine
-    texture amplitude (fraction), `grid_angle_deg` rotates the tile grid against the world axes.
+#: What each floor kind looks like unless the scenario says otherwise (the other kinds: the
+#: field defaults, the lecture's tiles). `gloss`: the share of a ceiling light's brightness the
+#: surface mirrors (glazed ceramic about 8%, polished terrazzo 5%, varnished parquet 4%, sealed
+#: concrete 2%; see `CeilingLightsSpec`).
+KIND_DEFAULTS: dict[str, dict[str, Any]] = {
+    "ceramic": {"color": "#d9d5cd", "seam_color": "#a29b90", "tile_m": 0.45, "seam_m": 0.003,
+                "variation": 0.02, "grain": 0.015, "gloss": 0.08, "roughness_rad": 0.015},
+    "terrazzo": {"color": "#b7b1a6", "seam_color": "#98928a",
+                 "colors": ["#eeebe4", "#3c3a37", "#8e6652", "#c8c1b3", "#6e7371"],
+                 "tile_m": 0.40, "seam_m": 0.002, "variation": 0.02, "grain": 0.03,
+                 "gloss": 0.05, "roughness_rad": 0.03},
+    "foam": {"color": "#58667e", "seam_color": "#262a31", "colors": ["#58667e", "#8a8e95"],
+             "tile_m": 0.60, "seam_m": 0.003, "variation": 0.03, "grain": 0.08},
+    "parquet": {"color": "#a5763f", "seam_color": "#55391c", "tile_m": 0.24, "seam_m": 0.0015,
+                "variation": 0.10, "grain": 0.05, "gloss": 0.04, "roughness_rad": 0.06},
+    "carpet": {"color": "#6a6d73", "seam_m": 0.0, "variation": 0.06, "grain": 0.2},
+    "concrete": {"color": "#9b9994", "seam_color": "#57554f", "colors": ["#76726b"],
+                 "tile_m": 3.0, "seam_m": 0.004, "variation": 0.08, "grain": 0.05,
+                 "gloss": 0.02, "roughness_rad": 0.08},
+}
+#: Gloss of a tape of `sheen` 1 (glossy vinyl).
+TAPE_GLOSS_AT_FULL_SHEEN = 0.1
+#: Largest gloss (the floor texture's gloss layer spans 0 .. this).
+MAX_GLOSS = 0.25
+
+
+class FloorSpec(_Model):
+    """The floor, every size in metres (`scenarios.floors` paints each kind):
+
+    - `tiles`: square tiles `tile_m` with grout seams `seam_m` (the lecture's floor);
+    - `ceramic`: glossy ceramic tiles: tiles whose glaze mirrors the ceiling lights;
+    - `terrazzo`: stone chips (`chip_m` across, `chip_fraction` of the surface, in `colors`)
+      in a cement matrix (`color`), in tiles `tile_m` with thin grout (seam_m 0: poured, none);
+    - `foam`: interlocking foam mats `tile_m` square, jigsaw seams (teeth `tooth_m` deep),
+      mats coloured from `colors` in turn, a fine embossed texture;
+    - `wood`: planks `tile_m` / 2.5 wide along x with butt joints every 1.2 m, grain;
+    - `parquet`: basket-weave blocks `tile_m` square, each of `slats` slats, alternating
+      direction, grain along each slat;
+    - `carpet`: fibre texture and blotches, no seams;
+    - `concrete`: blotches, fine speckle, `cracks_per_m2` cracks and `stains_per_m2` stains,
+      saw-cut joints every `tile_m` when `seam_m` > 0;
+    - `plain`: one colour with faint blotches; `noisy`: strong speckle.
+
+    `variation` is the spread of brightness between tiles, mats, planks (fraction), `grain` the
+    fine texture amplitude (fraction), `grid_angle_deg` rotates the tile grid against the world
+    axes (tiles, ceramic). `gloss` is the share of a ceiling light the floor mirrors,
+    `roughness_rad` how far its mirror image is spread. A key not given takes the kind's usual
+    value (`KIND_DEFAULTS`), else the default below.
     """
 
-    kind: Literal["tiles", "plain", "wood", "noisy"] = "tiles"
+    kind: FloorKind = "tiles"
     color: Color = "#c9c5bd"
     seam_color: Color = "#8c877e"
-    tile_m: Annotated[float, Field(gt=0.05, le=2.0)] = 0.30
+    #: further colours: terrazzo chips, foam mats (in turn), concrete stains (the first)
+    colors: Annotated[list[Color], Field(max_length=8)] = []
+    tile_m: Annotated[float, Field(gt=0.05, le=5.0)] = 0.30
     seam_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.004
     grid_angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
     grid_offset_m: tuple[float, float] = (0.0, 0.0)
     variation: Annotated[float, Field(ge=0.0, le=0.5)] = 0.04
     grain: Annotated[float, Field(ge=0.0, le=0.5)] = 0.03
+    chip_m: Annotated[float, Field(ge=0.003, le=0.08)] = 0.012
+    chip_fraction: Annotated[float, Field(ge=0.0, le=0.7)] = 0.4
+    tooth_m: Annotated[float, Field(ge=0.0, le=0.1)] = 0.025
+    slats: Annotated[int, Field(ge=2, le=10)] = 4
+    cracks_per_m2: Annotated[float, Field(ge=0.0, le=5.0)] = 0.15
+    stains_per_m2: Annotated[float, Field(ge=0.0, le=5.0)] = 0.3
+    gloss: Annotated[float, Field(ge=0.0, le=MAX_GLOSS)] = 0.0
+    roughness_rad: Annotated[float, Field(ge=0.002, le=0.5)] = 0.04
+
+    @model_validator(mode="before")
+    @classmethod
+    def _kind_defaults(cls, data: Any) -> Any:
+        if isinstance(data, Mapping) and isinstance(data.get("kind"), str):
+            usual = KIND_DEFAULTS.get(data["kind"], {})
+            return {**usual, **data}
+        return data
+
+
+class TapeLook(_Model):
+    """One side's tape where it differs from `tape:` (only the keys given change)."""
+
+    width_m: Annotated[float | None, Field(gt=0.005, le=0.2)] = None
+    color: Color | None = None
+    sheen: Annotated[float | None, Field(ge=0.0, le=1.0)] = None
+    wear: Annotated[float | None, Field(ge=0.0, le=1.0)] = None
+    tears_per_m: Annotated[float | None, Field(ge=0.0, le=20.0)] = None
+    wrinkles_per_m: Annotated[float | None, Field(ge=0.0, le=40.0)] = None
+    end_angle_deg: Annotated[float | None, Field(ge=0.0, le=60.0)] = None
 
 
 class TapeSpec(_Model):
-    """The tape both lane edges are made of (the lecture's: dark tape, 48 mm wide)."""
+    """The tape the lane edges are made of (the lecture's: dark tape, 48 mm wide).
+
+    - `sheen`: how glossy the tape is (0 matte paper tape .. 1 glossy vinyl, which mirrors
+      `TAPE_GLOSS_AT_FULL_SHEEN` of a ceiling light: `CeilingLightsSpec`);
+    - `wear`: fraction of the tape's length in worn patches (faded: the floor shows through);
+    - `tears_per_m`: torn-off chunks along an edge, per metre of tape;
+    - `wrinkles_per_m`: creases across the tape, per metre;
+    - `end_angle_deg`: every tape end (dashes, gaps, the end) cut at up to this angle from square;
+    - `left` / `right`: that side's tape where it differs (a 25 mm yellow line on the left, a
+      48 mm white line on the right).
+
+    Wear, tears and wrinkles are drawn with the floor's seed (`--seed`).
+    """
 
     width_m: Annotated[float, Field(gt=0.005, le=0.2)] = 0.048
     color: Color = "#26262a"
+    sheen: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    wear: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    tears_per_m: Annotated[float, Field(ge=0.0, le=20.0)] = 0.0
+    wrinkles_per_m: Annotated[float, Field(ge=0.0, le=40.0)] = 0.0
+    end_angle_deg: Annotated[float, Field(ge=0.0, le=60.0)] = 0.0
+    left: TapeLook | None = None
+    right: TapeLook | None = None
+
+    def side(self, side: str) -> TapeSpec:
+        """The tape of one side (`left`, `right` or `centre`), its overrides applied."""
+        look = self.left if side == "left" else self.right if side == "right" else None
+        base = self.model_copy(update={"left": None, "right": None})
+        if look is None:
+            return base
+        return base.model_copy(update=look.model_dump(exclude_none=True))
 
 
 class PoseSpec(_Model):
@@ -186,7 +289,12 @@ class EndsSpec(_Model):
 
 
 class LaneSpec(_Model):
+    """The lane: `width_m` between the tape centres; `lines`: `edges` (a tape along each side)
+    or `centre` (a single-line track: one tape along the centre line, `width_m` the lane the
+    robot must keep to)."""
+
     width_m: Annotated[float, Field(gt=0.1, le=3.0)] = 0.60
+    lines: Literal["edges", "centre"] = "edges"
     start: PoseSpec = PoseSpec()
     segments: Annotated[list[SegmentSpec], Field(min_length=1, max_length=MAX_SEGMENTS)]
     gaps: Annotated[list[GapSpec], Field(max_length=MAX_GAPS)] = []
@@ -227,10 +335,44 @@ class GlareSpec(_Model):
     strength: Annotated[float, Field(gt=0.0, le=1.5)] = 0.8
 
 
+class LightChangeSpec(_Model):
+    """The room's light changes at `at_s` (a switch, a cloud: over `ramp_s`) to `brightness`
+    and `color`; the camera's auto-exposure and white balance follow with their lag."""
+
+    at_s: Annotated[float, Field(ge=0.0, le=600.0)]
+    ramp_s: Annotated[float, Field(ge=0.0, le=60.0)] = 0.0
+    brightness: Annotated[float, Field(gt=0.01, le=4.0)] = 1.0
+    color: Color = "#ffffff"
+
+
+class CeilingLightsSpec(_Model):
+    """Lights in the ceiling, `height_m` above the floor on a grid `spacing_m` (along world x,
+    y) shifted by `offset_m`, each `size_m` across. A glossy floor or tape mirrors them: a
+    highlight that moves with the camera (it lies where the ray from the camera to the light's
+    mirror image meets the floor), rendered per frame (`scenarios.highlights`). `strength`: the
+    light's brightness in units of a white floor (a ceiling panel is some 40 times brighter than
+    the floor it lights: even 5% of it mirrored saturates the image)."""
+
+    height_m: Annotated[float, Field(gt=0.5, le=20.0)] = 2.6
+    spacing_m: tuple[Annotated[float, Field(gt=0.3, le=50.0)],
+                     Annotated[float, Field(gt=0.3, le=50.0)]] = (2.4, 1.8)
+    offset_m: tuple[float, float] = (0.7, 0.4)
+    size_m: Annotated[float, Field(gt=0.01, le=3.0)] = 0.4
+    strength: Annotated[float, Field(gt=0.0, le=1000.0)] = 40.0
+
+
 class LightingSpec(_Model):
-    brightness: Annotated[float, Field(gt=0.05, le=2.0)] = 1.0
+    """The room's light. `brightness` and `color` light the whole floor (the camera's
+    auto-exposure and white balance answer them); `gradient` and `glare` are painted into the
+    floor; `changes` change brightness and colour over time; `ceiling` are the lights a glossy
+    surface mirrors (None: no ceiling lights)."""
+
+    brightness: Annotated[float, Field(gt=0.01, le=4.0)] = 1.0
+    color: Color = "#ffffff"
     gradient: GradientSpec = GradientSpec()
     glare: Annotated[list[GlareSpec], Field(max_length=MAX_GLARE_SPOTS)] = []
+    changes: Annotated[list[LightChangeSpec], Field(max_length=MAX_LIGHT_CHANGES)] = []
+    ceiling: CeilingLightsSpec | None = CeilingLightsSpec()
 
 
 class RobotSpec(_Model):
@@ -251,6 +393,64 @@ class RunSpec(_Model):
     stop_past_lane_end_m: Annotated[float, Field(gt=0.0, le=MAX_LANE_LENGTH_M)] = 2.0
 
 
+class SensorSpec(_Model):
+    """The image sensor's noise (`scenarios.camera_effects`): shot noise (the photons counted,
+    `full_well_e` electrons fill a pixel at gain 1) and read noise (`read_noise_e` electrons),
+    both multiplied by the analog gain, so a dark scene that the auto-exposure answers with gain
+    is noisier. Defaults: a Pi-class sensor (IMX219 binned to 640x480: about 2.3 grey levels of
+    noise at mid-grey at gain 1, about 7 at gain 8)."""
+
+    full_well_e: Annotated[float, Field(ge=200.0, le=200_000.0)] = 6000.0
+    read_noise_e: Annotated[float, Field(ge=0.0, le=200.0)] = 3.0
+
+
+class ExposureSpec(_Model):
+    """Exposure (`scenarios.camera_effects`). `auto`: the auto-exposure meters each frame and
+    moves the exposure towards `target_level` (the frame's mean, a fraction of full scale) with
+    the time constant `time_constant_s` (it lags a change of light), first by the shutter time
+    (up to `max_exposure_s`, at most one frame period), then by analog gain (up to `max_gain`);
+    it starts settled. Fixed (`auto: false`): `exposure_s` and `gain`. At brightness 1 a 10 ms
+    exposure at gain 1 shows the floor as painted. The shutter time also sizes the motion blur."""
+
+    auto: bool = True
+    target_level: Annotated[float, Field(gt=0.05, le=0.95)] = 0.5
+    time_constant_s: Annotated[float, Field(ge=0.0, le=30.0)] = 0.3
+    max_exposure_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.03
+    min_exposure_s: Annotated[float, Field(gt=0.0, le=0.01)] = 0.0001
+    max_gain: Annotated[float, Field(ge=1.0, le=64.0)] = 8.0
+    exposure_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
+    gain: Annotated[float, Field(ge=1.0, le=64.0)] = 1.0
+
+
+class WhiteBalanceSpec(_Model):
+    """Auto white balance (colour frames): channel gains that make the frame's mean grey,
+    following a change of the light's colour with `time_constant_s`; it starts settled. Off:
+    the light's colour stays in the image."""
+
+    auto: bool = True
+    time_constant_s: Annotated[float, Field(ge=0.0, le=30.0)] = 1.0
+
+
+class OpticsSpec(_Model):
+    """The lens beyond its geometry: `vignetting` (fraction of the light lost in the image's
+    corners, falling off with the square of the distance from the centre), `blur_mrad` (the
+    lens's blur spot, 1 sigma, milliradians of view: pixels = mrad / 1000 * focal length), and
+    `chromatic` (lateral chromatic aberration: red magnified by this fraction, blue shrunk by it,
+    against green: coloured fringes towards the corners)."""
+
+    vignetting: Annotated[float, Field(ge=0.0, le=0.9)] = 0.25
+    blur_mrad: Annotated[float, Field(ge=0.0, le=20.0)] = 1.2
+    chromatic: Annotated[float, Field(ge=0.0, le=0.02)] = 0.0015
+
+
+class CompressionSpec(_Model):
+    """What the camera sends: `none` (a CSI camera's raw/YUV frames) or `jpeg` at `quality`
+    (1..100; a USB camera's MJPEG stream is one JPEG per frame)."""
+
+    format: Literal["none", "jpeg"] = "none"
+    quality: Annotated[int, Field(ge=1, le=100)] = 75
+
+
 class CameraSpec(_Model):
     """The robot's camera (`camera:`); without the block, the simulator's default camera.
 
@@ -261,6 +461,12 @@ class CameraSpec(_Model):
     (the config's `simulation.width_px`/`height_px` apply to scenarios that do not give one, and a
     scenario may not give both). Perception gets this camera's true calibration, ground pose
     included, as a calibrated robot would.
+
+    What the camera does to the light beyond geometry (`scenarios.camera_effects`; defaults: a
+    Pi-class camera): `sensor` noise, `exposure` (auto, with its lag), `white_balance`,
+    `optics` (vignetting, blur, chromatic fringes), `motion_blur` (from the robot's speed and
+    turn rate over the shutter time), `rolling_shutter_s` (the time the sensor takes to read its
+    rows, top to bottom: a turning robot sees a skewed floor), `compression`.
     """
 
     height_m: Annotated[float, Field(gt=0.03, le=2.0)] = DEFAULT_POSE_HEIGHT_M
@@ -271,6 +477,13 @@ class CameraSpec(_Model):
     width_px: Annotated[int | None, Field(ge=64, le=1920, multiple_of=2)] = None
     height_px: Annotated[int | None, Field(ge=48, le=1440, multiple_of=2)] = None
     distortion: tuple[float, float, float, float, float] = DEFAULT_DIST_COEFFS
+    sensor: SensorSpec = SensorSpec()
+    exposure: ExposureSpec = ExposureSpec()
+    white_balance: WhiteBalanceSpec = WhiteBalanceSpec()
+    optics: OpticsSpec = OpticsSpec()
+    motion_blur: bool = True
+    rolling_shutter_s: Annotated[float, Field(ge=0.0, le=0.1)] = 0.02
+    compression: CompressionSpec = CompressionSpec()
 
     @model_validator(mode="after")
     def _size_together(self) -> CameraSpec:

@@ -26,6 +26,7 @@ from lanewarden.scenarios.spec import (
     ScenarioSpec,
     SegmentSpec,
     TapeSide,
+    TapeSpec,
     color_bgr,
 )
 
@@ -147,8 +148,11 @@ def _applies(side: TapeSide, tape: str) -> bool:
 
 @dataclass(frozen=True, eq=False)
 class Tape:
-    """One lane edge: `pieces` are the tape's centre polylines (world metres) where it is present,
-    `intervals` the matching arc-length intervals of the lane centre line."""
+    """One line of tape: `side` left or right (a lane edge) or centre (a single-line track).
+    `pieces` are the tape's centre polylines (world metres) where it is present, `intervals` the
+    matching arc-length intervals of the lane centre line; `look` its width, colour, sheen and
+    damage (`TapeSpec` of its side); `end_cuts` the angle (radians from square) each piece's
+    start and end are cut at."""
 
     side: str
     offset_m: float
@@ -156,16 +160,32 @@ class Tape:
     color_bgr: tuple[int, int, int]
     intervals: tuple[tuple[float, float], ...]
     pieces: tuple[FloatArray, ...]
+    look: TapeSpec = field(default_factory=TapeSpec)
+    end_cuts: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def is_edge(self) -> bool:
+        """A lane edge (the robot must stay between the edges), not a centre line."""
+        return self.side != "centre"
 
     def outlines(self) -> list[FloatArray]:
-        """Each piece as a closed ribbon polygon (left edge then the right edge reversed)."""
+        """Each piece as a closed ribbon polygon (left edge then the right edge reversed), its
+        ends cut at `end_cuts`."""
         out = []
-        for piece in self.pieces:
+        half = self.width_m / 2.0
+        for i, piece in enumerate(self.pieces):
             d = np.gradient(piece, axis=0)
-            n = np.column_stack([-d[:, 1], d[:, 0]])
-            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-            half = self.width_m / 2.0
-            out.append(np.vstack([piece + half * n, (piece - half * n)[::-1]]))
+            tangent = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+            n = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+            left, right = piece + half * n, piece - half * n
+            if i < len(self.end_cuts):
+                # A cut at angle a moves the left corner along the tape by +half tan a and the
+                # right one by -half tan a (start and end alike).
+                for end, angle in ((0, self.end_cuts[i][0]), (-1, self.end_cuts[i][1])):
+                    shift = half * math.tan(angle) * tangent[end]
+                    left[end] = left[end] + shift
+                    right[end] = right[end] - shift
+            out.append(np.vstack([left, right[::-1]]))
         return out
 
     def surface_samples(self, step_m: float = 0.01) -> FloatArray:
@@ -228,6 +248,23 @@ class World:
                 best = np.minimum(best, _distance_to_polyline(pts, piece))
         return best
 
+    def clearance_to_edges(self, points: FloatArray) -> FloatArray:
+        """Distance from each point (M, 2) to the nearest lane edge (a tape's near side: its
+        centre line minus half its width; inf without edges). A single-line track's edges are
+        the lane's sides, `lane_width_m` apart, where nothing is taped."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        best = np.full(len(pts), np.inf)
+        for tape in self.tapes:
+            if tape.is_edge:
+                for piece in tape.pieces:
+                    best = np.minimum(best, _distance_to_polyline(pts, piece) - tape.width_m / 2)
+        if not any(tape.is_edge for tape in self.tapes) and self.tapes:
+            c = self.centreline
+            for offset in (self.lane_width_m / 2.0, -self.lane_width_m / 2.0):
+                best = np.minimum(best, _distance_to_polyline(
+                    pts, c.offset(0.0, c.length_m, offset)))
+        return best
+
     def inside_bounds(self, x: float, y: float, margin_m: float = 0.0) -> bool:
         x0, y0, x1, y1 = self.bounds
         return x0 + margin_m <= x <= x1 - margin_m and y0 + margin_m <= y <= y1 - margin_m
@@ -276,8 +313,14 @@ def _distance_to_polyline(points: FloatArray, line: FloatArray) -> FloatArray:
 
 
 def tape_intervals(spec: ScenarioSpec, side: str, length_m: float) -> list[tuple[float, float]]:
-    """Arc-length intervals where the `side` tape is present."""
-    end = getattr(spec.lane.ends, f"{side}_m")
+    """Arc-length intervals where the `side` tape is present (`centre`: a single-line track's
+    line, which ends where the first of `lane.ends` says and takes the gaps and dashes of
+    `both`)."""
+    if side == "centre":
+        ends = [e for e in (spec.lane.ends.left_m, spec.lane.ends.right_m) if e is not None]
+        end = min(ends) if ends else None
+    else:
+        end = getattr(spec.lane.ends, f"{side}_m")
     stop = length_m if end is None else min(end, length_m)
     intervals = [(0.0, stop)]
     for gap in spec.lane.gaps:
@@ -299,11 +342,12 @@ def build_world(spec: ScenarioSpec, margin_m: float = 2.5) -> World:
     lane = spec.lane
     start = Pose2D(lane.start.x_m, lane.start.y_m, math.radians(lane.start.heading_deg))
     half = lane.width_m / 2.0
+    widest = max(spec.tape.side(side).width_m for side in ("left", "right"))
     for i, seg in enumerate(lane.segments):
-        if seg.arc_radius_m is not None and seg.arc_radius_m <= half + spec.tape.width_m:
+        if seg.arc_radius_m is not None and seg.arc_radius_m <= half + widest:
             raise ScenarioError(
                 f"{spec.name}: lane.segments.{i}.arc_radius_m = {seg.arc_radius_m}: expected more "
-                f"than half the lane width plus the tape width ({half + spec.tape.width_m:.3f} m)"
+                f"than half the lane width plus the tape width ({half + widest:.3f} m)"
             )
     centre, marks = build_centreline(start, lane.segments)
     length = centre.length_m
@@ -314,14 +358,19 @@ def build_world(spec: ScenarioSpec, margin_m: float = 2.5) -> World:
                 f"{spec.name}: lane.ends.{key} = {end}: expected at most the lane length "
                 f"({length:.3f} m)"
             )
+    sides = (("left", half), ("right", -half)) if lane.lines == "edges" else (("centre", 0.0),)
     tapes = []
-    for side, offset in (("left", half), ("right", -half)):
+    for index, (side, offset) in enumerate(sides):
+        look = spec.tape.side(side)
         intervals = tape_intervals(spec, side, length)
         pieces = tuple(centre.offset(a, b, offset) for a, b in intervals)
-        tapes.append(
-            Tape(side, offset, spec.tape.width_m, color_bgr(spec.tape.color), tuple(intervals),
-                 pieces)
-        )
+        # Each end cut at up to end_angle_deg, the same for every run of the scenario.
+        cut_rng = np.random.default_rng([index, 0xC07])
+        limit = math.radians(look.end_angle_deg)
+        cuts = tuple((float(cut_rng.uniform(-limit, limit)), float(cut_rng.uniform(-limit, limit)))
+                     for _ in pieces)
+        tapes.append(Tape(side, offset, look.width_m, color_bgr(look.color), tuple(intervals),
+                          pieces, look, cuts))
     ends = [e for e in (lane.ends.left_m, lane.ends.right_m) if e is not None]
     markings_end = min(ends) if ends else None
     robot_heading = start.theta_rad + math.radians(spec.robot.heading_deg)
