@@ -144,15 +144,17 @@ def project_files(root: Path) -> list[str]:
             dirs[:] = [d for d in dirs if d not in _NOT_PROJECT and not d.endswith(".egg-info")]
             listed += [os.path.relpath(os.path.join(folder, f), root) for f in files
                        if f not in _NOT_PROJECT]
-            # a symlinked folder (lanewarden/<layer>) is copied as the link it is
-            listed += [os.path.relpath(os.path.join(folder, d), root) for d in dirs
-                       if os.path.islink(os.path.join(folder, d))]
-            dirs[:] = [d for d in dirs if not os.path.islink(os.path.join(folder, d))]
     return sorted({f for f in listed if f and os.path.lexists(root / f)})
 
 
+#: The layers setuptools maps into the package (pyproject's package-dir: lanewarden.<layer> is
+#: <layer>/). PYTHONPATH cannot express that mapping, so the scratch copy gets the links
+#: lanewarden/<layer> -> ../<layer> (scratch only: the project itself has no symlinks).
+LAYERS = ("perception", "supervisor", "actuation", "scenarios")
+
+
 def make_copy(root: Path, files: Sequence[str], into: Path) -> None:
-    """Copy `files` (symlinks as symlinks: lanewarden/<layer> -> ../<layer>) under `into`."""
+    """Copy `files` under `into`, and link each layer into the copy's package."""
     for name in files:
         src, dst = root / name, into / name
         dst.parent.mkdir(parents=True, exist_ok=True)
@@ -160,6 +162,10 @@ def make_copy(root: Path, files: Sequence[str], into: Path) -> None:
             os.symlink(os.readlink(src), dst)
         else:
             shutil.copy2(src, dst)
+    for layer in LAYERS:
+        link = into / "lanewarden" / layer
+        if (into / layer).is_dir() and not os.path.lexists(link):
+            os.symlink(os.path.join("..", layer), link)
 
 
 def _environment(copy: Path) -> dict[str, str]:
