@@ -356,6 +356,11 @@ def name_frames(names: Sequence[str], limit: int = NAMES_SHOWN) -> str:
     return shown + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
+def false_lanes_text(count: int) -> str:
+    """'1 false lane', '3 false lanes'."""
+    return f"{count} false lane{'' if count == 1 else 's'}"
+
+
 def _percent(part: int, whole: int) -> str:
     return f"{100.0 * part / whole:.0f}%" if whole else "-"
 
@@ -366,7 +371,7 @@ def class_line(figures: ClassFigures) -> str:
     text = (f"{title}: {figures.frames} frames, {figures.decisions} with a decision "
             f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
     if figures.expect == NONE:
-        text += f", {len(figures.false_lanes)} false lanes"
+        text += f", {false_lanes_text(len(figures.false_lanes))}"
     if figures.runs:
         run = figures.runs[0]
         span = run.first if run.length == 1 else f"{run.first} .. {run.last}"
@@ -387,7 +392,7 @@ def verdict_line(verdict: Verdict) -> str:
         return (f"verdict: SAFE: no decision on any of the {verdict.no_lane_frames} no-lane "
                 "frames")
     names = [r.frame.name for r in verdict.false_lanes]
-    return (f"verdict: NOT SAFE: {len(names)} false lanes (a decision on a no-lane frame): "
+    return (f"verdict: NOT SAFE: {false_lanes_text(len(names))} (a decision on a no-lane frame): "
             f"{name_frames(names)}")
 
 

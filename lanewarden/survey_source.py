@@ -153,6 +153,11 @@ def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, Labe
     return labelled
 
 
+def _name(folder: Path) -> str:
+    """The folder's own name, also for '.' or '..'."""
+    return folder.name or folder.resolve().name or "folder"
+
+
 def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
     problems = [f"{name}: {why}" for name, path in paths
                 if (why := header_problem(path, max_pixels))]
@@ -187,7 +192,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
             raise UsageError(f"FOLDER '{folder}': no images in lane/ or no-lane/ and no "
                              f"{LABELS_NAME}; expected {FOLDER_HELP}")
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
-        return SurveySource(path.name or folder, f"{folder} (class folders lane/, no-lane/)",
+        return SurveySource(_name(path), f"{folder} (class folders lane/, no-lane/)",
                             stills=stills)
     if table.kind == "file":
         if not path.is_dir():
@@ -195,7 +200,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                              "must be the folder they are in")
         stills = _labelled_files(path, table)
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
-        return SurveySource(path.name or folder, f"{folder} (labels: {table.source})",
+        return SurveySource(_name(path), f"{folder} (labels: {table.source})",
                             stills=stills)
     source = open_replay_source(folder, camera_rate_hz)
     labelled = _labelled_frames(source, table)

@@ -66,7 +66,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
     from lanewarden.replay import replay_config
-    from lanewarden.survey import NONE, judge, name_frames, summary_lines
+    from lanewarden.survey import NONE, false_lanes_text, judge, name_frames, summary_lines
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
     from lanewarden.survey_source import open_survey_source
@@ -131,8 +131,8 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     verdict = figures.verdict
     if not verdict.safe:
         names = name_frames([r.frame.name for r in verdict.false_lanes])
-        click.echo(f"lanewarden: not safe: {len(verdict.false_lanes)} false lanes (a decision on "
-                   f"a no-lane frame): {names}", err=True)
+        click.echo(f"lanewarden: not safe: {false_lanes_text(len(verdict.false_lanes))} (a "
+                   f"decision on a no-lane frame): {names}", err=True)
         return EXIT_SAFETY_STOP
     return EXIT_OK
 

@@ -144,9 +144,9 @@ def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture
         "straight.jpg,none,a lane labelled none on purpose\ntiles.jpg,none,bare tiles\n")
     code, out, err = _survey([str(folder), "--out", str(tmp_path / "o")], capsys)
     assert code == 3
-    assert err == ("lanewarden: not safe: 1 false lanes (a decision on a no-lane frame): "
+    assert err == ("lanewarden: not safe: 1 false lane (a decision on a no-lane frame): "
                    "straight.jpg\n")
-    assert "verdict: NOT SAFE: 1 false lanes (a decision on a no-lane frame): straight.jpg" in out
+    assert "verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame): straight.jpg" in out
     document = json.loads((tmp_path / "o" / "survey.json").read_text())
     assert document["verdict"]["false_lanes"] == ["straight.jpg"]
     assert [f["note"] for f in document["frames"]] == [
