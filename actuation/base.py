@@ -41,7 +41,9 @@ class BaseFeedback:
     `received_at_s` is the clock time of the newest valid feedback (None: nothing received yet);
     the supervisor's watchdog turns its age into a link-lost fault. Bit fields follow the Kobuki
     protocol: bumper 1 right / 2 centre / 4 left; wheel_drop 1 right / 2 left; cliff 1 right /
-    2 centre / 4 left.
+    2 centre / 4 left. `stop_latched`: the base's own safety monitor (the Kobuki's dead-man) has
+    latched a stop and refuses motion until the operator resumes: why, one line (None: it has
+    not; a base without such a monitor never has).
     """
 
     received_at_s: float | None = None
@@ -51,6 +53,7 @@ class BaseFeedback:
     buttons: int = 0
     battery_v: float | None = None
     odometry: Pose2D = Pose2D()
+    stop_latched: str | None = None
 
 
 class Base(Protocol):

@@ -57,8 +57,9 @@ class ActuationConfig(BaseModel):
     """How commands reach the base: the real Kobuki's serial link and dead-man process, the speed
     limits every command is scaled into, and the simulated base's dynamics.
 
-    Dead-man: a separate process owns the serial port, sends base control at `command_rate_hz`
-    and stops the base when the control process falls silent (see docs/actuation.md).
+    Dead-man: a separate process owns the serial port, sends base control at `command_rate_hz`,
+    stops the base when the control process falls silent or the base reports a hazard, and keeps
+    every command inside the speed and acceleration limits below (see docs/actuation.md).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -86,6 +87,13 @@ class ActuationConfig(BaseModel):
         le=10.0,
         description="How long the dead-man keeps sending stop after the control process is gone "
         "before it exits, s",
+    )
+    feedback_timeout_s: float = Field(
+        default=0.2,
+        ge=0.05,
+        le=1.0,
+        description="No feedback packet from the base within this while armed: the dead-man "
+        "stops the base and holds the stop until the operator resumes, s",
     )
     first_feedback_timeout_s: float = Field(
         default=1.0,
@@ -125,14 +133,29 @@ class ActuationConfig(BaseModel):
         gt=0.0,
         le=MAX_LINEAR_M_S,
         description="Linear speed limit, m/s (at most the Kobuki's 0.7); larger commands are "
-        "scaled down, keeping their curvature",
+        "scaled down, keeping their curvature (by the driver and again by the dead-man)",
     )
     max_angular_rad_s: float = Field(
         default=MAX_ANGULAR_RAD_S,
         gt=0.0,
         le=MAX_ANGULAR_RAD_S,
         description="Angular speed limit, rad/s (at most the Kobuki's pi, 180 deg/s); larger "
-        "commands are scaled down, keeping their curvature",
+        "commands are scaled down, keeping their curvature (by the driver and again by the "
+        "dead-man)",
+    )
+    max_linear_accel_m_s2: float = Field(
+        default=1.0,
+        gt=0.0,
+        le=5.0,
+        description="The dead-man ramps increases of linear speed at most this fast, m/s^2 "
+        "(decreases pass at once); at least supervisor.max_linear_accel_m_s2",
+    )
+    max_angular_accel_rad_s2: float = Field(
+        default=10.0,
+        gt=0.0,
+        le=50.0,
+        description="The dead-man ramps increases of angular speed at most this fast, rad/s^2 "
+        "(decreases pass at once); at least supervisor.max_angular_accel_rad_s2",
     )
     sim: SimBaseConfig = SimBaseConfig()
 

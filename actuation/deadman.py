@@ -1,13 +1,17 @@
-"""The dead-man process (`python -m lanewarden.actuation.deadman`): the only owner of the
-Kobuki's port.
+"""The dead-man process (`python -P -m lanewarden.actuation.deadman`): the only owner of the
+Kobuki's port, and the base's safety monitor.
 
 Started by KobukiBase (in a session of its own, so the terminal's job-control and quit signals
-never reach it) with one end of a SOCK_SEQPACKET socketpair. It raises its own scheduling
-priority where the OS permits (SCHED_FIFO, else a negative nice value) so a loaded machine cannot
-starve its send loop, opens the serial port, writes base control at the steady command rate
-(changed or not), reports every write to the control process (`WIRE`, its own heartbeat), relays
-every valid feedback payload and its link health, and follows `DeadmanLogic`: when the control
-process goes silent or away, the base is stopped at once and kept stopped.
+never reach it; with `-P`, so a `lanewarden/` folder in the current directory cannot stand in for
+the installed code) with one end of a SOCK_SEQPACKET socketpair. It first trades HELLOs with the
+control process and exits (EXIT_VERSION_MISMATCH) without touching the port unless both speak the
+same protocol and package version. It raises its own scheduling priority where the OS permits
+(SCHED_FIFO, else a negative nice value) so a loaded machine cannot starve its send loop, opens
+the serial port, writes base control at the steady command rate (changed or not), reports every
+write to the control process (`WIRE`, its own heartbeat), relays every valid feedback payload and
+its link health, and follows `DeadmanLogic`: when the control process goes silent or away, or a
+feedback packet shows a bumper, cliff or wheel drop, or feedback goes stale, the base is stopped
+at once and kept stopped; every command it forwards is kept inside the base's envelope.
 On SIGTERM, SIGINT, SIGHUP, SIGQUIT, an internal error or a CLOSE message: stop, flush, exit.
 Even SIGTSTP sent to it directly does not stop it (its process group is orphaned, and the kernel
 discards job-control stops there); only SIGSTOP can freeze it, and then the control process
@@ -28,12 +32,18 @@ import socket
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Sequence
 from types import FrameType
 
 import serial
 
-from lanewarden.actuation.deadman_logic import DeadmanLogic, DeadmanSettings
+from lanewarden.actuation.deadman_logic import (
+    DeadmanLogic,
+    DeadmanSettings,
+    Envelope,
+    SafetySensors,
+)
 from lanewarden.actuation.deadman_messages import (
     MAX_MESSAGE_BYTES,
     Arm,
@@ -42,16 +52,21 @@ from lanewarden.actuation.deadman_messages import (
     DeadmanMessage,
     Disarm,
     FeedbackReceived,
+    Hello,
     LinkLost,
     ModeChanged,
     OnTheWire,
     OpenFailed,
     PortOpened,
     RawCommand,
+    Resume,
     decode_control,
+    decode_hello,
     encode_deadman,
+    version_mismatch,
 )
 from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
+from lanewarden.actuation.kobuki_feedback import decode_feedback
 from lanewarden.actuation.kobuki_framing import PacketReader
 from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
 from lanewarden.actuation.realtime import raise_priority
@@ -60,6 +75,10 @@ EXIT_OK = 0
 EXIT_OPEN_FAILED = 3
 EXIT_LINK_LOST = 4
 EXIT_INTERNAL_ERROR = 5
+EXIT_VERSION_MISMATCH = 6
+
+#: How long to wait for the control process's HELLO (it sends it right after starting us).
+HELLO_TIMEOUT_S = 10.0
 
 #: Serial read timeout of the feedback thread (bounds how long stopping it takes).
 READ_TIMEOUT_S = 0.05
@@ -84,6 +103,11 @@ class DeadmanProcess:
         self._write_timeout_s = write_timeout_s
         self._link: serial.SerialBase | None = None
         self._packets = PacketReader()
+        # feedback thread -> main loop, in order: each packet's hazard bits (None: no basic
+        # sensor data in it) and the message relaying it to the control process
+        self._from_base: deque[tuple[SafetySensors | None, FeedbackReceived]] = deque()
+        self._mode: ModeChanged | None = None  # the newest MODE told
+        self._dropped = False  # a message could not be sent: tell the MODE again first
         self._reading = threading.Event()
         self._lost: str | None = None
         self._signal: int | None = None
@@ -93,13 +117,27 @@ class DeadmanProcess:
 
     # ---- talking to the control process (never blocks) ----------------------------------------
     def _tell(self, message: DeadmanMessage) -> None:
+        """Send `message` if the socket takes it now. When a message had to be dropped (the
+        control process frozen, its socket full), the current MODE goes again first once the
+        socket takes messages again, so a control process that was frozen through a latch still
+        learns of it. Called from the main loop only."""
         control = self._control
         if control is None:
             return
+        if isinstance(message, ModeChanged):
+            self._mode = message
+        if self._dropped and self._mode is not None and message is not self._mode:
+            if not self._send(control, self._mode):
+                return
+        self._dropped = not self._send(control, message)
+
+    @staticmethod
+    def _send(control: socket.socket, message: DeadmanMessage) -> bool:
         try:
             control.send(encode_deadman(message), socket.MSG_DONTWAIT)
         except OSError:
-            pass  # full (control process frozen) or gone: feedback is stale either way
+            return False  # full (control process frozen) or gone: feedback is stale either way
+        return True
 
     def _wake(self) -> None:
         try:
@@ -115,7 +153,13 @@ class DeadmanProcess:
             while self._reading.is_set():
                 data = link.read(max(1, link.in_waiting))
                 for payload in self._packets.feed(data):
-                    self._tell(FeedbackReceived(self._packets.checksum_errors, payload))
+                    basic = decode_feedback(payload).basic
+                    sensors = None if basic is None else SafetySensors(
+                        time.monotonic(), basic.bumper, basic.cliff, basic.wheel_drop)
+                    # the main loop judges the hazard bits at once, then relays the packet
+                    self._from_base.append(
+                        (sensors, FeedbackReceived(self._packets.checksum_errors, payload)))
+                    self._wake()
         except SERIAL_ERRORS as exc:
             if self._reading.is_set():
                 self._lost = _lost_message(self._port, exc)
@@ -125,7 +169,26 @@ class DeadmanProcess:
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self._signal = signum
 
+    def handshake(self) -> str | None:
+        """Send our HELLO, read the control process's: None when both speak the same protocol
+        and package version, else why not (then the port must not be touched)."""
+        ours = Hello.ours()
+        self._tell(ours)
+        control = self._control
+        assert control is not None
+        ready, _, _ = select.select([control.fileno(), self._wake_r], [], [], HELLO_TIMEOUT_S)
+        if control.fileno() not in ready:
+            return "no HELLO from the control process"
+        try:
+            data = control.recv(MAX_MESSAGE_BYTES)
+            theirs = decode_hello(data)
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            return f"the control process did not say HELLO ({exc})"
+        return version_mismatch(ours, theirs)
+
     def run(self) -> int:
+        if self.handshake() is not None:
+            return EXIT_VERSION_MISMATCH  # the control side names the mismatch; nothing moved
         try:
             self._link, low_latency = open_kobuki_serial(
                 self._port, read_timeout_s=READ_TIMEOUT_S, write_timeout_s=self._write_timeout_s)
@@ -152,6 +215,7 @@ class DeadmanProcess:
         logic = DeadmanLogic(self._settings, time.monotonic())
         link = self._link
         assert link is not None
+        relay: list[FeedbackReceived] = []
         while True:
             action = logic.poll(time.monotonic())
             if action.send is not None:
@@ -159,6 +223,11 @@ class DeadmanProcess:
                 written_s = time.monotonic()
             for event in action.events:
                 self._tell(ModeChanged(event.mode, event.reason))
+            # after the MODE a packet caused: the control process never sees a hazard bit
+            # before the latch it caused
+            for message in relay:
+                self._tell(message)
+            relay.clear()
             if action.send is not None:
                 self._tell(OnTheWire(logic.heartbeat_seq, written_s, action.send))
             if action.finished:
@@ -174,6 +243,11 @@ class DeadmanProcess:
                 self._drain_wake_pipe()
             if self._signal is not None:
                 logic.on_close(now, f"stopped by signal {signal.Signals(self._signal).name}")
+            while self._from_base:  # before the control messages: a RESUME sees the newest state
+                sensors, message = self._from_base.popleft()
+                if sensors is not None:
+                    logic.on_feedback(now, sensors)
+                relay.append(message)
             if self._control is not None and self._control in ready:
                 self._receive(logic, link)
 
@@ -200,6 +274,8 @@ class DeadmanProcess:
                 continue
             if isinstance(message, Arm):
                 logic.on_arm(now, message.heartbeat)
+            elif isinstance(message, Resume):
+                logic.on_resume(now, message.heartbeat)
             elif isinstance(message, Disarm):
                 logic.on_disarm(now, message.heartbeat)
             elif isinstance(message, Command):
@@ -249,11 +325,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--heartbeat-timeout-s", type=float, default=0.2)
     parser.add_argument("--orphan-stop-s", type=float, default=0.5)
     parser.add_argument("--write-timeout-s", type=float, default=0.5)
+    parser.add_argument("--feedback-timeout-s", type=float, default=0.2)
+    envelope = Envelope()
+    parser.add_argument("--max-linear-m-s", type=float, default=envelope.max_linear_m_s)
+    parser.add_argument("--max-angular-rad-s", type=float, default=envelope.max_angular_rad_s)
+    parser.add_argument("--max-linear-accel-m-s2", type=float,
+                        default=envelope.max_linear_accel_m_s2)
+    parser.add_argument("--max-angular-accel-rad-s2", type=float,
+                        default=envelope.max_angular_accel_rad_s2)
     args = parser.parse_args(argv)
     control = socket.socket(fileno=args.control_fd)
-    settings = DeadmanSettings(heartbeat_timeout_s=args.heartbeat_timeout_s,
-                               command_period_s=1.0 / args.command_rate_hz,
-                               orphan_stop_s=args.orphan_stop_s)
+    settings = DeadmanSettings(
+        heartbeat_timeout_s=args.heartbeat_timeout_s, command_period_s=1.0 / args.command_rate_hz,
+        orphan_stop_s=args.orphan_stop_s, feedback_timeout_s=args.feedback_timeout_s,
+        envelope=Envelope(args.max_linear_m_s, args.max_angular_rad_s,
+                          args.max_linear_accel_m_s2, args.max_angular_accel_rad_s2))
     process = DeadmanProcess(args.port, control, settings, args.write_timeout_s,
                              raise_priority())
     process.install_signal_handlers()

@@ -1,10 +1,14 @@
 """The control process's end of the dead-man: starting it, talking to it, watching that it lives.
 
-`DeadmanLink.start(...)` runs `python -m lanewarden.actuation.deadman` in a session of its own
+`DeadmanLink.start(...)` runs `python -P -m lanewarden.actuation.deadman` in a session of its own
 (so the terminal's Ctrl-Z, Ctrl-\\ and Ctrl-C reach only the control process, never the process
-that must stop the robot) with one end of a SOCK_SEQPACKET socketpair. Heartbeats (`arm`,
-`disarm`, `command`) are numbered and stamped with time.monotonic here, whatever clock the caller
-injects elsewhere: the dead-man compares the stamp with its own CLOCK_MONOTONIC.
+that must stop the robot) with one end of a SOCK_SEQPACKET socketpair. `-P` keeps the current
+folder off its module path: run from a folder holding another checkout, it still imports the
+lanewarden this interpreter has installed (a venv, an editable install, PYTHONPATH and the user's
+site-packages all still count). Our HELLO goes out at once; the dead-man's (`hello`, checked by
+the caller) says which version it runs and where it imported it from. Heartbeats (`arm`,
+`resume`, `disarm`, `command`) are numbered and stamped with time.monotonic here, whatever clock
+the caller injects elsewhere: the dead-man compares the stamp with its own CLOCK_MONOTONIC.
 
 A relay thread decodes what the dead-man says: feedback payloads go to `on_feedback` (stamped with
 the caller's clock on arrival); port, priority, mode, `WIRE` reports and link loss are kept here.
@@ -47,12 +51,14 @@ from lanewarden.actuation.deadman_messages import (
     DeadmanMessage,
     Disarm,
     FeedbackReceived,
+    Hello,
     LinkLost,
     ModeChanged,
     OnTheWire,
     OpenFailed,
     PortOpened,
     RawCommand,
+    Resume,
     decode_deadman,
     encode_control,
 )
@@ -126,8 +132,9 @@ class DeadmanLink:
 
     Everything the relay thread learns is read under `cond` (a Condition notified on every
     message): `opened`, `low_latency`, `priority_raised`, `priority`, `open_error`, `lost`,
-    `gone`, `mode`, `mode_reason`, `wire` (the newest WIRE report), `motion_stopped_s` (when the
-    dead-man wrote the stop that ended the latest motion, on its CLOCK_MONOTONIC)."""
+    `gone`, `hello` (the dead-man's HELLO), `mode`, `mode_reason`, `wire` (the newest WIRE
+    report), `motion_stopped_s` (when the dead-man wrote the stop that ended the latest motion,
+    on its CLOCK_MONOTONIC)."""
 
     def __init__(self, port: str, process: subprocess.Popen[bytes], control: socket.socket,
                  config: ActuationConfig, clock: Callable[[], float],
@@ -149,6 +156,7 @@ class DeadmanLink:
         self.open_error: str | None = None
         self.lost: str | None = None
         self.gone = False
+        self.hello: Hello | None = None
         self.mode = DeadmanMode.DISARMED
         self.mode_reason = "started"
         self.wire: OnTheWire | None = None
@@ -162,12 +170,18 @@ class DeadmanLink:
               on_feedback: Callable[[FeedbackReceived, float], None]) -> DeadmanLink:
         """Start the dead-man on `port`; KobukiLinkError when the process cannot be started."""
         parent_end, child_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        argv = [sys.executable, "-m", "lanewarden.actuation.deadman", "--port", port,
+        # -P: the current folder must not shadow the installed package (see the docstring)
+        argv = [sys.executable, "-P", "-m", "lanewarden.actuation.deadman", "--port", port,
                 "--control-fd", str(child_end.fileno()),
                 "--command-rate-hz", repr(config.command_rate_hz),
                 "--heartbeat-timeout-s", repr(config.heartbeat_timeout_s),
                 "--orphan-stop-s", repr(config.orphan_stop_s),
-                "--write-timeout-s", repr(config.write_timeout_s)]
+                "--write-timeout-s", repr(config.write_timeout_s),
+                "--feedback-timeout-s", repr(config.feedback_timeout_s),
+                "--max-linear-m-s", repr(config.max_linear_m_s),
+                "--max-angular-rad-s", repr(config.max_angular_rad_s),
+                "--max-linear-accel-m-s2", repr(config.max_linear_accel_m_s2),
+                "--max-angular-accel-rad-s2", repr(config.max_angular_accel_rad_s2)]
         try:
             # its own session: no terminal signal (SIGTSTP, SIGQUIT, SIGINT) reaches it
             process = subprocess.Popen(argv, pass_fds=(child_end.fileno(),),
@@ -177,6 +191,10 @@ class DeadmanLink:
             raise KobukiLinkError(f"{port}: cannot start the dead-man process ({exc})") from exc
         finally:
             child_end.close()
+        try:  # first of all: the dead-man checks our HELLO before it touches the port
+            parent_end.send(encode_control(Hello.ours()), socket.MSG_DONTWAIT)
+        except OSError:
+            pass  # it died at once: the relay sees the end of the stream and says so
         link = cls(port, process, parent_end, config, clock, on_feedback)
         link._relay.start()
         return link
@@ -185,6 +203,11 @@ class DeadmanLink:
     def arm(self) -> int:
         """Post ARM; returns its heartbeat sequence number."""
         return self._post_heartbeat(Arm)
+
+    def resume(self) -> int:
+        """Post RESUME (the operator's explicit start or resume: also clears the dead-man's own
+        hazard latch once the hazard has cleared); returns its sequence number."""
+        return self._post_heartbeat(Resume)
 
     def disarm(self) -> int:
         """Post DISARM (stop at once, hold stop without heartbeats); returns its sequence number."""
@@ -288,6 +311,8 @@ class DeadmanLink:
             self.wire = message
         elif isinstance(message, ModeChanged):
             self.mode, self.mode_reason = message.mode, message.reason
+        elif isinstance(message, Hello):
+            self.hello = message
         elif isinstance(message, PortOpened):
             self.opened, self.low_latency = True, message.low_latency
             self.priority_raised, self.priority = message.priority_raised, message.priority

@@ -2,7 +2,8 @@
 
 One message per SOCK_SEQPACKET record, ASCII words separated by spaces, binary as hex:
 
-control -> dead-man: `ARM <seq> <sent_s>` | `DISARM <seq> <sent_s>`
+both ways, first:    `HELLO <protocol> <package version> <package folder>`
+control -> dead-man: `ARM <seq> <sent_s>` | `RESUME <seq> <sent_s>` | `DISARM <seq> <sent_s>`
                      | `CMD <seq> <sent_s> <linear_m_s> <angular_rad_s>`
                      | `RAW <hex sub-payloads>` | `CLOSE`
 dead-man -> control: `OPEN <low_latency 0|1> <priority_raised 0|1> <priority text>`
@@ -10,12 +11,19 @@ dead-man -> control: `OPEN <low_latency 0|1> <priority_raised 0|1> <priority tex
                      | `MODE <mode> <reason>` | `LOST <text>`
                      | `WIRE <seq> <written_s> <linear_m_s> <angular_rad_s>`
 
-`ARM`, `DISARM` and `CMD` are heartbeats: `seq` counts up with every heartbeat the control
-process sends and `sent_s` is its CLOCK_MONOTONIC time at sending (system-wide on Linux, so the
-dead-man compares it with its own clock: a heartbeat that sat in the socket while the sender was
-frozen is not fresh). `WIRE` reports every command the dead-man writes to the port, with the
-newest heartbeat sequence it had accepted (-1: none yet) and its CLOCK_MONOTONIC time once the
-write returned: it is the dead-man's own heartbeat towards the control process.
+`HELLO` is the handshake, and its layout never changes: each side sends its own first and checks
+the other's (`version_mismatch`) before anything else; the dead-man opens the port only after a
+matching one, the control process uses the dead-man only after one (`PROTOCOL_VERSION` counts
+changes to every other message; bump it with any change here).
+
+`ARM`, `RESUME`, `DISARM` and `CMD` are heartbeats: `seq` counts up with every heartbeat the
+control process sends and `sent_s` is its CLOCK_MONOTONIC time at sending (system-wide on Linux,
+so the dead-man compares it with its own clock: a heartbeat that sat in the socket while the
+sender was frozen is not fresh). `RESUME` is the operator's explicit start or resume: the only
+message that clears the dead-man's own hazard latch. `WIRE` reports every command the dead-man
+writes to the port, with the newest heartbeat sequence it had accepted (-1: none yet) and its
+CLOCK_MONOTONIC time once the write returned: it is the dead-man's own heartbeat towards the
+control process.
 
 Decoding is strict (integers are digits, numbers finite decimals): anything else raises
 ValueError (the dead-man treats that as a missed heartbeat). Pure: no sockets here.
@@ -24,18 +32,59 @@ ValueError (the dead-man treats that as a missed heartbeat). Pure: no sockets he
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass
 
+import lanewarden
 from lanewarden.actuation.base import VelocityCommand
 from lanewarden.actuation.deadman_logic import DeadmanMode, Heartbeat
 from lanewarden.actuation.kobuki_commands import CommandId
+
+#: The version of every message but HELLO: both sides must speak the same one.
+PROTOCOL_VERSION = 2
+
+
+# ---- both ways ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Hello:
+    """Who is speaking: the message protocol, the lanewarden package's version and the folder it
+    was imported from (so a dead-man that imported another copy of the code is named)."""
+
+    protocol: int
+    package_version: str
+    package_folder: str
+
+    @classmethod
+    def ours(cls) -> Hello:
+        """This process's own HELLO."""
+        return cls(PROTOCOL_VERSION, lanewarden.__version__,
+                   os.path.dirname(os.path.realpath(lanewarden.__file__)))
+
+    def describe(self) -> str:
+        return (f"lanewarden {self.package_version} (dead-man protocol {self.protocol}) from "
+                f"{self.package_folder}")
+
+
+def version_mismatch(ours: Hello, theirs: Hello) -> str | None:
+    """Why the two sides cannot work together (protocol or package version differ), or None."""
+    if (ours.protocol, ours.package_version) == (theirs.protocol, theirs.package_version):
+        return None
+    return f"{theirs.describe()}, but this side is {ours.describe()}"
 
 
 # ---- control -> dead-man ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Arm:
-    """Explicitly (re-)arm the dead-man: the only way out of DISARMED or TRIPPED."""
+    """Explicitly (re-)arm the dead-man: the way out of DISARMED or TRIPPED (not LATCHED)."""
+
+    heartbeat: Heartbeat
+
+
+@dataclass(frozen=True)
+class Resume:
+    """The operator's explicit start or resume: arms like ARM, and is the only way out of the
+    dead-man's own hazard latch (once the hazard has cleared)."""
 
     heartbeat: Heartbeat
 
@@ -68,7 +117,7 @@ class Close:
     """Stop the base, flush and exit."""
 
 
-ControlMessage = Arm | Disarm | Command | RawCommand | Close
+ControlMessage = Hello | Arm | Resume | Disarm | Command | RawCommand | Close
 
 
 # ---- dead-man -> control ------------------------------------------------------------------------
@@ -111,7 +160,8 @@ class OnTheWire:
     command: VelocityCommand
 
 
-DeadmanMessage = PortOpened | OpenFailed | FeedbackReceived | ModeChanged | LinkLost | OnTheWire
+DeadmanMessage = (Hello | PortOpened | OpenFailed | FeedbackReceived | ModeChanged | LinkLost
+                  | OnTheWire)
 
 #: SOCK_SEQPACKET receive size: large enough for any message above.
 MAX_MESSAGE_BYTES = 4096
@@ -157,9 +207,27 @@ def check_non_motion(sub_payloads: bytes) -> None:
         raise ValueError("RAW sub-payload lengths do not add up to a packet payload")
 
 
+_HEARTBEAT_KINDS: dict[type, str] = {Arm: "ARM", Resume: "RESUME", Disarm: "DISARM"}
+
+
+def encode_hello(message: Hello) -> bytes:
+    return (f"HELLO {message.protocol} {_one_line(message.package_version)} "
+            f"{message.package_folder}").encode()
+
+
+def decode_hello(data: bytes) -> Hello:
+    """Parse a HELLO (the one message whose layout never changes); ValueError otherwise."""
+    kind, protocol, version, folder = (data.decode("utf-8").split(" ", 3) + ["", "", ""])[:4]
+    if kind != "HELLO" or not version or not folder:
+        raise ValueError(f"not a HELLO: {data[:60]!r}")
+    return Hello(_sequence(protocol), version, folder)
+
+
 def encode_control(message: ControlMessage) -> bytes:
-    if isinstance(message, Arm | Disarm):
-        kind = "ARM" if isinstance(message, Arm) else "DISARM"
+    if isinstance(message, Hello):
+        return encode_hello(message)
+    if isinstance(message, Arm | Resume | Disarm):
+        kind = _HEARTBEAT_KINDS[type(message)]
         return f"{kind} {message.heartbeat.seq} {message.heartbeat.sent_s!r}".encode()
     if isinstance(message, Command):
         beat, command = message.heartbeat, message.command
@@ -171,11 +239,14 @@ def encode_control(message: ControlMessage) -> bytes:
 
 
 def decode_control(data: bytes) -> ControlMessage:
-    """Parse one control message; ValueError on anything malformed (including NaN speeds)."""
+    """Parse one control message after the handshake (a HELLO now is malformed); ValueError on
+    anything malformed (including NaN speeds)."""
     words = data.decode("ascii").split(" ")
     kind, args = words[0], words[1:]
     if kind == "ARM" and len(args) == 2:
         return Arm(_heartbeat(*args))
+    if kind == "RESUME" and len(args) == 2:
+        return Resume(_heartbeat(*args))
     if kind == "DISARM" and len(args) == 2:
         return Disarm(_heartbeat(*args))
     if kind == "CLOSE" and not args:
@@ -191,6 +262,8 @@ def decode_control(data: bytes) -> ControlMessage:
 
 
 def encode_deadman(message: DeadmanMessage) -> bytes:
+    if isinstance(message, Hello):
+        return encode_hello(message)
     if isinstance(message, PortOpened):
         return (f"OPEN {int(message.low_latency)} {int(message.priority_raised)} "
                 f"{_one_line(message.priority)}").encode()
@@ -210,6 +283,8 @@ def encode_deadman(message: DeadmanMessage) -> bytes:
 def decode_deadman(data: bytes) -> DeadmanMessage:
     """Parse one dead-man message; ValueError on anything malformed."""
     kind, _, rest = data.decode("utf-8").partition(" ")
+    if kind == "HELLO":
+        return decode_hello(data)
     if kind == "OPEN":
         low_latency, raised, priority = (rest.split(" ", 2) + ["", ""])[:3]
         if low_latency in ("0", "1") and raised in ("0", "1") and priority:

@@ -1,13 +1,17 @@
 """KobukiBase: the real base, driven through the dead-man process that owns its serial port.
 
 `KobukiBase.open(port)` starts the dead-man (`actuation.deadman_link.DeadmanLink`: its own
-session, its own watch on it), waits (bounded) for the port to open and for the first valid
-feedback packet, and from then on:
+session, its own watch on it), checks its HELLO (the same protocol and package version as this
+process, else one line and nothing moves), waits (bounded) for the port to open and for the first
+valid feedback packet, and from then on:
 `send()` forwards each command (which is also the dead-man's heartbeat), the feedback the
 dead-man forwards is decoded here and stamped with the injected clock, and `close()` stops the
 base and reaps the process. The first `send()` arms the dead-man; after the dead-man trips
 (this process went quiet for `heartbeat_timeout_s`) the base stays stopped, motion commands are
 ignored by it and `send()` raises DeadmanTrippedError, until `rearm()` is called explicitly.
+When the dead-man latches a stop of its own (bumper, cliff, wheel drop, stale feedback) the
+feedback says so (`BaseFeedback.stop_latched`, the gate's DEADMAN_LATCHED); motion is ignored by
+it until `resume()`, the operator's explicit start or resume, finds the hazard cleared.
 `hold_stopped()` stops and disarms it on purpose (before this process suspends itself); motion
 then raises too until `rearm()`.
 
@@ -27,7 +31,12 @@ from lanewarden.actuation.base import STOP, BaseFeedback, Pose2D, VelocityComman
 from lanewarden.actuation.config import ActuationConfig
 from lanewarden.actuation.deadman_link import DeadmanLink
 from lanewarden.actuation.deadman_logic import DeadmanMode
-from lanewarden.actuation.deadman_messages import FeedbackReceived, check_non_motion
+from lanewarden.actuation.deadman_messages import (
+    FeedbackReceived,
+    Hello,
+    check_non_motion,
+    version_mismatch,
+)
 from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_commands import (
     ExtraRequest,
@@ -120,6 +129,15 @@ class KobukiBase:
                              config.deadman_start_timeout_s):
             raise KobukiLinkError(f"{self._port}: the dead-man process did not open the port "
                                   f"within {config.deadman_start_timeout_s:g} s")
+        with self._cond:  # its HELLO came before anything else it said
+            hello, opened = link.hello, link.opened
+        if hello is not None and (mismatch := version_mismatch(Hello.ours(), hello)) is not None:
+            raise KobukiLinkError(f"{self._port}: the dead-man process is {mismatch}: start "
+                                  "both from one installation (reinstall lanewarden, or run the "
+                                  "`lanewarden` command of the installation you mean)")
+        if hello is None and opened:
+            raise KobukiLinkError(f"{self._port}: the dead-man process did not say which version "
+                                  "it runs (an older lanewarden?): reinstall lanewarden")
         with self._cond:
             if link.open_error is not None:
                 raise KobukiLinkError(link.open_error)
@@ -142,8 +160,10 @@ class KobukiBase:
 
         Non-finite components: stop is sent, then ActuationError. A lost link or dead dead-man:
         KobukiLinkError. A motion command while the dead-man is tripped: forwarded (and ignored
-        by it), then DeadmanTrippedError. A motion command after `hold_stopped()`: stop is sent
-        instead, then DeadmanTrippedError. After close(): ActuationError.
+        by it), then DeadmanTrippedError. A motion command while the dead-man holds its own
+        hazard latch: forwarded and ignored by it, no error (the latch is in the feedback, where
+        the gate halts on it). A motion command after `hold_stopped()`: stop is sent instead, then
+        DeadmanTrippedError. After close(): ActuationError.
         """
         self._raise_if_unusable()
         if not self._armed:
@@ -181,6 +201,8 @@ class KobukiBase:
                 buttons=sensors.buttons if sensors else 0,
                 battery_v=sensors.battery_v if sensors else None,
                 odometry=self._odometry.pose,
+                stop_latched=(self._link.mode_reason
+                              if self._link.mode is DeadmanMode.LATCHED else None),
             )
 
     def close(self) -> None:
@@ -199,12 +221,33 @@ class KobukiBase:
 
     # ---- beyond the Base interface ------------------------------------------------------------
     def rearm(self, now: float) -> None:
-        """Explicitly re-arm a tripped, disarmed or held dead-man. The command is stop until the
-        next send()."""
+        """Explicitly re-arm a tripped, disarmed or held dead-man (not out of its own hazard
+        latch: that takes `resume()`). The command is stop until the next send()."""
         self._raise_if_unusable()
         self._link.arm()
         self._armed = True
         self._held = False
+
+    def resume(self, now: float) -> bool:
+        """The operator's explicit start or resume: arm the dead-man, and release its own hazard
+        latch once the hazard has cleared (the only way out of it). The command is stop until the
+        next send(). Unless it was armed already (then RESUME is only a heartbeat), waits (at
+        most twice the heartbeat timeout; the base is stopped meanwhile) for the dead-man's
+        answer. Returns whether it is armed. Call only from an operator's start or resume, never
+        automatically."""
+        self._raise_if_unusable()
+        link = self._link
+        with self._cond:
+            armed = link.mode is DeadmanMode.ARMED
+        seq = link.resume()
+        self._armed = True
+        self._held = False
+        if armed:
+            return True
+        link.wait_for(lambda: (link.wire is not None and link.wire.heartbeat_seq >= seq)
+                      or link.gone, 2 * self._config.heartbeat_timeout_s)
+        with self._cond:
+            return link.mode is DeadmanMode.ARMED
 
     def hold_stopped(self, now: float) -> bool:
         """Stop now and disarm the dead-man (it holds stop without needing heartbeats), e.g.
@@ -272,6 +315,13 @@ class KobukiBase:
     @property
     def deadman_pid(self) -> int:
         return self._link.process.pid
+
+    @property
+    def deadman_hello(self) -> Hello | None:
+        """The dead-man's HELLO: its protocol, package version and the folder it imported
+        lanewarden from."""
+        with self._cond:
+            return self._link.hello
 
     @property
     def deadman_mode(self) -> DeadmanMode:

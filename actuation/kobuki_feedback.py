@@ -50,6 +50,20 @@ class Cliff:
     LEFT = 4
 
 
+#: The side each hazard bit stands for, in the order an operator reads them (left to right).
+BUMPER_SIDES: tuple[tuple[int, str], ...] = (
+    (Bumper.LEFT, "left"), (Bumper.CENTRE, "centre"), (Bumper.RIGHT, "right"))
+CLIFF_SIDES: tuple[tuple[int, str], ...] = (
+    (Cliff.LEFT, "left"), (Cliff.CENTRE, "centre"), (Cliff.RIGHT, "right"))
+WHEEL_DROP_SIDES: tuple[tuple[int, str], ...] = (
+    (WheelDrop.LEFT, "left"), (WheelDrop.RIGHT, "right"))
+
+
+def side_names(bits: int, sides: tuple[tuple[int, str], ...]) -> list[str]:
+    """The names of the sides whose bit is set in `bits` (left to right)."""
+    return [name for bit, name in sides if bits & bit]
+
+
 @dataclass(frozen=True)
 class BasicSensorData:
     """Sub-payload 1. Encoders are raw u16 ticks (they wrap); battery in units of 0.1 V."""

@@ -49,6 +49,17 @@ def limit_command(command: VelocityCommand, max_linear_m_s: float,
     return VelocityCommand(command.linear_m_s * scale, command.angular_rad_s * scale)
 
 
+def ramp_axis(current: float, target: float, max_abs: float, max_step: float) -> float:
+    """One axis of a velocity moved from `current` towards `target`: clipped to +-`max_abs`, an
+    increase of magnitude limited to `max_step`, anything towards zero (a stop, a slow-down)
+    passed at once; a reversal goes through zero at once and then ramps up."""
+    target = max(-max_abs, min(max_abs, target))
+    base = current if current * target > 0.0 else 0.0
+    if abs(target) - abs(base) <= max_step:  # a decrease, or the last step up: exactly there
+        return target
+    return base + math.copysign(max_step, target)
+
+
 def wrap_angle(theta_rad: float) -> float:
     """The same angle in (-π, π]."""
     wrapped = math.remainder(theta_rad, 2.0 * math.pi)

@@ -5,7 +5,8 @@ the same stack from `build_stack`: the lane detector (undistorting with the give
 chosen controller, the SafetyGate between that controller and the base, and the per-frame decision
 rule with the supervisor's thresholds. `ControlStack.connect` then joins it to a frame source, a
 base and a record sink (all three parameters: a Kobuki or a SimBase, a run.jsonl recorder or a
-list) as the one `ControlLoop`. `base drive` gets its bring-up gate here too.
+list) as the one `ControlLoop`. `base drive` gets its bring-up gate, and a loop with no camera
+around it (`build_bring_up_loop`), here too.
 
 The simulator (scenarios/) receives `build_stack` as a parameter instead of importing it: the
 layers below never import the CLI side. Nothing here reads a clock, a camera or a port.
@@ -30,7 +31,7 @@ from lanewarden.supervisor.control_io import Controller
 from lanewarden.supervisor.controllers import DEFAULT_CONTROLLER, FixedCommand, make_controller
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.limiter import CommandLimits
-from lanewarden.supervisor.loop import ControlLoop, FrameSource, StepRecord
+from lanewarden.supervisor.loop import ControlLoop, Frame, FrameSource, StepRecord
 
 DecisionRule = Callable[[LaneObservation], Decision]
 
@@ -119,3 +120,22 @@ def build_bring_up_gate(config: LanewardenConfig, command: VelocityCommand) -> S
     limits = CommandLimits.for_bring_up(config.supervisor, config.actuation.max_linear_m_s,
                                         config.actuation.max_angular_rad_s)  # fmt: skip
     return SafetyGate(FixedCommand(command), config.supervisor, limits)
+
+
+class NoCamera:
+    """`base drive` has no camera: no frame, ever, so there is nothing to detect either."""
+
+    def read(self, now: float) -> Frame | None:
+        return None
+
+    def detect(self, image: np.ndarray, frame_index: int, time_s: float,
+               previous: LaneObservation | None = None) -> LaneObservation:
+        raise AssertionError("no camera: the loop never has a frame to detect on")
+
+
+def build_bring_up_loop(config: LanewardenConfig, command: VelocityCommand,
+                        base: Base) -> ControlLoop:
+    """`base drive`: the one `ControlLoop` (feedback -> the bring-up gate -> base, failures as
+    events), with no camera."""
+    no_camera = NoCamera()
+    return ControlLoop(no_camera, no_camera, build_bring_up_gate(config, command), base)

@@ -50,6 +50,12 @@ class LanewardenConfig(BaseModel):
                 conflicts.append((("supervisor", f"limiter_max_{axis}"), cap,
                                   f"must not exceed actuation.max_{axis} ({limit:g} {unit}), "
                                   "the base's own limit"))  # fmt: skip
+        for axis, unit in (("linear_accel_m_s2", "m/s^2"), ("angular_accel_rad_s2", "rad/s^2")):
+            ramp, envelope = getattr(sup, f"max_{axis}"), getattr(act, f"max_{axis}")
+            if ramp > envelope:
+                conflicts.append((("supervisor", f"max_{axis}"), ramp,
+                                  f"must not exceed actuation.max_{axis} ({envelope:g} {unit}), "
+                                  "the dead-man's envelope"))  # fmt: skip
         rate_hz = self.simulation.camera_rate_hz
         if not math.isclose(sup.camera_period_s * rate_hz, 1.0, rel_tol=1e-3):
             conflicts.append((("supervisor", "camera_period_s"), sup.camera_period_s,

@@ -8,7 +8,8 @@ get the same steps again (openpilot's process replay records at the same kind of
 - `t`: the step's `now`;
 - `frame`: `[index, time_s]` of the newest frame the source returned (None: none), or
   `frame_error`: `[exception type, message]` when the source raised;
-- `feedback`: the base's feedback (`received_at_s`, bits, battery, odometry), or `feedback_error`;
+- `feedback`: the base's feedback (`received_at_s`, bits, battery, odometry, and `stop_latched`
+  when the base's own safety monitor held a stop), or `feedback_error`;
 - `send_errors`: how many sends to the base failed during the step;
 - `requests`: the operator requests the controller saw this step (`start`, `resume`, `stop`);
 - `command`: the command the controller decided, `[linear, angular]` unrounded.
@@ -53,6 +54,7 @@ def feedback_as_json(feedback: BaseFeedback) -> dict[str, Any]:
         "buttons": feedback.buttons,
         "battery_v": feedback.battery_v,
         "odometry": [pose.x_m, pose.y_m, pose.theta_rad],
+        **({} if feedback.stop_latched is None else {"stop_latched": feedback.stop_latched}),
     }
 
 
@@ -66,6 +68,7 @@ def feedback_from_json(data: dict[str, Any]) -> BaseFeedback:
         buttons=int(data["buttons"]),
         battery_v=data["battery_v"],
         odometry=Pose2D(float(x), float(y), float(theta)),
+        stop_latched=None if data.get("stop_latched") is None else str(data["stop_latched"]),
     )
 
 

@@ -25,6 +25,7 @@ from lanewarden.config import LanewardenConfig
 from lanewarden.live_view import LiveView, ViewFrame, parse_view_address
 from lanewarden.operator import (
     ButtonEdges,
+    Engageable,
     OperatorPanel,
     RunStats,
     apply_buttons,
@@ -41,7 +42,7 @@ from lanewarden.recording import (
 )
 from lanewarden.run_outcome import EndReason, LoopEnd
 from lanewarden.supervisor.gate import SafetyGate
-from lanewarden.supervisor.loop import ControlLoop, Detector, FrameSource, StepRecord
+from lanewarden.supervisor.loop import Detector, FrameSource, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 
 DEFAULT_RUNS_ROOT = Path("runs")
@@ -133,7 +134,7 @@ class RunSession:
         gate = cast(SafetyGate, self.tap.controller(stack.gate))
         return (self.tap.frames(frames), stack.tap or stack.detector, gate, self.tap.base(base))
 
-    def attach(self, loop: ControlLoop) -> OperatorPanel:
+    def attach(self, loop: Engageable) -> OperatorPanel:
         """Connect the operator's inputs (keys, buttons, page) to the loop's requests."""
         self.panel = OperatorPanel(
             loop, self._clock,

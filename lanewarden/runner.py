@@ -1,8 +1,9 @@
 """The robot runner: camera -> perception -> supervisor -> base, on the monotonic clock.
 
-The only place in Lanewarden that reads the wall (monotonic) clock for control and the only loop
-that sleeps. Everything it drives is the same stack (lanewarden/assembly.py: detector, controller,
-SafetyGate, `ControlLoop`) the simulator steps on a fake clock.
+Its `Ticker` (lanewarden/ticker.py, shared with `base drive`) is where control code reads the
+monotonic clock, and the only loop that sleeps between steps. Everything it drives is the same
+stack (lanewarden/assembly.py: detector, controller, SafetyGate, `ControlLoop`) the simulator
+steps on a fake clock.
 Order of start-up is chosen so nothing moves until every check passed: config, calibration, camera
 (and its image size against the calibration), the recording folder and the live view's port, then
 the base (`--base kobuki|sim|none`), then an explicit start. On any exit (end of duration or clip,
@@ -11,10 +12,12 @@ the base is closed (which sends stop and leaves the dead-man holding it), and th
 finished (lanewarden/run_session.py: recording, live page, status line, keys, buttons).
 Ctrl-Z (SIGTSTP) stops the robot first (the dead-man holds the stop), then suspends the process;
 after SIGCONT the supervisor stays latched in HALT (OPERATOR_STOP) until an explicit start or
-resume. The run also ends by itself on a failure it cannot recover from: the base link or the
-dead-man lost, the dead-man tripped, a live camera gone. `RunSummary.end` says why it ended
-(`run_outcome.end_reason`, the one place that decides: a normal end, exit 0, or a safety stop,
-exit 3).
+resume. The operator's start and resume also release the dead-man's own hazard latch (bumper,
+cliff, wheel drop, stale feedback: the gate's DEADMAN_LATCHED) once the hazard has cleared; that
+latch halts the run like a bumper does, it does not end it. The run also ends by itself on a
+failure it cannot recover from: the base link or the dead-man lost, the dead-man tripped, a live
+camera gone. `RunSummary.end` says why it ended (`run_outcome.end_reason`, the one place that
+decides: a normal end, exit 0, or a safety stop, exit 3).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import numpy as np
 
 from lanewarden.actuation.base import Base
 from lanewarden.actuation.deadman_logic import DeadmanMode
+from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.assembly import build_stack
 from lanewarden.bases import open_base
@@ -43,10 +47,10 @@ from lanewarden.perception.calibration import load_calibration, require_usable_c
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.stop_signals import signal_requests, suspend
-from lanewarden.supervisor.clock import MonotonicClock
 from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
+from lanewarden.ticker import Ticker
 
 FIRST_FRAME_TIMEOUT_S = 3.0
 
@@ -66,7 +70,7 @@ class RunSummary:
     final_status: dict[str, object] = field(default_factory=dict)
 
 
-def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) -> np.ndarray:
+def _first_frame(frames: CameraFrameSource, clock: Ticker, camera: str) -> np.ndarray:
     """The camera's first frame, once it arrived."""
     deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
     problem = "the camera opened but delivered nothing"
@@ -81,6 +85,35 @@ def _first_frame(frames: CameraFrameSource, clock: MonotonicClock, camera: str) 
         time.sleep(0.02)
     raise SupervisorError(f"--camera {camera}: no frame within {FIRST_FRAME_TIMEOUT_S:.0f} s "
                           f"({problem})")
+
+
+class OperatorEngage:
+    """The operator's start and resume as the panel delivers them (on the control thread, before
+    a step): first the base's own safety latch is released where it has one (the Kobuki's
+    dead-man: `KobukiBase.resume`, called from nowhere else, so that latch only ever clears on an
+    operator's explicit request), then the loop is asked. Stop goes straight to the loop."""
+
+    def __init__(self, loop: ControlLoop, base: Base) -> None:
+        self._loop = loop
+        self._base = base
+
+    def start(self, now: float) -> None:
+        self._release_base_latch(now)
+        self._loop.start(now)
+
+    def resume(self, now: float) -> None:
+        self._release_base_latch(now)
+        self._loop.resume(now)
+
+    def operator_stop(self, now: float) -> None:
+        self._loop.operator_stop(now)
+
+    def _release_base_latch(self, now: float) -> None:
+        if isinstance(self._base, KobukiBase):
+            try:
+                self._base.resume(now)
+            except ActuationError:
+                pass  # a lost link: the loop's next step reports it (BASE_LINK_LOST)
 
 
 def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
@@ -112,14 +145,13 @@ def run_robot(
     view: str | None = None,
     meta: dict[str, object] | None = None,
 ) -> RunSummary:
-    clock = MonotonicClock()
+    clock = Ticker(config.supervisor.camera_period_s)
     controller_factory(controller_name)  # an unknown name fails here, before the camera opens
     calibration = load_calibration(calibration_path) if calibration_path else None
 
     max_pixels = config.perception.max_image_pixels
     capture = open_camera(camera, max_pixels)
-    period = config.supervisor.camera_period_s
-    replay_fps = replay_rate_fps(camera, capture, 1.0 / period)
+    replay_fps = replay_rate_fps(camera, capture, 1.0 / clock.period_s)
     frames = CameraFrameSource(capture, clock.now, replay_fps, max_pixels=max_pixels)
     try:
         first = _first_frame(frames, clock, camera)
@@ -155,11 +187,10 @@ def run_robot(
                 if warning is not None:
                     print(f"lanewarden: warning: {warning}", file=sys.stderr, flush=True)
                 loop = ControlLoop(*session.wrap(frames, stack, base), record=session.after_step)
-                panel = session.attach(loop)
+                panel = session.attach(OperatorEngage(loop, base))
                 frames.play()
-                started = clock.now()
+                started = clock.restart()
                 panel.start("the run command")  # the explicit start; it only arms
-                next_tick = started
                 rearm_after_suspend = False
                 try:
                     while True:
@@ -198,12 +229,7 @@ def run_robot(
                         if frames.error is not None:  # a recorded clip ran out
                             loop_end = LoopEnd(LoopEndKind.CLIP, "end of the clip")
                             break
-                        next_tick += period
-                        delay = next_tick - clock.now()
-                        if delay > 0:
-                            time.sleep(delay)
-                        else:
-                            next_tick = clock.now()  # overrun: the watchdog sees it; no burst
+                        clock.wait()  # an overrun: the watchdog sees it; no burst follows
                 finally:
                     loop_end = loop_end.with_steps(steps)  # the closing stop comes after these
                     now = clock.now()

@@ -1,6 +1,7 @@
 """The one clock abstraction: monotonic seconds on a robot, a hand-advanced fake in tests and sims.
 
-Logic never calls this: it receives `now`. Only the robot runner (and real driver threads) ask a
+Logic never calls this: it receives `now`. Only the robot's ticker (lanewarden/ticker.py, for
+`run` and `base drive`), `base info`'s rate window and real driver threads ask a
 `MonotonicClock`; tests and simulations own a `FakeClock` and advance it explicitly, so every run
 can be replayed. Never sleep here.
 """
@@ -18,7 +19,7 @@ class Clock(Protocol):
 
 
 class MonotonicClock:
-    """`time.monotonic()`: for the robot runner only."""
+    """`time.monotonic()`: for the robot's ticker and `base info` only (see above)."""
 
     def now(self) -> float:
         return time.monotonic()

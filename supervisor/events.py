@@ -30,6 +30,7 @@ class Event(enum.Enum):
 
     # HALT, most telling first (the first present becomes the halt reason).
     OPERATOR_STOP = "OPERATOR_STOP"
+    DEADMAN_LATCHED = "DEADMAN_LATCHED"
     BUMPER = "BUMPER"
     CLIFF = "CLIFF"
     WHEEL_DROP = "WHEEL_DROP"
@@ -76,6 +77,9 @@ _H, _D, _W = Response.HALT, Response.DEGRADE, Response.WARN
 EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
     {
         Event.OPERATOR_STOP: EventRule(_H, "operator stop"),
+        Event.DEADMAN_LATCHED: EventRule(
+            _H, "the dead-man latched a stop on its own, held until a resume"
+        ),
         Event.BUMPER: EventRule(_H, "bumper pressed"),
         Event.CLIFF: EventRule(_H, "cliff sensor triggered"),
         Event.WHEEL_DROP: EventRule(_H, "wheel dropped"),

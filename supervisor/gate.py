@@ -4,8 +4,9 @@ Every command that reaches a base leaves through `SafetyGate.step`. A controller
 one, the lecture's baseline, `base drive`'s fixed command) only says what it would like to send;
 the gate decides what is sent, by the same rules for all of them:
 
-- Physical hazards latch HALT: operator stop, bumper, cliff, wheel drop, a critically low
-  battery (below `battery_critical_v`; below `battery_low_v` only a BATTERY_LOW warning) and a
+- Physical hazards latch HALT: operator stop, bumper, cliff, wheel drop, the base's own
+  safety latch (the Kobuki's dead-man stopped it: DEADMAN_LATCHED), a critically low battery
+  (below `battery_critical_v`; below `battery_low_v` only a BATTERY_LOW warning) and a
   lost base link (raised by the loop when the base fails, or base feedback older than
   `base_link_timeout_s`). The gate finds them itself (`PHYSICAL_HAZARDS`) and latches them
   whatever the controller does and whatever the event table says: the table is checked against
@@ -57,8 +58,8 @@ from lanewarden.supervisor.state_machine import NOT_STARTED_REASON
 
 #: The hazards that latch HALT at the gate, whatever the controller (priority order of `Event`).
 PHYSICAL_HAZARDS: frozenset[Event] = frozenset({
-    Event.OPERATOR_STOP, Event.BUMPER, Event.CLIFF, Event.WHEEL_DROP, Event.BASE_LINK_LOST,
-    Event.BATTERY_CRITICAL,
+    Event.OPERATOR_STOP, Event.DEADMAN_LATCHED, Event.BUMPER, Event.CLIFF, Event.WHEEL_DROP,
+    Event.BASE_LINK_LOST, Event.BATTERY_CRITICAL,
 })  # fmt: skip
 #: Every event the gate halts on by itself: the physical hazards, a step time it cannot use and
 #: a controller that fails. `EVENT_TABLE` must say HALT for each (checked at import).

@@ -3,9 +3,10 @@
 Battery: below `battery_critical_v` a HALT event (BATTERY_CRITICAL), below `battery_low_v` a
 WARN (BATTERY_LOW).
 Bumper, cliff and wheel drop: any bit set is a HALT event (see `supervisor.events.EVENT_TABLE`),
-with the sides named as detail (bit layout: `actuation.base.BaseFeedback`). The feedback's age
-(now - the time it was received; before any feedback, since the first step) is what the
-SafetyGate turns into BASE_LINK_LOST and the watchdog into BASE_FEEDBACK_LATE.
+with the sides named as detail (bit layout: `actuation.base.BaseFeedback`); so is the base's own
+safety latch (`BaseFeedback.stop_latched`: DEADMAN_LATCHED, the dead-man's reason as detail).
+The feedback's age (now - the time it was received; before any feedback, since the first step)
+is what the SafetyGate turns into BASE_LINK_LOST and the watchdog into BASE_FEEDBACK_LATE.
 """
 
 from __future__ import annotations
@@ -14,27 +15,36 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 from lanewarden.actuation.base import BaseFeedback
+from lanewarden.actuation.kobuki_feedback import (
+    BUMPER_SIDES,
+    CLIFF_SIDES,
+    WHEEL_DROP_SIDES,
+    side_names,
+)
 from lanewarden.supervisor.events import Event
 
 _SIDES: Mapping[Event, tuple[tuple[int, str], ...]] = MappingProxyType({
-    Event.BUMPER: ((4, "left"), (2, "centre"), (1, "right")),
-    Event.CLIFF: ((4, "left"), (2, "centre"), (1, "right")),
-    Event.WHEEL_DROP: ((2, "left"), (1, "right")),
+    Event.BUMPER: BUMPER_SIDES, Event.CLIFF: CLIFF_SIDES, Event.WHEEL_DROP: WHEEL_DROP_SIDES,
 })  # fmt: skip
 
 
 def base_hazard_events(feedback: BaseFeedback | None) -> dict[Event, str]:
     """BUMPER / CLIFF / WHEEL_DROP for every bit field with a bit set, each with the sides set
-    ("left, centre"); empty for no feedback (missing feedback is a matter of its age)."""
-    if feedback is None or not (feedback.bumper or feedback.cliff or feedback.wheel_drop):
+    ("left, centre"), and DEADMAN_LATCHED with the dead-man's reason while the base's own safety
+    monitor holds a stop; empty for no feedback (missing feedback is a matter of its age)."""
+    if feedback is None or not (feedback.bumper or feedback.cliff or feedback.wheel_drop
+                                or feedback.stop_latched):
         return {}
     bits = {Event.BUMPER: feedback.bumper, Event.CLIFF: feedback.cliff,
             Event.WHEEL_DROP: feedback.wheel_drop}  # fmt: skip
-    return {
-        event: ", ".join(name for bit, name in _SIDES[event] if value & bit) or f"bits {value:#x}"
+    found = {
+        event: ", ".join(side_names(value, _SIDES[event])) or f"bits {value:#x}"
         for event, value in bits.items()
         if value
     }
+    if feedback.stop_latched:
+        found[Event.DEADMAN_LATCHED] = feedback.stop_latched
+    return found
 
 
 def battery_events(feedback: BaseFeedback | None, low_v: float,

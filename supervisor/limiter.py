@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.kobuki_geometry import ramp_axis
 from lanewarden.supervisor.config import SupervisorConfig
 
 
@@ -54,15 +55,6 @@ class CommandLimits:
         )
 
 
-def _limit_axis(current: float, target: float, max_abs: float, max_step: float) -> float:
-    target = max(-max_abs, min(max_abs, target))
-    base = current if current * target > 0.0 else 0.0
-    if abs(target) <= abs(base):
-        return target
-    step = min(abs(target) - abs(base), max_step)
-    return base + math.copysign(step, target)
-
-
 class CommandLimiter:
     def __init__(self, limits: CommandLimits) -> None:
         self.limits = limits
@@ -86,11 +78,11 @@ class CommandLimiter:
             return self.stop()
         lim = self.limits
         dt = min(max(0.0, dt), lim.max_step_s) if math.isfinite(dt) else 0.0
-        linear = _limit_axis(
+        linear = ramp_axis(
             self._last.linear_m_s, command.linear_m_s, lim.max_linear_m_s,
             lim.linear_accel_m_s2 * dt,
         )  # fmt: skip
-        angular = _limit_axis(
+        angular = ramp_axis(
             self._last.angular_rad_s, command.angular_rad_s, lim.max_angular_rad_s,
             lim.angular_accel_rad_s2 * dt,
         )  # fmt: skip

@@ -42,6 +42,7 @@ FPS = 30
 RELAXED = """\
 actuation:
   heartbeat_timeout_s: 0.5
+  feedback_timeout_s: 0.6
 supervisor:
   frame_late_s: 0.3
   frame_stale_s: 0.6

@@ -1,11 +1,13 @@
 """`lanewarden base info` and `lanewarden base drive`: bringing up a real Kobuki.
 
-A thin shell over `actuation.kobuki_base.KobukiBase` (the CLI is a clock owner, so it reads
-time.monotonic here). `drive` has no camera and no supervisor state machine (it is a bring-up
-tool), but its command goes through the same SafetyGate as every controller's, in bring-up mode
-(lanewarden/assembly.py `build_bring_up_gate`): ramped up, capped at the Kobuki's limits its flags
-are validated against, halted on bumper/cliff/wheel drop/lost link (feedback older than
-`supervisor.base_link_timeout_s`: a silent base or a frozen dead-man). It always stops on exit:
+A thin shell over `actuation.kobuki_base.KobukiBase`. `drive` has no camera and no supervisor
+state machine (it is a bring-up tool), but it steps the same `ControlLoop` as `run`, on the same
+real-time `Ticker` (lanewarden/ticker.py: its clock is the only one it reads), with the same
+SafetyGate as every controller's, in bring-up mode (lanewarden/assembly.py `build_bring_up_loop`):
+ramped up, capped at the Kobuki's limits its flags are validated against, halted on bumper/cliff/
+wheel drop, the dead-man's own latch and a lost link (feedback older than
+`supervisor.base_link_timeout_s`: a silent base or a frozen dead-man; a failed send). Starting
+it is the operator's explicit start (`KobukiBase.resume`). It always stops on exit:
 Ctrl-C, SIGTERM, SIGQUIT and SIGHUP stop it and end it (exit 130); Ctrl-Z stops the base first,
 then suspends, and the drive does not resume after SIGCONT (exit 130). Never talks to the serial
 port itself.
@@ -17,7 +19,6 @@ import json
 import math
 import os
 import signal
-import time
 from pathlib import Path
 from typing import Any
 
@@ -26,14 +27,20 @@ import click
 from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.actuation.kobuki_base import KobukiBase
-from lanewarden.actuation.kobuki_feedback import Bumper, Cliff, WheelDrop
-from lanewarden.assembly import build_bring_up_gate
+from lanewarden.actuation.kobuki_feedback import (
+    BUMPER_SIDES,
+    CLIFF_SIDES,
+    WHEEL_DROP_SIDES,
+    side_names,
+)
+from lanewarden.assembly import build_bring_up_loop
 from lanewarden.commands.command_group import CommandGroup
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
 from lanewarden.errors import EXIT_INTERRUPTED
 from lanewarden.stop_signals import SignalRequests, signal_requests, suspend
-from lanewarden.supervisor.control_io import ControlInputs
+from lanewarden.supervisor.clock import MonotonicClock
+from lanewarden.ticker import Ticker
 
 #: How long `info` counts feedback packets to measure the stream rate.
 RATE_WINDOW_S = 1.0
@@ -71,14 +78,7 @@ def latency_timer_text(value: int | None, path: Path) -> str:
             f"echo {LATENCY_TIMER_GOAL_MS} | sudo tee {path}")
 
 
-def _bit_names(bits: int, names: dict[int, str]) -> list[str]:
-    return [name for bit, name in names.items() if bits & bit]
-
-
-BUMPER_NAMES = {Bumper.LEFT: "left", Bumper.CENTRE: "centre", Bumper.RIGHT: "right"}
-CLIFF_NAMES = {Cliff.LEFT: "left", Cliff.CENTRE: "centre", Cliff.RIGHT: "right"}
-WHEEL_DROP_NAMES = {WheelDrop.LEFT: "left", WheelDrop.RIGHT: "right"}
-BUTTON_NAMES = {1: "B0", 2: "B1", 4: "B2"}
+BUTTON_NAMES = ((1, "B0"), (2, "B1"), (4, "B2"))
 
 
 @click.group("base", cls=CommandGroup)
@@ -94,15 +94,16 @@ def info(port: str | None, as_json: bool, config_path: str | None) -> None:
     """Show versions, UDID, battery, hazards, the feedback rate and the USB adapter's latency
     timer."""
     config = load_config(config_path).actuation
-    with KobukiBase.open(port, config=config) as base:
-        start_packets, start_s = base.packets_received, time.monotonic()
+    clock = MonotonicClock()  # only for the feedback rate: nothing here decides a motion
+    with KobukiBase.open(port, clock=clock.now, config=config) as base:
+        start_packets, start_s = base.packets_received, clock.now()
         lost = base.wait_for(lambda b: b.link_lost is not None, RATE_WINDOW_S)
-        packets, elapsed_s = base.packets_received - start_packets, time.monotonic() - start_s
+        packets, elapsed_s = base.packets_received - start_packets, clock.now() - start_s
         if lost:
             raise ActuationError(base.link_lost or "link lost")
         base.wait_for(lambda b: None not in (b.hardware_version, b.firmware_version, b.udid),
                       EXTRA_WAIT_S)
-        now = time.monotonic()
+        now = clock.now()
         report = _info_report(base, base.feedback(now), packets / elapsed_s, now)
     if as_json:
         click.echo(json.dumps(report))
@@ -136,10 +137,10 @@ def _info_report(base: KobukiBase, feedback: BaseFeedback, rate_hz: float,
         "firmware_version": str(base.firmware_version) if base.firmware_version else None,
         "udid": str(base.udid) if base.udid else None,
         "battery_v": feedback.battery_v,
-        "bumper": _bit_names(feedback.bumper, BUMPER_NAMES),
-        "cliff": _bit_names(feedback.cliff, CLIFF_NAMES),
-        "wheel_drop": _bit_names(feedback.wheel_drop, WHEEL_DROP_NAMES),
-        "buttons": _bit_names(feedback.buttons, BUTTON_NAMES),
+        "bumper": side_names(feedback.bumper, BUMPER_SIDES),
+        "cliff": side_names(feedback.cliff, CLIFF_SIDES),
+        "wheel_drop": side_names(feedback.wheel_drop, WHEEL_DROP_SIDES),
+        "buttons": side_names(feedback.buttons, BUTTON_NAMES),
         "feedback_rate_hz": round(rate_hz, 1),
         "checksum_errors": health.checksum_errors,
         "low_latency": health.low_latency,
@@ -192,25 +193,26 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= MAX_DRIVE_DURATION_S):
         raise click.BadParameter(f"{duration_s:g} s: expected 0 < S <= {MAX_DRIVE_DURATION_S:g}",
                                  param_hint="'--duration'")
-    gate = build_bring_up_gate(full_config, VelocityCommand(linear_m_s, angular_rad_s))
-    with (KobukiBase.open(port, config=config, request_versions=False) as base,
+    ticks = Ticker(DRIVE_PERIOD_S)
+    with (KobukiBase.open(port, clock=ticks.now, config=config, request_versions=False) as base,
           signal_requests() as requests):
         # signals and every error leave through `with`: close() stops the base
         warning = base.priority_warning()
         if warning is not None:
             click.echo(f"lanewarden: warning: {warning}", err=True)
-        start_s = now = time.monotonic()
+        loop = build_bring_up_loop(full_config, VelocityCommand(linear_m_s, angular_rad_s), base)
+        start_s = now = ticks.restart()
+        # this command is the operator's explicit start: it may release the dead-man's own latch
+        base.resume(now)
+        loop.start(now)
         while now - start_s < duration_s:
             _act_on_signals(base, requests, now)
-            allowed = gate.step(ControlInputs(feedback=base.feedback(now),
-                                              start_requested=now == start_s), now)
-            base.send(allowed.command, now)
-            if allowed.state == "HALT":
+            record = loop.step(now)
+            if record.state == "HALT":
                 raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
-                                     f"{allowed.halt_reason}")
-            base.wait_for(lambda b: b.link_lost is not None,
-                          min(DRIVE_PERIOD_S, max(0.0, start_s + duration_s - now)))
-            now = time.monotonic()
+                                     f"{record.halt_reason}")
+            ticks.wait(until_s=start_s + duration_s)
+            now = ticks.now()
         base.send(STOP, now)
         pose = base.feedback(now).odometry
     click.echo(f"drove {linear_m_s:g} m/s, {angular_rad_s:g} rad/s for {duration_s:g} s, "

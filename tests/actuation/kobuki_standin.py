@@ -6,8 +6,10 @@ Request Extra with hardware/firmware version and UDID, moves its encoders accord
 base-control command, and records every command packet it receives with its arrival time
 (time.monotonic, comparable across processes).
 
-Use `port` (the pty slave's name) as the serial port. `unplug()` closes the master under the
-driver. `unplug_on_motion=True` does that on the first non-zero base-control command.
+Use `port` (the pty slave's name) as the serial port. `sensor_changes` lists when a feedback
+packet first carried each new (bumper, cliff, wheel drop) state (the time its write returned).
+`unplug()` closes the master under the driver. `unplug_on_motion=True` does that on the first
+non-zero base-control command.
 `corrupt_every=N` spoils the checksum of every Nth feedback packet.
 """
 
@@ -71,6 +73,7 @@ class KobukiStandIn:
         self.wheel_drop = 0
         self.buttons = 0
         self.received: list[ReceivedPacket] = []
+        self.sensor_changes: list[tuple[float, tuple[int, int, int]]] = []
         self.feedback_sent = 0
         self._cond = threading.Condition()
         self._write_lock = threading.Lock()
@@ -145,7 +148,8 @@ class KobukiStandIn:
             except (BlockingIOError, OSError):
                 pass  # nobody reading the slave: a real UART drops bytes too
 
-    def _feedback_packet(self) -> bytes:
+    def _feedback_packet(self, hazards: tuple[int, int, int]) -> bytes:
+        bumper, cliff, wheel_drop = hazards
         with self._cond:
             speed, radius = self._speed_radius
             if radius == 0:
@@ -159,8 +163,8 @@ class KobukiStandIn:
             self._left_ticks += left_mm_s / 1000.0 * self.period_s * TICKS_PER_METRE
             self._right_ticks += right_mm_s / 1000.0 * self.period_s * TICKS_PER_METRE
             self._timestamp_ms = (self._timestamp_ms + round(self.period_s * 1000)) % 65536
-            basic = struct.pack("<HBBBHHbbBBBB", self._timestamp_ms, self.bumper,
-                                self.wheel_drop, self.cliff,
+            basic = struct.pack("<HBBBHHbbBBBB", self._timestamp_ms, bumper,
+                                wheel_drop, cliff,
                                 int(self._left_ticks) % 65536, int(self._right_ticks) % 65536,
                                 0, 0, self.buttons, 0, self.battery_dv, 0)
         subs = [
@@ -179,11 +183,18 @@ class KobukiStandIn:
         next_s = time.monotonic()
         while self._running.is_set():
             if self.stream:
-                packet = self._feedback_packet()
+                with self._cond:
+                    hazards = (self.bumper, self.cliff, self.wheel_drop)
+                packet = self._feedback_packet(hazards)
                 self.feedback_sent += 1
-                if self.corrupt_every and self.feedback_sent % self.corrupt_every == 0:
+                corrupt = self.corrupt_every and self.feedback_sent % self.corrupt_every == 0
+                if corrupt:
                     packet = packet[:-1] + bytes([packet[-1] ^ 0x5A])  # bad checksum
                 self._write(packet)
+                with self._cond:
+                    if not corrupt and (not self.sensor_changes
+                                        or self.sensor_changes[-1][1] != hazards):
+                        self.sensor_changes.append((time.monotonic(), hazards))
             next_s += self.period_s
             self._unplugging.wait(max(0.0, next_s - time.monotonic()))
 

@@ -133,7 +133,9 @@ def test_initial_command_is_stop(harness: Harness) -> None:
 
 def test_send_moves_and_stop_stops(harness: Harness) -> None:
     harness.mark()
-    harness.base.send(MOVE, harness.now())
+    for _ in range(25):  # a control loop's heartbeat for 0.5 s: longer than any start ramp
+        harness.base.send(MOVE, harness.now())
+        harness.tick()
     assert harness.saw_command(lambda c: c.linear_m_s == pytest.approx(0.2, abs=1e-3))
     harness.mark()
     harness.base.send(STOP, harness.now())

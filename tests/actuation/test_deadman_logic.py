@@ -1,4 +1,5 @@
-"""The dead-man's decision logic on a fake clock: every mode x every input, and its timing rules."""
+"""The dead-man's decision logic on a fake clock: every mode x every input, its timing rules, its
+own hazard latch and the envelope it keeps every forwarded command in."""
 
 from __future__ import annotations
 
@@ -13,10 +14,15 @@ from lanewarden.actuation.deadman_logic import (
     DeadmanLogic,
     DeadmanMode,
     DeadmanSettings,
+    Envelope,
     Heartbeat,
+    SafetySensors,
 )
 
-SETTINGS = DeadmanSettings(heartbeat_timeout_s=0.2, command_period_s=0.02, orphan_stop_s=0.5)
+#: An envelope that never binds (the table tests are about modes, not ramps).
+WIDE = Envelope(max_linear_accel_m_s2=1e6, max_angular_accel_rad_s2=1e6)
+SETTINGS = DeadmanSettings(heartbeat_timeout_s=0.2, command_period_s=0.02, orphan_stop_s=0.5,
+                           feedback_timeout_s=0.2, envelope=WIDE)
 MOVE = VelocityCommand(0.3, 0.1)
 OTHER_MOVE = VelocityCommand(0.2, -0.4)
 _SEQUENCE = itertools.count()
@@ -31,20 +37,40 @@ def arm(logic: DeadmanLogic, t: float) -> None:
     logic.on_arm(t, beat(t))
 
 
+def resume(logic: DeadmanLogic, t: float) -> None:
+    logic.on_resume(t, beat(t))
+
+
 def command(logic: DeadmanLogic, velocity: VelocityCommand, t: float) -> None:
     """A command sent and received at `t`."""
     logic.on_command(velocity, t, beat(t))
 
 
+def packet(logic: DeadmanLogic, t: float, *, bumper: int = 0, cliff: int = 0,
+           wheel_drop: int = 0) -> None:
+    """A feedback packet read at `t` with these hazard bits."""
+    logic.on_feedback(t, SafetySensors(t, bumper=bumper, cliff=cliff, wheel_drop=wheel_drop))
+
+
+def new_logic(settings: DeadmanSettings = SETTINGS) -> DeadmanLogic:
+    """A logic started at 0.0 that has read one clean feedback packet at 0.0."""
+    logic = DeadmanLogic(settings, start_s=0.0)
+    packet(logic, 0.0)
+    return logic
+
+
 def _setup(state: str) -> DeadmanLogic:
-    """A logic in `state`, having sent packets at 0.00, 0.02, 0.04 (next tick due at 0.06)."""
-    logic = DeadmanLogic(SETTINGS, start_s=0.0)
-    if state in ("armed_stop", "armed_moving", "tripped"):
+    """A logic in `state`, having sent packets at 0.00, 0.02, 0.04 (next tick due at 0.06); the
+    base's last feedback was read at 0.0 (clean, except in "latched": the bumper is pressed)."""
+    logic = new_logic()
+    if state in ("armed_stop", "armed_moving", "tripped", "latched"):
         arm(logic, 0.0)
-    if state in ("armed_moving", "tripped"):
+    if state in ("armed_moving", "tripped", "latched"):
         command(logic, MOVE, 0.0)
     if state == "tripped":
         logic.on_malformed(0.0, "garbage")
+    if state == "latched":
+        packet(logic, 0.0, bumper=2)
     if state == "stopping":
         logic.on_control_gone(0.0)
     for t in (0.0, 0.02, 0.04):
@@ -54,58 +80,86 @@ def _setup(state: str) -> DeadmanLogic:
 
 INPUTS: dict[str, Callable[[DeadmanLogic, float], None]] = {
     "arm": arm,
+    "resume": resume,
     "disarm": lambda logic, t: logic.on_disarm(t, beat(t)),
     "command_move": lambda logic, t: command(logic, OTHER_MOVE, t),
     "command_stop": lambda logic, t: command(logic, STOP, t),
     "malformed": lambda logic, t: logic.on_malformed(t, "bad"),
     "control_gone": lambda logic, t: logic.on_control_gone(t),
     "close": lambda logic, t: logic.on_close(t),
+    "feedback_clear": lambda logic, t: packet(logic, t),
+    "feedback_bumper": lambda logic, t: packet(logic, t, bumper=4),
 }
 
-D, A, T, S = (DeadmanMode.DISARMED, DeadmanMode.ARMED, DeadmanMode.TRIPPED,
-              DeadmanMode.STOPPING)
+D, A, T, L, S = (DeadmanMode.DISARMED, DeadmanMode.ARMED, DeadmanMode.TRIPPED,
+                 DeadmanMode.LATCHED, DeadmanMode.STOPPING)
 # (state, input) -> (mode after, command on the wire at the next tick, stop sent at once?)
 TABLE: dict[tuple[str, str], tuple[DeadmanMode, VelocityCommand, bool]] = {
     ("disarmed", "arm"): (A, STOP, False),
+    ("disarmed", "resume"): (A, STOP, False),
     ("disarmed", "disarm"): (D, STOP, False),
     ("disarmed", "command_move"): (D, STOP, False),
     ("disarmed", "command_stop"): (D, STOP, False),
     ("disarmed", "malformed"): (D, STOP, False),
     ("disarmed", "control_gone"): (S, STOP, True),
     ("disarmed", "close"): (S, STOP, True),
+    ("disarmed", "feedback_clear"): (D, STOP, False),
+    ("disarmed", "feedback_bumper"): (L, STOP, True),
     ("armed_stop", "arm"): (A, STOP, False),
+    ("armed_stop", "resume"): (A, STOP, False),
     ("armed_stop", "disarm"): (D, STOP, False),
     ("armed_stop", "command_move"): (A, OTHER_MOVE, False),
     ("armed_stop", "command_stop"): (A, STOP, False),
     ("armed_stop", "malformed"): (T, STOP, True),
     ("armed_stop", "control_gone"): (S, STOP, True),
     ("armed_stop", "close"): (S, STOP, True),
+    ("armed_stop", "feedback_clear"): (A, STOP, False),
+    ("armed_stop", "feedback_bumper"): (L, STOP, True),
     ("armed_moving", "arm"): (A, MOVE, False),
+    ("armed_moving", "resume"): (A, MOVE, False),
     ("armed_moving", "disarm"): (D, STOP, True),
     ("armed_moving", "command_move"): (A, OTHER_MOVE, False),
     ("armed_moving", "command_stop"): (A, STOP, True),
     ("armed_moving", "malformed"): (T, STOP, True),
     ("armed_moving", "control_gone"): (S, STOP, True),
     ("armed_moving", "close"): (S, STOP, True),
+    ("armed_moving", "feedback_clear"): (A, MOVE, False),
+    ("armed_moving", "feedback_bumper"): (L, STOP, True),
     ("tripped", "arm"): (A, STOP, False),
+    ("tripped", "resume"): (A, STOP, False),
     ("tripped", "disarm"): (D, STOP, False),
     ("tripped", "command_move"): (T, STOP, False),
     ("tripped", "command_stop"): (T, STOP, False),
     ("tripped", "malformed"): (T, STOP, False),
     ("tripped", "control_gone"): (S, STOP, True),
     ("tripped", "close"): (S, STOP, True),
+    ("tripped", "feedback_clear"): (T, STOP, False),
+    ("tripped", "feedback_bumper"): (T, STOP, False),
+    ("latched", "arm"): (L, STOP, False),
+    ("latched", "resume"): (L, STOP, False),  # refused: the bumper is still pressed
+    ("latched", "disarm"): (L, STOP, False),
+    ("latched", "command_move"): (L, STOP, False),
+    ("latched", "command_stop"): (L, STOP, False),
+    ("latched", "malformed"): (L, STOP, False),
+    ("latched", "control_gone"): (S, STOP, True),
+    ("latched", "close"): (S, STOP, True),
+    ("latched", "feedback_clear"): (L, STOP, False),
+    ("latched", "feedback_bumper"): (L, STOP, False),
     ("stopping", "arm"): (S, STOP, False),
+    ("stopping", "resume"): (S, STOP, False),
     ("stopping", "disarm"): (S, STOP, False),
     ("stopping", "command_move"): (S, STOP, False),
     ("stopping", "command_stop"): (S, STOP, False),
     ("stopping", "malformed"): (S, STOP, False),
     ("stopping", "control_gone"): (S, STOP, False),
     ("stopping", "close"): (S, STOP, False),
+    ("stopping", "feedback_clear"): (S, STOP, False),
+    ("stopping", "feedback_bumper"): (S, STOP, False),
 }
 
 
 def test_the_table_covers_every_mode_and_input() -> None:
-    states = {"disarmed", "armed_stop", "armed_moving", "tripped", "stopping"}
+    states = {"disarmed", "armed_stop", "armed_moving", "tripped", "latched", "stopping"}
     assert set(TABLE) == {(state, name) for state in states for name in INPUTS}
     assert {_setup(state).mode for state in states} == set(DeadmanMode)
 
@@ -123,16 +177,34 @@ def test_every_mode_and_input(state: str, input_name: str) -> None:
     assert logic.command == next_command
 
 
+Bits = dict[str, int]
+FEEDBACK_PERIOD_S = 0.02
+
+
+def clean_base(t: float) -> Bits | None:
+    """A base streaming clean feedback packets."""
+    return {}
+
+
 def _run(logic: DeadmanLogic, until_s: float,
-         inputs: dict[float, Callable[[DeadmanLogic, float], None]]
+         inputs: dict[float, Callable[[DeadmanLogic, float], None]],
+         base: Callable[[float], Bits | None] = clean_base,
          ) -> tuple[list[tuple[float, VelocityCommand]], bool]:
-    """A fake-clock shell: wake at each input time or at `next_wakeup_s`, like deadman.py."""
+    """A fake-clock shell: wake at each input time, each feedback packet or `next_wakeup_s`, like
+    deadman.py. `base(t)`: the hazard bits of the packet the base streams at t (every 20 ms from
+    0.0; read before the inputs due at the same time), or None when it sends none."""
     sent: list[tuple[float, VelocityCommand]] = []
     pending = sorted(inputs)
+    next_packet_s = 0.0
     now = 0.0
     for _ in range(100_000):  # a logic that never lets time move on fails instead of hanging
         if now > until_s:
             break
+        while next_packet_s <= now:
+            bits = base(next_packet_s)
+            if bits is not None:
+                packet(logic, now, **bits)
+            next_packet_s = round(next_packet_s + FEEDBACK_PERIOD_S, 9)
         while pending and pending[0] <= now:
             inputs[pending.pop(0)](logic, now)
         action = logic.poll(now)
@@ -140,7 +212,7 @@ def _run(logic: DeadmanLogic, until_s: float,
             sent.append((now, action.send))
         if action.finished:
             return sent, True
-        now = max(now, min([logic.next_wakeup_s()] + pending[:1]))
+        now = max(now, min([logic.next_wakeup_s(), next_packet_s] + pending[:1]))
     else:
         pytest.fail(f"the fake-clock shell spun at t = {now}")
     return sent, False
@@ -183,10 +255,11 @@ def test_heartbeat_silence_stops_at_the_timeout_and_keeps_stopping() -> None:
 
 
 def test_no_trip_just_before_the_timeout_and_a_trip_exactly_at_it() -> None:
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     arm(logic, 0.0)
     command(logic, MOVE, 0.0)
     logic.poll(0.0)
+    packet(logic, 0.1)
     assert logic.next_wakeup_s() == pytest.approx(0.02)
     logic.poll(0.18)
     assert logic.next_wakeup_s() == pytest.approx(0.2)  # heartbeat deadline before next tick
@@ -233,7 +306,7 @@ def test_close_sends_a_short_burst_of_stops_then_finishes() -> None:
 
 
 def test_events_report_every_mode_change_once() -> None:
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     arm(logic, 0.0)
     arm(logic, 0.01)
     assert [e.mode for e in logic.poll(0.01).events] == [DeadmanMode.ARMED]
@@ -252,7 +325,7 @@ def test_events_report_every_mode_change_once() -> None:
 def test_a_heartbeat_counts_from_when_it_was_sent_not_when_it_was_read() -> None:
     # sent at 0.10, then the sender froze and the dead-man read it only at 0.35 (it was starved
     # itself): it is 0.25 s old, older than the 0.2 s timeout, so it must not keep the robot going
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     arm(logic, 0.0)
     command(logic, MOVE, 0.05)
     logic.on_command(MOVE, 0.35, beat(0.10))
@@ -263,13 +336,15 @@ def test_a_heartbeat_counts_from_when_it_was_sent_not_when_it_was_read() -> None
 
 
 def test_the_deadline_is_the_send_stamp_plus_the_timeout() -> None:
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     arm(logic, 0.0)
     logic.poll(0.0)
+    packet(logic, 0.15)
     logic.poll(0.16)
     logic.on_command(MOVE, 0.17, beat(0.16))  # read 10 ms after it was sent
     assert logic.poll(0.17).send is None  # motion waits for the tick
     assert logic.poll(0.18).send == MOVE
+    packet(logic, 0.3)
     logic.poll(0.34)
     assert logic.next_wakeup_s() == pytest.approx(0.36)  # 0.16 + 0.2, not 0.17 + 0.2
     assert logic.poll(0.3599).send in (None, MOVE) and logic.mode is DeadmanMode.ARMED
@@ -284,7 +359,7 @@ def test_the_deadline_is_the_send_stamp_plus_the_timeout() -> None:
 ])
 def test_stamps_from_the_future_or_going_backwards_trip_it(first: Heartbeat, second: Heartbeat,
                                                             problem: str) -> None:
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     logic.on_arm(0.10, first)
     logic.on_command(MOVE, 0.12, second)
     action = logic.poll(0.12)
@@ -295,7 +370,7 @@ def test_stamps_from_the_future_or_going_backwards_trip_it(first: Heartbeat, sec
 
 
 def test_an_arm_with_a_bad_stamp_does_not_arm() -> None:
-    logic = DeadmanLogic(SETTINGS, 0.0)
+    logic = new_logic()
     logic.on_arm(0.10, Heartbeat(3, 0.5))  # from the future
     assert logic.mode is DeadmanMode.DISARMED and logic.heartbeat_seq == -1
 
@@ -313,3 +388,152 @@ def test_disarm_stops_at_once_needs_no_heartbeat_and_ignores_commands_until_arme
     assert logic.heartbeat_seq >= 0
     arm(logic, 3.6)
     assert logic.mode is DeadmanMode.ARMED and logic.command == STOP
+
+
+# ---- its own hazard latch ---------------------------------------------------------------------
+def test_a_bumper_packet_stops_at_once_not_at_the_next_tick() -> None:
+    logic = _setup("armed_moving")
+    packet(logic, 0.047, bumper=2)  # read between two ticks (0.04, 0.06)
+    action = logic.poll(0.047)
+    assert action.send == STOP
+    assert [(e.mode, e.reason) for e in action.events] == [
+        (DeadmanMode.LATCHED, "bumper pressed (centre)")]
+
+
+@pytest.mark.parametrize(("bits", "reason"), [
+    ({"bumper": 5}, "bumper pressed (left, right)"),
+    ({"cliff": 2}, "cliff sensor triggered (centre)"),
+    ({"wheel_drop": 2}, "wheel dropped (left)"),
+    ({"wheel_drop": 3, "cliff": 1}, "cliff sensor triggered (right); wheel dropped (left, right)"),
+    ({"bumper": 8}, "bumper pressed (bits 0x8)"),
+])
+def test_every_hazard_bit_latches_and_is_named(bits: Bits, reason: str) -> None:
+    logic = _setup("armed_moving")
+    packet(logic, 0.05, **bits)
+    assert logic.poll(0.05).events[-1].reason == reason
+    assert logic.mode is DeadmanMode.LATCHED
+
+
+def test_nothing_moves_after_the_latch_until_the_hazard_clears_and_the_operator_resumes() -> None:
+    def base(t: float) -> Bits:  # the bumper is held from 0.5 s to 0.7 s
+        return {"bumper": 4} if 0.5 <= t < 0.7 else {}
+
+    inputs = {0.0: INPUTS["arm"], **_every(0.02, 0.01, 2.0, lambda lg, t: command(lg, MOVE, t)),
+              0.6: INPUTS["resume"],  # still pressed: refused
+              0.8: INPUTS["arm"], 0.85: INPUTS["disarm"], 0.9: INPUTS["arm"],  # not a resume
+              1.0: INPUTS["resume"]}
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    sent, _ = _run(logic, 1.2, inputs, base)
+    assert (0.5, STOP) in sent  # at once, with the packet
+    assert all(command == MOVE for t, command in sent if 0.02 < t < 0.5)
+    assert all(command == STOP for t, command in sent if 0.5 <= t <= 1.0)
+    assert [command for t, command in sent if t > 1.01][:2] == [MOVE, MOVE]
+    assert logic.mode is DeadmanMode.ARMED
+
+
+def test_a_refused_resume_says_why_and_holds_the_latch() -> None:
+    logic = _setup("latched")
+    resume(logic, 0.05)
+    assert [(e.mode, e.reason) for e in logic.poll(0.05).events] == [
+        (DeadmanMode.LATCHED, "resume refused: bumper pressed (centre)")]
+    packet(logic, 0.06)  # released
+    resume(logic, 0.07)
+    assert [(e.mode, e.reason) for e in logic.poll(0.07).events] == [
+        (DeadmanMode.ARMED, "re-armed by the operator (the hazard has cleared)")]
+    assert logic.command == STOP  # resuming alone never moves the robot
+
+
+def test_stale_feedback_latches_a_stop_at_the_feedback_timeout() -> None:
+    def base(t: float) -> Bits | None:  # the base's last packet is read at 0.30
+        return {} if t <= 0.3 else None
+
+    inputs = {0.0: INPUTS["arm"], **_every(0.02, 0.01, 1.0, lambda lg, t: command(lg, MOVE, t))}
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    sent, _ = _run(logic, 1.0, inputs, base)
+    first_stop = next(t for t, command in sent if t > 0.02 and command == STOP)
+    assert first_stop == pytest.approx(0.3 + SETTINGS.feedback_timeout_s)
+    assert all(command == STOP for t, command in sent if t >= first_stop)
+    assert logic.mode is DeadmanMode.LATCHED
+    resume(logic, 1.0)  # still silent: refused
+    refusal = logic.poll(1.0).events[0].reason
+    assert refusal.startswith("resume refused: no feedback from the base for 0.700 s")
+
+
+def test_stale_feedback_does_not_latch_a_disarmed_deadman_but_arming_then_latches() -> None:
+    logic = new_logic()
+    assert logic.poll(0.5).events == () and logic.mode is DeadmanMode.DISARMED
+    arm(logic, 0.5)
+    events = logic.poll(0.5).events
+    assert [(e.mode, e.reason) for e in events] == [
+        (DeadmanMode.LATCHED, "no feedback from the base for 0.500 s (timeout 0.2 s)")]
+
+
+def test_arming_before_any_feedback_latches() -> None:
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    arm(logic, 0.0)
+    assert logic.mode is DeadmanMode.LATCHED
+    assert logic.poll(0.0).events[-1].reason == "no feedback from the base yet"
+
+
+def test_arming_out_of_tripped_with_a_hazard_present_latches_instead() -> None:
+    logic = _setup("tripped")
+    packet(logic, 0.05, cliff=4)  # tripped: already stopped, the latch comes with the arm
+    assert logic.mode is DeadmanMode.TRIPPED
+    arm(logic, 0.06)
+    assert logic.mode is DeadmanMode.LATCHED
+    command(logic, MOVE, 0.07)
+    assert logic.poll(0.08).send == STOP
+
+
+# ---- the envelope -----------------------------------------------------------------------------
+ENVELOPE = Envelope(max_linear_m_s=0.5, max_angular_rad_s=2.0, max_linear_accel_m_s2=1.0,
+                    max_angular_accel_rad_s2=10.0)
+ENVELOPED = DeadmanSettings(heartbeat_timeout_s=0.2, command_period_s=0.02, orphan_stop_s=0.5,
+                            feedback_timeout_s=0.2, envelope=ENVELOPE)
+
+
+def _ticks(logic: DeadmanLogic, start_s: float, count: int) -> list[VelocityCommand]:
+    """What goes on the wire at the next `count` ticks (from `start_s`), the base streaming clean
+    feedback and the control process's heartbeat a no-op re-arm at each."""
+    sent = []
+    for _ in range(count):
+        t = max(start_s, logic.next_wakeup_s())
+        packet(logic, t)
+        arm(logic, t)
+        action = logic.poll(t)
+        assert action.send is not None
+        sent.append(action.send)
+    return sent
+
+
+def test_increases_are_ramped_per_command_period() -> None:
+    logic = new_logic(ENVELOPED)
+    arm(logic, 0.0)
+    logic.poll(0.0)
+    command(logic, VelocityCommand(0.1, 0.5), 0.01)
+    sent = _ticks(logic, 0.02, 7)
+    # 1.0 m/s^2 and 10 rad/s^2 over 20 ms: 0.02 m/s and 0.2 rad/s per packet
+    assert [(round(c.linear_m_s, 6), round(c.angular_rad_s, 6)) for c in sent] == [
+        (0.02, 0.2), (0.04, 0.4), (0.06, 0.5), (0.08, 0.5), (0.1, 0.5), (0.1, 0.5), (0.1, 0.5)]
+
+
+def test_speeds_beyond_the_envelope_are_scaled_keeping_the_curvature() -> None:
+    logic = new_logic(ENVELOPED)
+    arm(logic, 0.0)
+    command(logic, VelocityCommand(1.0, 1.0), 0.0)  # 2x the linear limit: both halved
+    sent = _ticks(logic, 0.0, 40)
+    assert sent[-1] == VelocityCommand(0.5, 0.5)
+    assert max(c.linear_m_s for c in sent) == 0.5
+
+
+def test_decreases_and_stops_pass_at_once_and_a_reversal_goes_through_zero() -> None:
+    logic = new_logic(ENVELOPED)
+    arm(logic, 0.0)
+    command(logic, VelocityCommand(0.3, 0.0), 0.0)
+    assert _ticks(logic, 0.0, 20)[-1] == VelocityCommand(0.3, 0.0)
+    command(logic, VelocityCommand(0.1, 0.0), 0.41)
+    assert _ticks(logic, 0.42, 1) == [VelocityCommand(0.1, 0.0)]
+    command(logic, VelocityCommand(-0.1, 0.0), 0.43)
+    assert [round(c.linear_m_s, 6) for c in _ticks(logic, 0.44, 2)] == [-0.02, -0.04]
+    command(logic, STOP, 0.47)
+    assert logic.poll(0.47).send == STOP  # at once, not at the next tick

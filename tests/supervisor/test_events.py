@@ -31,6 +31,7 @@ from tests.supervisor.rig import (
 #: change this table too: never read the expected answers from the table under test.
 EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "OPERATOR_STOP": ("HALT", "operator stop"),
+    "DEADMAN_LATCHED": ("HALT", "the dead-man latched a stop on its own, held until a resume"),
     "BUMPER": ("HALT", "bumper pressed"),
     "CLIFF": ("HALT", "cliff sensor triggered"),
     "WHEEL_DROP": ("HALT", "wheel dropped"),
@@ -131,6 +132,17 @@ def _feedback_bits(**bits: int) -> Callable[[], Provoked]:
         return _from("FOLLOW", rig.step(feedback=BaseFeedback(received_at_s=now, **bits)))
 
     return provoke
+
+
+def _deadman_latched() -> Provoked:
+    # the base's own safety monitor holds a stop the gate has not seen the cause of (a bumper
+    # pulse while the control process was frozen): the feedback says so, the bits are clear
+    rig = _engaged()
+    now = rig.clock.now() + DT
+    out = rig.step(feedback=BaseFeedback(received_at_s=now, stop_latched="bumper pressed (left)"))
+    assert out.halt_reason == ("DEADMAN_LATCHED: the dead-man latched a stop on its own, held "
+                               "until a resume (bumper pressed (left))")
+    return _from("FOLLOW", out)
 
 
 def _battery(volts: float) -> Callable[[], Provoked]:
@@ -301,6 +313,7 @@ PROVOKERS: dict[Event, Callable[[], Provoked]] = {
     Event.BUMPER: _feedback_bits(bumper=2),
     Event.CLIFF: _feedback_bits(cliff=4),
     Event.WHEEL_DROP: _feedback_bits(wheel_drop=1),
+    Event.DEADMAN_LATCHED: _deadman_latched,
     Event.BASE_LINK_LOST: _base_link_lost,
     Event.BATTERY_CRITICAL: _battery(13.1),  # the Kobuki driver's dangerous level is 13.2 V
     Event.CAMERA_ERROR: _camera_error,

@@ -83,6 +83,7 @@ def _table(text: str) -> dict[str, dict[str, str]]:
 AFTER_EVENT = _table("""
                             FOLLOW      TURN_LEFT   TURN_RIGHT  DEGRADED    HALT
 OPERATOR_STOP               HALT        HALT        HALT        HALT        HALT
+DEADMAN_LATCHED             HALT        HALT        HALT        HALT        HALT
 BUMPER                      HALT        HALT        HALT        HALT        HALT
 CLIFF                       HALT        HALT        HALT        HALT        HALT
 WHEEL_DROP                  HALT        HALT        HALT        HALT        HALT
