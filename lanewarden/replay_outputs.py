@@ -232,7 +232,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "distance_travelled_m": round(distance_m, 4),
     }
     if source.kind == "run":
-        exact_input = missing == 0 and recorded_complete and bool(source.meta.get("lossless"))
+        exact_input = (missing == 0 and recorded_complete and not source.incomplete
+                       and bool(source.meta.get("lossless")))
         metrics.update(
             compared_steps=len(records),
             divergent_steps=len(divergences),
@@ -243,6 +244,7 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
             reproduced=not divergences,
             frames_missing=missing,
             exact_input=exact_input,
+            incomplete=list(source.incomplete),
             recorded_exit_code=source.summary.get("exit_code"),
         )
     return metrics
@@ -259,7 +261,9 @@ def summary_sentence(metrics: dict[str, Any]) -> str:
         else:
             text += (f" {metrics['divergent_steps']} of {metrics['compared_steps']} steps diverge "
                      f"from the recording; the first: {metrics['first_divergence']['text']}.")
-        if not metrics["exact_input"]:
+        if metrics["incomplete"]:
+            text += f" The recording is incomplete: {'; '.join(metrics['incomplete'])}."
+        elif not metrics["exact_input"]:
             text += (" The recording is not exact (frames dropped or lossy), so the replay "
                      "cannot be exact either.")
     return text

@@ -31,6 +31,7 @@ from lanewarden.bases import open_base
 from lanewarden.camera_source import CameraFrameSource, CameraLost, open_camera, replay_rate_fps
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+from lanewarden.recording import RUN_MCAP
 from lanewarden.run_outcome import RunOutcome, RunWatch
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.stop_signals import signal_requests, suspend
@@ -214,7 +215,7 @@ def run_robot(
             duration_s=clock.now() - started,
             final_state=final_state,
             halt_reason=final_reason,
-            log_path=session.folder / "run.jsonl",
+            log_path=session.folder / RUN_MCAP,
             outcome=outcome,
             lines=tuple(lines),
         )
