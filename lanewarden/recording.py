@@ -32,6 +32,7 @@ which replay reports as "cut short". summary.json is still written where the dis
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import json
 import os
 import platform
@@ -75,6 +76,9 @@ FRAME_QUEUE_FRAMES = 64
 #: Steps waiting for the writer (they are small; dropping one is a bug worth reporting).
 STEP_QUEUE_STEPS = 4096
 JPEG_QUALITY = 90
+#: Every this many steps the writer checks that run.mcap is still in a folder (on Linux, writing
+#: into a deleted file succeeds, and everything would be lost without a word).
+DELETED_CHECK_STEPS = 30
 #: The writer thread runs at this lower priority (Linux nice, per thread): on a busy machine the
 #: control loop wins the CPU, and the recording drops frames (counted) instead.
 WRITER_NICENESS = 10
@@ -399,7 +403,7 @@ class RunRecorder:
     def _stop(self, exc: BaseException) -> None:
         with self._lock:
             if self.summary.problem is None:
-                self.summary.problem = (f"{self.folder / RUN_MCAP}: {_why(exc)} (recorded "
+                self.summary.problem = (f"{self.folder / RUN_MCAP}: {_why(exc)} (after "
                                         f"{self.summary.steps_written} steps)")
 
     # ---- the writer thread --------------------------------------------------------------------
@@ -458,3 +462,7 @@ class RunRecorder:
         self._mcap.step(item.record, item.step_input, line)
         with self._lock:
             self.summary.steps_written += 1
+        if self.summary.steps_written % DELETED_CHECK_STEPS == 0 and (
+                os.fstat(self._file.fileno()).st_nlink == 0):
+            raise FileNotFoundError(errno.ENOENT, "the file or its folder was deleted while "
+                                    "recording")

@@ -345,10 +345,10 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
         summary = _json_object(mcap.metadata[SUMMARY_NAME].get("summary", "").encode(),
                                str(path), "recorded summary")
     if mcap.cut_short is not None:
-        incomplete.append(f"{RUN_MCAP} was cut short ({mcap.cut_short}, after "
-                          f"{len(reader.steps)} steps): the run was killed or its disk filled")
+        incomplete.append(f"{path.name} was cut short after {len(reader.steps)} steps (it "
+                          f"{mcap.cut_short}): the run was killed or its disk filled")
     elif not summary:
-        incomplete.append(f"{RUN_MCAP} has no summary: the run did not end normally")
+        incomplete.append(f"{path.name} has no summary: the run did not end normally")
     config = calibration = None
     if CONFIG_ATTACHMENT in mcap.attachments:
         config = _recorded_config(mcap.attachments[CONFIG_ATTACHMENT],

@@ -38,7 +38,7 @@ from mcap.records import Attachment, Channel, Chunk, Metadata, Schema
 from mcap.records import Message as McapMessage
 from mcap_ros2.decoder import DecoderFactory
 
-from lanewarden.documents import read_yaml_document, shorten
+from lanewarden.documents import MAX_DOCUMENT_BYTES, read_yaml_document, shorten
 from lanewarden.errors import InputFileError
 from lanewarden.run_mcap import DEFINITIONS
 
@@ -49,8 +49,9 @@ MAX_RECORD_BYTES = 128 * 1024 * 1024
 MAX_CHUNK_BYTES = 128 * 1024 * 1024
 #: Largest single message (a raw 4K colour image is 25 MB).
 MAX_MESSAGE_BYTES = 64 * 1024 * 1024
-#: Largest attachment kept (the config and calibration a run used are a few kB).
-MAX_ATTACHMENT_BYTES = 1_000_000
+#: Attachments are kept up to this size, plus one byte (the config and calibration a run used
+#: are a few kB; their readers refuse anything larger).
+MAX_ATTACHMENT_BYTES = MAX_DOCUMENT_BYTES
 _RECORD_HEAD = struct.Struct("<BQ")
 #: Which topics to read (None: all).
 TopicFilter = Callable[["BagTopic"], bool] | None
@@ -120,7 +121,7 @@ def _records(data: bytes, path: Path, base: int) -> Iterator[tuple[int, bytes, i
 class McapFile:
     """One MCAP file, read front to back by `messages()` (call it again for another pass).
     After a complete pass: `topics`, `metadata` (name -> key/values), `attachments` (name ->
-    bytes, those up to MAX_ATTACHMENT_BYTES), and `cut_short` (None when the file ended with
+    bytes, cut one byte past MAX_ATTACHMENT_BYTES), and `cut_short` (None when the file ended with
     MCAP's footer, else where and how it ended)."""
 
     path: Path
@@ -204,8 +205,8 @@ class McapFile:
                 self.metadata[metadata.name] = dict(metadata.metadata)
             elif opcode == Opcode.ATTACHMENT:
                 attachment = Attachment.read(stream)
-                if len(attachment.data) <= MAX_ATTACHMENT_BYTES:
-                    self.attachments[attachment.name] = attachment.data
+                # kept up to one byte past the limit: enough for its reader to refuse it
+                self.attachments[attachment.name] = attachment.data[:MAX_ATTACHMENT_BYTES + 1]
         except Exception as exc:  # struct.error, EndOfFile, UnicodeDecodeError, ...: damaged
             raise _problem(self.path, offset, f"a damaged {_opcode_name(opcode)} record "
                            f"({type(exc).__name__})") from None

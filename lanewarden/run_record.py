@@ -46,6 +46,8 @@ MAX_RUN_DURATION_S = 24 * 3600.0
 MAX_STEPS = 1_000_000
 #: Longest recorded step in bytes of JSON (a real one is about 1.5 kB).
 MAX_STEP_BYTES = 64 * 1024
+#: Farthest a base's odometry may say it went from where it started, metres.
+MAX_ODOMETRY_M = 100_000.0
 #: Longest text kept from a recorded exception message.
 MAX_TEXT_CHARS = 2000
 
@@ -169,6 +171,9 @@ def _feedback(value: object) -> BaseFeedback | None:
         return None
     data = _mapping(value, "input.feedback")
     x, y, theta = _numbers(data.get("odometry"), 3, "input.feedback.odometry")
+    if max(abs(x), abs(y)) > MAX_ODOMETRY_M:
+        raise _bad("input.feedback.odometry", [x, y, theta],
+                   f"x and y within {MAX_ODOMETRY_M:.0f} m of where the base started")
     return BaseFeedback(
         received_at_s=_number(data, "received_at_s", "input.feedback.received_at_s",
                               optional=True),

@@ -84,18 +84,20 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
 
 
 def rewrite_mcap(source: Path, target: Path,
-                 change: Callable[[str, int, dict[str, Any]], dict[str, Any] | None]) -> None:
+                 change: Callable[[str, int, dict[str, Any]], dict[str, Any] | None],
+                 attachments: dict[str, bytes] | None = None) -> None:
     """A copy of an MCAP recording written by the `mcap` libraries, each message decoded to a
     dict and passed through `change(topic, number on its topic, message)` (None: leave it out);
-    the metadata and attachments copied as they are."""
+    the metadata and attachments copied as they are (`attachments`: these instead, by name)."""
     with source.open("rb") as stream, target.open("wb") as out:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         writer = Writer(out, compression=CompressionType.ZSTD)
         for metadata in reader.iter_metadata():
             writer.add_metadata(metadata.name, dict(metadata.metadata))
         for attachment in reader.iter_attachments():
+            data = (attachments or {}).get(attachment.name, attachment.data)
             writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
-                                  attachment.media_type, attachment.data)
+                                  attachment.media_type, data)
         registered: dict[int, Any] = {}
         numbers: dict[str, int] = {}
         for schema, channel, message, decoded in reader.iter_decoded_messages(
