@@ -12,6 +12,7 @@ from __future__ import annotations
 import glob
 import warnings
 from pathlib import Path
+from typing import IO
 
 import cv2
 import numpy as np
@@ -31,9 +32,10 @@ def too_many_pixels(width: int, height: int, max_pixels: int) -> str:
             f"{LIMIT_KEY} ({max_pixels})")
 
 
-def header_problem(path: Path, max_pixels: int) -> str:
-    """Why the image file is too large, judged from its header without decoding it; '' when it is
-    within the limit or its format is not one Pillow reads (it is then checked once decoded)."""
+def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
+    """Why the image file (a path, or an open binary file such as `io.BytesIO(data)`) is too
+    large, judged from its header without decoding it; '' when it is within the limit or its
+    format is not one Pillow reads (it is then checked once decoded)."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)

@@ -1,25 +1,38 @@
 """Every run recorded into its own folder, without ever slowing the control loop.
 
     runs/<UTC time>/            (or --record DIR; never overwritten)
+      run.mcap                  the recording (lanewarden.run_mcap): every frame perception saw,
+                                the commands on /cmd_vel, the base's feedback and every step with
+                                its inputs (lanewarden.run_record), ROS 2 messages that Foxglove,
+                                Lichtblick and `ros2 bag` open; self-contained (it carries the
+                                meta, config and calibration below); enough to replay it exactly
       meta.json                 command line, camera, base, controller, software/package versions
       config.yaml               the effective config the run used
       calibration.yaml          the calibration file it used (if any)
-      run.jsonl                 one line per step: the StepRecord plus the step's inputs
-                                (lanewarden.run_record), enough to replay it exactly
-      frames/000123.png         every frame perception saw, lossless (.jpg with --record-lossy)
       summary.json              written at the end: steps, frames written/dropped, end reason
+
+Frames are kept as perception consumes them: the PNG (lanewarden.frame_png) of the frame's gray
+version (`perception_gray`: perception depends on a frame only through it), lossless and about a
+third of a colour PNG's size and CPU; a colour JPEG with --record-lossy (not exact).
 
 `InputTap` wraps the loop's frame source, base and controller to note what came in during each
 step (frame identity, base feedback, failures, operator requests) and what the controller
-decided. `RunRecorder` takes one step at a time from the control thread and hands it to two writer
-threads through bounded queues: a full queue drops (and counts) instead of blocking, so a slow disk
-costs frames in the recording, never time in the loop. A recording with dropped frames says so in
-summary.json, and replay reports that it cannot be exact.
+decided. `RunRecorder` takes one step at a time from the control thread and hands it to one
+writer thread (lower CPU priority) through a bounded queue, which never blocks: with more than
+FRAME_QUEUE_FRAMES frames waiting, a new frame is dropped (its step is still recorded), counted
+and said once while running; replay then reports that it cannot be exact.
+
+When the recording cannot be written (a full disk, the folder removed, no permission), it stops
+and says so once (`problem`, which the run's status shows); the run goes on: the recording is
+not part of what keeps the robot safe, and a halt in mid-lane for a full disk would trade a lost
+log for a stopped robot the operator did not ask for. The file then ends without its summary,
+which replay reports as "cut short". summary.json is still written where the disk allows.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import json
 import os
 import platform
@@ -28,36 +41,45 @@ import shutil
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 import yaml
 
 from lanewarden import __version__
 from lanewarden.actuation.base import Base, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.errors import UsageError
+from lanewarden.frame_png import gray_png
+from lanewarden.perception.detector import perception_gray
+from lanewarden.run_mcap import (
+    CALIBRATION_ATTACHMENT,
+    CONFIG_ATTACHMENT,
+    IMAGE_TOPIC,
+    JPEG_FORMAT,
+    PNG_FORMAT,
+    RunMcapWriter,
+)
 from lanewarden.run_record import FORMAT_VERSION, StepInput, step_line
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput
 from lanewarden.supervisor.errors import SupervisorError
 from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.loop import Frame, FrameSource, StepRecord
 
-#: Frames waiting for the disk before new ones are dropped (about 2 s at 30 Hz).
+RUN_MCAP = "run.mcap"
+#: Frames waiting for the writer before new ones are dropped (about 2 s at 30 Hz).
 FRAME_QUEUE_FRAMES = 64
-#: Step lines waiting for the disk (they are small; dropping one is a bug worth reporting).
-LINE_QUEUE_LINES = 4096
-#: PNG compression 1 with the "up" filter: the cheapest lossless setting OpenCV offers that still
-#: halves the size (640x480: about 17 ms of CPU and 390 KiB a frame; see docs/operator.md).
-PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1] + (
-    [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_UP] if hasattr(cv2, "IMWRITE_PNG_FILTER")
-    else [])
+#: Steps waiting for the writer (they are small; dropping one is a bug worth reporting).
+STEP_QUEUE_STEPS = 4096
 JPEG_QUALITY = 90
-#: The writer threads run at this lower priority (Linux nice, per thread): on a busy machine the
+#: Every this many steps the writer checks that run.mcap is still in a folder (on Linux, writing
+#: into a deleted file succeeds, and everything would be lost without a word).
+DELETED_CHECK_STEPS = 30
+#: The writer thread runs at this lower priority (Linux nice, per thread): on a busy machine the
 #: control loop wins the CPU, and the recording drops frames (counted) instead.
 WRITER_NICENESS = 10
 #: Packages whose versions go into meta.json.
@@ -184,12 +206,12 @@ def default_run_folder(root: Path, now_utc: dt.datetime) -> Path:
 
 
 def create_run_folder(folder: Path, flag: str = "--record") -> Path:
-    """Make `folder` (and frames/); UsageError when it already holds anything (never overwrite)."""
+    """Make `folder`; UsageError when it already holds anything (never overwrite)."""
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise UsageError(f"{flag} {folder}: already exists and is not empty (a recording is never "
                          "overwritten; choose a new folder)")
     try:
-        (folder / "frames").mkdir(parents=True, exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SupervisorError(f"{flag} {folder}: cannot create the folder "
                               f"({exc.strerror or exc})") from exc
@@ -226,14 +248,18 @@ def _git_commit(where: Path) -> str | None:
 class RecordingSummary:
     folder: Path
     steps: int = 0
+    steps_written: int = 0
     frames_written: int = 0
     frames_dropped: list[int] = field(default_factory=list)
     lines_dropped: int = 0
     write_errors: list[str] = field(default_factory=list)
+    #: Why the recording stopped before the run ended (None: it did not).
+    problem: str | None = None
 
     @property
     def complete(self) -> bool:
-        return not (self.frames_dropped or self.lines_dropped or self.write_errors)
+        return not (self.frames_dropped or self.lines_dropped or self.write_errors
+                    or self.problem)
 
 
 _CLOSE = object()
@@ -248,122 +274,195 @@ def lower_priority(niceness: int = WRITER_NICENESS) -> None:
         pass
 
 
-class RunRecorder:
-    """Writes one run folder. `record(...)` is called from the control thread and never blocks."""
+def _why(exc: BaseException) -> str:
+    if isinstance(exc, OSError):
+        return exc.strerror or str(exc)
+    return f"{type(exc).__name__}: {exc}"
 
-    def __init__(self, folder: Path, *, lossy: bool = False) -> None:
+
+@dataclass(frozen=True)
+class _Step:
+    record: StepRecord
+    step_input: StepInput
+    frame: Frame | None
+
+
+@dataclass(frozen=True)
+class _Header:
+    meta: dict[str, Any]
+    attachments: dict[str, bytes]
+    time_s: float
+
+
+class RunRecorder:
+    """Writes one run folder. `record(...)` is called from the control thread and never blocks.
+    `epoch_offset_s`: UNIX time minus the loop's clock, for the MCAP's log times."""
+
+    def __init__(self, folder: Path, *, lossy: bool = False, epoch_offset_s: float = 0.0) -> None:
         self.folder = folder
-        self.frame_suffix = ".jpg" if lossy else ".png"
-        self._params = [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY] if lossy else PNG_PARAMS
+        self.lossy = lossy
         self.summary = RecordingSummary(folder)
-        self._frames: queue.Queue[Any] = queue.Queue(FRAME_QUEUE_FRAMES)
-        self._lines: queue.Queue[Any] = queue.Queue(LINE_QUEUE_LINES)
+        self._items: queue.Queue[Any] = queue.Queue(STEP_QUEUE_STEPS)
         self._lock = threading.Lock()
+        self._frames_waiting = 0
+        path = folder / RUN_MCAP
         try:
-            self._log = (folder / "run.jsonl").open("x", encoding="utf-8")
+            self._file = path.open("xb")
+            self._mcap = RunMcapWriter(self._file, epoch_offset_s)
         except OSError as exc:
-            raise SupervisorError(f"{folder / 'run.jsonl'}: cannot create the run log "
-                                  f"({exc.strerror or exc})") from exc
-        self._threads = [
-            threading.Thread(target=self._write_frames, name="record-frames", daemon=True),
-            threading.Thread(target=self._write_lines, name="record-lines", daemon=True),
-        ]
-        for thread in self._threads:
-            thread.start()
+            raise SupervisorError(f"{path}: cannot create the recording ({_why(exc)})") from exc
+        self._thread = threading.Thread(target=self._write, name="record-writer", daemon=True)
+        self._thread.start()
         self._closed = False
 
+    @property
+    def problem(self) -> str | None:
+        """Why the recording stopped (a full disk, ...), once it did; None while it works."""
+        return self.summary.problem
+
     def write_header(self, meta: dict[str, Any], config: dict[str, Any],
-                     calibration: Path | None) -> None:
-        """meta.json, config.yaml and calibration.yaml (before the first step)."""
-        meta = {"format": FORMAT_VERSION, "frames": f"frames/%06d{self.frame_suffix}",
-                "lossless": self.frame_suffix == ".png", **meta,
-                "software": software_versions()}
+                     calibration: Path | None, now: float = 0.0) -> None:
+        """meta.json, config.yaml and calibration.yaml, and the same in run.mcap (before the
+        first step). SupervisorError when they cannot be written: the run does not start."""
+        meta = {"format": FORMAT_VERSION, "recording": RUN_MCAP, "frames": IMAGE_TOPIC,
+                "lossless": not self.lossy, **meta, "software": software_versions()}
         try:
+            config_text = yaml.safe_dump(config, sort_keys=False).encode("utf-8")
+            attachments = {CONFIG_ATTACHMENT: config_text}
             (self.folder / "meta.json").write_text(json.dumps(meta, indent=2) + "\n",
                                                    encoding="utf-8")
-            (self.folder / "config.yaml").write_text(
-                yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
+            (self.folder / CONFIG_ATTACHMENT).write_bytes(config_text)
             if calibration is not None:
-                shutil.copyfile(calibration, self.folder / "calibration.yaml")
+                attachments[CALIBRATION_ATTACHMENT] = calibration.read_bytes()
+                shutil.copyfile(calibration, self.folder / CALIBRATION_ATTACHMENT)
         except OSError as exc:
             raise SupervisorError(f"{self.folder}: cannot write the recording's header "
-                                  f"({exc.strerror or exc})") from exc
+                                  f"({_why(exc)})") from exc
+        self._items.put(_Header(meta, attachments, now))
 
     def record(self, record: StepRecord, step_input: StepInput, new_frame: Frame | None) -> None:
-        """Queue one step (and its new frame). Never blocks: a full queue drops and counts."""
+        """Queue one step (and its new frame). Never blocks: too many frames waiting drops the
+        frame, a full queue the step; both are counted."""
         self.summary.steps += 1
+        frame = None
         if new_frame is not None:
-            try:
-                self._frames.put_nowait((new_frame.index, new_frame.image))
-            except queue.Full:
-                with self._lock:
+            with self._lock:
+                if self._frames_waiting < FRAME_QUEUE_FRAMES:
+                    self._frames_waiting += 1
+                    frame = new_frame
+                else:
                     self.summary.frames_dropped.append(new_frame.index)
         try:
-            self._lines.put_nowait((record, step_input))
+            self._items.put_nowait(_Step(record, step_input, frame))
         except queue.Full:
             with self._lock:
                 self.summary.lines_dropped += 1
+                if frame is not None:
+                    self._frames_waiting -= 1
+                    self.summary.frames_dropped.append(frame.index)
 
     def close(self, extra: dict[str, Any] | None = None) -> RecordingSummary:
-        """Drain the queues (bounded by what they hold), write summary.json. Idempotent."""
-        if not self._closed:
-            self._closed = True
-            self._frames.put(_CLOSE)
-            self._lines.put(_CLOSE)
-            for thread in self._threads:
-                thread.join()
-            self._log.close()
-            summary = self.summary
-            body = {"steps": summary.steps, "frames_written": summary.frames_written,
-                    "frames_dropped": len(summary.frames_dropped),
-                    "frames_dropped_indices": summary.frames_dropped[:1000],
-                    "lines_dropped": summary.lines_dropped, "write_errors": summary.write_errors,
-                    "complete": summary.complete, **(extra or {})}
+        """Drain the queue (bounded by what it holds), finish run.mcap with its summary, write
+        summary.json. Idempotent; never raises for the disk (the summary says what failed)."""
+        if self._closed:
+            return self.summary
+        self._closed = True
+        self._items.put(_CLOSE)
+        self._thread.join()
+        summary = self.summary
+        body = self._summary_body(extra)
+        if summary.problem is None:
             try:
-                (self.folder / "summary.json").write_text(json.dumps(body, indent=2) + "\n",
-                                                          encoding="utf-8")
+                self._mcap.finish(body)
+                self._file.close()
             except OSError as exc:
-                summary.write_errors.append(f"summary.json: {exc.strerror or exc}")
-        return self.summary
+                self._stop(exc)
+                body = self._summary_body(extra)
+        if summary.problem is not None:
+            try:
+                self._file.close()
+            except OSError:
+                pass  # already said: the recording stopped
+        try:
+            (self.folder / "summary.json").write_text(json.dumps(body, indent=2) + "\n",
+                                                      encoding="utf-8")
+        except OSError as exc:
+            summary.write_errors.append(f"summary.json: {_why(exc)}")
+        return summary
 
-    # ---- writer threads -----------------------------------------------------------------------
-    def _write_frames(self) -> None:
+    def _summary_body(self, extra: dict[str, Any] | None) -> dict[str, Any]:
+        summary = self.summary
+        return {"steps": summary.steps, "steps_written": summary.steps_written,
+                "frames_written": summary.frames_written,
+                "frames_dropped": len(summary.frames_dropped),
+                "frames_dropped_indices": summary.frames_dropped[:1000],
+                "lines_dropped": summary.lines_dropped, "write_errors": summary.write_errors,
+                "recording_stopped": summary.problem, "complete": summary.complete,
+                **(extra or {})}
+
+    def _stop(self, exc: BaseException) -> None:
+        with self._lock:
+            if self.summary.problem is None:
+                self.summary.problem = (f"{self.folder / RUN_MCAP}: {_why(exc)} (after "
+                                        f"{self.summary.steps_written} steps)")
+
+    # ---- the writer thread --------------------------------------------------------------------
+    def _write(self) -> None:
         lower_priority()
-        frames = self.folder / "frames"
         while True:
-            item = self._frames.get()
+            item = self._items.get()
             if item is _CLOSE:
                 return
-            index, image = item
-            assert isinstance(index, int)
-            path = frames / f"{index:06d}{self.frame_suffix}"
-            ok = False
-            try:
-                ok = bool(cv2.imwrite(str(path), np.asarray(image), self._params))
-            except cv2.error:
-                ok = False
-            with self._lock:
-                if ok:
-                    self.summary.frames_written += 1
-                else:
-                    self.summary.frames_dropped.append(index)
-                    if len(self.summary.write_errors) < 10:
-                        self.summary.write_errors.append(f"{path}: cannot write")
-
-    def _write_lines(self) -> None:
-        lower_priority()
-        while True:
-            item = self._lines.get()
-            if item is _CLOSE:
-                return
-            record, step_input = item
-            assert isinstance(record, StepRecord) and isinstance(step_input, StepInput)
-            try:
-                self._log.write(json.dumps(step_line(record, step_input),
-                                           separators=(",", ":")) + "\n")
-                self._log.flush()
-            except OSError as exc:
+            if isinstance(item, _Header):
+                self._guarded(self._mcap.start, item.meta, item.attachments, item.time_s)
+                continue
+            assert isinstance(item, _Step)
+            if item.frame is not None:
+                self._guarded(self._write_frame, item)
                 with self._lock:
-                    self.summary.lines_dropped += 1
-                    if len(self.summary.write_errors) < 10:
-                        self.summary.write_errors.append(f"run.jsonl: {exc.strerror or exc}")
+                    self._frames_waiting -= 1
+            self._guarded(self._write_step, item)
+
+    def _guarded(self, write: Callable[..., None], *args: Any) -> None:
+        """Run one write unless the recording stopped; a failure stops it (said once)."""
+        if self.summary.problem is not None:
+            return
+        try:
+            write(*args)
+        except Exception as exc:  # the disk (OSError) or a bug: reported, never silent
+            self._stop(exc)
+
+    def _write_frame(self, item: _Step) -> None:
+        frame = item.frame
+        assert frame is not None
+        try:
+            if self.lossy:
+                ok, encoded = cv2.imencode(".jpg", frame.image,
+                                           [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+                data = encoded.tobytes() if ok else b""
+                image_format = JPEG_FORMAT
+            else:
+                data = gray_png(perception_gray(frame.image))
+                image_format = PNG_FORMAT
+        except (cv2.error, ValueError, IndexError) as exc:
+            data, image_format = b"", f"{type(exc).__name__}: {exc}"
+        if not data:  # a frame no codec takes (perception refused it too): counted, not written
+            with self._lock:
+                self.summary.frames_dropped.append(frame.index)
+                if len(self.summary.write_errors) < 10:
+                    self.summary.write_errors.append(f"frame {frame.index}: cannot encode "
+                                                     f"({image_format})")
+            return
+        self._mcap.frame(frame.index, frame.time_s, item.record.time_s, image_format, data)
+        with self._lock:
+            self.summary.frames_written += 1
+
+    def _write_step(self, item: _Step) -> None:
+        line = json.dumps(step_line(item.record, item.step_input), separators=(",", ":"))
+        self._mcap.step(item.record, item.step_input, line)
+        with self._lock:
+            self.summary.steps_written += 1
+        if self.summary.steps_written % DELETED_CHECK_STEPS == 0 and (
+                os.fstat(self._file.fileno()).st_nlink == 0):
+            raise FileNotFoundError(errno.ENOENT, "the file or its folder was deleted while "
+                                    "recording")

@@ -37,6 +37,8 @@ from lanewarden.scenarios.video import MapView, VideoRecorder
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 RUN_NAME = "replay"
+#: At most about this many grid lines across the odometry map (a 1 m grid, coarser for long paths).
+MAX_GRID_LINES = 40
 
 
 class OdometryMapView(MapView):
@@ -61,16 +63,17 @@ class OdometryMapView(MapView):
     def _grid(self, poses: list[Pose2D]) -> np.ndarray:
         size = self.size
         image = np.full((size, size, 3), 245, np.uint8)
-        first_x, last_x = math.floor(self.x_min), math.ceil(self.x_min + size * self.m_per_px)
-        for x in range(first_x, last_x + 1):
-            px = self.to_px(float(x), 0.0)[0]
+        span = size * self.m_per_px
+        step = 10.0 ** max(0, math.ceil(math.log10(span / MAX_GRID_LINES)))  # 1 m, 10 m, ...
+        for k in range(math.floor(self.x_min / step), math.ceil((self.x_min + span) / step) + 1):
+            px = self.to_px(k * step, 0.0)[0]
             cv2.line(image, (px, 0), (px, size - 1), (215, 215, 215), 1)
-        first_y, last_y = math.floor(self.y_max - size * self.m_per_px), math.ceil(self.y_max)
-        for y in range(first_y, last_y + 1):
-            py = self.to_px(0.0, float(y))[1]
+        for k in range(math.floor((self.y_max - span) / step), math.ceil(self.y_max / step) + 1):
+            py = self.to_px(0.0, k * step)[1]
             cv2.line(image, (0, py), (size - 1, py), (215, 215, 215), 1)
         moved = any(p.x_m or p.y_m for p in poses)
-        label = "odometry (1 m grid)" if moved else "no odometry (the base did not move)"
+        label = (f"odometry ({step:g} m grid)" if moved
+                 else "no odometry (the base did not move)")
         cv2.putText(image, label, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (90, 90, 90), 1,
                     cv2.LINE_AA)
         return image
@@ -233,7 +236,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "distance_travelled_m": round(distance_m, 4),
     }
     if source.kind == "run":
-        exact_input = missing == 0 and recorded_complete and bool(source.meta.get("lossless"))
+        exact_input = (missing == 0 and recorded_complete and not source.incomplete
+                       and bool(source.meta.get("lossless")))
         metrics.update(
             compared_steps=len(records),
             divergent_steps=len(divergences),
@@ -244,6 +248,7 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
             reproduced=not divergences,
             frames_missing=missing,
             exact_input=exact_input,
+            incomplete=list(source.incomplete),
             recorded_exit_code=source.summary.get("exit_code"),
         )
     return metrics
@@ -260,7 +265,9 @@ def summary_sentence(metrics: dict[str, Any]) -> str:
         else:
             text += (f" {metrics['divergent_steps']} of {metrics['compared_steps']} steps diverge "
                      f"from the recording; the first: {metrics['first_divergence']['text']}.")
-        if not metrics["exact_input"]:
+        if metrics["incomplete"]:
+            text += f" The recording is incomplete: {'; '.join(metrics['incomplete'])}."
+        elif not metrics["exact_input"]:
             text += (" The recording is not exact (frames dropped or lossy), so the replay "
                      "cannot be exact either.")
     return text

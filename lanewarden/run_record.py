@@ -1,9 +1,10 @@
-"""The recorded run's per-step lines: what the control loop received and decided, in JSON.
+"""A recorded step: what the control loop received and decided, as one JSON object, and the strict
+reading of it back.
 
-A line of a run folder's `run.jsonl` is the step's `StepRecord.as_json()` (the same fields as
-`sim`'s run.jsonl, for plots and reading) plus `"input"`: everything the loop took in from outside
-during that step, at full precision, so `lanewarden replay` can feed it back on a fake clock and
-get the same steps again (openpilot's process replay records at the same kind of boundary):
+A recorded step is the step's `StepRecord.as_json()` (the same fields as `sim`'s run.jsonl, for
+plots and reading) plus `"input"`: everything the loop took in from outside during that step, at
+full precision, so `lanewarden replay` can feed it back on a fake clock and get the same steps
+again (openpilot's process replay records at the same kind of boundary):
 
 - `t`: the step's `now`;
 - `frame`: `[index, time_s]` of the newest frame the source returned (None: none), or
@@ -14,20 +15,46 @@ get the same steps again (openpilot's process replay records at the same kind of
 - `requests`: the operator requests the controller saw this step (`start`, `resume`, `stop`);
 - `command`: the command the controller decided, `[linear, angular]` unrounded.
 
+Format 2 (today's) keeps each step in `run.mcap` (the `record` field of a `/lanewarden/step`
+message, see lanewarden/run_mcap.py); format 1 kept them as the lines of `run.jsonl`.
+`read_step` checks every field a replay uses (types, finite numbers, known requests) and says
+which one is wrong in one line (`StepError`); `StepTimes` checks that step times increase within
+a bounded duration. A recording is input like any other file: nothing in it may crash the reader
+or make it run for long.
+
 Pure data and (de)serialisation: no files, no threads, no clock.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
-from lanewarden.actuation.base import BaseFeedback, Pose2D, VelocityCommand
+from lanewarden.actuation.base import BaseFeedback, Pose2D
+from lanewarden.documents import shown_value
 from lanewarden.supervisor.loop import StepRecord
 
-#: Bump when a line's meaning changes; replay refuses formats it does not know.
-FORMAT_VERSION = 1
+#: Bump when a recorded step's meaning or the run folder's layout changes; replay reads the
+#: formats in READABLE_FORMATS and refuses others.
+FORMAT_VERSION = 2
+READABLE_FORMATS = (1, FORMAT_VERSION)
 REQUESTS = ("start", "resume", "stop")
+#: The longest run a recording may span (step times, first to last). A real run ends with its
+#: battery long before; a longer span is a damaged or forged recording.
+MAX_RUN_DURATION_S = 24 * 3600.0
+#: Most steps a replay reads (about 9 hours at 30 Hz): a replay holds every step in memory.
+MAX_STEPS = 1_000_000
+#: Longest recorded step in bytes of JSON (a real one is about 1.5 kB).
+MAX_STEP_BYTES = 64 * 1024
+#: Farthest a base's odometry may say it went from where it started, metres.
+MAX_ODOMETRY_M = 100_000.0
+#: Longest text kept from a recorded exception message.
+MAX_TEXT_CHARS = 2000
+
+
+class StepError(ValueError):
+    """A recorded step that cannot be replayed: `str()` is `field = value: expected ...`."""
 
 
 @dataclass(frozen=True)
@@ -44,6 +71,17 @@ class StepInput:
     command: tuple[float, float] = (0.0, 0.0)
 
 
+@dataclass(frozen=True)
+class RecordedStep:
+    """What a recorded step says the loop did, as replay compares it (frame, state, events, halt
+    reason; the command is the input's, unrounded)."""
+
+    frame_index: int | None
+    state: str
+    events: tuple[str, ...]
+    halt_reason: str | None
+
+
 def feedback_as_json(feedback: BaseFeedback) -> dict[str, Any]:
     pose = feedback.odometry
     return {
@@ -58,22 +96,8 @@ def feedback_as_json(feedback: BaseFeedback) -> dict[str, Any]:
     }
 
 
-def feedback_from_json(data: dict[str, Any]) -> BaseFeedback:
-    x, y, theta = data["odometry"]
-    return BaseFeedback(
-        received_at_s=data["received_at_s"],
-        bumper=int(data["bumper"]),
-        wheel_drop=int(data["wheel_drop"]),
-        cliff=int(data["cliff"]),
-        buttons=int(data["buttons"]),
-        battery_v=data["battery_v"],
-        odometry=Pose2D(float(x), float(y), float(theta)),
-        stop_latched=None if data.get("stop_latched") is None else str(data["stop_latched"]),
-    )
-
-
 def step_line(record: StepRecord, step_input: StepInput) -> dict[str, Any]:
-    """One line of a run folder's run.jsonl (a JSON-ready dict)."""
+    """One recorded step (a JSON-ready dict)."""
     line = record.as_json()
     inp: dict[str, Any] = {"t": step_input.t}
     inp["frame"] = None if step_input.frame is None else list(step_input.frame)
@@ -92,31 +116,145 @@ def step_line(record: StepRecord, step_input: StepInput) -> dict[str, Any]:
     return line
 
 
-def _pair(value: Any) -> tuple[str, str] | None:
-    return None if value is None else (str(value[0]), str(value[1]))
+# ---- reading a step back, strictly -------------------------------------------------------------
+def _bad(field: str, value: object, expected: str) -> StepError:
+    return StepError(f"{field} = {shown_value(value)}: expected {expected}")
 
 
-def step_input_from_line(line: dict[str, Any]) -> StepInput:
-    """The `input` of one recorded line; KeyError/TypeError/ValueError on a malformed one."""
-    inp = line["input"]
-    frame = inp.get("frame")
-    feedback = inp.get("feedback")
-    command = inp.get("command", [0.0, 0.0])
-    requests = tuple(str(r) for r in inp.get("requests", ()))
-    unknown = [r for r in requests if r not in REQUESTS]
-    if unknown:
-        raise ValueError(f"unknown operator request {unknown[0]!r}")
-    return StepInput(
-        t=float(inp["t"]),
-        frame=None if frame is None else (int(frame[0]), float(frame[1])),
-        frame_error=_pair(inp.get("frame_error")),
-        feedback=None if feedback is None else feedback_from_json(feedback),
-        feedback_error=_pair(inp.get("feedback_error")),
-        send_errors=int(inp.get("send_errors", 0)),
-        requests=requests,
-        command=(float(command[0]), float(command[1])),
+def _mapping(data: Any, field: str) -> dict[str, Any]:
+    if not isinstance(data, dict):
+        raise _bad(field, data, "a mapping")
+    return data
+
+
+def _number(data: dict[str, Any], key: str, field: str, *, optional: bool = False) -> float | None:
+    value = data.get(key)
+    if value is None and optional:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise _bad(field, value, "a finite number" + (" or null" if optional else ""))
+    return float(value)
+
+
+def _integer(data: dict[str, Any], key: str, field: str, low: int, high: int,
+             default: int | None = None) -> int:
+    value = data.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise _bad(field, value, f"an integer from {low} to {high}")
+    return value
+
+
+def _text(value: object, field: str, *, optional: bool = False) -> str | None:
+    if value is None and optional:
+        return None
+    if not isinstance(value, str) or len(value) > MAX_TEXT_CHARS:
+        raise _bad(field, value, f"a text of at most {MAX_TEXT_CHARS} characters"
+                   + (" or null" if optional else ""))
+    return value
+
+
+def _pair(data: dict[str, Any], key: str, field: str) -> tuple[str, str] | None:
+    value = data.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != 2:
+        raise _bad(field, value, "[exception type, message]")
+    return str(_text(value[0], f"{field}[0]")), str(_text(value[1], f"{field}[1]"))
+
+
+def _numbers(value: object, count: int, field: str) -> list[float]:
+    if not isinstance(value, list) or len(value) != count:
+        raise _bad(field, value, f"a list of {count} finite numbers")
+    return [float(_number({"v": v}, "v", f"{field}[{i}]") or 0.0) for i, v in enumerate(value)]
+
+
+def _feedback(value: object) -> BaseFeedback | None:
+    if value is None:
+        return None
+    data = _mapping(value, "input.feedback")
+    x, y, theta = _numbers(data.get("odometry"), 3, "input.feedback.odometry")
+    if max(abs(x), abs(y)) > MAX_ODOMETRY_M:
+        raise _bad("input.feedback.odometry", [x, y, theta],
+                   f"x and y within {MAX_ODOMETRY_M:.0f} m of where the base started")
+    return BaseFeedback(
+        received_at_s=_number(data, "received_at_s", "input.feedback.received_at_s",
+                              optional=True),
+        bumper=_integer(data, "bumper", "input.feedback.bumper", 0, 255),
+        wheel_drop=_integer(data, "wheel_drop", "input.feedback.wheel_drop", 0, 255),
+        cliff=_integer(data, "cliff", "input.feedback.cliff", 0, 255),
+        buttons=_integer(data, "buttons", "input.feedback.buttons", 0, 255),
+        battery_v=_number(data, "battery_v", "input.feedback.battery_v", optional=True),
+        odometry=Pose2D(x, y, theta),
+        stop_latched=_text(data.get("stop_latched"), "input.feedback.stop_latched",
+                           optional=True),
     )
 
 
-def command_of(step_input: StepInput) -> VelocityCommand:
-    return VelocityCommand(*step_input.command)
+def _frame(value: object) -> tuple[int, float] | None:
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != 2:
+        raise _bad("input.frame", value, "[index, time_s] or null")
+    index = _integer({"i": value[0]}, "i", "input.frame[0]", 0, 2**32 - 1)
+    time_s = _number({"t": value[1]}, "t", "input.frame[1]")
+    assert time_s is not None
+    return index, time_s
+
+
+def read_step(line: object) -> tuple[StepInput, RecordedStep]:
+    """A recorded step's input and what it says the loop did; StepError naming the first field
+    that is missing or of the wrong type (one line)."""
+    data = _mapping(line, "(the step)")
+    inp = _mapping(data.get("input"), "input")
+    t = _number(inp, "t", "input.t")
+    assert t is not None
+    requests = inp.get("requests", [])
+    if not isinstance(requests, list) or not all(r in REQUESTS for r in requests):
+        raise _bad("input.requests", requests, f"a list of {', '.join(REQUESTS)}")
+    command = _numbers(inp.get("command", [0.0, 0.0]), 2, "input.command")
+    step_input = StepInput(
+        t=t,
+        frame=_frame(inp.get("frame")),
+        frame_error=_pair(inp, "frame_error", "input.frame_error"),
+        feedback=_feedback(inp.get("feedback")),
+        feedback_error=_pair(inp, "feedback_error", "input.feedback_error"),
+        send_errors=_integer(inp, "send_errors", "input.send_errors", 0, 1000, default=0),
+        requests=tuple(requests),
+        command=(command[0], command[1]),
+    )
+    frame_index = data.get("frame_index")
+    if frame_index is not None:
+        frame_index = _integer(data, "frame_index", "frame_index", 0, 2**32 - 1)
+    events = data.get("events")
+    if not isinstance(events, list):
+        raise _bad("events", events, "a list of event names")
+    recorded = RecordedStep(
+        frame_index=frame_index,
+        state=str(_text(data.get("state"), "state")),
+        events=tuple(str(_text(e, f"events[{i}]")) for i, e in enumerate(events)),
+        halt_reason=_text(data.get("halt_reason"), "halt_reason", optional=True),
+    )
+    return step_input, recorded
+
+
+class StepTimes:
+    """Checks, step after step, that step times increase and stay within MAX_RUN_DURATION_S of
+    the first (`check` returns the problem, '' when none)."""
+
+    def __init__(self) -> None:
+        self.first: float | None = None
+        self.last: float | None = None
+
+    def check(self, t: float) -> str:
+        if self.first is None:
+            self.first = self.last = t
+            return ""
+        assert self.last is not None
+        if t <= self.last:
+            return (f"input.t = {t!r}: expected a time after the previous step's "
+                    f"({self.last!r}); step times must increase")
+        if t - self.first > MAX_RUN_DURATION_S:
+            return (f"input.t = {t!r}: {t - self.first:.0f} s after the first step, more than a "
+                    f"recording may span ({MAX_RUN_DURATION_S:.0f} s)")
+        self.last = t
+        return ""

@@ -104,12 +104,13 @@ class RunSession:
             folder = options.record or default_run_folder(DEFAULT_RUNS_ROOT,
                                                           dt.datetime.now(dt.UTC))
             self.folder = create_run_folder(folder)
-            self.recorder = RunRecorder(self.folder, lossy=options.record_lossy)
+            started = dt.datetime.now(dt.UTC)
+            self.recorder = RunRecorder(self.folder, lossy=options.record_lossy,
+                                        epoch_offset_s=started.timestamp() - clock())
             self.recorder.write_header(
                 {**options.meta, "base": options.base_kind,
-                 "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-                 "argv": sys.argv},
-                config.model_dump(mode="json"), options.calibration_path)
+                 "started_utc": started.isoformat(timespec="seconds"), "argv": sys.argv},
+                config.model_dump(mode="json"), options.calibration_path, clock())
         except BaseException:
             if self.view is not None:
                 self.view.close()
@@ -122,6 +123,7 @@ class RunSession:
         #: the newest status; at the end, the last one published (with `end_reason`)
         self._status: dict[str, Any] = {"state": "HALT", "end_reason": None}
         self.final_status: dict[str, Any] = {}
+        self._recording_said = (False, False)  # (a problem said, dropped frames said)
 
     # ---- building the loop --------------------------------------------------------------------
     def wrap(self, frames: FrameSource, stack: ControlStack,
@@ -170,6 +172,7 @@ class RunSession:
         feedback = self.tap.latest_feedback
         self.stats.add(record, feedback, self._loop_time_s)
         self.recorder.record(record, step_input, new_frame)
+        self._say_recording_trouble()
         if self.panel is not None:
             self.panel.observe(record.state, record.events)
             apply_buttons(self._buttons, feedback, self.panel)
@@ -198,6 +201,20 @@ class RunSession:
                     else self._stack.decide(detection[1]),
                     state=record.state, reason=record.halt_reason)
             self.view.publish(status, frame)
+
+    def _say_recording_trouble(self) -> None:
+        """Once each: the recording stopped (the run goes on), or it dropped frames."""
+        problem_said, drops_said = self._recording_said
+        summary = self.recorder.summary
+        if not problem_said and summary.problem is not None:
+            self.printer.message(f"warning: the recording stopped: {summary.problem}; the run "
+                                 "goes on unrecorded")
+            problem_said = True
+        if not drops_said and summary.frames_dropped:
+            self.printer.message("warning: the recording is not keeping up and drops frames "
+                                 "(counted in the summary): this run cannot be replayed exactly")
+            drops_said = True
+        self._recording_said = (problem_said, drops_said)
 
     # ---- the live page's requests (before attach there is no loop: they do nothing) ---------
     def start(self, source: str) -> None:
@@ -264,6 +281,11 @@ class RunSession:
             "frames_seen": self.stats.frames_seen,
             "frames_skipped": self.stats.frames_skipped,
             "view_frames_dropped": view_dropped})
-        return summary_lines(self.stats, stopped=end.stop_line, recording=str(self.folder),
-                             frames_dropped_recording=len(self.recording.frames_dropped),
-                             view_dropped=view_dropped)
+        lines = summary_lines(self.stats, stopped=end.stop_line, recording=str(self.folder),
+                              frames_dropped_recording=len(self.recording.frames_dropped),
+                              view_dropped=view_dropped)
+        if self.recording.problem is not None:
+            lines.append(f"  the recording stopped early: {self.recording.problem}")
+        lines += [f"  not written: {error}" for error in self.recording.write_errors
+                  if error.startswith("summary.json")]
+        return lines

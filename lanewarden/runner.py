@@ -44,6 +44,7 @@ from lanewarden.camera_source import (
 )
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+from lanewarden.recording import RUN_MCAP
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.stop_signals import signal_requests, suspend
@@ -243,7 +244,7 @@ def run_robot(
         return RunSummary(
             steps=steps,
             duration_s=clock.now() - started,
-            log_path=session.folder / "run.jsonl",
+            log_path=session.folder / RUN_MCAP,
             end=end,
             lines=tuple(lines),
             final_status=session.final_status,

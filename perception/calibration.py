@@ -27,6 +27,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from lanewarden.documents import MAX_DOCUMENT_BYTES
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
 
@@ -354,6 +355,9 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         raise PerceptionError(f"{path}: calibration file not found")
     if path.is_dir():
         raise PerceptionError(f"{path}: is a directory, expected a calibration YAML file")
+    if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
+        raise PerceptionError(f"{path}: calibration file is larger than "
+                              f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
     try:
         storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:

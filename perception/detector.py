@@ -2,14 +2,17 @@
 
 Pipeline (the lecture's, made robust):
 
-    [Undistorter.apply] -> gray -> Gaussian blur -> Canny -> ROI mask -> HoughLinesP
-      -> candidate lines (perception.lines) -> one edge per side (perception.edge_choice)
+    gray (perception_gray) -> [Undistorter.apply] -> Gaussian blur -> Canny -> ROI mask
+      -> HoughLinesP -> candidate lines (perception.lines)
+      -> one edge per side (perception.edge_choice)
       -> bounded slopes and their sum (perception.geometry) -> confidence (perception.confidence)
       -> the lane's offset and heading on the floor (robot frame, metres and radians)
 
 Input: BGR uint8 (H, W, 3), BGRA (H, W, 4) or gray (H, W), any size of at least 16x16. Edge
 coordinates are pixels of the (undistorted) image, x right, y down; slopes use the lecture's
-y-up convention; offsets and headings are in the robot frame (x forward, y left).
+y-up convention; offsets and headings are in the robot frame (x forward, y left). Perception
+depends on a frame only through its gray version (`perception_gray`): a colour frame and its gray
+version give the same observation, which is what lets a recording keep gray frames only.
 
 Geometry in metres: the detector sees the floor through a ground model
 (`perception.ground.GroundModel`: the camera's intrinsics and its pose over the floor; by default
@@ -79,8 +82,9 @@ class DetectionDebug:
     - `lines`: the candidate lines they were grouped into.
     - `left` / `right`: the choice made on each side (chain of lines, tape partner), or None.
     - `image_size`: (width, height) of the image that was analysed (after undistortion).
-    - `image`: that analysed image itself (the caller's array when there is no undistorter; not
-      a copy), so an overlay can be drawn on exactly what the detector saw.
+    - `image`: the frame as the detector saw it, undistorted (the caller's array when there is
+      no undistorter; not a copy; in colour for a colour frame, while perception itself works on
+      its gray version), so an overlay can be drawn on what the detector saw.
     """
 
     roi_polygon_px: NDArray[np.int32]
@@ -165,9 +169,12 @@ class LaneDetector:
         previous: LaneObservation | None = None,
     ) -> tuple[LaneObservation, DetectionDebug]:
         """`detect` plus the intermediate results, for `perception.overlay` and diagnosis."""
-        observation, state, segments, choices, analysed = self._run(
+        observation, state, segments, choices, frame = self._run(
             image, frame_index, time_s, previous
         )
+        # The overlay's picture: the frame undistorted as it came (in colour for a colour frame);
+        # perception itself worked on its gray version.
+        analysed = frame if self.undistorter is None else self.undistorter.apply(frame)
         lines, left, right = choices
         flat = (
             np.zeros((0, 4), dtype=np.int32)
@@ -202,10 +209,15 @@ class LaneDetector:
     ]:
         _check_image(image)
         if self.undistorter is not None:
-            image = self.undistorter.apply(image)
-        height, width = image.shape[:2]
-        state = self.setup_for(width, height)
-        segments = self._segments(image, state)
+            # Gray first, then undistort: one channel to remap instead of three, and perception
+            # then depends on the frame only through `perception_gray(frame)`, which is what a
+            # lossless recording stores (lanewarden/recording.py) for an exact replay.
+            gray = self.undistorter.apply(perception_gray(image))
+            state = self.setup_for(gray.shape[1], gray.shape[0])
+        else:
+            state = self.setup_for(image.shape[1], image.shape[0])
+            gray = perception_gray(image, dst=state.gray)
+        segments = self._segments(gray, state)
         config = self.config
         lines = build_line_set(segments, state.smooth, state.y_bottom, state.view, config.edges,
                                config.tape)
@@ -214,17 +226,9 @@ class LaneDetector:
         observation = self._observe(rows, left, right, state, frame_index, time_s, previous)
         return observation, state, segments, (lines, left, right), image
 
-    def _segments(self, image: np.ndarray, state: SizeSetup) -> NDArray[np.int32] | None:
-        """gray -> blur -> Canny -> ROI mask -> HoughLinesP, into the preallocated buffers."""
+    def _segments(self, gray: np.ndarray, state: SizeSetup) -> NDArray[np.int32] | None:
+        """(gray) -> blur -> Canny -> ROI mask -> HoughLinesP, into the preallocated buffers."""
         canny = self.config.canny
-        if image.ndim == 2:
-            gray = image
-        elif image.shape[2] == 1:
-            gray = image[:, :, 0]
-        elif image.shape[2] == 3:
-            gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY, dst=state.gray)
-        else:
-            gray = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY, dst=state.gray)
         if state.blur_kernel[0] > 1:
             cv2.GaussianBlur(
                 gray, state.blur_kernel, self.config.blur.sigma_px, dst=state.smooth
@@ -346,6 +350,19 @@ def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]
     d = (math.cos(heading), math.sin(heading))
     offset = 0.5 * (signed_offset(left.point, d) + signed_offset(right.point, d))
     return offset, heading
+
+
+def perception_gray(image: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
+    """The 8-bit gray image perception works on, from an HxW gray, HxWx1, HxWx3 BGR or HxWx4
+    BGRA uint8 frame (OpenCV's BGR2GRAY weights; `dst`: a preallocated HxW buffer, used for a
+    colour frame). Everything perception computes from a frame depends on it only through this
+    image, so a recording that keeps it keeps all perception needs."""
+    if image.ndim == 2:
+        return image
+    if image.shape[2] == 1:
+        return image[:, :, 0]
+    code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+    return cv2.cvtColor(image, code, dst=dst)
 
 
 def _check_image(image: object) -> None:

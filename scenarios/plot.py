@@ -33,8 +33,11 @@ FloatArray = NDArray[np.float64]
 
 #: Lane decisions, drawn bottom to top in the decision panel.
 DECISIONS = ("FOLLOW", "TURN_RIGHT", "TURN_LEFT")
-#: Width of the windows the decision panel shares are computed over, seconds.
+#: Width of the windows the decision panel shares are computed over, seconds (wider for a run
+#: longer than MAX_DECISION_BINS windows: a replayed hour would be 7200 bars, and a window
+#: count that grows with the run's span would let a forged recording cost minutes to draw).
 DECISION_BIN_S = 0.5
+MAX_DECISION_BINS = 600
 #: The state strip's three bands: HALT, DEGRADED, and any decision state drawn as "driving".
 DRIVING = "driving"
 _DRIVING_COLOR = (150, 190, 120)
@@ -170,8 +173,10 @@ def _draw_decisions(ax: Axes, times: FloatArray, states: Sequence[str]) -> None:
     """The lane decision's share of each DECISION_BIN_S, stacked."""
     from matplotlib.patches import Patch
 
-    starts, shares = decision_shares(times, states)
-    edges = np.append(starts, starts[-1] + DECISION_BIN_S) if len(starts) else starts
+    span = float(times[-1] - times[0]) if len(times) else 0.0
+    bin_s = max(DECISION_BIN_S, span / MAX_DECISION_BINS)
+    starts, shares = decision_shares(times, states, bin_s)
+    edges = np.append(starts, starts[-1] + bin_s) if len(starts) else starts
     bottom = np.zeros(len(starts))
     for decision in DECISIONS:
         share = shares[decision]
@@ -179,7 +184,7 @@ def _draw_decisions(ax: Axes, times: FloatArray, states: Sequence[str]) -> None:
                   label=decision)
         bottom = bottom + share
     ax.set_ylim(0, 1)
-    ax.set_ylabel(f"lane decision\n(share of each\n{DECISION_BIN_S:g} s)")
+    ax.set_ylabel(f"lane decision\n(share of each\n{bin_s:.3g} s)")
     handles, _ = ax.get_legend_handles_labels()
     handles.append(Patch(facecolor="white", edgecolor="0.6",
                          label="no decision (HALT or DEGRADED)"))

@@ -1,7 +1,8 @@
 """`lanewarden replay SOURCE`: perception and the supervisor on recorded frames, with the same
-outputs as `sim`; for a run folder, a step-by-step comparison with the recording.
+outputs as `sim`; for a recorded run, a step-by-step comparison with the recording.
 
-A thin shell over `lanewarden.replay` and `lanewarden.replay_outputs`.
+A thin shell over `lanewarden.replay_sources`, `lanewarden.replay` and
+`lanewarden.replay_outputs`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ REPLAY_EXAMPLES = """\b
 Examples:
   lanewarden replay runs/2026-11-05T14-03-12Z --check
   lanewarden replay clip.mp4 --out out/clip
+  lanewarden replay my_bag/ --topic /camera/image_raw/compressed
   lanewarden replay my-tub/ --config track.yaml --calibration tub-camera.yaml
 """
 
@@ -31,25 +33,30 @@ Examples:
               help="Camera calibration (default: the run folder's own, else none).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=None,
               help=f"Who drives (default: the recorded run's, else {DEFAULT_CONTROLLER}).")
+@click.option("--topic", default=None,
+              help="The image topic of a ROS 2 bag (sensor_msgs/msg/Image or CompressedImage); "
+              "needed when the bag has several.")
 @click.option("--no-video", is_flag=True, help="Skip video.mp4 (faster).")
 @click.option("--check", is_flag=True,
               help="Exit with code 2 when a replayed step differs from the recorded run (or the "
               "recording cannot be replayed exactly).")
 def replay_command(source: str, out_dir: str | None, config_path: str | None,
-                   calibration_path: str | None, controller: str | None, no_video: bool,
-                   check: bool) -> None:
-    """Replay SOURCE (a run folder, a video file, a folder or glob of images, or a Donkeycar tub)
-    on a fake clock at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png,
-    metrics.json, run.jsonl, report.html}, as `sim` writes them. A run folder replays with its
-    own recorded config and calibration unless --config/--calibration say otherwise, and every
-    step is compared."""
+                   calibration_path: str | None, controller: str | None, topic: str | None,
+                   no_video: bool, check: bool) -> None:
+    """Replay SOURCE (a run folder or its run.mcap, a ROS 2 bag: .mcap, .db3 or a rosbag2
+    folder, a video file, a folder or glob of camera frames, or a Donkeycar tub) on a fake clock
+    at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png, metrics.json, run.jsonl,
+    report.html}, as `sim` writes them. A recorded run replays with its own recorded config and
+    calibration unless --config/--calibration say otherwise, and every step is compared."""
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
-    from lanewarden.replay import open_replay_source, replay_config
     from lanewarden.replay_outputs import ReplayRequest, run_replay
+    from lanewarden.replay_sources import open_replay_source, replay_config
 
-    rate_hz = 1.0 / load_config(config_path).supervisor.camera_period_s
-    replay_source = open_replay_source(source, rate_hz)
+    given = load_config(config_path)
+    replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
+                                       topic=topic,
+                                       max_pixels=given.perception.max_image_pixels)
     config = replay_config(replay_source, config_path)
     calibration = (load_calibration(calibration_path) if calibration_path
                    else replay_source.calibration)
@@ -65,6 +72,9 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     click.echo(f"  states visited: {', '.join(metrics['states_visited'])}; final state "
                f"{metrics['final_state']}"
                + (f" ({metrics['halt_reason']})" if metrics.get("halt_reason") else ""))
+    if replay_source.kind == "bag":
+        click.echo(f"  topic {replay_source.meta['topic']}, timed by its "
+                   f"{replay_source.meta['times']}")
     if replay_source.kind == "run":
         if metrics["reproduced"]:
             click.echo(f"  reproduced: all {metrics['compared_steps']} steps match the recording "
@@ -72,7 +82,9 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         else:
             click.echo(f"  DIVERGES at {metrics['first_divergence']['text']} "
                        f"({metrics['divergent_steps']} steps differ)")
-        if not metrics["exact_input"]:
+        for why in metrics["incomplete"]:
+            click.echo(f"  the recording is incomplete: {why}")
+        if not metrics["exact_input"] and not metrics["incomplete"]:
             click.echo(f"  the recording is not exact ({metrics['frames_missing']} frames missing"
                        f"{'' if replay_source.meta.get('lossless') else ', lossy frames'}): the "
                        "replay cannot be exact")
@@ -83,6 +95,9 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and not metrics["reproduced"]:
         raise QualityGateError(f"replay {source}: diverges from the recording at "
                                f"{metrics['first_divergence']['text']}")
+    if check and metrics["incomplete"]:
+        raise QualityGateError(f"replay {source}: the recording is incomplete "
+                               f"({metrics['incomplete'][0]}), so it cannot be checked")
     if check and not metrics["exact_input"]:
         raise QualityGateError(f"replay {source}: the recording is not exact (frames dropped or "
                                "lossy), so it cannot be checked")

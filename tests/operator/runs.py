@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from lanewarden.ros_bag import McapFile, decode
+from lanewarden.run_mcap import STEP_TOPIC
 from tests.operator.clips import lane_end_frames, write_images, write_video
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -47,16 +49,14 @@ def moving(packets: list[Any]) -> bool:
 
 
 def steps(folder: Path) -> list[dict[str, Any]]:
-    """The recorded steps so far (a line being written is skipped)."""
-    path = folder / "run.jsonl"
+    """The recorded steps so far (the steps of run.mcap's chunks written so far; a chunk being
+    written is not read yet)."""
+    path = folder / "run.mcap"
     if not path.exists():
         return []
     out = []
-    for line in path.read_text().splitlines():
-        try:
-            out.append(json.loads(line))
-        except ValueError:
-            break
+    for message in McapFile(path).messages(lambda topic: topic.name == STEP_TOPIC):
+        out.append(json.loads(decode(message, str(path)).record))
     return out
 
 

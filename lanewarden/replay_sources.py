@@ -1,0 +1,674 @@
+"""What `lanewarden replay SOURCE` replays: the steps, where their images are, and for a recorded
+run what it recorded. `open_replay_source` recognises SOURCE:
+
+- a run folder (`lanewarden run --record`): its run.mcap (format 2, lanewarden.run_mcap), or the
+  run.jsonl and frames/ of format 1; a Lanewarden run.mcap on its own is the same recording
+  (it carries its meta, config and calibration). Its steps are fed back exactly as recorded;
+- a ROS 2 bag (an .mcap or .db3 file, or a rosbag2 folder with metadata.yaml) with a
+  `sensor_msgs/msg/Image` or `CompressedImage` topic (the only one, or `--topic`): one step per
+  image at its header stamp;
+- a Donkeycar tub (catalog_*.catalog + images/): one step per record at its `_timestamp_ms`;
+- a video file, or a folder or glob of camera frames (images of one size): one step per frame at
+  the video's frame rate or the configured camera rate.
+
+Everything read is bounded and checked before it costs time or memory (a recording is input like
+any other file): the YAML documents by lanewarden.documents' limits, every recorded step by
+lanewarden.run_record (types, finite and increasing times, a bounded span), images by
+`perception.max_image_pixels` from their header before decoding, MCAP and bag files by
+lanewarden.ros_bag. A problem is one line naming the file (and line, message or field): a
+`UsageError` or `InputFileError`, exit code 2. A recording that is readable but not whole (cut
+short, its last line damaged, no summary) replays as far as it goes and says so in `incomplete`.
+
+Never reads a clock, never prints.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from lanewarden.actuation.base import BaseFeedback
+from lanewarden.camera_source import image_sequence_paths, quiet_opencv
+from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
+from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
+from lanewarden.errors import ConfigError, InputFileError, UsageError
+from lanewarden.image_files import header_problem, read_image, too_many_pixels
+from lanewarden.perception.calibration import CameraCalibration, load_calibration
+from lanewarden.perception.errors import PerceptionError
+from lanewarden.ros_bag import Bag, BagMessage, BagTopic, McapFile, decode, is_bag, open_bag
+from lanewarden.run_mcap import (
+    CALIBRATION_ATTACHMENT,
+    COMPRESSED_IMAGE,
+    CONFIG_ATTACHMENT,
+    IMAGE,
+    IMAGE_TOPIC,
+    META_NAME,
+    STEP_TOPIC,
+    SUMMARY_NAME,
+)
+from lanewarden.run_record import (
+    MAX_RUN_DURATION_S,
+    MAX_STEP_BYTES,
+    MAX_STEPS,
+    READABLE_FORMATS,
+    RecordedStep,
+    StepError,
+    StepInput,
+    StepTimes,
+    read_step,
+)
+
+SOURCE_HELP = ("a run folder (lanewarden run --record) or its run.mcap, a ROS 2 bag (.mcap, .db3 "
+               "or a rosbag2 folder), a video file, a folder or glob of camera frames, or a "
+               "Donkeycar tub")
+RUN_MCAP = "run.mcap"
+#: Files that mark a folder as lanewarden's own output (sim, replay, demo), not a recording.
+OUTPUT_MARKERS = ("metrics.json", "report.html")
+#: sensor_msgs/msg/Image encodings replay decodes, and how to make BGR (or gray) of them.
+RAW_ENCODINGS: dict[str, tuple[int, int | None]] = {
+    "mono8": (1, None), "8UC1": (1, None), "bgr8": (3, None), "8UC3": (3, None),
+    "rgb8": (3, cv2.COLOR_RGB2BGR), "bgra8": (4, None), "rgba8": (4, cv2.COLOR_RGBA2BGR),
+    "yuv422_yuy2": (2, cv2.COLOR_YUV2BGR_YUY2), "yuyv": (2, cv2.COLOR_YUV2BGR_YUY2),
+}
+IMAGE_TYPES = (IMAGE, COMPRESSED_IMAGE)
+
+
+# ---- where the images come from ---------------------------------------------------------------
+class FrameStore:
+    """Images by frame index. Subclasses: files, a video, a run's or a bag's messages."""
+
+    def image(self, index: int) -> np.ndarray | None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+
+class PathFrames(FrameStore):
+    """Frame i is `paths[i]`; a missing, unreadable or too large file is None."""
+
+    def __init__(self, paths: list[Path], max_pixels: int) -> None:
+        self.paths = paths
+        self.max_pixels = max_pixels
+
+    def image(self, index: int) -> np.ndarray | None:
+        if not 0 <= index < len(self.paths):
+            return None
+        image, _ = read_image(self.paths[index], cv2.IMREAD_UNCHANGED, self.max_pixels)
+        return image if image is not None and image.dtype == np.uint8 else None
+
+
+class RunFolderFrames(PathFrames):
+    """A format-1 run folder's frames/%06d.png (or .jpg)."""
+
+    def __init__(self, folder: Path, suffix: str, max_pixels: int) -> None:
+        super().__init__([], max_pixels)
+        self.folder = folder
+        self.suffix = suffix
+
+    def path(self, index: int) -> Path:
+        return self.folder / f"{index:06d}{self.suffix}"
+
+    def image(self, index: int) -> np.ndarray | None:
+        image, _ = read_image(self.path(index), cv2.IMREAD_UNCHANGED, self.max_pixels)
+        return image
+
+
+class VideoFrames(FrameStore):
+    """Decodes forward only (replay asks for increasing indices)."""
+
+    def __init__(self, capture: cv2.VideoCapture) -> None:
+        self._capture = capture
+        self._index = -1
+        self._image: np.ndarray | None = None
+
+    def image(self, index: int) -> np.ndarray | None:
+        while self._index < index:
+            ok, image = self._capture.read()
+            if not ok:
+                return None
+            self._index += 1
+            self._image = image
+        return self._image if self._index == index else None
+
+    def close(self) -> None:
+        self._capture.release()
+
+
+def _decode_encoded(data: bytes) -> np.ndarray | None:
+    try:
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        return None
+    return image if image is not None and image.dtype == np.uint8 and image.size else None
+
+
+def _decode_raw(message: Any) -> np.ndarray | None:
+    channels, conversion = RAW_ENCODINGS[message.encoding]
+    rows = np.frombuffer(message.data, np.uint8)[: message.step * message.height]
+    rows = rows.reshape(message.height, message.step)[:, : message.width * channels]
+    image = rows.reshape(message.height, message.width, channels)
+    if channels == 1:
+        return np.ascontiguousarray(image[:, :, 0])
+    return cv2.cvtColor(image, conversion) if conversion is not None else image.copy()
+
+
+class MessageFrames(FrameStore):
+    """Frames from a bag's or run.mcap's image messages, decoded forward only. Frame i is the
+    message whose key is i: its `sequence` (a Lanewarden run.mcap: the frame index) or its
+    position on the topic (a bag)."""
+
+    def __init__(self, bag: Bag, topic: str, *, by_sequence: bool) -> None:
+        self._messages: Iterator[BagMessage] = bag.messages(lambda t: t.name == topic)
+        self._by_sequence = by_sequence
+        self._pending: BagMessage | None = None
+        self._cache: tuple[int, np.ndarray | None] | None = None
+        self._where = str(bag.path)
+
+    def _key(self, message: BagMessage) -> int:
+        return message.sequence if self._by_sequence else message.number - 1
+
+    def image(self, index: int) -> np.ndarray | None:
+        if self._cache is not None and self._cache[0] == index:
+            return self._cache[1]
+        while True:
+            message = self._pending or next(self._messages, None)
+            self._pending = None
+            if message is None:
+                return None
+            key = self._key(message)
+            if key < index:
+                continue
+            if key > index:
+                self._pending = message  # this index was not recorded (dropped)
+                return None
+            decoded = decode(message, self._where)
+            if message.topic.type == IMAGE:
+                image = _decode_raw(decoded)
+            else:
+                image = _decode_encoded(bytes(decoded.data))
+            self._cache = (index, image)
+            return image
+
+
+# ---- the source -------------------------------------------------------------------------------
+@dataclass
+class ReplaySource:
+    """What to replay: the steps, where their images are, and for a run what it recorded."""
+
+    kind: str  # "run", "bag", "video", "images", "tub"
+    name: str
+    steps: list[StepInput]
+    frames: FrameStore
+    recorded: list[RecordedStep] | None = None
+    config: LanewardenConfig | None = None
+    calibration: CameraCalibration | None = None
+    controller: str | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    config_origin: str = "defaults"
+    #: Why a recorded run is not whole (cut short, a damaged last line, no summary): it replays
+    #: as far as it goes, and cannot be checked.
+    incomplete: list[str] = field(default_factory=list)
+    #: A recorded run's frame indices that are there (None: every one its steps name).
+    frames_recorded: set[int] | None = None
+
+
+def _synthetic_steps(times: list[float]) -> list[StepInput]:
+    """One step per frame at its time, feedback always fresh, a start at the first step."""
+    return [StepInput(t=t, frame=(i, t), feedback=BaseFeedback(received_at_s=t),
+                      requests=("start",) if i == 0 else ())
+            for i, t in enumerate(times)]
+
+
+def _check_times(times: list[float], where: str, unit: str) -> None:
+    """Strictly increasing, finite, within MAX_RUN_DURATION_S: else one line naming where."""
+    for i in range(1, len(times)):
+        if not times[i] > times[i - 1]:
+            raise InputFileError(f"{where}: {unit} {i + 1} is at {times[i]!r} s, not after "
+                                 f"{unit} {i} ({times[i - 1]!r} s); times must increase")
+    if times and times[-1] - times[0] > MAX_RUN_DURATION_S:
+        raise InputFileError(f"{where}: spans {times[-1] - times[0]:.0f} s, more than a "
+                             f"recording may ({MAX_RUN_DURATION_S:.0f} s)")
+
+
+def _read_small(path: Path, what: str) -> bytes:
+    try:
+        with path.open("rb") as stream:
+            data = stream.read(MAX_DOCUMENT_BYTES + 1)
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    if len(data) > MAX_DOCUMENT_BYTES:
+        raise InputFileError(f"{path}: the {what} is larger than {MAX_DOCUMENT_BYTES // 1000} kB, "
+                             "refusing to read it")
+    return data
+
+
+def _json_object(data: bytes, where: str, what: str) -> dict[str, Any]:
+    try:
+        value = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputFileError(f"{where}: the {what} is not JSON ({shorten(str(exc))})") from None
+    if not isinstance(value, dict):
+        raise InputFileError(f"{where}: the {what} is not a JSON object")
+    return value
+
+
+def _recorded_config(text: bytes, where: str) -> LanewardenConfig:
+    try:
+        data = parse_yaml_text(text.decode("utf-8"), where, ConfigError)
+    except UnicodeDecodeError:
+        raise ConfigError(f"{where}: not UTF-8 text") from None
+    return config_from_mapping(data, where)
+
+
+def _recorded_calibration(data: bytes, where: str) -> CameraCalibration:
+    """A calibration carried inside a recording, read by the same code as a file."""
+    if len(data) > MAX_DOCUMENT_BYTES:
+        raise InputFileError(f"{where}: larger than {MAX_DOCUMENT_BYTES // 1000} kB, refusing "
+                             "to read it")
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / CALIBRATION_ATTACHMENT
+        path.write_bytes(data)
+        try:
+            return load_calibration(path)
+        except PerceptionError as exc:
+            raise InputFileError(f"{where}: {str(exc).removeprefix(f'{path}: ')}") from None
+
+
+def _step_problem(where: str, exc: StepError | str) -> InputFileError:
+    return InputFileError(f"{where}: {exc}; not a recorded step lanewarden can replay")
+
+
+class _StepReader:
+    """Recorded steps in order, each checked (run_record.read_step, StepTimes, MAX_STEPS)."""
+
+    def __init__(self) -> None:
+        self.steps: list[StepInput] = []
+        self.recorded: list[RecordedStep] = []
+        self._times = StepTimes()
+
+    def add(self, line: object, where: str) -> None:
+        if len(self.steps) >= MAX_STEPS:
+            raise InputFileError(f"{where}: more than {MAX_STEPS} steps; longer than a "
+                                 "recording replay reads")
+        try:
+            step_input, recorded = read_step(line)
+        except StepError as exc:
+            raise _step_problem(where, exc) from None
+        problem = self._times.check(step_input.t)
+        if problem:
+            raise _step_problem(where, problem)
+        self.steps.append(step_input)
+        self.recorded.append(recorded)
+
+
+def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
+    """A format-2 recording: its steps, meta, config, calibration and summary from run.mcap."""
+    bag = Bag(path, [McapFile(path)])
+    mcap = bag.files[0]
+    assert isinstance(mcap, McapFile)
+    reader = _StepReader()
+    recorded_frames: set[int] = set()
+    for message in bag.messages(lambda t: t.name in (STEP_TOPIC, IMAGE_TOPIC)):
+        where = f"{path}: {message.topic.name} message {message.number}"
+        if message.topic.name == IMAGE_TOPIC:
+            _check_image_message(message, decode(message, str(path)), where, max_pixels)
+            recorded_frames.add(message.sequence)
+            continue
+        if not reader.steps:
+            _check_format(mcap, path)
+        text = decode(message, str(path)).record
+        if len(text) > MAX_STEP_BYTES:
+            raise _step_problem(where, f"record is {len(text)} characters (at most "
+                                f"{MAX_STEP_BYTES})")
+        try:
+            line = json.loads(text)
+        except ValueError as exc:
+            raise _step_problem(where, f"record is not JSON ({shorten(str(exc))})") from None
+        reader.add(line, where)
+    meta = _check_format(mcap, path)
+    if not reader.steps:
+        raise InputFileError(f"{path}: no recorded steps")
+    incomplete = []
+    summary: dict[str, Any] = {}
+    if SUMMARY_NAME in mcap.metadata:
+        summary = _json_object(mcap.metadata[SUMMARY_NAME].get("summary", "").encode(),
+                               str(path), "recorded summary")
+    if mcap.cut_short is not None:
+        incomplete.append(f"{path.name} was cut short after {len(reader.steps)} steps (it "
+                          f"{mcap.cut_short}): the run was killed or its disk filled")
+    elif not summary:
+        incomplete.append(f"{path.name} has no summary: the run did not end normally")
+    config = calibration = None
+    if CONFIG_ATTACHMENT in mcap.attachments:
+        config = _recorded_config(mcap.attachments[CONFIG_ATTACHMENT],
+                                  f"{path}:{CONFIG_ATTACHMENT}")
+    if CALIBRATION_ATTACHMENT in mcap.attachments:
+        calibration = _recorded_calibration(mcap.attachments[CALIBRATION_ATTACHMENT],
+                                            f"{path}:{CALIBRATION_ATTACHMENT}")
+    return ReplaySource(
+        kind="run", name=name, steps=reader.steps,
+        frames=MessageFrames(bag, IMAGE_TOPIC, by_sequence=True), recorded=reader.recorded,
+        config=config, calibration=calibration, controller=meta.get("controller"), meta=meta,
+        summary=summary, incomplete=incomplete, frames_recorded=recorded_frames,
+        config_origin=(f"recorded ({path}:{CONFIG_ATTACHMENT})" if config is not None
+                       else "defaults"))
+
+
+def _check_format(mcap: McapFile, path: Path) -> dict[str, Any]:
+    """The recording's meta; InputFileError when its format is not one replay reads."""
+    record = mcap.metadata.get(META_NAME)
+    if record is None:
+        raise InputFileError(f"{path}: no '{META_NAME}' metadata record before its steps; not "
+                             "a Lanewarden recording")
+    meta = _json_object(record.get("meta", "").encode(), str(path), "recorded meta")
+    if meta.get("format") not in READABLE_FORMATS:
+        raise InputFileError(f"{path}: recording format {meta.get('format')!r}, this lanewarden "
+                             f"replays formats {', '.join(map(str, READABLE_FORMATS))}")
+    return meta
+
+
+def _is_run_mcap(path: Path) -> bool:
+    """A Lanewarden recording: its 'lanewarden' metadata comes before its first message."""
+    mcap = McapFile(path)
+    for _ in mcap.messages():
+        break
+    return META_NAME in mcap.metadata
+
+
+def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
+    """A format-1 run folder: meta.json, run.jsonl, frames/, config.yaml, calibration.yaml."""
+    meta = _json_object(_read_small(folder / "meta.json", "recording's meta.json"),
+                        str(folder / "meta.json"), "recording's meta.json")
+    if meta.get("format") != 1:
+        raise InputFileError(f"{folder / 'meta.json'}: recording format {meta.get('format')!r} "
+                             "with a run.jsonl; this lanewarden replays format 1 that way")
+    run_log = folder / "run.jsonl"
+    reader = _StepReader()
+    incomplete = []
+    try:
+        stream = run_log.open("rb")
+    except OSError as exc:
+        raise InputFileError(f"{run_log}: cannot read ({exc.strerror or exc})") from None
+    with stream:
+        number = 0
+        while raw := stream.readline(MAX_STEP_BYTES + 1):
+            number += 1
+            where = f"{run_log}:{number}"
+            if len(raw) > MAX_STEP_BYTES:
+                raise _step_problem(where, f"a line longer than {MAX_STEP_BYTES} bytes")
+            if not raw.strip():
+                continue
+            try:
+                line = json.loads(raw)
+            except ValueError as exc:
+                if not raw.endswith(b"\n") and not stream.read(1):
+                    incomplete.append(f"the last line of run.jsonl ({number}) is cut short: "
+                                      "the run was killed or its disk filled")
+                    break
+                raise _step_problem(where, f"not JSON ({shorten(str(exc))})") from None
+            reader.add(line, where)
+    if not reader.steps:
+        raise InputFileError(f"{run_log}: no recorded steps")
+    config_path = folder / "config.yaml"
+    config = load_config(config_path) if config_path.exists() else None
+    calibration_path = folder / "calibration.yaml"
+    calibration = load_calibration(calibration_path) if calibration_path.exists() else None
+    summary_path = folder / "summary.json"
+    summary: dict[str, Any] = {}
+    if summary_path.exists():
+        summary = _json_object(_read_small(summary_path, "recording's summary"),
+                               str(summary_path), "recording's summary")
+    else:
+        incomplete.append("no summary.json: the run did not end normally (killed, or its disk "
+                          "filled)")
+    pattern = str(meta.get("frames", "frames/%06d.png"))
+    suffix = ".jpg" if pattern.endswith(".jpg") else ".png"
+    return ReplaySource(
+        kind="run", name=folder.name, steps=reader.steps,
+        frames=RunFolderFrames(folder / "frames", suffix, max_pixels),
+        recorded=reader.recorded, config=config, calibration=calibration,
+        controller=meta.get("controller"), meta=meta, summary=summary, incomplete=incomplete,
+        config_origin=f"recorded ({config_path})" if config is not None else "defaults")
+
+
+def _check_image_message(message: BagMessage, decoded: Any, where: str,
+                         max_pixels: int) -> float:
+    """The image's header stamp (seconds), once its size and encoding check out."""
+    try:
+        stamp = decoded.header.stamp
+        sec, nanosec = int(stamp.sec), int(stamp.nanosec)
+        if message.topic.type == IMAGE:
+            width, height = int(decoded.width), int(decoded.height)
+            if decoded.encoding not in RAW_ENCODINGS:
+                raise InputFileError(
+                    f"{where}: encoding {shorten(repr(decoded.encoding))} is not one replay "
+                    f"decodes ({', '.join(RAW_ENCODINGS)})")
+            channels = RAW_ENCODINGS[decoded.encoding][0]
+            if width <= 0 or height <= 0 or decoded.step < width * channels or (
+                    len(decoded.data) < decoded.step * height):
+                raise InputFileError(
+                    f"{where}: a {width}x{height} {decoded.encoding} image with step "
+                    f"{decoded.step} and {len(decoded.data)} bytes of data does not add up")
+            problem = too_many_pixels(width, height, max_pixels)
+        else:
+            problem = header_problem(io.BytesIO(bytes(decoded.data)), max_pixels)
+    except AttributeError:
+        raise InputFileError(f"{where}: not a {message.topic.type}") from None
+    if problem:
+        raise InputFileError(f"{where}: {problem}")
+    if not 0 <= nanosec < 1_000_000_000:
+        raise InputFileError(f"{where}: header.stamp.nanosec = {nanosec}: expected 0 to "
+                             "999999999")
+    return sec + nanosec * 1e-9
+
+
+def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
+    """A ROS 2 bag's image topic: one step per image at its header stamp."""
+    bag = open_bag(path)
+    stamps: dict[str, list[float]] = {}
+    logged: dict[str, list[float]] = {}
+
+    def is_image(bag_topic: BagTopic) -> bool:
+        return bag_topic.type in IMAGE_TYPES and (topic is None or bag_topic.name == topic)
+
+    for message in bag.messages(is_image):
+        where = f"{path}: {message.topic.name} message {message.number}"
+        stamp = _check_image_message(message, decode(message, str(path)), where, max_pixels)
+        stamps.setdefault(message.topic.name, []).append(stamp)
+        logged.setdefault(message.topic.name, []).append(message.log_time_ns * 1e-9)
+        if len(stamps[message.topic.name]) > MAX_STEPS:
+            raise InputFileError(f"{where}: more than {MAX_STEPS} images; longer than replay "
+                                 "reads")
+    topics = bag.topics
+    if topic is not None and topic not in stamps:
+        found = topics.get(topic)
+        raise UsageError(f"--topic {topic}: " + (
+            f"is {found.type}, not an image topic" if found is not None and found.type not in
+            IMAGE_TYPES else "has no images in " + str(path)) + "; image topics: "
+            + _candidates(topics, stamps))
+    if topic is None:
+        if not stamps:
+            raise InputFileError(f"{path}: no sensor_msgs/msg/Image or CompressedImage messages "
+                                 f"(topics: {', '.join(sorted(topics)) or 'none'})")
+        if len(stamps) > 1:
+            raise UsageError(f"SOURCE '{path}': several image topics, choose one with --topic: "
+                             + _candidates(topics, stamps))
+        topic = next(iter(stamps))
+    times = stamps[topic]
+    note = "header stamps"
+    if not any(times):  # a driver that does not stamp its images: the bag's receive times
+        times, note = logged[topic], "receive times (the header stamps are all zero)"
+    _check_times(times, f"{path}: {topic}", "image")
+    start = times[0]
+    rel = [t - start for t in times]
+    return ReplaySource(kind="bag", name=f"{path.stem or path.name}", steps=_synthetic_steps(rel),
+                        frames=MessageFrames(bag, topic, by_sequence=False),
+                        meta={"topic": topic, "times": note,
+                              "frames_per_s_recorded": len(rel) / max(rel[-1], 1e-9)})
+
+
+def _candidates(topics: dict[str, BagTopic], stamps: dict[str, list[float]]) -> str:
+    return ", ".join(f"{name} ({topics[name].type.rsplit('/', 1)[-1]}, {len(times)} images)"
+                     for name, times in sorted(stamps.items())) or "none"
+
+
+def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySource:
+    records: list[dict[str, Any]] = []
+    for catalog in catalogs:
+        for number, raw in enumerate(catalog.read_text(encoding="utf-8").splitlines(), 1):
+            if raw.strip():
+                try:
+                    records.append(json.loads(raw))
+                except ValueError as exc:
+                    raise UsageError(f"{catalog}:{number}: not a JSON record ({exc})") from exc
+    deleted: set[int] = set()
+    manifest = folder / "manifest.json"
+    if manifest.exists():
+        for raw in manifest.read_text(encoding="utf-8").splitlines():
+            try:
+                entry = json.loads(raw)
+            except ValueError:
+                continue
+            if isinstance(entry, dict):
+                deleted |= set(entry.get("deleted_indexes", []))
+    records = [r for r in records if r.get("_index") not in deleted]
+    try:
+        records.sort(key=lambda r: int(r["_index"]))
+        paths = [folder / "images" / str(r["cam/image_array"]) for r in records]
+        stamps = [float(r["_timestamp_ms"]) / 1000.0 for r in records]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(f"{folder}: a tub record lacks _index, _timestamp_ms or cam/image_array "
+                         f"({exc})") from exc
+    if not records:
+        raise UsageError(f"{folder}: the tub holds no records")
+    if not all(math.isfinite(s) for s in stamps):
+        raise UsageError(f"{folder}: a tub record's _timestamp_ms is not a finite number")
+    times = [t - stamps[0] for t in stamps]
+    if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        raise UsageError(f"{folder}: the tub's _timestamp_ms do not increase frame to frame")
+    _check_times(times, str(folder), "record")
+    return ReplaySource(kind="tub", name=folder.name, steps=_synthetic_steps(times),
+                        frames=PathFrames(paths, max_pixels),
+                        meta={"frames_per_s_recorded": len(times) / max(times[-1], 1e-9)})
+
+
+def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
+                    camera_rate_hz: float) -> ReplaySource:
+    """A folder or glob of camera frames: images of one size (from their headers)."""
+    if not paths:
+        raise UsageError(f"SOURCE '{source}': no images there; expected {SOURCE_HELP}")
+    from PIL import Image, UnidentifiedImageError
+
+    sizes: dict[tuple[int, int], Path] = {}
+    for path in paths:
+        if problem := header_problem(path, max_pixels):
+            raise InputFileError(f"{path}: {problem}")
+        try:
+            with Image.open(path) as image:
+                sizes.setdefault((int(image.size[0]), int(image.size[1])), path)
+        except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+            continue  # a format Pillow does not know: judged when decoded
+        if len(sizes) > 1:
+            (a, path_a), (b, path_b) = list(sizes.items())[:2]
+            raise UsageError(
+                f"SOURCE '{source}': images of different sizes ({path_a.name} {a[0]}x{a[1]}, "
+                f"{path_b.name} {b[0]}x{b[1]}): not a sequence of camera frames; expected "
+                f"{SOURCE_HELP}")
+    times = [i / camera_rate_hz for i in range(len(paths))]
+    path = Path(source)
+    return ReplaySource(kind="images", name=path.name or source, steps=_synthetic_steps(times),
+                        frames=PathFrames(paths, max_pixels))
+
+
+def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
+    with quiet_opencv():
+        capture = cv2.VideoCapture(str(path))
+        opened = capture.isOpened()
+    count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT) or 0) if opened else 0
+    if not opened or count <= 0:
+        capture.release()
+        raise UsageError(f"SOURCE '{source}': not a video OpenCV can read; expected "
+                         f"{SOURCE_HELP}")
+    fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
+    fps = fps if 1.0 <= fps <= 240.0 else camera_rate_hz
+    times = [i / fps for i in range(count)]
+    return ReplaySource(kind="video", name=path.stem, steps=_synthetic_steps(times),
+                        frames=VideoFrames(capture), meta={"fps": fps})
+
+
+def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
+            camera_rate_hz: float) -> ReplaySource:
+    if (path / RUN_MCAP).is_file():
+        return _load_run_mcap(path / RUN_MCAP, path.name, max_pixels)
+    if (path / "run.jsonl").is_file() and (path / "meta.json").is_file():
+        return _load_legacy_run(path, max_pixels)
+    if (path / "meta.json").is_file():
+        raise InputFileError(f"{path}: a run folder without its recording ({RUN_MCAP} or "
+                             "run.jsonl)")
+    if is_bag(path):
+        return _load_bag(path, topic, max_pixels)
+    catalogs = sorted(path.glob("catalog_*.catalog"))
+    if catalogs and (path / "images").is_dir():
+        return _load_tub(path, catalogs, max_pixels)
+    markers = [name for name in OUTPUT_MARKERS if (path / name).exists()]
+    if markers:
+        raise UsageError(f"SOURCE '{source}': an output folder of lanewarden sim, replay or demo "
+                         f"({', '.join(markers)}), not a recording; expected {SOURCE_HELP}")
+    paths = image_sequence_paths(source)
+    if not paths:
+        raise UsageError(f"SOURCE '{source}': no recording and no images there; expected "
+                         f"{SOURCE_HELP}")
+    return _frame_sequence(source, paths, max_pixels, camera_rate_hz)
+
+
+def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None = None,
+                       max_pixels: int = LanewardenConfig().perception.max_image_pixels,
+                       ) -> ReplaySource:
+    """Recognise SOURCE (see the module docstring); one line naming it when it is none."""
+    path = Path(source)
+    if topic is not None and not is_bag(path):
+        raise UsageError(f"--topic {topic}: only for a ROS 2 bag; SOURCE '{source}' is not one")
+    if path.is_dir():
+        return _folder(path, source, topic, max_pixels, camera_rate_hz)
+    if path.is_file() and path.suffix == ".mcap" and topic is None and _is_run_mcap(path):
+        name = path.parent.name if path.name == RUN_MCAP else path.stem
+        return _load_run_mcap(path, name, max_pixels)
+    if is_bag(path):
+        return _load_bag(path, topic, max_pixels)
+    paths = image_sequence_paths(source)
+    if paths is not None:
+        return _frame_sequence(source, paths, max_pixels, camera_rate_hz)
+    if path.is_file():
+        return _video(path, source, camera_rate_hz)
+    raise UsageError(f"SOURCE '{source}': no such file or folder; expected {SOURCE_HELP}")
+
+
+def replay_config(source: ReplaySource, config_path: str | None) -> LanewardenConfig:
+    """--config wins; else the recording's own config; else the defaults."""
+    if config_path is not None:
+        source.config_origin = config_path
+        return load_config(config_path)
+    return source.config if source.config is not None else LanewardenConfig()
+
+
+def missing_frames(source: ReplaySource) -> int:
+    """Frames a run's steps name that it did not record (dropped while recording)."""
+    if source.kind != "run":
+        return 0
+    wanted = {s.frame[0] for s in source.steps if s.frame is not None}
+    if source.frames_recorded is not None:
+        return len(wanted - source.frames_recorded)
+    frames = source.frames
+    assert isinstance(frames, RunFolderFrames)
+    return sum(not frames.path(i).exists() for i in wanted)

@@ -1,0 +1,359 @@
+"""Reading ROS 2 recordings within bounds: MCAP files (a Lanewarden run.mcap or anyone's),
+rosbag2 folders (metadata.yaml + .mcap or .db3 files) and bare .db3 files.
+
+A recording is input like any other file, so nothing in one may crash the reader, make it
+allocate without bound or run for long:
+- MCAP records are walked one by one (opcode, length), each length checked against what is left
+  of the file and against `MAX_RECORD_BYTES` before anything is read; a chunk's uncompressed size
+  is checked against `MAX_CHUNK_BYTES` and decompressed with that bound (a zstd or lz4 "bomb"
+  stops there). The records themselves are parsed by the `mcap` library's record classes.
+- A file that ends before MCAP's footer was cut short (a run killed, a full disk): every whole
+  record before the cut is read and `McapFile.cut_short` says where it ended, so a replay can
+  use what there is and say the recording is incomplete.
+- Messages are CDR-decoded by `mcap-ros2-support` with the definitions this project knows
+  (lanewarden.run_mcap.DEFINITIONS: the two image types and Lanewarden's own), whatever text a
+  file embeds for them (a .db3 of ROS 2 Humble embeds none); a message that does not decode is
+  one line (`InputFileError`) naming the file, topic and message number.
+- .db3 files are SQLite databases, read through Python's own sqlite3 module, read-only; a
+  message larger than `MAX_MESSAGE_BYTES` is refused before it is fetched.
+
+Never prints, never reads a clock. Errors are `InputFileError` (exit code 2), one line each.
+"""
+
+from __future__ import annotations
+
+import io
+import sqlite3
+import struct
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import lz4.frame
+import zstandard
+from mcap.data_stream import ReadDataStream
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Chunk, Metadata, Schema
+from mcap.records import Message as McapMessage
+from mcap_ros2.decoder import DecoderFactory
+
+from lanewarden.documents import MAX_DOCUMENT_BYTES, read_yaml_document, shorten
+from lanewarden.errors import InputFileError
+from lanewarden.run_mcap import DEFINITIONS
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: Largest MCAP record read into memory (a chunk, an attachment, a message outside chunks).
+MAX_RECORD_BYTES = 128 * 1024 * 1024
+#: Largest chunk once decompressed.
+MAX_CHUNK_BYTES = 128 * 1024 * 1024
+#: Largest single message (a raw 4K colour image is 25 MB).
+MAX_MESSAGE_BYTES = 64 * 1024 * 1024
+#: Attachments are kept up to this size, plus one byte (the config and calibration a run used
+#: are a few kB; their readers refuse anything larger).
+MAX_ATTACHMENT_BYTES = MAX_DOCUMENT_BYTES
+_RECORD_HEAD = struct.Struct("<BQ")
+#: Which topics to read (None: all).
+TopicFilter = Callable[["BagTopic"], bool] | None
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    name: str
+    type: str  # the schema (message type) name, e.g. sensor_msgs/msg/Image
+    encoding: str  # the message encoding, "cdr" for ROS 2
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    topic: BagTopic
+    number: int  # 1-based, per topic, in file order: for error messages
+    sequence: int  # MCAP's sequence field (0 where the file has none)
+    log_time_ns: int
+    data: bytes
+
+
+def _problem(path: Path, offset: int, what: str) -> InputFileError:
+    return InputFileError(f"{path}: {what} at byte {offset}; not a readable MCAP recording")
+
+
+def _decompress(chunk: Chunk, path: Path, offset: int) -> bytes:
+    size = chunk.uncompressed_size
+    if size > MAX_CHUNK_BYTES:
+        raise _problem(path, offset, f"a chunk of {size} bytes uncompressed (more than "
+                       f"{MAX_CHUNK_BYTES})")
+    try:
+        if chunk.compression == "":
+            data = chunk.data
+        elif chunk.compression == "zstd":
+            with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
+                data = reader.read(size + 1)
+        elif chunk.compression == "lz4":
+            data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=size + 1)
+        else:
+            raise _problem(path, offset, f"chunk compression {chunk.compression!r} (expected "
+                           "none, zstd or lz4)")
+    except (zstandard.ZstdError, RuntimeError) as exc:
+        raise _problem(path, offset, f"a damaged compressed chunk ({shorten(str(exc))})") from None
+    if len(data) != size:
+        raise _problem(path, offset, f"a chunk of {len(data)} bytes where its header says "
+                       f"{size}")
+    return bytes(data)
+
+
+def _records(data: bytes, path: Path, base: int) -> Iterator[tuple[int, bytes, int]]:
+    """(opcode, body, offset) of every record in `data` (a chunk's content); a record running
+    past the end is a damaged chunk."""
+    position = 0
+    while position < len(data):
+        if position + _RECORD_HEAD.size > len(data):
+            raise _problem(path, base, "a damaged chunk (a record header cut short)")
+        opcode, length = _RECORD_HEAD.unpack_from(data, position)
+        start = position + _RECORD_HEAD.size
+        if length > len(data) - start:
+            raise _problem(path, base, f"a damaged chunk (a record of {length} bytes with "
+                           f"{len(data) - start} left)")
+        yield opcode, data[start:start + length], base
+        position = start + length
+
+
+@dataclass
+class McapFile:
+    """One MCAP file, read front to back by `messages()` (call it again for another pass).
+    After a complete pass: `topics`, `metadata` (name -> key/values), `attachments` (name ->
+    bytes, cut one byte past MAX_ATTACHMENT_BYTES), and `cut_short` (None when the file ended with
+    MCAP's footer, else where and how it ended)."""
+
+    path: Path
+    topics: dict[str, BagTopic] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: dict[str, bytes] = field(default_factory=dict)
+    cut_short: str | None = None
+
+    def messages(self, keep: TopicFilter = None) -> Iterator[BagMessage]:
+        """Every message (on the topics `keep` keeps, when given) in file order."""
+        schemas: dict[int, str] = {}
+        channels: dict[int, BagTopic] = {}
+        counts: dict[str, int] = {}
+        self.cut_short = None
+        try:
+            stream = self.path.open("rb")
+        except OSError as exc:
+            raise InputFileError(f"{self.path}: cannot read ({exc.strerror or exc})") from None
+        with stream:
+            size = self.path.stat().st_size
+            if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+                raise InputFileError(f"{self.path}: not an MCAP file (no MCAP magic at its "
+                                     "start)")
+            offset = len(MCAP_MAGIC)
+            while True:
+                head = stream.read(_RECORD_HEAD.size)
+                if len(head) < _RECORD_HEAD.size:
+                    self.cut_short = f"ends at byte {offset} without MCAP's footer"
+                    return
+                opcode, length = _RECORD_HEAD.unpack(head)
+                if length > MAX_RECORD_BYTES:
+                    raise _problem(self.path, offset, f"a record of {length} bytes (more than "
+                                   f"{MAX_RECORD_BYTES})")
+                if length > size - offset - _RECORD_HEAD.size:
+                    self.cut_short = (f"ends at byte {size} inside a record that starts at "
+                                      f"byte {offset}")
+                    return
+                body = stream.read(length)
+                if opcode == Opcode.FOOTER:
+                    return  # complete: the summary section and the footer were read
+                if opcode == Opcode.CHUNK:
+                    chunk = Chunk.read(ReadDataStream(io.BytesIO(body)))
+                    inner = _records(_decompress(chunk, self.path, offset), self.path, offset)
+                else:
+                    inner = iter([(opcode, body, offset)])
+                for code, record, where in inner:
+                    message = self._record(code, record, where, schemas, channels)
+                    if message is None:
+                        continue
+                    topic = channels.get(message.channel_id)
+                    if topic is None:
+                        raise _problem(self.path, where, f"a message on unknown channel "
+                                       f"{message.channel_id}")
+                    if keep is not None and not keep(topic):
+                        continue
+                    if len(message.data) > MAX_MESSAGE_BYTES:
+                        raise _problem(self.path, where, f"a message of {len(message.data)} "
+                                       f"bytes on {topic.name} (more than {MAX_MESSAGE_BYTES})")
+                    counts[topic.name] = counts.get(topic.name, 0) + 1
+                    yield BagMessage(topic, counts[topic.name], message.sequence,
+                                     message.log_time, message.data)
+                offset += _RECORD_HEAD.size + length
+
+    def _record(self, opcode: int, body: bytes, offset: int, schemas: dict[int, str],
+                channels: dict[int, BagTopic]) -> McapMessage | None:
+        """Note a schema, channel, metadata or attachment record; return a message record."""
+        stream = ReadDataStream(io.BytesIO(body))
+        try:
+            if opcode == Opcode.MESSAGE:
+                return McapMessage.read(stream, len(body))
+            if opcode == Opcode.SCHEMA:
+                schema = Schema.read(stream)
+                schemas[schema.id] = schema.name
+            elif opcode == Opcode.CHANNEL:
+                channel = Channel.read(stream)
+                topic = BagTopic(channel.topic, schemas.get(channel.schema_id, ""),
+                                 channel.message_encoding)
+                channels[channel.id] = self.topics.setdefault(channel.topic, topic)
+            elif opcode == Opcode.METADATA:
+                metadata = Metadata.read(stream)
+                self.metadata[metadata.name] = dict(metadata.metadata)
+            elif opcode == Opcode.ATTACHMENT:
+                attachment = Attachment.read(stream)
+                # kept up to one byte past the limit: enough for its reader to refuse it
+                self.attachments[attachment.name] = attachment.data[:MAX_ATTACHMENT_BYTES + 1]
+        except Exception as exc:  # struct.error, EndOfFile, UnicodeDecodeError, ...: damaged
+            raise _problem(self.path, offset, f"a damaged {_opcode_name(opcode)} record "
+                           f"({type(exc).__name__})") from None
+        return None
+
+
+def _opcode_name(opcode: int) -> str:
+    try:
+        return Opcode(opcode).name.lower()
+    except ValueError:
+        return f"opcode {opcode}"
+
+
+@dataclass
+class Db3File:
+    """One rosbag2 SQLite (.db3) file, read-only."""
+
+    path: Path
+    topics: dict[str, BagTopic] = field(default_factory=dict)
+    cut_short: str | None = None
+
+    def _connect(self) -> sqlite3.Connection:
+        try:
+            return sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro&immutable=1",
+                                   uri=True)
+        except sqlite3.Error as exc:
+            raise InputFileError(f"{self.path}: cannot open the SQLite bag ({exc})") from None
+
+    def messages(self, keep: TopicFilter = None) -> Iterator[BagMessage]:
+        connection = self._connect()
+        try:
+            rows = connection.execute(
+                "SELECT id, name, type, serialization_format FROM topics").fetchall()
+            by_id = {}
+            for topic_id, name, kind, encoding in rows:
+                by_id[topic_id] = self.topics.setdefault(
+                    str(name), BagTopic(str(name), str(kind), str(encoding)))
+            for topic_id, topic in by_id.items():
+                if keep is not None and not keep(topic):
+                    continue
+                cursor = connection.execute(
+                    "SELECT timestamp, length(data), CASE WHEN length(data) <= ? THEN data END "
+                    "FROM messages WHERE topic_id = ? ORDER BY timestamp, id",
+                    (MAX_MESSAGE_BYTES, topic_id))
+                for number, (stamp, length, data) in enumerate(cursor, start=1):
+                    if data is None:
+                        raise InputFileError(
+                            f"{self.path}: {topic.name} message {number} is {length} bytes "
+                            f"(more than {MAX_MESSAGE_BYTES}); not a recording lanewarden "
+                            "can read")
+                    yield BagMessage(topic, number, 0, int(stamp), bytes(data))
+        except sqlite3.Error as exc:
+            raise InputFileError(f"{self.path}: not a readable rosbag2 SQLite file "
+                                 f"({shorten(str(exc))})") from None
+        finally:
+            connection.close()
+
+
+BagFile = McapFile | Db3File
+
+
+@dataclass
+class Bag:
+    """A recording of one or more files, read in their order (a rosbag2 folder's files in
+    metadata.yaml's order)."""
+
+    path: Path
+    files: list[BagFile]
+
+    @property
+    def topics(self) -> dict[str, BagTopic]:
+        merged: dict[str, BagTopic] = {}
+        for bag_file in self.files:
+            merged.update(bag_file.topics)
+        return merged
+
+    def messages(self, keep: TopicFilter = None) -> Iterator[BagMessage]:
+        numbers: dict[str, int] = {}
+        for bag_file in self.files:
+            for message in bag_file.messages(keep):
+                numbers[message.topic.name] = numbers.get(message.topic.name, 0) + 1
+                yield BagMessage(message.topic, numbers[message.topic.name], message.sequence,
+                                 message.log_time_ns, message.data)
+
+
+def _folder_files(folder: Path) -> list[BagFile]:
+    info = read_yaml_document(folder / "metadata.yaml", "rosbag2 metadata", InputFileError)
+    bag = info.get("rosbag2_bagfile_information") if isinstance(info, dict) else None
+    if not isinstance(bag, dict):
+        raise InputFileError(f"{folder / 'metadata.yaml'}: no 'rosbag2_bagfile_information' "
+                             "mapping; not a rosbag2 folder")
+    if bag.get("compression_mode") not in (None, "", "NONE"):
+        raise InputFileError(
+            f"{folder / 'metadata.yaml'}: compression_mode = {bag.get('compression_mode')!r}: "
+            "compressed bags are not read; decompress it first (ros2 bag convert)")
+    names = bag.get("relative_file_paths")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or not names:
+        raise InputFileError(f"{folder / 'metadata.yaml'}: relative_file_paths: expected a "
+                             "list of the bag's files")
+    files: list[BagFile] = []
+    for name in names:
+        path = folder / Path(name).name  # the bag's own folder only
+        if not path.is_file():
+            raise InputFileError(f"{folder / 'metadata.yaml'}: lists {name!r}, which is not in "
+                                 f"{folder}")
+        files.append(_bag_file(path))
+    return files
+
+
+def _bag_file(path: Path) -> BagFile:
+    if path.suffix == ".mcap":
+        return McapFile(path)
+    if path.suffix == ".db3":
+        return Db3File(path)
+    raise InputFileError(f"{path}: not a .mcap or .db3 bag file")
+
+
+def is_bag(path: Path) -> bool:
+    """A rosbag2 folder (metadata.yaml), an .mcap or a .db3 file."""
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file()
+    return path.is_file() and path.suffix in (".mcap", ".db3")
+
+
+def open_bag(path: Path) -> Bag:
+    """The recording at `path` (see `is_bag`); InputFileError when it is none."""
+    if path.is_dir():
+        return Bag(path, _folder_files(path))
+    return Bag(path, [_bag_file(path)])
+
+
+_DECODERS = DecoderFactory()
+_SCHEMAS = {name: Schema(id=i, name=name, encoding="ros2msg", data=text.encode())
+            for i, (name, text) in enumerate(DEFINITIONS.items(), start=1)}
+
+
+def decode(message: BagMessage, where: str) -> Any:
+    """The message decoded as its type (one of DEFINITIONS); InputFileError naming `where`,
+    the topic and the message number when it does not decode."""
+    kind = message.topic.type
+    if kind not in _SCHEMAS or message.topic.encoding != "cdr":
+        raise InputFileError(f"{where}: {message.topic.name} is {kind or 'untyped'} "
+                             f"({message.topic.encoding}), not a CDR message lanewarden reads")
+    decoder = _DECODERS.decoder_for("cdr", _SCHEMAS[kind])
+    assert decoder is not None
+    try:
+        return decoder(message.data)
+    except Exception as exc:  # a hostile payload can fail anywhere in a generic decoder
+        raise InputFileError(f"{where}: {message.topic.name} message {message.number} is not a "
+                             f"valid CDR {kind} ({type(exc).__name__})") from None

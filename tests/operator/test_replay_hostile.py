@@ -1,0 +1,231 @@
+"""Damaged and forged recordings: each is one line on stderr and exit code 2, never a traceback,
+never a long run (their time and memory: benchmarks/hostile_recordings.py); a recording that is
+only incomplete (cut short, a damaged last line, no summary) replays as far as it goes but
+`--check` refuses it, saying why.
+
+The damage is done to real recordings (a run recorded on a fake clock, tests/operator/
+recordings.py), in both formats: run.mcap (through the `mcap` library's reader and writer, or
+its raw bytes) and a format-1 folder's run.jsonl."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import struct
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from mcap.writer import Writer as McapWriter
+
+from lanewarden.cli import main
+from lanewarden.config import LanewardenConfig
+from tests.operator.clips import lane_end_frames
+from tests.operator.recordings import as_format_1, change_step, record_run, rewrite_mcap
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A complete recording of 15 frames (about 18 steps)."""
+    folder = tmp_path_factory.mktemp("recorded") / "run"
+    record_run(folder, lane_end_frames(start_m=2.2, end_m=2.7, speed_m_s=0.6)[:15],
+               LanewardenConfig())
+    return folder
+
+
+def replay(source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+           *extra: str) -> tuple[int, str, str]:
+    code = main(["replay", str(source), "--no-video", "--out", str(tmp_path / "out"), *extra])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def assert_one_line(code: int, err: str, *phrases: str) -> None:
+    assert code == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for phrase in phrases:
+        assert phrase in err, err
+
+
+# ---- forged steps, in run.mcap and in a format-1 run.jsonl ---------------------------------
+def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
+    def edit(record: dict[str, Any]) -> None:
+        *parents, last = path.split(".")
+        target = record
+        for key in parents:
+            target = target[key]
+        target[last] = value
+    return edit
+
+
+FORGED_STEPS: dict[str, tuple[int, Callable[[dict[str, Any]], None], tuple[str, ...]]] = {
+    # name: (step number, edit, phrases of the one line)
+    "last step +1e6 s": (-1, lambda r: r["input"].update(t=r["input"]["t"] + 1e6),
+                         ("more than a recording may span",)),
+    "NaN time": (5, _set("input.t", float("nan")), ("input.t = nan", "a finite number")),
+    "backwards time": (5, lambda r: r["input"].update(t=r["input"]["t"] - 1.0),
+                       ("step times must increase",)),
+    "string battery": (5, _set("input.feedback.battery_v", "15.9"),
+                       ("input.feedback.battery_v = '15.9'", "a finite number or null")),
+    "events: 5": (5, _set("events", 5), ("events = 5", "a list of event names")),
+    "input: null": (5, _set("input", None), ("input = None", "expected a mapping")),
+    "a frame index of -1": (5, _set("input.frame", [-1, 3.0]),
+                            ("input.frame[0] = -1", "an integer from 0")),
+    "an unknown request": (5, _set("input.requests", ["launch"]), ("input.requests",)),
+    "odometry 1e12 m away": (5, _set("input.feedback.odometry", [1e12, 0.0, 0.0]),
+                             ("input.feedback.odometry", "within 100000 m")),
+}
+
+
+@pytest.mark.parametrize("name", FORGED_STEPS)
+def test_a_forged_step_in_run_mcap(name: str, recorded: Path, tmp_path: Path,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    number, edit, phrases = FORGED_STEPS[name]
+    number = _step_count(recorded) if number == -1 else number
+    forged = tmp_path / "forged.mcap"
+    rewrite_mcap(recorded / "run.mcap", forged, change_step(number, edit))
+    code, _, err = replay(forged, tmp_path, capsys, "--check")
+    assert_one_line(code, err, f"{forged}: /lanewarden/step message {number}: ", *phrases)
+
+
+@pytest.mark.parametrize("name", FORGED_STEPS)
+def test_a_forged_line_in_run_jsonl(name: str, recorded: Path, tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    number, edit, phrases = FORGED_STEPS[name]
+    old = as_format_1(recorded, tmp_path / "old")
+    lines = (old / "run.jsonl").read_text().splitlines()
+    number = len(lines) if number == -1 else number
+    line = json.loads(lines[number - 1])
+    edit(line)
+    lines[number - 1] = json.dumps(line)
+    (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+    code, _, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, f"run.jsonl:{number}: ", *phrases)
+
+
+def _step_count(run: Path) -> int:
+    return int(json.loads((run / "summary.json").read_text())["steps"])
+
+
+def test_a_huge_config_inside_a_recording_is_refused_at_once(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    big = ("# padding\n" * 500_000).encode()  # 5 MB of YAML
+    old = as_format_1(recorded, tmp_path / "old")
+    (old / "config.yaml").write_bytes(big)
+    code, _, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, "config.yaml", "larger than 1000 kB")
+    (old / "config.yaml").unlink()
+    (old / "calibration.yaml").write_bytes(big)
+    code, _, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, "calibration.yaml", "larger than 1000 kB")
+    forged = tmp_path / "forged.mcap"
+    rewrite_mcap(recorded / "run.mcap", forged, lambda topic, n, message: message,
+                 attachments={"config.yaml": big})
+    code, _, err = replay(forged, tmp_path, capsys)
+    assert_one_line(code, err, "forged.mcap:config.yaml", "larger than 1000 kB")
+
+
+# ---- incomplete recordings: replayed as far as they go, never checked ----------------------
+def test_a_recording_cut_short_replays_but_is_not_checked(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run killed mid-recording (or whose disk filled) leaves a prefix of run.mcap."""
+    cut = tmp_path / "cut" / "run"
+    shutil.copytree(recorded, cut)
+    data = (cut / "run.mcap").read_bytes()
+    (cut / "run.mcap").write_bytes(data[: len(data) * 2 // 3])
+    (cut / "summary.json").unlink()
+    code, out, err = replay(cut, tmp_path, capsys)
+    assert code == 0, err
+    assert "the recording is incomplete: run.mcap was cut short" in out
+    code, out, err = replay(cut, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "the recording is incomplete", "cut short")
+
+
+def test_a_damaged_last_line_and_a_missing_summary_are_said(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    old = as_format_1(recorded, tmp_path / "old")
+    text = (old / "run.jsonl").read_text()
+    (old / "run.jsonl").write_text(text[: len(text) - 40])  # the last line cut short
+    code, out, err = replay(old, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "the recording is incomplete", "last line of run.jsonl")
+    assert "the recording is incomplete: the last line of run.jsonl" in out
+    old2 = as_format_1(recorded, tmp_path / "old2")
+    (old2 / "summary.json").unlink()  # killed: it never wrote its summary
+    code, out, err = replay(old2, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "the recording is incomplete", "no summary.json")
+
+
+# ---- hostile MCAP bytes ------------------------------------------------------------------------
+def _prefix(run: Path) -> bytes:
+    """run.mcap's magic and header record."""
+    data = (run / "run.mcap").read_bytes()
+    _, length = struct.unpack_from("<BQ", data, len(MCAP_MAGIC))
+    return data[: len(MCAP_MAGIC) + 9 + length]
+
+
+def test_hostile_mcap_records(recorded: Path, tmp_path: Path,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    huge = tmp_path / "huge.mcap"
+    huge.write_bytes(_prefix(recorded) + struct.pack("<BQ", 0x05, 2**40) + b"\0" * 64)
+    code, _, err = replay(huge, tmp_path, capsys)
+    assert_one_line(code, err, "huge.mcap", f"a record of {2**40} bytes")
+
+    bomb = tmp_path / "bomb.mcap"  # a chunk that says it holds 1 TB
+    body = struct.pack("<QQQI", 0, 0, 2**40, 0) + struct.pack("<I", 4) + b"zstd" + \
+        struct.pack("<Q", 16) + b"\x28\xb5\x2f\xfd" + b"\0" * 12
+    bomb.write_bytes(_prefix(recorded) + struct.pack("<BQ", 0x06, len(body)) + body)
+    code, _, err = replay(bomb, tmp_path, capsys)
+    assert_one_line(code, err, "bomb.mcap", f"a chunk of {2**40} bytes uncompressed")
+
+    garbage = tmp_path / "garbage.mcap"
+    garbage.write_bytes(b"not an mcap file at all")
+    code, _, err = replay(garbage, tmp_path, capsys)
+    assert_one_line(code, err, "garbage.mcap", "not an MCAP file")
+
+
+def test_bad_cdr_in_a_step_message(recorded: Path, tmp_path: Path,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from lanewarden.ros_bag import McapFile
+    from lanewarden.run_mcap import STEP, STEP_DEF
+
+    meta = McapFile(recorded / "run.mcap")
+    for _ in meta.messages():
+        break
+    bad = tmp_path / "bad.mcap"
+    with bad.open("wb") as stream:
+        writer = McapWriter(stream)
+        writer.start("ros2", "test")
+        writer.add_metadata("lanewarden", meta.metadata["lanewarden"])
+        schema = writer.register_schema(STEP, "ros2msg", STEP_DEF.encode())
+        channel = writer.register_channel("/lanewarden/step", "cdr", schema)
+        rng = np.random.default_rng(0)
+        writer.add_message(channel, 1, rng.integers(0, 256, 64, np.uint8).tobytes(), 1)
+        writer.finish()
+    code, _, err = replay(bad, tmp_path, capsys)
+    assert_one_line(code, err, "bad.mcap", "/lanewarden/step message 1 is not a valid CDR "
+                    "lanewarden_msgs/msg/Step")
+
+
+def test_a_sim_output_folder_is_not_a_recording(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """What `sim --out` writes (plot.png and poster.jpg beside metrics.json, report.html and the
+    video) is not a recording, and its two pictures are not two camera frames."""
+    import cv2
+
+    folder = tmp_path / "sim-out"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "plot.png"), np.zeros((900, 1400, 3), np.uint8))
+    cv2.imwrite(str(folder / "poster.jpg"), np.zeros((590, 1120, 3), np.uint8))
+    for name in ("metrics.json", "report.html", "run.jsonl", "video.mp4"):
+        (folder / name).write_text("{}")
+    code, _, err = replay(folder, tmp_path, capsys)
+    assert_one_line(code, err, "an output folder of lanewarden sim, replay or demo",
+                    "metrics.json")
+    for name in ("metrics.json", "report.html"):
+        (folder / name).unlink()
+    code, _, err = replay(folder, tmp_path, capsys)
+    assert_one_line(code, err, "images of different sizes", "not a sequence of camera frames")
