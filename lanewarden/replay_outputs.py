@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_s
 from lanewarden.run_outcome import CLIP_END, end_reason_of, recorded_loop_end
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
+from lanewarden.scenarios.progress import Progress
 from lanewarden.scenarios.report import write_report
 from lanewarden.scenarios.sim_run import RUN_OUTPUTS, ordered_metrics
 from lanewarden.scenarios.state_reasons import state_reasons
@@ -119,9 +121,11 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     divergences: list[Divergence] = []
     distance = 0.0
     last_pose: Pose2D | None = None
+    progress = Progress(len(times), f"replay {source.name}", "steps")
     try:
         with JsonlRecorder(out / "run.jsonl") as log:
             for step in replay_steps(source, config, request.calibration, request.controller):
+                progress.update()
                 record = step.record
                 log(record)
                 records.append(record)
@@ -155,6 +159,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
                 if step.index % every == 0:
                     video.add(panel, pose, step.step_input.t - times[0], record, detection)
     finally:
+        progress.close(finished=sys.exc_info()[0] is None)
         if video is not None:
             video.close()
     metrics = replay_metrics(source, records, divergences, distance)

@@ -77,7 +77,8 @@ class SimulationConfig(BaseModel):
         "anyway; gray rendering is about 2x faster)",
     )
     progress: bool = Field(
-        default=True, description="show a progress bar on stderr (only when stderr is a terminal)"
+        default=True, description="show progress on stderr (a bar on a terminal, else a line "
+        "every few seconds)"
     )
     video: VideoConfig = Field(default=VideoConfig(), description="the run's video.mp4")
 

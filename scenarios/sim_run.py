@@ -1,16 +1,16 @@
 """One simulated run written to a directory: metrics.json, run.jsonl, video.mp4 (+ poster.jpg),
 plot.png and report.html; old outputs cleared first, a PARTIAL marker until all are written.
 
-The shell around `Simulation`: opens the files, shows progress on stderr (tqdm, only on a
-terminal), measures the wall time for the report (wall time never feeds the simulation) and
-writes the outputs. `lanewarden sim` calls it once; `lanewarden demo` calls it in two worker
-processes. Errors are the layers' one-line errors (ScenarioError, SupervisorError, ...).
+The shell around `Simulation`: opens the files, shows progress on stderr (`progress.Progress`: a
+bar on a terminal, a line every few seconds otherwise), measures the wall time for the report
+(wall time never feeds the simulation) and writes the outputs. `lanewarden sim` calls it once;
+`lanewarden demo` calls it in two worker processes. Errors are the layers' one-line errors
+(ScenarioError, SupervisorError, ...).
 """
 
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,6 +22,7 @@ from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
+from lanewarden.scenarios.progress import Progress
 from lanewarden.scenarios.report import run_summary, write_report
 from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
 from lanewarden.scenarios.spec import ScenarioSpec
@@ -66,15 +67,12 @@ class RunRequest:
     judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
 
 
-def _progress_bar(request: RunRequest, total_s: float):  # type: ignore[no-untyped-def]
-    from tqdm import tqdm
-
-    enabled = request.progress and request.config.simulation.progress and sys.stderr.isatty()
-    return tqdm(
-        total=round(total_s, 1), unit="s", desc=f"{request.spec.name}/{request.controller}",
-        disable=not enabled, file=sys.stderr, position=request.progress_position, leave=True,
-        bar_format="{desc}: {bar} {n:.1f}/{total:.1f} s simulated [{elapsed}]",
-    )
+def _progress(request: RunRequest, config: LanewardenConfig, total_s: float) -> Progress:
+    return Progress(
+        total_s, f"{request.spec.name}/{request.controller}", "s simulated",
+        enabled=request.progress and config.simulation.progress,
+        position=request.progress_position, fmt="{:.1f}", total_is_bound=True,
+        bar_format="{desc}: {bar} {n:.1f}/{total:.1f} s simulated [{elapsed}]")
 
 
 def _camera_clip(request: RunRequest, config: LanewardenConfig) -> CameraClipWriter | None:
@@ -102,12 +100,12 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     folder.begin()
     video_path = out / "video.mp4" if request.video else None
     clip = _camera_clip(request, config)
-    bar = _progress_bar(request, request.spec.run.max_time_s)
+    bar = _progress(request, config, request.spec.run.max_time_s)
     shown = [0.0]
 
     def progress(now: float) -> None:
         if now - shown[0] >= 0.5:
-            bar.update(now - shown[0])
+            bar.advance_to(now)
             shown[0] = now
 
     try:
@@ -118,14 +116,14 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
                 camera_frames=None if clip is None else clip.add)
             result = simulation.run()
         # The run usually ends before its time limit: show it finished.
-        bar.total = round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0
-        bar.update(bar.total - bar.n)
+        bar.set_total(round(float(result.trace.time_s[-1]), 1) if len(result.records) else 0.0)
+        bar.advance_to(bar.total)
     except BaseException:
+        bar.close(finished=False)
         if clip is not None:
             clip.abort()
         raise
-    finally:
-        bar.close()
+    bar.close()
     camera_clip = None if clip is None else clip.close(
         simulation.calibration, config.model_dump(mode="json", exclude_defaults=True))
     write_run_plot(out / "plot.png", result, config)

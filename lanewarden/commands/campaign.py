@@ -1,7 +1,8 @@
 """`lanewarden campaign`: a fault-injection campaign on Dask distributed (or in this process).
 
 Thin shell: parse flags, load the config and the campaign spec, run the cases through
-`scenarios.campaign.runner` with a progress bar (outcome counts), then write junit.xml and
+`scenarios.campaign.runner` with progress on stderr (outcome counts; a bar on a terminal, a line
+every few seconds otherwise), then write junit.xml and
 report.html from every stored row. Ctrl-C leaves a resumable result file (exit 130).
 """
 
@@ -9,7 +10,6 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 import time
 from pathlib import Path
 from types import FrameType
@@ -34,6 +34,7 @@ from lanewarden.scenarios.campaign.runner import (
 )
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
 from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.progress import Progress
 
 EXAMPLES = """\b
 Examples:
@@ -65,14 +66,13 @@ def _counts(progress: CampaignProgress) -> str:
 @click.option("--workers", type=click.IntRange(1, 512), default=None,
               help="Worker processes of the local cluster (default: one per core).")
 @config_option
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--quiet", is_flag=True, help="No progress (a bar on a terminal, else a line every "
+              "few seconds).")
 def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                      scheduler: str | None, workers: int | None, config_path: str | None,
                      quiet: bool) -> None:
     """Draw randomized fault-injection runs from a spec, run them on Dask, classify each
     (safe_halt, recovered, nominal, false_halt, unsafe, error), write results and a report."""
-    from tqdm import tqdm
-
     started = time.perf_counter()
     config = load_config(config_path)
     try:
@@ -86,7 +86,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                         runs=runs or 100, out_dir=out, config_overrides=overrides,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
                         worker_memory_limit_mb=config.campaign.worker_memory_limit_mb)
-    bar: Any = None
+    bar: Progress | None = None
     stored_at_start = 0
 
     def on_start(progress: CampaignProgress, where: str) -> None:
@@ -94,14 +94,14 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         stored_at_start = progress.done
         click.echo(f"campaign {spec.name}: {progress.total} runs (seed {seed}), "
                    f"{progress.done} already stored; running {where}", err=True)
-        bar = tqdm(total=progress.total, initial=progress.done, unit="run", file=sys.stderr,
-                   disable=quiet or not sys.stderr.isatty(), dynamic_ncols=True)
-        bar.set_postfix_str(_counts(progress))
+        bar = Progress(progress.total, f"campaign {spec.name}", "runs", initial=progress.done,
+                       enabled=not quiet, heartbeat=True)
+        bar.set_postfix(_counts(progress))
 
     def on_row(row: dict[str, Any], progress: CampaignProgress) -> None:
         if bar is not None:
-            bar.update(1)
-            bar.set_postfix_str(_counts(progress), refresh=False)
+            bar.set_postfix(_counts(progress))
+            bar.advance_to(progress.done)
 
     # SIGTERM stops a campaign like Ctrl-C: the cluster is shut down, finished rows stay.
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -111,7 +111,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         raise UsageError(f"--out {out}: {exc}") from None
     except KeyboardInterrupt:
         if bar is not None:
-            bar.close()
+            bar.close(finished=False)
         click.echo(f"campaign interrupted: finished runs are stored in {out / 'results.sqlite'}"
                    "; run the same command again to resume", err=True)
         raise
