@@ -210,7 +210,10 @@ class Simulation:
         """Perception's ROI in undistorted pixels, asked from the detector itself (one detection
         on the start frame, outside the run)."""
         w, h = self.camera.width_px, self.camera.height_px
-        image = self.renderer.render_gray(self.world.start_pose, np.empty((h, w), np.uint8))
+        if self.config.simulation.perception_color:
+            image = self.renderer.render_bgr(self.world.start_pose, np.empty((h, w, 3), np.uint8))
+        else:
+            image = self.renderer.render_gray(self.world.start_pose, np.empty((h, w), np.uint8))
         _, debug = self.detector.detect_debug(image, -1, 0.0)
         return np.asarray(debug.roi_polygon_px, dtype=np.float64)
 
