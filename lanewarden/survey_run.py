@@ -41,7 +41,8 @@ from lanewarden.perception.detector import DetectionDebug, LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import as_bgr, draw_detection, perception_text
-from lanewarden.replay import FrameStore, ReplayedStep, ReplaySource, replay_steps
+from lanewarden.replay import ReplayedStep, replay_steps
+from lanewarden.replay_sources import FrameStore, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import LaneEvidence

@@ -8,9 +8,10 @@
   images by their path relative to FOLDER; the rows' order is the sequence order;
 - a recording with `--labels FILE` of `frames,expect[,note]` rows (a frame index or an inclusive
   range `120-340`): a video, a folder or glob of images, a run folder (`lanewarden run --record`)
-  or a Donkeycar tub, opened by `lanewarden.replay.open_replay_source`, so every source replay
-  knows is a source a survey knows. Frame indices are the recording's own (a run folder's frame
-  numbers; a video's frames, a tub's records and an image sequence's files counted from 0).
+  or a Donkeycar tub, opened by `lanewarden.replay_sources.open_replay_source`, so every source
+  replay knows is a source a survey knows. Frame indices are the recording's own (a run
+  folder's frame numbers; a video's frames, a tub's records and an image sequence's files
+  counted from 0).
 
 Bounded: a labels file larger than `survey.MAX_LABELS_BYTES` is refused unread; image files are
 checked against `perception.max_image_pixels` from their header before decoding (by
@@ -28,7 +29,7 @@ from pathlib import Path
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.errors import InputFileError, UsageError
 from lanewarden.image_files import header_problem
-from lanewarden.replay import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
+from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
 from lanewarden.survey import (
     CLASS_FOLDERS,
     MAX_LABELS_BYTES,

@@ -65,7 +65,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     )
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
-    from lanewarden.replay import replay_config
+    from lanewarden.replay_sources import replay_config
     from lanewarden.survey import NONE, false_lanes_text, judge, name_frames, summary_lines
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills

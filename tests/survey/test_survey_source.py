@@ -7,13 +7,13 @@ from __future__ import annotations
 import pytest
 
 from lanewarden.errors import InputFileError
-from lanewarden.replay import PathFrames, ReplaySource
+from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
 from lanewarden.survey_source import _labelled_frames
 
 #: frames 2, 5 and 6 were dropped; frame 3 came with two steps
-RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([]), steps=[
+RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
     StepInput(t=k / 30.0, frame=None if i is None else (i, i / 30.0))
     for k, i in enumerate((0, 1, 3, 3, None, 4, 7))])
 
