@@ -243,7 +243,7 @@ def test_another_sites_page_cannot_smuggle_a_resume(
             browser.execute_script(f"""
                 const form = document.createElement("form");
                 form.method = "POST"; form.enctype = "text/plain"; form.action = "{target}/stop";
-                const field = document.createElement("input");
+                const field = document.createElement("textarea");  // keeps the line breaks
                 field.name = "x"; field.value = "a".repeat({padding - 2}) + "{smuggled}";
                 form.appendChild(field); document.body.appendChild(form); form.submit();""")
         assert wait_until(lambda: _reached(view, 1), 20.0), view.counts
