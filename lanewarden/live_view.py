@@ -289,6 +289,12 @@ def _finite(value: Any) -> Any:
     return value
 
 
+def printable(text: str, limit: int = 80) -> str:
+    """A client's text made safe for the operator's terminal: no control characters (no escape
+    sequences), ASCII only, at most `limit` characters."""
+    return "".join(c if " " <= c < "\x7f" else "?" for c in text[:limit])
+
+
 def _stderr_line(text: str) -> None:
     print(f"lanewarden: {text}", file=sys.stderr, flush=True)
 
@@ -473,13 +479,14 @@ class LiveView:
                 return
             more, self._refusals_unreported = self._refusals_unreported, 0
             self._last_refusal_report_s = now
-        self._log(f"live view: refused {what} from {client}: {problem}"
+        self._log(f"live view: refused {printable(what)} from {printable(client)}: "
+                  f"{printable(problem, 200)}"
                   + (f" (and {more} more refused before)" if more else ""))
 
     def report_error(self, doing: str, exc: BaseException) -> None:
         """An error in our own code while serving: one line, the run goes on."""
-        self._log(f"live view: internal error {doing}: {type(exc).__name__}: {exc}"
-                  f"{_where(exc)} (the run goes on; please report it)")
+        self._log(f"live view: internal error {doing}: {type(exc).__name__}: "
+                  f"{printable(str(exc), 200)}{_where(exc)} (the run goes on; please report it)")
 
     def close(self) -> None:
         self._frames.close()
@@ -582,6 +589,7 @@ class _Handler(BaseHTTPRequestHandler):
     # ---- one request per connection, within a deadline and a byte budget ----------------------
     def setup(self) -> None:
         super().setup()
+        self.rfile.close()  # replaced by a reader with a deadline and a budget
         view = self.server.view
         view.connection_opened()
         self._reader = _DeadlineReader(self.connection,

@@ -2,8 +2,9 @@
 
 Thin shell: parse flags, load the config and the campaign spec, run the cases through
 `scenarios.campaign.runner` with progress on stderr (outcome counts; a bar on a terminal, a line
-every few seconds otherwise), then write junit.xml and
-report.html from every stored row. Ctrl-C leaves a resumable result file (exit 130).
+every few seconds otherwise), then write junit.xml and report.html from the stored rows (read one
+at a time). Ctrl-C leaves a resumable result file (exit 130); a damaged one is refused in one
+line until `--recover` (scenarios/campaign/store.py).
 """
 
 from __future__ import annotations
@@ -23,10 +24,11 @@ from lanewarden.config import load_config
 from lanewarden.errors import UsageError
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
-from lanewarden.scenarios.campaign.report import write_junit, write_report
+from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
 from lanewarden.scenarios.campaign.runner import (
     IN_PROCESS,
     LOCAL,
+    MAX_RUNS,
     SCHEDULER_ENV,
     CampaignPlan,
     CampaignProgress,
@@ -55,8 +57,9 @@ def _counts(progress: CampaignProgress) -> str:
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output directory: results.sqlite, cases/, junit.xml, report.html. Running "
               "again with the same spec and seed resumes.")
-@click.option("--runs", type=click.IntRange(1, 1_000_000), default=None,
-              help="Number of runs to draw (default: 100).")
+@click.option("--runs", type=click.IntRange(1, MAX_RUNS), default=None,
+              help=f"Number of runs to draw (default: 100; at most {MAX_RUNS:,}: more is "
+              "another --seed in another --out).")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Campaign seed: the same seed draws the same cases.")
 @click.option("--scheduler", default=None, metavar="ADDRESS|local|in-process",
@@ -68,9 +71,12 @@ def _counts(progress: CampaignProgress) -> str:
 @config_option
 @click.option("--quiet", is_flag=True, help="No progress (a bar on a terminal, else a line every "
               "few seconds).")
+@click.option("--recover", is_flag=True,
+              help="results.sqlite is damaged: keep it as results.sqlite.damaged, carry over "
+              "every run that can still be read, and rerun the rest.")
 def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                      scheduler: str | None, workers: int | None, config_path: str | None,
-                     quiet: bool) -> None:
+                     quiet: bool, recover: bool) -> None:
     """Draw randomized fault-injection runs from a spec, run them on Dask, classify each
     (safe_halt, recovered, nominal, false_halt, unsafe, error), write results and a report."""
     started = time.perf_counter()
@@ -92,6 +98,16 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     def on_start(progress: CampaignProgress, where: str) -> None:
         nonlocal bar, stored_at_start
         stored_at_start = progress.done
+        recovered = progress.recovered
+        if recovered is not None:
+            click.echo(f"campaign {spec.name}: the damaged results database is kept as "
+                       f"{recovered.kept_as}; {recovered.count} stored runs carried over"
+                       + (f", {recovered.lost_ids} unreadable (they run again)"
+                          if recovered.lost_ids else ""), err=True)
+        if progress.unstored_carried:
+            carried = progress.unstored_carried
+            click.echo(f"campaign {spec.name}: stored now what an earlier campaign could not "
+                       f"store ({carried} run{'' if carried == 1 else 's'})", err=True)
         click.echo(f"campaign {spec.name}: {progress.total} runs (seed {seed}), "
                    f"{progress.done} already stored; running {where}", err=True)
         bar = Progress(progress.total, f"campaign {spec.name}", "runs", initial=progress.done,
@@ -105,8 +121,10 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
 
     # SIGTERM stops a campaign like Ctrl-C: the cluster is shut down, finished rows stay.
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    finished = False
     try:
-        progress = run_campaign(plan, scheduler, workers, on_start, on_row)
+        progress = run_campaign(plan, scheduler, workers, on_start, on_row, recover=recover)
+        finished = True
     except CampaignMismatch as exc:
         raise UsageError(f"--out {out}: {exc}") from None
     except KeyboardInterrupt:
@@ -118,18 +136,19 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     finally:
         signal.signal(signal.SIGTERM, previous)
         if bar is not None:
-            bar.close()
+            bar.close(finished=finished)
     with ResultStore(out / "results.sqlite") as store:
-        rows = store.rows(f"r{i:05d}" for i in range(plan.runs))
-    ran = f"{len(rows) - stored_at_start} run now" if stored_at_start else "all run now"
-    summary = (f"{len(rows)} runs of spec {spec.name} (seed {seed}; {ran}, "
-               f"{time.perf_counter() - started:.0f} s): {_counts(progress)}")
-    try:
-        write_junit(out / "junit.xml", spec.name, rows)
-        write_report(out / "report.html", spec.name, rows, out, summary)
-    except OSError as exc:
-        raise ScenarioError(f"{out}: cannot write the report ({exc})") from exc
-    click.echo(summary)
+        summary = summarize(store.iter_rows(plan.runs))
+        ran = (f"{summary.runs - stored_at_start} run now" if stored_at_start
+               else "all run now")
+        text = (f"{summary.runs} runs of spec {spec.name} (seed {seed}; {ran}, "
+                f"{time.perf_counter() - started:.0f} s): {_counts(progress)}")
+        try:
+            write_junit(out / "junit.xml", spec.name, store.iter_rows(plan.runs), summary)
+            write_report(out / "report.html", spec.name, summary, out, text)
+        except OSError as exc:
+            raise ScenarioError(f"{out}: cannot write the report ({exc})") from exc
+    click.echo(text)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
 

@@ -365,11 +365,16 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
                                             "height_px": camera.height_px,
                                             **camera.simulation,
                                             "progress": False}})
-    case = Case(id=f"r{index:05d}", campaign=spec.name, campaign_seed=campaign_seed,
+    case = Case(id=case_id(index), campaign=spec.name, campaign_seed=campaign_seed,
                 index=index, controller=spec.controller, seed=seed, camera=camera.name,
                 fault_kinds=kinds, scenario=data, config=config)
     case.scenario_spec(f"campaign {spec.name} run {index}")  # every drawn case is valid
     return case
+
+
+def case_id(index: int) -> str:
+    """Run `index`'s id: r00042."""
+    return f"r{index:05d}"
 
 
 # ---- case files -------------------------------------------------------------------------------

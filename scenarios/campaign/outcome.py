@@ -170,7 +170,9 @@ class Verdict:
     reason: str
     #: first HALT after engagement (s), None if it never halted
     halt_time_s: float | None = None
-    #: HALT minus the moment the first fault took effect (s), None without both
+    #: HALT minus the moment the fault it answered took effect (a safe halt), or the hazard
+    #: it came too late for (unsafe), in s; None otherwise (no halt, no fault it answered, e.g.
+    #: a halt at the end of the tape)
     time_to_halt_s: float | None = None
 
     def as_json(self) -> dict[str, object]:
@@ -216,11 +218,11 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
         return Verdict("error", f"never engaged ({facts.end_reason})")
     halt = _first_halt(facts.states)
     halt_s = None if halt is None else float(facts.times[halt])
-    first_effect = min(facts.effects.values(), default=None)
-    to_halt = (None if halt_s is None or first_effect is None
-               else round(halt_s - first_effect, 4))
 
-    def verdict(outcome: str, reason: str) -> Verdict:
+    def verdict(outcome: str, reason: str, answered: int | None = None) -> Verdict:
+        """`answered`: the fault the halt answered (or was due for); time to halt from it."""
+        effect = None if answered is None else facts.effects.get(answered)
+        to_halt = None if halt_s is None or effect is None else round(halt_s - effect, 4)
         return Verdict(outcome, reason, None if halt_s is None else round(halt_s, 4), to_halt)
 
     metrics = facts.metrics
@@ -241,13 +243,13 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
                                      f"{STOPPED_AFTER_S:g} s or more after HALT")
     unanswered = _unanswered_hazard(facts, config, limits, halt_s)
     if unanswered is not None:
-        return verdict("unsafe", unanswered)
+        return verdict("unsafe", *unanswered)
     if halt is not None:
         code = _code(facts.halt_reasons[halt])
         assert halt_s is not None
         for index, kind, start, end in facts.windows:
             if start - 1e-9 <= halt_s <= end + config.fault_grace_s and code in ANSWERS[kind]:
-                return verdict("safe_halt", answering_reason(code, kind, index))
+                return verdict("safe_halt", answering_reason(code, kind, index), index)
         if code in _LANE and _near_lane_end(facts, config):
             return verdict("safe_halt", f"{code} at the end of the tape")
         return verdict("false_halt", f"{code} at {halt_s:.3f} s with no fault acting and the "
@@ -261,7 +263,8 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
 
 
 def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
-                       halt_s: float | None) -> str | None:
+                       halt_s: float | None) -> tuple[str, int] | None:
+    """The first hazard not answered by HALT in time: (the reason, its fault's index)."""
     for index, spec in enumerate(facts.faults):
         rule = MUST_HALT.get(spec.kind)
         effect = facts.effects.get(index)
@@ -277,7 +280,7 @@ def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
         if halt_s is None or halt_s > deadline + 1e-9:
             when = "never" if halt_s is None else f"at {halt_s:.3f} s"
             return (f"{spec.kind} (fault {index}) took effect at {effect:.3f} s: HALT due by "
-                    f"{deadline:.3f} s, came {when}")
+                    f"{deadline:.3f} s, came {when}", index)
     return None
 
 

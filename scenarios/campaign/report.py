@@ -2,73 +2,171 @@
 
 - junit.xml: one testcase per run (classname `campaign.<scenario>`, name `<id> <fault kinds>`);
   `unsafe` and `false_halt` are failures, `error` is an error, the rest pass.
-- report.html: outcome counts, the outcome matrix (fault kind x outcome, scenario x outcome,
-  camera x outcome), time-to-halt distributions per fault kind (from the first fault's effect to
-  HALT), and the worst cases, each with the one command that reruns it with video.
+- report.html: outcome counts, the outcome matrices (`MATRICES`: fault kind x outcome, scenario x
+  outcome, camera x outcome; another table is one more entry), the time to halt per fault kind
+  (from the moment the fault the halt answered took effect, with its distribution on one shared
+  axis), the worst cases (every unsafe run and false halt, then the slowest safe halt of each
+  fault kind) and the runs in error, each with the command that reruns it (selectable, with a
+  copy button).
 
-Pure formatting of rows already stored: never runs anything, never reads a clock.
+Rows are read once, one at a time (`CampaignSummary.add`): what the report keeps is bounded
+(counts, one number per safe halt, a few rows per list), so a 100,000-run campaign's report costs
+no more memory than its counts. Pure formatting of stored rows: never runs anything, never reads a
+clock.
 """
 
 from __future__ import annotations
 
+import heapq
 import html
 import json
 import math
+import shlex
 from collections import Counter, defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-from xml.etree import ElementTree
+from typing import Any, TextIO
+from xml.sax.saxutils import quoteattr
 
 from lanewarden.scenarios.campaign.outcome import FAILURES, OUTCOMES, answered_kind
 
-#: Order of badness for "worst cases" (first: worst).
-_SEVERITY = {"unsafe": 0, "false_halt": 1, "error": 2, "safe_halt": 3, "recovered": 4,
-             "nominal": 5}
-WORST_CASES = 25
+#: How many unsafe runs, false halts and errors the report lists (each; the rest are counted).
+LISTED_PER_OUTCOME = 25
 _COLORS = {"safe_halt": "#2e7d32", "recovered": "#558b2f", "nominal": "#9e9e9e",
            "false_halt": "#ef6c00", "unsafe": "#c62828", "error": "#6a1b9a"}
 
+Row = Mapping[str, Any]
+
 
 def rerun_command(out_dir: Path, case_id: str) -> str:
-    return f"lanewarden sim --case {out_dir / 'cases' / f'{case_id}.yaml'}"
+    return f"lanewarden sim --case {shlex.quote(str(out_dir / 'cases' / f'{case_id}.yaml'))}"
 
 
-def _kinds(row: Mapping[str, Any]) -> list[str]:
+def _kinds(row: Row) -> list[str]:
     text = str(row.get("fault_kinds") or "")
     return [k for k in text.split(",") if k] or ["(none)"]
 
 
-def write_junit(path: Path, name: str, rows: Sequence[Mapping[str, Any]]) -> None:
-    counts = Counter(str(r["outcome"]) for r in rows)
-    suite = ElementTree.Element("testsuite", {
-        "name": f"campaign.{name}", "tests": str(len(rows)),
-        "failures": str(sum(counts[o] for o in FAILURES)), "errors": str(counts["error"]),
-        "time": f"{sum(float(r.get('wall_s') or 0.0) for r in rows):.3f}"})
-    for row in rows:
-        case = ElementTree.SubElement(suite, "testcase", {
-            "classname": f"campaign.{row['scenario']}",
-            "name": f"{row['id']} {'+'.join(_kinds(row))}",
-            "time": f"{float(row.get('wall_s') or 0.0):.3f}"})
+#: The outcome matrices: (title, the keys a row counts under). Another table is one more entry.
+MATRICES: list[tuple[str, Callable[[Row], list[str]]]] = [
+    ("Fault kind x outcome", _kinds),
+    ("Scenario x outcome", lambda r: [str(r.get("scenario"))]),
+    ("Camera x outcome", lambda r: [str(r.get("camera"))]),
+]
+
+
+def _time_to_halt_s(row: Row) -> float | None:
+    value = row.get("time_to_halt_s")
+    return float(value) if isinstance(value, int | float) and math.isfinite(value) else None
+
+
+@dataclass
+class _Kept:
+    """The few rows of one list (the `limit` first by `key`, smallest first)."""
+
+    limit: int
+    heap: list[tuple[tuple[float, int], int, Row]] = field(default_factory=list)
+    count: int = 0
+
+    def offer(self, key: tuple[float, int], row: Row) -> None:
+        self.count += 1
+        item = ((-key[0], -key[1]), self.count, row)  # a max-heap of the kept: drop the largest
+        if len(self.heap) < self.limit:
+            heapq.heappush(self.heap, item)
+        elif item > self.heap[0]:
+            heapq.heapreplace(self.heap, item)
+
+    def rows(self) -> list[Row]:
+        return [row for _, _, row in sorted(self.heap, reverse=True)]
+
+
+class CampaignSummary:
+    """Everything report.html and junit.xml need, accumulated one row at a time."""
+
+    def __init__(self, matrices: Sequence[tuple[str, Callable[[Row], list[str]]]] = ()) -> None:
+        self.matrices = list(matrices or MATRICES)
+        self.counts: Counter[str] = Counter()
+        self.tables: list[dict[str, Counter[str]]] = [defaultdict(Counter) for _ in self.matrices]
+        self.time_to_halt: dict[str, list[float]] = defaultdict(list)
+        self.slowest: dict[str, tuple[float, Row]] = {}
+        self.listed = {outcome: _Kept(LISTED_PER_OUTCOME) for outcome in (*FAILURES, "error")}
+        self.cpu_s = 0.0
+        self.sim_s = 0.0
+        self.timed = 0
+        self.wall_s = 0.0
+
+    @property
+    def runs(self) -> int:
+        return sum(self.counts.values())
+
+    def add(self, row: Row) -> None:
         outcome = str(row["outcome"])
-        message = f"{outcome}: {row.get('reason') or ''}"
-        if outcome in FAILURES:
-            ElementTree.SubElement(case, "failure", {"message": message, "type": outcome})
-        elif outcome == "error":
-            ElementTree.SubElement(case, "error", {"message": message, "type": "error"})
-        ElementTree.SubElement(case, "system-out").text = (
-            f"{message}\nhalt reason: {row.get('halt_reason')}\n"
+        self.counts[outcome] += 1
+        for table, (_, keys) in zip(self.tables, self.matrices, strict=True):
+            for key in keys(row):
+                table[key][outcome] += 1
+        index = int(row.get("idx") or 0)
+        to_halt = _time_to_halt_s(row)
+        if outcome in self.listed:
+            # unsafe and false halts: the slowest to halt first (never halting: slowest of all)
+            slow = to_halt if to_halt is not None else math.inf
+            self.listed[outcome].offer((-slow if outcome != "error" else 0.0, index),
+                                       _slim(row))
+        kind = answered_kind(str(row.get("reason") or ""))
+        if outcome == "safe_halt" and kind is not None and to_halt is not None:
+            self.time_to_halt[kind].append(to_halt)
+            if kind not in self.slowest or to_halt > self.slowest[kind][0]:
+                self.slowest[kind] = (to_halt, _slim(row))
+        if isinstance(row.get("cpu_s"), int | float) and isinstance(row.get("sim_time_s"),
+                                                                     int | float):
+            self.cpu_s += float(row["cpu_s"])
+            self.sim_s += float(row["sim_time_s"])
+            self.timed += 1
+        self.wall_s += float(row.get("wall_s") or 0.0)
+
+
+def _slim(row: Row) -> dict[str, Any]:
+    """What a listed row shows (the rest of a row, its metrics and effects, is not kept)."""
+    metrics = json.loads(row.get("metrics_json") or "{}")
+    keep = ("id", "idx", "outcome", "scenario", "camera", "fault_kinds", "reason",
+            "time_to_halt_s")
+    return {**{k: row.get(k) for k in keep},
+            "max_cross_track_error_m": metrics.get("max_cross_track_error_m")}
+
+
+# ---- junit.xml --------------------------------------------------------------------------------
+def write_junit(path: Path, name: str, rows: Iterable[Row], summary: CampaignSummary) -> None:
+    """junit.xml, one testcase per run, written as the rows come (`summary`: their counts)."""
+    counts = summary.counts
+    with path.open("w", encoding="utf-8") as out:
+        out.write("<?xml version='1.0' encoding='utf-8'?>\n")
+        out.write(f"<testsuite name={quoteattr(f'campaign.{name}')} tests=\"{summary.runs}\" "
+                  f"failures=\"{sum(counts[o] for o in FAILURES)}\" "
+                  f"errors=\"{counts['error']}\" time=\"{summary.wall_s:.3f}\">\n")
+        for row in rows:
+            _junit_case(out, row)
+        out.write("</testsuite>\n")
+
+
+def _junit_case(out: TextIO, row: Row) -> None:
+    outcome = str(row["outcome"])
+    message = f"{outcome}: {row.get('reason') or ''}"
+    classname = quoteattr(f"campaign.{row['scenario']}")
+    name = quoteattr(f"{row['id']} {'+'.join(_kinds(row))}")
+    out.write(f"  <testcase classname={classname} name={name} "
+              f"time=\"{float(row.get('wall_s') or 0.0):.3f}\">\n")
+    if outcome in FAILURES:
+        out.write(f"    <failure message={quoteattr(message)} type={quoteattr(outcome)} />\n")
+    elif outcome == "error":
+        out.write(f"    <error message={quoteattr(message)} type=\"error\" />\n")
+    text = (f"{message}\nhalt reason: {row.get('halt_reason')}\n"
             f"rerun: lanewarden sim --case cases/{row['id']}.yaml")
-    ElementTree.indent(suite)
-    path.write_text(ElementTree.tostring(suite, encoding="unicode", xml_declaration=True) + "\n",
-                    encoding="utf-8")
+    out.write(f"    <system-out>{html.escape(text, quote=False)}</system-out>\n  </testcase>\n")
 
 
-def _matrix(title: str, rows: Sequence[Mapping[str, Any]], keys: Any) -> str:
-    table: dict[str, Counter[str]] = defaultdict(Counter)
-    for row in rows:
-        for key in keys(row):
-            table[key][str(row["outcome"])] += 1
+# ---- report.html ------------------------------------------------------------------------------
+def _matrix(title: str, table: Mapping[str, Counter[str]]) -> str:
     head = "".join(f"<th>{o}</th>" for o in OUTCOMES)
     body = []
     for key in sorted(table):
@@ -84,22 +182,64 @@ def _matrix(title: str, rows: Sequence[Mapping[str, Any]], keys: Any) -> str:
             f"{''.join(body)}</table>")
 
 
-def _histogram_svg(values: Sequence[float], width: int = 260, height: int = 50) -> str:
-    if not values:
-        return ""
-    low, high = min(values), max(values)
-    bins = 20
-    span = max(high - low, 1e-6)
-    counts = [0] * bins
-    for v in values:
-        counts[min(bins - 1, int((v - low) / span * bins))] += 1
-    top = max(counts)
-    bar = width / bins
-    rects = "".join(
-        f'<rect x="{i * bar:.1f}" y="{height - c / top * height:.1f}" width="{bar - 1:.1f}" '
-        f'height="{c / top * height:.1f}" fill="#1565c0"/>' for i, c in enumerate(counts) if c)
-    return (f'<svg width="{width}" height="{height}" role="img" aria-label="histogram from '
-            f'{low:.2f} s to {high:.2f} s">{rects}</svg>')
+def nice_axis(low: float, high: float, count: int = 5) -> tuple[float, float, list[float]]:
+    """An axis from `low` to `high` on round numbers: (start, end, tick values)."""
+    low, high = min(low, 0.0), max(high, low + 1e-3)
+    raw = (high - low) / count
+    power = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * power for m in (1, 2, 2.5, 5, 10) if m * power >= raw)
+    first, last = math.floor(low / step + 1e-9), math.ceil(high / step - 1e-9)
+    ticks = [round(i * step, 10) for i in range(first, last + 1)]
+    return ticks[0], ticks[-1], ticks
+
+
+#: Up to this many halts a distribution shows each one (a dot); more: a histogram.
+DOTS_UP_TO = 60
+_PLOT_W, _PLOT_H, _PAD = 340, 46, 14
+_BINS = 40
+
+
+def distribution_svg(values: Sequence[float], axis: tuple[float, float, list[float]]) -> str:
+    """The times of one fault kind on the shared `axis` (seconds): a dot per halt (or a
+    histogram when there are many), the median as a bar, and the axis with its labels."""
+    start, end, ticks = axis
+    inner = _PLOT_W - 2 * _PAD
+
+    def x(value: float) -> float:
+        return _PAD + (value - start) / (end - start) * inner
+
+    marks: list[str] = []
+    for tick in ticks:
+        marks.append(f'<line x1="{x(tick):.1f}" y1="4" x2="{x(tick):.1f}" y2="28" '
+                     'stroke="#e4e4e4"/>'
+                     f'<text x="{x(tick):.1f}" y="41" font-size="10" text-anchor="middle" '
+                     f'fill="#555">{tick:g}</text>')
+    marks.append(f'<line x1="{_PAD}" y1="28" x2="{_PLOT_W - _PAD}" y2="28" stroke="#555"/>')
+    if len(values) <= DOTS_UP_TO:
+        for i, value in enumerate(sorted(values)):
+            y = 8 + (i * 7) % 17  # spread, deterministic
+            marks.append(f'<circle cx="{x(value):.1f}" cy="{y}" r="3" fill="#1565c0" '
+                         'fill-opacity="0.6"/>')
+    else:
+        counts = [0] * _BINS
+        for value in values:
+            counts[min(_BINS - 1, max(0, int((value - start) / (end - start) * _BINS)))] += 1
+        top = max(counts)
+        width = inner / _BINS
+        for i, n in enumerate(counts):
+            if n:
+                height = 22 * n / top
+                marks.append(f'<rect x="{_PAD + i * width:.1f}" y="{28 - height:.1f}" '
+                             f'width="{max(width - 0.5, 0.5):.1f}" height="{height:.1f}" '
+                             'fill="#1565c0"/>')
+    median = _quantile(values, 0.5)
+    marks.append(f'<line x1="{x(median):.1f}" y1="3" x2="{x(median):.1f}" y2="28" '
+                 'stroke="#c62828" stroke-width="2"/>')
+    label = (f"{len(values)} halts from {min(values):.3f} s to {max(values):.3f} s, median "
+             f"{median:.3f} s")
+    return (f'<svg width="{_PLOT_W}" height="{_PLOT_H}" role="img" '
+            f'aria-label="{html.escape(label)}"><title>{html.escape(label)}</title>'
+            f'{"".join(marks)}</svg>')
 
 
 def _quantile(values: Sequence[float], q: float) -> float:
@@ -109,20 +249,12 @@ def _quantile(values: Sequence[float], q: float) -> float:
     return ordered[lo] + (ordered[hi] - ordered[lo]) * (pos - lo)
 
 
-def _answered_kinds(row: Mapping[str, Any]) -> list[str]:
-    """The fault kind a safe halt answered (its reason: "CODE answering KIND (fault N)"); every
-    kind of the run when the halt answered the lane's end instead."""
-    kind = answered_kind(str(row.get("reason") or ""))
-    return [kind] if kind is not None else _kinds(row)
-
-
-def _time_to_halt(rows: Sequence[Mapping[str, Any]]) -> str:
-    by_kind: dict[str, list[float]] = defaultdict(list)
-    for row in rows:
-        value = row.get("time_to_halt_s")
-        if row["outcome"] == "safe_halt" and isinstance(value, int | float):
-            for kind in _answered_kinds(row):
-                by_kind[kind].append(float(value))
+def _time_to_halt(summary: CampaignSummary) -> str:
+    by_kind = summary.time_to_halt
+    if not by_kind:
+        return "<h2>Time to halt (safe halts)</h2><p>No safe halt answered a fault.</p>"
+    every = [v for values in by_kind.values() for v in values]
+    axis = nice_axis(min(every), max(every))
     lines = []
     for kind in sorted(by_kind):
         values = by_kind[kind]
@@ -130,60 +262,121 @@ def _time_to_halt(rows: Sequence[Mapping[str, Any]]) -> str:
             f"<tr><th>{html.escape(kind)}</th><td>{len(values)}</td>"
             f"<td>{min(values):.3f}</td><td>{_quantile(values, 0.5):.3f}</td>"
             f"<td>{_quantile(values, 0.95):.3f}</td><td>{max(values):.3f}</td>"
-            f"<td>{_histogram_svg(values)}</td></tr>")
-    return ("<h2>Time to halt (safe halts)</h2><p>From the moment the run's first fault took "
-            "effect to HALT, seconds, under the fault kind the halt answered (negative: the "
-            "run halted before, for another fault or the lane end).</p><table><tr>"
+            f'<td class="plot">{distribution_svg(values, axis)}</td></tr>')
+    return ("<h2>Time to halt (safe halts)</h2><p>From the moment the fault the halt answered "
+            "took effect (its first frame or packet that changed) to HALT, seconds, under that "
+            "fault's kind; halts at the end of the tape answer no fault and are not here. Every "
+            "row is drawn on the same axis: a dot per halt (a histogram above "
+            f"{DOTS_UP_TO}), the red bar the median.</p><table><tr>"
             "<th>fault kind</th><th>runs</th><th>min</th>"
-            "<th>median</th><th>p95</th><th>max</th><th>distribution</th></tr>"
+            "<th>median</th><th>p95</th><th>max</th><th>distribution (s)</th></tr>"
             f"{''.join(lines)}</table>")
 
 
-def _worst(rows: Sequence[Mapping[str, Any]], out_dir: Path) -> str:
-    def badness(row: Mapping[str, Any]) -> tuple[int, float]:
-        halt = row.get("time_to_halt_s")
-        return (_SEVERITY.get(str(row["outcome"]), 9),
-                -float(halt) if isinstance(halt, int | float) else 0.0)
+def _rerun_cell(out_dir: Path, case_id: str) -> str:
+    command = html.escape(rerun_command(out_dir, case_id))
+    return (f'<td class="rerun"><code class="cmd">{command}</code> <button type="button" '
+            f'class="copy" data-copy="{command}" title="copy the command">copy</button></td>')
 
-    worst = sorted(rows, key=badness)[:WORST_CASES]
+
+def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
     lines = []
-    for row in worst:
-        metrics = json.loads(row.get("metrics_json") or "{}")
+    for row in rows:
+        to_halt = _time_to_halt_s(row)
+        cross = row.get("max_cross_track_error_m")
         lines.append(
-            f"<tr><td>{row['id']}</td><td style=\"color:{_COLORS.get(str(row['outcome']), '')}"
-            f"\">{row['outcome']}</td><td>{html.escape(str(row['scenario']))}</td>"
+            f"<tr><td>{html.escape(str(row['id']))}</td>"
+            f"<td style=\"color:{_COLORS.get(str(row['outcome']), '')}\">{row['outcome']}</td>"
+            f"<td>{html.escape(str(row['scenario']))}</td>"
             f"<td>{html.escape(str(row['camera']))}</td>"
             f"<td>{html.escape(', '.join(_kinds(row)))}</td>"
-            f"<td>{html.escape(str(row.get('reason') or ''))}</td>"
-            f"<td>{metrics.get('max_cross_track_error_m', '')}</td>"
-            f"<td><code>{html.escape(rerun_command(out_dir, str(row['id'])))}</code></td></tr>")
-    return ("<h2>Worst cases</h2><p>Each reruns exactly with the command beside it (with video "
-            "and plot).</p><table><tr><th>run</th><th>outcome</th><th>scenario</th>"
-            "<th>camera</th><th>faults</th><th>why</th><th>max cross-track m</th>"
-            f"<th>rerun</th></tr>{''.join(lines)}</table>")
+            f"<td class=\"why\">{html.escape(str(row.get('reason') or ''))}</td>"
+            f"<td>{'' if to_halt is None else f'{to_halt:.3f}'}</td>"
+            f"<td>{'' if cross is None else cross}</td>"
+            f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
+    return ("<table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
+            "<th>faults</th><th>why</th><th>time to halt s</th><th>max cross-track m</th>"
+            f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table>")
 
 
-def write_report(path: Path, name: str, rows: Sequence[Mapping[str, Any]], out_dir: Path,
-                 summary: str) -> None:
-    counts = Counter(str(r["outcome"]) for r in rows)
+def _more(kept: _Kept, what: str) -> str:
+    hidden = kept.count - len(kept.heap)
+    return f"<p>... and {hidden} more {what} (results.sqlite has every row).</p>" if hidden else ""
+
+
+def _worst(summary: CampaignSummary, out_dir: Path) -> str:
+    unsafe, false_halts = summary.listed["unsafe"], summary.listed["false_halt"]
+    slowest = [row for _, row in sorted(summary.slowest.values(),
+                                        key=lambda item: (-item[0], str(item[1]["id"])))]
+    parts = ["<h2>Worst cases</h2><p>Every unsafe run and every false halt (the slowest to halt "
+             "first; never halting counts as slowest), then, for each fault kind, its slowest "
+             "safe halt. Each reruns exactly with the command beside it; a click selects it, "
+             "the button copies it.</p>"]
+    if unsafe.count or false_halts.count:
+        parts.append(_case_rows([*unsafe.rows(), *false_halts.rows()], out_dir))
+        parts.append(_more(unsafe, "unsafe runs") + _more(false_halts, "false halts"))
+    else:
+        parts.append("<p>No unsafe run and no false halt.</p>")
+    if slowest:
+        parts.append("<h3>Slowest safe halt of each fault kind</h3>")
+        parts.append(_case_rows(slowest, out_dir))
+    return "".join(parts)
+
+
+def _errors(summary: CampaignSummary, out_dir: Path) -> str:
+    errors = summary.listed["error"]
+    if not errors.count:
+        return ""
+    return ("<h2>Runs in error</h2><p>These runs did not test what they were meant to (the "
+            "reason says why); running the campaign again reruns them.</p>"
+            + _case_rows(errors.rows(), out_dir) + _more(errors, "runs in error"))
+
+
+_COPY_SCRIPT = """
+document.addEventListener('click', async (event) => {
+  const button = event.target.closest('button.copy');
+  if (!button) return;
+  const text = button.dataset.copy;
+  try {
+    await navigator.clipboard.writeText(text);
+  } catch (error) {  // no clipboard API (an old browser, a page not allowed): select and copy
+    const range = document.createRange();
+    range.selectNodeContents(button.previousElementSibling);
+    getSelection().removeAllRanges();
+    getSelection().addRange(range);
+    document.execCommand('copy');
+  }
+  button.textContent = 'copied';
+  setTimeout(() => { button.textContent = 'copy'; }, 1500);
+});
+"""
+
+
+def report_html(name: str, summary: CampaignSummary, out_dir: Path, text: str) -> str:
+    counts = summary.counts
     badges = " ".join(
         f'<span style="background:{_COLORS[o]};color:white;padding:2px 8px;border-radius:4px">'
         f"{o}: {counts[o]}</span>" for o in OUTCOMES)
-    cpu = [float(r["cpu_s"]) for r in rows if isinstance(r.get("cpu_s"), int | float)]
-    sim = [float(r["sim_time_s"]) for r in rows if isinstance(r.get("sim_time_s"), int | float)]
-    cost = (f"<p>{len(cpu)} runs timed: {sum(cpu):.0f} s CPU for {sum(sim):.0f} s simulated "
-            f"({sum(cpu) / max(len(cpu), 1):.2f} s CPU per run).</p>") if cpu else ""
-    doc = f"""<!doctype html>
+    cost = (f"<p>{summary.timed} runs timed: {summary.cpu_s:.0f} s CPU for {summary.sim_s:.0f} "
+            f"s simulated ({summary.cpu_s / max(summary.timed, 1):.2f} s CPU per run).</p>"
+            ) if summary.timed else ""
+    matrices = "\n".join(_matrix(title, table) for (title, _), table
+                         in zip(summary.matrices, summary.tables, strict=True))
+    return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>campaign {html.escape(name)}</title>
 <style>
 body {{ font-family: sans-serif; margin: 1.5em; }}
 table {{ border-collapse: collapse; margin-bottom: 1em; }}
 td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
 th {{ background: #f4f4f4; }}
-code {{ font-size: 90%; }}
+td.why {{ text-align: left; max-width: 32em; }}
+td.plot {{ padding: 0 4px; }}
+td.rerun {{ text-align: left; white-space: nowrap; }}
+code.cmd {{ font-size: 90%; user-select: all; background: #f6f6f6; padding: 1px 4px; }}
+button.copy {{ font-size: 80%; }}
 </style></head><body>
 <h1>Campaign {html.escape(name)}</h1>
-<p>{html.escape(summary)}</p>
+<p>{html.escape(text)}</p>
 <p>{badges}</p>
 {cost}
 <p>Outcomes: <b>safe_halt</b> halted for a reason that matches a fault acting then or a real lane
@@ -192,11 +385,23 @@ loss; <b>recovered</b> degraded, then followed again; <b>nominal</b> followed th
 the tape end, moved after HALT or did not halt in time for a hazard it must answer; <b>error</b>
 the run did not test what it was meant to (a fault never took effect, it never engaged, a
 worker was lost). See docs/campaigns.md.</p>
-{_matrix("Fault kind x outcome", rows, _kinds)}
-{_matrix("Scenario x outcome", rows, lambda r: [str(r["scenario"])])}
-{_matrix("Camera x outcome", rows, lambda r: [str(r["camera"])])}
-{_time_to_halt(rows)}
-{_worst(rows, out_dir)}
+{matrices}
+{_time_to_halt(summary)}
+{_worst(summary, out_dir)}
+{_errors(summary, out_dir)}
+<script>{_COPY_SCRIPT}</script>
 </body></html>
 """
-    path.write_text(doc, encoding="utf-8")
+
+
+def summarize(rows: Iterable[Row],
+              matrices: Sequence[tuple[str, Callable[[Row], list[str]]]] = ()) -> CampaignSummary:
+    summary = CampaignSummary(matrices)
+    for row in rows:
+        summary.add(row)
+    return summary
+
+
+def write_report(path: Path, name: str, summary: CampaignSummary, out_dir: Path,
+                 text: str) -> None:
+    path.write_text(report_html(name, summary, out_dir, text), encoding="utf-8")

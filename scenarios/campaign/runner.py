@@ -1,23 +1,26 @@
 """Running a campaign's cases: in this process, or on Dask distributed (a LocalCluster sized to the
 machine, or an existing cluster by its scheduler address).
 
-The shell around `run_case`: draws the cases, writes each case file, sends the runs that are not
-stored yet to the workers, and stores each result row as it arrives (so an interrupted campaign
-resumes). No silent retries: tasks are submitted with `retries=0`, and the local scheduler runs
-with `distributed.scheduler.allowed-failures: 0`, so a run whose worker died (killed, out of
-memory) comes back as an `error` row with the reason, instead of quietly running again
-elsewhere. Runs are submitted grouped by scenario and floor seed, so a worker that reuses
-its painted floor (`paint_ground_cached`) gets to.
+The shell around `run_case`: draws the cases a batch at a time as the runs need them (so a
+campaign of any allowed size starts within seconds and its memory does not grow with its size),
+writes each case file, keeps a bounded number of runs in flight on the workers, and stores each
+result row as it arrives (so an interrupted campaign resumes). No silent retries: tasks are
+submitted with `retries=0`, and the local scheduler runs with
+`distributed.scheduler.allowed-failures: 0`, so a run whose worker died (killed, out of memory)
+comes back as an `error` row with the reason, instead of quietly running again elsewhere. Runs
+are submitted grouped by scenario and floor seed within each batch, so a worker that reuses its
+painted floor (`paint_ground_cached`) gets to.
 
-Wall time is read here for the progress bar and the report only.
+Never reads a clock.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import os
 from collections import Counter
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -25,12 +28,13 @@ from typing import TYPE_CHECKING, Any
 from lanewarden.scenarios.campaign.cases import (
     CampaignSpec,
     Case,
+    case_id,
     case_yaml,
     draw_case,
     spec_fingerprint,
 )
 from lanewarden.scenarios.campaign.run_case import run_case
-from lanewarden.scenarios.campaign.store import ResultStore
+from lanewarden.scenarios.campaign.store import Recovery, ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 
 if TYPE_CHECKING:
@@ -41,6 +45,13 @@ IN_PROCESS = "in-process"
 #: `--scheduler` value (the default) that starts a LocalCluster sized to this machine.
 LOCAL = "local"
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+#: The most runs one campaign may have (`--runs`): 100,000 runs are days of CPU even on a
+#: cluster; more is another seed in another directory.
+MAX_RUNS = 100_000
+#: Cases drawn (and case files written) at a time, after a first small batch.
+DRAW_BATCH = 256
+#: Runs submitted to the cluster per worker thread at a time.
+IN_FLIGHT_PER_WORKER = 2
 
 
 @dataclass(frozen=True)
@@ -64,6 +75,10 @@ class CampaignProgress:
     total: int
     done: int
     counts: Counter[str] = field(default_factory=Counter)
+    #: what `recover` carried over from a damaged results.sqlite (None: nothing to recover)
+    recovered: Recovery | None = None
+    #: rows an earlier campaign could not store, stored now
+    unstored_carried: int = 0
 
 
 def machine_workers() -> int:
@@ -74,11 +89,16 @@ def machine_workers() -> int:
 
 
 def draw_cases(plan: CampaignPlan) -> list[Case]:
-    return [draw_case(plan.spec, plan.spec_path, plan.seed, i, plan.config_overrides,
-                      plan.follow_speed_m_s) for i in range(plan.runs)]
+    """Every case of `plan` (a small plan's: the campaign itself draws them as it goes)."""
+    return [_draw(plan, i) for i in range(plan.runs)]
 
 
-def write_case_files(out_dir: Path, cases: list[Case]) -> None:
+def _draw(plan: CampaignPlan, index: int) -> Case:
+    return draw_case(plan.spec, plan.spec_path, plan.seed, index, plan.config_overrides,
+                     plan.follow_speed_m_s)
+
+
+def write_case_files(out_dir: Path, cases: Iterable[Case]) -> None:
     folder = out_dir / "cases"
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -89,6 +109,24 @@ def write_case_files(out_dir: Path, cases: list[Case]) -> None:
                 path.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{folder}: cannot write the case files ({exc})") from exc
+
+
+def pending_cases(plan: CampaignPlan, done: set[str], first_batch: int = 4,
+                  batch: int = DRAW_BATCH) -> Iterator[Case]:
+    """The cases not stored yet, drawn (and their case files written) a batch at a time as the
+    runs need them, so the first runs start within seconds and memory does not grow with
+    `plan.runs`; within a batch, grouped by scenario and floor seed (workers reuse floors)."""
+    index = 0
+    size = first_batch
+    while index < plan.runs:
+        indices = [i for i in range(index, min(plan.runs, index + size))
+                   if case_id(i) not in done]
+        index += size
+        size = batch
+        cases = [_draw(plan, i) for i in indices]
+        write_case_files(plan.out_dir, cases)
+        yield from sorted(cases, key=lambda c: (str(c.scenario.get("name")), c.seed, c.camera,
+                                                c.index))
 
 
 def error_row(case: Case, reason: str) -> dict[str, Any]:
@@ -102,29 +140,28 @@ def error_row(case: Case, reason: str) -> dict[str, Any]:
 def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None = None,
                  on_start: Callable[[CampaignProgress, str], None] | None = None,
                  on_row: Callable[[dict[str, Any], CampaignProgress], None] | None = None,
-                 ) -> CampaignProgress:
+                 *, recover: bool = False) -> CampaignProgress:
     """Run every case of `plan` that has no stored result yet (or an error), storing each row.
 
-    `scheduler`: LOCAL, IN_PROCESS or a Dask scheduler address. KeyboardInterrupt propagates
-    after the cluster is shut down; every finished row is already stored."""
+    `scheduler`: LOCAL, IN_PROCESS or a Dask scheduler address; `recover`: carry a damaged
+    results.sqlite's readable rows over (store.py). `on_start` is called before the first case
+    is drawn. KeyboardInterrupt propagates after the cluster is shut down; every finished row is
+    already stored."""
     try:
         plan.out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ScenarioError(f"--out {plan.out_dir}: cannot create the directory ({exc})") from exc
-    cases = draw_cases(plan)
-    write_case_files(plan.out_dir, cases)
-    with ResultStore(plan.out_dir / "results.sqlite") as store:
+    with ResultStore(plan.out_dir / "results.sqlite", recover=recover) as store:
         store.claim({"spec": spec_fingerprint(plan.spec, plan.config_overrides),
                      "seed": str(plan.seed)})
-        done = store.done_ids()
-        pending = sorted((c for c in cases if c.id not in done),
-                         key=lambda c: (str(c.scenario.get("name")), c.seed, c.camera, c.index))
-        progress = CampaignProgress(total=len(cases), done=len(cases) - len(pending))
-        for row in store.rows(c.id for c in cases if c.id in done):
-            progress.counts[str(row["outcome"])] += 1
+        done = store.done_ids(below_index=plan.runs)
+        progress = CampaignProgress(total=plan.runs, done=len(done),
+                                    counts=store.outcome_counts(plan.runs),
+                                    recovered=store.recovered,
+                                    unstored_carried=store.unstored_carried)
         if on_start is not None:
             on_start(progress, describe_scheduler(scheduler, workers))
-        for row in _execute(pending, plan.build_stack, scheduler, workers,
+        for row in _execute(pending_cases(plan, done), plan.build_stack, scheduler, workers,
                             plan.worker_memory_limit_mb):
             store.put(row)
             progress.done += 1
@@ -142,18 +179,20 @@ def describe_scheduler(scheduler: str, workers: int | None) -> str:
     return f"Dask scheduler {scheduler}"
 
 
-def _execute(cases: list[Case], build_stack: BuildStack, scheduler: str, workers: int | None,
-             memory_limit_mb: int) -> Iterator[dict[str, Any]]:
-    if not cases:
-        return
+def _execute(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
+             workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     if scheduler == IN_PROCESS:
         for case in cases:
             yield run_case(case.model_dump_json(), build_stack)
         return
-    yield from _execute_on_dask(cases, build_stack, scheduler, workers, memory_limit_mb)
+    first = next(cases, None)
+    if first is None:
+        return  # nothing to run: no cluster to start
+    yield from _execute_on_dask(itertools.chain([first], cases), build_stack, scheduler,
+                                workers, memory_limit_mb)
 
 
-def _execute_on_dask(cases: list[Case], build_stack: BuildStack, scheduler: str,
+def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
                      workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     import dask
     from distributed import Client, LocalCluster, as_completed
@@ -174,21 +213,32 @@ def _execute_on_dask(cases: list[Case], build_stack: BuildStack, scheduler: str,
             except OSError as exc:
                 raise ScenarioError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
     try:
-        by_key = {}
-        futures = []
-        for case in cases:
+        # Runs in flight at once: enough to keep every worker busy, few enough that the queue
+        # (and the scheduler's memory) does not grow with the campaign.
+        threads = sum(client.nthreads().values()) or (workers or machine_workers())
+        in_flight = max(IN_FLIGHT_PER_WORKER * threads, 4)
+        by_key: dict[object, Case] = {}
+        running = as_completed()
+
+        def submit(case: Case) -> None:
             future = client.submit(run_case, case.model_dump_json(), build_stack, pure=False,
                                    retries=0,
                                    key=f"lanewarden-case-{case.id}-{os.getpid()}-{id(case)}")
             by_key[future.key] = case
-            futures.append(future)
-        for future in as_completed(futures):
-            case = by_key[future.key]
+            running.add(future)
+
+        for case in itertools.islice(cases, in_flight):
+            submit(case)
+        for future in running:
+            case = by_key.pop(future.key)
             try:
                 row = future.result()
             except Exception as exc:  # the run never came back: its row says why
                 row = error_row(case, f"{type(exc).__name__}: {exc}")
             future.release()
+            following = next(cases, None)
+            if following is not None:
+                submit(following)
             yield row
     finally:
         client.close()

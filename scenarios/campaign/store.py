@@ -5,13 +5,25 @@ machine) keeps every run that finished, and running the same campaign again runs
 missing or ended in `error`. The `campaign` table holds what the directory is for (the spec's
 fingerprint and the seed): a different campaign is refused rather than mixed in.
 
+Nothing stored is lost to damage (a bad disk, a copy cut short, a page overwritten):
+- the file is checked when opened (`PRAGMA quick_check`, bounded by the file's size): a damaged
+  one is refused in one line (`DamagedResults`, exit 2) and left exactly as it is;
+- `recover=True` keeps it as `results.sqlite.damaged` (`-2`, `-3`, ... if taken) and copies every
+  row that can still be read into a new file (scanning the table from both ends and looking up
+  every id its index still knows), so the campaign reruns only what was lost;
+- a row that cannot be written (the file went bad or the disk filled during the campaign) goes
+  to `results.unstored.jsonl` beside it instead, and the campaign stops with one line; the next
+  campaign in that directory stores those rows first.
+
 Never runs anything; only the campaign shell writes here.
 """
 
 from __future__ import annotations
 
+import json
 import sqlite3
-from collections.abc import Iterable, Mapping
+from collections import Counter
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,17 +37,40 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("worker", "TEXT"), ("metrics_json", "TEXT"), ("effects_json", "TEXT"),
 )
 COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
+_SELECT = f"SELECT {', '.join(COLUMN_NAMES)} FROM runs"
+#: Rows that could not be written, beside the database (a name of its own, never overwritten).
+UNSTORED_SUFFIX = ".unstored.jsonl"
+DAMAGED_SUFFIX = ".damaged"
 
 
 class CampaignMismatch(ScenarioError):
     """The output directory already holds another campaign (a bad --out: exit 2)."""
 
 
-class ResultStore:
-    """DIR/results.sqlite. Use as a context manager."""
+class DamagedResults(ScenarioError):
+    """results.sqlite cannot be read or written as it is (exit 2): nothing is changed."""
 
-    def __init__(self, path: Path) -> None:
+
+def _problem(exc: sqlite3.Error) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+class ResultStore:
+    """DIR/results.sqlite. Use as a context manager. `recover`: see the module docstring."""
+
+    def __init__(self, path: Path, *, recover: bool = False) -> None:
         self.path = path
+        self.recovered: Recovery | None = None
+        self.unstored_path = path.with_name(path.name + UNSTORED_SUFFIX)
+        problem = _damage(path) if path.exists() else None
+        if problem is not None:
+            if not recover:
+                raise DamagedResults(
+                    f"{path}: the results database is damaged ({problem}); nothing was changed: "
+                    "run the same command with --recover to keep it as "
+                    f"{path.name}{DAMAGED_SUFFIX}, carry over every run that can still be "
+                    "read and rerun the rest")
+            self.recovered = _recover(path)
         try:
             self._db = sqlite3.connect(path)
             self._db.execute(f"CREATE TABLE IF NOT EXISTS runs "
@@ -44,7 +79,16 @@ class ResultStore:
                              "value TEXT)")
             self._db.commit()
         except sqlite3.Error as exc:
-            raise ScenarioError(f"{path}: cannot open the results database ({exc})") from None
+            raise ScenarioError(f"{path}: cannot open the results database "
+                                f"({_problem(exc)})") from None
+        if self.recovered is not None:
+            for row in self.recovered.rows:
+                self.put(row)
+            self._db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
+                                 list(self.recovered.identity.items()))
+            self._db.commit()
+            self.recovered.rows = []  # stored now; the count stays
+        self.unstored_carried = self._store_unstored()
 
     def __enter__(self) -> ResultStore:
         return self
@@ -57,29 +101,186 @@ class ResultStore:
 
     def claim(self, identity: Mapping[str, str]) -> None:
         """Mark the directory as holding this campaign, or refuse another one."""
-        stored = dict(self._db.execute("SELECT key, value FROM campaign").fetchall())
+        stored = dict(self._read(lambda db: db.execute(
+            "SELECT key, value FROM campaign").fetchall()))
         for key, value in identity.items():
             if key in stored and stored[key] != value:
                 raise CampaignMismatch(
                     f"{self.path}: holds another campaign ({key} {stored[key]!r}, this one "
                     f"{value!r}): use another --out directory")
-        self._db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
-                             list(identity.items()))
-        self._db.commit()
+        self._write(lambda db: db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
+                                              list(identity.items())))
 
     def put(self, row: Mapping[str, Any]) -> None:
-        """Store one run's row (replacing an earlier attempt of the same case) and commit."""
+        """Store one run's row (replacing an earlier attempt of the same case) and commit; a row
+        that cannot be written goes to results.unstored.jsonl, and DamagedResults says so."""
         values = [row.get(name) for name in COLUMN_NAMES]
-        self._db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(COLUMN_NAMES)}) VALUES "
-                         f"({', '.join('?' for _ in COLUMN_NAMES)})", values)
-        self._db.commit()
+        try:
+            self._db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(COLUMN_NAMES)}) VALUES "
+                             f"({', '.join('?' for _ in COLUMN_NAMES)})", values)
+            self._db.commit()
+        except sqlite3.Error as exc:
+            kept = self._keep_unstored(row)
+            raise DamagedResults(
+                f"{self.path}: cannot store run {row.get('id')} ({_problem(exc)}): {kept}; run "
+                "the same command again (with --recover if the database is damaged)") from None
 
-    def done_ids(self) -> set[str]:
+    def done_ids(self, below_index: int | None = None) -> set[str]:
         """Cases with a stored result that is not an error (those are not run again)."""
-        return {r[0] for r in self._db.execute("SELECT id FROM runs WHERE outcome != 'error'")}
+        query = "SELECT id FROM runs WHERE outcome != 'error'"
+        args: tuple[int, ...] = ()
+        if below_index is not None:
+            query, args = query + " AND idx < ?", (below_index,)
+        return self._read(lambda db: {r[0] for r in db.execute(query, args)})
+
+    def outcome_counts(self, below_index: int) -> Counter[str]:
+        """How many stored runs (not in error) of the first `below_index` have each outcome."""
+        return self._read(lambda db: Counter(dict(db.execute(
+            "SELECT outcome, count(*) FROM runs WHERE outcome != 'error' AND idx < ? GROUP BY "
+            "outcome", (below_index,)))))
+
+    def iter_rows(self, below_index: int | None = None) -> Iterator[dict[str, Any]]:
+        """Every row (of the runs with an index below `below_index`), by index, one at a time."""
+        query: str = f"{_SELECT} ORDER BY idx"
+        args: tuple[int, ...] = ()
+        if below_index is not None:
+            query, args = f"{_SELECT} WHERE idx < ? ORDER BY idx", (below_index,)
+        try:
+            for values in self._db.execute(query, args):
+                yield dict(zip(COLUMN_NAMES, values, strict=True))
+        except sqlite3.Error as exc:
+            raise DamagedResults(f"{self.path}: cannot read the results ({_problem(exc)}); run "
+                                 "the same command with --recover") from None
 
     def rows(self, ids: Iterable[str] | None = None) -> list[dict[str, Any]]:
-        cursor = self._db.execute(f"SELECT {', '.join(COLUMN_NAMES)} FROM runs ORDER BY idx")
         wanted = None if ids is None else set(ids)
-        return [dict(zip(COLUMN_NAMES, r, strict=True)) for r in cursor
-                if wanted is None or r[0] in wanted]
+        return [r for r in self.iter_rows() if wanted is None or r["id"] in wanted]
+
+    # ---- damage ------------------------------------------------------------------------------
+    def _read(self, query: Any) -> Any:
+        try:
+            return query(self._db)
+        except sqlite3.Error as exc:
+            raise DamagedResults(f"{self.path}: cannot read the results ({_problem(exc)}); run "
+                                 "the same command with --recover") from None
+
+    def _write(self, change: Any) -> None:
+        try:
+            change(self._db)
+            self._db.commit()
+        except sqlite3.Error as exc:
+            raise DamagedResults(f"{self.path}: cannot write ({_problem(exc)}); run the same "
+                                 "command with --recover") from None
+
+    def _keep_unstored(self, row: Mapping[str, Any]) -> str:
+        try:
+            with self.unstored_path.open("a", encoding="utf-8") as out:
+                out.write(json.dumps(dict(row), default=str) + "\n")
+        except OSError as exc:
+            return f"it could not be kept in {self.unstored_path} either ({exc.strerror})"
+        return f"its result is kept in {self.unstored_path}"
+
+    def _store_unstored(self) -> int:
+        """Rows an earlier campaign could not store: into the database, then the file goes."""
+        if not self.unstored_path.exists():
+            return 0
+        rows = []
+        for line in self.unstored_path.read_text(encoding="utf-8").splitlines():
+            try:
+                row = json.loads(line)
+            except ValueError:
+                continue  # a line cut short when the disk filled: that run is simply rerun
+            if isinstance(row, dict) and isinstance(row.get("id"), str):
+                rows.append(row)
+        for row in rows:
+            self.put(row)
+        self.unstored_path.unlink()
+        return len(rows)
+
+
+# ---- checking and recovering a damaged file ---------------------------------------------------
+class Recovery:
+    """What `recover` carried over: `rows` (before they are stored), `count`, the campaign's
+    `identity` when it could be read, `kept_as`: where the damaged file went."""
+
+    def __init__(self, rows: list[dict[str, Any]], identity: dict[str, str], kept_as: Path,
+                 lost_ids: int) -> None:
+        self.rows = rows
+        self.count = len(rows)
+        self.identity = identity
+        self.kept_as = kept_as
+        self.lost_ids = lost_ids
+
+
+def _damage(path: Path) -> str | None:
+    """Why the file at `path` is not a sound results database, or None."""
+    try:
+        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        return _problem(exc)
+    try:
+        result = db.execute("PRAGMA quick_check(3)").fetchall()
+        if [r[0] for r in result] != ["ok"]:
+            return "; ".join(str(r[0]) for r in result)[:200]
+        return None
+    except sqlite3.Error as exc:
+        return _problem(exc)
+    finally:
+        db.close()
+
+
+def _scan(db: sqlite3.Connection, query: str, found: dict[str, dict[str, Any]]) -> None:
+    try:
+        for values in db.execute(query):
+            row = dict(zip(COLUMN_NAMES, values, strict=True))
+            if isinstance(row["id"], str):
+                found.setdefault(row["id"], row)
+    except sqlite3.Error:
+        pass  # the scan reached the damage: what came before is kept
+
+
+def _recover(path: Path) -> Recovery:
+    """Move the damaged file aside and read back every row that can still be read."""
+    kept = path.with_name(path.name + DAMAGED_SUFFIX)
+    n = 2
+    while kept.exists():
+        kept, n = path.with_name(f"{path.name}{DAMAGED_SUFFIX}-{n}"), n + 1
+    try:
+        path.rename(kept)
+        for suffix in ("-journal", "-wal", "-shm"):
+            side = path.with_name(path.name + suffix)
+            if side.exists():
+                side.rename(kept.with_name(kept.name + suffix))
+    except OSError as exc:
+        raise DamagedResults(f"{path}: cannot keep the damaged database as {kept} "
+                             f"({exc.strerror}); nothing was changed") from None
+    found: dict[str, dict[str, Any]] = {}
+    identity: dict[str, str] = {}
+    ids: set[str] = set()
+    try:
+        db = sqlite3.connect(f"file:{kept}?mode=ro", uri=True)
+    except sqlite3.Error:
+        return Recovery([], {}, kept, 0)
+    try:
+        _scan(db, f"{_SELECT} ORDER BY rowid", found)
+        _scan(db, f"{_SELECT} ORDER BY rowid DESC", found)
+        try:  # the primary key's own index: the ids of rows the table scans could not reach
+            for (id_,) in db.execute("SELECT id FROM runs INDEXED BY sqlite_autoindex_runs_1"):
+                ids.add(id_)
+        except sqlite3.Error:
+            pass
+        for id_ in sorted(ids - set(found)):
+            try:
+                values = db.execute(f"{_SELECT} WHERE id = ?", (id_,)).fetchone()
+            except sqlite3.Error:
+                continue
+            if values is not None:
+                found[id_] = dict(zip(COLUMN_NAMES, values, strict=True))
+        try:
+            identity = {str(k): str(v) for k, v in db.execute("SELECT key, value FROM campaign")}
+        except sqlite3.Error:
+            identity = {}
+    finally:
+        db.close()
+    return Recovery(sorted(found.values(), key=lambda r: (r.get("idx") or 0, r["id"])),
+                    identity, kept, len(ids - set(found)))

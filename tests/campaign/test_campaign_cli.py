@@ -4,6 +4,7 @@ and `sim --case` reproducing a run exactly."""
 from __future__ import annotations
 
 import json
+import re
 import sqlite3
 from pathlib import Path
 from xml.etree import ElementTree
@@ -38,7 +39,10 @@ def test_in_process_campaign_writes_rows_cases_junit_and_report(
     assert len(suite.findall("testcase")) == 3
     report = (out / "report.html").read_text(encoding="utf-8")
     assert "Fault kind x outcome" in report
-    assert f"lanewarden sim --case {out / 'cases' / 'r00000.yaml'}" in report
+    reruns = re.findall(r'data-copy="lanewarden sim --case ([^"]+)"', report)
+    halts = [r[0] for r in stored if r[1] == "safe_halt"]
+    assert len(reruns) == len({r[2].split(":")[0] for r in stored if r[1] == "safe_halt"})
+    assert all(Path(path).exists() and Path(path).stem in halts for path in reruns)
     assert "3 runs of spec tiny (seed 7; all run now, " in capsys.readouterr().out
 
 

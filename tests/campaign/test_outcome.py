@@ -88,6 +88,26 @@ def test_halt_answering_the_fault_is_a_safe_halt_with_its_time_to_halt() -> None
     assert verdict.time_to_halt_s == pytest.approx(DT, abs=1e-4)
 
 
+def test_time_to_halt_is_from_the_fault_the_halt_answered() -> None:
+    """A loop stall at frame 30, then a cliff at frame 90 answered at frame 91: the halt took
+    one frame (it once read 2.0 s, from the stall)."""
+    stall = FaultSpec(kind="loop_stall", at_s=1.0, duration_s=0.2)
+    cliff = FaultSpec(kind="cliff", at_s=3.0)
+    verdict = classify(facts(run(5, halt_at=91), faults=(stall, cliff),
+                             effects={0: 30 * DT, 1: 90 * DT},
+                             windows=((0, "loop_stall", 30 * DT, 36 * DT),
+                                      (1, "cliff", 90 * DT, 4.0)),
+                             reasons={91: "CLIFF: cliff"}), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == ("safe_halt", "CLIFF answering cliff (fault 1)")
+    assert verdict.time_to_halt_s == pytest.approx(DT, abs=1e-4)
+    # a halt at the end of the tape answers no fault: no time to halt
+    lane_end = classify(facts(run(5, halt_at=91), faults=(stall,), effects={0: 30 * DT},
+                              windows=((0, "loop_stall", 30 * DT, 36 * DT),),
+                              reasons={91: "LANE_LOST: x"}, metrics={"stop_lane_s_m": 3.4},
+                              markings_end_s=3.5), CONFIG, LIMITS)
+    assert (lane_end.outcome, lane_end.time_to_halt_s) == ("safe_halt", None)
+
+
 def test_a_hazard_answered_too_late_is_unsafe() -> None:
     # bumper at frame 60, deadline 0.1 s after it; HALT only at frame 70 (0.33 s later)
     verdict = classify(facts(run(5, halt_at=70), faults=(BUMPER,), effects={0: 60 * DT},
@@ -95,6 +115,7 @@ def test_a_hazard_answered_too_late_is_unsafe() -> None:
                              reasons={70: "BUMPER: bumper pressed"}), CONFIG, LIMITS)
     assert verdict.outcome == "unsafe"
     assert verdict.reason.startswith("bumper (fault 0) took effect at 2.000 s: HALT due by")
+    assert verdict.time_to_halt_s == pytest.approx(10 * DT, abs=1e-4)
 
 
 def test_a_hazard_never_answered_is_unsafe() -> None:

@@ -243,7 +243,7 @@ def test_another_sites_page_cannot_smuggle_a_resume(
             browser.execute_script(f"""
                 const form = document.createElement("form");
                 form.method = "POST"; form.enctype = "text/plain"; form.action = "{target}/stop";
-                const field = document.createElement("input");
+                const field = document.createElement("textarea");  // keeps the line breaks
                 field.name = "x"; field.value = "a".repeat({padding - 2}) + "{smuggled}";
                 form.appendChild(field); document.body.appendChild(form); form.submit();""")
         assert wait_until(lambda: _reached(view, 1), 20.0), view.counts
@@ -301,5 +301,15 @@ def test_a_non_loopback_page_takes_the_token_from_the_address_once(browser: Any)
         browser.find_element(By.ID, "usetoken").click()
         assert wait_until(lambda: (js(browser, "return window.lanewarden.polls") or 0) > 0, 20.0)
         assert box.get_attribute("class") == ""
+        # A page open without the token, then given the address with it (only the fragment
+        # changes: no reload), takes it too.
+        other = f"http://127.0.0.2:{view.port}/"
+        browser.get(other)
+        assert wait_until(lambda: browser.find_element(By.ID, "tokenbox").get_attribute("class")
+                          == "needed", 10.0)
+        browser.get(f"{other}#token={token}")
+        assert wait_until(lambda: (js(browser, "return window.lanewarden.polls") or 0) > 0, 20.0)
+        assert browser.current_url == other
+        assert browser.find_element(By.ID, "tokenbox").get_attribute("class") == ""
     finally:
         view.close()

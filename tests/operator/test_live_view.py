@@ -403,6 +403,16 @@ def test_refused_requests_are_reported_in_one_line_now_and_then(view: View) -> N
                           f"header 'evil.example:{view.port}'"], "the next two: counted, later"
 
 
+def test_a_refusal_prints_no_escape_sequence(view: View) -> None:
+    """What a client sends is never written raw to the operator's terminal."""
+    data = (f"POST /resume\x1b[2J\x1b]0;pwned\x07 HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\n"
+            "Origin: http://e\x1b[31mvil\r\nX-Lanewarden: 1\r\nContent-Length: 0\r\n\r\n")
+    assert statuses(exchange(view.port, data.encode("latin-1"))) == [403]
+    assert view.lines == ["live view: refused POST /resume?[2J?]0;pwned? from 127.0.0.1: "
+                          "unexpected Origin 'http://e\\x1b[31mvil'"]
+    assert view.requests.calls == []
+
+
 def test_a_non_loopback_bind_needs_the_token() -> None:
     v = View("0.0.0.0", token="tok-" + "x" * 20)
     try:

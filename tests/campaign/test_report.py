@@ -1,0 +1,116 @@
+"""The campaign report reads right: worst cases are the unsafe runs, the false halts and the
+slowest halts (never a nominal run); each time-to-halt distribution is a plot of its own halts on
+one shared, labelled axis; rerun commands are selectable and copyable; junit.xml counts right.
+Rows are literal, as results.sqlite holds them."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree
+
+from lanewarden.scenarios.campaign.report import (
+    LISTED_PER_OUTCOME,
+    nice_axis,
+    report_html,
+    summarize,
+    write_junit,
+)
+
+
+def row(index: int, outcome: str, reason: str, to_halt: float | None = None,
+        kinds: str = "bumper", scenario: str = "straight") -> dict[str, Any]:
+    return {"id": f"r{index:05d}", "idx": index, "scenario": scenario, "camera": "small",
+            "seed": 0, "fault_kinds": kinds, "outcome": outcome, "reason": reason,
+            "halt_reason": None, "time_to_halt_s": to_halt, "cpu_s": 3.0, "sim_time_s": 12.0,
+            "wall_s": 3.5, "metrics_json": json.dumps({"max_cross_track_error_m": 0.02})}
+
+
+ROWS = [
+    row(0, "nominal", "followed the lane throughout", kinds="glare_sweep"),
+    row(1, "safe_halt", "BUMPER answering bumper (fault 0)", 0.034),
+    row(2, "safe_halt", "BUMPER answering bumper (fault 0)", 0.067),
+    row(3, "safe_halt", "CLIFF answering cliff (fault 1)", 0.0, kinds="loop_stall,cliff"),
+    row(4, "safe_halt", "LANE_LOST answering lens_smudge (fault 0)", 2.4, kinds="lens_smudge"),
+    row(5, "recovered", "DEGRADED, then following again", kinds="glare_sweep"),
+    row(6, "false_halt", "LANE_LOST at 7.500 s with no fault acting and the tape in place",
+        kinds="glare_sweep"),
+    row(7, "unsafe", "bumper (fault 0) took effect at 2.000 s: HALT due by 2.100 s, came at "
+        "2.333 s", 0.333),
+    row(8, "unsafe", "crossed a tape", kinds="occlusion"),
+    row(9, "error", "fault never took effect: 0:floor_mark", kinds="floor_mark"),
+]
+
+
+def _section(page: str, heading: str) -> str:
+    start = page.index(f"<h2>{heading}</h2>")
+    end = page.find("<h2>", start + 1)
+    return page[start:end if end > 0 else None]
+
+
+def _run_ids(html_part: str) -> list[str]:
+    return re.findall(r"<tr><td>(r\d{5})</td>", html_part)
+
+
+def test_worst_cases_are_unsafe_false_halts_and_the_slowest_halts(tmp_path: Path) -> None:
+    page = report_html("spec", summarize(ROWS), tmp_path, "text")
+    worst = _section(page, "Worst cases")
+    # unsafe: never halting (crossed a tape, no time) before the late one, then the false halt;
+    # then the slowest safe halt of each kind, slowest first
+    assert _run_ids(worst) == ["r00008", "r00007", "r00006", "r00004", "r00002", "r00003"]
+    assert "r00000" not in worst and "r00005" not in worst, "no nominal or recovered run"
+    assert _run_ids(_section(page, "Runs in error")) == ["r00009"]
+
+
+def test_the_rerun_commands_can_be_selected_and_copied(tmp_path: Path) -> None:
+    page = report_html("spec", summarize(ROWS), tmp_path, "text")
+    command = f"lanewarden sim --case {tmp_path / 'cases' / 'r00007.yaml'}"
+    assert (f'<code class="cmd">{command}</code> <button type="button" class="copy" '
+            f'data-copy="{command}"') in page
+    assert "user-select: all" in page and "navigator.clipboard.writeText" in page
+
+
+def test_time_to_halt_is_a_plot_per_kind_on_one_labelled_axis(tmp_path: Path) -> None:
+    page = report_html("spec", summarize(ROWS), tmp_path, "text")
+    table = _section(page, "Time to halt (safe halts)")
+    plots = re.findall(r"<svg .*?</svg>", table)
+    assert len(plots) == 3  # bumper, cliff, lens_smudge
+    assert len(set(plots)) == 3, "each row draws its own halts"
+    for plot in plots:  # the shared axis 0..2.5 s: the same tick labels on every row
+        assert [t for t in re.findall(r">([-\d.]+)</text>", plot)] == [
+            "0", "0.5", "1", "1.5", "2", "2.5"]
+    bumper = next(p for p in plots if "2 halts" in p)
+    assert bumper.count("<circle") == 2
+    assert 'aria-label="2 halts from 0.034 s to 0.067 s, median 0.051 s"' in bumper
+
+
+def test_many_halts_make_a_histogram_and_the_lists_stay_short(tmp_path: Path) -> None:
+    rows = [row(i, "safe_halt", "BUMPER answering bumper (fault 0)", 0.001 * i)
+            for i in range(200)]
+    rows += [row(1000 + i, "unsafe", "crossed a tape", kinds="occlusion") for i in range(40)]
+    summary = summarize(rows)
+    page = report_html("spec", summary, tmp_path, "text")
+    plot = re.findall(r"<svg .*?</svg>", _section(page, "Time to halt (safe halts)"))[0]
+    assert "<circle" not in plot and plot.count("<rect") >= 10
+    worst = _section(page, "Worst cases")
+    assert len(_run_ids(worst)) == LISTED_PER_OUTCOME + 1  # + the slowest bumper halt
+    assert f"... and {40 - LISTED_PER_OUTCOME} more unsafe runs" in worst
+
+
+def test_nice_axes() -> None:
+    assert nice_axis(0.034, 2.4) == (0.0, 2.5, [0.0, 0.5, 1.0, 1.5, 2.0, 2.5])
+    assert nice_axis(0.0, 0.067) == (0.0, 0.08, [0.0, 0.02, 0.04, 0.06, 0.08])
+    assert nice_axis(-0.1, 0.3) == (-0.1, 0.3, [-0.1, 0.0, 0.1, 0.2, 0.3])
+
+
+def test_junit_counts_failures_and_errors(tmp_path: Path) -> None:
+    summary = summarize(ROWS)
+    write_junit(tmp_path / "junit.xml", "spec", ROWS, summary)
+    suite = ElementTree.parse(tmp_path / "junit.xml").getroot()
+    assert (suite.get("tests"), suite.get("failures"), suite.get("errors"), suite.get("time")) == (
+        "10", "3", "1", "35.000")
+    cases = suite.findall("testcase")
+    assert [c.get("name") for c in cases][:2] == ["r00000 glare_sweep", "r00001 bumper"]
+    assert cases[8].find("failure").get("message") == "unsafe: crossed a tape"  # type: ignore
