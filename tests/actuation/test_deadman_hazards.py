@@ -125,6 +125,24 @@ def test_a_bumper_while_the_control_process_is_frozen_stops_the_base_until_an_op
     assert standin.wait_for(lambda pkts: any(map(is_motion, pkts[resumed_mark:])), DEADLINE_S)
 
 
+def test_a_control_process_suspended_long_enough_to_miss_messages_still_learns_of_the_latch(
+        standin: KobukiStandIn, slow_control: ControlProcess) -> None:
+    control = slow_control
+    assert standin.wait_for(lambda pkts: any(map(is_motion, pkts)), 3 * DEADLINE_S)
+    control.say("hold")  # as before Ctrl-Z: the dead-man holds stop without heartbeats
+    assert control.expect("held") == ""
+    os.kill(control.process.pid, signal.SIGSTOP)
+    # 5 s of feedback and WIRE reports (100 messages a second): more than the socket's send
+    # buffer holds (net.core.wmem_default, 208 KiB by default: ~250 such messages)
+    for _ in range(5):
+        wait_for_more_packets(standin, 50)
+    standin.press(bumper=1)  # the latch's MODE message finds the socket full
+    wait_for_more_packets(standin, 5)
+    standin.press(bumper=0)
+    os.kill(control.process.pid, signal.SIGCONT)
+    assert control.expect("latched ").split(" ", 1)[1] == "bumper pressed (right)"
+
+
 # ---- in-process: the latch, the feedback, the resume ----------------------------------------
 @pytest.fixture
 def kobuki(standin: KobukiStandIn) -> Iterator[KobukiBase]:
