@@ -10,7 +10,12 @@ busy processes load every core (default two per core), then measures:
 - SIGKILL of the control process: the dead-man sees end-of-stream and stops at once;
 - SIGSTOP of the dead-man itself: the control side notices its silence, kills it and writes the
   stop to the port directly (measured from the signal);
-- SIGTSTP and SIGQUIT to the process group of `lanewarden base drive` (from the signal).
+- SIGTSTP and SIGQUIT to the process group of `lanewarden base drive` (from the signal);
+- a bumper pressed while the control process is frozen (SIGSTOP, the press at a random moment
+  0-100 ms after the freeze): from the stand-in's write of the first packet with the bumper bit
+  to the dead-man's stop (written, and arrived), target 60 ms (the acceptance figure of issue
+  18); and, for every trial, that nothing non-zero reached the wire between that stop and the
+  operator's resume (after the bumper was released and the control process continued).
 Latency = arrival of the first stop packet at the stand-in - the reference time (CLOCK_MONOTONIC
 is system-wide, so the processes' stamps compare). For the SIGSTOP trials also the time the
 dead-man's write of that stop returned (its own WIRE report): the pty adds the kernel's tty
@@ -23,7 +28,8 @@ the benchmark's other threads at SCHED_FIFO 5 (below the dead-man's 10: none may
 stand-in's GIL while the load preempts it); the control processes (with their own relay threads
 raised as in production) and the load run at normal priority.
 
-    python benchmarks/deadman_latency.py [--trials 100] [--kill-trials 10] [--load-per-core 2]
+    python benchmarks/deadman_latency.py [--trials 100] [--kill-trials 10] [--bumper-trials 100]
+                                         [--load-per-core 2] [--seed 0]
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from __future__ import annotations
 import argparse
 import os
 import queue
+import random
 import re
 import signal
 import statistics
@@ -53,6 +60,7 @@ from tests.actuation.processes import process_state  # noqa: E402
 CONFIG = ActuationConfig()
 BOUND_S = CONFIG.heartbeat_timeout_s + CONFIG.command_period_s
 TARGET_S = 0.250
+BUMPER_TARGET_S = 0.060
 CONTROL_SCRIPT = PROJECT_ROOT / "tests" / "actuation" / "control_process.py"
 WAIT_S = 30.0  # generous: a loaded machine starts Python slowly
 
@@ -135,6 +143,11 @@ class Control:
         if not line.startswith(prefix):
             raise RuntimeError(f"control process said {line!r}, expected {prefix!r}")
         return line
+
+    def say(self, line: str) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.write(line + "\n")
+        self.process.stdin.flush()
 
     def trip(self) -> tuple[float, float]:
         """After SIGCONT: (the stamp of the last heartbeat the dead-man accepted before tripping,
@@ -260,6 +273,52 @@ def drive_trial(how: signal.Signals) -> float:
             drive.wait()
 
 
+def bumper_while_frozen_trials(trials: int, seed: int) -> tuple[list[float], list[float], int,
+                                                                 int]:
+    """A bumper pressed while the control process is frozen, `trials` times: the bumper packet
+    -> the dead-man's stop (written, by its clock; arrived at the stand-in), s; the number of
+    trials with a non-zero command on the wire between that stop and the resume (must be 0); and
+    the number of trials in which the heartbeat timeout tripped it before the press (not
+    measured; the press came too late)."""
+    rng = random.Random(seed)
+    written, arrived, violations, tripped_first = [], [], 0, 0
+    with realtime_standin() as standin, tempfile.TemporaryDirectory() as tmp:
+        control = Control(standin.port, Path(tmp) / "heartbeats")
+        try:
+            wait_for_motion_after(standin, 0.0)
+            for _ in range(trials):
+                os.kill(control.process.pid, signal.SIGSTOP)
+                threading.Event().wait(rng.uniform(0.0, 0.1))  # the moment of the press
+                pressed_s = standin.press(bumper=2)
+                mark = max(0, len(standin.snapshot()) - 20)
+                stop_at = first_stop_after(standin, pressed_s, mark)
+                standin.press(bumper=0)
+                os.kill(control.process.pid, signal.SIGCONT)
+                line = control.expect("")
+                if line.startswith("tripped "):
+                    tripped_first += 1
+                    control.say("rearm")
+                    control.expect("rearmed")
+                else:
+                    if not line.startswith("latched "):
+                        raise RuntimeError(f"control process said {line!r}")
+                    written.append(float(line.split()[1]) - pressed_s)
+                    arrived.append(stop_at - pressed_s)
+                    resume_mark = len(standin.snapshot())
+                    control.say("resume")
+                    control.expect("resumed")
+                    # by order, not arrival time: a packet written just before the stop can
+                    # arrive in the same read, with the same stamp
+                    before_resume = standin.snapshot()[:resume_mark]
+                    stop_index = next(i for i, p in enumerate(before_resume)
+                                      if p.arrival_s >= pressed_s and p.packet == STOP_PACKET)
+                    violations += int(_motion(before_resume[stop_index:]))
+                wait_for_motion_after(standin, time.monotonic())
+        finally:
+            control.close()
+    return written, arrived, violations, tripped_first
+
+
 def _summary(name: str, values: list[float], target_s: float | None) -> str:
     ms = sorted(v * 1000 for v in values)
     p99 = statistics.quantiles(ms, n=100, method="inclusive")[98] if len(ms) > 1 else ms[0]
@@ -277,7 +336,9 @@ def main() -> None:
     parser.add_argument("--kill-trials", type=int, default=10)
     parser.add_argument("--deadman-trials", type=int, default=10)
     parser.add_argument("--drive-trials", type=int, default=3)
+    parser.add_argument("--bumper-trials", type=int, default=100)
     parser.add_argument("--load-per-core", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0, help="the moments of the bumper presses")
     args = parser.parse_args()
     with busy_load(args.load_per_core) as busy:
         try:
@@ -294,6 +355,15 @@ def main() -> None:
             print(_summary("SIGSTOP control: last heartbeat -> stop written", written, TARGET_S))
             print(_summary("  ... -> stop arrived at the stand-in", arrived, TARGET_S),
                   flush=True)
+        if args.bumper_trials > 0:
+            written, arrived, violations, early = bumper_while_frozen_trials(args.bumper_trials,
+                                                                             args.seed)
+            print(_summary("bumper, control frozen: packet -> stop written", written,
+                           BUMPER_TARGET_S))
+            print(_summary("  ... -> stop arrived at the stand-in", arrived, BUMPER_TARGET_S))
+            print(f"  non-zero on the wire after that stop, before the resume: {violations} of "
+                  f"{len(written)} trials; tripped by the heartbeat timeout before the press "
+                  f"(not measured): {early}", flush=True)
         measurements = [
             ("SIGKILL control: last heartbeat -> stop", args.kill_trials, BOUND_S,
              lambda: [killed_control_trial() for _ in range(args.kill_trials)]),

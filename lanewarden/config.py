@@ -44,18 +44,18 @@ class LanewardenConfig(BaseModel):
         conflict is one error, located at one key and naming the other."""
         sup, act = self.supervisor, self.actuation
         conflicts: list[tuple[tuple[str, str], object, str]] = []
-        for axis, unit in (("linear_m_s", "m/s"), ("angular_rad_s", "rad/s")):
-            cap, limit = getattr(sup, f"limiter_max_{axis}"), getattr(act, f"max_{axis}")
-            if cap > limit:
-                conflicts.append((("supervisor", f"limiter_max_{axis}"), cap,
-                                  f"must not exceed actuation.max_{axis} ({limit:g} {unit}), "
-                                  "the base's own limit"))  # fmt: skip
-        for axis, unit in (("linear_accel_m_s2", "m/s^2"), ("angular_accel_rad_s2", "rad/s^2")):
-            ramp, envelope = getattr(sup, f"max_{axis}"), getattr(act, f"max_{axis}")
-            if ramp > envelope:
-                conflicts.append((("supervisor", f"max_{axis}"), ramp,
-                                  f"must not exceed actuation.max_{axis} ({envelope:g} {unit}), "
-                                  "the dead-man's envelope"))  # fmt: skip
+        for sup_key, act_key, unit, what in (
+            ("limiter_max_linear_m_s", "max_linear_m_s", "m/s", "the base's own limit"),
+            ("limiter_max_angular_rad_s", "max_angular_rad_s", "rad/s", "the base's own limit"),
+            ("max_linear_accel_m_s2", "max_linear_accel_m_s2", "m/s^2", "the dead-man's envelope"),
+            ("max_angular_accel_rad_s2", "max_angular_accel_rad_s2", "rad/s^2",
+             "the dead-man's envelope"),
+        ):
+            value, limit = getattr(sup, sup_key), getattr(act, act_key)
+            if value > limit:
+                conflicts.append((("supervisor", sup_key), value,
+                                  f"must not exceed actuation.{act_key} ({limit:g} {unit}), "
+                                  f"{what}"))  # fmt: skip
         rate_hz = self.simulation.camera_rate_hz
         if not math.isclose(sup.camera_period_s * rate_hz, 1.0, rel_tol=1e-3):
             conflicts.append((("supervisor", "camera_period_s"), sup.camera_period_s,

@@ -92,7 +92,8 @@ class OperatorEngage:
     """The operator's start and resume as the panel delivers them (on the control thread, before
     a step): first the base's own safety latch is released where it has one (the Kobuki's
     dead-man: `KobukiBase.resume`, called from nowhere else, so that latch only ever clears on an
-    operator's explicit request), then the loop is asked. Stop goes straight to the loop."""
+    operator's explicit request; it waits, bounded, for the dead-man's answer, so the step after
+    it sees the latch gone), then the loop is asked. Stop goes straight to the loop."""
 
     def __init__(self, loop: ControlLoop, base: Base) -> None:
         self._loop = loop
@@ -214,7 +215,8 @@ def run_robot(
                             loop_end = LoopEnd(LoopEndKind.DURATION,
                                                f"--duration {duration_s:g} s reached")
                             break
-                        session.before_step(now)
+                        session.before_step(now)  # may wait for the dead-man (a resume)
+                        now = clock.now()
                         last = loop.step(now)
                         steps += 1
                         watch.observe(last.state, last.halt_reason, last.time_s,
@@ -236,7 +238,7 @@ def run_robot(
                     now = clock.now()
                     loop.operator_stop(now)
                     session.before_step(now)
-                    loop.step(now)
+                    loop.step(clock.now())
         finally:
             end = end_reason(watch, loop_end)
             lines = session.close(end, loop_end, None if loop_end.kind is LoopEndKind.ERROR

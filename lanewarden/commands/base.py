@@ -201,9 +201,9 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
         if warning is not None:
             click.echo(f"lanewarden: warning: {warning}", err=True)
         loop = build_bring_up_loop(full_config, VelocityCommand(linear_m_s, angular_rad_s), base)
-        start_s = now = ticks.restart()
         # this command is the operator's explicit start: it may release the dead-man's own latch
-        base.resume(now)
+        base.resume(ticks.now())
+        start_s = now = ticks.restart()
         loop.start(now)
         while now - start_s < duration_s:
             _act_on_signals(base, requests, now)

@@ -10,8 +10,8 @@ stop) and prints:
 - `latched STOPPED_S REASON` when the dead-man latched a stop of its own (bumper, cliff, wheel
   drop, stale feedback).
 Lines on stdin: `rearm` (KobukiBase.rearm, then `rearmed`, or `not rearmed MODE` when the
-dead-man stays in MODE) and `resume` (the operator's KobukiBase.resume, then `resumed`, or
-`refused REASON`).
+dead-man stays in MODE), `resume` (the operator's KobukiBase.resume, then `resumed`, or
+`refused REASON`) and `hold` (KobukiBase.hold_stopped, as before a Ctrl-Z, then `held`).
 """
 
 from __future__ import annotations
@@ -39,6 +39,9 @@ def _answer(base: KobukiBase, line: str) -> None:
             print("rearmed", flush=True)
         else:
             print(f"not rearmed {base.deadman_mode.value}", flush=True)
+    elif line == "hold":
+        base.hold_stopped(time.monotonic())
+        print("held", flush=True)
     elif line == "resume":
         if base.resume(time.monotonic()):
             print("resumed", flush=True)
@@ -60,7 +63,7 @@ def main(port: str, heartbeat_log: str | None, config: ActuationConfig) -> None:
         try:
             base.send(command, time.monotonic())  # reaches the dead-man even when it holds stop
         except DeadmanTrippedError:
-            pass
+            pass  # tripped or held: reported below, or on purpose
         mode = base.deadman_mode
         if mode in (DeadmanMode.TRIPPED, DeadmanMode.LATCHED) and held is not mode:
             held = mode

@@ -7,7 +7,8 @@ base-control command, and records every command packet it receives with its arri
 (time.monotonic, comparable across processes).
 
 Use `port` (the pty slave's name) as the serial port. `sensor_changes` lists when a feedback
-packet first carried each new (bumper, cliff, wheel drop) state (the time its write returned).
+packet first carried each new (bumper, cliff, wheel drop) state (the time just before its write);
+`press(...)` sets the bits and returns that time for them.
 `unplug()` closes the master under the driver. `unplug_on_motion=True` does that on the first
 non-zero base-control command.
 `corrupt_every=N` spoils the checksum of every Nth feedback packet.
@@ -131,6 +132,26 @@ class KobukiStandIn:
         with self._cond:
             return self._cond.wait_for(lambda: predicate(self.received), timeout_s)
 
+    def press(self, *, bumper: int | None = None, cliff: int | None = None,
+              wheel_drop: int | None = None, timeout_s: float = 5.0) -> float:
+        """`set_sensors(...)`, then wait for the first feedback packet carrying the new bits:
+        the time just before its write (time.monotonic). RuntimeError if none within
+        `timeout_s`."""
+        since_s = time.monotonic()
+        self.set_sensors(bumper=bumper, cliff=cliff, wheel_drop=wheel_drop)
+        with self._cond:
+            state = (self.bumper, self.cliff, self.wheel_drop)
+
+            def written() -> float | None:
+                return next((t for t, bits in self.sensor_changes
+                             if t >= since_s and bits == state), None)
+
+            if not self._cond.wait_for(lambda: written() is not None, timeout_s):
+                raise RuntimeError(f"the stand-in wrote no packet with the bits {state}")
+            when = written()
+        assert when is not None
+        return when
+
     def snapshot(self) -> list[ReceivedPacket]:
         with self._cond:
             return list(self.received)
@@ -139,14 +160,17 @@ class KobukiStandIn:
         return [(p.arrival_s, bc) for p in self.snapshot() if (bc := p.base_control) is not None]
 
     # ---- the simulated base -------------------------------------------------------------------
-    def _write(self, packet: bytes) -> None:
+    def _write(self, packet: bytes) -> float:
+        """Write `packet` to the driver; returns the time just before the write."""
         with self._write_lock:
+            sent_s = time.monotonic()
             if not self._running.is_set():
-                return
+                return sent_s
             try:
                 os.write(self._master, packet)
             except (BlockingIOError, OSError):
                 pass  # nobody reading the slave: a real UART drops bytes too
+            return sent_s
 
     def _feedback_packet(self, hazards: tuple[int, int, int]) -> bytes:
         bumper, cliff, wheel_drop = hazards
@@ -190,11 +214,12 @@ class KobukiStandIn:
                 corrupt = self.corrupt_every and self.feedback_sent % self.corrupt_every == 0
                 if corrupt:
                     packet = packet[:-1] + bytes([packet[-1] ^ 0x5A])  # bad checksum
-                self._write(packet)
+                sent_s = self._write(packet)
                 with self._cond:
                     if not corrupt and (not self.sensor_changes
                                         or self.sensor_changes[-1][1] != hazards):
-                        self.sensor_changes.append((time.monotonic(), hazards))
+                        self.sensor_changes.append((sent_s, hazards))
+                        self._cond.notify_all()
             next_s += self.period_s
             self._unplugging.wait(max(0.0, next_s - time.monotonic()))
 

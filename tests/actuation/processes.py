@@ -1,16 +1,22 @@
 """Helpers for tests that signal a `lanewarden` process and read the stand-in's packet log (TEST
-code): start the CLI in a process group of its own, see whether it is stopped, find its dead-man,
-and check what reached the wire after a moment."""
+code): start the CLI in a process group of its own, or the pretend control process
+(control_process.py), see whether it is stopped, find its dead-man, and check what reached the
+wire after a moment."""
 
 from __future__ import annotations
 
+import os
+import queue
+import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
+CONTROL_SCRIPT = Path(__file__).with_name("control_process.py")
 DEADLINE_S = 5.0
 
 
@@ -98,3 +104,37 @@ def stderr_lines(err: str) -> list[str]:
     dead-man that could not raise its priority on a machine where that is not permitted)."""
     return [line for line in err.strip().splitlines()
             if not line.startswith("lanewarden: warning: ")]
+
+
+class ControlProcess:
+    """tests/actuation/control_process.py on `port` (extra `args` passed on) as a subprocess, its
+    stdout lines on a queue."""
+
+    def __init__(self, port: str, *args: str) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, str(CONTROL_SCRIPT), port, *args], cwd=PROJECT_ROOT,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=self._pump, daemon=True).start()
+        self.deadman_pid = int(self.expect("deadman "))
+
+    def _pump(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.put(line.strip())
+
+    def expect(self, prefix: str) -> str:
+        """The next line, which must start with `prefix`, without it."""
+        line = self.lines.get(timeout=3 * DEADLINE_S)
+        assert line.startswith(prefix), line
+        return line[len(prefix):]
+
+    def say(self, line: str) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.write(line + "\n")
+        self.process.stdin.flush()
+
+    def close(self) -> None:
+        os.kill(self.process.pid, signal.SIGCONT)  # a frozen process cannot die of SIGKILL late
+        self.process.kill()
+        self.process.wait(timeout=DEADLINE_S)

@@ -42,3 +42,20 @@ def test_bad_values_name_the_key(tmp_path: Path, text: str, key: str) -> None:
     with pytest.raises(ConfigError) as info:
         load_config(path)
     assert key in str(info.value) and len(str(info.value).splitlines()) == 1
+
+
+def test_the_deadmans_envelope_defaults_and_holds_the_gates_ramps(tmp_path: Path) -> None:
+    actuation = LanewardenConfig().actuation
+    assert (actuation.feedback_timeout_s, actuation.max_linear_accel_m_s2,
+            actuation.max_angular_accel_rad_s2) == (0.2, 1.0, 10.0)
+    path = tmp_path / "bad.yaml"
+    path.write_text("supervisor:\n  max_linear_accel_m_s2: 0.5\n  max_angular_accel_rad_s2: 4.0\n"
+                    "actuation:\n  max_linear_accel_m_s2: 0.4\n  max_angular_accel_rad_s2: 3.0\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).splitlines() == [
+        f"{path}: supervisor.max_linear_accel_m_s2 = 0.5: must not exceed "
+        "actuation.max_linear_accel_m_s2 (0.4 m/s^2), the dead-man's envelope",
+        f"{path}: supervisor.max_angular_accel_rad_s2 = 4.0: must not exceed "
+        "actuation.max_angular_accel_rad_s2 (3 rad/s^2), the dead-man's envelope",
+    ]

@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -45,6 +43,7 @@ from lanewarden.supervisor.control_io import ControlInputs
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
 from tests.actuation.processes import (
     DEADLINE_S,
+    ControlProcess,
     is_motion,
     motion_after_the_stop,
     start_lanewarden,
@@ -53,8 +52,6 @@ from tests.actuation.processes import (
 )
 from tests.test_robot_runner import clip, last_line, scenes  # noqa: F401 (a fixture)
 
-CONTROL_SCRIPT = Path(__file__).with_name("control_process.py")
-PROJECT_ROOT = Path(__file__).resolve().parents[2]
 MOVE = VelocityCommand(0.2, 0.0)
 #: The control side's heartbeat timeout in the frozen-control tests: long, so the stop under
 #: test is the bumper's even when a loaded machine delays the press after the freeze.
@@ -79,52 +76,12 @@ def _sent_after(standin: KobukiStandIn, since_s: float) -> list[ReceivedPacket]:
     return [p for p in standin.snapshot() if p.arrival_s >= since_s]
 
 
-def _bits_written_at(standin: KobukiStandIn, bits: tuple[int, int, int]) -> float:
-    """When the stand-in first wrote a feedback packet with these (bumper, cliff, wheel drop)
-    bits (the newest such change), waiting for it."""
-    assert standin.wait_for(lambda _: any(b == bits for _, b in standin.sensor_changes),
-                            DEADLINE_S)
-    return [t for t, b in standin.sensor_changes if b == bits][-1]
-
-
 def _controls_since(standin: KobukiStandIn, since_s: float) -> list[tuple[int, int]]:
     return [c for p in _sent_after(standin, since_s) if (c := p.base_control) is not None]
 
 
 def _controls_from(standin: KobukiStandIn, mark: int) -> list[tuple[int, int]]:
     return [c for p in standin.snapshot()[mark:] if (c := p.base_control) is not None]
-
-
-class ControlProcess:
-    """tests/actuation/control_process.py as a subprocess, its stdout lines on a queue."""
-
-    def __init__(self, port: str, *args: str) -> None:
-        self.process = subprocess.Popen(
-            [sys.executable, str(CONTROL_SCRIPT), port, *args], cwd=PROJECT_ROOT,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        self.lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._pump, daemon=True).start()
-        self.deadman_pid = int(self.expect("deadman "))
-
-    def _pump(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            self.lines.put(line.strip())
-
-    def expect(self, prefix: str) -> str:
-        line = self.lines.get(timeout=3 * DEADLINE_S)
-        assert line.startswith(prefix), line
-        return line[len(prefix):]
-
-    def say(self, line: str) -> None:
-        assert self.process.stdin is not None
-        self.process.stdin.write(line + "\n")
-        self.process.stdin.flush()
-
-    def close(self) -> None:
-        os.kill(self.process.pid, signal.SIGCONT)
-        self.process.kill()
-        self.process.wait(timeout=DEADLINE_S)
 
 
 @pytest.fixture
@@ -142,8 +99,7 @@ def test_a_bumper_while_the_control_process_is_frozen_stops_the_base_until_an_op
     control = slow_control
     assert standin.wait_for(lambda pkts: any(map(is_motion, pkts)), 3 * DEADLINE_S)
     os.kill(control.process.pid, signal.SIGSTOP)  # frozen: nothing in it can react
-    standin.set_sensors(bumper=2)
-    pressed_s = _bits_written_at(standin, (2, 0, 0))
+    pressed_s = standin.press(bumper=2)
     assert standin.wait_for(lambda pkts: any(
         p.arrival_s >= pressed_s and p.packet == STOP_PACKET for p in pkts), DEADLINE_S), \
         "the dead-man did not stop the base on the bumper"
@@ -156,8 +112,7 @@ def test_a_bumper_while_the_control_process_is_frozen_stops_the_base_until_an_op
     assert control.expect("not rearmed ") == "latched"
     control.say("resume")  # the operator's resume, with the bumper still pressed
     assert control.expect("refused ") == "resume refused: bumper pressed (centre)"
-    standin.set_sensors(bumper=0)
-    released_s = _bits_written_at(standin, (0, 0, 0))
+    released_s = standin.press(bumper=0)
     assert standin.wait_for(lambda _: len(_controls_since(standin, released_s)) >= 10, DEADLINE_S)
     resumed_mark = len(standin.snapshot())
     control.say("resume")
@@ -168,6 +123,24 @@ def test_a_bumper_while_the_control_process_is_frozen_stops_the_base_until_an_op
     first_stop = held.index((0, 0))
     assert set(held[first_stop:]) == {(0, 0)} and len(held[first_stop:]) >= 35
     assert standin.wait_for(lambda pkts: any(map(is_motion, pkts[resumed_mark:])), DEADLINE_S)
+
+
+def test_a_control_process_suspended_long_enough_to_miss_messages_still_learns_of_the_latch(
+        standin: KobukiStandIn, slow_control: ControlProcess) -> None:
+    control = slow_control
+    assert standin.wait_for(lambda pkts: any(map(is_motion, pkts)), 3 * DEADLINE_S)
+    control.say("hold")  # as before Ctrl-Z: the dead-man holds stop without heartbeats
+    assert control.expect("held") == ""
+    os.kill(control.process.pid, signal.SIGSTOP)
+    # 5 s of feedback and WIRE reports (100 messages a second): more than the socket's send
+    # buffer holds (net.core.wmem_default, 208 KiB by default: ~250 such messages)
+    for _ in range(5):
+        wait_for_more_packets(standin, 50)
+    standin.press(bumper=1)  # the latch's MODE message finds the socket full
+    wait_for_more_packets(standin, 5)
+    standin.press(bumper=0)
+    os.kill(control.process.pid, signal.SIGCONT)
+    assert control.expect("latched ").split(" ", 1)[1] == "bumper pressed (right)"
 
 
 # ---- in-process: the latch, the feedback, the resume ----------------------------------------
@@ -184,8 +157,11 @@ def _drive_until(base: KobukiBase, done: Callable[[], bool], what: str,
     while not done():
         assert time.monotonic() < deadline, what
         base.send(command, time.monotonic())
-        seen = base.packets_received
-        base.wait_for(lambda b, seen=seen: b.packets_received > seen, 0.05)
+        base.wait_for(_newer_packet(base.packets_received), 0.05)
+
+
+def _newer_packet(seen: int) -> Callable[[KobukiBase], bool]:
+    return lambda base: base.packets_received > seen
 
 
 def _drive_until_mode(base: KobukiBase, mode: DeadmanMode) -> None:
@@ -200,13 +176,11 @@ def test_a_hazard_latches_shows_in_the_feedback_and_only_a_resume_after_it_clear
         standin: KobukiStandIn, kobuki: KobukiBase, bits: dict[str, int], reason: str) -> None:
     _drive_until_mode(kobuki, DeadmanMode.ARMED)
     assert standin.wait_for(lambda pkts: any(map(is_motion, pkts)), DEADLINE_S)
-    standin.set_sensors(**bits)
-    hazard_s = _bits_written_at(standin, (0, bits.get("cliff", 0), bits.get("wheel_drop", 0)))
+    hazard_s = standin.press(**bits)
     _drive_until_mode(kobuki, DeadmanMode.LATCHED)  # sending MOVE throughout: no error
     assert kobuki.feedback(time.monotonic()).stop_latched == reason
     kobuki.rearm(time.monotonic())
-    standin.set_sensors(cliff=0, wheel_drop=0)
-    cleared_s = _bits_written_at(standin, (0, 0, 0))
+    cleared_s = standin.press(cliff=0, wheel_drop=0)
     assert standin.wait_for(lambda _: len(_controls_since(standin, cleared_s)) >= 5, DEADLINE_S)
     assert kobuki.deadman_mode is DeadmanMode.LATCHED  # cleared, and re-armed: not resumed
     assert motion_after_the_stop(standin, hazard_s) == []
@@ -244,12 +218,10 @@ def test_run_halts_on_the_deadmans_latch_and_names_it(
         try:
             assert base.wait_for(lambda pkts: any(map(is_motion, pkts)), 6 * DEADLINE_S)
             os.kill(run.pid, signal.SIGSTOP)
-            base.set_sensors(bumper=2)  # a short press, over before the run can see it
-            pressed_s = _bits_written_at(base, (2, 0, 0))
+            pressed_s = base.press(bumper=2)  # a short press, over before the run can see it
             assert base.wait_for(lambda pkts: any(
                 p.arrival_s >= pressed_s and p.packet == STOP_PACKET for p in pkts), DEADLINE_S)
-            base.set_sensors(bumper=0)
-            _bits_written_at(base, (0, 0, 0))
+            base.press(bumper=0)
             os.kill(run.pid, signal.SIGCONT)
             wait_for_more_packets(base, 40)  # it runs again, halted by the latch
             os.kill(run.pid, signal.SIGTERM)
@@ -351,12 +323,10 @@ def test_the_operators_resume_releases_the_deadmans_latch_and_the_loops(
     engage = OperatorEngage(loop, kobuki)
     engage.start(time.monotonic())
     assert loop.step(time.monotonic()).state == "BRING_UP"
-    standin.set_sensors(cliff=1)
-    _bits_written_at(standin, (0, 1, 0))
+    standin.press(cliff=1)
     assert kobuki.wait_for(lambda b: b.deadman_mode is DeadmanMode.LATCHED, DEADLINE_S)
     assert loop.step(time.monotonic()).state == "HALT"
-    standin.set_sensors(cliff=0)
-    _bits_written_at(standin, (0, 0, 0))
+    standin.press(cliff=0)
     assert kobuki.wait_for(lambda b: b.sensors is not None and b.sensors.cliff == 0, DEADLINE_S)
     assert loop.step(time.monotonic()).state == "HALT"  # cleared, but nobody resumed
     engage.resume(time.monotonic())

@@ -8,12 +8,10 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import select
 import signal
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,10 +25,9 @@ from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_commands import SoundSequence, encode_base_control
 from lanewarden.cli import main
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
-from tests.actuation.processes import stderr_lines
+from tests.actuation.processes import ControlProcess, stderr_lines
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
-CONTROL_SCRIPT = Path(__file__).with_name("control_process.py")
 DEADLINE_S = 5.0
 MOVE = VelocityCommand(0.2, 0.0)
 
@@ -288,32 +285,6 @@ def test_a_stop_signal_to_the_deadman_stops_the_base(standin: KobukiStandIn, kob
 
 
 # ---- the control process dies or freezes --------------------------------------------------------
-class ControlProcess:
-    """tests/actuation/control_process.py as a subprocess, its stdout lines on a queue."""
-
-    def __init__(self, port: str) -> None:
-        self.process = subprocess.Popen(
-            [sys.executable, str(CONTROL_SCRIPT), port], cwd=PROJECT_ROOT,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        self.lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._pump, daemon=True).start()
-        self.deadman_pid = int(self.expect_prefix("deadman "))
-
-    def _pump(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            self.lines.put(line.strip())
-
-    def expect_prefix(self, prefix: str) -> str:
-        line = self.lines.get(timeout=3 * DEADLINE_S)
-        assert line.startswith(prefix), line
-        return line[len(prefix):]
-
-    def close(self) -> None:
-        self.process.kill()
-        self.process.wait(timeout=DEADLINE_S)
-
-
 def _exits_within(pid: int, timeout_s: float) -> bool:
     """Wait (pidfd, no polling) for a process that is not our child to exit."""
     try:
@@ -358,13 +329,11 @@ def test_frozen_control_process_trips_and_stays_stopped_until_rearmed(
                                              for p in pkts), DEADLINE_S)
     os.kill(control.process.pid, signal.SIGCONT)
     # it runs again and sends commands again...
-    assert "no heartbeat for " in control.expect_prefix("tripped ")
+    assert "no heartbeat for " in control.expect("tripped ")
     mark = len(standin.snapshot())
     assert standin.wait_for(lambda pkts: len(pkts) >= mark + 10, DEADLINE_S)
     assert not any(map(_is_motion, standin.snapshot()[mark:]))  # ...which are ignored
-    assert control.process.stdin is not None
-    control.process.stdin.write("rearm\n")
-    control.process.stdin.flush()
-    assert control.expect_prefix("rearmed") == ""
+    control.say("rearm")
+    assert control.expect("rearmed") == ""
     mark = len(standin.snapshot())
     assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts[mark:])), DEADLINE_S)
