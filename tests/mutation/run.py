@@ -195,8 +195,9 @@ def check_copy_is_imported(copy: Path) -> None:
 _RUNNING: set[subprocess.Popen[str]] = set()
 
 
-def run_tests(copy: Path, tests: Sequence[str]) -> tuple[int | None, str]:
-    """(pytest's exit code or None for a timeout, its last output line)."""
+def run_tests(copy: Path, tests: Sequence[str]) -> tuple[int | None, str, bool]:
+    """(pytest's exit code or None for a timeout, its last output line, whether a test module
+    failed to import)."""
     with subprocess.Popen([sys.executable, *PYTEST, *tests], cwd=copy, env=_environment(copy),
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as process:
         _RUNNING.add(process)
@@ -205,11 +206,12 @@ def run_tests(copy: Path, tests: Sequence[str]) -> tuple[int | None, str]:
         except subprocess.TimeoutExpired:
             process.kill()
             process.communicate()
-            return None, f"timed out after {TIMEOUT_S:g} s"
+            return None, f"timed out after {TIMEOUT_S:g} s", False
         finally:
             _RUNNING.discard(process)
     lines = [line for line in stdout.splitlines() if line.strip()]
-    return process.returncode, lines[-1] if lines else stderr.strip()[-200:]
+    return (process.returncode, lines[-1] if lines else stderr.strip()[-200:],
+            "ERROR collecting" in stdout)
 
 
 def _interrupted(signum: int, frame: object) -> None:
@@ -235,11 +237,13 @@ def judge(mutant: Mutant, copy: Path) -> Outcome:
     started = time.monotonic()
     try:
         _write(path, original.replace(mutant.original, mutant.replacement, 1))
-        code, last = run_tests(copy, mutant.tests)
+        code, last, collection_failed = run_tests(copy, mutant.tests)
     finally:
         _write(path, original)
     seconds = time.monotonic() - started
-    if code is None or code in (1, 2):  # failed, or failed to collect (import-time checks)
+    if code is None or code in (1, 2) or (code == 4 and collection_failed):
+        # failed; or a test module failed to import (an import-time check refused the mutant;
+        # the baseline imported it), which pytest reports as 4 for a node id in that module
         return Outcome(mutant, "killed", seconds, last)
     if code == 0:
         return Outcome(mutant, "survived", seconds, last)
@@ -307,7 +311,7 @@ def _run(mutants: Sequence[Mutant], jobs: int, *, baseline: bool) -> int:
         check_copy_is_imported(copies[0])
         if baseline:
             tests = sorted({t for m in mutants for t in m.tests})
-            code, last = run_tests(copies[0], tests)
+            code, last, _ = run_tests(copies[0], tests)
             if code != 0:
                 print(f"mutants: the listed tests fail without any mutant ({last})",
                       file=sys.stderr)

@@ -76,11 +76,12 @@ class Provoked:
     after: str
     events: frozenset[str]
     command: VelocityCommand
+    halt_reason: str | None
 
 
 def _from(before: str, out: ControlOutput | StepRecord) -> Provoked:
     names = frozenset(e if isinstance(e, str) else e.value for e in out.events)
-    return Provoked(before, out.state, names, out.command)
+    return Provoked(before, out.state, names, out.command, out.halt_reason)
 
 
 def _engaged(config: SupervisorConfig | None = None) -> Rig:
@@ -243,9 +244,12 @@ def _frame_frozen() -> Provoked:
 
 def _lane_lost() -> Provoked:
     rig = _engaged()
+    seen_last = rig.clock.now()  # the last usable lane
     out = rig.step(left=False, right=False, confidence=0.0)
     while out.state != "HALT":
         out = rig.step(left=False, right=False, confidence=0.0)
+    # after more than lane_lost_halt_s (0.2 s) without a usable lane, at the first frame past it
+    assert 0.2 < rig.clock.now() - seen_last <= 0.2 + DT + 1e-9
     return _from("DEGRADED", out)
 
 
@@ -358,6 +362,13 @@ def test_event_is_provoked_from_real_inputs_and_gets_its_response(event: Event) 
     if response == "HALT":
         assert result.after == "HALT"
         assert result.command == STOP
+        # halted by this event (or one before it in priority, in the same step), not by a later
+        # fault its provoker went on to cause
+        assert result.halt_reason is not None, result
+        named = result.halt_reason.split(":", 1)[0]
+        order = list(EXPECTED_POLICY)
+        assert named in result.events and EXPECTED_POLICY[named][0] == "HALT", result
+        assert order.index(named) <= order.index(event.value), result
     elif response == "DEGRADE":
         assert result.after == "DEGRADED"
         config = SupervisorConfig()

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import pytest
 
-from lanewarden.actuation.base import STOP
+from lanewarden.actuation.base import STOP, BaseFeedback
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.state_machine import (
@@ -264,6 +264,19 @@ def test_start_before_confident_lane_waits_and_an_unconfident_frame_restarts_the
     for _ in range(n - 1):
         assert rig.step().state == "HALT"
     assert rig.step(confidence=0.5).state == "HALT"  # below confident: count restarts
+    for _ in range(n - 1):
+        assert rig.step().state == "HALT"
+    assert rig.step().state == "FOLLOW"
+
+
+def test_a_degrade_event_restarts_the_count_even_beside_a_confident_frame() -> None:
+    rig = Rig()
+    n = CONFIG.engage_confident_frames
+    rig.step(start=True)
+    for _ in range(n - 3):
+        assert rig.step().state == "HALT"
+    late = rig.clock.now() + DT - 0.15  # base feedback late (DEGRADE), the frame confident
+    assert rig.step(feedback=BaseFeedback(received_at_s=late)).state == "HALT"
     for _ in range(n - 1):
         assert rig.step().state == "HALT"
     assert rig.step().state == "FOLLOW"
