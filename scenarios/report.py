@@ -3,8 +3,9 @@
 Pure text building plus one file write. The HTML references the runs' own files by relative path
 (`lecture/video.mp4`, `supervised/plot.png`, ... for the demo; `video.mp4` for one `sim` run), so
 the output directory can be moved or zipped. The page explains every colour of the videos (from
-the same tables the drawing code uses) and shows each video's poster: the outcome of the run (the
-frame at the halt, or the last frame), not its first frame.
+the same tables the drawing code uses) and shows each video's poster as an image of its own, with
+the play button below it (a video's controls would cover the poster's bottom): the outcome of the
+run (the frame at the halt, or the last frame), not its first frame.
 """
 
 from __future__ import annotations
@@ -167,17 +168,24 @@ def _poster_caption(metrics: Mapping[str, object]) -> str:
     when = poster.get("time_s")
     at = f" (t = {when:.1f} s)" if isinstance(when, int | float) else ""
     return (f'<p class="caption">Still image: {html.escape(str(poster.get("shows")))}{at}. '
-            "Press play to watch the whole run.</p>")
+            "Play shows the whole run.</p>")
 
 
 def _run_section(name: str, folder: str, metrics: Mapping[str, object], heading: str) -> str:
     outputs = metrics.get("outputs") or []
     assert isinstance(outputs, list)
     prefix = f"{html.escape(folder)}/" if folder else ""
-    if "video.mp4" in outputs:
-        poster = f' poster="{prefix}poster.jpg"' if "poster.jpg" in outputs else ""
-        video = (f'<video src="{prefix}video.mp4"{poster} controls muted playsinline '
-                 f'preload="none"></video>{_poster_caption(metrics)}')
+    if "video.mp4" in outputs and "poster.jpg" in outputs:
+        # The still is an image of its own, with the play button below it: a video's controls
+        # would cover the bottom of its poster (the map's and the camera view's lower part).
+        video = (f'<div class="player" data-video="{prefix}video.mp4">'
+                 f'<img src="{prefix}poster.jpg" alt="{html.escape(name)}: the outcome">'
+                 '<button type="button" class="play">&#9654; Play the run</button></div>'
+                 f'<noscript><video src="{prefix}video.mp4" controls muted playsinline '
+                 f'preload="none"></video></noscript>{_poster_caption(metrics)}')
+    elif "video.mp4" in outputs:
+        video = (f'<video src="{prefix}video.mp4" controls muted playsinline '
+                 'preload="metadata"></video>')
     else:
         video = "<p>(no video recorded)</p>"
     return (
@@ -226,6 +234,8 @@ th:first-child {{ text-align: left; }}
 .legend li {{ margin: .25em 0; }}
 .swatch {{ display: inline-block; width: 1.6em; height: .9em; margin-right: .5em;
            vertical-align: middle; border: 1px solid #888; }}
+.player img {{ margin: 0; }}
+.player button {{ margin: .4em 0; font-size: 1em; padding: .3em 1em; cursor: pointer; }}
 </style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>{html.escape(summary)}</p>
@@ -239,6 +249,17 @@ estimated after the run, and the table and the plot mark it as an estimate). Cro
 the distance of the robot's centre from the lane centre.</p>
 {legend_html()}
 {"".join(panels)}
+<script>
+document.addEventListener('click', (event) => {{
+  const button = event.target.closest('.player button.play');
+  if (!button) return;
+  const player = button.closest('.player');
+  const video = document.createElement('video');
+  Object.assign(video, {{src: player.dataset.video, controls: true, autoplay: true,
+                        muted: true, playsInline: true}});
+  player.replaceWith(video);
+}});
+</script>
 </body></html>
 """
     path.write_text(document, encoding="utf-8")

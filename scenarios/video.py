@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Generator
+from collections.abc import Generator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ from lanewarden.perception.overlay import (
     line_step_px,
     perception_text,
     put_text_lines,
+    text_scale,
 )
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.errors import ScenarioOutputError
@@ -135,6 +136,35 @@ def run_video_layout(image: U8) -> tuple[int, int] | None:
         if share >= _BAND_SHARE and divider < _DIVIDER_MAX:
             return panel_w, size
     return None
+
+
+#: A caption's capitals are never drawn smaller than this (px): below, a line is shortened.
+MIN_CAPTION_CAP_PX = 9.0
+
+
+def _text_width_px(text: str, cap_height_px: float) -> int:
+    """Width of `text` as `put_text_lines` draws it (its font; the thicker stroke it may use)."""
+    (width, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, text_scale(cap_height_px), 2)
+    return int(width)
+
+
+def fit_caption(lines: Sequence[str | tuple[str, BGR]], width_px: int,
+                cap_height_px: float) -> tuple[list[str | tuple[str, BGR]], float]:
+    """The caption lines and cap height that fit `width_px`: the text shrinks (down to
+    MIN_CAPTION_CAP_PX) until its widest line fits, then a line still too long is cut and ends
+    in '...'. Nothing is drawn past the panel's edge."""
+    texts = [line if isinstance(line, str) else line[0] for line in lines]
+    widest = max((_text_width_px(t, cap_height_px) for t in texts), default=0)
+    cap = cap_height_px
+    if widest > width_px:
+        cap = max(MIN_CAPTION_CAP_PX, cap_height_px * width_px / widest)
+    fitted: list[str | tuple[str, BGR]] = []
+    for line, text in zip(lines, texts, strict=True):
+        short = text
+        while len(short) > 1 and _text_width_px(short, cap) > width_px:
+            short = short[:-4].rstrip() + "..."
+        fitted.append(short if isinstance(line, str) else (short, line[1]))
+    return fitted, cap
 
 
 def roi_ground_outline(camera: CameraModel, roi_polygon_px: FloatArray) -> FloatArray:
@@ -251,7 +281,7 @@ def controller_caption(title: str, now: float, record: StepRecord,
     trust = "" if trusted is None else ("  lane trusted" if trusted else "  lane NOT trusted")
     cmd = record.command
     return [
-        (f"{title}  t = {now:.1f} s", _CAPTION_HEAD),
+        (f"t = {now:.1f} s  {title}", _CAPTION_HEAD),  # the time first: a long title is cut
         (state_with_reason(record.state, reason), state_color(record.state)),
         f"acted on slope sum {'-' if acted is None else f'{acted:+.2f}'}{trust}",
         f"command v {cmd.linear_m_s:.2f} m/s  w {cmd.angular_rad_s:+.2f} rad/s",
@@ -332,11 +362,11 @@ class VideoRecorder:
         cap = caption_cap_height_px(size)
         first = line_step_px(cap)
         margin = round(cap * 0.7)
-        put_text_lines(band[:, :panel_w], perception_caption(detection), (margin, first), cap,
-                       shade=False)
-        put_text_lines(band[:, panel_w:],
-                       controller_caption(self.title, now, record, self._reason),
-                       (margin, first), cap, shade=False)
+        for area, lines in ((band[:, :panel_w], perception_caption(detection)),
+                            (band[:, panel_w:],
+                             controller_caption(self.title, now, record, self._reason))):
+            fitted, fitted_cap = fit_caption(lines, area.shape[1] - 2 * margin, cap)
+            put_text_lines(area, fitted, (margin, first), fitted_cap, shade=False)
         cv2.line(self._frame, (panel_w, 0), (panel_w, self._frame.shape[0] - 1), (0, 0, 0), 2)
         assert self._writer is not None
         try:

@@ -82,7 +82,10 @@ def test_time_to_halt_is_a_plot_per_kind_on_one_labelled_axis(tmp_path: Path) ->
         assert [t for t in re.findall(r">([-\d.]+)</text>", plot)] == [
             "0", "0.5", "1", "1.5", "2", "2.5"]
     bumper = next(p for p in plots if "2 halts" in p)
-    assert bumper.count("<circle") == 2
+    # 0..2.5 s over x = 14..326 px: 0.034 s at 18.2 px, 0.067 s at 22.4 px, 1 s at 138.8 px
+    assert re.findall(r'<circle cx="([\d.]+)"', bumper) == ["18.2", "22.4"]
+    assert '<text x="138.8" y="41" font-size="10" text-anchor="middle" fill="#555">1</text>' \
+        in bumper
     assert 'aria-label="2 halts from 0.034 s to 0.067 s, median 0.051 s"' in bumper
 
 

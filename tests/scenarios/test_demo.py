@@ -54,7 +54,7 @@ def test_lecture_run_never_stops_and_wanders_past_the_end(demo_out: Path) -> Non
 def test_report_shows_both_runs(demo_out: Path) -> None:
     page = (demo_out / "report.html").read_text()
     for name in ("lecture", "supervised"):
-        assert f'src="{name}/video.mp4" poster="{name}/poster.jpg"' in page
+        assert f'data-video="{name}/video.mp4"><img src="{name}/poster.jpg"' in page
         assert f'src="{name}/plot.png"' in page
         for output in ("metrics.json", "run.jsonl", "video.mp4", "poster.jpg", "plot.png",
                        "report.html"):

@@ -70,7 +70,9 @@ def test_a_halt_position_on_a_lane_that_never_ends_is_x_and_y() -> None:
 def test_report_page_links_each_run_with_its_poster(tmp_path: Path) -> None:
     write_report(tmp_path / "report.html", {"lecture": LECTURE, "supervised": SUPERVISED}, "Hi.")
     page = (tmp_path / "report.html").read_text()
-    assert '<video src="lecture/video.mp4" poster="lecture/poster.jpg"' in page
+    assert ('<div class="player" data-video="lecture/video.mp4"><img src="lecture/poster.jpg" '
+            'alt="lecture: the outcome"><button type="button" class="play">&#9654; Play the run'
+            '</button></div>') in page, "the poster is an image, the controls below it"
     assert "Still image: the last frame (t = 68.1 s)." in page
     assert 'src="supervised/video.mp4"' not in page and "(no video recorded)" in page
     assert 'src="supervised/plot.png"' in page and "<p>Hi.</p>" in page
@@ -80,7 +82,7 @@ def test_a_single_run_report_links_its_own_folder(tmp_path: Path) -> None:
     write_report(tmp_path / "report.html", {"supervised": LECTURE}, "One run.", title="T",
                  folders={"supervised": ""}, headings={"supervised": "Scenario x"})
     page = (tmp_path / "report.html").read_text()
-    assert '<video src="video.mp4" poster="poster.jpg"' in page
+    assert '<div class="player" data-video="video.mp4"><img src="poster.jpg"' in page
     assert '<img src="plot.png"' in page and "<h2>Scenario x</h2>" in page
 
 
