@@ -52,8 +52,8 @@ def steps(folder: Path) -> list[dict[str, Any]]:
     """The recorded steps so far (the steps of run.mcap's chunks written so far; a chunk being
     written is not read yet)."""
     path = folder / "run.mcap"
-    if not path.exists():
-        return []
+    if not path.exists() or path.stat().st_size < 8:
+        return []  # not there yet, or created and its first bytes still in the writer's buffer
     out = []
     for message in McapFile(path).messages(lambda topic: topic.name == STEP_TOPIC):
         out.append(json.loads(decode(message, str(path)).record))
