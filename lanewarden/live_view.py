@@ -82,6 +82,8 @@ MAX_BODY_BYTES = 1024
 #: The plot's window, seconds of run time, and the most samples kept for it.
 PLOT_WINDOW_S = 10.0
 PLOT_MAX_SAMPLES = 1024
+#: How often the server's loop looks whether it is asked to stop (closing waits up to this).
+SERVER_POLL_S = 0.05
 #: Refused requests are reported on the terminal at most once per this many seconds.
 REFUSAL_REPORT_EVERY_S = 5.0
 #: The header the page's POSTs carry (a page from another site cannot send it without a CORS
@@ -351,8 +353,9 @@ class LiveView:
         self.host, self.port = host, int(self._server.server_address[1])
         self.rules = AccessRules(self.port, self.rules.names, self.rules.token)
         self._threads = [
-            threading.Thread(target=self._server.serve_forever, kwargs={"poll_interval": 0.2},
-                             name="live-view-http", daemon=True),
+            threading.Thread(target=self._server.serve_forever,
+                             kwargs={"poll_interval": SERVER_POLL_S}, name="live-view-http",
+                             daemon=True),
             threading.Thread(target=self._encode_frames, name="live-view-encoder", daemon=True),
         ]
         for thread in self._threads:
@@ -543,7 +546,7 @@ class _LineReader(io.BufferedReader):
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
     allow_reuse_address = True
-    request_queue_size = MAX_CONNECTIONS
+    request_queue_size = 4 * MAX_CONNECTIONS  # a burst waits in the kernel, not in threads
 
     def __init__(self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler],
                  view: LiveView) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import socket
 import tempfile
 import threading
 from collections.abc import Iterator
@@ -26,7 +27,8 @@ from typing import Any
 import pytest
 
 from lanewarden.live_view import LiveView
-from tests.operator.runs import free_port, long_lane_images, run_beside, steps, wait_until
+from tests.operator.clips import lane_end_frames, write_images
+from tests.operator.runs import free_port, run_beside, steps, wait_until
 from tests.operator.test_live_view import Requests
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -41,7 +43,17 @@ PATIENT_CONFIG = """supervisor:
   frame_frozen_s: 2.0
   base_feedback_late_s: 0.5
   base_link_timeout_s: 1.0
+  lane_lost_halt_s: 1.0
+  degraded_budget_s: 10.0
 """
+
+
+def lasting_lane_images(folder: Path, seconds: float = 20.0) -> Path:
+    """A straight lane for `seconds`, the camera moving slowly enough (0.12 m/s from 0.3 m) that
+    the rendered tape lasts the whole clip (at 0.4 m/s it ends after about 7 s): a run engages
+    and a resume could engage again at any time."""
+    return write_images(lane_end_frames(start_m=0.3, end_m=0.3 + 0.12 * seconds,
+                                        speed_m_s=0.12), folder / "lane")
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +95,7 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
         browser: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from selenium.webdriver.common.by import By
 
-    clip = long_lane_images(tmp_path, seconds=12.0)
+    clip = lasting_lane_images(tmp_path)
     record = tmp_path / "run"
     config = tmp_path / "patient.yaml"
     config.write_text(PATIENT_CONFIG, encoding="utf-8")
@@ -185,14 +197,28 @@ class Site:
             def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
                 pass
 
-        self.server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
+        connections: list[socket.socket] = []
+        self.connections = connections
+
+        class Server(ThreadingHTTPServer):
+            def process_request(self, request: Any, client_address: Any) -> None:
+                connections.append(request)
+                super().process_request(request, client_address)
+
+        self.server = Server(("127.0.0.1", port), Handler)
         self.port = int(self.server.server_address[1])
         self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
         self.thread.start()
 
     def close(self) -> None:
+        """Gone for good: also the connections the browser opened ahead and keeps idle."""
         self.server.shutdown()
         self.server.server_close()
+        for connection in self.connections:
+            try:
+                connection.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
         self.thread.join(5)
 
 
