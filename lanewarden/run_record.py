@@ -60,6 +60,9 @@ def feedback_as_json(feedback: BaseFeedback) -> dict[str, Any]:
 
 def feedback_from_json(data: dict[str, Any]) -> BaseFeedback:
     x, y, theta = data["odometry"]
+    latched = data.get("stop_latched")
+    if latched is not None and not isinstance(latched, str):
+        raise TypeError(f"stop_latched is {latched!r}: expected a string or nothing")
     return BaseFeedback(
         received_at_s=data["received_at_s"],
         bumper=int(data["bumper"]),
@@ -68,7 +71,7 @@ def feedback_from_json(data: dict[str, Any]) -> BaseFeedback:
         buttons=int(data["buttons"]),
         battery_v=data["battery_v"],
         odometry=Pose2D(float(x), float(y), float(theta)),
-        stop_latched=None if data.get("stop_latched") is None else str(data["stop_latched"]),
+        stop_latched=latched,
     )
 
 
