@@ -168,7 +168,8 @@ def _numbers(value: object, count: int, field: str) -> list[float]:
     return [float(_number({"v": v}, "v", f"{field}[{i}]") or 0.0) for i, v in enumerate(value)]
 
 
-def _feedback(value: object) -> BaseFeedback | None:
+def feedback_from_json(value: object) -> BaseFeedback | None:
+    """A recorded step's `input.feedback` (None for null); StepError naming the field."""
     if value is None:
         return None
     data = _mapping(value, "input.feedback")
@@ -216,7 +217,7 @@ def read_step(line: object) -> tuple[StepInput, RecordedStep]:
         t=t,
         frame=_frame(inp.get("frame")),
         frame_error=_pair(inp, "frame_error", "input.frame_error"),
-        feedback=_feedback(inp.get("feedback")),
+        feedback=feedback_from_json(inp.get("feedback")),
         feedback_error=_pair(inp, "feedback_error", "input.feedback_error"),
         send_errors=_integer(inp, "send_errors", "input.send_errors", 0, 1000, default=0),
         requests=tuple(requests),

@@ -38,6 +38,7 @@ from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.assembly import build_bring_up_gate, build_bring_up_loop
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig
+from lanewarden.run_record import StepError, feedback_as_json, feedback_from_json
 from lanewarden.runner import OperatorEngage
 from lanewarden.supervisor.control_io import ControlInputs
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
@@ -332,3 +333,12 @@ def test_the_operators_resume_releases_the_deadmans_latch_and_the_loops(
     engage.resume(time.monotonic())
     assert kobuki.deadman_mode is DeadmanMode.ARMED
     assert loop.step(time.monotonic()).state == "BRING_UP"
+
+
+def test_the_latch_is_recorded_for_replay_and_read_back_exactly() -> None:
+    latched = BaseFeedback(received_at_s=3.5, stop_latched="wheel dropped (right)")
+    assert feedback_as_json(latched)["stop_latched"] == "wheel dropped (right)"
+    assert feedback_from_json(feedback_as_json(latched)) == latched
+    assert "stop_latched" not in feedback_as_json(BaseFeedback(received_at_s=3.5))  # as before
+    with pytest.raises(StepError, match="input.feedback.stop_latched = 5: expected a text"):
+        feedback_from_json({**feedback_as_json(latched), "stop_latched": 5})
