@@ -5,11 +5,13 @@ fast subset would quietly grow."""
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 from tests.conftest import PROJECT_ROOT, is_slow, slow_tests
 
 
+@cache
 def _test_names(path: Path) -> set[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
     return {node.name for node in ast.walk(tree)
