@@ -3,7 +3,8 @@
 Pipeline (the lecture's, made robust):
 
     gray (perception_gray) -> [Undistorter.apply] -> Gaussian blur -> Canny -> ROI mask
-      -> HoughLinesP -> candidate lines (perception.lines) -> one edge per side (perception.edge_choice)
+      -> HoughLinesP -> candidate lines (perception.lines)
+      -> one edge per side (perception.edge_choice)
       -> bounded slopes and their sum (perception.geometry) -> confidence (perception.confidence)
       -> the lane's offset and heading on the floor (robot frame, metres and radians)
 

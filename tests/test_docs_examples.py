@@ -60,6 +60,8 @@ RUN_ELSEWHERE = {
     "lanewarden replay clip.mp4 --out out/clip":
         "tests/operator/test_replay_sources.py (a rendered clip)",
     "lanewarden replay 'shots/*.png'": "tests/operator/test_replay_sources.py (a folder of images)",
+    "lanewarden replay my_bag/ --topic /camera/image_raw/compressed":
+        "tests/operator/test_replay_bags.py (rosbag2 folders written by rosbags, --topic)",
     ("lanewarden replay ../shared/data/donkeycar-tub --config "
      "tests/perception/donkeycar_camera.yaml --calibration "
      "tests/perception/donkeycar_calibration.yaml"):
@@ -225,7 +227,7 @@ def _help_examples() -> list[str]:
 
 def test_every_help_example_parses() -> None:
     examples = _help_examples()
-    assert len(examples) == 21
+    assert len(examples) == 22  # replay: a bag with --topic
     for example in examples:
         argv, _ = argv_of(example)
         assert parse_only(argv).params, example  # parsed down to the command that runs
