@@ -9,8 +9,8 @@ two steps a PNG writer takes, not a new format:
   one numpy subtraction. On a camera frame it turns smooth gradients and sensor noise into small
   residuals, which is most of what any PNG filter can gain here;
 - the deflate: ISA-L (python-isal) at level 1 instead of zlib. libpng with zlib at its cheapest
-  settings (OpenCV's IMWRITE_PNG_COMPRESSION 1) spends about 5 ms on a 640x480 gray frame,
-  ISA-L about 2 ms for a file 8 % larger (benchmarks/recording_cost.py).
+  setting (OpenCV's IMWRITE_PNG_COMPRESSION 1) spends three to four times the CPU on a 640x480
+  gray frame, for a file about 5 % larger (benchmarks/recording_cost.py).
 
 The container is PNG's own: signature, IHDR (8-bit gray), one IDAT, IEND, each chunk with its
 CRC-32. Pure bytes in, bytes out: no file, no thread, no clock.

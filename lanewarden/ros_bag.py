@@ -142,7 +142,11 @@ class McapFile:
             raise InputFileError(f"{self.path}: cannot read ({exc.strerror or exc})") from None
         with stream:
             size = self.path.stat().st_size
-            if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            magic = stream.read(len(MCAP_MAGIC))
+            if magic != MCAP_MAGIC:
+                if len(magic) < len(MCAP_MAGIC) and MCAP_MAGIC.startswith(magic):
+                    self.cut_short = f"ends at byte {len(magic)}, before MCAP's first record"
+                    return  # written by nothing yet, or cut before its first bytes
                 raise InputFileError(f"{self.path}: not an MCAP file (no MCAP magic at its "
                                      "start)")
             offset = len(MCAP_MAGIC)

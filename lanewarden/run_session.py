@@ -184,6 +184,7 @@ class RunSession:
             extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
                    "recording": str(self.folder), "end_reason": None,
                    "recording_frames_dropped": len(self.recorder.summary.frames_dropped),
+                   "recording_stopped": self.recorder.summary.problem,
                    "started": self.panel is not None and self.panel.started,
                    "armed": self.panel is not None and self.panel.armed})
         self._status = status

@@ -65,6 +65,8 @@ RUN_ELSEWHERE = {
     "lanewarden replay clip.mp4 --out out/clip":
         "tests/operator/test_replay_sources.py (a rendered clip)",
     "lanewarden replay 'shots/*.png'": "tests/operator/test_replay_sources.py (a folder of images)",
+    "lanewarden replay my_bag/ --topic /camera/image_raw/compressed":
+        "tests/operator/test_replay_bags.py (rosbag2 folders written by rosbags, --topic)",
     ("lanewarden replay ../shared/data/donkeycar-tub --config "
      "tests/perception/donkeycar_camera.yaml --calibration "
      "tests/perception/donkeycar_calibration.yaml"):

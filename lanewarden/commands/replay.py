@@ -92,15 +92,16 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and replay_source.kind != "run":
         raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
                                "there is nothing to compare with")
-    if check and not metrics["reproduced"]:
-        raise QualityGateError(f"replay {source}: diverges from the recording at "
-                               f"{metrics['first_divergence']['text']}")
+    # what makes a replay inexact is said before the divergences it causes
     if check and metrics["incomplete"]:
         raise QualityGateError(f"replay {source}: the recording is incomplete "
                                f"({metrics['incomplete'][0]}), so it cannot be checked")
     if check and not metrics["exact_input"]:
         raise QualityGateError(f"replay {source}: the recording is not exact (frames dropped or "
                                "lossy), so it cannot be checked")
+    if check and not metrics["reproduced"]:
+        raise QualityGateError(f"replay {source}: diverges from the recording at "
+                               f"{metrics['first_divergence']['text']}")
 
 
 def commands() -> list[click.Command]:

@@ -159,3 +159,15 @@ def as_format_1(run: Path, target: Path) -> Path:
         if (run / name).exists():
             shutil.copyfile(run / name, target / name)
     return target
+
+
+def forged_format_1(run: Path, target: Path, number: int,
+                    edit: Callable[[dict[str, Any]], None]) -> Path:
+    """`as_format_1(run, target)` with line `number` (1-based) of its run.jsonl edited."""
+    old = as_format_1(run, target)
+    lines = (old / "run.jsonl").read_text().splitlines()
+    line = json.loads(lines[number - 1])
+    edit(line)
+    lines[number - 1] = json.dumps(line)
+    (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+    return old

@@ -23,7 +23,13 @@ from mcap.writer import Writer as McapWriter
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig
 from tests.operator.clips import lane_end_frames
-from tests.operator.recordings import as_format_1, change_step, record_run, rewrite_mcap
+from tests.operator.recordings import (
+    as_format_1,
+    change_step,
+    forged_format_1,
+    record_run,
+    rewrite_mcap,
+)
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -96,13 +102,8 @@ def test_a_forged_step_in_run_mcap(name: str, recorded: Path, tmp_path: Path,
 def test_a_forged_line_in_run_jsonl(name: str, recorded: Path, tmp_path: Path,
                                     capsys: pytest.CaptureFixture[str]) -> None:
     number, edit, phrases = FORGED_STEPS[name]
-    old = as_format_1(recorded, tmp_path / "old")
-    lines = (old / "run.jsonl").read_text().splitlines()
-    number = len(lines) if number == -1 else number
-    line = json.loads(lines[number - 1])
-    edit(line)
-    lines[number - 1] = json.dumps(line)
-    (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+    number = _step_count(recorded) if number == -1 else number
+    old = forged_format_1(recorded, tmp_path / "old", number, edit)
     code, _, err = replay(old, tmp_path, capsys)
     assert_one_line(code, err, f"run.jsonl:{number}: ", *phrases)
 
@@ -141,6 +142,8 @@ def test_a_recording_cut_short_replays_but_is_not_checked(
     code, out, err = replay(cut, tmp_path, capsys)
     assert code == 0, err
     assert "the recording is incomplete: run.mcap was cut short" in out
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["exact_input"] is False and "cut short" in metrics["incomplete"][0]
     code, out, err = replay(cut, tmp_path, capsys, "--check")
     assert_one_line(code, err, "the recording is incomplete", "cut short")
 
@@ -153,6 +156,11 @@ def test_a_damaged_last_line_and_a_missing_summary_are_said(
     code, out, err = replay(old, tmp_path, capsys, "--check")
     assert_one_line(code, err, "the recording is incomplete", "last line of run.jsonl")
     assert "the recording is incomplete: the last line of run.jsonl" in out
+    lines = text.splitlines()
+    lines[6] = lines[6][:50]  # a line cut short in the middle is damage, not a killed run
+    (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+    code, out, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, "run.jsonl:7: not JSON")
     old2 = as_format_1(recorded, tmp_path / "old2")
     (old2 / "summary.json").unlink()  # killed: it never wrote its summary
     code, out, err = replay(old2, tmp_path, capsys, "--check")
