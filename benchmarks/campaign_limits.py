@@ -22,6 +22,7 @@ import argparse
 import json
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -69,20 +70,24 @@ def _run(args: list[str], cwd: Path, until: str | None = None,
 def _damaged_store(folder: Path, rows: int) -> Path:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from lanewarden.scenarios.campaign.cases import load_campaign_spec, spec_fingerprint
-    from lanewarden.scenarios.campaign.store import ResultStore
+    from lanewarden.scenarios.campaign.store import COLUMN_NAMES, ResultStore
 
     (folder / "spec.yaml").write_text(SPEC, encoding="utf-8")
     spec, _ = load_campaign_spec(str(folder / "spec.yaml"))
     out = folder / "out"
     out.mkdir()
     metrics = json.dumps({f"metric_{i}": i * 0.001 for i in range(90)})  # ~2 KB
-    with ResultStore(out / "results.sqlite") as store:
-        store.claim({"spec": spec_fingerprint(spec, {}), "seed": "0"})
-        for index in range(rows):
-            store.put({"id": f"r{index:05d}", "idx": index, "scenario": "straight",
-                       "camera": "320x240", "outcome": "nominal", "reason": "-",
-                       "metrics_json": metrics, "effects_json": "[]"})
     path = out / "results.sqlite"
+    with ResultStore(path) as store:
+        store.claim({"spec": spec_fingerprint(spec, {}), "seed": "0"})
+    row = {"scenario": "straight", "camera": "320x240", "outcome": "nominal", "reason": "-",
+           "metrics_json": metrics, "effects_json": "[]"}
+    with sqlite3.connect(path) as db:  # one transaction (a commit per row, as a campaign does,
+        db.executemany(                # would make this set-up minutes long)
+            f"INSERT INTO runs ({', '.join(COLUMN_NAMES)}) VALUES "
+            f"({', '.join('?' for _ in COLUMN_NAMES)})",
+            ([{**row, "id": f"r{i:05d}", "idx": i}.get(n) for n in COLUMN_NAMES]
+             for i in range(rows)))
     data = bytearray(path.read_bytes())
     page = len(data) // 4096 // 2
     data[page * 4096:(page + 1) * 4096] = bytes(range(256)) * 16
