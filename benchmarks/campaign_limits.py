@@ -2,8 +2,10 @@
 of each refusal, of `--recover`, and how soon the largest campaign allowed starts running.
 
 Each case is `lanewarden campaign` (or a store opening) in a process of its own, measured from
-outside: wall time to its exit (or to a line on stderr, when it is then stopped) and that child's
-own peak RSS (`os.wait4`).
+outside: wall time to its exit (or to a line on stderr, when it is then stopped), and that
+child's own CPU time and peak RSS (`os.wait4`). On a loaded machine the wall times grow with the
+load; the CPU times do not (most of a refusal's is importing the CLI: about 2.8 s of CPU, scipy
+through filterpy the largest part).
 
     python benchmarks/campaign_limits.py [--rows 20000] [--keep DIR]
 
@@ -63,6 +65,7 @@ def _run(args: list[str], cwd: Path, until: str | None = None,
     _, status, usage = os.wait4(process.pid, 0)
     process.returncode = os.waitstatus_to_exitcode(status)
     return {"exit": process.returncode, "wall_s": round(time.perf_counter() - started, 2),
+            "cpu_s": round(usage.ru_utime + usage.ru_stime, 2),
             "peak_rss_mb": round(usage.ru_maxrss / 1024.0, 1), "first_lines": lines[:3],
             "marks_s": marks}
 
