@@ -232,7 +232,7 @@ class Simulation:
             self._video = VideoRecorder(
                 self._video_path, (self.camera.width_px, self.camera.height_px), map_view,
                 sim.camera_rate_hz / video_every, sim.video.crf,
-                sim.video.preset, title=f"{spec.name}, {self.controller_name}")
+                sim.video.preset, title=f"{spec.name}, {self.controller_name} controller")
 
         times: list[float] = []
         poses: list[tuple[float, float, float]] = []

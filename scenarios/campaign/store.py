@@ -82,12 +82,11 @@ class ResultStore:
             raise ScenarioError(f"{path}: cannot open the results database "
                                 f"({_problem(exc)})") from None
         if self.recovered is not None:
-            for row in self.recovered.rows:
-                self.put(row)
-            self._db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
-                                 list(self.recovered.identity.items()))
-            self._db.commit()
-            self.recovered.rows = []  # stored now; the count stays
+            recovered = self.recovered
+            self._write(lambda db: (self._insert(db, recovered.rows), db.executemany(
+                "INSERT OR REPLACE INTO campaign VALUES (?, ?)",
+                list(recovered.identity.items()))))
+            recovered.rows = []  # stored now (one transaction); the count stays
         self.unstored_carried = self._store_unstored()
 
     def __enter__(self) -> ResultStore:
@@ -111,13 +110,17 @@ class ResultStore:
         self._write(lambda db: db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
                                               list(identity.items())))
 
+    @staticmethod
+    def _insert(db: sqlite3.Connection, rows: Iterable[Mapping[str, Any]]) -> None:
+        db.executemany(f"INSERT OR REPLACE INTO runs ({', '.join(COLUMN_NAMES)}) VALUES "
+                       f"({', '.join('?' for _ in COLUMN_NAMES)})",
+                       ([row.get(name) for name in COLUMN_NAMES] for row in rows))
+
     def put(self, row: Mapping[str, Any]) -> None:
         """Store one run's row (replacing an earlier attempt of the same case) and commit; a row
         that cannot be written goes to results.unstored.jsonl, and DamagedResults says so."""
-        values = [row.get(name) for name in COLUMN_NAMES]
         try:
-            self._db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(COLUMN_NAMES)}) VALUES "
-                             f"({', '.join('?' for _ in COLUMN_NAMES)})", values)
+            self._insert(self._db, [row])
             self._db.commit()
         except sqlite3.Error as exc:
             kept = self._keep_unstored(row)
@@ -192,8 +195,7 @@ class ResultStore:
                 continue  # a line cut short when the disk filled: that run is simply rerun
             if isinstance(row, dict) and isinstance(row.get("id"), str):
                 rows.append(row)
-        for row in rows:
-            self.put(row)
+        self._write(lambda db: self._insert(db, rows))  # one transaction; the file stays if not
         self.unstored_path.unlink()
         return len(rows)
 

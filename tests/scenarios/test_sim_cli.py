@@ -172,7 +172,7 @@ def test_sim_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFixture[s
     poster = cv2.imread(str(out / "poster.jpg"))
     assert poster.shape == (480 + 110, 640 + 480, 3)
     assert not (out / "PARTIAL").exists()
-    assert 'poster="poster.jpg"' in (out / "report.html").read_text()
+    assert 'data-video="video.mp4"><img src="poster.jpg"' in (out / "report.html").read_text()
     stdout = capsys.readouterr().out
     assert "expected outcome: met" in stdout and str(out) in stdout
 
