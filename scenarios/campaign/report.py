@@ -3,8 +3,9 @@
 - junit.xml: one testcase per run (classname `campaign.<scenario>`, name `<id> <fault kinds>`);
   `unsafe` and `false_halt` are failures, `error` is an error, the rest pass.
 - report.html: outcome counts, the outcome matrix (fault kind x outcome, scenario x outcome,
-  camera x outcome), time-to-halt distributions per fault kind (from the first fault's effect to
-  HALT), and the worst cases, each with the one command that reruns it with video.
+  camera x outcome, and floor, tape and camera effect x outcome when the campaign draws them),
+  time-to-halt distributions per fault kind (from the first fault's effect to HALT), and the
+  worst cases, each with the one command that reruns it with video.
 
 Pure formatting of rows already stored: never runs anything, never reads a clock.
 """
@@ -82,6 +83,18 @@ def _matrix(title: str, rows: Sequence[Mapping[str, Any]], keys: Any) -> str:
                     f"<td>{sum(table[key].values())}</td></tr>")
     return (f"<h2>{html.escape(title)}</h2><table><tr><th></th>{head}<th>runs</th></tr>"
             f"{''.join(body)}</table>")
+
+
+def conditions_tables(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Floor x outcome, tape x outcome and camera effect x outcome (what the runs were seen
+    through, beside what was injected); only the dimensions the campaign drew."""
+    tables = []
+    for column, title in (("floor", "Floor x outcome"), ("tape", "Tape x outcome"),
+                          ("effect", "Camera effect x outcome")):
+        names = {str(r.get(column) or "") for r in rows}
+        if names - {"", "scenario", "default"}:
+            tables.append(_matrix(title, rows, lambda r, c=column: [str(r.get(c) or "?")]))
+    return "\n".join(tables)
 
 
 def _histogram_svg(values: Sequence[float], width: int = 260, height: int = 50) -> str:
@@ -195,6 +208,7 @@ worker was lost). See docs/campaigns.md.</p>
 {_matrix("Fault kind x outcome", rows, _kinds)}
 {_matrix("Scenario x outcome", rows, lambda r: [str(r["scenario"])])}
 {_matrix("Camera x outcome", rows, lambda r: [str(r["camera"])])}
+{conditions_tables(rows)}
 {_time_to_halt(rows)}
 {_worst(rows, out_dir)}
 </body></html>

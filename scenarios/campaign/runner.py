@@ -6,8 +6,8 @@ stored yet to the workers, and stores each result row as it arrives (so an inter
 resumes). No silent retries: tasks are submitted with `retries=0`, and the local scheduler runs
 with `distributed.scheduler.allowed-failures: 0`, so a run whose worker died (killed, out of
 memory) comes back as an `error` row with the reason, instead of quietly running again
-elsewhere. Runs are submitted grouped by scenario and floor seed, so a worker that reuses
-its painted floor (`paint_ground_cached`) gets to.
+elsewhere. Runs are submitted grouped by scenario, floor, tape and floor seed, so a worker that
+reuses its painted floor (`paint_ground_cached`) gets to.
 
 Wall time is read here for the progress bar and the report only.
 """
@@ -29,7 +29,7 @@ from lanewarden.scenarios.campaign.cases import (
     draw_case,
     spec_fingerprint,
 )
-from lanewarden.scenarios.campaign.run_case import run_case
+from lanewarden.scenarios.campaign.run_case import case_columns, run_case
 from lanewarden.scenarios.campaign.store import ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 
@@ -93,10 +93,9 @@ def write_case_files(out_dir: Path, cases: list[Case]) -> None:
 
 def error_row(case: Case, reason: str) -> dict[str, Any]:
     """The row of a run that never came back (lost worker, cancelled, ...)."""
-    return {"id": case.id, "idx": case.index, "scenario": str(case.scenario.get("name")),
-            "camera": case.camera, "seed": case.seed, "fault_kinds": ",".join(case.fault_kinds),
-            "outcome": "error", "reason": " ".join(reason.split())[:500], "frames": 0,
-            "metrics_json": "{}", "effects_json": "[]"}
+    return {**case_columns(case), "outcome": "error",
+            "reason": " ".join(reason.split())[:500], "frames": 0, "metrics_json": "{}",
+            "effects_json": "[]"}
 
 
 def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None = None,
@@ -118,7 +117,8 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
                      "seed": str(plan.seed)})
         done = store.done_ids()
         pending = sorted((c for c in cases if c.id not in done),
-                         key=lambda c: (str(c.scenario.get("name")), c.seed, c.camera, c.index))
+                         key=lambda c: (str(c.scenario.get("name")), c.floor, c.tape, c.seed,
+                                        c.camera, c.index))
         progress = CampaignProgress(total=len(cases), done=len(cases) - len(pending))
         for row in store.rows(c.id for c in cases if c.id in done):
             progress.counts[str(row["outcome"])] += 1
