@@ -59,9 +59,10 @@ class Highlights:
         w_px, h_px = camera.width_px, camera.height_px
         # The light is smooth (blurred by the roughness): it is looked up at half the
         # resolution and scaled up; only the gloss (sharp at grout and tape edges) is full size.
-        gx, gy = camera.pixel_ground_points(distorted=True)
-        gx = cv2.resize(gx, (w_px // 2, h_px // 2), interpolation=cv2.INTER_LINEAR)
-        gy = cv2.resize(gy, (w_px // 2, h_px // 2), interpolation=cv2.INTER_LINEAR)
+        full_x, full_y = camera.pixel_ground_points(distorted=True)
+        half = (w_px // 2, h_px // 2)
+        gx = np.asarray(cv2.resize(full_x, half, interpolation=cv2.INTER_LINEAR), np.float64)
+        gy = np.asarray(cv2.resize(full_y, half, interpolation=cv2.INTER_LINEAR), np.float64)
         cam = camera.position_robot()[:2]
         grow = (h + big_h) / h
         reach = min(MAX_DISTANCE_M * grow, MAX_CEILING_REACH_M)
@@ -83,12 +84,13 @@ class Highlights:
         axes = (ceiling.size_m / 2.0 / self._res[0] * 16, ceiling.size_m / 2.0 / self._res[1] * 16)
         cv2.ellipse(disc, (tw * 8, th * 8), (max(1, round(axes[0])), max(1, round(axes[1]))),
                     0.0, 0.0, 360.0, 1.0, -1, cv2.LINE_AA, 4)
-        tile: NDArray[np.floating] = disc
+        tile = disc
         sigma = blur_m / min(self._res)
         if sigma > 0.3:
             pad = min(int(math.ceil(3 * sigma)), 4 * max(tw, th))
             wrapped = np.pad(disc, pad, mode="wrap")  # the ceiling repeats: blur it so
-            tile = cv2.GaussianBlur(wrapped, (0, 0), sigma)[pad:pad + th, pad:pad + tw]
+            tile = np.asarray(cv2.GaussianBlur(wrapped, (0, 0), sigma),
+                              np.float32)[pad:pad + th, pad:pad + tw]
         peak = float(tile.max())
         # The ceiling around the camera, as many periods as the mirrored rays reach.
         self._periods = (int(math.ceil(2 * reach / sx)) + 2, int(math.ceil(2 * reach / sy)) + 2)
