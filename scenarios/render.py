@@ -196,7 +196,7 @@ class CameraRenderer:
         if self.highlights is not None:
             gloss = self.texture.gloss_transposed if self._transposed else self.texture.gloss
             assert gloss is not None
-            self.highlights.draw(image, pose, self._map, gloss, 0,
+            self.highlights.draw(image, pose, self._map, gloss,
                                  settings.scale if image.ndim == 2 else settings.scale_bgr())
         effects.meter(image, settings, now)
         effects.develop(image, settings, noise_index)

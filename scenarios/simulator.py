@@ -151,7 +151,11 @@ class Simulation:
         self.world = build_world(spec, margin_m=sim.world_margin_m)
         # The painted floor depends only on these (and is reused by a campaign's worker); floor
         # faults are painted over a copy.
-        floor_key = spec.model_dump_json(include={"floor", "tape", "lane", "lighting"}) + repr(
+        # (The room's brightness, colour and changes are the camera's to answer, not painted: runs
+        # under other light share the floor.)
+        painted_light = spec.lighting.model_dump_json(include={"gradient", "glare"}) + repr(
+            spec.lighting.ceiling is None)
+        floor_key = spec.model_dump_json(include={"floor", "tape", "lane"}) + painted_light + repr(
             sim.world_margin_m)
         self.texture: GroundTexture = with_marks(
             paint_ground_cached(self.world, floor_key, sim.texture_mm_per_px / 1000.0, seed,
@@ -203,8 +207,7 @@ class Simulation:
         ceiling = self.world.lighting.ceiling
         if ceiling is None:
             return None
-        return Highlights(ceiling, self.camera, self.world.bounds,
-                          self.world.floor.roughness_rad)
+        return Highlights(ceiling, self.camera, self.world.floor.roughness_rad)
 
     def _roi_polygon(self) -> NDArray[np.float64]:
         """Perception's ROI in undistorted pixels, asked from the detector itself (one detection

@@ -17,7 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
@@ -73,6 +73,47 @@ class CameraChoice(_Model):
     exclude_scenarios: list[str] = []
 
 
+class FloorChoice(_Model):
+    """One floor a campaign draws: its name in the results, its relative frequency, the
+    scenario `floor:` block it lays (replacing the scenario's; empty: the scenario's own floor)
+    and `config:` overrides that go with it."""
+
+    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    floor: dict[str, Any] = {}
+    config: dict[str, Any] = {}
+    #: scenarios this floor is never drawn with
+    exclude_scenarios: list[str] = []
+
+
+class TapeChoice(_Model):
+    """One tape a campaign draws: the scenario `tape:` block (replacing the scenario's; empty:
+    the scenario's own tape), `lane:` keys merged over the scenario's (dashes, single line),
+    `config:` overrides that go with it (the tape widths perception is told), and the `floors`
+    (names) it is laid on (empty: any; white tape on a light floor is a course nobody tapes)."""
+
+    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    tape: dict[str, Any] = {}
+    lane: dict[str, Any] = {}
+    config: dict[str, Any] = {}
+    floors: list[str] = []
+    exclude_scenarios: list[str] = []
+
+
+class EffectChoice(_Model):
+    """One set of camera effects and light a campaign draws: `camera:` keys merged over the
+    scenario's camera block (exposure, noise, compression, ...), `lighting:` keys merged over
+    its lighting (brightness, changes, ceiling lights), `config:` overrides."""
+
+    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    camera: dict[str, Any] = {}
+    lighting: dict[str, Any] = {}
+    config: dict[str, Any] = {}
+    exclude_scenarios: list[str] = []
+
+
 class FaultRange(_Model):
     """One fault kind a campaign draws, with `weight` (relative frequency) and its parameters
     as ranges (any FaultSpec field but `kind`)."""
@@ -100,6 +141,10 @@ class CampaignSpec(_Model):
     fault_start_s: tuple[Annotated[float, Field(ge=0.0, le=600.0)],
                          Annotated[float, Field(ge=0.0, le=600.0)]] = (2.5, 12.0)
     faults: Annotated[list[FaultRange], Field(min_length=1, max_length=200)]
+    #: floors, tapes and camera effects drawn per run (none: each scenario's own)
+    floors: Annotated[list[FloorChoice], Field(max_length=50)] = []
+    tapes: Annotated[list[TapeChoice], Field(max_length=50)] = []
+    effects: Annotated[list[EffectChoice], Field(max_length=50)] = []
     #: config overrides for every run (the same shape as a config file)
     config: dict[str, Any] = {}
 
@@ -109,9 +154,17 @@ class CampaignSpec(_Model):
             raise ValueError(f"faults_per_run = {list(self.faults_per_run)}: expected [min, max]")
         if self.fault_start_s[0] > self.fault_start_s[1]:
             raise ValueError(f"fault_start_s = {list(self.fault_start_s)}: expected [from, to]")
-        names = [c.name for c in self.cameras]
-        if len(set(names)) != len(names):
-            raise ValueError(f"cameras: names must be unique, got {names}")
+        for what, choices in (("cameras", self.cameras), ("floors", self.floors),
+                              ("tapes", self.tapes), ("effects", self.effects)):
+            names = [c.name for c in choices]
+            if len(set(names)) != len(names):
+                raise ValueError(f"{what}: names must be unique, got {names}")
+        floors = {f.name for f in self.floors}
+        for i, tape in enumerate(self.tapes):
+            unknown = [f for f in tape.floors if f not in floors]
+            if unknown:
+                raise ValueError(f"tapes.{i}.floors: {unknown} are not among the floors "
+                                 f"{sorted(floors)}")
         return self
 
 
@@ -126,6 +179,11 @@ class Case(_Model):
     seed: int
     camera: str
     fault_kinds: list[str]
+    #: the drawn floor, tape and camera effects (names from the spec; `scenario`/`default`:
+    #: the scenario's own)
+    floor: str = "scenario"
+    tape: str = "scenario"
+    effect: str = "default"
     scenario: dict[str, Any]
     #: the whole run's config overrides (config file shape), validated when the case runs
     config: dict[str, Any]
@@ -175,6 +233,20 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
             if name not in spec.scenarios:
                 problems.append(f"{path}: cameras.{i}.exclude_scenarios: {name!r} is not one of "
                                 f"the spec's scenarios {spec.scenarios}")
+    groups: list[tuple[str, Sequence[Choice]]] = [
+        ("floors", spec.floors), ("tapes", spec.tapes), ("effects", spec.effects)]
+    for what, choices in groups:
+        for i, choice in enumerate(choices):
+            for name in choice.exclude_scenarios:
+                if name not in spec.scenarios:
+                    problems.append(f"{path}: {what}.{i}.exclude_scenarios: {name!r} is not one "
+                                    f"of the spec's scenarios {spec.scenarios}")
+            try:
+                base = _resolve(spec.scenarios[0], path).model_dump(mode="json",
+                                                                    exclude_defaults=True)
+                parse_scenario(_dress(base, choice), f"{what}.{i} ({choice.name})")
+            except ScenarioError as exc:
+                problems.append(f"{path}: {what}.{i} ({choice.name}): {_one_line(exc)}")
     rng = np.random.default_rng(0)
     for i, fault in enumerate(spec.faults):
         for _ in range(3):
@@ -313,6 +385,37 @@ def _stream_loss_last(faults: list[dict[str, Any]]) -> None:
             killer["at_s"] = round(max(others) + AFTER_OTHERS_S, 3)
 
 
+Choice = FloorChoice | TapeChoice | EffectChoice
+
+
+def _dress(scenario: dict[str, Any], choice: Choice) -> dict[str, Any]:
+    """The scenario (its JSON data) with a drawn floor, tape or effect laid over it."""
+    data = dict(scenario)
+    if isinstance(choice, FloorChoice) and choice.floor:
+        data["floor"] = dict(choice.floor)
+    elif isinstance(choice, TapeChoice):
+        if choice.tape:
+            data["tape"] = dict(choice.tape)
+        if choice.lane:
+            data["lane"] = merge_overrides(data.get("lane", {}), choice.lane)
+    elif isinstance(choice, EffectChoice):
+        if choice.camera:
+            data["camera"] = merge_overrides(data.get("camera", {}), choice.camera)
+        if choice.lighting:
+            data["lighting"] = merge_overrides(data.get("lighting", {}), choice.lighting)
+    return data
+
+
+def _pick(rng: np.random.Generator, choices: list[Any], scenario: str,
+          allowed: Any = None) -> Any:
+    """One of `choices` by weight, never one that excludes `scenario` (None: none to draw)."""
+    weights = np.array([0.0 if scenario in c.exclude_scenarios or (
+        allowed is not None and not allowed(c)) else c.weight for c in choices])
+    if not len(choices) or weights.sum() <= 0:
+        return None
+    return choices[int(rng.choice(len(choices), p=weights / weights.sum()))]
+
+
 def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: int,
               config_overrides: Mapping[str, Any], follow_speed_m_s: float) -> Case:
     """Run `index` of the campaign: a pure function of its arguments."""
@@ -356,18 +459,33 @@ def draw_case(spec: CampaignSpec, spec_path: Path, campaign_seed: int, index: in
     _stream_loss_last(faults)
     data = scenario.model_dump(mode="json", exclude_defaults=True)
     data.pop("expect", None)  # the scenario's expected outcome is without these faults
+    # Floor, tape and effects come from a stream of their own, so a spec without them draws
+    # exactly the cases it drew before they existed.
+    look = np.random.default_rng([campaign_seed, index, 0xF1002])
+    floor = _pick(look, spec.floors, scenario_name)
+    tape = _pick(look, spec.tapes, scenario_name,
+                 lambda t: not t.floors or (floor is not None and floor.name in t.floors))
+    effect = _pick(look, spec.effects, scenario_name)
+    drawn = [c for c in (floor, tape, effect) if c is not None]
+    for choice in drawn:
+        data = _dress(data, choice)
     if camera.camera:
         data["camera"] = merge_overrides(data.get("camera", {}), camera.camera)
     data["faults"] = faults
     data["run"] = merge_overrides(data.get("run", {}), {"max_time_s": max_time})
     config = merge_overrides(merge_overrides(dict(config_overrides), spec.config), camera.config)
+    for choice in drawn:
+        config = merge_overrides(config, choice.config)
     config = merge_overrides(config, {"simulation": {"width_px": camera.width_px,
                                             "height_px": camera.height_px,
                                             **camera.simulation,
                                             "progress": False}})
     case = Case(id=case_id(index), campaign=spec.name, campaign_seed=campaign_seed,
                 index=index, controller=spec.controller, seed=seed, camera=camera.name,
-                fault_kinds=kinds, scenario=data, config=config)
+                fault_kinds=kinds, floor="scenario" if floor is None else floor.name,
+                tape="scenario" if tape is None else tape.name,
+                effect="default" if effect is None else effect.name, scenario=data,
+                config=config)
     case.scenario_spec(f"campaign {spec.name} run {index}")  # every drawn case is valid
     return case
 

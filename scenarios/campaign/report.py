@@ -3,7 +3,8 @@
 - junit.xml: one testcase per run (classname `campaign.<scenario>`, name `<id> <fault kinds>`);
   `unsafe` and `false_halt` are failures, `error` is an error, the rest pass.
 - report.html: outcome counts, the outcome matrices (`MATRICES`: fault kind x outcome, scenario x
-  outcome, camera x outcome; another table is one more entry), the time to halt per fault kind
+  outcome, camera x outcome, and floor, tape and camera effect x outcome when the campaign
+  draws them; another table is one more entry), the time to halt per fault kind
   (from the moment the fault the halt answered took effect, with its distribution on one shared
   axis), the worst cases (every unsafe run and false halt, then the slowest safe halt of each
   fault kind) and the runs in error, each with the command that reruns it (selectable, with a
@@ -53,7 +54,14 @@ MATRICES: list[tuple[str, Callable[[Row], list[str]]]] = [
     ("Fault kind x outcome", _kinds),
     ("Scenario x outcome", lambda r: [str(r.get("scenario"))]),
     ("Camera x outcome", lambda r: [str(r.get("camera"))]),
+    ("Floor x outcome", lambda r: [str(r.get("floor") or "?")]),
+    ("Tape x outcome", lambda r: [str(r.get("tape") or "?")]),
+    ("Camera effect x outcome", lambda r: [str(r.get("effect") or "?")]),
 ]
+#: What the runs were seen through (floor, tape, camera effect): a table only when the campaign
+#: drew them (a spec without looks leaves them at the scenario's own or unset).
+LOOK_MATRICES = frozenset({"Floor x outcome", "Tape x outcome", "Camera effect x outcome"})
+_NO_LOOK = frozenset({"", "?", "scenario", "default"})
 
 
 def _time_to_halt_s(row: Row) -> float | None:
@@ -361,7 +369,8 @@ def report_html(name: str, summary: CampaignSummary, out_dir: Path, text: str) -
             f"s simulated ({summary.cpu_s / max(summary.timed, 1):.2f} s CPU per run).</p>"
             ) if summary.timed else ""
     matrices = "\n".join(_matrix(title, table) for (title, _), table
-                         in zip(summary.matrices, summary.tables, strict=True))
+                         in zip(summary.matrices, summary.tables, strict=True)
+                         if title not in LOOK_MATRICES or set(table) - _NO_LOOK)
     return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>campaign {html.escape(name)}</title>
 <style>

@@ -27,9 +27,18 @@ if TYPE_CHECKING:
 
 #: Result row columns that are the same wherever and whenever a case runs (the rest: timings and
 #: the worker's name).
-DETERMINISTIC_COLUMNS = ("id", "idx", "scenario", "camera", "seed", "fault_kinds", "outcome",
+DETERMINISTIC_COLUMNS = ("id", "idx", "scenario", "camera", "floor", "tape", "effect", "seed",
+                         "fault_kinds", "outcome",
                          "reason", "halt_reason", "halt_time_s", "time_to_halt_s",
                          "sim_time_s", "frames", "metrics_json", "effects_json")
+
+
+def case_columns(case: Case) -> dict[str, Any]:
+    """The result row's columns that say which case it is."""
+    return {"id": case.id, "idx": case.index, "scenario": str(case.scenario.get("name")),
+            "camera": case.camera, "floor": case.floor, "tape": case.tape,
+            "effect": case.effect, "seed": case.seed,
+            "fault_kinds": ",".join(case.fault_kinds)}
 
 
 def judge(result: SimulationResult, config: LanewardenConfig) -> Verdict:
@@ -64,11 +73,8 @@ def run_case(case_json: str, build_stack: BuildStack) -> dict[str, Any]:
     row."""
     started_cpu, started_wall = time.process_time(), time.perf_counter()
     case = Case.model_validate_json(case_json)
-    row: dict[str, Any] = {
-        "id": case.id, "idx": case.index, "scenario": str(case.scenario.get("name")),
-        "camera": case.camera, "seed": case.seed, "fault_kinds": ",".join(case.fault_kinds),
-        "worker": f"{socket.gethostname()}:{os.getpid()}",
-    }
+    row: dict[str, Any] = {**case_columns(case),
+                           "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         from lanewarden.scenarios.simulator import Simulation, effective_config
 

@@ -8,8 +8,8 @@ result row as it arrives (so an interrupted campaign resumes). No silent retries
 submitted with `retries=0`, and the local scheduler runs with
 `distributed.scheduler.allowed-failures: 0`, so a run whose worker died (killed, out of memory)
 comes back as an `error` row with the reason, instead of quietly running again elsewhere. Runs
-are submitted grouped by scenario and floor seed within each batch, so a worker that reuses its
-painted floor (`paint_ground_cached`) gets to.
+are submitted grouped by scenario, floor, tape and floor seed within each batch, so a worker
+that reuses its painted floor (`paint_ground_cached`) gets to.
 
 Never reads a clock.
 """
@@ -33,7 +33,7 @@ from lanewarden.scenarios.campaign.cases import (
     draw_case,
     spec_fingerprint,
 )
-from lanewarden.scenarios.campaign.run_case import run_case
+from lanewarden.scenarios.campaign.run_case import case_columns, run_case
 from lanewarden.scenarios.campaign.store import Recovery, ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 
@@ -115,7 +115,8 @@ def pending_cases(plan: CampaignPlan, done: set[str], first_batch: int = 4,
                   batch: int = DRAW_BATCH) -> Iterator[Case]:
     """The cases not stored yet, drawn (and their case files written) a batch at a time as the
     runs need them, so the first runs start within seconds and memory does not grow with
-    `plan.runs`; within a batch, grouped by scenario and floor seed (workers reuse floors)."""
+    `plan.runs`; within a batch, grouped by scenario, floor, tape and floor seed (workers reuse
+    floors)."""
     index = 0
     size = first_batch
     while index < plan.runs:
@@ -125,16 +126,15 @@ def pending_cases(plan: CampaignPlan, done: set[str], first_batch: int = 4,
         size = batch
         cases = [_draw(plan, i) for i in indices]
         write_case_files(plan.out_dir, cases)
-        yield from sorted(cases, key=lambda c: (str(c.scenario.get("name")), c.seed, c.camera,
-                                                c.index))
+        yield from sorted(cases, key=lambda c: (str(c.scenario.get("name")), c.floor, c.tape,
+                                                c.seed, c.camera, c.index))
 
 
 def error_row(case: Case, reason: str) -> dict[str, Any]:
     """The row of a run that never came back (lost worker, cancelled, ...)."""
-    return {"id": case.id, "idx": case.index, "scenario": str(case.scenario.get("name")),
-            "camera": case.camera, "seed": case.seed, "fault_kinds": ",".join(case.fault_kinds),
-            "outcome": "error", "reason": " ".join(reason.split())[:500], "frames": 0,
-            "metrics_json": "{}", "effects_json": "[]"}
+    return {**case_columns(case), "outcome": "error",
+            "reason": " ".join(reason.split())[:500], "frames": 0, "metrics_json": "{}",
+            "effects_json": "[]"}
 
 
 def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None = None,

@@ -31,6 +31,7 @@ from lanewarden.scenarios.errors import ScenarioError
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("id", "TEXT PRIMARY KEY"), ("idx", "INTEGER"), ("scenario", "TEXT"), ("camera", "TEXT"),
+    ("floor", "TEXT"), ("tape", "TEXT"), ("effect", "TEXT"),
     ("seed", "INTEGER"), ("fault_kinds", "TEXT"), ("outcome", "TEXT"), ("reason", "TEXT"),
     ("halt_reason", "TEXT"), ("halt_time_s", "REAL"), ("time_to_halt_s", "REAL"),
     ("sim_time_s", "REAL"), ("frames", "INTEGER"), ("cpu_s", "REAL"), ("wall_s", "REAL"),
@@ -75,6 +76,11 @@ class ResultStore:
             self._db = sqlite3.connect(path)
             self._db.execute(f"CREATE TABLE IF NOT EXISTS runs "
                              f"({', '.join(f'{n} {t}' for n, t in COLUMNS)})")
+            # A results file from before a column existed gets it (empty for its old rows).
+            have = {row[1] for row in self._db.execute("PRAGMA table_info(runs)")}
+            for name, kind in COLUMNS:
+                if name not in have:
+                    self._db.execute(f"ALTER TABLE runs ADD COLUMN {name} {kind}")
             self._db.execute("CREATE TABLE IF NOT EXISTS campaign (key TEXT PRIMARY KEY, "
                              "value TEXT)")
             self._db.commit()

@@ -333,7 +333,7 @@ def test_highlights_move_with_the_robot_and_paint_does_not() -> None:
                                 size_m=0.4, strength=3.0)  # dim: a highlight, not saturated
     texture = flat_texture(120, gloss=200)
     texture.gray[:, 700:704] = 20  # a painted line across the floor at x = 0.8 m
-    highlights = Highlights(ceiling, CAMERA, (-2.0, -4.0, 6.0, 4.0), 0.02)
+    highlights = Highlights(ceiling, CAMERA, 0.02)
     ground_x, _ = CAMERA.pixel_ground_points()
 
     def bright_spot_and_line(x_m: float) -> tuple[float, float]:
@@ -359,7 +359,7 @@ def test_highlights_move_with_the_robot_and_paint_does_not() -> None:
 
 def test_a_matte_floor_shows_no_highlight() -> None:
     ceiling = CeilingLightsSpec(spacing_m=(1.0, 1.0))
-    highlights = Highlights(ceiling, CAMERA, (-2.0, -4.0, 6.0, 4.0), 0.02)
+    highlights = Highlights(ceiling, CAMERA, 0.02)
     matte = renderer_for(camera_spec(exposure={"auto": False}), flat_texture(120, gloss=0),
                          highlights=highlights)
     assert render(matte, None, noise=False).max() <= 121
