@@ -162,8 +162,7 @@ class RunSession:
                            sup.base_link_timeout_s),
             extra={"base": self.options.base_kind, "would_send": self.options.base_kind == "none",
                    "recording": str(self.folder),
-                   "recording_frames_dropped": len(self.recorder.summary.frames_dropped),
-                   "recording_stopped": self.recorder.summary.problem})
+                   "recording_frames_dropped": len(self.recorder.summary.frames_dropped)})
         self.printer.publish(status)
         if self.view is not None:
             frame = None
