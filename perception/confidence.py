@@ -4,9 +4,10 @@ Components (each in [0, 1], all reported in `LaneObservation.components`):
 - `both_sides`: 1 with a left and a right edge, 0.5 with one, 0 with none.
 - `support_left` / `support_right`: total length of the edge's Hough segments relative to
   `support_full_frac_of_height` of the image height (capped at 1): sparse evidence scores low.
-- `lane_width`: distance between the two edges ON THE FLOOR against `lane.width_m -
-  tape.width_m` (the free width between the tapes): 1 within `lane.width_tolerance_m`, 0 at
-  twice it. Catches a tape edge paired with a seam or a stray line.
+- `lane_width`: distance between the two edges ON THE FLOOR against the free width between the
+  tapes (`lane.width_m` less half of each side's tape): 1 within `lane.width_tolerance_fraction`
+  of `lane.width_m`, 0 at twice it. Catches a tape edge paired with a seam or a stray line; the
+  config makes sure one tape's own two edges never score (`perception.config`).
 - `parallel`: the angle between the two edges on the floor: 1 within
   `lane.parallel_tolerance_deg`, 0 at twice it. Lane edges are parallel; random lines are not.
 - `tape_pair_left` / `tape_pair_right`: the edge is one side of a tape, not a seam or a lone
@@ -15,6 +16,12 @@ Components (each in [0, 1], all reported in `LaneObservation.components`):
 - `verified_tape`: 1 when at least one side is a verified tape (two edges whose width on the
   floor is a tape's, with a tape's band between them), else 0. Always a full gate (no weight):
   edges nobody could check (at the image border) never make a lane confident on their own.
+- `floor_between`: 1 when the two reported edges enclose floor, not a tape: the verified tapes
+  are of one kind (dark or light), each reported edge's polarity puts the floor on its inner
+  side for that kind (a dark tape's inner edge is darker outwards, lighter inwards), and the two
+  edges are not lines of one and the same tape. Else 0; always a full gate. One tape's two
+  edges, a light floor strip taken for a tape beside a dark one, or an edge whose brightness
+  says nothing (polarity 0) never make a lane.
 - `consistency`: agreement with the previous observation (each reported edge's position and
   direction on the floor), when one is given; 1 when there is none or nothing to compare
   (neutral).
@@ -23,7 +30,7 @@ Combination (a weighted geometric product, weights in `confidence.weights`):
 
     confidence = both_sides^w_b * support_left^(w_s/2) * support_right^(w_s/2) * lane_width^w_w
                  * parallel^w_p * tape_pair_left^(w_t/2) * tape_pair_right^(w_t/2)
-                 * verified_tape * consistency^w_c
+                 * verified_tape * floor_between * consistency^w_c
 
 A weight of 1 makes a component a full gate (a 0 forces confidence 0), smaller weights soften it,
 0 ignores it. Per-side components share their weight. Components that need both edges are 0 when
@@ -53,6 +60,7 @@ COMPONENT_NAMES = (
     "tape_pair_left",
     "tape_pair_right",
     "verified_tape",
+    "floor_between",
     "consistency",
 )
 
@@ -61,13 +69,19 @@ COMPONENT_NAMES = (
 class EdgeEvidence:
     """What confidence needs of one chosen edge: its near line on the floor (`point`, unit
     `direction` away from the robot, robot frame metres), its Hough support in pixels, its tape
-    score and whether it is a verified tape."""
+    score, whether it is a verified tape and of which kind (`dark`: darker than the floor; None
+    when not verified), the reported edge's `polarity` (+1 lighter to its right in the image,
+    -1 darker, 0 unclear) and the candidate lines it is made of (`line_ids`: its chain and its
+    tape partner)."""
 
     point: Point
     direction: Point
     support_px: float
     tape_score: float
     verified: bool
+    dark: bool | None = None
+    polarity: float = 0.0
+    line_ids: frozenset[int] = frozenset()
 
 
 def _ramp(deviation: float, tolerance: float) -> float:
@@ -102,11 +116,15 @@ def lane_components(
         "tape_pair_left": left.tape_score if left is not None else 0.0,
         "tape_pair_right": right.tape_score if right is not None else 0.0,
         "verified_tape": 1.0 if any(e is not None and e.verified for e in (left, right)) else 0.0,
+        "floor_between": 0.0,
     }
     if left is not None and right is not None:
+        comps["floor_between"] = floor_between(left, right)
         gap = 0.5 * (distance_to_line(left.point, right.point, right.direction)
                      + distance_to_line(right.point, left.point, left.direction))
-        expected = config.lane.width_m - config.tape.width_m
+        tape = config.tape
+        expected = config.lane.width_m - 0.5 * (tape.side_width_m("left")
+                                                + tape.side_width_m("right"))
         # The left edge must lie left of the right one (a crossed pair is no lane).
         left_of = (right.direction[0] * (left.point[1] - right.point[1])
                    - right.direction[1] * (left.point[0] - right.point[0]))
@@ -115,6 +133,20 @@ def lane_components(
         comps["parallel"] = _ramp(floor_angle_deg(left.direction, right.direction),
                                   config.lane.parallel_tolerance_deg)
     return comps
+
+
+def floor_between(left: EdgeEvidence, right: EdgeEvidence) -> float:
+    """1 when the two reported edges enclose floor (see the module docstring), else 0.
+
+    Polarity is the brightness right of an edge less left of it. The floor lies right of the
+    left edge and left of the right one, so beside dark tapes (floor lighter) the left edge reads
+    +1 and the right edge -1; beside light tapes the reverse. The tapes' kind comes from the
+    verified ones (without a verified tape confidence is 0 anyway)."""
+    kinds = {e.dark for e in (left, right) if e.verified}
+    if len(kinds) != 1 or left.line_ids & right.line_ids:
+        return 0.0
+    floor_lighter = 1.0 if kinds.pop() else -1.0
+    return 1.0 if left.polarity == floor_lighter and right.polarity == -floor_lighter else 0.0
 
 
 def consistency_component(
@@ -161,6 +193,7 @@ def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
         "tape_pair_left": w.tape_pair / 2.0,
         "tape_pair_right": w.tape_pair / 2.0,
         "verified_tape": 1.0,
+        "floor_between": 1.0,
         "consistency": w.consistency,
     }
     total = 1.0

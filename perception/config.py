@@ -15,9 +15,18 @@ This module only declares and validates numbers: it never touches images.
 
 from __future__ import annotations
 
-from typing import Annotated, Self
+import math
+from typing import Annotated, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+    field_validator,
+    model_validator,
+)
 
 from lanewarden.perception.floor_config import LaneConfig, RoiConfig, TapeConfig
 
@@ -152,10 +161,14 @@ class EdgesConfig(BaseModel):
     - `look_ahead_m`: the reported edge (and so its slope) ends where the edge crosses the image
       row that sees the floor this far ahead of the robot's centre, or at its far end if it stops
       short: every frame measures the same stretch of floor, so a bend reads steadily instead of
-      jumping with how far Hough happened to follow the curve. Farther (1.1 m with the default
+      jumping with how far Hough happened to follow the curve. It must lie in the camera's view,
+      and there the camera must tell the tape from a seam (checked at start-up). `auto` (the
+      default): the detector picks, per image size, the farthest distance up to
+      `max_look_ahead_m` that is in view and where this camera tells the tape from the widest
+      seam (`perception.size_setup`), and says which.
+    - `max_look_ahead_m`: the farthest `auto` goes. Farther than 0.87 m (1.1 m with the default
       camera) makes the lecture's +-6 trip early in gentle bends (R 2 m), where its fixed turn
-      rate then overshoots inside the bend in the closed loop. It must lie in the camera's view,
-      and there the camera must tell the tape from a seam (checked at start-up).
+      rate then overshoots inside the bend in the closed loop.
     - `max_abs_slope`: the slope clamp (see `perception.geometry`).
     """
 
@@ -201,19 +214,66 @@ class EdgesConfig(BaseModel):
             "max turn between consecutive lines of one bending edge"
         ),
     )
-    look_ahead_m: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
-        default=0.87,
+    look_ahead_m: Annotated[float, Field(gt=0.0, le=10.0)] | Literal["auto"] = Field(
+        default="auto",
         description=(
             "the reported edge (and its slope) ends where the edge crosses the image row seeing "
             "the floor this far ahead of the robot's centre, or at its far end if shorter: a "
-            "fixed stretch of floor every frame, metres"
+            "fixed stretch of floor every frame, metres; auto: the farthest distance up to "
+            "max_look_ahead_m where this camera tells the tape from a seam (said at start-up)"
         ),
     )
+    max_look_ahead_m: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        default=0.87,
+        description=(
+            "the farthest look-ahead `auto` chooses, metres (farther trips the lecture's +-6 "
+            "early in gentle bends)"
+        ),
+    )
+    @field_validator("look_ahead_m", mode="wrap")
+    @classmethod
+    def _distance_or_auto(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
+        """One message for both kinds of value (not one per branch of the union)."""
+        try:
+            return handler(value)
+        except ValidationError:
+            raise ValueError(
+                "expected a distance in metres above 0 and at most 10, or auto"
+            ) from None
+
     max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = Field(
         default=12.0,
         description=(
             "slope clamp; past vertical an edge reports it with its side's sign (left +, right -)"
         ),
+    )
+
+
+class ContrastConfig(BaseModel):
+    """Contrast normalisation of dim and low-contrast frames, before Canny.
+
+    A frame whose blurred floor region (the ROI) varies in brightness by less than
+    `target_std_levels` (its standard deviation, grey levels) is stretched about its mean to that
+    spread, by at most `max_gain` (1 turns it off), so a dim photo gives its tape edges at
+    Canny's fixed thresholds, and the polarity, band and profile checks see its tape's contrast
+    in grey levels comparable to a well-lit frame's. A well-exposed frame is left as it is.
+    Stretching adds no edge that was not there (sensor noise grows with it; the blur comes
+    first), and every rule that tells a tape from a seam is metric, so it makes seams no more
+    tape-like.
+    """
+
+    model_config = _FROZEN
+
+    target_std_levels: Annotated[float, Field(ge=1.0, le=128.0)] = Field(
+        default=24.0,
+        description=(
+            "a frame whose blurred floor region varies less than this (standard deviation, grey "
+            "levels) is stretched to it"
+        ),
+    )
+    max_gain: Annotated[float, Field(ge=1.0, le=16.0)] = Field(
+        default=4.0,
+        description="largest contrast stretch of a dim frame; 1 turns normalisation off",
     )
 
 
@@ -293,6 +353,7 @@ class PerceptionConfig(BaseModel):
     canny: CannyConfig = CannyConfig()
     hough: HoughConfig = HoughConfig()
     edges: EdgesConfig = EdgesConfig()
+    contrast: ContrastConfig = ContrastConfig()
     tape: TapeConfig = TapeConfig()
     lane: LaneConfig = LaneConfig()
     confidence: ConfidenceConfig = ConfidenceConfig()
@@ -313,19 +374,46 @@ class PerceptionConfig(BaseModel):
 
     @model_validator(mode="after")
     def _look_ahead_inside_roi(self) -> Self:
-        look, roi = self.edges.look_ahead_m, self.roi
+        roi = self.roi
+        look = self.edges.look_ahead_m
+        key = "edges.look_ahead_m"
+        if look == "auto":
+            look, key = self.edges.max_look_ahead_m, "edges.max_look_ahead_m"
         if not roi.near_m <= look <= roi.far_m:
             raise ValueError(
-                f"edges.look_ahead_m ({look:g}) must lie within the region of interest, "
+                f"{key} ({look:g}) must lie within the region of interest, "
                 f"roi.near_m ({roi.near_m:g}) to roi.far_m ({roi.far_m:g})"
             )
         return self
 
     @model_validator(mode="after")
-    def _lane_wider_than_two_tapes(self) -> Self:
-        if self.lane.width_m <= 2.0 * self.tape.width_m:
+    def _lane_wider_than_a_tape(self) -> Self:
+        """A lane's free width must never be mistaken for one tape's: the narrowest gap the
+        `lane_width` component still scores (the free width less twice the tolerance) must
+        exceed the widest tape as it may measure (its width plus its tolerance)."""
+        lane, tape = self.lane, self.tape
+        minimum = narrowest_lane_width_m(tape, lane.width_tolerance_fraction)
+        if lane.width_m < minimum:
+            mean_tape = 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
+            tape_max = tape.widest_width_m * (1.0 + tape.width_tolerance_fraction)
+            narrowest_gap = lane.width_m - mean_tape - 2.0 * lane.width_tolerance_m
             raise ValueError(
-                f"lane.width_m ({self.lane.width_m:g}) must exceed two tape widths "
-                f"(tape.width_m {self.tape.width_m:g}): the tapes would overlap"
+                f"lane.width_m ({lane.width_m:g}) is too narrow for "
+                f"{1000 * tape.widest_width_m:g} mm tape: with lane.width_tolerance_fraction "
+                f"{lane.width_tolerance_fraction:g} a gap of {1000 * narrowest_gap:.0f} mm "
+                f"between the two edges would still count as the lane, and one tape's own two "
+                f"edges measure up to {1000 * tape_max:.0f} mm apart; expected lane.width_m "
+                f"of at least {minimum:g} m (or a smaller width_tolerance_fraction)"
             )
         return self
+
+
+def narrowest_lane_width_m(tape: TapeConfig, width_tolerance_fraction: float) -> float:
+    """The narrowest `lane.width_m` the config accepts with this tape and lane tolerance: the
+    next whole millimetre above the width at which the narrowest gap `lane_width` still scores
+    (the free width less twice the tolerance) equals the widest tape as it may measure (its
+    width plus its tolerance). Narrower, one tape's own two edges could score as the lane."""
+    mean_tape = 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
+    tape_max = tape.widest_width_m * (1.0 + tape.width_tolerance_fraction)
+    minimum = (mean_tape + tape_max) / (1.0 - 2.0 * width_tolerance_fraction)
+    return (math.floor(minimum * 1000.0) + 1) / 1000.0

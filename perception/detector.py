@@ -70,6 +70,9 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
+#: The floor length over which a reported edge's direction is taken for the lane's width,
+#: parallelism, offset and heading (`_evidence`), metres.
+EVIDENCE_MIN_M = 0.10
 
 
 @dataclass(frozen=True)
@@ -235,6 +238,7 @@ class LaneDetector:
             )
         else:
             np.copyto(state.smooth, gray)
+        self._normalise_contrast(state)
         cv2.Canny(
             state.smooth,
             canny.low_threshold,
@@ -252,6 +256,23 @@ class LaneDetector:
             maxLineGap=state.hough_max_gap,
         )
         return None if segments is None else np.asarray(segments, dtype=np.int32)
+
+    def _normalise_contrast(self, state: SizeSetup) -> None:
+        """Stretch a dim or low-contrast frame's blurred image about its mean, in place, so its
+        brightness in the floor region varies by `contrast.target_std_levels` (at most
+        `contrast.max_gain` times; see `perception.config.ContrastConfig`). The spread is read on
+        a sparse grid of the ROI (`SizeSetup.contrast_step`), not every pixel."""
+        contrast = self.config.contrast
+        if contrast.max_gain <= 1.0:
+            return
+        step = state.contrast_step
+        mean, std = cv2.meanStdDev(state.smooth[::step, ::step], mask=state.contrast_mask)
+        spread = float(std[0, 0])
+        if spread >= contrast.target_std_levels:
+            return
+        gain = min(contrast.max_gain, contrast.target_std_levels / max(spread, 1e-3))
+        cv2.addWeighted(state.smooth, gain, state.smooth, 0.0, (1.0 - gain) * float(mean[0, 0]),
+                        dst=state.smooth)
 
     def _observe(
         self,
@@ -328,17 +349,26 @@ def assumed_ground_model(undistorter: Undistorter | None,
 
 
 def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | None:
-    """The chosen edge's near line on the floor (None when it has no floor position: it would
-    have to reach the horizon, which the ROI never does)."""
+    """The chosen edge's near part on the floor: from its nearest point along its chain for at
+    least EVIDENCE_MIN_M (the near line alone when it is that long, as on a straight lane; a
+    Hough piece of a few pixels at the image's corner has no reliable direction). None when it
+    has no floor position (it would have to reach the horizon, which the ROI never does)."""
     if choice is None:
         return None
     line = rows[choice.near_line]
     near = (line.near_fx, line.near_fy)
-    d = direction(near, (line.far_fx, line.far_fy))
+    far = (line.far_fx, line.far_fy)
+    for k in choice.chain[1:]:
+        if not math.hypot(far[0] - near[0], far[1] - near[1]) < EVIDENCE_MIN_M:
+            break
+        far = (rows[k].far_fx, rows[k].far_fy)
+    d = direction(near, far)
     if not all(math.isfinite(v) for v in (*near, *d)) or d == (0.0, 0.0):
         return None
     return EdgeEvidence(point=near, direction=d, support_px=choice.support_px,
-                        tape_score=choice.tape_score, verified=choice.verified)
+                        tape_score=choice.tape_score, verified=choice.verified,
+                        dark=choice.tape_dark, polarity=choice.polarity,
+                        line_ids=choice.line_ids)
 
 
 def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]:

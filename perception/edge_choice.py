@@ -85,6 +85,10 @@ class SideChoice:
     - `tape_score`: in [0, 1], how tape-like the edge is: the pair's width score, a lone edge's
       profile fraction, `unverifiable_score`, or 0.
     - `tape_width_m`: the pair's width on the floor, metres (None for a lone edge).
+    - `tape_dark`: for a verified tape, whether it is darker than the floor (None otherwise).
+    - `polarity`: the reported (inner) edge's polarity (`perception.lines`: +1 lighter to its
+      right, -1 darker, 0 no clear contrast); with the tape's kind it says which side of the
+      edge the floor is.
     - `support_px`: total length of the chain's Hough segments.
     - `x1, y1` near end and `x2, y2` far end of the reported segment (pixels, y down).
     """
@@ -95,6 +99,8 @@ class SideChoice:
     verified: bool
     tape_score: float
     tape_width_m: float | None
+    tape_dark: bool | None
+    polarity: float
     support_px: float
     x1: float
     y1: float
@@ -104,6 +110,11 @@ class SideChoice:
     @property
     def near_line(self) -> int:
         return self.chain[0]
+
+    @property
+    def line_ids(self) -> frozenset[int]:
+        """Every line this choice is made of: its chain and its tape partner."""
+        return frozenset(self.chain if self.partner is None else (*self.chain, self.partner))
 
 
 @dataclass(frozen=True)
@@ -155,7 +166,7 @@ def choose_edges(
     frame's candidate lines, `smooth_gray` the blurred frame they came from."""
     cands = {side: side_candidates(rows, side, setup.centre_x_bottom, config)
              for side in ("left", "right")}
-    tapes = {side: tape_candidates(cands[side], side, setup.view, config)
+    tapes = {side: tape_candidates(cands[side], side, setup.view, config, setup.look_ahead_m)
              for side in ("left", "right")}
     # The band check reads pixels: only for the tapes the choice would take, each at most once.
     checked: dict[int, bool] = {}
@@ -191,23 +202,24 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
         return None
     width_m = distance_to_line(at, o_near, o_dir)
     m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]))
-    score = tape_width_score(width_m, m_per_px, config.tape)
+    score = tape_width_score(width_m, m_per_px, config.tape.for_side(side))
     return inner, outer, score, width_m, at
 
 
 def tape_candidates(
-    cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig
+    cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig,
+    look_ahead_m: float,
 ) -> list[TapeCandidate]:
     """The pairs among one side's candidates whose width on the floor verifies a tape, best first
     (`TapeCandidate.rank`), at most _MAX_TAPE_CHECKS; their bands are not checked yet. A pair is
-    only measured up to the look-ahead distance: there the camera is known to resolve tape from
-    seam (checked at start-up); farther on, pixels grow and a seam may measure as tape. Pairs
-    whose lines lie less than a third or more than three tape widths apart on the floor (from
-    one's near end) are skipped before being measured (a cheap filter: the measurement
-    decides)."""
+    only measured up to the look-ahead distance (`look_ahead_m`, the size setup's): there the
+    camera is known to resolve tape from seam (checked at start-up); farther on, pixels grow and
+    a seam may measure as tape. Pairs whose lines lie less than a third or more than three of
+    this side's tape widths apart on the floor (from one's near end) are skipped before being
+    measured (a cheap filter: the measurement decides)."""
     angle_tol = config.tape.pair_angle_tol_deg
-    tape_width = config.tape.width_m
-    look_ahead = config.edges.look_ahead_m
+    tape_width = config.tape.side_width_m(side)
+    look_ahead = look_ahead_m
     found: list[TapeCandidate] = []
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
@@ -236,23 +248,31 @@ def verified_tapes(
     side: Side,
     view: FloorView,
     config: PerceptionConfig,
+    look_ahead_m: float,
 ) -> list[TapeCandidate]:
     """The verified tapes among one side's candidates (width on the floor and band), best
     first, at most _MAX_TAPES_KEPT (`tape_candidates`, then `band_is_tape`)."""
-    tapes = [t for t in tape_candidates(cand, side, view, config)
+    tapes = [t for t in tape_candidates(cand, side, view, config, look_ahead_m)
              if t.band_is_tape(smooth_gray, config)]
     return tapes[:_MAX_TAPES_KEPT]
 
 
 def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig) -> float:
     """How well two tapes' inner edges match the lane's width on the floor: 1 within
-    `lane.width_tolerance_m` of `lane.width_m - tape.width_m`, 0 at twice it."""
+    `lane.width_tolerance_m` of the free width (`free_width_m`), 0 at twice it."""
     r_near = (right.inner.near_fx, right.inner.near_fy)
     r_dir = direction(r_near, (right.inner.far_fx, right.inner.far_fy))
     gap = distance_to_line(left.at, r_near, r_dir)
-    expected = config.lane.width_m - config.tape.width_m
+    expected = free_width_m(config)
     tol = config.lane.width_tolerance_m
     return min(1.0, max(0.0, 2.0 - abs(gap - expected) / tol))
+
+
+def free_width_m(config: PerceptionConfig) -> float:
+    """The floor between the two tapes' inner edges the lane should show: `lane.width_m` (centre
+    to centre) less half of each side's tape."""
+    tape = config.tape
+    return config.lane.width_m - 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
 
 
 def pick_tapes(
@@ -291,21 +311,23 @@ def _side_choice(
 ) -> SideChoice | None:
     height, width = smooth_gray.shape[:2]
     size = (width, height)
+    dark: bool | None
     if tape is not None:
         chain = follow_edge(rows, tape.inner.line_id, size, config)
         partner: int | None = tape.outer.line_id
-        verified, score, width_m = True, tape.score, tape.width_m
+        verified, score, width_m, dark = True, tape.score, tape.width_m, tape.dark
     else:
         single = _best_single(rows, cand, smooth_gray, side, setup, config)
         if single is None:
             return None
         chain, score = single
-        partner, verified, width_m = None, False, None
+        partner, verified, width_m, dark = None, False, None, None
     near = rows[chain[0]]
     x2, y2 = _chain_point_at(rows, chain, setup.look_ahead_row)
     return SideChoice(
         side=side, chain=chain, partner=partner, verified=verified, tape_score=score,
-        tape_width_m=width_m, support_px=sum(rows[k].support_px for k in chain),
+        tape_width_m=width_m, tape_dark=dark, polarity=near.polarity,
+        support_px=sum(rows[k].support_px for k in chain),
         x1=near.near_x, y1=near.near_y, x2=x2, y2=y2,
     )
 
@@ -333,7 +355,8 @@ def _best_single(
         support = sum(rows[k].support_px for k in chain)
         if best is not None and support <= best[0]:
             continue  # cannot win even as a perfect tape edge: skip the profile
-        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, setup.view, config.tape)
+        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, setup.view,
+                                         config.tape.for_side(side))
         if fraction is None:
             # The tape's far side would be outside the image: nothing to check it against.
             score, factor = config.tape.unverifiable_score, config.tape.unverifiable_score
@@ -399,7 +422,8 @@ def _extend(
     towards it (a far end close to its near end), nearest first; taken ones leave `usable`.
 
     A continuation starts about where the current line stops (overlapping it by at most a
-    quarter of the gap), or, when it overlaps more, lies on it across the overlap (within
+    quarter of the gap, its end then on the current line's extension within twice
+    `on_line_px`), or, when it overlaps more, lies on it across the overlap (within
     `on_line_px`: the same edge split by Hough). A line running alongside at a few pixels is a
     neighbour (a seam beside a tape edge), not the same edge. Across a gap, the step from one
     line's end to the next one's must itself run within `max_turn` of the current direction: a
@@ -429,6 +453,11 @@ def _extend(
             if shared > overlap:
                 mid = (current.far_y + shared / 2.0) if away else (current.near_y - shared / 2.0)
                 if abs(r.x_at(mid) - current.x_at(mid)) > on_line_px:
+                    continue
+            elif shared > 0.0:
+                # It overlaps a little (Hough's pieces of a curve do): it must start on the
+                # current line's extension, not beside it.
+                if abs(step_x * current.uy - step_y * current.ux) > 2.0 * on_line_px:
                     continue
             elif dist > 2.0 * on_line_px and forward < min_cos * dist:
                 continue

@@ -12,7 +12,8 @@ This module only declares and validates numbers: it never touches images or a gr
 
 from __future__ import annotations
 
-from typing import Annotated, Self
+import functools
+from typing import Annotated, Literal, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -85,19 +86,33 @@ class TapeConfig(BaseModel):
     - `unpaired_preference`: value factor of a lone line refuted as a tape edge when choosing.
     - `unverifiable_score`: tape score of an edge whose tape's far side lies outside the image.
       Such an edge never makes a lane confident on its own (see the `verified_tape` component).
+    - `left_width_m` / `right_width_m`: the left and the right tape's widths when they differ
+      (a 25 mm dashed centre line on the left, a 48 mm edge line on the right); each defaults to
+      `width_m`. `for_side(side)` is this config as one side's rules see it.
     """
 
     model_config = _FROZEN
 
     width_m: Annotated[float, Field(ge=0.005, le=0.2)] = Field(
         default=0.048,
-        description="the tape's width on the floor, metres",
+        description="the tape's width on the floor, metres (both sides unless overridden)",
+    )
+    left_width_m: Annotated[float | None, Field(ge=0.005, le=0.2)] = Field(
+        default=None,
+        description=(
+            "the left tape's width on the floor when it differs (a dashed centre line), metres; "
+            "null: width_m"
+        ),
+    )
+    right_width_m: Annotated[float | None, Field(ge=0.005, le=0.2)] = Field(
+        default=None,
+        description="the right tape's width on the floor when it differs, metres; null: width_m",
     )
     max_seam_width_m: Annotated[float | None, Field(gt=0.0, le=0.2)] = Field(
         default=None,
         description=(
             "widest floor seam (grout, joint, crack) that must never pass as tape, metres; null: "
-            "half of width_m"
+            "half of the narrower tape"
         ),
     )
     width_tolerance_fraction: Annotated[float, Field(ge=0.0, le=0.5)] = Field(
@@ -171,18 +186,51 @@ class TapeConfig(BaseModel):
         ),
     )
 
+    def side_width_m(self, side: Literal["left", "right"]) -> float:
+        """One side's tape width, metres (`left_width_m` / `right_width_m`, else `width_m`)."""
+        width = self.left_width_m if side == "left" else self.right_width_m
+        return self.width_m if width is None else width
+
+    @property
+    def narrowest_width_m(self) -> float:
+        """The narrower of the two tapes, metres."""
+        return min(self.side_width_m("left"), self.side_width_m("right"))
+
+    @property
+    def widest_width_m(self) -> float:
+        """The wider of the two tapes, metres."""
+        return max(self.side_width_m("left"), self.side_width_m("right"))
+
     @property
     def seam_width_m(self) -> float:
-        """The widest seam to reject, metres (`max_seam_width_m`, default half the tape)."""
-        return self.width_m / 2.0 if self.max_seam_width_m is None else self.max_seam_width_m
+        """The widest seam to reject, metres (`max_seam_width_m`, default half the narrower
+        tape)."""
+        if self.max_seam_width_m is None:
+            return self.narrowest_width_m / 2.0
+        return self.max_seam_width_m
+
+    def for_side(self, side: Literal["left", "right"]) -> TapeConfig:
+        """This config as one side's rules see it: `width_m` that side's tape, the seam fixed
+        (one floor, one widest seam for both sides). Made once per config and side."""
+        return self._sides[side]
+
+    @functools.cached_property
+    def _sides(self) -> dict[str, TapeConfig]:
+        if self.left_width_m is None and self.right_width_m is None:
+            return {"left": self, "right": self}
+        return {side: self.model_copy(update={
+            "width_m": self.side_width_m(side), "left_width_m": None, "right_width_m": None,
+            "max_seam_width_m": self.seam_width_m}) for side in ("left", "right")}
 
     @model_validator(mode="after")
     def _seam_below_tape(self) -> Self:
-        narrowest_tape = self.width_m * (1.0 - self.width_tolerance_fraction)
+        narrowest_tape = self.narrowest_width_m * (1.0 - self.width_tolerance_fraction)
         if not self.seam_width_m < narrowest_tape:
+            which = ("width_m" if self.left_width_m is None and self.right_width_m is None
+                     else "the narrower tape")
             raise ValueError(
                 f"max_seam_width_m ({self.seam_width_m:g}) must be below the narrowest tape, "
-                f"width_m x (1 - width_tolerance_fraction) = {narrowest_tape:g} m: a seam that "
+                f"{which} x (1 - width_tolerance_fraction) = {narrowest_tape:g} m: a seam that "
                 "wide cannot be told from the tape"
             )
         return self
@@ -191,9 +239,12 @@ class TapeConfig(BaseModel):
 class LaneConfig(BaseModel):
     """The lane: two tapes `width_m` apart (centre to centre) on a flat floor.
 
-    - `width_tolerance_m`: the `lane_width` component scores 1 while the distance between the two
-      reported (inner) edges on the floor is within this of `width_m - tape.width_m`, 0 at twice.
-      Pairs of tapes are also chosen by it.
+    - `width_tolerance_fraction`: the `lane_width` component scores 1 while the distance between
+      the two reported (inner) edges on the floor is within this fraction of `width_m` of the
+      free width between the tapes (`width_m` less half of each tape), 0 at twice. Relative to
+      the lane, so a narrow lane is judged as strictly as a wide one; the config refuses a lane
+      so narrow that one tape's own two edges would score (`perception.config`). Pairs of tapes
+      are also chosen by it.
     - `parallel_tolerance_deg`: the `parallel` component scores 1 while the two edges' directions
       on the floor differ by at most this, 0 at twice (lane edges are parallel; random lines
       are not).
@@ -205,13 +256,18 @@ class LaneConfig(BaseModel):
         default=0.60,
         description="distance between the two tapes' centre lines, metres",
     )
-    width_tolerance_m: Annotated[float, Field(gt=0.0, le=1.0)] = Field(
-        default=0.10,
+    width_tolerance_fraction: Annotated[float, Field(gt=0.0, le=0.4)] = Field(
+        default=0.15,
         description=(
-            "lane_width scores 1 while the measured width is within this of the expected one, 0 "
-            "at twice it, metres"
+            "lane_width scores 1 while the measured free width is within this fraction of "
+            "width_m of the expected one, 0 at twice it"
         ),
     )
+
+    @property
+    def width_tolerance_m(self) -> float:
+        """The `lane_width` tolerance in metres (`width_tolerance_fraction` of `width_m`)."""
+        return self.width_tolerance_fraction * self.width_m
     parallel_tolerance_deg: Annotated[float, Field(gt=0.0, le=45.0)] = Field(
         default=12.0,
         description=(

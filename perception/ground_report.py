@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.geometry import Side, edge_slope
 from lanewarden.perception.ground import GroundModel
+from lanewarden.perception.size_setup import resolved_look_ahead_m
 
 FloatArray = NDArray[np.float64]
 
@@ -88,8 +89,11 @@ def _rounded(value: float | None, digits: int) -> float | None:
 
 def look_ahead_row(model: GroundModel, perception: PerceptionConfig) -> float:
     """The image row where the detector measures lane edges: `edges.look_ahead_m` ahead of the
-    robot's centre on this camera (nan when that floor line is out of view)."""
-    return model.row_at_distance(perception.edges.look_ahead_m)
+    robot's centre on this camera, or the distance `auto` chooses for it
+    (`perception.size_setup.resolved_look_ahead_m`); nan when that floor line is out of view or
+    auto finds none."""
+    distance = resolved_look_ahead_m(model, perception)
+    return math.nan if math.isnan(distance) else model.row_at_distance(distance)
 
 
 def summarize_ground(model: GroundModel, perception: PerceptionConfig) -> GroundSummary:

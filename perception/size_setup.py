@@ -4,12 +4,15 @@ The config speaks metres on the floor (`perception.floor_config`); the detector 
 `SizeSetup` makes the translation when the detector first meets an image size, never per frame:
 - the region of interest: the floor rectangle `roi` (robot frame) projected into the image,
   clipped by the image border (it always lies below the horizon), and its filled mask;
-- the look-ahead row (where the floor `edges.look_ahead_m` ahead is seen) and the column of the
-  robot's centre line at the ROI's bottom row (left/right candidates split there);
+- the look-ahead: `edges.look_ahead_m`, or with `auto` (the default) the farthest distance up to
+  `edges.max_look_ahead_m` that is in view and where the camera tells the tape from the widest
+  seam, on a whole-centimetre grid; the row where the floor that far ahead is seen, and the
+  column of the robot's centre line at the ROI's bottom row (left/right candidates split there);
 - the start-up checks, each refusing the config with one line (`PerceptionConfigError`): the ROI
-  and the look-ahead must be in view, and at the look-ahead the camera must tell the tape from a
-  seam (`perception.tape_rules.WidthHypotheses.resolvable`); the message names the farthest
-  look-ahead that would work;
+  and the look-ahead must be in view, and at the look-ahead the camera must tell each side's tape
+  from a seam (`perception.tape_rules.WidthHypotheses.resolvable`); the message names the
+  farthest look-ahead that would work, found by the very check that will judge it (so an advised
+  value is always accepted as given);
 - the preallocated stage buffers and the pixel knobs scaled to this size (blur kernel, Hough).
 
 Never reads a clock and never looks at a frame.
@@ -35,8 +38,8 @@ _REFERENCE_HEIGHT_PX = 480
 _MIN_DEPTH_M = 0.02
 #: An ROI smaller than this many pixels in the image is "not in view".
 _MIN_ROI_AREA_PX = 64.0
-#: Step of the search for the farthest look-ahead that resolves tape from seam, metres.
-_SEARCH_STEP_M = 0.01
+#: Rows of the sparse grid the frame's contrast is read on (`contrast_step`).
+_CONTRAST_SAMPLE_ROWS = 120
 
 
 class SizeSetup:
@@ -45,9 +48,13 @@ class SizeSetup:
     - `ground` / `view`: the ground model at this size and its per-point form.
     - `polygon_px`: (K, 2) int32, the ROI in pixels, clipped to the image; `mask`: its filled
       uint8 mask (255 inside); `y_bottom`: its lowest row (float pixels).
-    - `look_ahead_row`: image row seeing the floor `edges.look_ahead_m` ahead (centre column).
+    - `look_ahead_m`: the look-ahead at this size, metres: `edges.look_ahead_m`, or with `auto`
+      the farthest that works (`farthest_look_ahead_m`); `look_ahead_auto`: whether auto chose
+      it. `look_ahead_row`: the image row seeing the floor that far ahead (centre column).
     - `centre_x_bottom`: column where the robot's centre line (floor y = 0) crosses `y_bottom`.
     - `gray`, `smooth`, `edges`: the preallocated stage buffers (OpenCV writes into them).
+    - `contrast_step`, `contrast_mask`: the sparse grid (every `contrast_step`-th row and
+      column) and its ROI mask on which a frame's contrast is read.
     - `blur_kernel`: (k, k), `kernel_px` scaled to this height (odd, >= 3).
     - `hough_votes`, `hough_min_length`, `hough_max_gap`: HoughLinesP's accumulator threshold,
       minLineLength and maxLineGap in pixels at this size.
@@ -57,6 +64,7 @@ class SizeSetup:
     def __init__(self, width: int, height: int, config: PerceptionConfig,
                  ground: GroundModel) -> None:
         self.size = (width, height)
+        self.config = config
         self.ground = ground
         self.view = FloorView(ground)
         self.polygon_px = roi_polygon_px(ground, config)
@@ -73,22 +81,17 @@ class SizeSetup:
         self.mask = np.zeros((height, width), dtype=np.uint8)
         cv2.fillPoly(self.mask, [self.polygon_px], 255)
         self.y_bottom = float(min(float(self.polygon_px[:, 1].max()), float(height)))
-        look_ahead = config.edges.look_ahead_m
-        self.look_ahead_row = ground.row_at_distance(look_ahead)
-        if not (math.isfinite(self.look_ahead_row) and 0.0 <= self.look_ahead_row <= height):
-            raise PerceptionConfigError(
-                f"perception.edges.look_ahead_m = {look_ahead:g}: outside the camera's view at "
-                f"{width}x{height}; expected a distance within {_range_text(near, far)}",
-                suggested_look_ahead_m=_inside(near, far, config),
-            )
+        self.look_ahead_m, self.look_ahead_auto = _look_ahead(self.view, near, far, config,
+                                                              self.size)
+        self.look_ahead_row = ground.row_at_distance(self.look_ahead_m)
         self.centre_x_bottom = self.view.line_column_at((0.0, 0.0), (1.0, 0.0), self.y_bottom)
         if not math.isfinite(self.centre_x_bottom):
             self.centre_x_bottom = 0.5 * width
-        self.at_look_ahead = hypotheses_at(self.view, look_ahead, config)
-        if not self.at_look_ahead.resolvable:
-            raise PerceptionConfigError(
-                *_unresolvable(self.view, self.at_look_ahead, near, config, self.size)
-            )
+        self.at_look_ahead = hypotheses_at(self.view, self.look_ahead_m, config)
+        # Contrast is read on a grid of about 160x120 samples of the ROI, whatever the size.
+        self.contrast_step = max(1, height // _CONTRAST_SAMPLE_ROWS)
+        self.contrast_mask = np.ascontiguousarray(
+            self.mask[::self.contrast_step, ::self.contrast_step])
         self.gray = np.empty((height, width), dtype=np.uint8)
         self.smooth = np.empty((height, width), dtype=np.uint8)
         self.edges = np.empty((height, width), dtype=np.uint8)
@@ -105,9 +108,15 @@ class SizeSetup:
         """One line: the image size and what a pixel covers at the look-ahead (the camera's
         pose is `perception.ground.ground_model_for`'s line)."""
         hyp = self.at_look_ahead
+        if not self.look_ahead_auto:
+            how = "edges.look_ahead_m"
+        elif self.look_ahead_m >= self.config.edges.max_look_ahead_m:
+            how = "auto: edges.max_look_ahead_m"
+        else:
+            how = "auto: the farthest where this camera tells tape from seam"
         return (
-            f"{self.size[0]}x{self.size[1]}: at the look-ahead one pixel covers "
-            f"{1000 * hyp.m_per_px:.1f} mm across the tape (a tape measures "
+            f"{self.size[0]}x{self.size[1]}: look-ahead {self.look_ahead_m:.2f} m ({how}); there "
+            f"one pixel covers {1000 * hyp.m_per_px:.1f} mm across the tape (a tape measures "
             f"{1000 * hyp.tape_min_m:.1f} mm or more there, a seam at most "
             f"{1000 * hyp.seam_max_m:.1f} mm)"
         )
@@ -171,58 +180,126 @@ def m_per_px_across_tape(view: FloorView, x_m: float, y_m: float) -> float:
 
 
 def hypotheses_at(view: FloorView, distance_m: float, config: PerceptionConfig) -> WidthHypotheses:
-    """The tape and seam hypotheses `distance_m` ahead where the lane's tapes run (either side;
-    the coarser one)."""
+    """The tape and seam hypotheses `distance_m` ahead where the lane's tapes run, each side with
+    its own tape (`tape.left_width_m` at the left tape, `right_width_m` at the right one): the
+    side with the smaller margin between tape and seam (the one that decides whether the camera
+    can tell them apart there)."""
     half = config.lane.width_m / 2.0
-    m_per_px = max(m_per_px_across_tape(view, distance_m, half),
-                   m_per_px_across_tape(view, distance_m, -half))
-    return width_hypotheses(m_per_px, config.tape)
+    sides = [width_hypotheses(m_per_px_across_tape(view, distance_m, half),
+                              config.tape.for_side("left")),
+             width_hypotheses(m_per_px_across_tape(view, distance_m, -half),
+                              config.tape.for_side("right"))]
+    return min(sides, key=_margin)
 
 
-def farthest_resolvable_m(view: FloorView, near_m: float, start_m: float,
+def _margin(hyp: WidthHypotheses) -> float:
+    """How far apart tape and seam measure, in error units (NaN pixel sizes: never)."""
+    if not math.isfinite(hyp.m_per_px) or hyp.error_m <= 0.0:
+        return -math.inf if not math.isfinite(hyp.m_per_px) else math.inf
+    return (hyp.tape_min_m - hyp.seam_max_m) / hyp.error_m
+
+
+def _in_view(view: FloorView, distance_m: float, height: int) -> bool:
+    row = view.ground.row_at_distance(distance_m)
+    return math.isfinite(row) and 0.0 <= row <= height
+
+
+def farthest_look_ahead_m(view: FloorView, near_m: float, far_m: float,
                           config: PerceptionConfig) -> float | None:
-    """The farthest distance from `start_m` down to `near_m` (in _SEARCH_STEP_M steps) where the
-    camera tells the tape from a seam, or None."""
-    d = start_m
-    while d >= near_m:
-        if hypotheses_at(view, d, config).resolvable:
+    """The farthest look-ahead, on a whole-centimetre grid, within the ROI, up to
+    `edges.max_look_ahead_m` and the farthest floor in view, that is in view and where the
+    camera tells the tape from a seam; None when there is none. Each candidate is checked
+    exactly as the start-up check will check it when the user sets it (the same float: n/100),
+    so the value advised or chosen is always accepted."""
+    roi = config.roi
+    top = min(config.edges.max_look_ahead_m, roi.far_m, far_m)
+    bottom = max(roi.near_m, near_m, 0.0)
+    height = view.ground.image_size[1]
+    cm = math.floor(top * 100.0 + 1e-9)
+    while cm >= 1 and cm / 100.0 >= bottom:
+        d = cm / 100.0
+        if _in_view(view, d, height) and hypotheses_at(view, d, config).resolvable:
             return d
-        d -= _SEARCH_STEP_M
+        cm -= 1
     return None
 
 
-def _unresolvable(view: FloorView, hyp: WidthHypotheses, near_m: float,
-                  config: PerceptionConfig, size: tuple[int, int]) -> tuple[str, float | None]:
+def resolved_look_ahead_m(ground: GroundModel, config: PerceptionConfig) -> float:
+    """`edges.look_ahead_m` for this camera: the value set, or what `auto` chooses
+    (`farthest_look_ahead_m`; NaN when nothing in view works). For reports; the detector's own
+    start-up check is `SizeSetup`."""
+    chosen = config.edges.look_ahead_m
+    if chosen != "auto":
+        return chosen
+    near, far = visible_range_m(ground)
+    best = farthest_look_ahead_m(FloorView(ground), near, far, config)
+    return math.nan if best is None else best
+
+
+def _look_ahead(view: FloorView, near: float, far: float, config: PerceptionConfig,
+                size: tuple[int, int]) -> tuple[float, bool]:
+    """(look-ahead in metres, whether `auto` chose it) for this camera at this size, or
+    PerceptionConfigError with the look-ahead that would work."""
+    width, height = size
+    chosen = config.edges.look_ahead_m
+    best = farthest_look_ahead_m(view, near, far, config)
+    if chosen == "auto":
+        if best is None:
+            hyp = hypotheses_at(view, max(near, config.roi.near_m, 0.0), config)
+            raise PerceptionConfigError(
+                f"perception.edges.look_ahead_m = auto: at {width}x{height} no distance in view "
+                f"({near:.2f} m on) tells the {_tapes_text(config)} from seams up to "
+                f"{1000 * config.tape.seam_width_m:g} mm (one pixel covers at least "
+                f"{1000 * hyp.m_per_px:.1f} mm of floor across the tape); expected a higher "
+                "resolution, a narrower lens, a lower camera or a wider tape")
+        return best, True
+    if not _in_view(view, chosen, height):
+        raise PerceptionConfigError(
+            f"perception.edges.look_ahead_m = {chosen:g}: outside the camera's view at "
+            f"{width}x{height}; expected a distance within {_range_text(near, far)}"
+            + _advice(best), suggested_look_ahead_m=best,
+        )
+    hyp = hypotheses_at(view, chosen, config)
+    if not hyp.resolvable:
+        raise PerceptionConfigError(_unresolvable(hyp, chosen, near, config, size, best),
+                                    suggested_look_ahead_m=best)
+    return chosen, False
+
+
+def _tapes_text(config: PerceptionConfig) -> str:
     tape = config.tape
-    look_ahead = config.edges.look_ahead_m
+    left, right = tape.side_width_m("left"), tape.side_width_m("right")
+    if left == right:
+        return f"{1000 * left:g} mm tape (tape.width_m)"
+    return (f"{1000 * left:g} mm left tape and the {1000 * right:g} mm right tape "
+            "(tape.left_width_m, tape.right_width_m)")
+
+
+def _advice(best: float | None) -> str:
+    if best is None:
+        return ""
+    return (f"; this camera tells tape from seam up to {best:.2f} m (set "
+            f"perception.edges.look_ahead_m: {best:.2f} or auto in a --config file)")
+
+
+def _unresolvable(hyp: WidthHypotheses, look_ahead: float, near_m: float,
+                  config: PerceptionConfig, size: tuple[int, int], best: float | None) -> str:
     why = (
-        f"perception.edges.look_ahead_m = {look_ahead:g}: at {size[0]}x{size[1]} one pixel covers "
-        f"{1000 * hyp.m_per_px:.1f} mm of floor across the tape there, too coarse to tell the "
-        f"{1000 * tape.width_m:g} mm tape (tape.width_m) from seams up to "
-        f"{1000 * tape.seam_width_m:g} mm (with a pixel of measuring error either way a tape may "
-        f"measure as little as {1000 * hyp.tape_min_m:.1f} mm there and a seam as much as "
+        f"perception.edges.look_ahead_m = {look_ahead:g}: at {size[0]}x{size[1]} one pixel "
+        f"covers {1000 * hyp.m_per_px:.1f} mm of floor across the tape there, too coarse to "
+        f"tell the {_tapes_text(config)} from seams up to {1000 * config.tape.seam_width_m:g} mm "
+        f"(with a pixel of measuring error either way a tape may measure as little as "
+        f"{1000 * hyp.tape_min_m:.1f} mm there and a seam as much as "
         f"{1000 * hyp.seam_max_m:.1f} mm)"
     )
-    start = math.floor((look_ahead - _SEARCH_STEP_M) / _SEARCH_STEP_M) * _SEARCH_STEP_M
-    best = farthest_resolvable_m(view, max(near_m, 0.0), start, config)
     if best is None:
         return (f"{why}; no distance in view ({near_m:.2f} m on) resolves them: expected a "
-                "higher resolution, a narrower lens, a lower camera or a wider tape"), None
-    best = round(best, 2)
+                "higher resolution, a narrower lens, a lower camera or a wider tape")
     return (f"{why}; expected a look-ahead of {best:.2f} m or less for this camera (set "
-            f"perception.edges.look_ahead_m: {best:.2f} in a --config file, or use a higher "
-            "resolution)"), best
+            f"perception.edges.look_ahead_m: {best:.2f} or auto in a --config file, or use a "
+            "higher resolution)")
 
 
 def _range_text(near: float, far: float) -> str:
     far_text = "the horizon" if not math.isfinite(far) else f"{far:.2f} m"
     return f"the floor the camera sees, {near:.2f} m to {far_text} ahead of the robot's centre"
-
-
-def _inside(near: float, far: float, config: PerceptionConfig) -> float | None:
-    """The middle of the floor both in view and in the ROI, rounded to centimetres (None when
-    there is none)."""
-    lo, hi = max(near, config.roi.near_m), min(far, config.roi.far_m)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
-        return None
-    return round(0.5 * (lo + hi), 2)

@@ -137,6 +137,14 @@ class SupervisorConfig(BaseModel):
         description="N: confident frames in a row before a start or resume engages FOLLOW, "
         "camera frames",
     )
+    engage_window_frames: int = Field(
+        default=0,
+        ge=0,
+        le=300,
+        description="M: a start or resume engages once engage_confident_frames of the last M "
+        "judged camera frames were confident, the newest among them (k of n, for cameras whose "
+        "confident frames come in short bursts); 0: all engage_confident_frames in a row",
+    )
     recover_confident_frames: int = Field(
         default=5,
         ge=1,
@@ -343,6 +351,12 @@ class SupervisorConfig(BaseModel):
             if not ok:
                 problems.append(text)
 
+        require(
+            self.engage_window_frames == 0
+            or self.engage_window_frames >= self.engage_confident_frames,
+            f"engage_window_frames ({self.engage_window_frames}) must be at least "
+            f"engage_confident_frames ({self.engage_confident_frames})",
+        )
         require(
             self.turn_exit_slope_sum < self.turn_enter_slope_sum,
             f"turn_exit_slope_sum ({self.turn_exit_slope_sum}) must be below "

@@ -5,7 +5,9 @@ source state the rows are tried in order and the first whose named condition hol
 beats DEGRADE beats recovery beats turning). No row matching means "stay" (and a step where no row
 of the current state can match does not fire the trigger at all). HALT is the initial state
 and is latched: entering it disarms any engage request, and only a NEW start/resume request plus
-`engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again.
+`engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again
+(or, with `engage_window_frames` M set, that many among the last M judged frames, the newest
+confident: k of n).
 A fresh HALT event while halted re-enters HALT (new reason, request disarmed again).
 
 Timers count injected time (`StepFacts.now`) and frames, never wall clock: no transitions `Timeout`
@@ -16,6 +18,7 @@ states, no threads. The machine never reads an input itself; `SupervisedControll
 from __future__ import annotations
 
 import enum
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -49,6 +52,15 @@ ENGAGED_STATES: frozenset[SupervisorState] = frozenset(
     {S.FOLLOW, S.TURN_LEFT, S.TURN_RIGHT, S.DEGRADED}
 )
 NOT_STARTED_REASON = "not engaged yet: waiting for start and a confident lane"
+
+#: DEGRADE events that only say this frame's lane was not confident (the frame itself is counted
+#: as unconfident): they do not wipe the confident frames seen before it, which the engage window
+#: `engage_window_frames` weighs (in a row, the default, any of them restarts the count anyway).
+#: Any other DEGRADE or HALT event (late frames, repeated outliers, hazards) wipes them.
+FRAME_JUDGEMENT_EVENTS: frozenset[Event] = frozenset({
+    Event.BOTH_EDGES_LOST, Event.LANE_UNTRUSTED, Event.ONE_EDGE_LOST, Event.LANE_LOW_CONFIDENCE})
+_BELOW_DEGRADE: frozenset[Event] = frozenset(
+    e for e in Event if response_of(e) < Response.DEGRADE)
 
 #: The explicit transition table. Order matters within a source state (first match wins).
 TRANSITIONS: tuple[dict[str, Any], ...] = (
@@ -137,6 +149,10 @@ class SupervisorStateMachine:
         self.halt_reason: str | None = NOT_STARTED_REASON
         self.engage_armed = False
         self.confident_streak = 0
+        # The last engage_window_frames judged frames (True: confident) and how many were.
+        window = config.engage_window_frames or config.engage_confident_frames
+        self.recent_frames: deque[bool] = deque(maxlen=window)
+        self.recent_confident = 0
         self.degraded_since_s: float | None = None
         self.degraded_travelled_m = 0.0
         self._machine = Machine(model=self, **machine_arguments())
@@ -170,15 +186,25 @@ class SupervisorStateMachine:
         events = facts.events | raised if raised else facts.events
         tick = Tick(facts, events, worst_response(events))
         worst = tick.worst
-        if worst is not None and worst >= Response.DEGRADE:
-            self.confident_streak = 0
-        elif facts.frame_confident is True:
-            self.confident_streak += 1
-        elif facts.frame_confident is False:
-            self.confident_streak = 0
+        if (worst is not None and worst >= Response.DEGRADE
+                and not events <= FRAME_JUDGEMENT_EVENTS | _BELOW_DEGRADE):
+            self._forget_confident_frames()
+        elif facts.frame_confident is not None:
+            confident = facts.frame_confident
+            self.confident_streak = self.confident_streak + 1 if confident else 0
+            recent = self.recent_frames
+            if len(recent) == recent.maxlen:
+                self.recent_confident -= recent[0]
+            recent.append(confident)
+            self.recent_confident += confident
         if self._may_fire(tick):
             self._machine.events["tick"].trigger(self, tick)
         return tick
+
+    def _forget_confident_frames(self) -> None:
+        self.confident_streak = 0
+        self.recent_frames.clear()
+        self.recent_confident = 0
 
     def _may_fire(self, tick: Tick) -> bool:
         """Whether some row leaving the current state has its condition met. When none has,
@@ -199,10 +225,12 @@ class SupervisorStateMachine:
 
     def may_engage(self, tick: Tick) -> bool:
         """A start/resume made since the last halt, `engage_confident_frames` confident frames
-        in a row, nothing worse than WARN this step, and a filtered slope sum."""
+        in a row (or among the last `engage_window_frames`, the newest confident), nothing worse
+        than WARN this step, and a filtered slope sum."""
         return (
             self.engage_armed
-            and self.confident_streak >= self._config.engage_confident_frames
+            and self.recent_confident >= self._config.engage_confident_frames
+            and self.confident_streak > 0
             and (tick.worst is None or tick.worst < Response.DEGRADE)
             and tick.facts.slope_sum is not None
         )
@@ -239,7 +267,7 @@ class SupervisorStateMachine:
         self.halt_reason = halt_reason(tick.events, tick.facts.event_details)
         # Latch: a request made before this halt does not count.
         self.engage_armed = self._config.auto_resume_after_lane_loss and halting <= LANE_LOSS_EVENTS
-        self.confident_streak = 0
+        self._forget_confident_frames()
         self.degraded_since_s = None
         self.degraded_travelled_m = 0.0
 
@@ -250,7 +278,7 @@ class SupervisorStateMachine:
     def on_enter_DEGRADED(self, tick: Tick) -> None:
         self.degraded_since_s = tick.facts.now
         self.degraded_travelled_m = 0.0
-        self.confident_streak = 0
+        self._forget_confident_frames()
 
     def on_exit_DEGRADED(self, tick: Tick) -> None:
         self.degraded_since_s = None

@@ -86,14 +86,17 @@ def test_from_the_mount_prints_what_it_means(
 
 def test_a_pose_perception_cannot_use_with_the_config_is_written_with_a_warning(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Pitched 75° down the camera sees only the floor near the robot, not the 0.87 m
-    look-ahead: the pose may well be right, so it is written, and the output says what detect
-    and run will say about it."""
+    """Pitched 75° down the camera sees only the floor near the robot, not a 0.87 m
+    look-ahead set in the config: the pose may well be right, so it is written, and the output
+    says what detect and run will say about it. (With no look-ahead set, `auto`, the detector
+    picks one this camera sees.)"""
     intrinsics = tmp_path / "default.yaml"
     save_calibration(replace(CameraModel().calibration(), ground=None), intrinsics)
     out = tmp_path / "grounded.yaml"
+    config = tmp_path / "far.yaml"
+    config.write_text("perception:\n  edges: {look_ahead_m: 0.87}\n")
     code, stdout, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.26",
-                             "--pitch-deg", "75", "--out", str(out))
+                             "--pitch-deg", "75", "--out", str(out), "--config", str(config))
     assert code == 0, err
     warning = next(line for line in stdout.splitlines() if "warning" in line)
     assert warning.startswith("  warning: with this config `detect` and `run` will refuse this "

@@ -41,7 +41,7 @@ from lanewarden.scenarios.spec import (
     TapeSpec,
 )
 from lanewarden.scenarios.texture import GroundTexture, paint_ground
-from lanewarden.scenarios.world import build_world
+from lanewarden.scenarios.world import World, build_world
 
 TAPE_WIDTH_M = 0.048
 TAPE_SPACING_M = 0.60  # between the two tapes' centres
@@ -83,6 +83,8 @@ class Scene:
       looks at the floor about 3 m ahead), and beyond the painted floor the renderer shows the
       floor's median, so it has no effect.
     - `seed`: the sensor noise (the floor texture is the same for every seed).
+    - `tape_width_m`, `lane_width_m` (between the tapes' centres), `grout_m`: the world's
+      geometry (the lecture's 48 mm tape, 0.60 m lane and 4 mm grout by default).
     """
 
     floor_level: float = 175.0
@@ -102,6 +104,9 @@ class Scene:
     seed: int = 0
     floor_variation: float = 0.0
     floor_grain: float = 0.0
+    tape_width_m: float = TAPE_WIDTH_M
+    lane_width_m: float = TAPE_SPACING_M
+    grout_m: float = GROUT_M
 
 
 def _grey(level: float) -> str:
@@ -147,8 +152,9 @@ def scenario_spec(scene: Scene) -> ScenarioSpec:
         ox, oy = scene.tile_offset_m
         # Scenario seams are centred on the grid lines; a scene's grout starts at them.
         floor = FloorSpec(kind="tiles", color=_grey(scene.floor_level),
-                          seam_color=_grey(scene.grout_level), tile_m=TILE_M, seam_m=GROUT_M,
-                          grid_offset_m=(ox + GROUT_M / 2.0, oy + GROUT_M / 2.0),
+                          seam_color=_grey(scene.grout_level), tile_m=TILE_M,
+                          seam_m=scene.grout_m,
+                          grid_offset_m=(ox + scene.grout_m / 2.0, oy + scene.grout_m / 2.0),
                           variation=scene.floor_variation, grain=scene.floor_grain)
     else:
         floor = FloorSpec(kind="plain", color=_grey(scene.floor_level),
@@ -156,8 +162,8 @@ def scenario_spec(scene: Scene) -> ScenarioSpec:
     return ScenarioSpec(
         name="perception-synthetic",
         floor=floor,
-        tape=TapeSpec(width_m=TAPE_WIDTH_M, color=_grey(scene.tape_level)),
-        lane=LaneSpec(width_m=TAPE_SPACING_M, start=PoseSpec(x_m=origin, y_m=0.0),
+        tape=TapeSpec(width_m=scene.tape_width_m, color=_grey(scene.tape_level)),
+        lane=LaneSpec(width_m=scene.lane_width_m, start=PoseSpec(x_m=origin, y_m=0.0),
                       segments=segments, gaps=gaps, dashes=dashes, ends=ends),
     )
 
@@ -167,10 +173,15 @@ def _world_key(scene: Scene) -> Scene:
     return replace(scene, lateral_m=0.0, yaw_deg=0.0, noise_sigma=0.0, wall_level=0.0, seed=0)
 
 
+@lru_cache(maxsize=8)
+def world_of(world_key: Scene) -> World:
+    """The scenario world of a scene (lane frame = world frame, see `scenario_spec`)."""
+    return build_world(scenario_spec(_world_key(world_key)), margin_m=WORLD_MARGIN_M)
+
+
 @lru_cache(maxsize=4)
 def _texture(world_key: Scene) -> GroundTexture:
-    world = build_world(scenario_spec(world_key), margin_m=WORLD_MARGIN_M)
-    return paint_ground(world, TEXTURE_M_PER_PX, seed=0, color=False)
+    return paint_ground(world_of(world_key), TEXTURE_M_PER_PX, seed=0, color=False)
 
 
 @lru_cache(maxsize=4)

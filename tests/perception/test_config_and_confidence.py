@@ -30,10 +30,31 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("tape: {width_m: 0.002}", "perception.tape.width_m = 0.002"),
         ("tape: {max_seam_width_m: 0.045}", "max_seam_width_m (0.045) must be below the narrowest"),
         ("tape: {width_m: 0.03, max_seam_width_m: 0.026}", "width_tolerance_fraction) = 0.0255"),
-        ("tape: {width_m: 0.06}\n  lane: {width_m: 0.11}", "lane.width_m (0.11) must exceed two"),
+        # One tape's own two edges (up to 69 mm apart) must never score as the lane's free
+        # width: the narrowest lane is (60 + 69) / (1 - 2 x 0.15) = 184.3 mm, next mm up.
+        ("tape: {width_m: 0.06}\n  lane: {width_m: 0.11}",
+         "lane.width_m (0.11) is too narrow for 60 mm tape: with lane.width_tolerance_fraction "
+         "0.15 a gap of 17 mm between the two edges would still count as the lane, and one "
+         "tape's own two edges measure up to 69 mm apart; expected lane.width_m of at least "
+         "0.185 m"),
+        ("tape: {width_m: 0.048, right_width_m: 0.06}\n  lane: {width_m: 0.17}",
+         "lane.width_m (0.17) is too narrow for 60 mm tape"),
+        ("lane: {width_tolerance_m: 0.1}",
+         "unknown key 'perception.lane.width_tolerance_m': did you mean "
+         "'perception.lane.width_tolerance_fraction'?"),
+        ("lane: {width_tolerance_fraction: 0.5}", "perception.lane.width_tolerance_fraction = 0.5"),
+        ("tape: {left_width_m: 0.025, max_seam_width_m: 0.022}",
+         "max_seam_width_m (0.022) must be below the narrowest tape, the narrower tape x (1 - "
+         "width_tolerance_fraction) = 0.02125 m"),
+        ("tape: {right_width_m: 0.3}", "perception.tape.right_width_m = 0.3"),
         ("lane: {horizon_y_norm: 0.3}", "unknown key 'perception.lane.horizon_y_norm'"),
         ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
-        ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1"),
+        ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1: expected a distance "
+         "in metres above 0 and at most 10, or auto"),
+        ("edges: {look_ahead_m: far}", "perception.edges.look_ahead_m = 'far': expected a"),
+        ("edges: {max_look_ahead_m: 1.7}",
+         "edges.max_look_ahead_m (1.7) must lie within the region of interest"),
+        ("contrast: {max_gain: 0.5}", "perception.contrast.max_gain = 0.5"),
         ("edges: {look_ahead_m: 2.0}", "edges.look_ahead_m (2) must lie within the region of"),
         ("confidence: {min_confidence: 0.5}",
          "unknown key 'perception.confidence.min_confidence'"),  # trust is the supervisor's
@@ -66,9 +87,17 @@ def test_defaults_round_trip_and_partial_override(tmp_path: Path) -> None:
     config = load_config(path).perception
     assert config.blur.kernel_px == 7
     assert (config.roi.near_m, config.roi.far_m, config.roi.lateral_m) == (0.0, 1.2, 0.65)
-    # The seam bound follows the tape unless it is set: half the tape.
+    # The seam bound follows the tape unless it is set: half the tape, the narrower one when
+    # the sides differ.
     assert config.tape.seam_width_m == 0.0125
     assert LanewardenConfig().perception.tape.seam_width_m == 0.024
+    duck = PerceptionConfig.model_validate({"tape": {"left_width_m": 0.025}}).tape
+    assert duck.seam_width_m == 0.0125
+    assert (duck.for_side("left").width_m, duck.for_side("right").width_m) == (0.025, 0.048)
+    assert duck.for_side("right").seam_width_m == 0.0125  # one floor, one widest seam
+    # The look-ahead is chosen by the detector unless set.
+    assert config.edges.look_ahead_m == "auto"
+    assert config.edges.max_look_ahead_m == 0.87
     assert config.canny == PerceptionConfig().canny  # untouched sections keep defaults
 
 
@@ -81,7 +110,7 @@ def _components(**overrides: float) -> MappingProxyType[str, float]:
 def test_confidence_is_a_weighted_geometric_product() -> None:
     assert COMPONENT_NAMES == (
         "both_sides", "support_left", "support_right", "lane_width", "parallel",
-        "tape_pair_left", "tape_pair_right", "verified_tape", "consistency",
+        "tape_pair_left", "tape_pair_right", "verified_tape", "floor_between", "consistency",
     )
     config = PerceptionConfig()
     assert combine(_components(), config) == 1.0
@@ -100,8 +129,9 @@ def test_confidence_is_a_weighted_geometric_product() -> None:
         }
     )
     assert combine(_components(tape_pair_right=0.0), ignore) == 1.0
-    # verified_tape has no weight: always a full gate.
+    # verified_tape and floor_between have no weight: always full gates.
     assert combine(_components(verified_tape=0.0), ignore) == 0.0
+    assert combine(_components(floor_between=0.0), ignore) == 0.0
 
 
 def _observation(slope_sum: float | None, confidence: float) -> LaneObservation:

@@ -18,9 +18,9 @@ KEYS = ["image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_ra
 #: The one line on stderr saying which ground model perception uses.
 GROUND_LINE = (
     "lanewarden: ground model: no ground calibration: assuming the simulator's default camera "
-    "(70° HFOV, h 0.400 m, pitch 35.0°, 0.150 m ahead of the robot's centre); 640x480: at the "
-    "look-ahead one pixel covers 2.1 mm across the tape (a tape measures 38.7 mm or more there, "
-    "a seam at most 26.1 mm)\n"
+    "(70° HFOV, h 0.400 m, pitch 35.0°, 0.150 m ahead of the robot's centre); 640x480: "
+    "look-ahead 0.87 m (auto: edges.max_look_ahead_m); there one pixel covers 2.1 mm across the "
+    "tape (a tape measures 38.7 mm or more there, a seam at most 26.1 mm)\n"
 )
 
 
@@ -142,7 +142,7 @@ def test_image_size_differs_from_calibration(
         f"ground model: no ground calibration in the calibration from "
         f"{frames / 'camera.yaml'}: assuming the simulator's default mount (h 0.400 m, pitch "
         "35.0°, 0.150 m ahead of the robot's centre) with its K; run `lanewarden calibrate "
-        "ground`; 640x480: at the look-ahead")
+        "ground`; 640x480: look-ahead 0.87 m (auto: edges.max_look_ahead_m); there one pixel")
     assert error.startswith("lanewarden: error: 1 of 1 images not analysed")
 
 
@@ -183,9 +183,9 @@ def test_a_config_the_camera_cannot_resolve_is_refused_before_any_image(
 ) -> None:
     """A 19 mm tape against seams up to 9.5 mm, judged 0.87 m ahead at 640x480 (2.1 mm per
     pixel): the camera cannot tell them apart there; the line names the key and the distance
-    that would work."""
+    that would work, and that distance, set as advised, is accepted."""
     narrow = tmp_path / "narrow-tape.yaml"
-    narrow.write_text("perception:\n  tape: {width_m: 0.019}\n")
+    narrow.write_text("perception:\n  tape: {width_m: 0.019}\n  edges: {look_ahead_m: 0.87}\n")
     code, out, err = run(["detect", str(frames / "straight.png"), "--config", str(narrow)],
                          capsys)
     assert code == 2 and out == ""
@@ -193,8 +193,26 @@ def test_a_config_the_camera_cannot_resolve_is_refused_before_any_image(
     assert err.startswith("lanewarden: error: perception.edges.look_ahead_m = 0.87: at 640x480 "
                           "one pixel covers 2.1 mm of floor across the tape there")
     assert err.strip().endswith("expected a look-ahead of 0.82 m or less for this camera (set "
-                                "perception.edges.look_ahead_m: 0.82 in a --config file, or use "
-                                "a higher resolution)")
+                                "perception.edges.look_ahead_m: 0.82 or auto in a --config file, "
+                                "or use a higher resolution)")
+    narrow.write_text("perception:\n  tape: {width_m: 0.019}\n  edges: {look_ahead_m: 0.82}\n")
+    code, out, err = run(["detect", str(frames / "straight.png"), "--config", str(narrow)],
+                         capsys)
+    assert code == 0 and "640x480: look-ahead 0.82 m (edges.look_ahead_m)" in out
+
+
+def test_without_a_look_ahead_the_camera_chooses_and_says_which(
+    frames: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same 19 mm tape with no look-ahead configured: `auto` picks the farthest this camera
+    tells tape from seam, 0.82 m, and the ground line says so."""
+    narrow = tmp_path / "narrow-tape.yaml"
+    narrow.write_text("perception:\n  tape: {width_m: 0.019}\n")
+    code, out, _ = run(["detect", str(frames / "straight.png"), "--config", str(narrow)],
+                       capsys)
+    assert code == 0
+    assert ("640x480: look-ahead 0.82 m (auto: the farthest where this camera tells tape from "
+            "seam); there one pixel covers 2.0 mm") in out.splitlines()[0]
 
 
 def test_no_images_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:

@@ -210,9 +210,16 @@ def test_lone_edge_at_the_image_border_cannot_be_verified() -> None:
     assert tape_profile_fraction(picture, [edge], (0,), "left", VIEW, TAPE) is None
 
 
-def _edge(verified: bool, score: float, y: float) -> EdgeEvidence:
+def _edge(verified: bool, score: float, y: float, *, polarity: float | None = None,
+          dark: bool = True, lines: tuple[int, ...] = ()) -> EdgeEvidence:
+    """A reported edge on the floor at lateral `y`; by default the inner edge of a dark tape
+    (the floor, lighter, on its inner side: +1 on the left, -1 on the right)."""
+    if polarity is None:
+        polarity = 1.0 if y > 0 else -1.0
+    ids = lines or ((1,) if y > 0 else (2,))
     return EdgeEvidence(point=(0.6, y), direction=(1.0, 0.0), support_px=200.0,
-                        tape_score=score, verified=verified)
+                        tape_score=score, verified=verified, dark=dark if verified else None,
+                        polarity=polarity, line_ids=frozenset(ids))
 
 
 def test_a_confident_lane_needs_a_verified_tape() -> None:
@@ -228,6 +235,41 @@ def test_a_confident_lane_needs_a_verified_tape() -> None:
                           right=_edge(False, 0.6, -0.276), config=CONFIG)
     assert one["verified_tape"] == 1.0
     assert combine({**one, "consistency": 1.0}, CONFIG) == pytest.approx(0.6**0.5)
+
+
+@pytest.mark.parametrize(
+    ("left", "right", "why"),
+    [
+        # The lane between two dark tapes: floor (lighter) inside both edges.
+        (_edge(True, 1.0, 0.276), _edge(False, 0.6, -0.276), None),
+        (_edge(True, 1.0, 0.276, polarity=-1.0, dark=False),
+         _edge(False, 0.6, -0.276, polarity=1.0), None),  # two light tapes: floor darker inside
+        # One dark tape's two edges: darker inside (left edge -1, right edge +1).
+        (_edge(True, 1.0, 0.024, polarity=-1.0), _edge(False, 0.6, -0.024, polarity=1.0),
+         "the inside is tape"),
+        # The right edge is a dark tape's outer edge (floor beyond it, tape inside).
+        (_edge(True, 1.0, 0.276), _edge(False, 0.6, -0.276, polarity=1.0), "right edge reversed"),
+        # A light floor strip verified as a light tape on the left, a dark tape on the right.
+        (_edge(True, 1.0, 0.276, polarity=-1.0, dark=False), _edge(True, 1.0, -0.276),
+         "two kinds of tape"),
+        # Both reported edges lines of one tape (the chain of one is the partner of the other).
+        (_edge(True, 1.0, 0.276, lines=(1, 2)), _edge(False, 0.6, -0.276, lines=(2,)),
+         "one tape"),
+        # An edge whose brightness says nothing.
+        (_edge(True, 1.0, 0.276), _edge(False, 0.6, -0.276, polarity=0.0), "polarity 0"),
+    ],
+)
+def test_a_lane_encloses_floor_not_a_tape(left: EdgeEvidence, right: EdgeEvidence,
+                                         why: str | None) -> None:
+    """`floor_between` is a full gate: the two reported edges must put the floor between them
+    (each edge's polarity, for the verified tapes' kind), and be lines of two tapes."""
+    comps = lane_components(height_px=480, left=left, right=right, config=CONFIG)
+    assert comps["floor_between"] == (1.0 if why is None else 0.0)
+    confidence = combine({**comps, "consistency": 1.0}, CONFIG)
+    if why is None:
+        assert confidence > 0.7
+    else:
+        assert confidence == 0.0
 
 
 def test_border_edges_alone_give_no_confidence_in_a_frame() -> None:
@@ -263,7 +305,7 @@ def test_tapes_are_ranked_by_closeness_to_the_tape_width_not_by_length() -> None
         along(0.276, 1.0, support=60.0, line_id=0), along(0.324, -1.0, support=60.0, line_id=1),
         along(0.400, 1.0, support=240.0, line_id=2), along(0.435, -1.0, support=240.0, line_id=3),
     ]
-    found = verified_tapes(lines, picture, "left", VIEW, CONFIG)
+    found = verified_tapes(lines, picture, "left", VIEW, CONFIG, 0.87)
     assert [(t.inner.line_id, t.outer.line_id) for t in found] == [(0, 1), (2, 3)]
     assert found[0].score == 1.0 and found[1].score == pytest.approx(0.69, abs=0.02)
 
@@ -284,7 +326,7 @@ def test_a_tape_is_verified_only_when_measured_clearly_and_near_enough(
 ) -> None:
     picture = floor_picture([(band[0], band[1], DARK)])
     lines = [along(band[0], 1.0, *at_m, line_id=0), along(band[1], -1.0, *at_m, line_id=1)]
-    assert bool(verified_tapes(lines, picture, "left", VIEW, CONFIG)) is found
+    assert bool(verified_tapes(lines, picture, "left", VIEW, CONFIG, 0.87)) is found
 
 
 def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
@@ -367,20 +409,30 @@ def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
     ("size", "overrides", "message", "suggested"),
     [
         # 8.5 mm per pixel at 0.87 m: refused, 0.47 m would do
-        ((160, 120), {}, "perception.edges.look_ahead_m = 0.87: at 160x120 one pixel covers 8.5 "
-         "mm of floor across the tape there, too coarse to tell the 48 mm tape (tape.width_m) "
-         "from seams up to 24 mm (with a pixel of measuring error either way a tape may "
-         "measure as little as 32.3 mm there and a seam as much as 50.9 mm); expected a "
-         "look-ahead of 0.47 m or less for this camera (set perception.edges.look_ahead_m: "
-         "0.47 in a --config file, or use a higher resolution)", 0.47),
+        ((160, 120), {"edges": {"look_ahead_m": 0.87}}, "perception.edges.look_ahead_m = 0.87: "
+         "at 160x120 one pixel covers 8.5 mm of floor across the tape there, too coarse to tell "
+         "the 48 mm tape (tape.width_m) from seams up to 24 mm (with a pixel of measuring error "
+         "either way a tape may measure as little as 32.3 mm there and a seam as much as 50.9 "
+         "mm); expected a look-ahead of 0.47 m or less for this camera (set "
+         "perception.edges.look_ahead_m: 0.47 or auto in a --config file, or use a higher "
+         "resolution)", 0.47),
+        # the same with no look-ahead set (auto) at 160x120 works (0.47 m, see below); a 19 mm
+        # tape with auto: nothing in view resolves it
+        ((160, 120), {"tape": {"width_m": 0.019}},
+         "perception.edges.look_ahead_m = auto: at 160x120 no distance in view (0.36 m on) "
+         "tells the 19 mm tape (tape.width_m) from seams up to 9.5 mm (one pixel covers at least "
+         "4.1 mm of floor across the tape); expected a higher resolution, a narrower lens, a "
+         "lower camera or a wider tape", None),
         # a 19 mm tape at 160x120: nowhere in view
         ((160, 120), {"tape": {"width_m": 0.019}, "edges": {"look_ahead_m": 0.45}},
          "no distance in view (0.36 m on) resolves them: expected a higher resolution, a "
          "narrower lens, a lower camera or a wider tape", None),
-        # closer than the image's bottom row (0.36 m ahead)
+        # closer than the image's bottom row (0.36 m ahead): the advice is what auto would pick
         ((640, 480), {"edges": {"look_ahead_m": 0.2}}, "perception.edges.look_ahead_m = 0.2: "
          "outside the camera's view at 640x480; expected a distance within the floor the "
-         "camera sees, 0.36 m to 3.25 m ahead of the robot's centre", 0.98),
+         "camera sees, 0.36 m to 3.25 m ahead of the robot's centre; this camera tells tape "
+         "from seam up to 0.87 m (set perception.edges.look_ahead_m: 0.87 or auto in a "
+         "--config file)", 0.87),
         ((640, 480), {"roi": {"near_m": 5.0, "far_m": 6.0}, "edges": {"look_ahead_m": 5.5}},
          "perception.roi (near_m 5, far_m 6, lateral_m 0.65): this floor is not in the "
          "camera's view at 640x480", None),
@@ -394,11 +446,39 @@ def test_a_camera_that_cannot_tell_tape_from_seam_is_refused_at_start_up(
         LaneDetector(config, ground=default_ground_model(size))
     assert message in str(info.value)
     assert "\n" not in str(info.value)
-    assert info.value.suggested_look_ahead_m == (
-        None if suggested is None else pytest.approx(suggested, abs=0.01))
+    # Exactly the advised value, as the user types it (a whole centimetre, no rounding error).
+    assert info.value.suggested_look_ahead_m == suggested
 
 
 def test_the_suggested_look_ahead_works() -> None:
     config = PerceptionConfig.model_validate({"edges": {"look_ahead_m": 0.47}})
     setup = LaneDetector(config, ground=default_ground_model((160, 120))).setup_for(160, 120)
     assert setup.at_look_ahead.resolvable
+    # ... and is what auto chooses for this camera, saying so.
+    auto = LaneDetector(PerceptionConfig(), ground=default_ground_model((160, 120)))
+    assert auto.setup_for(160, 120).look_ahead_m == 0.47
+    assert "160x120: look-ahead 0.47 m (auto: the farthest where this camera tells tape from " \
+        "seam)" in auto.describe_ground()
+
+
+@pytest.mark.parametrize("height_m", [0.20, 0.23, 0.26, 0.29, 0.32, 0.35, 0.38, 0.41, 0.44])
+@pytest.mark.parametrize("tape_m", [0.019, 0.025, 0.048])
+def test_an_advised_look_ahead_is_never_refused(height_m: float, tape_m: float) -> None:
+    """Whatever a refusal advises is accepted as given: the advice is found by the very check
+    that judges it, on whole centimetres (it used to be rounded up from 0.2799 to 0.28 and
+    refused in turn)."""
+    ground = GroundModel.from_fov(70.0, (320, 240), CameraPose(height_m=height_m, pitch_deg=30.0,
+                                                               forward_m=0.1))
+    too_far = PerceptionConfig.model_validate(
+        {"tape": {"width_m": tape_m}, "edges": {"look_ahead_m": 1.6}, "roi": {"far_m": 1.6}})
+    try:
+        LaneDetector(too_far, ground=ground)
+    except PerceptionConfigError as exc:
+        advised = exc.suggested_look_ahead_m
+        if advised is None:
+            assert "no distance in view" in str(exc)
+            return
+        assert advised == round(advised, 2)
+        config = PerceptionConfig.model_validate(
+            {"tape": {"width_m": tape_m}, "edges": {"look_ahead_m": advised}})
+        assert LaneDetector(config, ground=ground).setup_for(320, 240).look_ahead_m == advised

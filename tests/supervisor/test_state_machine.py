@@ -152,8 +152,8 @@ class MachineRig:
     """The bare state machine ticked at 30 Hz with hand-made facts (a confident frame with a
     fresh lane and the given filtered slope sum, unless told otherwise)."""
 
-    def __init__(self) -> None:
-        self.machine = SupervisorStateMachine(CONFIG)
+    def __init__(self, config: SupervisorConfig = CONFIG) -> None:
+        self.machine = SupervisorStateMachine(config)
         self.now = 0.0
 
     def tick(self, slope_sum: float = 0.0, **kw: object) -> str:
@@ -280,6 +280,63 @@ def test_a_degrade_event_restarts_the_count_even_beside_a_confident_frame() -> N
     for _ in range(n - 1):
         assert rig.step().state == "HALT"
     assert rig.step().state == "FOLLOW"
+
+
+def test_k_of_n_engages_on_confident_frames_in_bursts() -> None:
+    """With engage_window_frames 15, 10 confident frames among the last 15 judged ones engage,
+    the newest confident: a real camera's confident frames come in bursts (5 on, 1 off). The
+    default (0) still needs 10 in a row and never engages on that pattern."""
+    burst = [True, True, True, True, True, False] * 5
+    k_of_n = Rig(SupervisorConfig(engage_window_frames=15))
+    in_a_row = Rig()
+    seen = []
+    for i, confident in enumerate(burst):
+        confidence = 0.9 if confident else 0.3
+        seen.append(k_of_n.step(start=(i == 0), confidence=confidence).state)
+        assert in_a_row.step(start=(i == 0), confidence=confidence).state == "HALT"
+    # Frames 0-4 and 6-10 confident: the 10th confident frame (index 10) engages.
+    assert seen[:10] == ["HALT"] * 10 and seen[10] == "FOLLOW"
+
+
+def test_k_of_n_counts_only_the_window() -> None:
+    """Window 12: nine confident frames, three not, then confident ones: the old nine slide out
+    of the window, so it engages only when 10 of the last 12 are confident (at the 10th new
+    one), not at the first (which would make 10 in all)."""
+    rig = Rig(SupervisorConfig(engage_window_frames=12))
+    pattern = [True] * 9 + [False] * 3 + [True] * 12
+    states = [rig.step(start=(i == 0), confidence=0.9 if c else 0.3).state
+              for i, c in enumerate(pattern)]
+    assert states.index("FOLLOW") == 21
+
+
+def test_k_of_n_engages_on_a_confident_frame() -> None:
+    """Ten confident frames before the start, then the start on an unconfident frame: 10 of the
+    last 11 were confident, but the newest was not, so it waits for the next confident one."""
+    rig = Rig(SupervisorConfig(engage_window_frames=12))
+    for _ in range(10):
+        assert rig.step().state == "HALT"  # no start yet
+    assert rig.step(start=True, confidence=0.3).state == "HALT"
+    assert rig.step().state == "FOLLOW"
+
+
+def test_k_of_n_a_late_frame_wipes_the_window_an_unconfident_one_only_counts() -> None:
+    """Window 15: nine confident frames, then three below confident_min (LANE_LOW_CONFIDENCE
+    fires on the third: they are counted as unconfident, the nine stay), then one confident
+    frame engages (10 of 13). A late frame instead (FRAME_LATE, DEGRADE) wipes the nine."""
+    rig = Rig(SupervisorConfig(engage_window_frames=15))
+    for i in range(9):
+        assert rig.step(start=(i == 0)).state == "HALT"
+    for _ in range(3):
+        assert rig.step(confidence=0.3).state == "HALT"
+    assert rig.step().state == "FOLLOW"
+    late = MachineRig(SupervisorConfig(engage_window_frames=15))
+    late.tick(engage_requested=True)
+    for _ in range(8):
+        assert late.tick() == "HALT"
+    assert late.tick(events=frozenset({Event.FRAME_LATE})) == "HALT"
+    for _ in range(9):
+        assert late.tick() == "HALT"
+    assert late.tick() == "FOLLOW"  # ten new confident frames
 
 
 def test_halt_is_latched_until_resume_and_a_confident_lane() -> None:
