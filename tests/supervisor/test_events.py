@@ -64,6 +64,10 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
 }  # fmt: skip
 
 
+#: A provoker that has not seen its event after this many steps (10 s) gives up (no test hangs).
+MAX_STEPS = 300
+
+
 def test_the_event_table_is_exactly_the_written_policy_in_priority_order() -> None:
     table = {event.value: (rule.response.name, rule.reason) for event, rule in EVENT_TABLE.items()}
     assert table == EXPECTED_POLICY
@@ -160,7 +164,7 @@ def _base_link_lost() -> Provoked:
     rig = _engaged()
     silent_since = rig.clock.now()
     out = rig.step(feedback=BaseFeedback(received_at_s=silent_since))
-    while out.state != "HALT":
+    while out.state != "HALT" and len(rig.outputs) < MAX_STEPS:
         out = rig.step(feedback=BaseFeedback(received_at_s=silent_since))
     assert rig.clock.now() - silent_since <= rig.config.base_link_timeout_s + DT + 1e-9
     return _from("DEGRADED", out)  # feedback late first (DEGRADE), then lost (HALT)
@@ -229,7 +233,7 @@ def _clock_invalid() -> Provoked:
 def _frame_stale() -> Provoked:
     rig = _engaged()
     out = rig.step(new_frame=False)
-    while out.state != "HALT":
+    while out.state != "HALT" and len(rig.outputs) < MAX_STEPS:
         out = rig.step(new_frame=False)
     return _from("DEGRADED", out)  # late first, then stale
 
@@ -237,7 +241,7 @@ def _frame_stale() -> Provoked:
 def _frame_frozen() -> Provoked:
     rig = _engaged()
     out = rig.step(fingerprint=b"same")
-    while out.state != "HALT":
+    while out.state != "HALT" and len(rig.outputs) < MAX_STEPS:
         out = rig.step(fingerprint=b"same")
     return _from("FOLLOW", out)
 
@@ -246,7 +250,7 @@ def _lane_lost() -> Provoked:
     rig = _engaged()
     seen_last = rig.clock.now()  # the last usable lane
     out = rig.step(left=False, right=False, confidence=0.0)
-    while out.state != "HALT":
+    while out.state != "HALT" and len(rig.outputs) < MAX_STEPS:
         out = rig.step(left=False, right=False, confidence=0.0)
     # after more than lane_lost_halt_s (0.2 s) without a usable lane, at the first frame past it
     assert 0.2 < rig.clock.now() - seen_last <= 0.2 + DT + 1e-9
@@ -256,7 +260,7 @@ def _lane_lost() -> Provoked:
 def _budget_exhausted() -> Provoked:
     rig = _engaged()
     out = rig.step(right=False, confidence=0.5)
-    while out.state != "HALT":
+    while out.state != "HALT" and len(rig.outputs) < MAX_STEPS:
         out = rig.step(right=False, confidence=0.5)
     return _from("DEGRADED", out)
 
@@ -264,7 +268,7 @@ def _budget_exhausted() -> Provoked:
 def _frame_late() -> Provoked:
     rig = _engaged()
     out = rig.step(new_frame=False)  # the camera skips a few frames: the newest one ages
-    while "FRAME_LATE" not in {e.value for e in out.events}:
+    while "FRAME_LATE" not in {e.value for e in out.events} and len(rig.outputs) < MAX_STEPS:
         assert out.state == "FOLLOW"
         out = rig.step(new_frame=False)
     return _from("FOLLOW", out)
