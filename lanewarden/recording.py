@@ -12,8 +12,8 @@
       summary.json              written at the end: steps, frames written/dropped, end reason
 
 Frames are kept as perception consumes them: the PNG (lanewarden.frame_png) of the frame's gray
-version (`perception_gray`: perception depends on a frame only through it), lossless and about a
-third of a colour PNG's size and CPU; a colour JPEG with --record-lossy (not exact).
+version (`perception_gray`: perception depends on a frame only through it), lossless, less than
+half a colour PNG's size for an eighth of its CPU; a colour JPEG with --record-lossy (not exact).
 
 `InputTap` wraps the loop's frame source, base and controller to note what came in during each
 step (frame identity, base feedback, failures, operator requests) and what the controller
