@@ -127,7 +127,7 @@ def _clean(picture: Picture, width: int, height: int) -> np.ndarray:
             + _noiseless(replace(right, tapes=("right",)), width, height) - floor)
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=128)
 def _noiseless(scene: Scene, width: int, height: int) -> np.ndarray:
     image = syn.render(replace(scene, noise_sigma=0.0), width, height)
     gray = image[..., 1].astype(np.float64)  # the green channel carries no colour cast
