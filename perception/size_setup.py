@@ -38,8 +38,8 @@ _REFERENCE_HEIGHT_PX = 480
 _MIN_DEPTH_M = 0.02
 #: An ROI smaller than this many pixels in the image is "not in view".
 _MIN_ROI_AREA_PX = 64.0
-#: Rows of the sparse grid the frame's contrast is read on (`contrast_step`).
-_CONTRAST_SAMPLE_ROWS = 120
+#: Rows of the sparse grid the frame's contrast is read on (`contrast_step`): about 60x80 points.
+_CONTRAST_SAMPLE_ROWS = 60
 
 
 class SizeSetup:
@@ -88,7 +88,7 @@ class SizeSetup:
         if not math.isfinite(self.centre_x_bottom):
             self.centre_x_bottom = 0.5 * width
         self.at_look_ahead = hypotheses_at(self.view, self.look_ahead_m, config)
-        # Contrast is read on a grid of about 160x120 samples of the ROI, whatever the size.
+        # Contrast is read on a grid of about 80x60 samples of the ROI, whatever the size.
         self.contrast_step = max(1, height // _CONTRAST_SAMPLE_ROWS)
         self.contrast_mask = np.ascontiguousarray(
             self.mask[::self.contrast_step, ::self.contrast_step])

@@ -221,14 +221,17 @@ def test_a_missing_robot_leaves_a_closed_recording(
 def test_a_camera_perception_cannot_use_is_refused_before_anything_moves(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """160x120 frames and no calibration: the default camera at that size cannot tell tape from
-    seam at the default 0.87 m look-ahead. `run` says so at start-up (exit 2, one line naming the
-    key and the look-ahead that would work), never sits in HALT frame after frame."""
+    seam at a 0.87 m look-ahead set in the config. `run` says so at start-up (exit 2, one line
+    naming the key and the look-ahead that would work), never sits in HALT frame after frame.
+    (With no look-ahead set, auto picks 0.47 m and says so.)"""
     folder = tmp_path / "small"
     folder.mkdir()
     for index in range(3):
         cv2.imwrite(str(folder / f"f_{index}.png"), syn.frame(syn.STRAIGHT, 160, 120))
+    config = tmp_path / "far.yaml"
+    config.write_text("perception:\n  edges: {look_ahead_m: 0.87}\n")
     code = main(["run", "--camera", str(folder / "f_%d.png"), "--base", "sim",
-                 "--record", str(tmp_path / "run")])
+                 "--record", str(tmp_path / "run"), "--config", str(config)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1
