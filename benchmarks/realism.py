@@ -7,7 +7,7 @@ Donkeycar project's, MIT licence: the figure is generated, never committed) and 
 statistics table of docs/scenarios.md ("Does it look real?"); tests/scenarios/test_realism.py
 checks that table against the same computation.
 
-    python benchmarks/realism.py [--frames 300] [--data DIR]
+    python benchmarks/realism.py [--frames 150] [--data DIR]
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ TUB_CAMERA = ROOT / "tests" / "perception" / "donkeycar_camera.yaml"
 TUB_CALIBRATION = ROOT / "tests" / "perception" / "donkeycar_calibration.yaml"
 #: The Donkeycar loop's rate: the tub's frames are 1/20 s apart.
 TUB_RATE_HZ = 20.0
+#: Rendered frames per set (the docs' tables).
+FRAMES = 150
 
 
 def data_folder(given: str | None) -> Path:
@@ -47,8 +49,10 @@ def tub_frames(folder: Path) -> list[np.ndarray]:
     return frames
 
 
-def compare(tub: list[np.ndarray], frames: int) -> list[tuple[str, object, list[np.ndarray]]]:
-    """(name, SequenceStats, four sample frames) for the real frames and each rendered set."""
+def compare(tub: list[np.ndarray], frames: int,
+            samples: bool = False) -> list[tuple[str, object, list[np.ndarray]]]:
+    """(name, SequenceStats, four sample frames when `samples`) for the real frames and each
+    rendered set."""
     from lanewarden.config import LanewardenConfig, config_from_mapping
     from lanewarden.perception.calibration import Undistorter, load_calibration
     from lanewarden.perception.detector import LaneDetector
@@ -69,8 +73,11 @@ def compare(tub: list[np.ndarray], frames: int) -> list[tuple[str, object, list[
         detector = LaneDetector(perception, Undistorter(camera.calibration()))
         stats = sequence_stats(detector, sequence, [i / TUB_RATE_HZ for i in range(frames)],
                                confident_min)
-        colour, _ = rendered_tub_like(changes, effects_on, 3 * frames // 4 + 1, color=True)
-        out.append((name, stats, [colour[i * frames // 4] for i in range(4)]))
+        shown: list[np.ndarray] = []
+        if samples:
+            colour, _ = rendered_tub_like(changes, effects_on, 3 * frames // 4 + 1, color=True)
+            shown = [colour[i * frames // 4] for i in range(4)]
+        out.append((name, stats, shown))
     return out
 
 
@@ -125,7 +132,7 @@ def figure(rows: list[tuple[str, object, list[np.ndarray]]], path: Path) -> None
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=300, help="rendered frames per set")
+    parser.add_argument("--frames", type=int, default=FRAMES, help="rendered frames per set")
     parser.add_argument("--data", help="the shared data folder (default: $LANEWARDEN_DATA or "
                         "../shared/data)")
     args = parser.parse_args()
@@ -136,7 +143,7 @@ def main() -> None:
     from lanewarden.config import LanewardenConfig
 
     engage = LanewardenConfig().supervisor.engage_confident_frames
-    rows = compare(tub_frames(folder), args.frames)
+    rows = compare(tub_frames(folder), args.frames, samples=True)
     figure(rows, ROOT / "docs" / "generated" / "realism.png")
     print(table(rows, engage))
     print()
