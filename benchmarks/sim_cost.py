@@ -6,9 +6,11 @@ run `--runs` times in a row: the first run pays for painting the floor, the next
 (`paint_ground_cached`), as a campaign's worker does. The run is the `straight` scenario with no
 fault (it drives the whole 20 s), supervised, no video, no plot, judged like a campaign run, with
 the default campaign spec's `config:` (through the lens, perception undistorting);
-`--rectified` sets `simulation.rectified_frames` (one remap per frame instead of two).
+`--rectified` sets `simulation.rectified_frames` (one remap per frame instead of two); `--floor
+KIND` lays another floor kind (e.g. `ceramic`: glossy, so the ceiling lights' reflections are
+rendered too). The camera is the scenario's (default: a Pi-class camera with its effects).
 
-    python benchmarks/sim_cost.py [--runs 3] [--scenario straight] [--rectified]
+    python benchmarks/sim_cost.py [--runs 3] [--scenario straight] [--rectified] [--floor KIND]
 
 Prints CPU s per run (first and warm), peak RSS of the worker, and whether heavy modules
 (matplotlib, imageio_ffmpeg, dask) were imported. Targets at 320x240: <= 1.5 s CPU per warm run,
@@ -26,7 +28,8 @@ import time
 from typing import Any
 
 
-def _worker(scenario: str, width: int, height: int, runs: int, rectified: bool) -> dict[str, Any]:
+def _worker(scenario: str, width: int, height: int, runs: int, rectified: bool,
+            floor: str | None = None) -> dict[str, Any]:
     started = time.process_time()
     from lanewarden.assembly import build_stack
     from lanewarden.config import config_from_mapping
@@ -36,8 +39,12 @@ def _worker(scenario: str, width: int, height: int, runs: int, rectified: bool) 
     from lanewarden.scenarios.simulator import Simulation, effective_config
 
     import_cpu = time.process_time() - started
+    from lanewarden.scenarios.spec import FloorSpec
+
     spec = resolve_scenario(scenario)
     spec = spec.model_copy(update={"run": spec.run.model_copy(update={"max_time_s": 20.0})})
+    if floor is not None:
+        spec = spec.model_copy(update={"floor": FloorSpec(kind=floor)})
     campaign_config = load_campaign_spec(DEFAULT_SPEC)[0].config
     simulation = {**campaign_config.get("simulation", {}), "width_px": width,
                   "height_px": height, "progress": False}
@@ -67,6 +74,7 @@ def main() -> None:
     parser.add_argument("--scenario", default="straight")
     parser.add_argument("--rectified", action="store_true",
                         help="simulation.rectified_frames: the pinhole image, no undistortion")
+    parser.add_argument("--floor", help="another floor kind (e.g. ceramic, terrazzo)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     context = multiprocessing.get_context("spawn")
@@ -74,7 +82,7 @@ def main() -> None:
     for width, height in ((640, 480), (320, 240)):
         with context.Pool(1) as pool:
             results.append(pool.apply(_worker, (args.scenario, width, height, args.runs,
-                                                    args.rectified)))
+                                                    args.rectified, args.floor)))
     if args.json:
         print(json.dumps(results, indent=2))
         return

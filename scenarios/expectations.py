@@ -53,6 +53,7 @@ def check_expectation(metrics: Mapping[str, object], expect: Expectation) -> lis
     at_most("distance_past_lane_end_m", expect.max_distance_past_lane_end_m)
     at_least("distance_past_lane_end_m", expect.min_distance_past_lane_end_m)
     at_least("distance_travelled_m", expect.min_distance_travelled_m)
+    at_most("distance_travelled_m", expect.max_distance_travelled_m)
     at_most("lane_loss_to_halt_s", expect.max_lane_loss_to_halt_s)
     at_most("halt_time_s", expect.halted_before_s)
     if expect.crossed_tape is not None and bool(metrics.get("crossed_tape")) != expect.crossed_tape:

@@ -42,10 +42,9 @@ GLOSS_FULL_SCALE = MAX_GLOSS
 #: The ceiling texture's resolution: half the roughness blur, within these bounds (metres).
 CEILING_RES_M = (0.02, 0.08)
 #: Pixels looking at the floor further than this from the camera (metres) mirror nothing (a
-#: ray reflected that flat sees the walls, not the lights) ...
+#: ray reflected that flat sees the walls, not the lights), nor do those whose mirrored ray meets
+#: the ceiling further away than the lights' `reach_m`.
 MAX_DISTANCE_M = 6.0
-#: ... nor those whose mirrored ray meets the ceiling further away than this (metres).
-MAX_CEILING_REACH_M = 50.0
 
 
 class Highlights:
@@ -65,7 +64,7 @@ class Highlights:
         gy = np.asarray(cv2.resize(full_y, half, interpolation=cv2.INTER_LINEAR), np.float64)
         cam = camera.position_robot()[:2]
         grow = (h + big_h) / h
-        reach = min(MAX_DISTANCE_M * grow, MAX_CEILING_REACH_M)
+        reach = min(MAX_DISTANCE_M * grow, ceiling.reach_m)
         distance = np.hypot(gx - cam[0], gy - cam[1])
         seen = np.isfinite(distance) & (distance * grow < reach)
         mirror = np.full((h_px // 2, w_px // 2, 2), 1.0e7, np.float32)  # off the ceiling
@@ -99,7 +98,7 @@ class Highlights:
             (self._periods[1], self._periods[0])))
         #: frame levels per ceiling texture level and gloss level, per unit of white floor
         self._strength = ceiling.strength * peak / 255.0 * GLOSS_FULL_SCALE
-        self._streak_px = max(1, round(math.sqrt(12.0) * 2.0 * roughness_rad * camera.focal_px))
+        self._streak_px = 2.0 * roughness_rad * camera.focal_px
         self._map = np.empty_like(mirror)
         self._light_half = np.empty((h_px // 2, w_px // 2), np.uint8)
         self._light = np.empty((h_px, w_px), np.uint8)
@@ -134,8 +133,9 @@ class Highlights:
             return
         cv2.resize(self._light_half, (self._light.shape[1], self._light.shape[0]),
                    dst=self._light, interpolation=cv2.INTER_LINEAR)
-        if self._streak_px > 1:
-            cv2.blur(self._light, (1, self._streak_px), dst=self._light)
+        if self._streak_px > 0.5:
+            cv2.GaussianBlur(self._light, (1, 0), sigmaX=0.1, sigmaY=self._streak_px,
+                             dst=self._light)
         scales = (scale,) if isinstance(scale, float) else scale
         for channel, level in enumerate(scales):
             shine = cv2.multiply(self._light, self._gloss, scale=self._strength * level)

@@ -4,16 +4,23 @@ Per frame: one `cv2.remap` of the ground texture through per-pixel floor coordin
 point every (distorted) camera pixel looks at, in the robot frame, is fixed (the camera is rigid,
 `CameraModel.pixel_ground_points`) and computed once; a pose only moves those points by a 2-D rigid
 transform, one `cv2.transform` into a preallocated map. So lens distortion costs
-nothing per frame and there is a single interpolation between texture and image. Then motion blur
-from the robot's velocity (a box blur along the image directions that motion smears: sideways for
-turning, vertically for driving forward) and seeded sensor noise (a bank of precomputed noise
-frames, one picked per frame by a seeded generator).
+nothing per frame and there is a single interpolation between texture and image. A rolling
+shutter moves each row's points by where the moving robot was when the row was read (two
+`cv2.scaleAdd` before the transform). Then, with camera effects (`scenarios.camera_effects`, the
+simulator's way): the frame's exposure settings, lens blur, motion blur over that shutter time
+(a box blur along the image directions that motion smears: sideways for turning, vertically for
+driving forward), exposure and vignetting, the ceiling lights' reflections on glossy surfaces
+(`scenarios.highlights`), metering, noise through the gain, fringes, compression. Without them
+(a bare renderer for geometry and perception tests): motion blur over a fixed shutter time and
+seeded noise of one strength (a bank of precomputed noise frames, one picked per frame by a
+seeded generator).
 
 Images are uint8, gray (H, W) or BGR (H, W, 3), in the camera's real (distorted) pixel grid, so the
 detector must undistort them with the camera's true calibration
 (`CameraCalibration(camera.camera_matrix(), camera.distortion(), (w, h))`).
 
-Never reads a clock, never touches the robot; allocations happen in __init__, not per frame.
+Never reads a clock (a frame's time is the caller's `now`), never touches the robot; allocations
+happen in __init__, not per frame (JPEG's buffers are OpenCV's).
 """
 
 from __future__ import annotations

@@ -97,22 +97,27 @@ def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
     return config
 
 
+def camera_model_of(camera: CameraSpec | None, width_px: int, height_px: int) -> CameraModel:
+    """The camera a scenario's `camera:` block describes (None: the default camera) at a size."""
+    if camera is None:
+        return CameraModel(width_px=width_px, height_px=height_px)
+    return CameraModel(width_px=width_px, height_px=height_px, hfov_deg=camera.hfov_deg,
+                       height_m=camera.height_m, pitch_down_deg=camera.pitch_deg,
+                       roll_deg=camera.roll_deg, forward_offset_m=camera.forward_m,
+                       dist_coeffs=camera.distortion)
+
+
 def sim_camera_model(config: LanewardenConfig, camera: CameraSpec | None = None) -> CameraModel:
     """The simulated camera: the scenario's camera block (default: CameraModel's geometry) at
     the configured resolution (see `effective_config`). With `simulation.rectified_frames` its
     frames come out rectified (no lens distortion), as from a driver that rectifies."""
     width, height = config.simulation.width_px, config.simulation.height_px
-    if camera is None:
-        model = CameraModel(width_px=width, height_px=height)
-    elif camera.width_px is not None and (camera.width_px, camera.height_px) != (width, height):
+    if camera is not None and camera.width_px is not None and (
+            camera.width_px, camera.height_px) != (width, height):
         raise ScenarioError(
             f"camera block: {camera.width_px}x{camera.height_px} px but the config renders "
             f"{width}x{height} px (build the config with effective_config)")
-    else:
-        model = CameraModel(width_px=width, height_px=height, hfov_deg=camera.hfov_deg,
-                            height_m=camera.height_m, pitch_down_deg=camera.pitch_deg,
-                            roll_deg=camera.roll_deg, forward_offset_m=camera.forward_m,
-                            dist_coeffs=camera.distortion)
+    model = camera_model_of(camera, width, height)
     if config.simulation.rectified_frames:
         model = replace(model, dist_coeffs=(0.0, 0.0, 0.0, 0.0, 0.0))
     return model

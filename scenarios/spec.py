@@ -351,7 +351,9 @@ class CeilingLightsSpec(_Model):
     highlight that moves with the camera (it lies where the ray from the camera to the light's
     mirror image meets the floor), rendered per frame (`scenarios.highlights`). `strength`: the
     light's brightness in units of a white floor (a ceiling panel is some 40 times brighter than
-    the floor it lights: even 5% of it mirrored saturates the image)."""
+    the floor it lights: even 5% of it mirrored saturates the image). `reach_m`: the room's
+    size: lights further than this from the camera are not there (a low camera sees the mirror
+    images of lights far away: one at distance d appears d h / (h + H) ahead on the floor)."""
 
     height_m: Annotated[float, Field(gt=0.5, le=20.0)] = 2.6
     spacing_m: tuple[Annotated[float, Field(gt=0.3, le=50.0)],
@@ -359,6 +361,7 @@ class CeilingLightsSpec(_Model):
     offset_m: tuple[float, float] = (0.7, 0.4)
     size_m: Annotated[float, Field(gt=0.01, le=3.0)] = 0.4
     strength: Annotated[float, Field(gt=0.0, le=1000.0)] = 40.0
+    reach_m: Annotated[float, Field(gt=1.0, le=100.0)] = 20.0
 
 
 class LightingSpec(_Model):
@@ -571,6 +574,7 @@ class Expectation(_Model):
     min_distance_past_lane_end_m: float | None = None
     crossed_tape: bool | None = None
     min_distance_travelled_m: Annotated[float | None, Field(ge=0.0)] = None
+    max_distance_travelled_m: Annotated[float | None, Field(ge=0.0)] = None
     max_lane_loss_to_halt_s: float | None = None
     states_visited_include: list[str] = []
     states_visited_exclude: list[str] = []

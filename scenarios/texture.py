@@ -2,8 +2,11 @@
 
 Texture frame: pixel (col, row) covers the world square whose centre is
 (x_min + (col + 0.5) * m_per_px, y_max - (row + 0.5) * m_per_px): rows go DOWN in y, so the
-texture reads like a map. Painting order: floor albedo (tiles and seams, planks, plain, speckle),
-tapes on top (anti-aliased polygons), then the light (brightness, gradient, glare).
+texture reads like a map. Painting order: the floor's own surface (`scenarios.floors`: tiles and
+grout, chips, mats, planks, carpet, concrete), tapes on top (`scenarios.tapes`: anti-aliased
+polygons, worn, torn, creased), then the painted light (gradient, glare). The room's brightness and
+colour are not painted: the camera's exposure answers them (`scenarios.camera_effects`). Where
+something is glossy and ceiling lights shine, a gloss layer too (`scenarios.highlights`).
 
 Deterministic for a given (world, m_per_px, seed). Never renders a camera view, never reads a
 clock. Floats are used only while painting; the result is uint8.

@@ -6,7 +6,6 @@ timing: the runner is the one real-time part, so waits are on conditions with ge
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -33,6 +32,7 @@ from tests.actuation.processes import (
     wait_for_more_packets,
     wait_for_stop_after,
 )
+from tests.operator.runs import steps
 from tests.perception.synthetic import STRAIGHT, render
 
 FPS = 30
@@ -112,7 +112,6 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     camera = clip(tmp_path / "camera", scenes, ("lane", 4.0))
-    log = tmp_path / "run" / "run.jsonl"
     with KobukiStandIn() as base:
         code = main(_run(camera, base.port, tmp_path, relaxed_config, "--duration", "1.0"))
         assert base.wait_for(lambda packets: any(p.packet == STOP_PACKET for p in packets), 5.0)
@@ -122,7 +121,7 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     assert stderr_lines(err) == []
     assert controls, "the stand-in never received a base-control packet"
     assert controls[-1][1] == (0, 0), "the last command on the wire must be stop"
-    records = [json.loads(line) for line in log.read_text().splitlines()]
+    records = steps(tmp_path / "run")
     assert records, "no per-frame record was written"
     assert records[-1]["state"] == "HALT"
     assert records[-1]["command"] == {"linear_m_s": 0.0, "angular_rad_s": 0.0}

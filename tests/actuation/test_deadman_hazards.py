@@ -11,7 +11,6 @@ measures that).
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import socket
@@ -51,6 +50,7 @@ from tests.actuation.processes import (
     stderr_lines,
     wait_for_more_packets,
 )
+from tests.operator.runs import steps
 from tests.test_robot_runner import clip, last_line, scenes  # noqa: F401 (a fixture)
 
 MOVE = VelocityCommand(0.2, 0.0)
@@ -236,7 +236,7 @@ def test_run_halts_on_the_deadmans_latch_and_names_it(
     assert run.returncode == 3
     assert stderr_lines(err) == [f"lanewarden: safety stop: {reason}"]
     assert last_line(out).startswith(f"run ended by a safety stop: {reason}")
-    records = [json.loads(line) for line in (tmp_path / "run" / "run.jsonl").open()]
+    records = steps(tmp_path / "run")
     latched = [r for r in records if r["halt_reason"] == reason]
     assert latched and latched[0]["input"]["feedback"]["stop_latched"] == "bumper pressed (centre)"
     assert latched[0]["input"]["feedback"]["bumper"] == 0  # the gate never saw the bumper itself

@@ -296,10 +296,11 @@ def _hazard_inputs(now: float, hazard: dict[str, object], **kw: object) -> Contr
 
 def test_the_gate_halts_by_itself_on_a_fixed_set_of_events() -> None:
     assert sorted(e.value for e in PHYSICAL_HAZARDS) == [
-        "BASE_LINK_LOST", "BATTERY_CRITICAL", "BUMPER", "CLIFF", "OPERATOR_STOP", "WHEEL_DROP"]
+        "BASE_LINK_LOST", "BATTERY_CRITICAL", "BUMPER", "CLIFF", "DEADMAN_LATCHED",
+        "OPERATOR_STOP", "WHEEL_DROP"]
     assert sorted(e.value for e in GATE_HALT_EVENTS) == [
         "BASE_LINK_LOST", "BATTERY_CRITICAL", "BUMPER", "CLIFF", "CLOCK_INVALID",
-        "CONTROLLER_ERROR", "OPERATOR_STOP", "WHEEL_DROP"]
+        "CONTROLLER_ERROR", "DEADMAN_LATCHED", "OPERATOR_STOP", "WHEEL_DROP"]
 
 
 def test_the_event_table_is_checked_against_the_gate() -> None:
