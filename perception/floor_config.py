@@ -211,16 +211,12 @@ class TapeConfig(BaseModel):
 
     def for_side(self, side: Literal["left", "right"]) -> TapeConfig:
         """This config as one side's rules see it: `width_m` that side's tape, the seam fixed
-        (one floor, one widest seam for both sides). Made once per config and side."""
-        return self._sides[side]
-
-    @functools.cached_property
-    def _sides(self) -> dict[str, TapeConfig]:
+        (one floor, one widest seam for both sides). Made once per config and side (a cache
+        outside the model: a cached value in the model's own `__dict__` would take part in its
+        equality, and `self` in it made comparisons recurse without end)."""
         if self.left_width_m is None and self.right_width_m is None:
-            return {"left": self, "right": self}
-        return {side: self.model_copy(update={
-            "width_m": self.side_width_m(side), "left_width_m": None, "right_width_m": None,
-            "max_seam_width_m": self.seam_width_m}) for side in ("left", "right")}
+            return self
+        return _side_config(self, side)
 
     @model_validator(mode="after")
     def _seam_below_tape(self) -> Self:
@@ -275,3 +271,11 @@ class LaneConfig(BaseModel):
             "this, 0 at twice it, degrees"
         ),
     )
+
+
+@functools.lru_cache(maxsize=64)
+def _side_config(tape: TapeConfig, side: Literal["left", "right"]) -> TapeConfig:
+    """`tape` with `width_m` set to `side`'s tape (TapeConfig is frozen, so hashable)."""
+    return tape.model_copy(update={
+        "width_m": tape.side_width_m(side), "left_width_m": None, "right_width_m": None,
+        "max_seam_width_m": tape.seam_width_m})
