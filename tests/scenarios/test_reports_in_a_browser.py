@@ -80,6 +80,10 @@ def test_a_rerun_command_is_copied_or_selected(browser: Any,  # noqa: F811 (the 
     browser.get(page.as_uri())
     button = browser.find_element(By.CSS_SELECTOR, "button.copy")
     button.click()
+    # The page copies through the clipboard's promise, then relabels the button: wait for it
+    # (bounded), as a person would look again, rather than read it in the same instant.
+    from selenium.webdriver.support.ui import WebDriverWait
+    WebDriverWait(browser, 10).until(lambda _: button.text == "copied")
     assert button.text == "copied"
     code = browser.find_element(By.CSS_SELECTOR, "code.cmd")
     assert code.text == "lanewarden sim --case campaign-out/cases/r00007.yaml"
