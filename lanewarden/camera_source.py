@@ -255,6 +255,12 @@ class CameraFrameSource:
         return None
 
     @property
+    def latest(self) -> Frame | None:
+        """The newest frame captured so far, whether or not the source has failed since."""
+        with self._lock:
+            return self._latest
+
+    @property
     def ended(self) -> bool:
         """A recorded source (video file, image sequence) reached its end (not a failure)."""
         with self._lock:

@@ -72,13 +72,18 @@ class RunSummary:
 
 
 def _first_frame(frames: CameraFrameSource, clock: Ticker, camera: str) -> np.ndarray:
-    """The camera's first frame, once it arrived."""
+    """The camera's first frame, once it arrived. A camera that delivered frames and failed
+    before the run began still delivered: its loss is the loop's to report, as a safety stop
+    (CAMERA_LOST) with the base open, like a loss a second later."""
     deadline = clock.now() + FIRST_FRAME_TIMEOUT_S
     problem = "the camera opened but delivered nothing"
     while clock.now() < deadline:
         try:
             first = frames.read(clock.now())
         except CameraLost as exc:
+            delivered = frames.latest
+            if delivered is not None:
+                return delivered.image
             problem = str(exc)
             break
         if first is not None:

@@ -19,6 +19,9 @@ from lanewarden.camera_source import (
     open_camera,
 )
 from lanewarden.errors import UsageError
+from lanewarden.runner import _first_frame
+from lanewarden.supervisor.errors import SupervisorError
+from lanewarden.ticker import Ticker
 
 
 def _images(folder: Path, names: list[str]) -> None:
@@ -77,5 +80,43 @@ def test_a_clip_waits_for_play_then_ends_as_a_lost_camera(tmp_path: Path) -> Non
         assert frames.ended and frames.frames_captured == 4
         with pytest.raises(CameraLost, match="end of the recorded clip after 4 frames"):
             frames.read(time.monotonic())
+    finally:
+        frames.close()
+
+
+def _failed_live_source(tmp_path: Path, good_frames: int) -> CameraFrameSource:
+    """A live source (no replay pace) over `good_frames` images then an unreadable one, returned
+    once its capture thread has failed: a camera that dropped out before the run began."""
+    _images(tmp_path / "s", [f"a_{i}.png" for i in range(good_frames)])
+    (tmp_path / "s" / f"a_{good_frames}.png").write_text("not a png")
+    frames = CameraFrameSource(open_camera(str(tmp_path / "s")), time.monotonic, replay_fps=None)
+    deadline = time.monotonic() + 10.0
+    while frames.error is None and time.monotonic() < deadline:
+        threading.Event().wait(0.01)
+    assert frames.error is not None
+    return frames
+
+
+def test_a_camera_that_delivered_then_failed_before_the_run_still_gives_its_first_frame(
+    tmp_path: Path,
+) -> None:
+    # the loop, not start-up, reports its loss (a safety stop with the base open); the frame it
+    # gives is the newest the camera delivered (value 10 * index, written by _images)
+    frames = _failed_live_source(tmp_path, good_frames=3)
+    try:
+        with pytest.raises(CameraLost):
+            frames.read(time.monotonic())
+        image = _first_frame(frames, Ticker(1 / 30), "cam")
+        assert int(image[0, 0, 0]) == 20
+    finally:
+        frames.close()
+
+
+def test_a_camera_that_never_delivered_is_refused_at_start_naming_it(tmp_path: Path) -> None:
+    frames = _failed_live_source(tmp_path, good_frames=0)
+    try:
+        with pytest.raises(SupervisorError, match=r"^--camera cam: no frame within 3 s \(.*a_0"
+                                                  r"\.png: not a readable image\)$"):
+            _first_frame(frames, Ticker(1 / 30), "cam")
     finally:
         frames.close()
