@@ -67,9 +67,11 @@ class SimulationConfig(BaseModel):
         default=2.5, ge=1.0, le=10.0, description="floor painted beyond the lane on every side"
     )
     noise_bank_frames: int = Field(
-        default=12, ge=1, le=64,
-        description="precomputed unit-noise frames, one drawn (seeded) per frame (the noise's "
-        "strength is the camera's: the scenario's camera.sensor)",
+        default=12, ge=2, le=64,
+        description="precomputed unit-noise frames, one drawn (seeded) per frame, never the "
+        "previous frame's (a real sensor never repeats its noise, and the supervisor does not "
+        "count an image identical to the previous one); the noise's strength is the camera's: "
+        "the scenario's camera.sensor",
     )
     perception_color: bool = Field(
         default=False,

@@ -129,6 +129,7 @@ class CameraRenderer:
         self._px_per_m_forward = grid.px_per_m_forward
         self._px_per_rad = camera.focal_px
         self._noise_rng = np.random.default_rng([seed, 0xF4A3E])
+        self._noise_index: int | None = None
         self._motion_blur = effects.spec.motion_blur if effects is not None else exposure_s > 0
         self._readout_s = 0.0
         self._shear: tuple[F32, F32, F32] | None = None
@@ -209,10 +210,21 @@ class CameraRenderer:
         effects.develop(image, settings, noise_index)
 
     def next_noise_index(self) -> int | None:
-        """Draw which noise frame the next capture uses (None without noise)."""
-        if not self._noise_frames:
+        """Draw which noise frame the next capture uses (None without noise): never the one the
+        previous capture used, as a real sensor never repeats its noise (a robot standing still
+        would otherwise see the exact same image twice, which the supervisor takes for a frozen
+        camera and does not count towards engaging)."""
+        n = self._noise_frames
+        if not n:
             return None
-        return int(self._noise_rng.integers(0, self._noise_frames))
+        previous = self._noise_index
+        if previous is None or n < 2:
+            index = int(self._noise_rng.integers(0, n))
+        else:
+            index = int(self._noise_rng.integers(0, n - 1))
+            index += index >= previous
+        self._noise_index = index
+        return index
 
     def render_gray(self, pose: Pose2D, out: U8, velocity: tuple[float, float] = (0.0, 0.0),
                     noise_index: int | None = None, now: float | None = None) -> U8:

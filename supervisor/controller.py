@@ -132,6 +132,9 @@ class SupervisedController:
             self._lane_seen_at_s = obs.time_s
         return FrameVerdict(
             trusted=lane.usable,
-            confident=lane.confident and self._estimate.accepted,
+            # an image identical to the previous one is no new evidence (a frozen camera): it
+            # never counts towards engaging or recovering, however confident its lane
+            confident=(lane.confident and self._estimate.accepted
+                       and not self._watchdog.image_repeated),
             innovation=self._estimate.innovation,
         )

@@ -6,7 +6,10 @@ Checks, each step:
 - camera: age of the newest frame (now - capture time) above `frame_late_s` (FRAME_LATE) or
   `frame_stale_s` (FRAME_STALE); a new frame from the future, or going backwards in time or index
   (FRAME_INVALID); identical images for `frame_frozen_s` while the robot is commanded to move
-  (FRAME_FROZEN; a stopped robot may legitimately see the same image);
+  (FRAME_FROZEN; a stopped robot may legitimately see the same image); and, moving or not,
+  whether this step's new frame shows exactly the previous frame's image (`image_repeated`: no new
+  evidence, so the supervisor does not count it towards engaging or recovering: a camera that
+  froze on a confident lane while the robot waited must not be what engages it);
 - base: age of the newest feedback above `base_feedback_late_s` but not above
   `base_link_timeout_s` (BASE_FEEDBACK_LATE; beyond it the SafetyGate halts on BASE_LINK_LOST for
   every controller, see supervisor/gate.py).
@@ -52,6 +55,8 @@ class Watchdog:
         self._newest_time_s: float | None = None
         self._fingerprint: bytes | None = None
         self._same_since_s: float | None = None
+        #: This step's new frame shows exactly the previous accepted frame's image.
+        self.image_repeated = False
 
     @property
     def newest_frame_time_s(self) -> float | None:
@@ -70,6 +75,7 @@ class Watchdog:
         events: set[Event] = set()
         if self._first_check_s is None:
             self._first_check_s = now
+        self.image_repeated = False
         if self._last_check_s is not None and now - self._last_check_s > cfg.loop_overrun_s:
             events.add(Event.LOOP_OVERRUN)
         self._last_check_s = now
@@ -102,6 +108,7 @@ class Watchdog:
     def _accept_frame(self, frame: FrameInfo, moving: bool) -> frozenset[Event]:
         previous_time_s = self._newest_time_s
         same = frame.fingerprint is not None and frame.fingerprint == self._fingerprint
+        self.image_repeated = same
         self._newest_index = frame.index
         self._newest_time_s = frame.time_s
         self._fingerprint = frame.fingerprint

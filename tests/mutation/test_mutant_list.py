@@ -13,7 +13,7 @@ from tests.mutation.run import load, stale
 
 SAFETY_FILES = {
     "supervisor/gate.py", "supervisor/limiter.py", "actuation/kobuki_geometry.py",
-    "supervisor/hazards.py",
+    "supervisor/hazards.py", "supervisor/watchdog.py", "supervisor/controller.py",
     "supervisor/events.py", "supervisor/state_machine.py", "actuation/deadman_logic.py",
     "perception/tape_rules.py", "lanewarden/live_view.py", "lanewarden/operator.py",
 }  # fmt: skip

@@ -109,6 +109,26 @@ def test_noise_is_seeded_and_blur_smears_sideways_when_turning() -> None:
     assert np.abs(np.diff(row_blur)).max() < np.abs(np.diff(row_sharp)).max() / 2
 
 
+@pytest.mark.parametrize("bank", [2, 3, 12])
+def test_a_still_camera_never_delivers_the_same_image_twice_in_a_row(bank: int) -> None:
+    """A real sensor never repeats its noise; the supervisor does not count an image identical
+    to the previous one towards engaging (a frozen camera), so a robot standing still in the
+    simulator must see a new image every frame, and every noise frame of the bank is used."""
+    camera = CameraModel(width_px=160, height_px=120)
+    renderer = CameraRenderer(dot_texture([(0.7, 0.0)]), camera, noise_sigma=2.0, seed=5,
+                              noise_bank_frames=bank)
+    out = np.empty((120, 160), np.uint8)
+    indices, previous = [], None
+    for _ in range(200):
+        index = renderer.next_noise_index()
+        image = renderer.render_gray(Pose2D(), out, (0.0, 0.0), index).copy()
+        assert previous is None or not np.array_equal(image, previous)
+        indices.append(index)
+        previous = image
+    assert all(a != b for a, b in zip(indices, indices[1:], strict=False))
+    assert sorted(set(indices)) == list(range(bank))
+
+
 def test_texture_is_deterministic_per_seed_and_gray_matches_colour() -> None:
     world = build_world(straight_spec(1.0), margin_m=1.0)
     a = paint_ground(world, 0.005, seed=3, color=True)

@@ -319,6 +319,30 @@ def test_k_of_n_engages_on_a_confident_frame() -> None:
     assert rig.step().state == "FOLLOW"
 
 
+@pytest.mark.parametrize("window", [0, 15])
+def test_a_frozen_camera_never_engages_however_confident_its_lane(window: int) -> None:
+    """Campaign run r00000: the camera froze on a confident lane while the robot waited for one;
+    the identical images counted as the missing confident frames and it engaged on a frozen
+    camera. An image identical to the previous one is no new evidence: it does not count, in a
+    row or in the window (the first of them is a new image and counts once)."""
+    rig = Rig(SupervisorConfig(engage_window_frames=window))
+    n = CONFIG.engage_confident_frames
+    for i in range(n - 2):
+        assert rig.step(start=(i == 0)).state == "HALT"
+    for _ in range(3 * n):
+        out = rig.step(fingerprint=b"frozen")
+        assert out.state == "HALT" and out.command == STOP
+    # the camera comes back (new images): n new confident frames in a row engage again
+    states = [rig.step().state for _ in range(n)]
+    assert states == ["HALT"] * (n - 1) + ["FOLLOW"]
+
+
+def test_a_frozen_camera_never_recovers_from_degraded() -> None:
+    rig, _ = _degraded()
+    for _ in range(3 * CONFIG.recover_confident_frames):
+        assert rig.step(fingerprint=b"frozen").state in {"DEGRADED", "HALT"}
+
+
 def test_k_of_n_a_late_frame_wipes_the_window_an_unconfident_one_only_counts() -> None:
     """Window 15: nine confident frames, then three below confident_min (LANE_LOW_CONFIDENCE
     fires on the third: they are counted as unconfident, the nine stay), then one confident
