@@ -147,13 +147,19 @@ class PictureKeeper:
 
 
 class HeldImage(FrameStore):
-    """The same image for every frame index: a still held in front of the camera."""
+    """A still held in front of a live camera: the same view at every frame index. A live
+    camera's frames of one view still differ in their sensor noise, and the supervisor does not
+    count an image identical to the previous one (a frozen camera) towards engaging; so each
+    capture differs from the one before in the lowest bit of its top-left pixel, which is outside
+    every region perception reads (the ROI is a triangle on the bottom edge; a test checks that
+    the observation is unchanged)."""
 
     def __init__(self, image: np.ndarray) -> None:
-        self._image = image
+        self._captures = (image, image.copy())
+        self._captures[1][0, 0] ^= 1
 
     def image(self, index: int) -> np.ndarray | None:
-        return self._image
+        return self._captures[index % 2]
 
 
 class CheckedFrames(FrameStore):

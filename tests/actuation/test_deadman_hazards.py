@@ -238,8 +238,9 @@ def test_run_halts_on_the_deadmans_latch_and_names_it(
     assert last_line(out).startswith(f"run ended by a safety stop: {reason}")
     records = steps(tmp_path / "run")
     latched = [r for r in records if r["halt_reason"] == reason]
+    # the latch is the reason whether or not the run also read, after SIGCONT, a feedback packet
+    # from while it was stopped that still shows the bumper (that depends on the machine's load)
     assert latched and latched[0]["input"]["feedback"]["stop_latched"] == "bumper pressed (centre)"
-    assert latched[0]["input"]["feedback"]["bumper"] == 0  # the gate never saw the bumper itself
 
 
 # ---- item 7: the installed code, the same version ----------------------------------------------

@@ -27,3 +27,22 @@ def test_a_scene_rendered_again_matches_its_committed_frame() -> None:
     assert committed.shape == fresh.shape == (480, 640, 3)
     difference = np.abs(committed.astype(np.int16) - fresh.astype(np.int16))
     assert float(difference.mean()) < 2.0
+
+
+def test_a_held_still_is_a_live_camera_to_the_supervisor_and_the_same_view_to_perception() -> None:
+    """The survey's engage test holds a still in view: consecutive captures must differ (the
+    supervisor does not count a repeated image: a frozen camera), and perception must see the
+    same view in both (the observation of each committed frame is unchanged)."""
+    from lanewarden.config import LanewardenConfig
+    from lanewarden.perception.detector import LaneDetector
+    from lanewarden.supervisor.watchdog import frame_fingerprint
+    from lanewarden.survey_run import HeldImage
+
+    detector = LaneDetector(LanewardenConfig().perception)
+    for path in sorted(RENDERED.glob("*/*.jpg")):
+        image = cv2.imread(str(path))
+        held = HeldImage(image)
+        first, second, third = (held.image(k) for k in range(3))
+        assert first is not None and second is not None and third is not None
+        assert frame_fingerprint(first) != frame_fingerprint(second) != frame_fingerprint(third)
+        assert detector.detect(first, 0, 0.0) == detector.detect(second, 0, 0.0), path.name
