@@ -28,7 +28,7 @@ import io
 import json
 import math
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -223,11 +223,14 @@ class ReplaySource:
     frames_recorded: set[int] | None = None
 
 
-def _synthetic_steps(times: list[float]) -> list[StepInput]:
-    """One step per frame at its time, feedback always fresh, a start at the first step."""
-    return [StepInput(t=t, frame=(i, t), feedback=BaseFeedback(received_at_s=t),
-                      requests=("start",) if i == 0 else ())
-            for i, t in enumerate(times)]
+def camera_steps(frames: Iterable[tuple[int, float]],
+                 later: tuple[str, ...] = ()) -> list[StepInput]:
+    """One loop step per (frame index, time), at the frame's time: base feedback always fresh,
+    a start at the first step and the operator's `later` requests (e.g. a resume) at every
+    other."""
+    return [StepInput(t=t, frame=(index, t), feedback=BaseFeedback(received_at_s=t),
+                      requests=("start",) if k == 0 else later)
+            for k, (index, t) in enumerate(frames)]
 
 
 def _check_times(times: list[float], where: str, unit: str) -> None:
@@ -512,7 +515,8 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
     _check_times(times, f"{path}: {topic}", "image")
     start = times[0]
     rel = [t - start for t in times]
-    return ReplaySource(kind="bag", name=f"{path.stem or path.name}", steps=_synthetic_steps(rel),
+    return ReplaySource(kind="bag", name=f"{path.stem or path.name}",
+                        steps=camera_steps(enumerate(rel)),
                         frames=MessageFrames(bag, topic, by_sequence=False),
                         meta={"topic": topic, "times": note,
                               "frames_per_s_recorded": len(rel) / max(rel[-1], 1e-9)})
@@ -558,7 +562,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
     if any(b <= a for a, b in zip(times, times[1:], strict=False)):
         raise UsageError(f"{folder}: the tub's _timestamp_ms do not increase frame to frame")
     _check_times(times, str(folder), "record")
-    return ReplaySource(kind="tub", name=folder.name, steps=_synthetic_steps(times),
+    return ReplaySource(kind="tub", name=folder.name, steps=camera_steps(enumerate(times)),
                         frames=PathFrames(paths, max_pixels),
                         meta={"frames_per_s_recorded": len(times) / max(times[-1], 1e-9)})
 
@@ -587,7 +591,8 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                 f"{SOURCE_HELP}")
     times = [i / camera_rate_hz for i in range(len(paths))]
     path = Path(source)
-    return ReplaySource(kind="images", name=path.name or source, steps=_synthetic_steps(times),
+    return ReplaySource(kind="images", name=path.name or source,
+                        steps=camera_steps(enumerate(times)),
                         frames=PathFrames(paths, max_pixels))
 
 
@@ -603,7 +608,7 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
     fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
     fps = fps if 1.0 <= fps <= 240.0 else camera_rate_hz
     times = [i / fps for i in range(count)]
-    return ReplaySource(kind="video", name=path.stem, steps=_synthetic_steps(times),
+    return ReplaySource(kind="video", name=path.stem, steps=camera_steps(enumerate(times)),
                         frames=VideoFrames(capture), meta={"fps": fps})
 
 

@@ -26,6 +26,7 @@ from types import MappingProxyType
 from typing import Any
 
 from lanewarden.errors import InputFileError
+from lanewarden.perception.observation import weakest_component
 
 LANE = "lane"
 NONE = "none"
@@ -181,8 +182,7 @@ class FrameResult:
     @property
     def weakest(self) -> tuple[str, float] | None:
         """The lowest confidence component (the first of equals); None when none is below 1."""
-        lowest = min(self.components.items(), key=lambda kv: kv[1], default=None)
-        return lowest if lowest is not None and lowest[1] < 1.0 else None
+        return weakest_component(self.components)
 
 
 @dataclass(frozen=True)

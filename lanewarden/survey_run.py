@@ -31,7 +31,6 @@ from functools import partial
 import cv2
 import numpy as np
 
-from lanewarden.actuation.base import BaseFeedback
 from lanewarden.assembly import DecisionRule, decision_rule
 from lanewarden.config import LanewardenConfig
 from lanewarden.errors import ConfigError, InputFileError
@@ -42,8 +41,7 @@ from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import as_bgr, draw_detection, perception_text
 from lanewarden.replay import ReplayedStep, replay_steps
-from lanewarden.replay_sources import FrameStore, ReplaySource
-from lanewarden.run_record import StepInput
+from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import LaneEvidence
 from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
@@ -84,14 +82,6 @@ class SurveyRun:
 def hold_seconds(config: SupervisorConfig) -> float:
     """How long a lane still is held in view for the engage test."""
     return max(HOLD_MIN_S, 2.0 * config.engage_confident_frames * config.camera_period_s)
-
-
-def camera_steps(frames: Iterable[tuple[int, float]]) -> list[StepInput]:
-    """One loop step per (frame index, time): fresh base feedback, a start at the first step and
-    a resume at every other (it only counts in HALT)."""
-    return [StepInput(t=t, frame=(index, t), feedback=BaseFeedback(received_at_s=t),
-                      requests=("start",) if k == 0 else ("resume",))
-            for k, (index, t) in enumerate(frames)]
 
 
 def is_engaged(state: str) -> bool:
@@ -211,7 +201,7 @@ def held_engage(image: np.ndarray, config: LanewardenConfig,
     period = config.supervisor.camera_period_s
     count = math.floor(hold_s / period + 1e-9) + 1
     held = ReplaySource(kind="images", name="held", steps=camera_steps(
-        (k, k * period) for k in range(count)), frames=HeldImage(image))
+        ((k, k * period) for k in range(count)), later=("resume",)), frames=HeldImage(image))
     for step in replay_steps(held, config, calibration, CONTROLLER):
         if is_engaged(step.record.state):
             return step.step_input.t
@@ -275,7 +265,7 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
             frames.setdefault(recorded.frame[0], recorded.frame[1])
     checked = CheckedFrames(recording.frames, config.perception.max_image_pixels, calibration)
     span = ReplaySource(kind=recording.kind, name=recording.name,
-                        steps=camera_steps(frames.items()), frames=checked)
+                        steps=camera_steps(frames.items(), later=("resume",)), frames=checked)
     decide = decision_rule(config)
     keeper = PictureKeeper(f.order for f in labelled.values() if f.expect == LANE)
     results: list[FrameResult] = []

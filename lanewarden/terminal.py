@@ -25,6 +25,8 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TextIO
 
+from lanewarden.perception.observation import weakest_component
+
 #: Refresh rate of the in-place status line, Hz.
 TTY_REFRESH_HZ = 5.0
 #: Without a terminal: a status line at least this often (and on every state change), s.
@@ -56,11 +58,9 @@ def format_status(status: dict[str, Any]) -> str:
     linear = _num(command.get("linear_m_s"), ".2f")
     angular = _num(command.get("angular_rad_s"), "+.2f")
     confidence = f"conf {_num(status.get('confidence'), '.2f')}"
-    components = status.get("components") or {}
-    if components:
-        name, value = min(components.items(), key=lambda item: item[1])
-        if value < 1.0:
-            confidence += f" (weakest {name} {value:.2f})"
+    weakest = weakest_component(status.get("components") or {})
+    if weakest is not None:
+        confidence += f" (weakest {weakest[0]} {weakest[1]:.2f})"
     parts = [
         state,
         f"{_num(status.get('fps'), '.1f')} fps",

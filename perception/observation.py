@@ -97,3 +97,10 @@ class LaneObservation:
             "lane_offset_m": _rounded(self.lane_offset_m, 4),
             "lane_heading_rad": _rounded(self.lane_heading_rad, 4),
         }
+
+
+def weakest_component(components: Mapping[str, float]) -> tuple[str, float] | None:
+    """The confidence component that held the confidence down most: the lowest (the first of
+    equals), or None when none is below 1 (nothing held it down)."""
+    lowest = min(components.items(), key=lambda item: item[1], default=None)
+    return lowest if lowest is not None and lowest[1] < 1.0 else None
