@@ -32,9 +32,11 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
     "shadow_edge": ({"at_m": 2.5, "offset_m": 0.0, "length_m": 2.0, "intensity": 0.8},
                     "nominal", None),
     "glare_sweep": ({"at_s": T, "duration_s": 1.0, "intensity": 0.9}, "nominal", None),
-    # 60% of the right tape hidden for 1 s: no lane width, no verified pair on that side, so
-    # no trusted lane; LANE_LOST after lane_lost_halt_s (0.2 s)
-    "occlusion": ({"at_s": T, "duration_s": 1.0, "intensity": 0.6, "side": "right"},
+    # the right tape hidden for 1 s (the right 45 % of the image, bottom to top): no right
+    # edge, so no trusted lane; LANE_LOST after lane_lost_halt_s (0.2 s). (With 60 % of its
+    # height hidden, the tape's far part can still give the lane in some frames, depending on
+    # the sensor noise: then DEGRADED and recovered, not a halt.)
+    "occlusion": ({"at_s": T, "duration_s": 1.0, "intensity": 1.0, "side": "right"},
                   "safe_halt", "LANE_LOST"),
     "lens_smudge": ({"at_s": T, "intensity": 1.0}, "safe_halt", "LANE_LOST"),
     # 2.3x under-exposed for 1 s: the lane stays usable. (4x, intensity 0, leaves a frame
