@@ -22,11 +22,12 @@ from lanewarden.assembly import build_stack
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.errors import UsageError
-from lanewarden.perception.detector import perception_gray
+from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder, default_run_folder
 from lanewarden.replay import Divergence, open_replay_source, replay_config, replay_steps
 from lanewarden.replay_outputs import replay_metrics
 from lanewarden.ros_bag import McapFile, decode
+from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG
 from lanewarden.run_record import StepInput
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
@@ -35,6 +36,7 @@ from tests.operator.recordings import (
     DT,
     ClipFrames,
     as_format_1,
+    as_format_2,
     change_step,
     record_run,
     rewrite_mcap,
@@ -63,7 +65,13 @@ def recorded_frames(run: Path) -> dict[int, np.ndarray]:
     path = run / "run.mcap"
     return {m.sequence: cv2.imdecode(np.frombuffer(decode(m, "").data, np.uint8),
                                      cv2.IMREAD_UNCHANGED)
-            for m in McapFile(path).messages(lambda t: t.name == "/camera/image/compressed")}
+            for m in McapFile(path).messages(lambda t: t.name.endswith("/compressed"))}
+
+
+def replayed_inputs(path: Path) -> list[dict[str, object]]:
+    """The `input` of every recorded step in run.mcap."""
+    return [json.loads(decode(m, "").record)["input"]
+            for m in McapFile(path).messages(lambda t: t.name == "/lanewarden/step")]
 
 
 def test_the_taps_change_nothing(clip: list[np.ndarray]) -> None:
@@ -94,8 +102,8 @@ def test_a_recorded_run_replays_exactly(clip: list[np.ndarray], tmp_path: Path,
         "config.yaml", "meta.json", "run.mcap", "summary.json"]
     frames = recorded_frames(folder)
     assert sorted(frames) == list(range(len(clip)))
-    assert np.array_equal(frames[7], perception_gray(clip[7])), \
-        "lossless: the recorded frame is the gray frame perception worked on, bit for bit"
+    assert np.array_equal(frames[7], LaneDetector(LanewardenConfig().perception).prepare(
+        clip[7])), "lossless: the recorded frame is what perception consumed, bit for bit"
 
     code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
     out = capsys.readouterr().out
@@ -119,8 +127,22 @@ def test_a_format_1_folder_still_replays(clip: list[np.ndarray], tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     """Folders recorded before run.mcap (run.jsonl + frames/) replay and check the same."""
     run = tmp_path / "run"
-    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12)
+    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12,
+                         image_kind=CAMERA_GRAY)
     old = as_format_1(run, tmp_path / "old")
+    assert main(["replay", str(old), "--check", "--no-video", "--out", str(tmp_path / "o")]) == 0
+    assert f"reproduced: all {len(records)} steps" in capsys.readouterr().out
+
+
+def test_a_format_2_recording_still_replays(clip: list[np.ndarray], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """run.mcap as format 2 wrote it (the camera's gray frames, no fingerprints) replays and
+    checks the same."""
+    run = tmp_path / "run"
+    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12,
+                         image_kind=CAMERA_GRAY)
+    old = as_format_2(run, tmp_path / "old")
+    assert "frame_fingerprint" not in json.dumps(replayed_inputs(old / "run.mcap"))
     assert main(["replay", str(old), "--check", "--no-video", "--out", str(tmp_path / "o")]) == 0
     assert f"reproduced: all {len(records)} steps" in capsys.readouterr().out
 
@@ -165,7 +187,7 @@ def test_a_run_from_an_older_config_replays_with_its_own(
 def test_a_lossy_or_incomplete_recording_is_not_exact(clip: list[np.ndarray],
                                                       tmp_path: Path) -> None:
     folder = tmp_path / "run"
-    record_run(folder, clip[:20], LanewardenConfig(), lossy=True)
+    record_run(folder, clip[:20], LanewardenConfig(), image_kind=CAMERA_JPEG)
     frames = recorded_frames(folder)
     assert len(frames) == 20 and frames[0].shape == clip[0].shape, "lossy: colour JPEG"
     records, divergences = replayed(folder)
@@ -175,7 +197,7 @@ def test_a_lossy_or_incomplete_recording_is_not_exact(clip: list[np.ndarray],
     record_run(lossless, clip[:20], LanewardenConfig())
     without = tmp_path / "without-4.mcap"
     rewrite_mcap(lossless / "run.mcap", without,  # as if the writer had dropped frame 4
-                 lambda topic, n, m: None if topic.startswith("/camera") and n == 5 else m)
+                 lambda topic, n, m: None if topic.endswith("/compressed") and n == 5 else m)
     source = open_replay_source(str(without), 30.0)
     metrics = replay_metrics(source, records, divergences, 0.0)
     assert (metrics["exact_input"], metrics["frames_missing"]) == (False, 1)
@@ -190,15 +212,15 @@ def test_a_full_queue_drops_frames_instead_of_waiting(tmp_path: Path,
     release, writing = threading.Event(), threading.Event()
     real_encode = recording.gray_png
 
-    def stalled_encode(image: np.ndarray) -> bytes:
+    def stalled_encode(image: np.ndarray, png_filter: int) -> bytes:
         writing.set()
         release.wait(10.0)
-        return real_encode(image)
+        return real_encode(image, png_filter)
 
     monkeypatch.setattr(recording, "gray_png", stalled_encode)
     monkeypatch.setattr(recording, "FRAME_QUEUE_FRAMES", 4)
     folder = create_run_folder(tmp_path / "run")
-    recorder = RunRecorder(folder)
+    recorder = RunRecorder(folder, image_kind=CAMERA_GRAY)  # 8x8 frames: too small to prepare
     image = np.zeros((8, 8, 3), np.uint8)
     record = StepRecord(None, 0.0, None, None, None, "HALT", (), recording.VelocityCommand(),
                         None)

@@ -22,6 +22,7 @@ from mcap.writer import Writer as McapWriter
 
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig
+from lanewarden.run_mcap import CAMERA_GRAY
 from tests.operator.clips import lane_end_frames
 from tests.operator.recordings import (
     as_format_1,
@@ -36,10 +37,11 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A complete recording of 15 frames (about 18 steps)."""
+    """A complete recording of 15 frames (about 18 steps), of the camera's gray frames (so its
+    format-1 copies hold camera frames, as format 1 did)."""
     folder = tmp_path_factory.mktemp("recorded") / "run"
     record_run(folder, lane_end_frames(start_m=2.2, end_m=2.7, speed_m_s=0.6)[:15],
-               LanewardenConfig())
+               LanewardenConfig(), image_kind=CAMERA_GRAY)
     return folder
 
 
