@@ -18,7 +18,7 @@ here on the writer thread by a detector with the run's own config and calibratio
 (`prepare_with`), so the control thread does no more work; with the frame's supervisor
 fingerprint beside it (the watchdog compares the camera's frames, which the recording no longer
 holds: run_record). `--record-gray` keeps the camera frame's gray version instead (exact too,
-about 1.6 times the disk), `--record-lossy` a colour JPEG (not exact).
+about 1.7 times the disk), `--record-lossy` a colour JPEG (not exact).
 
 `InputTap` wraps the loop's frame source, base and controller to note what came in during each
 step (frame identity, base feedback, failures, operator requests) and what the controller

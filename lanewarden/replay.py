@@ -40,8 +40,8 @@ from lanewarden.run_record import RecordedStep, StepInput
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import FINGERPRINT_STRIDE
 
-__all__ = ["Divergence", "ReplaySource", "ReplayedStep", "compare_step", "missing_frames",
-           "open_replay_source", "replay_config", "replay_steps"]
+__all__ = ["Divergence", "ReplaySource", "ReplayedStep", "check_preparation", "compare_step",
+           "missing_frames", "open_replay_source", "replay_config", "replay_steps"]
 
 
 # ---- the scripted parts of the loop -----------------------------------------------------------
@@ -225,6 +225,16 @@ def preparation_changed(source: ReplaySource, config: LanewardenConfig,
     return None
 
 
+def check_preparation(source: ReplaySource, config: LanewardenConfig,
+                      calibration: CameraCalibration | None) -> None:
+    """UsageError (one line) when `preparation_changed` says why the source cannot be replayed
+    with this config and calibration."""
+    if why := preparation_changed(source, config, calibration):
+        raise UsageError(f"replay {source.name}: recorded as perception's input, and {why}; "
+                         "replay it with the recorded blur and calibration (record with "
+                         "--record-gray to try others)")
+
+
 def same_calibration(a: CameraCalibration | None, b: CameraCalibration | None) -> bool:
     """The same undistortion (intrinsics, distortion, image size)."""
     if a is None or b is None:
@@ -239,10 +249,7 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
     """Run the loop over the source's steps; yields each replayed step (compared with the
     recording for a run folder). UsageError when the source holds perception's prepared input
     and the config or calibration would prepare frames differently."""
-    if why := preparation_changed(source, config, calibration):
-        raise UsageError(f"replay {source.name}: recorded as perception's input, and {why}; "
-                         "replay it with the recorded blur and calibration (record with "
-                         "--record-gray to try others)")
+    check_preparation(source, config, calibration)
     first = source.frames.image(0)
     size = None if first is None else (first.shape[1], first.shape[0])
     stack = build_stack(config, controller=controller, calibration=calibration, debug_tap=True,

@@ -50,7 +50,7 @@ MAX_RUN_DURATION_S = 86_400.0
               "time>/; never overwritten).")
 @click.option("--record-gray", is_flag=True,
               help="Record the camera's own frames (their gray version, lossless PNG) instead of "
-              "what perception consumed (gray, undistorted, blurred): about 1.6x the disk; "
+              "what perception consumed (gray, undistorted, blurred): about 1.7x the disk; "
               "replay can then try another blur or calibration.")
 @click.option("--record-lossy", is_flag=True,
               help="Record the camera's frames as colour JPEG instead of lossless PNG (about half "

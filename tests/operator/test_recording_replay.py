@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import threading
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -31,6 +31,7 @@ from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG
 from lanewarden.run_record import StepInput
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
+from lanewarden.supervisor.watchdog import frame_fingerprint
 from tests.operator.clips import lane_end_frames
 from tests.operator.recordings import (
     DT,
@@ -251,3 +252,86 @@ def test_run_folders_are_never_overwritten(tmp_path: Path) -> None:
     assert default_run_folder(tmp_path, when) == tmp_path / "2026-11-05T14-03-12Z-2"
     with pytest.raises(UsageError, match="never overwritten"):
         create_run_folder(first)
+
+
+# ---- perception's prepared input: what the recording keeps by default ------------------------
+def _without_fingerprints(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+    if topic == "/lanewarden/step":
+        record = json.loads(message["record"])
+        record["input"].pop("frame_fingerprint", None)
+        message["record"] = json.dumps(record)
+    return message
+
+
+def test_the_recorded_fingerprints_decide_repeated_images_as_on_the_run(
+        clip: list[np.ndarray], tmp_path: Path) -> None:
+    """Two camera frames that differ in one byte (the supervisor's fingerprint tells them apart:
+    the second is new evidence) but blur to the same prepared image: the replay decides as the
+    run did because it compares the recorded fingerprints; without them it would take the
+    second frame for a repeated image and engage a step later."""
+    detector = LaneDetector(LanewardenConfig().perception)
+    changed = clip[1].copy()
+    changed[100, 100, 0] ^= 1  # a pixel the fingerprint samples (every 4th row and column)
+    assert frame_fingerprint(changed) != frame_fingerprint(clip[1])
+    assert np.array_equal(detector.prepare(changed), detector.prepare(clip[1]))
+    frames = [clip[0], clip[1], changed, *clip[2:20]]
+    folder = tmp_path / "run"
+    records = record_run(folder, frames, LanewardenConfig())
+    first_follow = next(k for k, r in enumerate(records) if r.state == "FOLLOW")
+    inputs = replayed_inputs(folder / "run.mcap")
+    assert inputs[2]["frame_fingerprint"] == frame_fingerprint(changed).hex()
+    replay, divergences = replayed(folder)
+    assert divergences == []
+    assert [r.as_json() for r in replay] == [r.as_json() for r in records]
+    stripped = tmp_path / "stripped.mcap"
+    rewrite_mcap(folder / "run.mcap", stripped, _without_fingerprints)
+    _, divergences = replayed(stripped)
+    assert (divergences[0].step, divergences[0].what, divergences[0].recorded,
+            divergences[0].replayed) == (first_follow, "state", "FOLLOW", "HALT")
+
+
+def test_a_frame_perception_refused_replays_as_refused(clip: list[np.ndarray], tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    """A frame the detector cannot take (here 16-bit) has no prepared image: the recording notes
+    perception's refusal, and the replay raises the same (the same PERCEPTION_ERROR, exact)."""
+    frames = [*clip[:6], clip[6].astype(np.uint16), *clip[7:12]]
+    folder = tmp_path / "run"
+    records = record_run(folder, frames, LanewardenConfig())
+    assert "PERCEPTION_ERROR" in records[6].events
+    assert sorted(recorded_frames(folder)) == [0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11]
+    assert replayed_inputs(folder / "run.mcap")[6]["frame_refused"] == [
+        "PerceptionError", "frame: expected dtype uint8, got uint16"]
+    assert json.loads((folder / "summary.json").read_text())["frames_refused"] == 1
+    code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert f"reproduced: all {len(records)} steps" in out
+
+
+def test_another_blur_is_refused_for_prepared_frames_not_for_camera_frames(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blur = tmp_path / "blur7.yaml"
+    blur.write_text("perception:\n  blur:\n    kernel_px: 7\n")
+    prepared, camera = tmp_path / "prepared", tmp_path / "camera"
+    record_run(prepared, clip[:12], LanewardenConfig())
+    record_run(camera, clip[:12], LanewardenConfig(), image_kind=CAMERA_GRAY)
+    code = main(["replay", str(prepared), "--config", str(blur), "--no-video", "--out",
+                 str(tmp_path / "out1")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert ("replay prepared: recorded as perception's input, and its frames were blurred on "
+            "the run (perception.blur {'kernel_px': 5, 'sigma_px': 0.0}), the replay's config "
+            "blurs with {'kernel_px': 7, 'sigma_px': 0.0}") in err
+    assert not (tmp_path / "out1").exists(), "refused before any output"
+    assert main(["replay", str(camera), "--config", str(blur), "--no-video", "--out",
+                 str(tmp_path / "out2")]) == 0
+
+
+def test_record_gray_and_record_lossy_are_one_choice(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", "--camera", str(tmp_path / "clip.mp4"), "--base", "none",
+                 "--record-gray", "--record-lossy"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--record-gray and --record-lossy: choose one" in err
