@@ -24,14 +24,21 @@ from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.errors import UsageError
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder, default_run_folder
-from lanewarden.replay import Divergence, open_replay_source, replay_config, replay_steps
+from lanewarden.replay import (
+    Divergence,
+    ReplaySource,
+    open_replay_source,
+    replay_config,
+    replay_steps,
+)
 from lanewarden.replay_outputs import replay_metrics
 from lanewarden.ros_bag import McapFile, decode
-from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG
+from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
 from lanewarden.run_record import StepInput
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import frame_fingerprint
+from lanewarden.survey_run import CheckedFrames, camera_steps
 from tests.operator.clips import lane_end_frames
 from tests.operator.recordings import (
     DT,
@@ -335,3 +342,21 @@ def test_record_gray_and_record_lossy_are_one_choice(tmp_path: Path,
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
     assert "--record-gray and --record-lossy: choose one" in err
+
+
+def test_prepared_frames_reach_the_detector_prepared_through_any_frame_store(
+        clip: list[np.ndarray], tmp_path: Path) -> None:
+    """`survey` replays a run folder's frames through its own FrameStore wrapper
+    (survey_run.CheckedFrames) and steps: the recorded images themselves say they are prepared
+    (PreparedImage), so they are not blurred twice, and every observation is the one the
+    camera's gray frames give, to the last bit."""
+    observations = []
+    for name, image_kind in (("prepared", PERCEPTION_INPUT), ("camera", CAMERA_GRAY)):
+        record_run(tmp_path / name, clip[:21], LanewardenConfig(), image_kind=image_kind)
+        source = open_replay_source(str(tmp_path / name), 30.0)
+        span = ReplaySource(kind="run", name=name, steps=camera_steps(
+            (k, k / 30.0) for k in range(21)), frames=CheckedFrames(source.frames, 10**7, None))
+        observations.append([step.record.observation for step in replay_steps(
+            span, LanewardenConfig(), None, "supervised")])
+    assert all(o is not None for o in observations[0]) and len(observations[0]) == 21
+    assert observations[0] == observations[1]

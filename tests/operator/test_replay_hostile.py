@@ -86,6 +86,12 @@ FORGED_STEPS: dict[str, tuple[int, Callable[[dict[str, Any]], None], tuple[str, 
     "an unknown request": (5, _set("input.requests", ["launch"]), ("input.requests",)),
     "odometry 1e12 m away": (5, _set("input.feedback.odometry", [1e12, 0.0, 0.0]),
                              ("input.feedback.odometry", "within 100000 m")),
+    "a fingerprint not hex": (5, _set("input.frame_fingerprint", "not-a-fingerprint"),
+                              ("input.frame_fingerprint = 'not-a-fingerprint'",
+                               "32 lowercase hexadecimal digits or null")),
+    "a refusal not a pair": (5, _set("input.frame_refused", "PerceptionError"),
+                             ("input.frame_refused = 'PerceptionError'",
+                              "[exception type, message]")),
 }
 
 
@@ -108,6 +114,19 @@ def test_a_forged_line_in_run_jsonl(name: str, recorded: Path, tmp_path: Path,
     old = forged_format_1(recorded, tmp_path / "old", number, edit)
     code, _, err = replay(old, tmp_path, capsys)
     assert_one_line(code, err, f"run.jsonl:{number}: ", *phrases)
+
+
+def test_frames_of_a_kind_replay_does_not_know(recorded: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    meta = json.loads((recorded / "meta.json").read_text())
+    meta["image"] = "thermal"
+    forged = tmp_path / "forged.mcap"
+    rewrite_mcap(recorded / "run.mcap", forged, lambda topic, n, message: message,
+                 metadata={"lanewarden": {"format": "3", "meta": json.dumps(meta)}})
+    code, _, err = replay(forged, tmp_path, capsys, "--check")
+    assert_one_line(code, err, f"{forged}: its meta says its frames are 'thermal' on "
+                    "'/camera/image/compressed'; replay reads perception input on "
+                    "/lanewarden/perception_input/compressed")
 
 
 def _step_count(run: Path) -> int:
