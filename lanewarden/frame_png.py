@@ -8,8 +8,9 @@ two steps a PNG writer takes, not a new format:
 
 - the filter, one for every row, computed with one numpy subtraction: SUB (each byte minus its
   left neighbour) for a camera's gray frame, UP (minus the byte above) for perception's prepared
-  image (blurred: UP leaves 5 % less than SUB there, while SUB leaves 5 % less than UP on the
-  unblurred frame; AVG and PAETH gain at most 2 % more for up to three times the CPU). On a
+  image (blurred: UP leaves 5-10 % less than SUB there, while SUB leaves 5 % less than UP on
+  the unblurred frame; AVG and PAETH gain at most 2 % more, and PAETH takes three times the
+  CPU in numpy). On a
   camera frame a filter turns smooth gradients and sensor noise into small residuals, which is
   most of what any PNG filter can gain here;
 - the deflate: ISA-L (python-isal) at level 1 instead of zlib. libpng with zlib at its cheapest

@@ -1,7 +1,7 @@
 """A recorded run as ROS 2 messages in one MCAP file, `run.mcap`: its topics, their message
 definitions, and the writer.
 
-- the frames, `sensor_msgs/msg/CompressedImage`, one topic of these three (the run's meta says
+- the frames, `sensor_msgs/msg/CompressedImage`, on one of two topics (the run's meta says
   which, `frames`; the message's `header.stamp`: the capture time; its MCAP `sequence`: the
   frame's index):
   - `/lanewarden/perception_input/compressed` (the default): what perception consumed of each
@@ -36,11 +36,11 @@ wall clock (UNIX nanoseconds: the monotonic step time plus the offset taken once
 exact step and frame times are in each step's record.
 
 Written with Foxglove's own libraries (`mcap`'s writer for the container, `mcap-ros2-support`'s
-CDR encoder for the messages): the reference implementation of the MCAP ROS 2 profile (its
-ready-made ROS 2 writer registers channels without metadata, so the channels are registered here,
-each with its QoS). Chunks are left uncompressed (the frames
-are PNG or JPEG already) and small (`CHUNK_BYTES`), so a run that is killed loses at most its last
-chunk. Not thread-safe: one writer thread owns it (lanewarden/recording.py).
+CDR encoder, `serialize_dynamic`, for the messages): the reference implementation of the MCAP
+ROS 2 profile (its ready-made ROS 2 writer registers channels without metadata, so the channels
+are registered here, each with its QoS). Chunks are left uncompressed (the frames are PNG or JPEG
+already) and small (`CHUNK_BYTES`), so a run that is killed loses at most its last chunk. Not
+thread-safe: one writer thread owns it (lanewarden/recording.py).
 """
 
 from __future__ import annotations
@@ -48,12 +48,13 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
+from importlib import metadata
 from typing import IO, Any
 
+import mcap_ros2
 from mcap.well_known import SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
-from mcap_ros2.writer import _library_identifier
 
 from lanewarden.actuation.base import BaseFeedback
 from lanewarden.run_record import StepInput
@@ -104,6 +105,9 @@ OFFERED_QOS_PROFILES = """\
     sec: 9223372036
     nsec: 854775807
   avoid_ros_namespace_conventions: false"""
+#: The writing library, in the MCAP header.
+LIBRARY = (f"mcap-python/{metadata.version('mcap')} "
+           f"mcap-ros2-support/{mcap_ros2.__version__}")
 #: A chunk is written once it holds this much: about one 640x480 frame, or a few seconds of
 #: steps without frames. Small chunks bound what a killed run loses.
 CHUNK_BYTES = 128 * 1024
@@ -209,7 +213,7 @@ class RunMcapWriter:
                  image_kind: str = PERCEPTION_INPUT) -> None:
         self._offset = epoch_offset_s
         self._writer = Writer(stream, chunk_size=CHUNK_BYTES, compression=CompressionType.NONE)
-        self._writer.start(profile="ros2", library=_library_identifier())
+        self._writer.start(profile="ros2", library=LIBRARY)
         self.image_topic, description = IMAGE_KINDS[image_kind]
         self._channels: dict[str, tuple[int, Callable[[Any], bytes]]] = {}
         for topic, name, extra in (
