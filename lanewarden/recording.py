@@ -11,9 +11,14 @@
       calibration.yaml          the calibration file it used (if any)
       summary.json              written at the end: steps, frames written/dropped, end reason
 
-Frames are kept as perception consumes them: the PNG (lanewarden.frame_png) of the frame's gray
-version (`perception_gray`: perception depends on a frame only through it), lossless, less than
-half a colour PNG's size for an eighth of its CPU; a colour JPEG with --record-lossy (not exact).
+Frames are kept as perception consumes them: by default the PNG (lanewarden.frame_png) of what
+the lane detector made of the frame before looking for edges (`LaneDetector.prepare`: gray,
+undistorted, blurred; perception depends on a frame only through it), lossless, prepared again
+here on the writer thread by a detector with the run's own config and calibration
+(`prepare_with`), so the control thread does no more work; with the frame's supervisor
+fingerprint beside it (the watchdog compares the camera's frames, which the recording no longer
+holds: run_record). `--record-gray` keeps the camera frame's gray version instead (exact too,
+about 1.7 times the disk), `--record-lossy` a colour JPEG (not exact).
 
 `InputTap` wraps the loop's frame source, base and controller to note what came in during each
 step (frame identity, base feedback, failures, operator requests) and what the controller
@@ -42,33 +47,39 @@ import subprocess
 import sys
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 import yaml
 
 from lanewarden import __version__
 from lanewarden.actuation.base import Base, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.errors import UsageError
-from lanewarden.frame_png import gray_png
-from lanewarden.perception.detector import perception_gray
+from lanewarden.frame_png import FILTER_SUB, FILTER_UP, gray_png
+from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.detector import LaneDetector, perception_gray
 from lanewarden.run_mcap import (
     CALIBRATION_ATTACHMENT,
+    CAMERA_GRAY,
+    CAMERA_JPEG,
     CONFIG_ATTACHMENT,
-    IMAGE_TOPIC,
+    IMAGE_KINDS,
     JPEG_FORMAT,
+    PERCEPTION_INPUT,
     PNG_FORMAT,
     RunMcapWriter,
 )
-from lanewarden.run_record import FORMAT_VERSION, StepInput, step_line
+from lanewarden.run_record import FORMAT_VERSION, MAX_TEXT_CHARS, StepInput, step_line
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput
 from lanewarden.supervisor.errors import SupervisorError
 from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.loop import Frame, FrameSource, StepRecord
+from lanewarden.supervisor.watchdog import frame_fingerprint
 
 RUN_MCAP = "run.mcap"
 #: Frames waiting for the writer before new ones are dropped (about 2 s at 30 Hz).
@@ -250,6 +261,8 @@ class RecordingSummary:
     steps: int = 0
     steps_written: int = 0
     frames_written: int = 0
+    #: Frames perception could not prepare (recorded as refused: replay raises the same).
+    frames_refused: int = 0
     frames_dropped: list[int] = field(default_factory=list)
     lines_dropped: int = 0
     write_errors: list[str] = field(default_factory=list)
@@ -296,24 +309,40 @@ class _Header:
 
 class RunRecorder:
     """Writes one run folder. `record(...)` is called from the control thread and never blocks.
-    `epoch_offset_s`: UNIX time minus the loop's clock, for the MCAP's log times."""
+    `image_kind`: which frames it keeps (lanewarden.run_mcap.IMAGE_KINDS; by default
+    perception's input, prepared like the detector given to `prepare_with`, else like a
+    detector with the default perception config and no calibration). `epoch_offset_s`: UNIX
+    time minus the loop's clock, for the MCAP's log times."""
 
-    def __init__(self, folder: Path, *, lossy: bool = False, epoch_offset_s: float = 0.0) -> None:
+    def __init__(self, folder: Path, *, image_kind: str = PERCEPTION_INPUT,
+                 epoch_offset_s: float = 0.0) -> None:
+        if image_kind not in IMAGE_KINDS:
+            raise ValueError(f"image_kind = {image_kind!r}: expected one of "
+                             f"{', '.join(IMAGE_KINDS)}")
         self.folder = folder
-        self.lossy = lossy
+        self.image_kind = image_kind
+        self.lossy = image_kind == CAMERA_JPEG
         self.summary = RecordingSummary(folder)
         self._items: queue.Queue[Any] = queue.Queue(STEP_QUEUE_STEPS)
         self._lock = threading.Lock()
         self._frames_waiting = 0
+        self._preparer: LaneDetector | None = None
         path = folder / RUN_MCAP
         try:
             self._file = path.open("xb")
-            self._mcap = RunMcapWriter(self._file, epoch_offset_s)
+            self._mcap = RunMcapWriter(self._file, epoch_offset_s, image_kind)
         except OSError as exc:
             raise SupervisorError(f"{path}: cannot create the recording ({_why(exc)})") from exc
         self._thread = threading.Thread(target=self._write, name="record-writer", daemon=True)
         self._thread.start()
         self._closed = False
+
+    def prepare_with(self, detector: LaneDetector) -> None:
+        """Prepare frames as `detector` does (its config, undistorter and ground model), with a
+        detector of the writer's own (its buffers are not the control thread's). Call before
+        the first frame."""
+        self._preparer = LaneDetector(detector.config, detector.undistorter,
+                                      ground=detector.ground)
 
     @property
     def problem(self) -> str | None:
@@ -324,8 +353,9 @@ class RunRecorder:
                      calibration: Path | None, now: float = 0.0) -> None:
         """meta.json, config.yaml and calibration.yaml, and the same in run.mcap (before the
         first step). SupervisorError when they cannot be written: the run does not start."""
-        meta = {"format": FORMAT_VERSION, "recording": RUN_MCAP, "frames": IMAGE_TOPIC,
-                "lossless": not self.lossy, **meta, "software": software_versions()}
+        meta = {"format": FORMAT_VERSION, "recording": RUN_MCAP, "frames": self._mcap.image_topic,
+                "image": self.image_kind, "lossless": not self.lossy, **meta,
+                "software": software_versions()}
         try:
             config_text = yaml.safe_dump(config, sort_keys=False).encode("utf-8")
             attachments = {CONFIG_ATTACHMENT: config_text}
@@ -394,6 +424,7 @@ class RunRecorder:
         summary = self.summary
         return {"steps": summary.steps, "steps_written": summary.steps_written,
                 "frames_written": summary.frames_written,
+                "frames_refused": summary.frames_refused,
                 "frames_dropped": len(summary.frames_dropped),
                 "frames_dropped_indices": summary.frames_dropped[:1000],
                 "lines_dropped": summary.lines_dropped, "write_errors": summary.write_errors,
@@ -417,33 +448,58 @@ class RunRecorder:
                 self._guarded(self._mcap.start, item.meta, item.attachments, item.time_s)
                 continue
             assert isinstance(item, _Step)
+            step_input = item.step_input
             if item.frame is not None:
-                self._guarded(self._write_frame, item)
+                noted = self._guarded(self._write_frame, item.frame, item.record.time_s)
                 with self._lock:
                     self._frames_waiting -= 1
-            self._guarded(self._write_step, item)
+                if noted is not None:
+                    step_input = replace(step_input, **noted)
+            self._guarded(self._write_step, item.record, step_input)
 
-    def _guarded(self, write: Callable[..., None], *args: Any) -> None:
+    def _guarded(self, write: Callable[..., Any], *args: Any) -> Any:
         """Run one write unless the recording stopped; a failure stops it (said once)."""
         if self.summary.problem is not None:
-            return
+            return None
         try:
-            write(*args)
+            return write(*args)
         except Exception as exc:  # the disk (OSError) or a bug: reported, never silent
             self._stop(exc)
+            return None
 
-    def _write_frame(self, item: _Step) -> None:
-        frame = item.frame
-        assert frame is not None
+    def _prepared(self, image: np.ndarray) -> np.ndarray:
+        """Perception's input for PERCEPTION_INPUT (raises as the detector does); else the
+        frame itself."""
+        if self.image_kind != PERCEPTION_INPUT:
+            return image
+        if self._preparer is None:
+            self._preparer = LaneDetector(PerceptionConfig())
+        return self._preparer.prepare(image)
+
+    def _encode(self, image: np.ndarray) -> tuple[bytes, str]:
+        """The image as this recording keeps it: (encoded image, its CompressedImage format)."""
+        if self.image_kind == CAMERA_JPEG:
+            ok, encoded = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            return (encoded.tobytes() if ok else b""), JPEG_FORMAT
+        if self.image_kind == CAMERA_GRAY:
+            return gray_png(perception_gray(image), FILTER_SUB), PNG_FORMAT
+        return gray_png(image, FILTER_UP), PNG_FORMAT
+
+    def _write_frame(self, frame: Frame, logged_at: float) -> dict[str, Any]:
+        """Write one frame; returns what its step notes about it (fingerprint, refusal)."""
+        noted: dict[str, Any] = {}
+        fingerprint = frame_fingerprint(frame.image)
+        if fingerprint is not None:
+            noted["frame_fingerprint"] = fingerprint.hex()
         try:
-            if self.lossy:
-                ok, encoded = cv2.imencode(".jpg", frame.image,
-                                           [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-                data = encoded.tobytes() if ok else b""
-                image_format = JPEG_FORMAT
-            else:
-                data = gray_png(perception_gray(frame.image))
-                image_format = PNG_FORMAT
+            image = self._prepared(frame.image)
+        except Exception as exc:  # perception refused it, as the run's detector did: noted
+            noted["frame_refused"] = (type(exc).__name__, str(exc)[:MAX_TEXT_CHARS])
+            with self._lock:
+                self.summary.frames_refused += 1
+            return noted
+        try:
+            data, image_format = self._encode(image)
         except (cv2.error, ValueError, IndexError) as exc:
             data, image_format = b"", f"{type(exc).__name__}: {exc}"
         if not data:  # a frame no codec takes (perception refused it too): counted, not written
@@ -452,14 +508,15 @@ class RunRecorder:
                 if len(self.summary.write_errors) < 10:
                     self.summary.write_errors.append(f"frame {frame.index}: cannot encode "
                                                      f"({image_format})")
-            return
-        self._mcap.frame(frame.index, frame.time_s, item.record.time_s, image_format, data)
+            return noted
+        self._mcap.frame(frame.index, frame.time_s, logged_at, image_format, data)
         with self._lock:
             self.summary.frames_written += 1
+        return noted
 
-    def _write_step(self, item: _Step) -> None:
-        line = json.dumps(step_line(item.record, item.step_input), separators=(",", ":"))
-        self._mcap.step(item.record, item.step_input, line)
+    def _write_step(self, record: StepRecord, step_input: StepInput) -> None:
+        line = json.dumps(step_line(record, step_input), separators=(",", ":"))
+        self._mcap.step(record, step_input, line)
         with self._lock:
             self.summary.steps_written += 1
         if self.summary.steps_written % DELETED_CHECK_STEPS == 0 and (

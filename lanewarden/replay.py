@@ -22,8 +22,9 @@ import numpy as np
 
 from lanewarden.actuation.base import BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
-from lanewarden.assembly import build_stack
+from lanewarden.assembly import DetectionTap, build_stack
 from lanewarden.config import LanewardenConfig
+from lanewarden.errors import UsageError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.detector import DetectionDebug
 from lanewarden.perception.observation import LaneObservation
@@ -34,11 +35,13 @@ from lanewarden.replay_sources import (
     open_replay_source,
     replay_config,
 )
+from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_record import RecordedStep, StepInput
-from lanewarden.supervisor.loop import Frame, StepRecord
+from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
+from lanewarden.supervisor.watchdog import FINGERPRINT_STRIDE
 
-__all__ = ["Divergence", "ReplaySource", "ReplayedStep", "compare_step", "missing_frames",
-           "open_replay_source", "replay_config", "replay_steps"]
+__all__ = ["Divergence", "ReplaySource", "ReplayedStep", "check_preparation", "compare_step",
+           "missing_frames", "open_replay_source", "replay_config", "replay_steps"]
 
 
 # ---- the scripted parts of the loop -----------------------------------------------------------
@@ -54,14 +57,33 @@ def recorded_error(name: str, message: str, base: type[Exception]) -> Exception:
     return _NAMED[key](message)
 
 
+def fingerprint_stand_in(fingerprint: str) -> np.ndarray:
+    """What the loop sees of a frame whose supervisor fingerprint was recorded: a one-row array
+    whose every FINGERPRINT_STRIDE-th byte is a byte of that fingerprint, so two stand-ins have
+    the same fingerprint (`frame_fingerprint`) exactly when the recorded ones are the same, and
+    the watchdog's repeated and frozen image checks decide as they did on the run."""
+    data = np.frombuffer(bytes.fromhex(fingerprint), np.uint8)
+    return np.repeat(data, FINGERPRINT_STRIDE).reshape(1, -1)
+
+
 class ScriptedFrames:
-    """The loop's FrameSource during replay: the frame the recording says the step got."""
+    """The loop's FrameSource during replay: the frame the recording says the step got. When
+    the step recorded the frame's fingerprint, the loop gets its stand-in (and the detector,
+    through `ReplayDetection`, the recorded image)."""
 
     def __init__(self, store: FrameStore) -> None:
         self._store = store
         self.step: StepInput | None = None
-        self._cache: tuple[int, np.ndarray] | None = None
+        #: (index, the recorded image; None: perception refused the frame on the run)
+        self._cache: tuple[int, np.ndarray | None] | None = None
+        self._shown: np.ndarray | None = None
+        self._refused: tuple[str, str] | None = None
         self.missing: list[int] = []
+
+    @property
+    def image(self) -> np.ndarray | None:
+        """The newest frame's recorded image (None: none yet, or refused on the run)."""
+        return None if self._cache is None else self._cache[1]
 
     def read(self, now: float) -> Frame | None:
         step = self.step
@@ -72,14 +94,46 @@ class ScriptedFrames:
             return None
         index, time_s = step.frame
         if self._cache is None or self._cache[0] != index:
-            image = self._store.image(index)
-            if image is None:
+            refused = step.frame_refused
+            image = None if refused is not None else self._store.image(index)
+            if image is None and refused is None:
                 self.missing.append(index)
-                if self._cache is None:
+                if self._cache is None or self._cache[1] is None:
                     return None
                 image = self._cache[1]  # not what the run saw: the replay cannot be exact
             self._cache = (index, image)
-        return Frame(image=self._cache[1], index=index, time_s=time_s)
+            self._refused = refused
+            fingerprint = step.frame_fingerprint
+            self._shown = image if fingerprint is None else fingerprint_stand_in(fingerprint)
+        if self._shown is None:  # refused, with no fingerprint recorded (not written so)
+            self._shown = fingerprint_stand_in("")
+        return Frame(image=self._shown, index=index, time_s=time_s)
+
+    def recorded_image(self, shown: np.ndarray) -> np.ndarray:
+        """The image behind what the loop was shown (a stand-in or the image itself); raises
+        what perception raised on the run for a frame it refused."""
+        if shown is not self._shown or self._cache is None:
+            return shown
+        if self._refused is not None:
+            raise recorded_error(*self._refused, Exception)
+        image = self._cache[1]
+        assert image is not None
+        return image
+
+
+class ReplayDetection:
+    """The stack's detection tap during replay: the detector gets each frame's recorded image
+    (a frame prepared on the run, `PreparedImage`, goes in as it is)."""
+
+    def __init__(self, tap: DetectionTap, frames: ScriptedFrames) -> None:
+        self._tap = tap
+        self._frames = frames
+
+    def detect(self, image: np.ndarray, frame_index: int, time_s: float,
+               previous: LaneObservation | None = None) -> LaneObservation:
+        self._tap.last = None
+        return self._tap.detect(self._frames.recorded_image(image), frame_index, time_s,
+                                previous)
 
 
 class ScriptedBase:
@@ -154,11 +208,48 @@ class ReplayedStep:
     divergence: Divergence | None
 
 
+def preparation_changed(source: ReplaySource, config: LanewardenConfig,
+                        calibration: CameraCalibration | None) -> str | None:
+    """Why a recording of perception's prepared input cannot be replayed with this config and
+    calibration (its frames are already undistorted and blurred as the run's were); None: it
+    can (or it holds the camera's own frames)."""
+    if source.meta.get("image") != PERCEPTION_INPUT:
+        return None
+    recorded = source.config if source.config is not None else LanewardenConfig()
+    if config.perception.blur != recorded.perception.blur:
+        return (f"its frames were blurred on the run (perception.blur "
+                f"{recorded.perception.blur.model_dump()}), the replay's config blurs with "
+                f"{config.perception.blur.model_dump()}")
+    if not same_calibration(calibration, source.calibration):
+        return "its frames were undistorted on the run with its own calibration, not this one"
+    return None
+
+
+def check_preparation(source: ReplaySource, config: LanewardenConfig,
+                      calibration: CameraCalibration | None) -> None:
+    """UsageError (one line) when `preparation_changed` says why the source cannot be replayed
+    with this config and calibration."""
+    if why := preparation_changed(source, config, calibration):
+        raise UsageError(f"replay {source.name}: recorded as perception's input, and {why}; "
+                         "replay it with the recorded blur and calibration (record with "
+                         "--record-gray to try others)")
+
+
+def same_calibration(a: CameraCalibration | None, b: CameraCalibration | None) -> bool:
+    """The same undistortion (intrinsics, distortion, image size)."""
+    if a is None or b is None:
+        return a is b
+    return (a.image_size == b.image_size and np.array_equal(a.camera_matrix, b.camera_matrix)
+            and np.array_equal(a.dist_coeffs, b.dist_coeffs))
+
+
 def replay_steps(source: ReplaySource, config: LanewardenConfig,
                  calibration: CameraCalibration | None,
                  controller: str) -> Iterator[ReplayedStep]:
     """Run the loop over the source's steps; yields each replayed step (compared with the
-    recording for a run folder)."""
+    recording for a run folder). UsageError when the source holds perception's prepared input
+    and the config or calibration would prepare frames differently."""
+    check_preparation(source, config, calibration)
     first = source.frames.image(0)
     size = None if first is None else (first.shape[1], first.shape[0])
     stack = build_stack(config, controller=controller, calibration=calibration, debug_tap=True,
@@ -167,7 +258,8 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
     assert tap is not None
     frames = ScriptedFrames(source.frames)
     base = ScriptedBase()
-    loop = stack.connect(frames, base)  # the very stack `run` drives: detector, controller, gate
+    # the very stack `run` drives (detector, controller, gate), with the recorded images
+    loop = ControlLoop(frames, ReplayDetection(tap, frames), stack.gate, base)
     for k, step_input in enumerate(source.steps):
         now = step_input.t
         for request in step_input.requests:
@@ -187,6 +279,5 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
         divergence = None
         if source.recorded is not None:
             divergence = compare_step(k, source.recorded[k], step_input, record)
-        image = frames._cache[1] if frames._cache is not None else None
-        yield ReplayedStep(k, step_input, record, image, detection, divergence)
+        yield ReplayedStep(k, step_input, record, frames.image, detection, divergence)
     source.frames.close()

@@ -1,9 +1,11 @@
 """What `lanewarden replay SOURCE` replays: the steps, where their images are, and for a recorded
 run what it recorded. `open_replay_source` recognises SOURCE:
 
-- a run folder (`lanewarden run --record`): its run.mcap (format 2, lanewarden.run_mcap), or the
-  run.jsonl and frames/ of format 1; a Lanewarden run.mcap on its own is the same recording
-  (it carries its meta, config and calibration). Its steps are fed back exactly as recorded;
+- a run folder (`lanewarden run --record`): its run.mcap (formats 2 and 3,
+  lanewarden.run_mcap), or the run.jsonl and frames/ of format 1; a Lanewarden run.mcap on its
+  own is the same recording (it carries its meta, config and calibration). Its steps are fed
+  back exactly as recorded; frames recorded as perception's prepared input come out as
+  `PreparedImage`s, which the detector takes as they are;
 - a ROS 2 bag (an .mcap or .db3 file, or a rosbag2 folder with metadata.yaml) with a
   `sensor_msgs/msg/Image` or `CompressedImage` topic (the only one, or `--topic`): one step per
   image at its header stamp;
@@ -43,6 +45,7 @@ from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import header_problem, read_image, too_many_pixels
 from lanewarden.perception.calibration import CameraCalibration, load_calibration
+from lanewarden.perception.detector import PreparedImage
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.ros_bag import Bag, BagMessage, BagTopic, McapFile, decode, is_bag, open_bag
 from lanewarden.run_mcap import (
@@ -50,8 +53,10 @@ from lanewarden.run_mcap import (
     COMPRESSED_IMAGE,
     CONFIG_ATTACHMENT,
     IMAGE,
+    IMAGE_KINDS,
     IMAGE_TOPIC,
     META_NAME,
+    PERCEPTION_INPUT,
     STEP_TOPIC,
     SUMMARY_NAME,
 )
@@ -80,6 +85,8 @@ RAW_ENCODINGS: dict[str, tuple[int, int | None]] = {
     "yuv422_yuy2": (2, cv2.COLOR_YUV2BGR_YUY2), "yuyv": (2, cv2.COLOR_YUV2BGR_YUY2),
 }
 IMAGE_TYPES = (IMAGE, COMPRESSED_IMAGE)
+#: A format-2 recording's meta names no kind of frames: the camera's gray PNG or colour JPEG.
+CAMERA_GRAY_OR_JPEG = "camera"
 
 
 # ---- where the images come from ---------------------------------------------------------------
@@ -167,9 +174,11 @@ class MessageFrames(FrameStore):
     message whose key is i: its `sequence` (a Lanewarden run.mcap: the frame index) or its
     position on the topic (a bag)."""
 
-    def __init__(self, bag: Bag, topic: str, *, by_sequence: bool) -> None:
+    def __init__(self, bag: Bag, topic: str, *, by_sequence: bool, prepared: bool = False
+                 ) -> None:
         self._messages: Iterator[BagMessage] = bag.messages(lambda t: t.name == topic)
         self._by_sequence = by_sequence
+        self._prepared = prepared
         self._pending: BagMessage | None = None
         self._cache: tuple[int, np.ndarray | None] | None = None
         self._where = str(bag.path)
@@ -196,6 +205,8 @@ class MessageFrames(FrameStore):
                 image = _decode_raw(decoded)
             else:
                 image = _decode_encoded(bytes(decoded.data))
+            if self._prepared and image is not None and image.ndim == 2:
+                image = image.view(PreparedImage)
             self._cache = (index, image)
             return image
 
@@ -322,11 +333,14 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
     assert isinstance(mcap, McapFile)
     reader = _StepReader()
     recorded_frames: set[int] = set()
-    for message in bag.messages(lambda t: t.name in (STEP_TOPIC, IMAGE_TOPIC)):
+    image_topics = {topic for topic, _ in IMAGE_KINDS.values()}
+    seen_topics: set[str] = set()
+    for message in bag.messages(lambda t: t.name == STEP_TOPIC or t.name in image_topics):
         where = f"{path}: {message.topic.name} message {message.number}"
-        if message.topic.name == IMAGE_TOPIC:
+        if message.topic.name != STEP_TOPIC:
             _check_image_message(message, decode(message, str(path)), where, max_pixels)
             recorded_frames.add(message.sequence)
+            seen_topics.add(message.topic.name)
             continue
         if not reader.steps:
             _check_format(mcap, path)
@@ -339,9 +353,23 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
         except ValueError as exc:
             raise _step_problem(where, f"record is not JSON ({shorten(str(exc))})") from None
         reader.add(line, where)
+        refused = reader.steps[-1]
+        if refused.frame_refused is not None and refused.frame is not None:
+            recorded_frames.add(refused.frame[0])  # perception refused it: nothing to record
     meta = _check_format(mcap, path)
     if not reader.steps:
         raise InputFileError(f"{path}: no recorded steps")
+    kind = meta.get("image", CAMERA_GRAY_OR_JPEG)
+    topic = meta.get("frames", IMAGE_TOPIC)
+    known = {k: t for k, (t, _) in IMAGE_KINDS.items()} | {CAMERA_GRAY_OR_JPEG: IMAGE_TOPIC}
+    if not isinstance(kind, str) or known.get(kind) != topic:
+        raise InputFileError(
+            f"{path}: its meta says its frames are {shorten(repr(kind))} on "
+            f"{shorten(repr(topic))}; replay reads "
+            + ", ".join(f"{k} on {t}" for k, (t, _) in IMAGE_KINDS.items()))
+    if seen_topics - {topic}:
+        raise InputFileError(f"{path}: images on {', '.join(sorted(seen_topics - {topic}))}, but "
+                             f"its meta says its frames are on {topic}")
     incomplete = []
     summary: dict[str, Any] = {}
     if SUMMARY_NAME in mcap.metadata:
@@ -361,7 +389,8 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                             f"{path}:{CALIBRATION_ATTACHMENT}")
     return ReplaySource(
         kind="run", name=name, steps=reader.steps,
-        frames=MessageFrames(bag, IMAGE_TOPIC, by_sequence=True), recorded=reader.recorded,
+        frames=MessageFrames(bag, topic, by_sequence=True, prepared=kind == PERCEPTION_INPUT),
+        recorded=reader.recorded,
         config=config, calibration=calibration, controller=meta.get("controller"), meta=meta,
         summary=summary, incomplete=incomplete, frames_recorded=recorded_frames,
         config_origin=(f"recorded ({path}:{CONFIG_ATTACHMENT})" if config is not None

@@ -13,10 +13,18 @@ again (openpilot's process replay records at the same kind of boundary):
   when the base's own safety monitor held a stop), or `feedback_error`;
 - `send_errors`: how many sends to the base failed during the step;
 - `requests`: the operator requests the controller saw this step (`start`, `resume`, `stop`);
-- `command`: the command the controller decided, `[linear, angular]` unrounded.
+- `command`: the command the controller decided, `[linear, angular]` unrounded;
+- at the step a frame was new (format 3): `frame_fingerprint`, the supervisor's fingerprint of
+  the camera's frame (`supervisor.watchdog.frame_fingerprint`, hex), which its repeated and
+  frozen image checks compare; a replay from recorded images that are not the camera's own
+  (perception's prepared input, or the gray version of a colour frame) compares these instead,
+  so it decides exactly as the run did; and `frame_refused`: `[exception type, message]` when
+  perception could not prepare the frame (no image is recorded for it; replay raises the same).
 
-Format 2 (today's) keeps each step in `run.mcap` (the `record` field of a `/lanewarden/step`
-message, see lanewarden/run_mcap.py); format 1 kept them as the lines of `run.jsonl`.
+Formats 2 and 3 keep each step in `run.mcap` (the `record` field of a `/lanewarden/step`
+message, see lanewarden/run_mcap.py); format 3 (today's) adds the two frame fields above and, by
+default, records perception's prepared input instead of the camera's gray frame; format 1 kept
+the steps as the lines of `run.jsonl`.
 `read_step` checks every field a replay uses (types, finite numbers, known requests) and says
 which one is wrong in one line (`StepError`); `StepTimes` checks that step times increase within
 a bounded duration. A recording is input like any other file: nothing in it may crash the reader
@@ -37,8 +45,8 @@ from lanewarden.supervisor.loop import StepRecord
 
 #: Bump when a recorded step's meaning or the run folder's layout changes; replay reads the
 #: formats in READABLE_FORMATS and refuses others.
-FORMAT_VERSION = 2
-READABLE_FORMATS = (1, FORMAT_VERSION)
+FORMAT_VERSION = 3
+READABLE_FORMATS = (1, 2, FORMAT_VERSION)
 REQUESTS = ("start", "resume", "stop")
 #: The longest run a recording may span (step times, first to last). A real run ends with its
 #: battery long before; a longer span is a damaged or forged recording.
@@ -51,6 +59,8 @@ MAX_STEP_BYTES = 64 * 1024
 MAX_ODOMETRY_M = 100_000.0
 #: Longest text kept from a recorded exception message.
 MAX_TEXT_CHARS = 2000
+#: A recorded frame fingerprint: hex digits of `supervisor.watchdog.frame_fingerprint`'s 16 bytes.
+FINGERPRINT_HEX = 32
 
 
 class StepError(ValueError):
@@ -69,6 +79,8 @@ class StepInput:
     send_errors: int = 0
     requests: tuple[str, ...] = ()
     command: tuple[float, float] = (0.0, 0.0)
+    frame_fingerprint: str | None = None
+    frame_refused: tuple[str, str] | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +124,10 @@ def step_line(record: StepRecord, step_input: StepInput) -> dict[str, Any]:
     if step_input.requests:
         inp["requests"] = list(step_input.requests)
     inp["command"] = list(step_input.command)
+    if step_input.frame_fingerprint is not None:
+        inp["frame_fingerprint"] = step_input.frame_fingerprint
+    if step_input.frame_refused is not None:
+        inp["frame_refused"] = list(step_input.frame_refused)
     line["input"] = inp
     return line
 
@@ -202,6 +218,16 @@ def _frame(value: object) -> tuple[int, float] | None:
     return index, time_s
 
 
+def _fingerprint(value: object) -> str | None:
+    if value is None:
+        return None
+    if not (isinstance(value, str) and len(value) == FINGERPRINT_HEX
+            and all(c in "0123456789abcdef" for c in value)):
+        raise _bad("input.frame_fingerprint", value,
+                   f"{FINGERPRINT_HEX} lowercase hexadecimal digits or null")
+    return value
+
+
 def read_step(line: object) -> tuple[StepInput, RecordedStep]:
     """A recorded step's input and what it says the loop did; StepError naming the first field
     that is missing or of the wrong type (one line)."""
@@ -222,6 +248,8 @@ def read_step(line: object) -> tuple[StepInput, RecordedStep]:
         send_errors=_integer(inp, "send_errors", "input.send_errors", 0, 1000, default=0),
         requests=tuple(requests),
         command=(command[0], command[1]),
+        frame_fingerprint=_fingerprint(inp.get("frame_fingerprint")),
+        frame_refused=_pair(inp, "frame_refused", "input.frame_refused"),
     )
     frame_index = data.get("frame_index")
     if frame_index is not None:

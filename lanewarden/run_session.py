@@ -40,6 +40,7 @@ from lanewarden.recording import (
     create_run_folder,
     default_run_folder,
 )
+from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import Detector, FrameSource, StepRecord
@@ -59,7 +60,7 @@ def _summary_ms(values: array[float]) -> dict[str, float]:
 class SessionOptions:
     base_kind: str = "kobuki"
     record: Path | None = None  # None: runs/<UTC time>/
-    record_lossy: bool = False
+    record_image: str = PERCEPTION_INPUT  # which frames: lanewarden.run_mcap.IMAGE_KINDS
     view: str | None = None  # [HOST:]PORT
     keys: bool = True
     meta: dict[str, Any] = field(default_factory=dict)
@@ -105,7 +106,7 @@ class RunSession:
                                                           dt.datetime.now(dt.UTC))
             self.folder = create_run_folder(folder)
             started = dt.datetime.now(dt.UTC)
-            self.recorder = RunRecorder(self.folder, lossy=options.record_lossy,
+            self.recorder = RunRecorder(self.folder, image_kind=options.record_image,
                                         epoch_offset_s=started.timestamp() - clock())
             self.recorder.write_header(
                 {**options.meta, "base": options.base_kind,
@@ -132,6 +133,7 @@ class RunSession:
         for the live page's overlay) with the recording taps around them (same behaviour)."""
         self._stack = stack
         self._detections = stack.tap
+        self.recorder.prepare_with(stack.detector)  # it records what this detector consumes
         # The controller tap hands every step to the gate and returns its output unchanged.
         gate = cast(SafetyGate, self.tap.controller(stack.gate))
         return (self.tap.frames(frames), stack.tap or stack.detector, gate, self.tap.base(base))

@@ -45,6 +45,7 @@ from lanewarden.camera_source import (
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.recording import RUN_MCAP
+from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
 from lanewarden.stop_signals import signal_requests, suspend
@@ -148,7 +149,7 @@ def run_robot(
     duration_s: float | None,
     base_kind: str = "kobuki",
     record: Path | None = None,
-    record_lossy: bool = False,
+    record_image: str = PERCEPTION_INPUT,
     view: str | None = None,
     meta: dict[str, object] | None = None,
 ) -> RunSummary:
@@ -174,7 +175,7 @@ def run_robot(
         print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
 
         session = RunSession(
-            SessionOptions(base_kind=base_kind, record=record, record_lossy=record_lossy,
+            SessionOptions(base_kind=base_kind, record=record, record_image=record_image,
                            view=view, calibration_path=Path(calibration_path)
                            if calibration_path else None,
                            meta={"camera": camera, "controller": controller_name,

@@ -12,7 +12,8 @@ Input: BGR uint8 (H, W, 3), BGRA (H, W, 4) or gray (H, W), any size of at least 
 coordinates are pixels of the (undistorted) image, x right, y down; slopes use the lecture's
 y-up convention; offsets and headings are in the robot frame (x forward, y left). Perception
 depends on a frame only through its gray version (`perception_gray`): a colour frame and its gray
-version give the same observation, which is what lets a recording keep gray frames only.
+version give the same observation; and only through `prepare(frame)` (a `PreparedImage`: gray,
+undistorted, blurred), which `detect` also takes in place of the frame: what a recording keeps.
 
 Geometry in metres: the detector sees the floor through a ground model
 (`perception.ground.GroundModel`: the camera's intrinsics and its pose over the floor; by default
@@ -75,6 +76,14 @@ MIN_IMAGE_SIDE_PX = 16
 EVIDENCE_MIN_M = 0.10
 
 
+class PreparedImage(np.ndarray):
+    """A frame as perception consumes it (`LaneDetector.prepare`): 8-bit gray HxW, undistorted
+    when there is a calibration, blurred, before contrast normalisation. `detect` and
+    `detect_debug` take it in place of a camera frame and skip those steps; everything else they
+    compute depends on a frame only through this image. Made by `prepare` or, for a recording of
+    prepared frames, by `array.view(PreparedImage)`."""
+
+
 @dataclass(frozen=True)
 class DetectionDebug:
     """What `detect_debug` adds to an observation, for overlays and diagnosis.
@@ -87,7 +96,8 @@ class DetectionDebug:
     - `image_size`: (width, height) of the image that was analysed (after undistortion).
     - `image`: the frame as the detector saw it, undistorted (the caller's array when there is
       no undistorter; not a copy; in colour for a colour frame, while perception itself works on
-      its gray version), so an overlay can be drawn on what the detector saw.
+      its gray version; a `PreparedImage` as it came), so an overlay can be drawn on what the
+      detector saw.
     """
 
     roi_polygon_px: NDArray[np.int32]
@@ -177,7 +187,8 @@ class LaneDetector:
         )
         # The overlay's picture: the frame undistorted as it came (in colour for a colour frame);
         # perception itself worked on its gray version.
-        analysed = frame if self.undistorter is None else self.undistorter.apply(frame)
+        analysed = (frame if self.undistorter is None or isinstance(frame, PreparedImage)
+                    else self.undistorter.apply(frame))
         lines, left, right = choices
         flat = (
             np.zeros((0, 4), dtype=np.int32)
@@ -195,6 +206,13 @@ class LaneDetector:
         )
         return observation, debug
 
+    def prepare(self, image: np.ndarray) -> PreparedImage:
+        """What perception makes of a frame before it looks for edges (a new array): its gray
+        version, undistorted, blurred, before contrast normalisation. `detect(prepare(frame))`
+        is `detect(frame)` bit for bit; this is what a recording keeps (lanewarden/recording.py).
+        Raises PerceptionError as `detect` does for an unusable frame."""
+        return self._prepare(image).smooth.copy().view(PreparedImage)
+
     # ----------------------------------------------------------------------------- stages
 
     def _run(
@@ -210,17 +228,8 @@ class LaneDetector:
         tuple[LineSet, SideChoice | None, SideChoice | None],
         np.ndarray,
     ]:
-        _check_image(image)
-        if self.undistorter is not None:
-            # Gray first, then undistort: one channel to remap instead of three, and perception
-            # then depends on the frame only through `perception_gray(frame)`, which is what a
-            # lossless recording stores (lanewarden/recording.py) for an exact replay.
-            gray = self.undistorter.apply(perception_gray(image))
-            state = self.setup_for(gray.shape[1], gray.shape[0])
-        else:
-            state = self.setup_for(image.shape[1], image.shape[0])
-            gray = perception_gray(image, dst=state.gray)
-        segments = self._segments(gray, state)
+        state = self._prepare(image)
+        segments = self._segments(state)
         config = self.config
         lines = build_line_set(segments, state.smooth, state.y_bottom, state.view, config.edges,
                                config.tape)
@@ -229,15 +238,35 @@ class LaneDetector:
         observation = self._observe(rows, left, right, state, frame_index, time_s, previous)
         return observation, state, segments, (lines, left, right), image
 
-    def _segments(self, gray: np.ndarray, state: SizeSetup) -> NDArray[np.int32] | None:
-        """(gray) -> blur -> Canny -> ROI mask -> HoughLinesP, into the preallocated buffers."""
-        canny = self.config.canny
+    def _prepare(self, image: np.ndarray) -> SizeSetup:
+        """The frame as perception consumes it, into `state.smooth`: its gray version
+        (`perception_gray`), undistorted, blurred; a `PreparedImage` is that already (copied)."""
+        _check_image(image)
+        if isinstance(image, PreparedImage):
+            if image.ndim != 2:
+                raise PerceptionError(f"frame: a prepared image is HxW gray, got shape "
+                                      f"{image.shape}")
+            state = self.setup_for(image.shape[1], image.shape[0])
+            np.copyto(state.smooth, image)
+            return state
+        if self.undistorter is not None:
+            # Gray first, then undistort: one channel to remap instead of three.
+            gray = self.undistorter.apply(perception_gray(image))
+            state = self.setup_for(gray.shape[1], gray.shape[0])
+        else:
+            state = self.setup_for(image.shape[1], image.shape[0])
+            gray = perception_gray(image, dst=state.gray)
         if state.blur_kernel[0] > 1:
             cv2.GaussianBlur(
                 gray, state.blur_kernel, self.config.blur.sigma_px, dst=state.smooth
             )
         else:
             np.copyto(state.smooth, gray)
+        return state
+
+    def _segments(self, state: SizeSetup) -> NDArray[np.int32] | None:
+        """(prepared image) -> contrast -> Canny -> ROI mask -> HoughLinesP, in the buffers."""
+        canny = self.config.canny
         self._normalise_contrast(state)
         cv2.Canny(
             state.smooth,

@@ -50,6 +50,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     calibration unless --config/--calibration say otherwise, and every step is compared."""
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
+    from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
     from lanewarden.replay_sources import open_replay_source, replay_config
 
@@ -60,6 +61,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     config = replay_config(replay_source, config_path)
     calibration = (load_calibration(calibration_path) if calibration_path
                    else replay_source.calibration)
+    check_preparation(replay_source, config, calibration)  # before any output is written
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER

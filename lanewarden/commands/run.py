@@ -11,6 +11,7 @@ from lanewarden.bases import BASE_KINDS, DEFAULT_BASE
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import FiniteRange
 from lanewarden.config import load_config
+from lanewarden.errors import UsageError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 if TYPE_CHECKING:
@@ -47,9 +48,13 @@ MAX_RUN_DURATION_S = 86_400.0
 @click.option("--record", "record_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="Record the run into this new folder (default: runs/<UTC "
               "time>/; never overwritten).")
+@click.option("--record-gray", is_flag=True,
+              help="Record the camera's own frames (their gray version, lossless PNG) instead of "
+              "what perception consumed (gray, undistorted, blurred): about 1.7x the disk; "
+              "replay can then try another blur or calibration.")
 @click.option("--record-lossy", is_flag=True,
-              help="Record JPEG frames instead of lossless PNG (about 6x smaller, for long runs; "
-              "the replay is then not exact).")
+              help="Record the camera's frames as colour JPEG instead of lossless PNG (about half "
+              "the default's disk, for long runs; the replay is then not exact).")
 @click.option("--view", "view", metavar="[HOST:]PORT", default=None,
               help="Serve the live page on this port (127.0.0.1 unless a host is given, e.g. "
               "0.0.0.0:8080 to watch from another machine).")
@@ -58,8 +63,8 @@ MAX_RUN_DURATION_S = 86_400.0
               help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
 def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
-                controller: str, record_dir: Path | None, record_lossy: bool, view: str | None,
-                duration_s: float | None, config_path: str | None) -> int:
+                controller: str, record_dir: Path | None, record_gray: bool, record_lossy: bool,
+                view: str | None, duration_s: float | None, config_path: str | None) -> int:
     """Follow the lane under the supervisor, on the robot or on the bench. Ctrl-C, SIGTERM or
     SIGQUIT stop the robot and end the run; Ctrl-Z stops the robot, then suspends (after `fg` it
     stays halted); a crash leaves the dead-man holding stop. Every check (config, calibration,
@@ -67,12 +72,17 @@ def run_command(camera: str, base_kind: str, port: str | None, calibration_path:
     r resume; Kobuki buttons: B0 start/resume, B1 stop. Every run is recorded (see `lanewarden
     replay`). Exit 0 for a normal end (operator stop, --duration, end of a clip), 3 for a safety
     stop (its reason also on stderr)."""
+    from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
     from lanewarden.runner import run_robot  # the robot stack loads only when used
 
+    if record_gray and record_lossy:
+        raise UsageError("--record-gray and --record-lossy: choose one (the camera's gray frames "
+                         "lossless, or its colour frames as JPEG)")
+    record_image = CAMERA_GRAY if record_gray else CAMERA_JPEG if record_lossy else PERCEPTION_INPUT
     config = load_config(config_path)
     summary = run_robot(config, camera=camera, port=port, calibration_path=calibration_path,
                         controller_name=controller, duration_s=duration_s, base_kind=base_kind,
-                        record=record_dir, record_lossy=record_lossy, view=view,
+                        record=record_dir, record_image=record_image, view=view,
                         meta={"config_file": config_path})
     for line in summary.lines:
         click.echo(line)

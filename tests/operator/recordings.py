@@ -26,8 +26,9 @@ from lanewarden.camera_source import CameraLost
 from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder
+from lanewarden.run_mcap import CAMERA_GRAY, PERCEPTION_INPUT
 from lanewarden.supervisor.gate import SafetyGate
-from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
+from lanewarden.supervisor.loop import ControlLoop, Frame, FrameSource, StepRecord
 
 DT = 1.0 / 30.0
 T0 = 1000.0 + 1.0 / 3.0  # not a round number: times must survive the trip exactly
@@ -49,14 +50,15 @@ class ClipFrames:
 
 
 def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig, *,
-               stop_at_step: int | None = None, lossy: bool = False,
+               stop_at_step: int | None = None, image_kind: str = PERCEPTION_INPUT,
                calibration: Path | None = None,
                loaded_calibration: CameraCalibration | None = None,
-               close: bool = True) -> list[StepRecord]:
+               close: bool = True, source: FrameSource | None = None) -> list[StepRecord]:
     """A run on a fake clock, recorded as `lanewarden run` records it (`close=False`: left as a
-    killed run leaves it, without its end)."""
+    killed run leaves it, without its end; `source`: these frames instead of `frames` at
+    T0 + i * DT)."""
     create_run_folder(folder)
-    recorder = RunRecorder(folder, lossy=lossy, epoch_offset_s=1.7e9)
+    recorder = RunRecorder(folder, image_kind=image_kind, epoch_offset_s=1.7e9)
     recorder.write_header({"camera": "clip", "controller": "supervised"},
                           config.model_dump(mode="json"), calibration, T0)
     tap = InputTap()
@@ -66,7 +68,8 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
         recorder.record(record, step_input, new_frame)
 
     stack = build_stack(config, calibration=loaded_calibration)  # what `run` builds
-    loop = ControlLoop(tap.frames(ClipFrames(frames, T0)), stack.detector,
+    recorder.prepare_with(stack.detector)  # as RunSession.wrap does
+    loop = ControlLoop(tap.frames(source or ClipFrames(frames, T0)), stack.detector,
                        cast(SafetyGate, tap.controller(stack.gate)), tap.base(SimBase()),
                        record=on_step)
     records = []
@@ -85,15 +88,18 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
 
 def rewrite_mcap(source: Path, target: Path,
                  change: Callable[[str, int, dict[str, Any]], dict[str, Any] | None],
-                 attachments: dict[str, bytes] | None = None) -> None:
+                 attachments: dict[str, bytes] | None = None,
+                 metadata: dict[str, dict[str, str]] | None = None) -> None:
     """A copy of an MCAP recording written by the `mcap` libraries, each message decoded to a
     dict and passed through `change(topic, number on its topic, message)` (None: leave it out);
-    the metadata and attachments copied as they are (`attachments`: these instead, by name)."""
+    the metadata and attachments copied as they are (`attachments`, `metadata`: these instead,
+    by name)."""
     with source.open("rb") as stream, target.open("wb") as out:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         writer = Writer(out, compression=CompressionType.ZSTD)
-        for metadata in reader.iter_metadata():
-            writer.add_metadata(metadata.name, dict(metadata.metadata))
+        for record in reader.iter_metadata():
+            writer.add_metadata(record.name, (metadata or {}).get(record.name,
+                                                                  dict(record.metadata)))
         for attachment in reader.iter_attachments():
             data = (attachments or {}).get(attachment.name, attachment.data)
             writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
@@ -136,9 +142,19 @@ def change_step(number: int, edit: Callable[[dict[str, Any]], None]
     return change
 
 
+def _older_step(text: str) -> str:
+    """A recorded step as formats 1 and 2 wrote it (no frame fingerprint or refusal)."""
+    record = json.loads(text)
+    for key in ("frame_fingerprint", "frame_refused"):
+        record["input"].pop(key, None)
+    return json.dumps(record)
+
+
 def as_format_1(run: Path, target: Path) -> Path:
     """The same recording in the run folder layout of format 1 (run.jsonl + frames/*.png +
-    meta.json, config.yaml, summary.json), as lanewarden recorded before run.mcap."""
+    meta.json, config.yaml, summary.json), as lanewarden recorded before run.mcap (`run`: one
+    recorded with the camera's gray frames, `CAMERA_GRAY`)."""
+    assert json.loads((run / "meta.json").read_text())["image"] == CAMERA_GRAY
     target.mkdir(parents=True)
     (target / "frames").mkdir()
     lines = []
@@ -147,7 +163,7 @@ def as_format_1(run: Path, target: Path) -> Path:
         for _, channel, message, decoded in reader.iter_decoded_messages(
                 log_time_order=False):
             if channel.topic == "/lanewarden/step":
-                lines.append(decoded.record)
+                lines.append(_older_step(decoded.record))
             elif channel.topic == "/camera/image/compressed":
                 image = cv2.imdecode(np.frombuffer(decoded.data, np.uint8), cv2.IMREAD_UNCHANGED)
                 cv2.imwrite(str(target / "frames" / f"{message.sequence:06d}.png"), image)
@@ -158,6 +174,29 @@ def as_format_1(run: Path, target: Path) -> Path:
     for name in ("config.yaml", "summary.json", "calibration.yaml"):
         if (run / name).exists():
             shutil.copyfile(run / name, target / name)
+    return target
+
+
+def as_format_2(run: Path, target: Path) -> Path:
+    """The same recording as format 2 wrote it (`run`: recorded with `CAMERA_GRAY`): run.mcap
+    with the camera's gray frames, steps without frame fingerprints, a meta without `image`."""
+    meta = json.loads((run / "meta.json").read_text())
+    assert meta["image"] == CAMERA_GRAY
+    del meta["image"]
+    meta["format"] = 2
+    target.mkdir(parents=True)
+    for name in ("config.yaml", "summary.json", "calibration.yaml"):
+        if (run / name).exists():
+            shutil.copyfile(run / name, target / name)
+    (target / "meta.json").write_text(json.dumps(meta))
+
+    def older(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+        if topic == "/lanewarden/step":
+            message["record"] = _older_step(message["record"])
+        return message
+
+    rewrite_mcap(run / "run.mcap", target / "run.mcap", older,
+                 metadata={"lanewarden": {"format": "2", "meta": json.dumps(meta)}})
     return target
 
 

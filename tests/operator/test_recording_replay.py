@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import threading
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -22,19 +22,29 @@ from lanewarden.assembly import build_stack
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.errors import UsageError
-from lanewarden.perception.detector import perception_gray
+from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder, default_run_folder
-from lanewarden.replay import Divergence, open_replay_source, replay_config, replay_steps
+from lanewarden.replay import (
+    Divergence,
+    ReplaySource,
+    open_replay_source,
+    replay_config,
+    replay_steps,
+)
 from lanewarden.replay_outputs import replay_metrics
 from lanewarden.ros_bag import McapFile, decode
+from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
 from lanewarden.run_record import StepInput
 from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
+from lanewarden.supervisor.watchdog import frame_fingerprint
+from lanewarden.survey_run import CheckedFrames, camera_steps
 from tests.operator.clips import lane_end_frames
 from tests.operator.recordings import (
     DT,
     ClipFrames,
     as_format_1,
+    as_format_2,
     change_step,
     record_run,
     rewrite_mcap,
@@ -63,7 +73,13 @@ def recorded_frames(run: Path) -> dict[int, np.ndarray]:
     path = run / "run.mcap"
     return {m.sequence: cv2.imdecode(np.frombuffer(decode(m, "").data, np.uint8),
                                      cv2.IMREAD_UNCHANGED)
-            for m in McapFile(path).messages(lambda t: t.name == "/camera/image/compressed")}
+            for m in McapFile(path).messages(lambda t: t.name.endswith("/compressed"))}
+
+
+def replayed_inputs(path: Path) -> list[dict[str, object]]:
+    """The `input` of every recorded step in run.mcap."""
+    return [json.loads(decode(m, "").record)["input"]
+            for m in McapFile(path).messages(lambda t: t.name == "/lanewarden/step")]
 
 
 def test_the_taps_change_nothing(clip: list[np.ndarray]) -> None:
@@ -94,8 +110,8 @@ def test_a_recorded_run_replays_exactly(clip: list[np.ndarray], tmp_path: Path,
         "config.yaml", "meta.json", "run.mcap", "summary.json"]
     frames = recorded_frames(folder)
     assert sorted(frames) == list(range(len(clip)))
-    assert np.array_equal(frames[7], perception_gray(clip[7])), \
-        "lossless: the recorded frame is the gray frame perception worked on, bit for bit"
+    assert np.array_equal(frames[7], LaneDetector(LanewardenConfig().perception).prepare(
+        clip[7])), "lossless: the recorded frame is what perception consumed, bit for bit"
 
     code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
     out = capsys.readouterr().out
@@ -119,8 +135,22 @@ def test_a_format_1_folder_still_replays(clip: list[np.ndarray], tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     """Folders recorded before run.mcap (run.jsonl + frames/) replay and check the same."""
     run = tmp_path / "run"
-    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12)
+    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12,
+                         image_kind=CAMERA_GRAY)
     old = as_format_1(run, tmp_path / "old")
+    assert main(["replay", str(old), "--check", "--no-video", "--out", str(tmp_path / "o")]) == 0
+    assert f"reproduced: all {len(records)} steps" in capsys.readouterr().out
+
+
+def test_a_format_2_recording_still_replays(clip: list[np.ndarray], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """run.mcap as format 2 wrote it (the camera's gray frames, no fingerprints) replays and
+    checks the same."""
+    run = tmp_path / "run"
+    records = record_run(run, clip[:24], LanewardenConfig(), stop_at_step=12,
+                         image_kind=CAMERA_GRAY)
+    old = as_format_2(run, tmp_path / "old")
+    assert "frame_fingerprint" not in json.dumps(replayed_inputs(old / "run.mcap"))
     assert main(["replay", str(old), "--check", "--no-video", "--out", str(tmp_path / "o")]) == 0
     assert f"reproduced: all {len(records)} steps" in capsys.readouterr().out
 
@@ -165,7 +195,7 @@ def test_a_run_from_an_older_config_replays_with_its_own(
 def test_a_lossy_or_incomplete_recording_is_not_exact(clip: list[np.ndarray],
                                                       tmp_path: Path) -> None:
     folder = tmp_path / "run"
-    record_run(folder, clip[:20], LanewardenConfig(), lossy=True)
+    record_run(folder, clip[:20], LanewardenConfig(), image_kind=CAMERA_JPEG)
     frames = recorded_frames(folder)
     assert len(frames) == 20 and frames[0].shape == clip[0].shape, "lossy: colour JPEG"
     records, divergences = replayed(folder)
@@ -175,7 +205,7 @@ def test_a_lossy_or_incomplete_recording_is_not_exact(clip: list[np.ndarray],
     record_run(lossless, clip[:20], LanewardenConfig())
     without = tmp_path / "without-4.mcap"
     rewrite_mcap(lossless / "run.mcap", without,  # as if the writer had dropped frame 4
-                 lambda topic, n, m: None if topic.startswith("/camera") and n == 5 else m)
+                 lambda topic, n, m: None if topic.endswith("/compressed") and n == 5 else m)
     source = open_replay_source(str(without), 30.0)
     metrics = replay_metrics(source, records, divergences, 0.0)
     assert (metrics["exact_input"], metrics["frames_missing"]) == (False, 1)
@@ -190,15 +220,15 @@ def test_a_full_queue_drops_frames_instead_of_waiting(tmp_path: Path,
     release, writing = threading.Event(), threading.Event()
     real_encode = recording.gray_png
 
-    def stalled_encode(image: np.ndarray) -> bytes:
+    def stalled_encode(image: np.ndarray, png_filter: int) -> bytes:
         writing.set()
         release.wait(10.0)
-        return real_encode(image)
+        return real_encode(image, png_filter)
 
     monkeypatch.setattr(recording, "gray_png", stalled_encode)
     monkeypatch.setattr(recording, "FRAME_QUEUE_FRAMES", 4)
     folder = create_run_folder(tmp_path / "run")
-    recorder = RunRecorder(folder)
+    recorder = RunRecorder(folder, image_kind=CAMERA_GRAY)  # 8x8 frames: too small to prepare
     image = np.zeros((8, 8, 3), np.uint8)
     record = StepRecord(None, 0.0, None, None, None, "HALT", (), recording.VelocityCommand(),
                         None)
@@ -229,3 +259,104 @@ def test_run_folders_are_never_overwritten(tmp_path: Path) -> None:
     assert default_run_folder(tmp_path, when) == tmp_path / "2026-11-05T14-03-12Z-2"
     with pytest.raises(UsageError, match="never overwritten"):
         create_run_folder(first)
+
+
+# ---- perception's prepared input: what the recording keeps by default ------------------------
+def _without_fingerprints(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+    if topic == "/lanewarden/step":
+        record = json.loads(message["record"])
+        record["input"].pop("frame_fingerprint", None)
+        message["record"] = json.dumps(record)
+    return message
+
+
+def test_the_recorded_fingerprints_decide_repeated_images_as_on_the_run(
+        clip: list[np.ndarray], tmp_path: Path) -> None:
+    """Two camera frames that differ in one byte (the supervisor's fingerprint tells them apart:
+    the second is new evidence) but blur to the same prepared image: the replay decides as the
+    run did because it compares the recorded fingerprints; without them it would take the
+    second frame for a repeated image and engage a step later."""
+    detector = LaneDetector(LanewardenConfig().perception)
+    changed = clip[1].copy()
+    changed[100, 100, 0] ^= 1  # a pixel the fingerprint samples (every 4th row and column)
+    assert frame_fingerprint(changed) != frame_fingerprint(clip[1])
+    assert np.array_equal(detector.prepare(changed), detector.prepare(clip[1]))
+    frames = [clip[0], clip[1], changed, *clip[2:20]]
+    folder = tmp_path / "run"
+    records = record_run(folder, frames, LanewardenConfig())
+    first_follow = next(k for k, r in enumerate(records) if r.state == "FOLLOW")
+    inputs = replayed_inputs(folder / "run.mcap")
+    assert inputs[2]["frame_fingerprint"] == frame_fingerprint(changed).hex()
+    replay, divergences = replayed(folder)
+    assert divergences == []
+    assert [r.as_json() for r in replay] == [r.as_json() for r in records]
+    stripped = tmp_path / "stripped.mcap"
+    rewrite_mcap(folder / "run.mcap", stripped, _without_fingerprints)
+    _, divergences = replayed(stripped)
+    assert (divergences[0].step, divergences[0].what, divergences[0].recorded,
+            divergences[0].replayed) == (first_follow, "state", "FOLLOW", "HALT")
+
+
+def test_a_frame_perception_refused_replays_as_refused(clip: list[np.ndarray], tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    """A frame the detector cannot take (here 16-bit) has no prepared image: the recording notes
+    perception's refusal, and the replay raises the same (the same PERCEPTION_ERROR, exact)."""
+    frames = [*clip[:6], clip[6].astype(np.uint16), *clip[7:12]]
+    folder = tmp_path / "run"
+    records = record_run(folder, frames, LanewardenConfig())
+    assert "PERCEPTION_ERROR" in records[6].events
+    assert sorted(recorded_frames(folder)) == [0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11]
+    assert replayed_inputs(folder / "run.mcap")[6]["frame_refused"] == [
+        "PerceptionError", "frame: expected dtype uint8, got uint16"]
+    assert json.loads((folder / "summary.json").read_text())["frames_refused"] == 1
+    code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert f"reproduced: all {len(records)} steps" in out
+
+
+def test_another_blur_is_refused_for_prepared_frames_not_for_camera_frames(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blur = tmp_path / "blur7.yaml"
+    blur.write_text("perception:\n  blur:\n    kernel_px: 7\n")
+    prepared, camera = tmp_path / "prepared", tmp_path / "camera"
+    record_run(prepared, clip[:12], LanewardenConfig())
+    record_run(camera, clip[:12], LanewardenConfig(), image_kind=CAMERA_GRAY)
+    code = main(["replay", str(prepared), "--config", str(blur), "--no-video", "--out",
+                 str(tmp_path / "out1")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert ("replay prepared: recorded as perception's input, and its frames were blurred on "
+            "the run (perception.blur {'kernel_px': 5, 'sigma_px': 0.0}), the replay's config "
+            "blurs with {'kernel_px': 7, 'sigma_px': 0.0}") in err
+    assert not (tmp_path / "out1").exists(), "refused before any output"
+    assert main(["replay", str(camera), "--config", str(blur), "--no-video", "--out",
+                 str(tmp_path / "out2")]) == 0
+
+
+def test_record_gray_and_record_lossy_are_one_choice(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", "--camera", str(tmp_path / "clip.mp4"), "--base", "none",
+                 "--record-gray", "--record-lossy"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--record-gray and --record-lossy: choose one" in err
+
+
+def test_prepared_frames_reach_the_detector_prepared_through_any_frame_store(
+        clip: list[np.ndarray], tmp_path: Path) -> None:
+    """`survey` replays a run folder's frames through its own FrameStore wrapper
+    (survey_run.CheckedFrames) and steps: the recorded images themselves say they are prepared
+    (PreparedImage), so they are not blurred twice, and every observation is the one the
+    camera's gray frames give, to the last bit."""
+    observations = []
+    for name, image_kind in (("prepared", PERCEPTION_INPUT), ("camera", CAMERA_GRAY)):
+        record_run(tmp_path / name, clip[:21], LanewardenConfig(), image_kind=image_kind)
+        source = open_replay_source(str(tmp_path / name), 30.0)
+        span = ReplaySource(kind="run", name=name, steps=camera_steps(
+            (k, k / 30.0) for k in range(21)), frames=CheckedFrames(source.frames, 10**7, None))
+        observations.append([step.record.observation for step in replay_steps(
+            span, LanewardenConfig(), None, "supervised")])
+    assert all(o is not None for o in observations[0]) and len(observations[0]) == 21
+    assert observations[0] == observations[1]

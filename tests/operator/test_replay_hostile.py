@@ -22,6 +22,7 @@ from mcap.writer import Writer as McapWriter
 
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig
+from lanewarden.run_mcap import CAMERA_GRAY
 from tests.operator.clips import lane_end_frames
 from tests.operator.recordings import (
     as_format_1,
@@ -36,10 +37,11 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A complete recording of 15 frames (about 18 steps)."""
+    """A complete recording of 15 frames (about 18 steps), of the camera's gray frames (so its
+    format-1 copies hold camera frames, as format 1 did)."""
     folder = tmp_path_factory.mktemp("recorded") / "run"
     record_run(folder, lane_end_frames(start_m=2.2, end_m=2.7, speed_m_s=0.6)[:15],
-               LanewardenConfig())
+               LanewardenConfig(), image_kind=CAMERA_GRAY)
     return folder
 
 
@@ -84,6 +86,12 @@ FORGED_STEPS: dict[str, tuple[int, Callable[[dict[str, Any]], None], tuple[str, 
     "an unknown request": (5, _set("input.requests", ["launch"]), ("input.requests",)),
     "odometry 1e12 m away": (5, _set("input.feedback.odometry", [1e12, 0.0, 0.0]),
                              ("input.feedback.odometry", "within 100000 m")),
+    "a fingerprint not hex": (5, _set("input.frame_fingerprint", "not-a-fingerprint"),
+                              ("input.frame_fingerprint = 'not-a-fingerprint'",
+                               "32 lowercase hexadecimal digits or null")),
+    "a refusal not a pair": (5, _set("input.frame_refused", "PerceptionError"),
+                             ("input.frame_refused = 'PerceptionError'",
+                              "[exception type, message]")),
 }
 
 
@@ -106,6 +114,19 @@ def test_a_forged_line_in_run_jsonl(name: str, recorded: Path, tmp_path: Path,
     old = forged_format_1(recorded, tmp_path / "old", number, edit)
     code, _, err = replay(old, tmp_path, capsys)
     assert_one_line(code, err, f"run.jsonl:{number}: ", *phrases)
+
+
+def test_frames_of_a_kind_replay_does_not_know(recorded: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    meta = json.loads((recorded / "meta.json").read_text())
+    meta["image"] = "thermal"
+    forged = tmp_path / "forged.mcap"
+    rewrite_mcap(recorded / "run.mcap", forged, lambda topic, n, message: message,
+                 metadata={"lanewarden": {"format": "3", "meta": json.dumps(meta)}})
+    code, _, err = replay(forged, tmp_path, capsys, "--check")
+    assert_one_line(code, err, f"{forged}: its meta says its frames are 'thermal' on "
+                    "'/camera/image/compressed'; replay reads perception input on "
+                    "/lanewarden/perception_input/compressed")
 
 
 def _step_count(run: Path) -> int:
