@@ -42,6 +42,8 @@ def _answer(base: KobukiBase, line: str) -> None:
     elif line == "hold":
         base.hold_stopped(time.monotonic())
         print("held", flush=True)
+    elif line == "why":
+        print(f"reason {base.deadman_reason}", flush=True)
     elif line == "resume":
         if base.resume(time.monotonic()):
             print("resumed", flush=True)
