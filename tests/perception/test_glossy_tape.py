@@ -30,14 +30,25 @@ CONFIG = {"perception": {"edges": {"look_ahead_m": 0.8}},
           "simulation": {"width_px": 320, "height_px": 240, "progress": False}}
 
 
-def observe(ahead_m: list[float]) -> list[LaneObservation]:
+def observe(ahead_m: list[float]) -> list[tuple[LaneObservation, float]]:
+    """Per pose (the robot `ahead_m` along the lane's straight start): the observation, and how
+    much brighter than the floor beside the lane the brightest tenth of the left tape's near
+    part is (grey levels: the light mirrored in it)."""
     spec = spec_from(SCENARIO)
     config = effective_config(config_from_mapping(CONFIG), spec)
     sim = Simulation(spec, config, build_stack, seed=1)  # the run's seed
     w, h = sim.camera.width_px, sim.camera.height_px
-    frames = (sim.renderer.render_gray(Pose2D(x, 0.0, 0.0), np.empty((h, w), np.uint8),
-                                       noise_index=0) for x in ahead_m)
-    return [sim.detector.detect(image, i, 0.0) for i, image in enumerate(frames)]
+    ahead, left = sim.camera.pixel_ground_points(distorted=True)
+    near = ahead < 1.0
+    tape = near & (left > 0.281) & (left < 0.319)  # inside the left tape (0.276-0.324 m)
+    floor = near & (left > 0.15) & (left < 0.25)  # the lane's floor beside it
+    found = []
+    for i, x in enumerate(ahead_m):
+        image = sim.renderer.render_gray(Pose2D(x, 0.0, 0.0), np.empty((h, w), np.uint8),
+                                         noise_index=0)
+        light = float(np.percentile(image[tape], 90) - np.median(image[floor]))
+        found.append((sim.detector.detect(image, i, 0.0), light))
+    return found
 
 
 def test_a_ceiling_light_in_glossy_tape_does_not_break_its_tape_pair() -> None:
@@ -47,6 +58,7 @@ def test_a_ceiling_light_in_glossy_tape_does_not_break_its_tape_pair() -> None:
     edge keeps its polarity: the left tape is a verified tape again and the lane is confident,
     its left edge on the tape's inner edge (0.276 m left of the centre line, within 3 cm;
     the plank joints beside the tape, which it took before, lie at 0.12 m and 0.36 m)."""
-    for obs in observe([0.78, 0.82, 0.86, 0.88, 0.94]):
+    for obs, light in observe([0.78, 0.82, 0.86, 0.88, 0.94]):
+        assert light > 40.0  # the premise: a light mirrored in the tape there
         assert obs.confidence > 0.5, dict(obs.components)
         assert obs.left is not None and obs.left.offset_m == pytest.approx(0.276, abs=0.03)
