@@ -291,9 +291,10 @@ def pick_tapes(
          for i, lt in enumerate(left) for j, rt in enumerate(right)),
         reverse=True,
     )
-    for *_, i, j in combos:
-        if accept(left[i]) and accept(right[j]):
-            return left[i], right[j]
+    for *_, neg_i, neg_j in combos:  # the indices are negated so that ties keep list order
+        lt, rt = left[-neg_i], right[-neg_j]
+        if accept(lt) and accept(rt):
+            return lt, rt
     return (next((t for t in sorted(left, key=TapeCandidate.rank, reverse=True) if accept(t)),
                  None),
             next((t for t in sorted(right, key=TapeCandidate.rank, reverse=True) if accept(t)),

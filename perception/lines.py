@@ -9,8 +9,9 @@ direction (ux, uy) points from near to far (uy <= 0).
 Each line also carries where its near and far ends lie on the floor (robot frame metres, through
 the ground model; NaN at or above the horizon), for the metric rules of edge choice.
 
-Polarity: the sign of (brightness right of the line - brightness left of it), sampled on the
-blurred image at a few points along the line, a cheap stand-in for the Sobel sign across it.
+Polarity: the sign of (brightness right of the line - brightness left of it), the median over a
+few points along the line on the blurred image, a cheap stand-in for the Sobel sign across it
+(the median, so a highlight crossing part of a glossy tape does not overturn it).
 +1 dark-to-light going right, -1 light-to-dark, 0 no clear contrast. The two edges of a tape have
 opposite polarities (dark tape on a light floor: -1 then +1; light tape: +1 then -1).
 
@@ -34,6 +35,10 @@ from lanewarden.perception.floor_view import FloorView
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
+
+#: Polarity is read at this many times `tape.polarity_samples` points along a line: its median
+#: then holds while a highlight covers up to nearly half of the line (cheap: one gather).
+POLARITY_SAMPLE_FACTOR = 2
 
 
 @dataclass(frozen=True)
@@ -319,9 +324,10 @@ def _polarity(
     uy: FloatArray,
     tape: TapeConfig,
 ) -> FloatArray:
-    """Sign of (right side - left side) brightness, sampled at a few points along each line."""
+    """Sign of the median of (right side - left side) brightness over a few points sampled
+    along each line (0 when it is within `min_contrast_levels`)."""
     height, width = gray.shape[:2]
-    k = tape.polarity_samples
+    k = POLARITY_SAMPLE_FACTOR * tape.polarity_samples
     frac = _sample_fractions(k)
     px = near_x[:, None] + (far_x - near_x)[:, None] * frac
     py = near_y[:, None] + (far_y - near_y)[:, None] * frac
@@ -334,12 +340,16 @@ def _polarity(
     ys = np.concatenate([py + ny, py - ny]) + 0.5
     cols = np.minimum(np.maximum(xs, 0.0), width - 1.0).astype(np.intp)
     rows = np.minimum(np.maximum(ys, 0.0), height - 1.0).astype(np.intp)
-    # The mean of k whole numbers: their sum is exact in any order.
-    values = gray[rows, cols].sum(axis=1, dtype=np.float64) / k
+    values = gray[rows, cols].astype(np.int16)
     n = len(near_x)
-    mean = values[:n] - values[n:]
+    # The median difference, not the mean: a ceiling light mirrored in glossy tape makes a few
+    # samples of its edges brighter on the tape's side than the floor by far more than the tape
+    # is darker elsewhere, and their mean says "no contrast" (or the wrong sign). Exact in
+    # whole numbers (the middle two of k sorted differences).
+    diff = np.sort(values[:n] - values[n:], axis=1)
+    median = 0.5 * (diff[:, (k - 1) // 2] + diff[:, k // 2])
     threshold = tape.min_contrast_levels
-    return np.where(mean > threshold, 1.0, np.where(mean < -threshold, -1.0, 0.0))
+    return np.where(median > threshold, 1.0, np.where(median < -threshold, -1.0, 0.0))
 
 
 def line_angle_deg(ux: float, uy: float) -> float:

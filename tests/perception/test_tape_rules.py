@@ -394,6 +394,20 @@ def test_both_tapes_are_the_same_kind() -> None:
     assert pick_tapes([strip, dark], [], CONFIG)[0] is strip
 
 
+
+def test_the_tapes_taken_are_the_pair_that_ranked_best() -> None:
+    """Parquet (campaign run r00000, which never engaged): light slats between dark joints
+    measure as light tapes beside the dark lane tapes. The lane's two dark tapes rank first; the
+    right slat fails its band check. The choice is the lane's tapes, not one of them paired with
+    a slat of the other kind (the ranking's tie-break indices were once used unnegated, picking
+    other tapes than the ranked pair: a dark tape with a light slat, floor_between 0)."""
+    lane_left, slat_left = _tape(0.276, 0.324), _tape(0.336, 0.384, dark=False)
+    stray = _tape(-0.100, -0.148, dark=False)
+    lane_right, slat_right = _tape(-0.276, -0.324), _tape(-0.336, -0.384, dark=False)
+    chosen = pick_tapes([lane_left, slat_left], [stray, lane_right, slat_right], CONFIG,
+                        lambda tape: tape is not slat_right)
+    assert chosen == (lane_left, lane_right)
+
 # ---- 5. the camera must resolve them at the look-ahead ---------------------------------------
 
 
