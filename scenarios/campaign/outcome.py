@@ -14,6 +14,8 @@ Classes, checked in this order (the first that applies):
   DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape), or
   a lane halt while the camera showed no lane (`blind_halt`, below).
 - `false_halt`: halted, with no fault and a good lane to explain it.
+- `recovered`: went DEGRADED at some point and was following again at the end, never halted.
+- `nominal`: never DEGRADED, never halted.
 
 A blind halt: LANE_LOST or DEGRADED_BUDGET_EXHAUSTED while the frames the camera delivered did
 not show the lane (`RunFacts.lane_visible`, the simulator's ground truth per frame:
@@ -27,9 +29,7 @@ of the window, not most: the measure is a bound in the detector's favour, so a f
 visible may still have been hard, but a halt after even one usable frame is not excused. Whatever
 blinded the camera (a light switched up faster than the auto-exposure follows, a flat floor)
 does not matter, nor when: a dark tape still darker than a saturated floor is visible, and a
-halt then stays false. Its reason starts with `BLIND_REASON` (`blind_halt` reads it back).
-- `recovered`: went DEGRADED at some point and was following again at the end, never halted.
-- `nominal`: never DEGRADED, never halted.
+halt then stays false. Its reason says `BLIND_REASON` (`blind_halt` reads it back).
 
 Never reads a clock and never runs anything.
 """
