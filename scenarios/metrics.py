@@ -22,6 +22,14 @@ plus the world and the camera; outputs are numbers for `metrics.json`. Definitio
   `distance_past_lane_end_m`, how far past the end of the markings it was; None if not halted.
 - `turns_completed`: marks (A, B, ...) whose gate (the segment across the lane, tape to tape, at
   the end of the marked segment) the robot's centre crossed, in order.
+- `lane_not_visible_frames`: frames in which the camera did not show the lane (`LaneContrast`:
+  some tape with no contrast the detector could use against the floor beside it, or not in its
+  ROI); None when not measured.
+
+`LaneContrast` measures, per delivered frame, the contrast the camera showed between each tape
+and the floor beside it (ground truth: the world's tapes projected through the camera model into
+the frame's pixels); the simulator records it in `RunTrace.lane_contrast` / `lane_visible`, and
+the campaign judge reads it (a halt while the camera showed no lane is not a false halt).
 
 Pure: no clock, no I/O, no rendering.
 """
@@ -36,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D
+from lanewarden.perception.detector import perception_gray
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.world import ROBOT_RADIUS_M, World
 
@@ -58,6 +67,11 @@ class RunTrace:
     halt_reasons: Sequence[str | None]
     events: Sequence[Sequence[str]]
     speed_m_s: FloatArray
+    #: (N, tapes) `LaneContrast.measure` per frame, grey levels (NaN: that tape not in the ROI);
+    #: None when not measured
+    lane_contrast: FloatArray | None = None
+    #: per frame: the camera showed the lane (`LaneContrast.visible`); None when not measured
+    lane_visible: BoolArray | None = None
 
 
 def points_in_polygon(points: FloatArray, polygon: FloatArray) -> BoolArray:
@@ -72,6 +86,13 @@ def points_in_polygon(points: FloatArray, polygon: FloatArray) -> BoolArray:
             x_at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
         inside ^= crosses & (x < x_at)
     return inside
+
+
+def robot_frame(points: FloatArray, pose: Pose2D) -> tuple[FloatArray, FloatArray]:
+    """World points (N, 2) in the robot's frame at `pose`: (forward, left), metres."""
+    c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+    rel = points - (pose.x_m, pose.y_m)
+    return rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c
 
 
 class TapeVisibility:
@@ -95,10 +116,7 @@ class TapeVisibility:
         """Is any of `samples` (N, 2) world metres inside the ROI at `pose`?"""
         if len(samples) == 0:
             return False
-        c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
-        rel = samples - (pose.x_m, pose.y_m)
-        fx = rel[:, 0] * c + rel[:, 1] * s
-        fy = -rel[:, 0] * s + rel[:, 1] * c
+        fx, fy = robot_frame(samples, pose)
         near = (fx > 0.0) & (fx < self._max_range_m) & (np.abs(fy) < self._max_range_m)
         if not near.any():
             return False
@@ -125,6 +143,131 @@ class TapeVisibility:
                 return s
             s += step_m
         return None
+
+
+#: The floor beside a tape is read this many tape widths from its centre line, on both sides (half
+#: a tape width of floor between the tape's edge and the sample: clear of the edge's blur).
+FLOOR_OFFSET_WIDTHS = 1.0
+#: Tape centre-line samples, metres apart, before the ROI is applied.
+CONTRAST_STEP_M = 0.02
+#: At most this many samples per tape and frame (evenly chosen among those inside the ROI).
+CONTRAST_SAMPLES = 24
+#: Fewer samples than this inside the ROI: the tape is not in view (its contrast is NaN).
+MIN_CONTRAST_SAMPLES = 3
+
+
+def _gray_values(frame: NDArray[np.uint8], rows: NDArray[np.intp],
+                 cols: NDArray[np.intp]) -> NDArray[np.int16]:
+    """Perception's gray levels (`perception_gray`: OpenCV's BGR->gray) at a few pixels."""
+    picked = frame[rows, cols]
+    if picked.ndim == 2:  # colour: convert only the picked pixels, as perception would
+        picked = perception_gray(np.ascontiguousarray(picked.reshape(1, -1, picked.shape[1])))
+    return np.asarray(picked, dtype=np.int16).reshape(-1)
+
+
+class LaneContrast:
+    """Ground truth: the contrast between each tape and the floor beside it in a frame the camera
+    delivered, and whether that shows the lane.
+
+    Samples along each tape's centre line (world metres, `CONTRAST_STEP_M` apart) and on the
+    floor `FLOOR_OFFSET_WIDTHS` tape widths to either side are moved into the robot's frame at the
+    true pose and projected through the camera model (lens distortion included: the frame's own
+    pixels); of those whose centre-line point lies inside perception's ROI (undistorted pixels,
+    as `TapeVisibility`), at most `CONTRAST_SAMPLES` are read in the frame's gray version. A
+    sample's difference is the tape minus the floor on the side more like the tape, 0 when the
+    two sides disagree in sign (the detector needs a tape darker, or lighter, than the floor on
+    BOTH sides); a tape's contrast is the magnitude of the median difference (a ceiling light
+    mirrored in glossy tape, a seam, noise: a minority of samples), NaN with fewer than
+    `MIN_CONTRAST_SAMPLES` in the ROI.
+
+    The lane is visible when every tape's contrast reaches `needed_levels`: the detector's
+    `perception.tape.min_contrast_levels` divided by the largest stretch its contrast
+    normalisation applies (`perception.contrast.max_gain`): a smaller step stays under the
+    detector's threshold even after it stretches a flat frame as far as it ever does. A bound
+    in the detector's favour (it blurs, and stretches a flat frame less when the frame varies),
+    so "not visible" means no detector with these settings could have used the frame.
+    Costs a few dozen pixel reads per frame.
+    """
+
+    def __init__(self, world: World, camera: CameraModel, roi_polygon_px: FloatArray,
+                 needed_levels: float) -> None:
+        self.needed_levels = needed_levels
+        self._camera = camera
+        self._h = camera.ground_to_image_homography()
+        self._roi = np.asarray(roi_polygon_px, dtype=np.float64).reshape(-1, 2)
+        self._size = (camera.width_px, camera.height_px)
+        self._max_range_m = 8.0
+        centres, beside, owner = [], [], []
+        for index, tape in enumerate(world.tapes):
+            for piece in tape.pieces:
+                seg = np.diff(piece, axis=0)
+                s = np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
+                if s[-1] <= 0:
+                    continue
+                t = np.linspace(0.0, s[-1], max(2, math.ceil(s[-1] / CONTRAST_STEP_M) + 1))
+                c = np.column_stack([np.interp(t, s, piece[:, 0]), np.interp(t, s, piece[:, 1])])
+                d = np.gradient(c, axis=0)
+                n = np.column_stack([-d[:, 1], d[:, 0]])
+                n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+                centres.append(c)
+                beside.append(FLOOR_OFFSET_WIDTHS * tape.width_m * n)
+                owner.append(np.full(len(c), index))
+        self.tapes = len(world.tapes)
+        #: every tape's centre-line samples, the floor either side of each, the tape of each
+        self._centre = np.vstack(centres) if centres else np.zeros((0, 2))
+        offset = np.vstack(beside) if beside else np.zeros((0, 2))
+        self._floor_a, self._floor_b = self._centre + offset, self._centre - offset
+        self._tape_of = np.concatenate(owner) if owner else np.zeros(0, np.intp)
+
+    def measure(self, frame: NDArray[np.uint8], pose: Pose2D) -> FloatArray:
+        """Each tape's contrast in `frame` (gray HxW or BGR HxWx3) seen from `pose`, grey levels;
+        NaN for a tape not in the ROI. (All tapes in one pass: a few small array operations.)"""
+        out = np.full(self.tapes, np.nan)
+        w, h = self._size
+        fx, fy = robot_frame(self._centre, pose)
+        near = np.nonzero((fx > 0.0) & (fx < self._max_range_m)
+                          & (np.abs(fy) < self._max_range_m))[0]
+        hom = np.column_stack([fx[near], fy[near], np.ones(len(near))]) @ self._h.T
+        ahead = hom[:, 2] > 1e-9
+        near, hom = near[ahead], hom[ahead]
+        uv = hom[:, :2] / hom[:, 2:3]
+        inside = points_in_polygon(uv, self._roi) & (uv[:, 0] >= 0) & (
+            uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
+        in_roi = near[inside]
+        groups: list[tuple[int, NDArray[np.intp]]] = []
+        for tape in range(self.tapes):
+            chosen = in_roi[self._tape_of[in_roi] == tape]
+            if len(chosen) < MIN_CONTRAST_SAMPLES:
+                continue
+            if len(chosen) > CONTRAST_SAMPLES:
+                chosen = chosen[np.linspace(0, len(chosen) - 1, CONTRAST_SAMPLES).round()
+                                .astype(np.intp)]
+            groups.append((tape, chosen))
+        if not groups:
+            return out
+        picked = np.concatenate([chosen for _, chosen in groups])
+        world_pts = np.vstack([self._centre[picked], self._floor_a[picked],
+                               self._floor_b[picked]])
+        px = self._camera.project_ground(np.column_stack(robot_frame(world_pts, pose)))
+        valid = np.asarray(np.isfinite(px).all(axis=1), dtype=bool)
+        cols = np.clip(np.nan_to_num(px[:, 0]) + 0.5, 0, w - 1).astype(np.intp)
+        rows = np.clip(np.nan_to_num(px[:, 1]) + 0.5, 0, h - 1).astype(np.intp)
+        values = _gray_values(frame, rows, cols)
+        k = len(picked)
+        da = values[:k] - values[k:2 * k]
+        db = values[:k] - values[2 * k:]
+        same = (np.sign(da) == np.sign(db)) & valid[:k] & valid[k:2 * k] & valid[2 * k:]
+        diff = np.where(same, np.where(np.abs(da) < np.abs(db), da, db), 0)
+        start = 0
+        for tape, chosen in groups:
+            out[tape] = abs(float(np.median(diff[start:start + len(chosen)])))
+            start += len(chosen)
+        return out
+
+    def visible(self, contrast: FloatArray) -> bool:
+        """Did a frame with these per-tape contrasts show the lane? (every tape in the ROI with
+        at least `needed_levels`; no tape at all: no)"""
+        return bool(len(contrast)) and bool(np.all(contrast >= self.needed_levels))
 
 
 def _wrap(angle: FloatArray) -> FloatArray:
@@ -267,4 +410,6 @@ def compute_metrics(
         for event in frame_events:
             event_counts[event] = event_counts.get(event, 0) + 1
     out["event_counts"] = event_counts
+    out["lane_not_visible_frames"] = None if trace.lane_visible is None else int(
+        np.count_nonzero(~np.asarray(trace.lane_visible, dtype=bool)))
     return out

@@ -35,7 +35,7 @@ from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.fault_link import FaultyLink
 from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.highlights import Highlights
-from lanewarden.scenarios.metrics import RunTrace, TapeVisibility, compute_metrics
+from lanewarden.scenarios.metrics import LaneContrast, RunTrace, TapeVisibility, compute_metrics
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
 from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
@@ -187,6 +187,11 @@ class Simulation:
         self.loop = self.stack.connect(self.sim_camera, self.link, record)
         self.roi_polygon_px = self._roi_polygon()
         self.visibility = TapeVisibility(self.world, self.camera, self.roi_polygon_px)
+        perception = config.perception
+        self.lane_contrast = LaneContrast(
+            self.world, self.camera, self.roi_polygon_px,
+            perception.tape.min_contrast_levels / perception.contrast.max_gain)
+        self._contrast = np.full(self.lane_contrast.tapes, np.nan)
         self._video: VideoRecorder | None = None
         self._video_path = video_path
         self._view_bgr = np.empty((h, w, 3), np.uint8)
@@ -247,6 +252,7 @@ class Simulation:
         speeds: list[float] = []
         records: list[StepRecord] = []
         visible: list[bool] = []
+        contrasts: list[NDArray[np.float64]] = []
         lane_ends = self.world.markings_end_s is not None
         ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
@@ -270,6 +276,7 @@ class Simulation:
                 times.append(now)
                 poses.append((pose.x_m, pose.y_m, pose.theta_rad))
                 speeds.append(abs(velocity.linear_m_s))
+                contrasts.append(self._contrast)
                 if lane_ends:
                     # Only the first frame without tape in view matters (metrics): stop there.
                     seen = not visible or visible[-1]
@@ -294,7 +301,11 @@ class Simulation:
         trace = RunTrace(
             time_s=np.asarray(times), poses=np.asarray(poses, dtype=np.float64).reshape(-1, 3),
             states=[r.state for r in records], halt_reasons=[r.halt_reason for r in records],
-            events=[r.events for r in records], speed_m_s=np.asarray(speeds))
+            events=[r.events for r in records], speed_m_s=np.asarray(speeds),
+            lane_contrast=np.asarray(contrasts, dtype=np.float64).reshape(
+                -1, self.lane_contrast.tapes),
+            lane_visible=np.asarray([self.lane_contrast.visible(c) for c in contrasts],
+                                    dtype=bool))
         metrics = compute_metrics(
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
@@ -321,6 +332,8 @@ class Simulation:
         else:
             self.renderer.render_gray(pose, buffer, motion, noise, now)
         self.faults.after_render(k, now, buffer)
+        # Ground truth: what the delivered frame shows of the lane (the campaign judge's).
+        self._contrast = self.lane_contrast.measure(buffer, pose)
         self.sim_camera.capture(k, now)
         if self._camera_frames is not None:
             self._camera_frames(buffer, now)

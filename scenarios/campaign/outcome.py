@@ -11,10 +11,25 @@ Classes, checked in this order (the first that applies):
   `hazard_halt_deadline_s` after it took effect.
 - `safe_halt`: halted, for a reason that matches a fault acting then (`ANSWERS`, up to
   `fault_grace_s` after the fault stopped acting) or for real lane loss (LANE_LOST or
-  DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape).
+  DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape), or
+  a lane halt while the camera showed no lane (`blind_halt`, below).
 - `false_halt`: halted, with no fault and a good lane to explain it.
 - `recovered`: went DEGRADED at some point and was following again at the end, never halted.
 - `nominal`: never DEGRADED, never halted.
+
+A blind halt: LANE_LOST or DEGRADED_BUDGET_EXHAUSTED while the frames the camera delivered did
+not show the lane (`RunFacts.lane_visible`, the simulator's ground truth per frame:
+`scenarios.metrics.LaneContrast`, every tape standing out from the floor beside it by a contrast
+the detector can use): in NO frame of the last `lane_lost_halt_s` before the halt (the
+supervisor's own window: it halts LANE_LOST because no frame in it gave a usable lane; had the
+camera shown the lane in one of them, the detector missed it, and the halt stays false), and for
+DEGRADED_BUDGET_EXHAUSTED also in at most half of the frames of the DEGRADED stretch that ran
+out (a budget spent mostly on frames that did show the lane is the detector's doing). Every frame
+of the window, not most: the measure is a bound in the detector's favour, so a frame it calls
+visible may still have been hard, but a halt after even one usable frame is not excused. Whatever
+blinded the camera (a light switched up faster than the auto-exposure follows, a flat floor)
+does not matter, nor when: a dark tape still darker than a saturated floor is visible, and a
+halt then stays false. Its reason says `BLIND_REASON` (`blind_halt` reads it back).
 
 Never reads a clock and never runs anything.
 """
@@ -162,6 +177,9 @@ class RunFacts:
     end_reason: str
     #: the base's true speed at the end of the run (m/s)
     final_speed_m_s: float = 0.0
+    #: per control step: did the camera's frame show the lane (None: not measured, no blind
+    #: halts)
+    lane_visible: Sequence[bool] | None = None
 
 
 @dataclass(frozen=True)
@@ -252,6 +270,9 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
                 return verdict("safe_halt", answering_reason(code, kind, index), index)
         if code in _LANE and _near_lane_end(facts, config):
             return verdict("safe_halt", f"{code} at the end of the tape")
+        blind = _blind_window(facts, halt, code, limits)
+        if blind is not None:
+            return verdict("safe_halt", f"{code} at {halt_s:.3f} s: {BLIND_REASON} {blind}")
         return verdict("false_halt", f"{code} at {halt_s:.3f} s with no fault acting and the "
                                      "tape in place")
     visited = set(facts.states)
@@ -282,6 +303,39 @@ def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
             return (f"{spec.kind} (fault {index}) took effect at {effect:.3f} s: HALT due by "
                     f"{deadline:.3f} s, came {when}", index)
     return None
+
+
+#: How a blind halt's reason names it (after the halt code and time).
+BLIND_REASON = "camera showed no lane contrast"
+
+
+def blind_halt(reason: str) -> bool:
+    """Is this a safe halt's reason for a halt while the camera showed no lane?"""
+    return BLIND_REASON in reason
+
+
+def _blind_window(facts: RunFacts, halt: int, code: str, limits: Limits) -> str | None:
+    """Why a lane halt at step `halt` was blind (the rest of its reason), or None when the
+    camera showed the lane (see the module docstring)."""
+    shown = facts.lane_visible
+    if shown is None or code not in _LANE:
+        return None
+    halt_s = float(facts.times[halt])
+    window_s = limits.supervisor.lane_lost_halt_s
+    last = [i for i in range(halt + 1) if halt_s - window_s + 1e-9 < float(facts.times[i])]
+    if not last or any(shown[i] for i in last):
+        return None
+    why = f"the detector could use in any of the last {len(last)} frames ({window_s:g} s)"
+    if code == "DEGRADED_BUDGET_EXHAUSTED":
+        start = halt
+        while start > 0 and facts.states[start - 1] == "DEGRADED":
+            start -= 1
+        stretch = range(start, halt)
+        seen = sum(1 for i in stretch if shown[i])
+        if 2 * seen > len(stretch):
+            return None
+        why += f"; lane shown in {seen} of the {len(stretch)} DEGRADED frames"
+    return why
 
 
 def _near_lane_end(facts: RunFacts, config: CampaignConfig) -> bool:

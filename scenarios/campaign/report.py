@@ -7,8 +7,9 @@
   draws them; another table is one more entry), the time to halt per fault kind
   (from the moment the fault the halt answered took effect, with its distribution on one shared
   axis), the worst cases (every unsafe run and false halt, then the slowest safe halt of each
-  fault kind) and the runs in error, each with the command that reruns it (selectable, with a
-  copy button).
+  fault kind), the blind halts (safe halts while the camera showed no lane,
+  `outcome.blind_halt`: not failures, but worth a look) and the runs in error, each with the
+  command that reruns it (selectable, with a copy button).
 
 Rows are read once, one at a time (`CampaignSummary.add`): what the report keeps is bounded
 (counts, one number per safe halt, a few rows per list), so a 100,000-run campaign's report costs
@@ -30,7 +31,12 @@ from pathlib import Path
 from typing import Any, TextIO
 from xml.sax.saxutils import quoteattr
 
-from lanewarden.scenarios.campaign.outcome import FAILURES, OUTCOMES, answered_kind
+from lanewarden.scenarios.campaign.outcome import (
+    FAILURES,
+    OUTCOMES,
+    answered_kind,
+    blind_halt,
+)
 
 #: How many unsafe runs, false halts and errors the report lists (each; the rest are counted).
 LISTED_PER_OUTCOME = 25
@@ -99,6 +105,8 @@ class CampaignSummary:
         self.time_to_halt: dict[str, list[float]] = defaultdict(list)
         self.slowest: dict[str, tuple[float, Row]] = {}
         self.listed = {outcome: _Kept(LISTED_PER_OUTCOME) for outcome in (*FAILURES, "error")}
+        #: safe halts while the camera showed no lane (`outcome.blind_halt`), in run order
+        self.blind = _Kept(LISTED_PER_OUTCOME)
         self.cpu_s = 0.0
         self.sim_s = 0.0
         self.timed = 0
@@ -121,6 +129,8 @@ class CampaignSummary:
             slow = to_halt if to_halt is not None else math.inf
             self.listed[outcome].offer((-slow if outcome != "error" else 0.0, index),
                                        _slim(row))
+        if outcome == "safe_halt" and blind_halt(str(row.get("reason") or "")):
+            self.blind.offer((0.0, index), _slim(row))
         kind = answered_kind(str(row.get("reason") or ""))
         if outcome == "safe_halt" and kind is not None and to_halt is not None:
             self.time_to_halt[kind].append(to_halt)
@@ -331,6 +341,17 @@ def _worst(summary: CampaignSummary, out_dir: Path) -> str:
     return "".join(parts)
 
 
+def _blind(summary: CampaignSummary, out_dir: Path) -> str:
+    blind = summary.blind
+    if not blind.count:
+        return ""
+    return ("<h2>Halts while the camera showed no lane</h2><p>Safe halts for lane loss while "
+            "the frames the camera delivered showed no tape with a contrast the detector could "
+            "use (a light switched up faster than the auto-exposure follows, ...): not failures "
+            "of the supervisor, but of the camera's view.</p>"
+            + _case_rows(blind.rows(), out_dir) + _more(blind, "blind halts"))
+
+
 def _errors(summary: CampaignSummary, out_dir: Path) -> str:
     errors = summary.listed["error"]
     if not errors.count:
@@ -388,15 +409,16 @@ button.copy {{ font-size: 80%; }}
 <p>{html.escape(text)}</p>
 <p>{badges}</p>
 {cost}
-<p>Outcomes: <b>safe_halt</b> halted for a reason that matches a fault acting then or a real lane
-loss; <b>recovered</b> degraded, then followed again; <b>nominal</b> followed throughout;
-<b>false_halt</b> halted with no fault and a good lane; <b>unsafe</b> crossed a tape, ended past
-the tape end, moved after HALT or did not halt in time for a hazard it must answer; <b>error</b>
-the run did not test what it was meant to (a fault never took effect, it never engaged, a
-worker was lost). See docs/campaigns.md.</p>
+<p>Outcomes: <b>safe_halt</b> halted for a reason that matches a fault acting then, a real lane
+loss or a camera that showed no lane; <b>recovered</b> degraded, then followed again;
+<b>nominal</b> followed throughout; <b>false_halt</b> halted with no fault and a good lane;
+<b>unsafe</b> crossed a tape, ended past the tape end, moved after HALT or did not halt in time
+for a hazard it must answer; <b>error</b> the run did not test what it was meant to (a fault
+never took effect, it never engaged, a worker was lost). See docs/campaigns.md.</p>
 {matrices}
 {_time_to_halt(summary)}
 {_worst(summary, out_dir)}
+{_blind(summary, out_dir)}
 {_errors(summary, out_dir)}
 <script>{_COPY_SCRIPT}</script>
 </body></html>

@@ -56,6 +56,8 @@ def judge(result: SimulationResult, config: LanewardenConfig) -> Verdict:
         markings_end_s=result.world.markings_end_s,
         end_reason=result.end_reason,
         final_speed_m_s=float(result.trace.speed_m_s[-1]) if len(result.trace.speed_m_s) else 0.0,
+        lane_visible=None if result.trace.lane_visible is None else [
+            bool(v) for v in result.trace.lane_visible],
     )
     campaign: CampaignConfig = getattr(config, "campaign", CampaignConfig())
     limits = Limits(config.supervisor, config.actuation.write_timeout_s)

@@ -12,6 +12,7 @@ from lanewarden.scenarios.campaign.outcome import (
     OUTCOMES,
     Limits,
     RunFacts,
+    blind_halt,
     classify,
 )
 from lanewarden.scenarios.spec import FaultSpec
@@ -27,7 +28,7 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
           windows: tuple[tuple[int, str, float, float], ...] = (),
           reasons: dict[int, str] | None = None, moving_after: int | None = None,
           metrics: dict[str, Any] | None = None, markings_end_s: float | None = None,
-          ) -> RunFacts:
+          lane_visible: list[bool] | None = None) -> RunFacts:
     n = len(states)
     halt_reasons: list[str | None] = [None] * n
     for i, text in (reasons or {}).items():
@@ -41,7 +42,8 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
                     effects=effects or {}, windows=windows,
                     metrics={"crossed_tape": False, "distance_past_lane_end_m": None,
                              **(metrics or {})},
-                    markings_end_s=markings_end_s, end_reason="halted")
+                    markings_end_s=markings_end_s, end_reason="halted",
+                    lane_visible=lane_visible)
 
 
 def run(follow: int, halt_at: int | None = None, total: int = 120,
@@ -181,3 +183,68 @@ def test_still_moving_long_after_halt_is_unsafe() -> None:
     verdict = classify(moving, CONFIG, LIMITS)
     assert (verdict.outcome, verdict.reason) == (
         "unsafe", "still moving at 0.20 m/s 1.5 s or more after HALT")
+
+
+LOST = "LANE_LOST: no usable lane for longer than lane_lost_halt_s"
+BUDGET = "DEGRADED_BUDGET_EXHAUSTED: DEGRADED for longer than degraded_budget_s"
+
+
+def shown(total: int, blind: range) -> list[bool]:
+    """The camera showed the lane in every frame but those in `blind`."""
+    return [i not in blind for i in range(total)]
+
+
+def test_a_lane_halt_while_the_camera_showed_the_lane_stays_a_false_halt() -> None:
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: LOST},
+                             lane_visible=shown(120, range(0))), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == (
+        "false_halt", "LANE_LOST at 2.000 s with no fault acting and the tape in place")
+
+
+def test_a_lane_halt_while_the_camera_showed_no_lane_is_a_safe_halt() -> None:
+    # Blind from frame 50 (1.667 s) on: the last 0.2 s before the halt at 2.0 s are frames
+    # 55..60, none showing the lane.
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: LOST},
+                             lane_visible=shown(120, range(50, 120))), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason, verdict.time_to_halt_s) == (
+        "safe_halt", "LANE_LOST at 2.000 s: camera showed no lane contrast the detector could "
+        "use in any of the last 6 frames (0.2 s)", None)
+    assert blind_halt(verdict.reason)
+    # Blind from exactly the window's first frame: still blind.
+    assert classify(facts(run(5, halt_at=60), reasons={60: LOST},
+                          lane_visible=shown(120, range(55, 120))), CONFIG, LIMITS
+                    ).outcome == "safe_halt"
+
+
+@pytest.mark.parametrize("visible_frame", [55, 58, 60])
+def test_one_frame_that_showed_the_lane_in_the_window_keeps_it_a_false_halt(
+        visible_frame: int) -> None:
+    seen = shown(120, range(40, 120))
+    seen[visible_frame] = True
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: LOST}, lane_visible=seen),
+                       CONFIG, LIMITS)
+    assert verdict.outcome == "false_halt"
+    assert not blind_halt(verdict.reason)
+
+
+def test_only_lane_halts_are_excused_by_a_blind_camera() -> None:
+    for code in ("FRAME_STALE: no frame", "BUMPER: pressed"):
+        verdict = classify(facts(run(5, halt_at=60), reasons={60: code},
+                                 lane_visible=shown(120, range(0, 120))), CONFIG, LIMITS)
+        assert verdict.outcome == "false_halt", code
+    # Not measured (an old trace): no blind halts.
+    assert classify(facts(run(5, halt_at=60), reasons={60: LOST}), CONFIG, LIMITS
+                    ).outcome == "false_halt"
+
+
+def test_a_degraded_budget_spent_mostly_on_frames_that_showed_the_lane_stays_false() -> None:
+    states = run(5, halt_at=100, degraded=(40, 100))  # 60 DEGRADED frames, then HALT
+    blind_end = classify(facts(states, reasons={100: BUDGET},
+                               lane_visible=shown(120, range(80, 120))), CONFIG, LIMITS)
+    assert blind_end.outcome == "false_halt"  # blind in 20 of the 60: the detector's doing
+    blind_most = classify(facts(states, reasons={100: BUDGET},
+                                lane_visible=shown(120, range(69, 120))), CONFIG, LIMITS)
+    assert (blind_most.outcome, blind_most.reason) == (
+        "safe_halt", "DEGRADED_BUDGET_EXHAUSTED at 3.333 s: camera showed no lane contrast the "
+        "detector could use in any of the last 6 frames (0.2 s); lane shown in 29 of the 60 "
+        "DEGRADED frames")

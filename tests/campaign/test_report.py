@@ -117,3 +117,15 @@ def test_junit_counts_failures_and_errors(tmp_path: Path) -> None:
     cases = suite.findall("testcase")
     assert [c.get("name") for c in cases][:2] == ["r00000 glare_sweep", "r00001 bumper"]
     assert cases[8].find("failure").get("message") == "unsafe: crossed a tape"  # type: ignore
+
+
+def test_blind_halts_are_listed_apart_from_the_failures(tmp_path: Path) -> None:
+    blind = row(10, "safe_halt", "LANE_LOST at 5.167 s: camera showed no lane contrast the "
+                "detector could use in any of the last 6 frames (0.2 s)", kinds="loop_stall")
+    page = report_html("spec", summarize([*ROWS, blind]), tmp_path, "text")
+    section = _section(page, "Halts while the camera showed no lane")
+    assert _run_ids(section) == ["r00010"]
+    assert "camera showed no lane contrast" in section
+    assert "r00010" not in _section(page, "Worst cases")
+    assert "Halts while the camera showed no lane" not in report_html(
+        "spec", summarize(ROWS), tmp_path, "text")
