@@ -251,6 +251,13 @@ class SegmentSpec(_Model):
             raise ValueError("an arc needs both arc_radius_m > 0 and a non-zero turn_deg")
         return self
 
+    @property
+    def length_m(self) -> float:
+        """Its length along the centre line, m."""
+        if self.straight_m is not None:
+            return self.straight_m
+        return (self.arc_radius_m or 0.0) * abs(math.radians(self.turn_deg or 0.0))
+
 
 class GapSpec(_Model):
     """A stretch where one tape (or both) is missing: [from_m, to_m) along the centre line."""
@@ -301,13 +308,14 @@ class LaneSpec(_Model):
     dashes: DashSpec | None = None
     ends: EndsSpec = EndsSpec()
 
+    @property
+    def length_m(self) -> float:
+        """The centre line's length (every segment), m."""
+        return sum(seg.length_m for seg in self.segments)
+
     @model_validator(mode="after")
     def _length(self) -> LaneSpec:
-        total = sum(
-            seg.straight_m if seg.straight_m is not None
-            else (seg.arc_radius_m or 0.0) * abs(math.radians(seg.turn_deg or 0.0))
-            for seg in self.segments
-        )
+        total = self.length_m
         if total > MAX_LANE_LENGTH_M:
             raise ValueError(
                 f"the segments add up to {total:.6g} m of lane, expected at most "

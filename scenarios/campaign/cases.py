@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
@@ -312,15 +311,8 @@ def _draw(rng: np.random.Generator, value: Any, where: str) -> Any:
 
 
 def _lane_length_m(scenario: ScenarioSpec) -> float:
-    total = 0.0
-    for seg in scenario.lane.segments:
-        if seg.straight_m is not None:
-            total += seg.straight_m
-        else:
-            assert seg.arc_radius_m is not None and seg.turn_deg is not None
-            total += seg.arc_radius_m * math.radians(abs(seg.turn_deg))
     ends = [e for e in (scenario.lane.ends.left_m, scenario.lane.ends.right_m) if e is not None]
-    return min([total, *ends])
+    return min([scenario.lane.length_m, *ends])
 
 
 #: A fault that would start inside a loop stall starts this long after the stall ends instead.

@@ -132,11 +132,7 @@ def scenario_spec(scene: Scene) -> ScenarioSpec:
         segments.append(SegmentSpec(arc_radius_m=bend.radius_m, turn_deg=turn))
         if bend.start_m < origin:
             raise ValueError("a bend must start after the tape does (bend.start_m > lane_start_m)")
-    length = sum(
-        s.straight_m if s.straight_m is not None else abs(math.radians(s.turn_deg or 0.0))
-        * (s.arc_radius_m or 0.0)
-        for s in segments
-    )
+    length = sum(s.length_m for s in segments)
     gaps = [GapSpec(tape=side, from_m=0.0, to_m=length)
             for side in ("left", "right") if side not in scene.tapes]
     dashes = None

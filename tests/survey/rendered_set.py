@@ -161,9 +161,7 @@ def scenario_spec(scene: RenderedScene) -> ScenarioSpec:
         turn, radius = scene.bend
         segments.append(SegmentSpec(arc_radius_m=radius, turn_deg=turn))
     segments.append(SegmentSpec(straight_m=LANE_LENGTH_M))
-    length = sum(s.straight_m if s.straight_m is not None
-                 else abs(math.radians(s.turn_deg or 0.0)) * (s.arc_radius_m or 0.0)
-                 for s in segments)
+    length = sum(s.length_m for s in segments)
     gaps = [GapSpec(tape=side, from_m=0.0, to_m=length)
             for side in ("left", "right") if side not in scene.tapes]
     dashes = None
