@@ -51,6 +51,11 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+#: A drawn choice's name (in the results and the report) and its relative frequency.
+ChoiceName = Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
+Weight = Annotated[float, Field(gt=0.0, le=1000.0)]
+
+
 class CameraChoice(_Model):
     """One camera a campaign draws from: its name in the results, its relative frequency, the
     render size, any other `simulation:` settings that go with it (e.g. a coarser floor texture
@@ -58,8 +63,8 @@ class CameraChoice(_Model):
     `config:` overrides a user of this camera sets (e.g. the look-ahead its start-up check
     names: perception refuses a camera that cannot tell tape from seam at the look-ahead)."""
 
-    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
-    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    name: ChoiceName
+    weight: Weight = 1.0
     width_px: Annotated[int, Field(ge=64, le=1920)] = 320
     height_px: Annotated[int, Field(ge=48, le=1440)] = 240
     simulation: dict[str, Any] = {}
@@ -77,8 +82,8 @@ class FloorChoice(_Model):
     scenario `floor:` block it lays (replacing the scenario's; empty: the scenario's own floor)
     and `config:` overrides that go with it."""
 
-    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
-    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    name: ChoiceName
+    weight: Weight = 1.0
     floor: dict[str, Any] = {}
     config: dict[str, Any] = {}
     #: scenarios this floor is never drawn with
@@ -91,8 +96,8 @@ class TapeChoice(_Model):
     `config:` overrides that go with it (the tape widths perception is told), and the `floors`
     (names) it is laid on (empty: any; white tape on a light floor is a course nobody tapes)."""
 
-    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
-    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    name: ChoiceName
+    weight: Weight = 1.0
     tape: dict[str, Any] = {}
     lane: dict[str, Any] = {}
     config: dict[str, Any] = {}
@@ -105,8 +110,8 @@ class EffectChoice(_Model):
     scenario's camera block (exposure, noise, compression, ...), `lighting:` keys merged over
     its lighting (brightness, changes, ceiling lights), `config:` overrides."""
 
-    name: Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z0-9_.-]+$")]
-    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    name: ChoiceName
+    weight: Weight = 1.0
     camera: dict[str, Any] = {}
     lighting: dict[str, Any] = {}
     config: dict[str, Any] = {}
@@ -118,7 +123,7 @@ class FaultRange(_Model):
     as ranges (any FaultSpec field but `kind`)."""
 
     kind: FaultKind
-    weight: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    weight: Weight = 1.0
     params: dict[str, Any] = {}
 
 
