@@ -95,40 +95,51 @@ def robot_frame(points: FloatArray, pose: Pose2D) -> tuple[FloatArray, FloatArra
     return rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c
 
 
-class TapeVisibility:
-    """Ground truth: is any tape inside the camera's ROI at a pose?
+class GroundRoi:
+    """Which floor points a camera at a pose sees inside perception's ROI.
 
     `roi_polygon_px` is in UNDISTORTED pixels of the camera's image (perception undistorts before
-    applying its ROI); it is clipped to the image.
+    applying its ROI); points are projected through the ground homography (the pinhole view),
+    within `MAX_RANGE_M` of the robot and inside the image.
     """
 
-    def __init__(self, world: World, camera: CameraModel, roi_polygon_px: FloatArray) -> None:
-        self._samples = world.tape_samples
+    MAX_RANGE_M = 8.0
+
+    def __init__(self, camera: CameraModel, roi_polygon_px: FloatArray) -> None:
         self._h = camera.ground_to_image_homography()
         self._roi = np.asarray(roi_polygon_px, dtype=np.float64).reshape(-1, 2)
         self._size = (camera.width_px, camera.height_px)
-        self._max_range_m = 8.0
+
+    def inside(self, pose: Pose2D, points: FloatArray) -> NDArray[np.intp]:
+        """The indices of `points` (N, 2, world metres) inside the ROI at `pose`, in order."""
+        if len(points) == 0:
+            return np.zeros(0, np.intp)
+        fx, fy = robot_frame(points, pose)
+        near = np.nonzero((fx > 0.0) & (fx < self.MAX_RANGE_M)
+                          & (np.abs(fy) < self.MAX_RANGE_M))[0]
+        hom = np.column_stack([fx[near], fy[near], np.ones(len(near))]) @ self._h.T
+        ahead = hom[:, 2] > 1e-9
+        near, hom = near[ahead], hom[ahead]
+        uv = hom[:, :2] / hom[:, 2:3]
+        w, h = self._size
+        in_image = (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
+        near, uv = near[in_image], uv[in_image]
+        return near[points_in_polygon(uv, self._roi)]
+
+
+class TapeVisibility:
+    """Ground truth: is any tape inside the camera's ROI at a pose? (`GroundRoi`)"""
+
+    def __init__(self, world: World, camera: CameraModel, roi_polygon_px: FloatArray) -> None:
+        self._samples = world.tape_samples
+        self._roi = GroundRoi(camera, roi_polygon_px)
 
     def visible(self, pose: Pose2D) -> bool:
         return self.visible_points(pose, self._samples)
 
     def visible_points(self, pose: Pose2D, samples: FloatArray) -> bool:
         """Is any of `samples` (N, 2) world metres inside the ROI at `pose`?"""
-        if len(samples) == 0:
-            return False
-        fx, fy = robot_frame(samples, pose)
-        near = (fx > 0.0) & (fx < self._max_range_m) & (np.abs(fy) < self._max_range_m)
-        if not near.any():
-            return False
-        pts = np.column_stack([fx[near], fy[near], np.ones(int(near.sum()))])
-        hom = pts @ self._h.T
-        ok = hom[:, 2] > 1e-9
-        uv = hom[ok, :2] / hom[ok, 2:3]
-        w, h = self._size
-        in_image = (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
-        if not in_image.any():
-            return False
-        return bool(points_in_polygon(uv[in_image], self._roi).any())
+        return len(self._roi.inside(pose, samples)) > 0
 
     def loss_arc_length(self, world: World, step_m: float = 0.01) -> float | None:
         """Arc length at which a robot centred on the lane, facing along it, first sees no tape
@@ -172,8 +183,8 @@ class LaneContrast:
     Samples along each tape's centre line (world metres, `CONTRAST_STEP_M` apart) and on the
     floor `FLOOR_OFFSET_WIDTHS` tape widths to either side are moved into the robot's frame at the
     true pose and projected through the camera model (lens distortion included: the frame's own
-    pixels); of those whose centre-line point lies inside perception's ROI (undistorted pixels,
-    as `TapeVisibility`), at most `CONTRAST_SAMPLES` are read in the frame's gray version. A
+    pixels); of those whose centre-line point lies inside perception's ROI (`GroundRoi`, in
+    undistorted pixels), at most `CONTRAST_SAMPLES` are read in the frame's gray version. A
     sample's difference is the tape minus the floor on the side more like the tape, 0 when the
     two sides disagree in sign (the detector needs a tape darker, or lighter, than the floor on
     BOTH sides); a tape's contrast is the magnitude of the median difference (a ceiling light
@@ -193,10 +204,8 @@ class LaneContrast:
                  needed_levels: float) -> None:
         self.needed_levels = needed_levels
         self._camera = camera
-        self._h = camera.ground_to_image_homography()
-        self._roi = np.asarray(roi_polygon_px, dtype=np.float64).reshape(-1, 2)
+        self._roi = GroundRoi(camera, roi_polygon_px)
         self._size = (camera.width_px, camera.height_px)
-        self._max_range_m = 8.0
         centres, beside, owner = [], [], []
         for index, tape in enumerate(world.tapes):
             for piece in tape.pieces:
@@ -224,16 +233,7 @@ class LaneContrast:
         NaN for a tape not in the ROI. (All tapes in one pass: a few small array operations.)"""
         out = np.full(self.tapes, np.nan)
         w, h = self._size
-        fx, fy = robot_frame(self._centre, pose)
-        near = np.nonzero((fx > 0.0) & (fx < self._max_range_m)
-                          & (np.abs(fy) < self._max_range_m))[0]
-        hom = np.column_stack([fx[near], fy[near], np.ones(len(near))]) @ self._h.T
-        ahead = hom[:, 2] > 1e-9
-        near, hom = near[ahead], hom[ahead]
-        uv = hom[:, :2] / hom[:, 2:3]
-        inside = points_in_polygon(uv, self._roi) & (uv[:, 0] >= 0) & (
-            uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
-        in_roi = near[inside]
+        in_roi = self._roi.inside(pose, self._centre)
         groups: list[tuple[int, NDArray[np.intp]]] = []
         for tape in range(self.tapes):
             chosen = in_roi[self._tape_of[in_roi] == tape]
