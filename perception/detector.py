@@ -346,10 +346,11 @@ class LaneDetector:
               floor: EdgeEvidence | None) -> LaneEdge | None:
         if choice is None:
             return None
-        offset = heading = None
+        offset = heading = near = None
         if floor is not None:
             offset = signed_offset(floor.point, floor.direction)
             heading = math.atan2(floor.direction[1], floor.direction[0])
+            near = floor.point[0]
         return LaneEdge(
             x1=choice.x1,
             y1=choice.y1,
@@ -361,6 +362,7 @@ class LaneDetector:
             support_px=choice.support_px,
             offset_m=offset,
             heading_rad=heading,
+            near_m=near,
         )
 
 

@@ -25,7 +25,9 @@ class LaneEdge:
     `support_px` is the total length, in pixels, of the Hough segments that voted for this edge.
     On the floor (robot frame), the edge's near part is a line `offset_m` from the robot's
     centre (signed: positive when it passes left of it) running at `heading_rad` from the robot's
-    heading (counter-clockwise, i.e. to the left, positive). None when not measured.
+    heading (counter-clockwise, i.e. to the left, positive); `near_m` is how far ahead of the
+    robot's centre that near part begins (its nearest point on the floor, metres, robot x).
+    None when not measured.
     """
 
     x1: float
@@ -36,6 +38,7 @@ class LaneEdge:
     support_px: float = 0.0
     offset_m: float | None = None
     heading_rad: float | None = None
+    near_m: float | None = None
 
     def as_json(self) -> dict[str, float | None]:
         return {
@@ -46,6 +49,7 @@ class LaneEdge:
             "slope": round(self.slope, 4),
             "offset_m": _rounded(self.offset_m, 4),
             "heading_rad": _rounded(self.heading_rad, 4),
+            "near_m": _rounded(self.near_m, 4),
         }
 
 

@@ -8,7 +8,10 @@ So the proportional steering is
     w = slope_sum_gain * slope_sum + center_offset_gain * center_offset.
 
 FOLLOW: follow speed, proportional steering. TURN_LEFT/TURN_RIGHT: the lecture's thrust decision
-as an arc: turn speed, proportional steering plus/minus `turn_extra_angular_rad_s`. DEGRADED: a
+as an arc: turn speed, proportional steering plus/minus `turn_extra_angular_rad_s`, withheld in
+proportion as the lane centre lies on the outer side of the turn (`turn_extra_fade_m`): a robot
+off-centre towards a tape sees that tape steep in the image, which the slope sum reads as a bend
+towards it, and the extra would then drive it onto the tape. DEGRADED: a
 fraction of the follow speed, steering clipped to `degraded_max_angular_rad_s`. HALT: zero, always.
 """
 
@@ -36,6 +39,17 @@ def _clip(value: float, bound: float) -> float:
     return max(-bound, min(bound, value))
 
 
+def turn_extra_rad_s(direction: float, center_offset: float | None,
+                     config: SupervisorConfig) -> float:
+    """The extra turn rate of a turn towards `direction` (+1 left, -1 right): all of
+    `turn_extra_angular_rad_s` while the lane centre ahead lies on the turn's side of the robot
+    (or straight ahead, or is unknown), none once it lies `turn_extra_fade_m` or more on the
+    other side, in proportion between."""
+    outside = 0.0 if center_offset is None else max(0.0, -direction * center_offset)
+    share = max(0.0, 1.0 - outside / config.turn_extra_fade_m)
+    return direction * config.turn_extra_angular_rad_s * share
+
+
 def command_for(
     state: SupervisorState,
     slope_sum: float | None,
@@ -48,9 +62,11 @@ def command_for(
     if state is SupervisorState.FOLLOW:
         return VelocityCommand(config.follow_speed_m_s, w)
     if state is SupervisorState.TURN_LEFT:
-        return VelocityCommand(config.turn_speed_m_s, w + config.turn_extra_angular_rad_s)
+        return VelocityCommand(config.turn_speed_m_s, w + turn_extra_rad_s(1.0, center_offset,
+                                                                           config))
     if state is SupervisorState.TURN_RIGHT:
-        return VelocityCommand(config.turn_speed_m_s, w - config.turn_extra_angular_rad_s)
+        return VelocityCommand(config.turn_speed_m_s, w + turn_extra_rad_s(-1.0, center_offset,
+                                                                           config))
     if state is SupervisorState.DEGRADED:
         return VelocityCommand(
             config.follow_speed_m_s * config.degraded_speed_fraction,

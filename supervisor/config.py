@@ -130,6 +130,29 @@ class SupervisorConfig(BaseModel):
         description="A confident frame (counts to engage and recover) has both edges and at "
         "least this confidence (0-1)",
     )
+    lane_departure_clearance_m: float = Field(
+        default=0.175,
+        ge=0.0,
+        le=1.0,
+        description="A usable frame whose lane edge, where it is seen nearest, lies nearer the "
+        "robot's centre line than this (or beyond it) shows the robot leaving the lane, m. "
+        "0.175: the Kobuki's footprint radius (the tape's edge would pass under the robot)",
+    )
+    lane_departure_view_m: float = Field(
+        default=0.55,
+        gt=0.0,
+        le=5.0,
+        description="The departure rule reads an edge only when it is seen beginning within this "
+        "far ahead of the robot's centre (a tape seen only farther off tells little about "
+        "where the robot is now), m",
+    )
+    lane_departure_frames: int = Field(
+        default=3,
+        ge=1,
+        le=30,
+        description="Usable frames in a row showing a departure before LANE_DEPARTURE (HALT), "
+        "camera frames",
+    )
     engage_confident_frames: int = Field(
         default=10,
         ge=1,
@@ -297,6 +320,15 @@ class SupervisorConfig(BaseModel):
         ge=0.0,
         le=3.2,
         description="TURN_LEFT/TURN_RIGHT add this to the proportional steering, rad/s",
+    )
+    turn_extra_fade_m: float = Field(
+        default=0.05,
+        gt=0.0,
+        le=1.0,
+        description="TURN_LEFT/TURN_RIGHT withhold turn_extra_angular_rad_s in proportion as "
+        "the lane centre (center_preview_m ahead) lies on the outer side of the turn, all of it "
+        "from this far: the robot is on the inner side of the bend, and the extra would take it "
+        "onto the inner tape, m",
     )
 
     # --- Command limiter in the SafetyGate (the Kobuki velocity smoother: 0.3 m/s^2, 3.5 rad/s^2)

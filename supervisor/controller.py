@@ -124,6 +124,8 @@ class SupervisedController:
             return FrameVerdict(trusted=False, confident=None)
         lane = self._lane.assess(obs)
         events |= lane.events
+        if Event.LANE_DEPARTURE in lane.events and lane.departure:
+            details.setdefault(Event.LANE_DEPARTURE, lane.departure)
         self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
         events |= self._estimate.events
         if lane.slope_sum is not None:

@@ -44,6 +44,7 @@ class Event(enum.Enum):
     CLOCK_INVALID = "CLOCK_INVALID"
     FRAME_STALE = "FRAME_STALE"
     FRAME_FROZEN = "FRAME_FROZEN"
+    LANE_DEPARTURE = "LANE_DEPARTURE"
     LANE_LOST = "LANE_LOST"
     DEGRADED_BUDGET_EXHAUSTED = "DEGRADED_BUDGET_EXHAUSTED"
     # DEGRADE
@@ -101,6 +102,10 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
         Event.CLOCK_INVALID: EventRule(_H, "step time went backwards or is not finite"),
         Event.FRAME_STALE: EventRule(_H, "no new camera frame within the watchdog limit"),
         Event.FRAME_FROZEN: EventRule(_H, "camera frames identical while moving (frozen camera)"),
+        Event.LANE_DEPARTURE: EventRule(
+            _H, "a lane edge inside the robot's footprint for lane_departure_frames frames "
+            "(leaving the lane)"
+        ),
         Event.LANE_LOST: EventRule(_H, "no usable lane for longer than lane_lost_halt_s"),
         Event.DEGRADED_BUDGET_EXHAUSTED: EventRule(
             _H, "degraded for longer than its time or distance budget"

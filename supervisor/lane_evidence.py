@@ -6,7 +6,18 @@ Per new frame:
 - no edge: BOTH_EDGES_LOST; one edge: ONE_EDGE_LOST;
 - confidence below `confidence_usable_min`: LANE_UNTRUSTED (no usable lane);
 - confidence below `confidence_degrade_below` for `low_confidence_degrade_frames` frames in a row:
-  LANE_LOW_CONFIDENCE.
+  LANE_LOW_CONFIDENCE;
+- a usable frame whose left edge passes the robot less than `lane_departure_clearance_m` left of
+  its centre line (or right of it), or whose right edge less than that to its right (or left
+  of it), shows the robot leaving the lane: `lane_departure_frames` such usable frames in a row
+  give LANE_DEPARTURE (HALT). Where an edge passes the robot comes from its near part on the
+  floor (`LaneEdge`: a line through its nearest point seen, `near_m` ahead, at its measured
+  direction), read half-way back from that point towards the robot (`near_m / 2` ahead): for a
+  straight tape any point of the line is exact, and for a bend's arc the tangent read back at
+  the robot puts the inner tape too near by about near_m^2 / 2R and the nearest point itself too
+  far by as much, so half-way cancels to second order (and an error in the measured direction
+  counts half). Only an edge seen beginning within `lane_departure_view_m` ahead counts.
+  Frames that are not usable (no edge, untrusted) neither count nor reset the streak.
 "Usable" (resets the lane-lost timer): at least one edge and confidence >= the usable minimum.
 "Confident" (counts towards engage/recover): both edges and confidence >=
 `confidence_confident_min`.
@@ -19,6 +30,7 @@ import math
 from dataclasses import dataclass
 
 from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.supervisor.center_offset import lateral_offset_at
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import FrameInfo
 from lanewarden.supervisor.events import Event
@@ -31,6 +43,8 @@ class LaneAssessment:
     confident: bool
     slope_sum: float | None
     """The measurement for the slope filter (None: predict only)."""
+    departure: str | None = None
+    """Which edge shows the robot leaving the lane, and where (None: none does)."""
 
 
 def _finite(*values: float | None) -> bool:
@@ -70,10 +84,27 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
     return None
 
 
+def departure_of(observation: LaneObservation, clearance_m: float,
+                 view_m: float) -> str | None:
+    """The edge of `observation` that passes the robot nearer its centre line than
+    `clearance_m` on its own side (or on the other side), as text; None when neither does.
+    Only edges measured on the floor and seen beginning within `view_m` ahead count."""
+    for name, edge, sign in (("left", observation.left, 1.0), ("right", observation.right, -1.0)):
+        if (edge is None or edge.offset_m is None or edge.heading_rad is None
+                or edge.near_m is None or not edge.near_m <= view_m):
+            continue
+        lateral = lateral_offset_at(edge.offset_m, edge.heading_rad, edge.near_m / 2)
+        if sign * lateral < clearance_m:
+            return (f"{name} edge {abs(lateral):.3f} m {'left' if lateral > 0 else 'right'} of "
+                    f"the robot's centre line, {clearance_m:g} m at the least")
+    return None
+
+
 class LaneEvidence:
     def __init__(self, config: SupervisorConfig) -> None:
         self._config = config
         self._low_confidence_frames = 0
+        self._departure_frames = 0
 
     def assess(self, observation: LaneObservation) -> LaneAssessment:
         """Events and flags for one well-formed observation of a new frame."""
@@ -95,6 +126,12 @@ class LaneEvidence:
         if self._low_confidence_frames >= cfg.low_confidence_degrade_frames:
             events.add(Event.LANE_LOW_CONFIDENCE)
         usable = edges > 0 and trusted
+        departure = departure_of(obs, cfg.lane_departure_clearance_m,
+                                 cfg.lane_departure_view_m) if usable else None
+        if usable:
+            self._departure_frames = self._departure_frames + 1 if departure else 0
+        if self._departure_frames >= cfg.lane_departure_frames:
+            events.add(Event.LANE_DEPARTURE)
         confident = edges == 2 and obs.confidence >= cfg.confidence_confident_min
         measurement = obs.slope_sum if (edges == 2 and trusted) else None
-        return LaneAssessment(frozenset(events), usable, confident, measurement)
+        return LaneAssessment(frozenset(events), usable, confident, measurement, departure)

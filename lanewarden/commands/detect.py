@@ -8,10 +8,11 @@ each line is one JSON object:
     {"image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_rad", "confidence",
      "components", "decision"}
 
-`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad"} (pixels of
-the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the edge's line on
-the floor in the robot frame). `lane_offset_m` / `lane_heading_rad`: the lane centre line's
-signed distance from the robot's centre (left +) and direction (left +), null without both edges.
+`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad", "near_m"}
+(pixels of the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the
+edge's line on the floor in the robot frame, and how far ahead it begins). `lane_offset_m` /
+`lane_heading_rad`: the lane centre line's signed distance from the robot's centre (left +) and
+direction (left +), null without both edges.
 `decision`: "straight", "left", "right" or "none" (confidence below
 `supervisor.confidence_usable_min`, or an edge missing; left/right beyond
 `supervisor.turn_enter_slope_sum`: the supervisor's thresholds).

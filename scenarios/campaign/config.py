@@ -35,6 +35,11 @@ class CampaignConfig(BaseModel):
         description="a lane-loss halt with the robot this close before the end of the tape "
         "(or past it) is a real lane loss, not a false halt, m",
     )
+    departure_near_m: float = Field(
+        default=0.05, ge=0.0, le=1.0,
+        description="a LANE_DEPARTURE halt is right when the robot's footprint came this close "
+        "to a tape in the last second before it (ground truth), m",
+    )
     worker_memory_limit_mb: int = Field(
         default=1024, ge=128, le=65536,
         description="a local campaign worker using more memory than this is restarted (its "

@@ -12,7 +12,9 @@ Classes, checked in this order (the first that applies):
 - `safe_halt`: halted, for a reason that matches a fault acting then (`ANSWERS`, up to
   `fault_grace_s` after the fault stopped acting) or for real lane loss (LANE_LOST or
   DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape), or
-  a lane halt while the camera showed no lane (`blind_halt`, below).
+  a lane halt while the camera showed no lane (`blind_halt`, below), or LANE_DEPARTURE with the
+  robot's footprint within `departure_near_m` of a tape in the second before (it was leaving
+  the lane; a departure halt farther from every tape is false).
 - `false_halt`: halted, with no fault and a good lane to explain it.
 - `recovered`: went DEGRADED at some point and was following again at the end, never halted.
 - `nominal`: never DEGRADED, never halted.
@@ -55,6 +57,8 @@ AT_REST_M_S = 0.01
 FAILURES = ("false_halt", "unsafe")
 
 _LANE = ("LANE_LOST", "DEGRADED_BUDGET_EXHAUSTED")
+#: A fault on the floor may also put a false edge inside the robot's footprint.
+_FLOOR = (*_LANE, "LANE_DEPARTURE")
 #: Halt reasons that are a right answer to each fault kind while it acts.
 ANSWERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "camera_freeze": ("FRAME_FROZEN", "FRAME_STALE", *_LANE),
@@ -69,12 +73,12 @@ ANSWERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "wheel_drop": ("WHEEL_DROP",),
     "base_link_loss": ("BASE_LINK_LOST",),
     "operator_stop": ("OPERATOR_STOP",),
-    "tape_patch": _LANE,
-    "floor_mark": _LANE,
-    "shadow_edge": _LANE,
-    "glare_sweep": _LANE,
-    "occlusion": _LANE,
-    "lens_smudge": _LANE,
+    "tape_patch": _FLOOR,
+    "floor_mark": _FLOOR,
+    "shadow_edge": _FLOOR,
+    "glare_sweep": _FLOOR,
+    "occlusion": _FLOOR,
+    "lens_smudge": _FLOOR,
     "exposure_jump": ("FRAME_FROZEN", *_LANE),
     "frame_rate_collapse": ("FRAME_STALE", *_LANE),
     "timestamp_jump": ("FRAME_INVALID", "FRAME_STALE", *_LANE),
@@ -180,6 +184,9 @@ class RunFacts:
     #: per control step: did the camera's frame show the lane (None: not measured, no blind
     #: halts)
     lane_visible: Sequence[bool] | None = None
+    #: per control step: the robot footprint's distance to the nearest tape edge, ground truth
+    #: (m; None: not measured, no LANE_DEPARTURE halt is right)
+    tape_clearance_m: Sequence[float] | None = None
 
 
 @dataclass(frozen=True)
@@ -270,6 +277,10 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
                 return verdict("safe_halt", answering_reason(code, kind, index), index)
         if code in _LANE and _near_lane_end(facts, config):
             return verdict("safe_halt", f"{code} at the end of the tape")
+        near = _departure_near(facts, halt, code, config)
+        if near is not None:
+            return verdict("safe_halt", f"{code} at {halt_s:.3f} s: the robot's footprint came "
+                                        f"within {near:.3f} m of a tape")
         blind = _blind_window(facts, halt, code, limits)
         if blind is not None:
             return verdict("safe_halt", f"{code} at {halt_s:.3f} s: {BLIND_REASON} {blind}")
@@ -336,6 +347,25 @@ def _blind_window(facts: RunFacts, halt: int, code: str, limits: Limits) -> str 
             return None
         why += f"; lane shown in {seen} of the {len(stretch)} DEGRADED frames"
     return why
+
+
+#: How long before a LANE_DEPARTURE halt the judge looks for the robot near a tape, s.
+DEPARTURE_LOOKBACK_S = 1.0
+
+
+def _departure_near(facts: RunFacts, halt: int, code: str,
+                    config: CampaignConfig) -> float | None:
+    """For a LANE_DEPARTURE halt: the footprint's least clearance to a tape in the last
+    DEPARTURE_LOOKBACK_S before it when that was `departure_near_m` or less (the robot was
+    leaving the lane), else None (a departure seen where there was none)."""
+    clearance = facts.tape_clearance_m
+    if clearance is None or code != "LANE_DEPARTURE":
+        return None
+    halt_s = float(facts.times[halt])
+    recent = [clearance[i] for i in range(halt + 1)
+              if halt_s - DEPARTURE_LOOKBACK_S - 1e-9 <= float(facts.times[i])]
+    least = min(recent, default=math.inf)
+    return least if least <= config.departure_near_m else None
 
 
 def _near_lane_end(facts: RunFacts, config: CampaignConfig) -> bool:

@@ -58,10 +58,22 @@ def judge(result: SimulationResult, config: LanewardenConfig) -> Verdict:
         final_speed_m_s=float(result.trace.speed_m_s[-1]) if len(result.trace.speed_m_s) else 0.0,
         lane_visible=None if result.trace.lane_visible is None else [
             bool(v) for v in result.trace.lane_visible],
+        tape_clearance_m=tape_clearance_m(result),
     )
     campaign: CampaignConfig = getattr(config, "campaign", CampaignConfig())
     limits = Limits(config.supervisor, config.actuation.write_timeout_s)
     return classify(facts, campaign, limits)
+
+
+def tape_clearance_m(result: SimulationResult) -> list[float]:
+    """Per step: how far the robot's footprint was from the nearest tape edge (ground truth, m;
+    negative: over it)."""
+    from lanewarden.scenarios.world import ROBOT_RADIUS_M
+
+    poses = result.trace.poses
+    if not len(poses):
+        return []
+    return [float(c) for c in result.world.clearance_to_edges(poses[:, :2]) - ROBOT_RADIUS_M]
 
 
 def case_config(case: Case, source: str) -> LanewardenConfig:

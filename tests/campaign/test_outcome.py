@@ -28,7 +28,8 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
           windows: tuple[tuple[int, str, float, float], ...] = (),
           reasons: dict[int, str] | None = None, moving_after: int | None = None,
           metrics: dict[str, Any] | None = None, markings_end_s: float | None = None,
-          lane_visible: list[bool] | None = None) -> RunFacts:
+          lane_visible: list[bool] | None = None,
+          tape_clearance_m: list[float] | None = None) -> RunFacts:
     n = len(states)
     halt_reasons: list[str | None] = [None] * n
     for i, text in (reasons or {}).items():
@@ -43,7 +44,7 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
                     metrics={"crossed_tape": False, "distance_past_lane_end_m": None,
                              **(metrics or {})},
                     markings_end_s=markings_end_s, end_reason="halted",
-                    lane_visible=lane_visible)
+                    lane_visible=lane_visible, tape_clearance_m=tape_clearance_m)
 
 
 def run(follow: int, halt_at: int | None = None, total: int = 120,
@@ -248,3 +249,36 @@ def test_a_degraded_budget_spent_mostly_on_frames_that_showed_the_lane_stays_fal
         "safe_halt", "DEGRADED_BUDGET_EXHAUSTED at 3.333 s: camera showed no lane contrast the "
         "detector could use in any of the last 6 frames (0.2 s); lane shown in 29 of the 60 "
         "DEGRADED frames")
+
+
+DEPARTURE = "LANE_DEPARTURE: a lane edge inside the robot's footprint (left edge ...)"
+
+
+def _clearance(total: int, near: dict[int, float]) -> list[float]:
+    """0.10 m from every tape (a centred robot in a 0.6 m lane) but at the steps in `near`."""
+    return [near.get(i, 0.10) for i in range(total)]
+
+
+def test_a_departure_halt_with_the_robot_near_a_tape_is_a_safe_halt() -> None:
+    # halt at step 60 (2.0 s); the footprint came within 0.03 m at step 40 (0.667 s before)
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: DEPARTURE},
+                             tape_clearance_m=_clearance(120, {40: 0.03})), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == (
+        "safe_halt", "LANE_DEPARTURE at 2.000 s: the robot's footprint came within 0.030 m "
+        "of a tape")
+
+
+def test_a_departure_halt_far_from_every_tape_is_false() -> None:
+    # near a tape only 1.33 s before the halt: outside the judge's last second
+    for near in ({}, {20: 0.02}):
+        verdict = classify(facts(run(5, halt_at=60), reasons={60: DEPARTURE},
+                                 tape_clearance_m=_clearance(120, near)), CONFIG, LIMITS)
+        assert (verdict.outcome, verdict.reason) == (
+            "false_halt",
+            "LANE_DEPARTURE at 2.000 s with no fault acting and the tape in place")
+
+
+def test_closeness_to_a_tape_excuses_only_a_departure_halt() -> None:
+    verdict = classify(facts(run(5, halt_at=60), reasons={60: LOST},
+                             tape_clearance_m=_clearance(120, {58: 0.0})), CONFIG, LIMITS)
+    assert verdict.outcome == "false_halt"

@@ -7,7 +7,7 @@ The doubles replace the *neighbours* (camera, perception, base), never the super
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -37,13 +37,18 @@ def observation(
     left: bool = True,
     right: bool = True,
     lane_offset_m: float = 0.0,
+    left_edge_m: float | None = None,
 ) -> LaneObservation:
-    """A well-formed observation (slope sum and lane centre only when both edges exist)."""
+    """A well-formed observation (slope sum and lane centre only when both edges exist).
+    `left_edge_m`: the left edge measured on the floor, parallel to the robot, this far left of
+    its centre line and seen from 0.4 m ahead (None: not measured on the floor)."""
     both = left and right
+    left_edge = LEFT_EDGE if left_edge_m is None else replace(
+        LEFT_EDGE, offset_m=left_edge_m, heading_rad=0.0, near_m=0.4)
     return LaneObservation(
         frame_index=index,
         time_s=time_s,
-        left=LEFT_EDGE if left else None,
+        left=left_edge if left else None,
         right=RIGHT_EDGE if right else None,
         slope_sum=slope_sum if both else None,
         confidence=confidence,
@@ -90,6 +95,7 @@ class Rig:
         resume: bool = False,
         advance_s: float = DT,
         fingerprint: bytes | None | object = _UNSET,
+        left_edge_m: float | None = None,
     ) -> ControlOutput:
         """One control step `advance_s` after the previous one (the first step is at t=0)."""
         now = self.clock.now() if self.first else self.clock.advance(advance_s)
@@ -110,6 +116,7 @@ class Rig:
                     left=left,
                     right=right,
                     lane_offset_m=lane_offset_m,
+                    left_edge_m=left_edge_m,
                 )
             else:
                 assert obs is None or isinstance(obs, LaneObservation)

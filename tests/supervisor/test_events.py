@@ -48,6 +48,8 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "CLOCK_INVALID": ("HALT", "step time went backwards or is not finite"),
     "FRAME_STALE": ("HALT", "no new camera frame within the watchdog limit"),
     "FRAME_FROZEN": ("HALT", "camera frames identical while moving (frozen camera)"),
+    "LANE_DEPARTURE": ("HALT", "a lane edge inside the robot's footprint for "
+                               "lane_departure_frames frames (leaving the lane)"),
     "LANE_LOST": ("HALT", "no usable lane for longer than lane_lost_halt_s"),
     "DEGRADED_BUDGET_EXHAUSTED": ("HALT", "degraded for longer than its time or distance budget"),
     "FRAME_LATE": ("DEGRADE", "newest camera frame is late"),
@@ -257,6 +259,13 @@ def _lane_lost() -> Provoked:
     return _from("DEGRADED", out)
 
 
+def _lane_departure() -> Provoked:
+    rig = _engaged()
+    for _ in range(rig.config.lane_departure_frames - 1):
+        assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    return _from("FOLLOW", rig.step(left_edge_m=0.12))
+
+
 def _budget_exhausted() -> Provoked:
     rig = _engaged()
     out = rig.step(right=False, confidence=0.5)
@@ -332,6 +341,7 @@ PROVOKERS: dict[Event, Callable[[], Provoked]] = {
     Event.CLOCK_INVALID: _clock_invalid,
     Event.FRAME_STALE: _frame_stale,
     Event.FRAME_FROZEN: _frame_frozen,
+    Event.LANE_DEPARTURE: _lane_departure,
     Event.LANE_LOST: _lane_lost,
     Event.DEGRADED_BUDGET_EXHAUSTED: _budget_exhausted,
     Event.FRAME_LATE: _frame_late,

@@ -97,6 +97,7 @@ FRAME_INVALID               HALT        HALT        HALT        HALT        HALT
 CLOCK_INVALID               HALT        HALT        HALT        HALT        HALT
 FRAME_STALE                 HALT        HALT        HALT        HALT        HALT
 FRAME_FROZEN                HALT        HALT        HALT        HALT        HALT
+LANE_DEPARTURE              HALT        HALT        HALT        HALT        HALT
 LANE_LOST                   HALT        HALT        HALT        HALT        HALT
 DEGRADED_BUDGET_EXHAUSTED   HALT        HALT        HALT        HALT        HALT
 FRAME_LATE                  DEGRADED    DEGRADED    DEGRADED    DEGRADED    HALT

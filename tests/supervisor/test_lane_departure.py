@@ -1,0 +1,126 @@
+"""Leaving the lane: LANE_DEPARTURE (supervisor/lane_evidence.py), and the TURN states' extra
+turn rate withheld on the inner side of a bend (supervisor/commands.py).
+
+Expected values are written out from the geometry: an edge line at signed distance `offset`
+from the robot's centre and heading `h` passes x metres ahead at offset / cos(h) + x tan(h).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.supervisor.commands import command_for, turn_extra_rad_s
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.lane_evidence import departure_of
+from lanewarden.supervisor.state_machine import SupervisorState
+from tests.supervisor.rig import LEFT_EDGE, RIGHT_EDGE, Rig
+
+CLEARANCE = 0.175
+VIEW = 0.55
+
+
+def _edge(base: LaneEdge, lateral_at_robot: float, heading: float = 0.0,
+          near: float | None = 0.4) -> LaneEdge:
+    """An edge whose line passes the robot's centre `lateral_at_robot` to its left (x = 0)."""
+    return LaneEdge(base.x1, base.y1, base.x2, base.y2, base.slope, base.support_px,
+                    offset_m=lateral_at_robot * math.cos(heading), heading_rad=heading,
+                    near_m=near)
+
+
+def _obs(left: LaneEdge | None = None, right: LaneEdge | None = None) -> LaneObservation:
+    return LaneObservation(0, 0.0, left, right, None if not (left and right) else 0.0, 0.9)
+
+
+def test_a_left_edge_inside_the_footprint_is_a_departure() -> None:
+    text = departure_of(_obs(left=_edge(LEFT_EDGE, 0.12)), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("left edge 0.120 m left")
+
+
+def test_edges_outside_the_footprint_are_no_departure() -> None:
+    obs = _obs(left=_edge(LEFT_EDGE, 0.20), right=_edge(RIGHT_EDGE, -0.20))
+    assert departure_of(obs, CLEARANCE, VIEW) is None
+
+
+def test_a_right_edge_inside_the_footprint_is_a_departure() -> None:
+    text = departure_of(_obs(right=_edge(RIGHT_EDGE, -0.15)), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("right edge 0.150 m right")
+
+
+def test_an_edge_on_the_wrong_side_of_the_robot_is_a_departure() -> None:
+    # the left tape's edge already passes right of the robot's centre: it is over the tape
+    text = departure_of(_obs(left=_edge(LEFT_EDGE, -0.05)), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("left edge 0.050 m right")
+
+
+def test_the_edge_is_read_half_way_back_from_where_it_is_seen() -> None:
+    # heading with tan 0.2, seen from 0.4 m: read at 0.2 m ahead, 0.2 * 0.2 = 0.04 m out
+    heading = math.atan(0.2)
+    assert departure_of(_obs(left=_edge(LEFT_EDGE, 0.15, heading)), CLEARANCE, VIEW) is None
+    assert departure_of(_obs(left=_edge(LEFT_EDGE, 0.13, heading)), CLEARANCE,
+                        VIEW) is not None  # 0.13 + 0.04 = 0.17 < 0.175
+
+
+def test_an_edge_seen_only_far_ahead_or_not_on_the_floor_does_not_count() -> None:
+    assert departure_of(_obs(left=_edge(LEFT_EDGE, 0.05, near=0.6)), CLEARANCE, VIEW) is None
+    assert departure_of(_obs(left=LEFT_EDGE), CLEARANCE, VIEW) is None
+
+
+def _engaged() -> Rig:
+    rig = Rig()
+    rig.step(start=True)
+    while rig.state != "FOLLOW":
+        rig.step()
+    return rig
+
+
+def test_departure_frames_in_a_row_halt_and_fewer_do_not() -> None:
+    rig = _engaged()
+    assert rig.config.lane_departure_frames == 3
+    assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    out = rig.step(left_edge_m=0.12)
+    assert out.state == "HALT" and out.command.is_stop
+    assert rig.controller.halt_reason is not None
+    assert rig.controller.halt_reason.startswith("LANE_DEPARTURE")
+    assert "left edge 0.120 m left of the robot's centre line" in rig.controller.halt_reason
+
+
+def test_a_clear_frame_resets_the_departure_streak() -> None:
+    rig = _engaged()
+    for edge in (0.12, 0.12, 0.25, 0.12, 0.12):
+        assert rig.step(left_edge_m=edge).state == "FOLLOW"
+
+
+def test_an_unusable_frame_neither_counts_nor_resets_the_streak() -> None:
+    rig = _engaged()
+    assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    assert rig.step(left_edge_m=0.05, confidence=0.1).state == "DEGRADED"  # untrusted
+    out = rig.step(left_edge_m=0.12)
+    assert out.state == "HALT"
+    assert "LANE_DEPARTURE" in {e.value for e in out.events}
+
+
+CONFIG = SupervisorConfig()
+
+
+@pytest.mark.parametrize(("direction", "center_offset", "expected"), [
+    (1.0, None, 0.2), (1.0, 0.03, 0.2), (1.0, 0.0, 0.2),
+    (1.0, -0.025, 0.1), (1.0, -0.05, 0.0), (1.0, -0.2, 0.0),
+    (-1.0, None, -0.2), (-1.0, -0.03, -0.2), (-1.0, 0.025, -0.1), (-1.0, 0.06, 0.0),
+])
+def test_the_turn_extra_is_withheld_on_the_inner_side_of_the_bend(
+        direction: float, center_offset: float | None, expected: float) -> None:
+    # defaults: turn_extra_angular_rad_s 0.2, turn_extra_fade_m 0.05
+    assert turn_extra_rad_s(direction, center_offset, CONFIG) == pytest.approx(expected)
+
+
+def test_turn_left_inside_the_bend_steers_away_from_the_inner_tape() -> None:
+    # r00949's situation: the slope sum reads a sharp left bend (+11) while the lane centre
+    # lies 0.13 m to the robot's right: the command must turn right, not onto the left tape
+    command = command_for(SupervisorState.TURN_LEFT, 11.0, -0.13, CONFIG)
+    # 0.03 * 11 + 3.6 * -0.13 + 0 = -0.138
+    assert command.angular_rad_s == pytest.approx(-0.138)
