@@ -71,6 +71,12 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
+#: Perception's gray of a colour frame (`perception_gray`: OpenCV's BGR2GRAY) as weights of
+#: (blue, green, red), for whoever paints it from colours (the simulator's gray texture and
+#: camera, `scenarios.texture`, `scenarios.camera_effects`). In it a yellow line (#e3b21c, 176)
+#: is about as light as parquet's light slats; a colour frame's green would keep it apart but
+#: costs glossy black tape on wood its pair (docs/perception.md, "Gray").
+GRAY_WEIGHTS_BGR: tuple[float, float, float] = (0.114, 0.587, 0.299)
 #: The floor length over which a reported edge's direction is taken for the lane's width,
 #: parallelism, offset and heading (`_evidence`), metres.
 EVIDENCE_MIN_M = 0.10
@@ -415,9 +421,9 @@ def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
     """The 8-bit gray image perception works on, from an HxW gray, HxWx1, HxWx3 BGR or HxWx4
-    BGRA uint8 frame (OpenCV's BGR2GRAY weights; `dst`: a preallocated HxW buffer, used for a
-    colour frame). Everything perception computes from a frame depends on it only through this
-    image, so a recording that keeps it keeps all perception needs."""
+    BGRA uint8 frame (OpenCV's BGR2GRAY, `GRAY_WEIGHTS_BGR`; `dst`: a preallocated HxW buffer,
+    used for a colour frame). Everything perception computes from a frame depends on it only
+    through this image, so a recording that keeps it keeps all perception needs."""
     if image.ndim == 2:
         return image
     if image.shape[2] == 1:

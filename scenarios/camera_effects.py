@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.perception.detector import GRAY_WEIGHTS_BGR
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.spec import CameraSpec, LightingSpec, color_bgr
 
@@ -42,8 +43,12 @@ F32 = NDArray[np.float32]
 
 #: At brightness 1, this exposure at gain 1 shows the floor as painted.
 REFERENCE_EXPOSURE_S = 0.01
-#: OpenCV's BGR -> gray weights.
+#: The camera's luma (Rec. 601, OpenCV's BGR -> gray), what its auto-exposure meters in colour.
 _LUMA = (0.114, 0.587, 0.299)
+#: Gray frames are perception's gray (`perception.detector.perception_gray`), so the light and
+#: the fringes act on them through its weights (a gray frame's auto-exposure meters it too; the
+#: same as `_LUMA` while perception's gray is BGR2GRAY).
+_GRAY = GRAY_WEIGHTS_BGR
 #: Below this blur (1 sigma, pixels) the lens is left sharp: the renderer's interpolation blurs
 #: as much.
 MIN_BLUR_SIGMA_PX = 0.3
@@ -64,7 +69,8 @@ class Light:
 
     @property
     def luma(self) -> float:
-        return self.brightness * sum(w * c for w, c in zip(_LUMA, self.tint_bgr, strict=True))
+        """Its brightness in a gray frame (perception's gray of its colour)."""
+        return self.brightness * sum(w * c for w, c in zip(_GRAY, self.tint_bgr, strict=True))
 
 
 def light_at(lighting: LightingSpec, now: float) -> Light:
@@ -139,7 +145,10 @@ class CameraEffects:
         # Lateral chromatic aberration: red magnified, blue shrunk about the image centre.
         corner_px = math.hypot((w - 1) / 2.0, (h - 1) / 2.0) * spec.optics.chromatic
         self._fringe: tuple[F32, F32] | None = None
-        if not display and corner_px > 0 and (channels == 3 or corner_px >= MIN_FRINGE_GRAY_PX):
+        # Gray frames show the fringes only through the red and blue shares of perception's gray
+        # (none for its green channel).
+        fringes_gray = corner_px >= MIN_FRINGE_GRAY_PX and _GRAY[0] + _GRAY[2] > 0.0
+        if not display and corner_px > 0 and (channels == 3 or fringes_gray):
             c = spec.optics.chromatic
             cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
             # A channel magnified by m samples the sharp image at centre + (p - centre) / m.
@@ -294,14 +303,14 @@ class CameraEffects:
                           dst=self._plane, borderMode=cv2.BORDER_REPLICATE)
                 image[:, :, channel] = self._plane
             return
-        # Gray: the luma of the fringed colours of a grey scene.
+        # Gray: perception's gray of the fringed colours of a grey scene.
         red = cv2.remap(image, red_map, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
                         borderMode=cv2.BORDER_REPLICATE)
         cv2.remap(image, blue_map, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
                   dst=self._scratch, borderMode=cv2.BORDER_REPLICATE)
-        cv2.addWeighted(red, _LUMA[2] / (_LUMA[2] + _LUMA[0]), self._scratch,
-                        _LUMA[0] / (_LUMA[2] + _LUMA[0]), 0.0, dst=self._scratch)
-        cv2.addWeighted(image, _LUMA[1], self._scratch, 1.0 - _LUMA[1], 0.0, dst=image)
+        cv2.addWeighted(red, _GRAY[2] / (_GRAY[2] + _GRAY[0]), self._scratch,
+                        _GRAY[0] / (_GRAY[2] + _GRAY[0]), 0.0, dst=self._scratch)
+        cv2.addWeighted(image, _GRAY[1], self._scratch, 1.0 - _GRAY[1], 0.0, dst=image)
 
 
 def _follow(dt: float, time_constant_s: float) -> float:

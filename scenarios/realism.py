@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.actuation.base import Pose2D
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.detector import LaneDetector, perception_gray
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.camera_effects import CameraEffects
@@ -132,7 +132,7 @@ def sequence_stats(detector: LaneDetector, frames: Iterable[U8], times_s: Sequen
     for index, (frame, time_s) in enumerate(zip(frames, times_s, strict=False)):
         observation = detector.detect(frame, index, time_s, previous)
         previous = observation
-        gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        gray = perception_gray(frame)
         if detector.undistorter is not None:
             gray = detector.undistorter.apply(gray)
         per_frame.append(frame_stats(detector, np.asarray(gray, np.uint8)))

@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.perception.detector import GRAY_WEIGHTS_BGR
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.floors import FloorPainter
 from lanewarden.scenarios.spec import MAX_GLOSS, TAPE_GLOSS_AT_FULL_SHEEN
@@ -38,8 +39,9 @@ U8 = NDArray[np.uint8]
 #: gray (the lecture's course is 27 Mpx at the default 2.5 mm per pixel).
 MAX_TEXTURE_PIXELS = 50_000_000
 
-#: OpenCV's BGR -> gray weights, so a gray texture equals the gray of the colour texture.
-GRAY_WEIGHTS = (0.114, 0.587, 0.299)
+#: Perception's gray as weights of (b, g, r) (`perception.detector.perception_gray`), so a gray
+#: texture equals perception's gray of the colour texture.
+GRAY_WEIGHTS = GRAY_WEIGHTS_BGR
 
 
 @dataclass(frozen=True, eq=False)
@@ -199,7 +201,7 @@ def paint_ground(world: World, m_per_px: float, seed: int, color: bool = True) -
         world.floor.gloss > 0 or any(sheen > 0 for _, _, sheen in tapes))
 
     # The gray texture is painted the same way with or without colour, so what perception sees
-    # does not depend on whether a video is recorded: channel 0 is the luma of the colours.
+    # does not depend on whether a video is recorded: channel 0 is perception's gray of the colours.
     channels: list[Callable[[tuple[int, int, int]], float]] = [_luma]
     if color:
         channels += [lambda c, i=i: float(c[i]) for i in range(3)]  # type: ignore[misc]

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from lanewarden.perception.confidence import COMPONENT_NAMES
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.detector import LaneDetector, perception_gray
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.ground import CameraPose, GroundModel
 from lanewarden.perception.observation import LaneObservation
@@ -51,7 +51,7 @@ def test_unusable_frames_raise_perception_error(
 
 def test_gray_bgr_and_bgra_inputs_agree(detector: LaneDetector) -> None:
     bgr = syn.frame(syn.STRAIGHT)
-    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    gray = perception_gray(bgr)
     bgra = cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)
     results = [detector.detect(img, 0, 0.0) for img in (bgr, gray, gray[:, :, None], bgra)]
     assert all(r.slope_sum is not None for r in results)

@@ -11,6 +11,7 @@ import pytest
 
 from lanewarden.actuation.base import Pose2D
 from lanewarden.assembly import build_stack
+from lanewarden.perception.detector import perception_gray
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.texture import GroundTexture, paint_ground
@@ -137,7 +138,7 @@ def test_texture_is_deterministic_per_seed_and_gray_matches_colour() -> None:
     assert np.array_equal(a.gray, b.gray)
     assert not np.array_equal(b.gray, c.gray)
     assert a.bgr is not None
-    luma = cv2.cvtColor(a.bgr, cv2.COLOR_BGR2GRAY).astype(int)
+    luma = perception_gray(a.bgr).astype(int)
     assert np.abs(luma - a.gray.astype(int)).max() <= 2
     # Tape pixels are dark, floor pixels light (default dark tape on light tiles).
     tape_px = a.world_to_px(np.array([[0.5, 0.3], [0.5, -0.3]])).round().astype(int)
