@@ -149,7 +149,8 @@ class TapeConfig(BaseModel):
     )
     polarity_samples: Annotated[int, Field(ge=1, le=64)] = Field(
         default=6,
-        description="points sampled along a line (tape band and profile; polarity: twice as many)",
+        description="points sampled along a line (tape band and profile; polarity: three times "
+        "as many)",
     )
     min_contrast_levels: Annotated[float, Field(ge=0.0, le=255.0)] = Field(
         default=8.0,

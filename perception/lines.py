@@ -11,7 +11,9 @@ the ground model; NaN at or above the horizon), for the metric rules of edge cho
 
 Polarity: the sign of (brightness right of the line - brightness left of it), the median over a
 few points along the line on the blurred image, a cheap stand-in for the Sobel sign across it
-(the median, so a highlight crossing part of a glossy tape does not overturn it).
+(the median, so a highlight crossing part of a glossy tape does not overturn it; and where the
+least-lit half of the points clearly says the other sign, that half: a highlight covering more
+than half of the edge, see `_polarity`).
 +1 dark-to-light going right, -1 light-to-dark, 0 no clear contrast. The two edges of a tape have
 opposite polarities (dark tape on a light floor: -1 then +1; light tape: +1 then -1).
 
@@ -37,8 +39,9 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
 #: Polarity is read at this many times `tape.polarity_samples` points along a line: its median
-#: then holds while a highlight covers up to nearly half of the line (cheap: one gather).
-POLARITY_SAMPLE_FACTOR = 2
+#: then holds while a highlight covers up to nearly half of the line, and the least-lit half of
+#: them (see `_polarity`) is still a median of several points (cheap: one gather).
+POLARITY_SAMPLE_FACTOR = 3
 
 
 @dataclass(frozen=True)
@@ -325,7 +328,9 @@ def _polarity(
     tape: TapeConfig,
 ) -> FloatArray:
     """Sign of the median of (right side - left side) brightness over a few points sampled
-    along each line (0 when it is within `min_contrast_levels`)."""
+    along each line (0 when it is within `min_contrast_levels`), or the sign of the median over
+    the least-lit half of them (the half whose darker side is darkest) when that is a clear
+    step of the other sign."""
     height, width = gray.shape[:2]
     k = POLARITY_SAMPLE_FACTOR * tape.polarity_samples
     frac = _sample_fractions(k)
@@ -342,13 +347,33 @@ def _polarity(
     rows = np.minimum(np.maximum(ys, 0.0), height - 1.0).astype(np.intp)
     values = gray[rows, cols].astype(np.int16)
     n = len(near_x)
-    # The median difference, not the mean: a ceiling light mirrored in glossy tape makes a few
-    # samples of its edges brighter on the tape's side than the floor by far more than the tape
-    # is darker elsewhere, and their mean says "no contrast" (or the wrong sign). Exact in
-    # whole numbers (the middle two of k sorted differences).
-    diff = np.sort(values[:n] - values[n:], axis=1)
-    median = 0.5 * (diff[:, (k - 1) // 2] + diff[:, k // 2])
+    right, left = values[:n], values[n:]
+    step = right - left
     threshold = tape.min_contrast_levels
+    # The median step, not the mean: a ceiling light mirrored in glossy tape makes a few samples
+    # of its edges brighter on the tape's side than the floor by far more than the tape is darker
+    # elsewhere, and their mean says "no contrast" (or the wrong sign).
+    whole = _signs(_median(step), threshold)
+    # The light can also cover more than half of an edge, and turn the median. It only ADDS
+    # light, to the side it lies on: where the edge's darker side is darkest, nothing is
+    # mirrored. So where the median step over the least-lit half of the points (by the darker
+    # side's brightness) is a clear step of the other sign, it wins. Only a clear reversal:
+    # on a textured floor the least-lit half of a line picks its dark specks and would give
+    # lines of no contrast a polarity (more candidate pairs to refute).
+    least_lit = np.argsort(np.minimum(right, left), axis=1, kind="stable")[:, :k // 2]
+    unlit = _signs(_median(np.take_along_axis(step, least_lit, axis=1)), threshold)
+    return np.where(whole * unlit < 0, unlit, whole)
+
+
+def _median(values: NDArray[np.int16]) -> FloatArray:
+    """Per row, the median (exact in whole numbers: the middle two of the sorted values)."""
+    ordered = np.sort(values, axis=1)
+    m = ordered.shape[1]
+    return np.asarray(0.5 * (ordered[:, (m - 1) // 2] + ordered[:, m // 2]), dtype=np.float64)
+
+
+def _signs(median: FloatArray, threshold: float) -> FloatArray:
+    """+1 above `threshold`, -1 below minus it, 0 between."""
     return np.where(median > threshold, 1.0, np.where(median < -threshold, -1.0, 0.0))
 
 

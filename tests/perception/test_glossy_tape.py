@@ -62,3 +62,41 @@ def test_a_ceiling_light_in_glossy_tape_does_not_break_its_tape_pair() -> None:
         assert light > 40.0  # the premise: a light mirrored in the tape there
         assert obs.confidence > 0.5, dict(obs.components)
         assert obs.left is not None and obs.left.offset_m == pytest.approx(0.276, abs=0.03)
+
+
+CARPET_SCENARIO = {
+    "floor": {"kind": "carpet"},
+    "tape": {"color": "#161618", "sheen": 0.8},
+    "lane": SCENARIO["lane"],
+    "lighting": {"gradient": {"per_m": -0.06}, "brightness": 0.05},
+}
+CARPET_CONFIG = {"simulation": {"width_px": 320, "height_px": 240, "progress": False}}
+
+
+def test_a_ceiling_light_over_most_of_a_glossy_tape_edge_keeps_its_polarity() -> None:
+    """Campaign run r00016 of the default campaign (seed 0: carpet, black glossy tape, a very
+    dim room, the 320x240 camera, seed 0), LANE_LOST at 6.4 s on a good lane. 0.72 m to 0.88 m
+    along the lane's straight start a ceiling light lies in the left tape 0.38-0.50 m ahead, up
+    to 100 levels lighter than the floor beside it: on more than half of the image rows of the
+    tape's inner edge up to 0.55 m ahead (its Hough line's stretch), the tape there is the
+    lighter side. The median step across that edge then read the wrong polarity (no tape pair,
+    confidence 0 at all four poses). Read where the edge is least lit (the light only adds
+    light), its polarity holds: the left tape is verified, the lane confident, its left edge on
+    the tape's inner edge (0.276 m, within 3 cm)."""
+    spec = spec_from(CARPET_SCENARIO)
+    config = effective_config(config_from_mapping(CARPET_CONFIG), spec)
+    sim = Simulation(spec, config, build_stack, seed=0)  # the run's seed
+    w, h = sim.camera.width_px, sim.camera.height_px
+    ahead, left = sim.camera.pixel_ground_points(distorted=True)
+    tape = (left > 0.278) & (left < 0.292) & (ahead < 0.55)  # the tape beside its inner edge
+    floor = (left > 0.24) & (left < 0.27) & (ahead < 0.55)  # the lane's floor beside it
+    rows = [r for r in range(h) if tape[r].any() and floor[r].any()]
+    for i, x in enumerate([0.72, 0.76, 0.84, 0.88]):
+        image = sim.renderer.render_gray(Pose2D(x, 0.0, 0.0), np.empty((h, w), np.uint8),
+                                         noise_index=0)
+        lit = sum(np.median(image[r][tape[r]]) > np.median(image[r][floor[r]]) for r in rows)
+        assert lit > 0.5 * len(rows)  # the premise: the light covers most of the edge
+        obs = sim.detector.detect(image, i, 0.0)
+        assert obs.components["tape_pair_left"] == 1.0, dict(obs.components)
+        assert obs.confidence > 0.5, dict(obs.components)
+        assert obs.left is not None and obs.left.offset_m == pytest.approx(0.276, abs=0.03)
