@@ -134,8 +134,9 @@ class SupervisorConfig(BaseModel):
         default=0.175,
         ge=0.0,
         le=1.0,
-        description="A usable frame whose lane edge, where it is seen nearest, lies nearer the "
-        "robot's centre line than this (or beyond it) shows the robot leaving the lane, m. "
+        description="A confident frame whose lane edge, read half-way back from where it is "
+        "seen nearest, lies nearer the robot's centre line than this (or beyond it) shows the "
+        "robot leaving the lane, m. "
         "0.175: the Kobuki's footprint radius (the tape's edge would pass under the robot)",
     )
     lane_departure_view_m: float = Field(
@@ -150,8 +151,8 @@ class SupervisorConfig(BaseModel):
         default=3,
         ge=1,
         le=30,
-        description="Usable frames in a row showing a departure before LANE_DEPARTURE (HALT), "
-        "camera frames",
+        description="Confident frames in a row showing a departure before LANE_DEPARTURE "
+        "(HALT), camera frames",
     )
     engage_confident_frames: int = Field(
         default=10,

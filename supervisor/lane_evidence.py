@@ -7,21 +7,24 @@ Per new frame:
 - confidence below `confidence_usable_min`: LANE_UNTRUSTED (no usable lane);
 - confidence below `confidence_degrade_below` for `low_confidence_degrade_frames` frames in a row:
   LANE_LOW_CONFIDENCE;
-- a usable frame whose left edge passes the robot less than `lane_departure_clearance_m` left of
-  its centre line (or right of it), or whose right edge less than that to its right (or left
-  of it), shows the robot leaving the lane: `lane_departure_frames` such usable frames in a row
-  give LANE_DEPARTURE (HALT). Where an edge passes the robot comes from its near part on the
+- a confident frame (below) whose left edge passes the robot less than
+  `lane_departure_clearance_m` left of its centre line (or right of it), or whose right edge less
+  than that to its right (or left of it), shows the robot leaving the lane:
+  `lane_departure_frames` such frames in a row give LANE_DEPARTURE (HALT). Confident frames
+  only: a merely usable one is too often a wrong edge (a floor feature beside a dash) that puts
+  a "tape" under a centred robot; a robot leaving a lane perception is unsure of is LANE_LOST's
+  and DEGRADED's to stop. Where an edge passes the robot comes from its near part on the
   floor (`LaneEdge`: a line through its nearest point seen, `near_m` ahead, at its measured
   direction), read half-way back from that point towards the robot (`near_m / 2` ahead): for a
   straight tape any point of the line is exact, and for a bend's arc the tangent read back at
   the robot puts the inner tape too near by about near_m^2 / 2R and the nearest point itself too
   far by as much, so half-way cancels to second order (and an error in the measured direction
   counts half). Only an edge seen beginning within `lane_departure_view_m` ahead counts.
-  Frames that are not usable (no edge, untrusted) neither count nor reset the streak.
+  Frames that are not confident neither count nor reset the streak.
 "Usable" (resets the lane-lost timer): at least one edge and confidence >= the usable minimum.
 "Confident" (counts towards engage/recover): both edges and confidence >=
 `confidence_confident_min`.
-Pure; the only memory is the low-confidence streak.
+Pure; the only memory is the low-confidence and departure streaks.
 """
 
 from __future__ import annotations
@@ -126,12 +129,13 @@ class LaneEvidence:
         if self._low_confidence_frames >= cfg.low_confidence_degrade_frames:
             events.add(Event.LANE_LOW_CONFIDENCE)
         usable = edges > 0 and trusted
-        departure = departure_of(obs, cfg.lane_departure_clearance_m,
-                                 cfg.lane_departure_view_m) if usable else None
-        if usable:
+        confident = edges == 2 and obs.confidence >= cfg.confidence_confident_min
+        departure = None
+        if confident:  # only confident frames count towards a departure, or reset it
+            departure = departure_of(obs, cfg.lane_departure_clearance_m,
+                                     cfg.lane_departure_view_m)
             self._departure_frames = self._departure_frames + 1 if departure else 0
         if self._departure_frames >= cfg.lane_departure_frames:
             events.add(Event.LANE_DEPARTURE)
-        confident = edges == 2 and obs.confidence >= cfg.confidence_confident_min
         measurement = obs.slope_sum if (edges == 2 and trusted) else None
         return LaneAssessment(frozenset(events), usable, confident, measurement, departure)

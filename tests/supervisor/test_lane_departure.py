@@ -94,14 +94,24 @@ def test_a_clear_frame_resets_the_departure_streak() -> None:
         assert rig.step(left_edge_m=edge).state == "FOLLOW"
 
 
-def test_an_unusable_frame_neither_counts_nor_resets_the_streak() -> None:
+def test_a_frame_that_is_not_confident_neither_counts_nor_resets_the_streak() -> None:
     rig = _engaged()
     assert rig.step(left_edge_m=0.12).state == "FOLLOW"
     assert rig.step(left_edge_m=0.12).state == "FOLLOW"
     assert rig.step(left_edge_m=0.05, confidence=0.1).state == "DEGRADED"  # untrusted
+    assert rig.step(left_edge_m=0.25, confidence=0.5).state == "DEGRADED"  # usable, unsure
     out = rig.step(left_edge_m=0.12)
     assert out.state == "HALT"
     assert "LANE_DEPARTURE" in {e.value for e in out.events}
+
+
+def test_usable_but_unconfident_frames_never_halt_for_departure() -> None:
+    # a wrong edge under a centred robot, reported with a usable but not confident lane
+    rig = _engaged()
+    for _ in range(6):
+        out = rig.step(left_edge_m=0.12, confidence=0.5)
+        assert "LANE_DEPARTURE" not in {e.value for e in out.events}
+    assert rig.state != "HALT"
 
 
 CONFIG = SupervisorConfig()
