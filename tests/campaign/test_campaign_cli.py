@@ -16,6 +16,7 @@ from lanewarden.cli import main
 from lanewarden.scenarios.campaign import runner as runner_module
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec, load_case
 from lanewarden.scenarios.campaign.run_case import run_case
+from lanewarden.scenarios.library import resolve_scenario
 
 
 def rows(out: Path) -> list[tuple[str, str, str]]:
@@ -183,13 +184,20 @@ def test_scenarios_are_drawn_only_with_the_cameras_that_can_drive_them() -> None
 def test_two_permanent_losses_of_the_camera_both_act() -> None:
     """Run 665 drew a permanent camera error and then a permanent freeze: the freeze could never
     act. The earlier loss now lasts 1 s and the freeze starts 0.5 s after it ends; run, both
-    take effect and the run is a safe halt, not an error."""
+    take effect and the run is a safe halt, not an error. Run on the scenario's own floor and
+    tape: the drawn yellow dashed line on foam mats is a known false-halt class
+    (docs/campaigns.md, known gaps) that halts the run before either fault."""
     spec, path = load_campaign_spec("default")
     case = draw_case(spec, path, 0, 665, {}, 0.2)
     assert case.scenario["faults"] == [
         {"kind": "camera_error", "duration_s": 1.0, "at_s": 5.486},
         {"kind": "camera_freeze", "duration_s": None, "at_s": 6.986},
     ]
+    own = resolve_scenario(case.scenario["name"]).model_dump(mode="json", exclude_defaults=True)
+    own.pop("expect", None)
+    own.update(faults=case.scenario["faults"], run=case.scenario["run"],
+               camera=case.scenario.get("camera", {}))
+    case = case.model_copy(update={"scenario": own, "floor": "scenario", "tape": "scenario"})
     row = run_case(case.model_dump_json(), build_stack)
     assert (row["outcome"], row["halt_reason"].split(":")[0]) == ("safe_halt", "CAMERA_ERROR")
     assert [e["kind"] for e in json.loads(row["effects_json"])] == ["camera_error",
