@@ -74,6 +74,12 @@ class RunTrace:
     lane_visible: BoolArray | None = None
 
 
+def footprint_clearance_m(world: World, poses: FloatArray) -> FloatArray:
+    """Per pose (N, >= 2: x, y, ...): how far the robot's footprint is from the nearest tape
+    edge, ground truth (m; negative: over it)."""
+    return world.clearance_to_edges(np.asarray(poses)[:, :2]) - ROBOT_RADIUS_M
+
+
 def points_in_polygon(points: FloatArray, polygon: FloatArray) -> BoolArray:
     """Even-odd rule, vectorised over points (N, 2) for one polygon (K, 2)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
@@ -373,7 +379,7 @@ def compute_metrics(
         "y_m": round(float(poses[halted_idx, 1]), 4),
         "past_lane_end_m": past_lane_end(poses[halted_idx]),
     }
-    clearance = world.clearance_to_edges(poses[:, :2]) - ROBOT_RADIUS_M
+    clearance = footprint_clearance_m(world, poses)
     out["crossed_tape"] = bool(n and np.any(clearance < 0.0))
     finite = clearance[np.isfinite(clearance)]
     out["min_tape_clearance_m"] = round(float(finite.min()), 4) if len(finite) else None

@@ -68,12 +68,12 @@ def judge(result: SimulationResult, config: LanewardenConfig) -> Verdict:
 def tape_clearance_m(result: SimulationResult) -> list[float]:
     """Per step: how far the robot's footprint was from the nearest tape edge (ground truth, m;
     negative: over it)."""
-    from lanewarden.scenarios.world import ROBOT_RADIUS_M
+    from lanewarden.scenarios.metrics import footprint_clearance_m
 
     poses = result.trace.poses
     if not len(poses):
         return []
-    return [float(c) for c in result.world.clearance_to_edges(poses[:, :2]) - ROBOT_RADIUS_M]
+    return [float(c) for c in footprint_clearance_m(result.world, poses)]
 
 
 def case_config(case: Case, source: str) -> LanewardenConfig:
