@@ -42,6 +42,11 @@ IntArray = NDArray[np.intp]
 #: then holds while a highlight covers up to nearly half of the line, and the least-lit half of
 #: them (see `_polarity`) is still a median of several points (cheap: one gather).
 POLARITY_SAMPLE_FACTOR = 3
+#: Where the median step says "no contrast", a line's polarity is the sign that at least this
+#: share of its points show clearly, in one unbroken run...
+POLARITY_VOTE_SHARE = 0.25
+#: ...and at least this many times as many points as show the other sign (see `_vote`).
+POLARITY_VOTE_MARGIN = 2
 
 
 @dataclass(frozen=True)
@@ -354,6 +359,11 @@ def _polarity(
     # of its edges brighter on the tape's side than the floor by far more than the tape is darker
     # elsewhere, and their mean says "no contrast" (or the wrong sign).
     whole = _signs(_median(step), threshold)
+    # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
+    # view), the points in it show no step at all, and the median says "no contrast" once the
+    # gap covers half the line. There, the sign that a quarter of the points in a row show
+    # clearly, with at least twice as many points as show the other sign, is the line's.
+    whole = np.where(whole == 0.0, _vote(step, threshold), whole)
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
     # light, to the side it lies on: where the edge's darker side is darkest, nothing is
     # mirrored. So where the median step over the least-lit half of the points (by the darker
@@ -363,6 +373,30 @@ def _polarity(
     least_lit = np.argsort(np.minimum(right, left), axis=1, kind="stable")[:, :k // 2]
     unlit = _signs(_median(np.take_along_axis(step, least_lit, axis=1)), threshold)
     return np.where(whole * unlit < 0, unlit, whole)
+
+
+def _vote(step: NDArray[np.int16], threshold: float) -> FloatArray:
+    """Per row: +1 where at least `POLARITY_VOTE_SHARE` of the points in one unbroken run
+    along the line step up by more than `threshold`, and at least `POLARITY_VOTE_MARGIN` times
+    as many points step up as step down by more than it; -1 the other way round; 0 otherwise.
+    (An unbroken run: a gap leaves the rest of a tape in one piece, while on a speckled floor
+    a line of no contrast has points of either sign scattered along it.)"""
+    need = math.ceil(POLARITY_VOTE_SHARE * step.shape[1])
+    up, down = step > threshold, step < -threshold
+    n_up, n_down = np.count_nonzero(up, axis=1), np.count_nonzero(down, axis=1)
+    rising = (_longest_run(up) >= need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
+    falling = (_longest_run(down) >= need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
+    return np.where(rising, 1.0, np.where(falling, -1.0, 0.0))
+
+
+def _longest_run(flags: NDArray[np.bool_]) -> IntArray:
+    """Per row, the length of the longest run of consecutive True values."""
+    run = np.zeros(flags.shape[0], dtype=np.intp)
+    longest = run.copy()
+    for column in flags.T:
+        run = (run + 1) * column
+        np.maximum(longest, run, out=longest)
+    return longest
 
 
 def _median(values: NDArray[np.int16]) -> FloatArray:

@@ -1,0 +1,61 @@
+"""A line's polarity (perception/lines.py `_polarity`): the sign of the brightness step across it,
+read at 18 points along it (3 x `tape.polarity_samples`). Drawn here: a light floor (180) with
+a dark tape (60) right of a vertical line at x = 100, present only on some of the line's rows
+(the rest is a gap in the tape: floor on both sides, no step)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lanewarden.perception.floor_config import TapeConfig
+from lanewarden.perception.lines import _polarity
+
+TAPE = TapeConfig()
+HEIGHT, WIDTH = 240, 320
+TOP, BOTTOM = 40, 220  # the line runs from (100, 220) up to (100, 40)
+
+
+def polarity_of(image: np.ndarray) -> float:
+    one = np.array
+    return float(_polarity(image, one([100.0]), one([float(BOTTOM)]), one([100.0]),
+                           one([float(TOP)]), one([0.0]), one([-1.0]), TAPE)[0])
+
+
+def tape_on(share: float) -> np.ndarray:
+    """The tape covers the nearest `share` of the line (from its bottom end), a gap the rest."""
+    image = np.full((HEIGHT, WIDTH), 180, np.uint8)
+    first_row = round(BOTTOM - share * (BOTTOM - TOP))
+    image[first_row:BOTTOM + 1, 100:130] = 60
+    return image
+
+
+@pytest.mark.parametrize(("share", "expected"), [
+    (1.0, -1.0),   # light to dark going right
+    (0.6, -1.0),   # the median of the 18 steps says so
+    (0.4, -1.0),   # a gap over more than half the line: the median says 0, the vote -1
+    (0.3, -1.0),   # 5 or 6 of 18 points with a clear step, none the other way
+    (0.15, 0.0),   # under a quarter of the points: no polarity
+    (0.0, 0.0),    # no tape at all
+])
+def test_a_gap_in_the_tape_keeps_its_edges_polarity_while_a_quarter_shows_it(
+        share: float, expected: float) -> None:
+    assert polarity_of(tape_on(share)) == expected
+
+
+def test_a_step_of_each_sign_on_a_third_of_the_line_is_no_polarity() -> None:
+    """A third of the line dark to the right, a third light to the right: neither sign has twice
+    as many points as the other (a line across a mottled floor, not an edge)."""
+    image = tape_on(1 / 3)
+    image[TOP:round(TOP + (BOTTOM - TOP) / 3), 100:130] = 250
+    assert polarity_of(image) == 0.0
+
+
+def test_a_textured_floor_gives_a_line_of_no_contrast_no_polarity() -> None:
+    """Seeded speckle (sd 12 levels, unblurred: about a third of the steps are clear ones of
+    each sign, scattered along the line) on both sides: no sign has a quarter of the points in
+    one unbroken run (counted without the run, 6 of 20 such lines got a polarity)."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        image = np.clip(150 + rng.normal(0.0, 12.0, (HEIGHT, WIDTH)), 0, 255).astype(np.uint8)
+        assert polarity_of(image) == 0.0
