@@ -363,7 +363,9 @@ def _polarity(
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
-    whole = np.where(whole == 0.0, _vote(step, threshold), whole)
+    unclear = np.flatnonzero(whole == 0.0)
+    if unclear.size:
+        whole[unclear] = _vote(step[unclear], threshold)
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
     # light, to the side it lies on: where the edge's darker side is darkest, nothing is
     # mirrored. So where the median step over the least-lit half of the points (by the darker
@@ -384,19 +386,16 @@ def _vote(step: NDArray[np.int16], threshold: float) -> FloatArray:
     need = math.ceil(POLARITY_VOTE_SHARE * step.shape[1])
     up, down = step > threshold, step < -threshold
     n_up, n_down = np.count_nonzero(up, axis=1), np.count_nonzero(down, axis=1)
-    rising = (_longest_run(up) >= need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
-    falling = (_longest_run(down) >= need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
+    rising = _has_run(up, need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
+    falling = _has_run(down, need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
     return np.where(rising, 1.0, np.where(falling, -1.0, 0.0))
 
 
-def _longest_run(flags: NDArray[np.bool_]) -> IntArray:
-    """Per row, the length of the longest run of consecutive True values."""
-    run = np.zeros(flags.shape[0], dtype=np.intp)
-    longest = run.copy()
-    for column in flags.T:
-        run = (run + 1) * column
-        np.maximum(longest, run, out=longest)
-    return longest
+def _has_run(flags: NDArray[np.bool_], length: int) -> NDArray[np.bool_]:
+    """Per row, whether `length` consecutive values are True (a window of that many sums to it)."""
+    counts = np.zeros((flags.shape[0], flags.shape[1] + 1), dtype=np.intp)
+    np.cumsum(flags, axis=1, out=counts[:, 1:])
+    return np.asarray((counts[:, length:] - counts[:, :-length] == length).any(axis=1))
 
 
 def _median(values: NDArray[np.int16]) -> FloatArray:
