@@ -363,29 +363,39 @@ def _polarity(
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
+    up, down = step > threshold, step < -threshold
+    n_up, n_down = np.count_nonzero(up, axis=1), np.count_nonzero(down, axis=1)
     unclear = np.flatnonzero(whole == 0.0)
     if unclear.size:
-        whole[unclear] = _vote(step[unclear], threshold)
+        whole[unclear] = _vote(up[unclear], down[unclear], n_up[unclear], n_down[unclear])
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
     # light, to the side it lies on: where the edge's darker side is darkest, nothing is
     # mirrored. So where the median step over the least-lit half of the points (by the darker
     # side's brightness) is a clear step of the other sign, it wins. Only a clear reversal:
     # on a textured floor the least-lit half of a line picks its dark specks and would give
-    # lines of no contrast a polarity (more candidate pairs to refute).
-    least_lit = np.argsort(np.minimum(right, left), axis=1, kind="stable")[:, :k // 2]
-    unlit = _signs(_median(np.take_along_axis(step, least_lit, axis=1)), threshold)
-    return np.where(whole * unlit < 0, unlit, whole)
+    # lines of no contrast a polarity (more candidate pairs to refute). A half's median is a
+    # clear step against the line's sign only where at least half of the half's points (the
+    # lower middle one included) are, so only lines with that many such steps are read.
+    half = k // 2
+    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, 0))
+    rows = np.flatnonzero(against >= (half - 1) // 2 + 1)
+    if rows.size:
+        least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
+                               kind="stable")[:, :half]
+        unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), threshold)
+        whole[rows] = np.where(whole[rows] * unlit < 0.0, unlit, whole[rows])
+    return whole
 
 
-def _vote(step: NDArray[np.int16], threshold: float) -> FloatArray:
-    """Per row: +1 where at least `POLARITY_VOTE_SHARE` of the points in one unbroken run
-    along the line step up by more than `threshold`, and at least `POLARITY_VOTE_MARGIN` times
-    as many points step up as step down by more than it; -1 the other way round; 0 otherwise.
-    (An unbroken run: a gap leaves the rest of a tape in one piece, while on a speckled floor
-    a line of no contrast has points of either sign scattered along it.)"""
-    need = math.ceil(POLARITY_VOTE_SHARE * step.shape[1])
-    up, down = step > threshold, step < -threshold
-    n_up, n_down = np.count_nonzero(up, axis=1), np.count_nonzero(down, axis=1)
+def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,
+          n_down: IntArray) -> FloatArray:
+    """Per row, from which points step up (`up`) and down (`down`) clearly, and how many: +1
+    where at least `POLARITY_VOTE_SHARE` of the points in one unbroken run along the line step
+    up, and at least `POLARITY_VOTE_MARGIN` times as many points step up as down; -1 the other
+    way round; 0 otherwise. (An unbroken run: a gap leaves the rest of a tape in one piece,
+    while on a speckled floor a line of no contrast has points of either sign scattered along
+    it.)"""
+    need = math.ceil(POLARITY_VOTE_SHARE * up.shape[1])
     rising = _has_run(up, need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
     falling = _has_run(down, need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
     return np.where(rising, 1.0, np.where(falling, -1.0, 0.0))
