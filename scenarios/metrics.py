@@ -101,12 +101,36 @@ def robot_frame(points: FloatArray, pose: Pose2D) -> tuple[FloatArray, FloatArra
     return rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c
 
 
+def convex_half_planes(polygon: FloatArray) -> FloatArray | None:
+    """A convex polygon (K, 2) as half-planes: rows (a, b, c) with a*x + b*y + c >= 0 inside
+    (one per edge, either winding); None when the polygon is not convex (or degenerate)."""
+    poly = np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
+    edges = np.roll(poly, -1, axis=0) - poly
+    keep = np.hypot(edges[:, 0], edges[:, 1]) > 1e-9
+    poly, edges = poly[keep], edges[keep]
+    if len(poly) < 3:
+        return None
+    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(
+        edges, -1, axis=0)[:, 0]
+    turns = turns[np.abs(turns) > 1e-9]
+    if len(turns) < 2 or not (np.all(turns > 0) or np.all(turns < 0)):
+        return None
+    sign = 1.0 if turns[0] > 0 else -1.0  # left of every edge (y up) is inside when turns > 0
+    a, b = -edges[:, 1] * sign, edges[:, 0] * sign
+    return np.column_stack([a, b, -(a * poly[:, 0] + b * poly[:, 1])])
+
+
 class GroundRoi:
     """Which floor points a camera at a pose sees inside perception's ROI.
 
     `roi_polygon_px` is in UNDISTORTED pixels of the camera's image (perception undistorts before
     applying its ROI); points are projected through the ground homography (the pinhole view),
     within `MAX_RANGE_M` of the robot and inside the image.
+
+    For a convex ROI (the lecture's triangle, clipped to the image) every one of those tests is a
+    half-plane in the robot's frame (a homography keeps a line a line in front of the camera), so
+    a pose's test is one matrix product over the points in world metres; another polygon is
+    tested point by point in pixels (`points_in_polygon`).
     """
 
     MAX_RANGE_M = 8.0
@@ -115,11 +139,34 @@ class GroundRoi:
         self._h = camera.ground_to_image_homography()
         self._roi = np.asarray(roi_polygon_px, dtype=np.float64).reshape(-1, 2)
         self._size = (camera.width_px, camera.height_px)
+        roi = convex_half_planes(self._roi)
+        self._robot_planes: FloatArray | None = None
+        if roi is not None:
+            w, h = self._size
+            hz = self._h[2]
+            r = self.MAX_RANGE_M
+            # Columns over robot-frame (forward, left, 1): each > 0 inside (the boundary itself,
+            # a set of no area, may fall either way).
+            self._robot_planes = np.vstack([
+                [1.0, 0.0, 0.0], [-1.0, 0.0, r], [0.0, 1.0, r], [0.0, -1.0, r],
+                hz - np.array([0.0, 0.0, 1e-9]),  # in front of the camera
+                self._h[0], (w - 1) * hz - self._h[0],  # 0 <= u <= w-1 (times z > 0)
+                self._h[1], (h - 1) * hz - self._h[1],  # 0 <= v <= h-1
+                roi @ self._h,  # inside the ROI
+            ]).T
 
     def inside(self, pose: Pose2D, points: FloatArray) -> NDArray[np.intp]:
         """The indices of `points` (N, 2, world metres) inside the ROI at `pose`, in order."""
         if len(points) == 0:
             return np.zeros(0, np.intp)
+        if self._robot_planes is not None:
+            c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+            robot_from_world = np.array([[c, s, -(pose.x_m * c + pose.y_m * s)],
+                                         [-s, c, pose.x_m * s - pose.y_m * c],
+                                         [0.0, 0.0, 1.0]])
+            planes = robot_from_world.T @ self._robot_planes
+            values = np.asarray(points, dtype=np.float64) @ planes[:2] + planes[2]
+            return np.nonzero((values > 0.0).all(axis=1))[0]
         fx, fy = robot_frame(points, pose)
         near = np.nonzero((fx > 0.0) & (fx < self.MAX_RANGE_M)
                           & (np.abs(fy) < self.MAX_RANGE_M))[0]

@@ -10,9 +10,11 @@ import pytest
 from lanewarden.actuation.base import Pose2D
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.metrics import (
+    GroundRoi,
     RunTrace,
     TapeVisibility,
     compute_metrics,
+    convex_half_planes,
     first_halt_index,
     points_in_polygon,
     turns_completed,
@@ -129,3 +131,41 @@ def test_tape_visibility_through_the_camera_and_roi() -> None:
     assert 2.6 < loss < 3.25
     point = world.centreline.at(loss - 0.02)[0]
     assert vis.visible(Pose2D(float(point[0]), float(point[1]), 0.0))
+
+
+def test_a_convex_roi_is_tested_as_half_planes_with_the_same_answer_as_in_pixels() -> None:
+    # The half-plane test (one matrix product per pose) must pick exactly the points the pixel
+    # test picks: projected, in front of the camera, in the image, inside the ROI polygon.
+    camera = CameraModel()
+    clipped = np.array([[0, 160], [110, 77], [530, 77], [640, 160], [640, 480], [0, 480]], float)
+    rng = np.random.default_rng(5)
+    points = rng.uniform(-4.0, 4.0, (4000, 2))
+    for roi in (ROI, clipped):
+        fast = GroundRoi(camera, roi)
+        slow = GroundRoi(camera, roi)
+        slow._robot_planes = None  # the point-by-point pixel test
+        assert fast._robot_planes is not None
+        picked = 0
+        for _ in range(40):
+            pose = Pose2D(*rng.uniform(-1.0, 1.0, 2), float(rng.uniform(-math.pi, math.pi)))
+            expected = slow.inside(pose, points)
+            assert fast.inside(pose, points).tolist() == expected.tolist()
+            picked += len(expected)
+        assert picked > 1000  # the poses do see points
+    # Straight ahead, 1 m out, is inside; behind the robot and far off to the side are not.
+    fast = GroundRoi(camera, clipped)
+    pts = np.array([[1.0, 0.0], [-1.0, 0.0], [1.0, 3.0]])
+    assert fast.inside(Pose2D(0.0, 0.0, 0.0), pts).tolist() == [0]
+
+
+def test_half_planes_only_for_a_convex_polygon() -> None:
+    square = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
+    planes = convex_half_planes(square)
+    assert planes is not None and planes.shape == (4, 3)
+    inside = np.all(np.array([1.0, 1.0, 1.0]) @ planes.T > 0)
+    outside = np.all(np.array([3.0, 1.0, 1.0]) @ planes.T > 0)
+    assert inside and not outside
+    assert convex_half_planes(square[::-1]) is not None  # either winding
+    notch = np.array([[0, 0], [2, 0], [1, 1], [2, 2], [0, 2]], float)
+    assert convex_half_planes(notch) is None
+    assert convex_half_planes(np.array([[0, 0], [1, 1], [2, 2]], float)) is None  # a line
