@@ -43,10 +43,10 @@ IntArray = NDArray[np.intp]
 #: them (see `_polarity`) is still a median of several points (cheap: one gather).
 POLARITY_SAMPLE_FACTOR = 3
 #: Where the median step says "no contrast", a line's polarity is the sign that at least this
-#: share of its points show clearly, in one unbroken run...
+#: share of its points show clearly, in one unbroken run from one end of the line...
 POLARITY_VOTE_SHARE = 0.25
 #: ...and at least this many times as many points as show the other sign (see `_vote`).
-POLARITY_VOTE_MARGIN = 2
+POLARITY_VOTE_MARGIN = 4
 
 
 @dataclass(frozen=True)
@@ -390,22 +390,21 @@ def _polarity(
 def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,
           n_down: IntArray) -> FloatArray:
     """Per row, from which points step up (`up`) and down (`down`) clearly, and how many: +1
-    where at least `POLARITY_VOTE_SHARE` of the points in one unbroken run along the line step
-    up, and at least `POLARITY_VOTE_MARGIN` times as many points step up as down; -1 the other
-    way round; 0 otherwise. (An unbroken run: a gap leaves the rest of a tape in one piece,
-    while on a speckled floor a line of no contrast has points of either sign scattered along
-    it.)"""
+    where at least `POLARITY_VOTE_SHARE` of the points, in one unbroken run from one end of the
+    line, step up, and at least `POLARITY_VOTE_MARGIN` times as many points step up as down; -1
+    the other way round; 0 otherwise. (An unbroken run from an end: a gap leaves the rest of a
+    tape in one piece that runs to the line's end, while on a speckled floor, or across a
+    patchy one where a stretch of lighter slats or chips happens to line up mid-line, a line of
+    no contrast has no such run.)"""
     need = math.ceil(POLARITY_VOTE_SHARE * up.shape[1])
-    rising = _has_run(up, need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
-    falling = _has_run(down, need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
+    rising = _run_from_an_end(up, need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
+    falling = _run_from_an_end(down, need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
     return np.where(rising, 1.0, np.where(falling, -1.0, 0.0))
 
 
-def _has_run(flags: NDArray[np.bool_], length: int) -> NDArray[np.bool_]:
-    """Per row, whether `length` consecutive values are True (a window of that many sums to it)."""
-    counts = np.zeros((flags.shape[0], flags.shape[1] + 1), dtype=np.intp)
-    np.cumsum(flags, axis=1, out=counts[:, 1:])
-    return np.asarray((counts[:, length:] - counts[:, :-length] == length).any(axis=1))
+def _run_from_an_end(flags: NDArray[np.bool_], length: int) -> NDArray[np.bool_]:
+    """Per row, whether the first `length` values, or the last `length`, are all True."""
+    return np.asarray(flags[:, :length].all(axis=1) | flags[:, -length:].all(axis=1))
 
 
 def _median(values: NDArray[np.int16]) -> FloatArray:

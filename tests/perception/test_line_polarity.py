@@ -44,8 +44,8 @@ def test_a_gap_in_the_tape_keeps_its_edges_polarity_while_a_quarter_shows_it(
 
 
 def test_a_step_of_each_sign_on_a_third_of_the_line_is_no_polarity() -> None:
-    """A third of the line dark to the right, a third light to the right: neither sign has twice
-    as many points as the other (a line across a mottled floor, not an edge)."""
+    """A third of the line dark to the right, a third light to the right: neither sign has four
+    times as many points as the other (a line across a mottled floor, not an edge)."""
     image = tape_on(1 / 3)
     image[TOP:round(TOP + (BOTTOM - TOP) / 3), 100:130] = 250
     assert polarity_of(image) == 0.0
@@ -59,3 +59,29 @@ def test_a_textured_floor_gives_a_line_of_no_contrast_no_polarity() -> None:
     for _ in range(20):
         image = np.clip(150 + rng.normal(0.0, 12.0, (HEIGHT, WIDTH)), 0, 255).astype(np.uint8)
         assert polarity_of(image) == 0.0
+
+
+def test_a_dark_patch_beside_the_middle_of_a_line_is_no_polarity() -> None:
+    """A dark patch (a darker slat, a chip) beside the middle 40 % of a line whose ends show no
+    step: a tape cut by a gap reaches one end of the line, so a mid-line run votes nothing."""
+    image = np.full((HEIGHT, WIDTH), 180, np.uint8)
+    image[round(TOP + 0.3 * (BOTTOM - TOP)):round(TOP + 0.7 * (BOTTOM - TOP)), 100:130] = 60
+    assert polarity_of(image) == 0.0
+    # The same patch reaching the line's far end (a tape beyond a gap) is the tape's edge.
+    image[TOP:BOTTOM - round(0.3 * (BOTTOM - TOP)), 100:130] = 60
+    assert polarity_of(image) == -1.0
+
+
+def test_the_vote_needs_four_times_the_other_sign() -> None:
+    """The nearest 40 % of the line steps light to dark (7 of the 18 points); a light patch at
+    the far end steps the other way: over its farthest 12 % (2 points) there are fewer than
+    four times as many, no polarity (twice as many would have given one); over 5 % (1 point)
+    the vote stands."""
+
+    def with_light_far_end(share: float) -> np.ndarray:
+        image = tape_on(0.4)
+        image[TOP:round(TOP + share * (BOTTOM - TOP)) + 1, 100:130] = 250
+        return image
+
+    assert polarity_of(with_light_far_end(0.12)) == 0.0
+    assert polarity_of(with_light_far_end(0.05)) == -1.0
