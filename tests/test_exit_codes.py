@@ -25,6 +25,7 @@ from lanewarden.perception.calibration import CameraCalibration, save_calibratio
 from tests.actuation.kobuki_standin import KobukiStandIn
 from tests.conftest import PROJECT_ROOT
 from tests.perception import synthetic as syn
+from tests.processes import sigint_as_from_a_terminal
 
 GOOD_K = [[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]]
 NAN_K = [[float("nan"), 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]]
@@ -154,7 +155,8 @@ def test_ctrl_c_exits_130_with_one_line(files: dict[str, str]) -> None:
     sim = subprocess.Popen(
         [sys.executable, "-m", "lanewarden", "sim", "--scenario", files["long"],
          "--no-video", "--quiet", "--out", str(out)],
-        cwd=PROJECT_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        cwd=PROJECT_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_as_from_a_terminal)
     try:
         deadline = time.monotonic() + 120.0
         while not (out / "run.jsonl").exists() and sim.poll() is None:

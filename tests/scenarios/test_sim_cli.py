@@ -14,6 +14,7 @@ import cv2
 import pytest
 
 from lanewarden.cli import main
+from tests.processes import sigint_as_from_a_terminal
 
 SHORT = """\
 name: short
@@ -110,7 +111,8 @@ def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None
     out = tmp_path / "run"
     run = subprocess.Popen(
         [sys.executable, "-m", "lanewarden", "sim", "--scenario", str(scenario), "--out",
-         str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_as_from_a_terminal)
     try:
         # Wait (generously) until the run is under way: steps are being recorded.
         deadline = time.monotonic() + 120.0
