@@ -142,8 +142,7 @@ class ControlLoop:
         self._record = record
         self._last_index: int | None = None
         self._last_fingerprint: bytes | None = None
-        # The lane perception's `consistency` is measured against (`_reference`).
-        self._reference_lane: LaneObservation | None = None
+        self._previous: LaneObservation | None = None
         self._start = False
         self._resume = False
         # Counted, not flagged: a stop requested from another thread while a step runs is never
@@ -195,7 +194,6 @@ class ControlLoop:
             sent_events = ordered((*sent_events, Event.BASE_LINK_LOST))
         if self._stop_requests != stop_requests and not output.command.is_stop:
             self._send(STOP, now)  # a stop arrived during this step: it wins over our command
-        self._remember(observation, output.lane_trusted)
         record = self._make_record(now, info, observation, output, sent_events)
         if self._record is not None:
             self._record(record)
@@ -223,31 +221,14 @@ class ControlLoop:
             return info, None
         try:
             observation = self._detector.detect(
-                frame.image, frame.index, frame.time_s, previous=self._reference(frame.time_s)
+                frame.image, frame.index, frame.time_s, previous=self._previous
             )
         except Exception as exc:  # perception's failure halts; it never crashes the loop
             events.add(Event.PERCEPTION_ERROR)
             details[Event.PERCEPTION_ERROR] = exception_line(exc)
             return info, None
+        self._previous = observation
         return info, observation
-
-    def _reference(self, frame_time_s: float) -> LaneObservation | None:
-        """The lane a new frame's `consistency` is measured against: the last one the supervisor
-        trusted, if its frame is at most `gate.lane_memory_s` older than this one (else none:
-        perception scores `consistency` neutral). Not simply the previous frame's: after one
-        frame that took a floor seam for an edge, the next frame's true lane would disagree with
-        it, and one wrong frame in two would leave no frame consistent at all."""
-        lane = self._reference_lane
-        if lane is None or not 0.0 <= frame_time_s - lane.time_s <= self._gate.lane_memory_s:
-            return None
-        return lane
-
-    def _remember(self, observation: LaneObservation | None, trusted: bool | None) -> None:
-        """Keep a new observation as the reference lane when the supervisor trusted it, or
-        when its controller judges no lanes (`trusted` None: the lecture's, which never had a
-        notion of a trusted lane: each frame is compared with the one before)."""
-        if observation is not None and trusted is not False:
-            self._reference_lane = observation
 
     def _feedback(
         self, now: float, events: set[Event], details: dict[Event, str]
