@@ -355,4 +355,3 @@ def test_operator_stop_arriving_during_a_step_is_never_lost() -> None:
     assert run.records[-1].frame_index == 40
     assert base.sent[-1][1] == STOP  # the step's own command was followed by STOP
     assert run.step().state == "HALT"
-
