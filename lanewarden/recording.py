@@ -75,10 +75,10 @@ from lanewarden.run_mcap import (
     RunMcapWriter,
 )
 from lanewarden.run_record import FORMAT_VERSION, MAX_TEXT_CHARS, StepInput, step_line
-from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput
+from lanewarden.supervisor.control_io import ControlInputs, ControlOutput
 from lanewarden.supervisor.errors import SupervisorError
 from lanewarden.supervisor.events import Event
-from lanewarden.supervisor.loop import Frame, FrameSource, StepRecord
+from lanewarden.supervisor.loop import Frame, FrameSource, Gate, StepRecord
 from lanewarden.supervisor.watchdog import frame_fingerprint
 
 RUN_MCAP = "run.mcap"
@@ -121,8 +121,8 @@ class InputTap:
     def base(self, inner: Base) -> Base:
         return _TappedBase(self, inner)
 
-    def controller(self, inner: Controller) -> Controller:
-        return _TappedController(self, inner)
+    def gate(self, inner: Gate) -> Gate:
+        return _TappedGate(self, inner)
 
     # ---- what the wrappers note ---------------------------------------------------------------
     def _note(self, **values: Any) -> None:
@@ -189,10 +189,14 @@ class _TappedBase:
         self.inner.close()
 
 
-class _TappedController:
-    def __init__(self, tap: InputTap, inner: Controller) -> None:
+class _TappedGate:
+    def __init__(self, tap: InputTap, inner: Gate) -> None:
         self._tap = tap
         self.inner = inner
+
+    @property
+    def lane_memory_s(self) -> float:
+        return self.inner.lane_memory_s
 
     def step(self, inputs: ControlInputs, now: float) -> ControlOutput:
         requests = tuple(name for name, asked in (

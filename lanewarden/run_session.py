@@ -17,7 +17,7 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO, cast
+from typing import Any, TextIO
 
 from lanewarden.actuation.base import Base
 from lanewarden.assembly import ControlStack, DetectionTap
@@ -42,8 +42,7 @@ from lanewarden.recording import (
 )
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd
-from lanewarden.supervisor.gate import SafetyGate
-from lanewarden.supervisor.loop import Detector, FrameSource, StepRecord
+from lanewarden.supervisor.loop import Detector, FrameSource, Gate, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 
 DEFAULT_RUNS_ROOT = Path("runs")
@@ -128,14 +127,14 @@ class RunSession:
 
     # ---- building the loop --------------------------------------------------------------------
     def wrap(self, frames: FrameSource, stack: ControlStack,
-             base: Base) -> tuple[FrameSource, Detector, SafetyGate, Base]:
+             base: Base) -> tuple[FrameSource, Detector, Gate, Base]:
         """The loop's parts (the stack's detector and safety gate, built with `debug_tap=True`
         for the live page's overlay) with the recording taps around them (same behaviour)."""
         self._stack = stack
         self._detections = stack.tap
         self.recorder.prepare_with(stack.detector)  # it records what this detector consumes
-        # The controller tap hands every step to the gate and returns its output unchanged.
-        gate = cast(SafetyGate, self.tap.controller(stack.gate))
+        # The gate's tap hands every step to the gate and returns its output unchanged.
+        gate = self.tap.gate(stack.gate)
         return (self.tap.frames(frames), stack.tap or stack.detector, gate, self.tap.base(base))
 
     def attach(self, loop: Engageable) -> OperatorPanel:

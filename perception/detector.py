@@ -124,9 +124,10 @@ class LaneDetector:
     a config this camera cannot work with is refused here (`PerceptionConfigError`), before any
     frame.
 
-    `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the last
-    observation) only feeds the `consistency` confidence component; the detector keeps no
-    history of its own, so it is a pure function of its arguments and the config.
+    `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the lane to
+    agree with: the control loop passes the last one its supervisor trusted, see
+    `ControlLoop._reference`) only feeds the `consistency` confidence component; the detector
+    keeps no history of its own, so it is a pure function of its arguments and the config.
     """
 
     def __init__(self, config: PerceptionConfig, undistorter: Undistorter | None = None,

@@ -173,8 +173,16 @@ class SupervisorConfig(BaseModel):
         default=5,
         ge=1,
         le=300,
-        description="m: confident frames in a row before DEGRADED recovers to FOLLOW, camera "
-        "frames",
+        description="m: confident frames before DEGRADED recovers to FOLLOW (in a row, or "
+        "among the last recover_window_frames), camera frames",
+    )
+    recover_window_frames: int = Field(
+        default=8,
+        ge=0,
+        le=300,
+        description="M: DEGRADED recovers to FOLLOW once recover_confident_frames of the last M "
+        "camera frames judged since it was entered were confident, the newest among them (k of "
+        "n, as engage_window_frames); 0: all recover_confident_frames in a row",
     )
 
     # --- Turn hysteresis on the filtered slope sum (the lecture's +-6) ---
@@ -389,6 +397,12 @@ class SupervisorConfig(BaseModel):
             or self.engage_window_frames >= self.engage_confident_frames,
             f"engage_window_frames ({self.engage_window_frames}) must be at least "
             f"engage_confident_frames ({self.engage_confident_frames})",
+        )
+        require(
+            self.recover_window_frames == 0
+            or self.recover_window_frames >= self.recover_confident_frames,
+            f"recover_window_frames ({self.recover_window_frames}) must be at least "
+            f"recover_confident_frames ({self.recover_confident_frames})",
         )
         require(
             self.turn_exit_slope_sum < self.turn_enter_slope_sum,

@@ -99,6 +99,10 @@ class SafetyGate:
         limits: CommandLimits | None = None,
     ) -> None:
         self.controller = controller
+        #: How long a lane the supervisor trusted stays the one perception's `consistency` is
+        #: measured against (`ControlLoop`): the supervisor halts LANE_LOST after this long
+        #: without a usable lane, so past it there is no trusted lane left to agree with.
+        self.lane_memory_s = config.lane_lost_halt_s
         self._link_timeout_s = config.base_link_timeout_s
         self._battery_v = (config.battery_low_v, config.battery_critical_v)
         self._limiter = CommandLimiter(limits or CommandLimits.for_driving(config))

@@ -32,7 +32,6 @@ from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
 from lanewarden.supervisor.errors import exception_line
 from lanewarden.supervisor.events import Event, ordered
-from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.watchdog import frame_fingerprint
 
 __all__ = [
@@ -44,6 +43,7 @@ __all__ = [
     "Frame",
     "FrameInfo",
     "FrameSource",
+    "Gate",
     "StepRecord",
 ]
 
@@ -72,6 +72,19 @@ class Detector(Protocol):
         time_s: float,
         previous: LaneObservation | None = None,
     ) -> LaneObservation: ...
+
+
+class Gate(Protocol):
+    """What the loop drives: a `SafetyGate` (or a wrapper around one that behaves the same, like
+    the recording tap). A bare `Controller` is not a Gate: it has no `lane_memory_s`, so a type
+    checker refuses to hand the loop a controller without its gate."""
+
+    @property
+    def lane_memory_s(self) -> float:
+        """How long the last lane the supervisor trusted stays the one perception's
+        `consistency` is measured against (`ControlLoop._reference`)."""
+
+    def step(self, inputs: ControlInputs, now: float) -> ControlOutput: ...
 
 
 def _round(value: float | None, digits: int = 6) -> float | None:
@@ -130,7 +143,7 @@ class ControlLoop:
         self,
         frames: FrameSource,
         detector: Detector,
-        gate: SafetyGate,
+        gate: Gate,
         base: Base,
         *,
         record: Callable[[StepRecord], None] | None = None,
@@ -142,7 +155,10 @@ class ControlLoop:
         self._record = record
         self._last_index: int | None = None
         self._last_fingerprint: bytes | None = None
-        self._previous: LaneObservation | None = None
+        # The lane perception's `consistency` is measured against (`_reference`), and how long it
+        # stays so: read once here, so a gate without it fails at assembly, not frame by frame.
+        self._reference_lane: LaneObservation | None = None
+        self._lane_memory_s = float(gate.lane_memory_s)
         self._start = False
         self._resume = False
         # Counted, not flagged: a stop requested from another thread while a step runs is never
@@ -194,6 +210,7 @@ class ControlLoop:
             sent_events = ordered((*sent_events, Event.BASE_LINK_LOST))
         if self._stop_requests != stop_requests and not output.command.is_stop:
             self._send(STOP, now)  # a stop arrived during this step: it wins over our command
+        self._remember(observation, output.lane_trusted)
         record = self._make_record(now, info, observation, output, sent_events)
         if self._record is not None:
             self._record(record)
@@ -221,14 +238,31 @@ class ControlLoop:
             return info, None
         try:
             observation = self._detector.detect(
-                frame.image, frame.index, frame.time_s, previous=self._previous
+                frame.image, frame.index, frame.time_s, previous=self._reference(frame.time_s)
             )
         except Exception as exc:  # perception's failure halts; it never crashes the loop
             events.add(Event.PERCEPTION_ERROR)
             details[Event.PERCEPTION_ERROR] = exception_line(exc)
             return info, None
-        self._previous = observation
         return info, observation
+
+    def _reference(self, frame_time_s: float) -> LaneObservation | None:
+        """The lane a new frame's `consistency` is measured against: the last one the supervisor
+        trusted, if its frame is at most `Gate.lane_memory_s` older than this one (else none:
+        perception scores `consistency` neutral). Not simply the previous frame's: after one
+        frame that took a floor seam for an edge, the next frame's true lane would disagree with
+        it, and one wrong frame in two would leave no frame consistent at all."""
+        lane = self._reference_lane
+        if lane is None or not 0.0 <= frame_time_s - lane.time_s <= self._lane_memory_s:
+            return None
+        return lane
+
+    def _remember(self, observation: LaneObservation | None, trusted: bool | None) -> None:
+        """Keep a new observation as the reference lane when the supervisor trusted it, or
+        when its controller judges no lanes (`trusted` None: the lecture's, which never had a
+        notion of a trusted lane: each frame is compared with the one before)."""
+        if observation is not None and trusted is not False:
+            self._reference_lane = observation
 
     def _feedback(
         self, now: float, events: set[Event], details: dict[Event, str]

@@ -7,7 +7,8 @@ of the current state can match does not fire the trigger at all). HALT is the in
 and is latched: entering it disarms any engage request, and only a NEW start/resume request plus
 `engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again
 (or, with `engage_window_frames` M set, that many among the last M judged frames, the newest
-confident: k of n).
+confident: k of n). DEGRADED recovers to FOLLOW on `recover_confident_frames` likewise (in a row,
+or among the last `recover_window_frames`).
 A fresh HALT event while halted re-enters HALT (new reason, request disarmed again).
 
 Timers count injected time (`StepFacts.now`) and frames, never wall clock: no transitions `Timeout`
@@ -139,6 +140,31 @@ class Tick:
     worst: Response | None
 
 
+class ConfidentFrames:
+    """Whether `needed` of the last `window` judged frames were confident, the newest among
+    them (k of n). `window` 0 (or `needed`): all `needed` in a row."""
+
+    def __init__(self, needed: int, window: int) -> None:
+        self.needed = needed
+        self.frames: deque[bool] = deque(maxlen=max(window, needed))
+        self.confident = 0
+
+    def add(self, confident: bool) -> None:
+        frames = self.frames
+        if len(frames) == frames.maxlen:
+            self.confident -= frames[0]
+        frames.append(confident)
+        self.confident += confident
+
+    def clear(self) -> None:
+        self.frames.clear()
+        self.confident = 0
+
+    @property
+    def enough(self) -> bool:
+        return self.confident >= self.needed and self.frames[-1]
+
+
 class SupervisorStateMachine:
     """The transitions model. `state` is set by transitions' Machine."""
 
@@ -148,11 +174,11 @@ class SupervisorStateMachine:
         self._config = config
         self.halt_reason: str | None = NOT_STARTED_REASON
         self.engage_armed = False
-        self.confident_streak = 0
-        # The last engage_window_frames judged frames (True: confident) and how many were.
-        window = config.engage_window_frames or config.engage_confident_frames
-        self.recent_frames: deque[bool] = deque(maxlen=window)
-        self.recent_confident = 0
+        # k of the last n judged frames confident, the newest among them: to engage, to recover.
+        self.engage_frames = ConfidentFrames(config.engage_confident_frames,
+                                             config.engage_window_frames)
+        self.recover_frames = ConfidentFrames(config.recover_confident_frames,
+                                              config.recover_window_frames)
         self.degraded_since_s: float | None = None
         self.degraded_travelled_m = 0.0
         self._machine = Machine(model=self, **machine_arguments())
@@ -190,21 +216,15 @@ class SupervisorStateMachine:
                 and not events <= FRAME_JUDGEMENT_EVENTS | _BELOW_DEGRADE):
             self._forget_confident_frames()
         elif facts.frame_confident is not None:
-            confident = facts.frame_confident
-            self.confident_streak = self.confident_streak + 1 if confident else 0
-            recent = self.recent_frames
-            if len(recent) == recent.maxlen:
-                self.recent_confident -= recent[0]
-            recent.append(confident)
-            self.recent_confident += confident
+            self.engage_frames.add(facts.frame_confident)
+            self.recover_frames.add(facts.frame_confident)
         if self._may_fire(tick):
             self._machine.events["tick"].trigger(self, tick)
         return tick
 
     def _forget_confident_frames(self) -> None:
-        self.confident_streak = 0
-        self.recent_frames.clear()
-        self.recent_confident = 0
+        self.engage_frames.clear()
+        self.recover_frames.clear()
 
     def _may_fire(self, tick: Tick) -> bool:
         """Whether some row leaving the current state has its condition met. When none has,
@@ -229,15 +249,15 @@ class SupervisorStateMachine:
         than WARN this step, and a filtered slope sum."""
         return (
             self.engage_armed
-            and self.recent_confident >= self._config.engage_confident_frames
-            and self.confident_streak > 0
+            and self.engage_frames.enough
             and (tick.worst is None or tick.worst < Response.DEGRADE)
             and tick.facts.slope_sum is not None
         )
 
     def may_recover(self, tick: Tick) -> bool:
-        """`recover_confident_frames` confident frames in a row and nothing worse than WARN."""
-        return self.confident_streak >= self._config.recover_confident_frames and (
+        """`recover_confident_frames` confident frames in a row (or among the last
+        `recover_window_frames`, the newest confident) and nothing worse than WARN."""
+        return self.recover_frames.enough and (
             tick.worst is None or tick.worst < Response.DEGRADE
         )
 

@@ -11,7 +11,7 @@ import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import cv2
 import numpy as np
@@ -27,7 +27,6 @@ from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder
 from lanewarden.run_mcap import CAMERA_GRAY, PERCEPTION_INPUT
-from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, FrameSource, StepRecord
 
 DT = 1.0 / 30.0
@@ -70,7 +69,7 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
     stack = build_stack(config, calibration=loaded_calibration)  # what `run` builds
     recorder.prepare_with(stack.detector)  # as RunSession.wrap does
     loop = ControlLoop(tap.frames(source or ClipFrames(frames, T0)), stack.detector,
-                       cast(SafetyGate, tap.controller(stack.gate)), tap.base(SimBase()),
+                       tap.gate(stack.gate), tap.base(SimBase()),
                        record=on_step)
     records = []
     for k in range(len(frames) + 3):

@@ -35,7 +35,6 @@ from lanewarden.replay_outputs import replay_metrics
 from lanewarden.ros_bag import McapFile, decode
 from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
 from lanewarden.run_record import StepInput
-from lanewarden.supervisor.gate import SafetyGate
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import frame_fingerprint
 from lanewarden.survey_run import CheckedFrames, camera_steps
@@ -90,7 +89,7 @@ def test_the_taps_change_nothing(clip: list[np.ndarray]) -> None:
     tap = InputTap()
     stack = build_stack(config)
     tapped = ControlLoop(tap.frames(ClipFrames(clip, t0)), stack.detector,
-                         cast(SafetyGate, tap.controller(stack.gate)), tap.base(SimBase()),
+                         tap.gate(stack.gate), tap.base(SimBase()),
                          record=lambda r: tap.take(r.time_s) and None)
     plain.start(t0)
     tapped.start(t0)

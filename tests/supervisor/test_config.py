@@ -41,6 +41,10 @@ def test_every_timing_and_threshold_has_its_unit_or_kind_in_its_name() -> None:
         ({"follow_speed_m_s": 0.5}, "follow_speed_m_s"),
         ({"degraded_max_angular_rad_s": 2.0}, "degraded_max_angular_rad_s"),
         ({"loop_overrun_s": 0.01}, "loop_overrun_s"),
+        ({"engage_window_frames": 9}, "engage_window_frames (9) must be at least "
+                                      "engage_confident_frames (10)"),
+        ({"recover_window_frames": 4}, "recover_window_frames (4) must be at least "
+                                       "recover_confident_frames (5)"),
     ],
 )
 def test_inconsistent_values_are_refused_naming_the_keys(

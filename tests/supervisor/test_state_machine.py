@@ -464,10 +464,32 @@ def test_transition_table_has_one_trigger_and_no_automatic_transitions() -> None
 
 
 def test_degraded_recovers_after_m_confident_frames() -> None:
+    """Only frames judged since DEGRADED was entered count: the confident ones seen while
+    following (which, with the 8-frame window, would make 7 of the last 8) do not."""
     rig, _ = _degraded()
     m = CONFIG.recover_confident_frames
     states = [rig.step().state for _ in range(m)]
     assert states == ["DEGRADED"] * (m - 1) + ["FOLLOW"]
+
+
+def test_k_of_n_recovers_on_confident_frames_in_bursts() -> None:
+    """Campaign run r00562: in DEGRADED, confident frames came in runs of at most 4, and 5 in a
+    row never came, so it halted DEGRADED_BUDGET_EXHAUSTED on a lane it was following. By default
+    5 of the last 8 judged frames since DEGRADED was entered recover (the newest confident):
+    4 on, 1 off, 1 on recovers at the sixth frame. With recover_window_frames 0 (in a row) the
+    same frames never recover."""
+    assert (CONFIG.recover_confident_frames, CONFIG.recover_window_frames) == (5, 8)
+    burst = [True, True, True, True, False, True]
+    k_of_n, _ = _degraded()
+    states = [k_of_n.step(confidence=0.9 if c else 0.3).state for c in burst]
+    assert states == ["DEGRADED"] * 5 + ["FOLLOW"]
+    in_a_row = Rig(SupervisorConfig(recover_window_frames=0))
+    in_a_row.engage()
+    in_a_row.run(30)
+    assert in_a_row.step(left=False, confidence=0.5).state == "DEGRADED"
+    for _ in range(3):
+        for c in burst[:5]:
+            assert in_a_row.step(confidence=0.9 if c else 0.3).state == "DEGRADED"
 
 
 def test_degraded_needs_the_higher_confidence_to_recover() -> None:
