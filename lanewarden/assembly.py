@@ -26,7 +26,7 @@ from lanewarden.config import LanewardenConfig
 from lanewarden.perception.calibration import CameraCalibration, Undistorter
 from lanewarden.perception.decision import Decision, decide
 from lanewarden.perception.detector import DetectionDebug, LaneDetector
-from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.observation import LaneObservation, LaneReference
 from lanewarden.supervisor.control_io import Controller
 from lanewarden.supervisor.controllers import DEFAULT_CONTROLLER, FixedCommand, make_controller
 from lanewarden.supervisor.gate import SafetyGate
@@ -45,7 +45,7 @@ class DetectionTap:
         self.last: tuple[int, LaneObservation, DetectionDebug] | None = None
 
     def detect(self, image: np.ndarray, frame_index: int, time_s: float,
-               previous: LaneObservation | None = None) -> LaneObservation:
+               previous: LaneReference = None) -> LaneObservation:
         self.last = None
         observation, debug = self._detector.detect_debug(image, frame_index, time_s, previous)
         self.last = (frame_index, observation, debug)
@@ -129,7 +129,7 @@ class NoCamera:
         return None
 
     def detect(self, image: np.ndarray, frame_index: int, time_s: float,
-               previous: LaneObservation | None = None) -> LaneObservation:
+               previous: LaneReference = None) -> LaneObservation:
         raise AssertionError("no camera: the loop never has a frame to detect on")
 
 

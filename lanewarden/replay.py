@@ -27,7 +27,7 @@ from lanewarden.config import LanewardenConfig
 from lanewarden.errors import UsageError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.detector import DetectionDebug
-from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.observation import LaneObservation, LaneReference
 from lanewarden.replay_sources import (
     FrameStore,
     ReplaySource,
@@ -130,7 +130,7 @@ class ReplayDetection:
         self._frames = frames
 
     def detect(self, image: np.ndarray, frame_index: int, time_s: float,
-               previous: LaneObservation | None = None) -> LaneObservation:
+               previous: LaneReference = None) -> LaneObservation:
         self._tap.last = None
         return self._tap.detect(self._frames.recorded_image(image), frame_index, time_s,
                                 previous)

@@ -49,7 +49,7 @@ from types import MappingProxyType
 
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
-from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
 
 COMPONENT_NAMES = (
     "both_sides",
@@ -152,16 +152,26 @@ def floor_between(left: EdgeEvidence, right: EdgeEvidence) -> float:
 def consistency_component(
     left: LaneEdge | None,
     right: LaneEdge | None,
-    previous: LaneObservation | None,
+    previous: LaneReference,
     view: FloorView,
     config: PerceptionConfig,
 ) -> float:
-    """Agreement with `previous`: per side present in both, the reported segment (near end to
-    the look-ahead) on the floor: how far its near end lies from the previous one's line and how
-    much it turned; the worst side counts. 1 when there is nothing to compare. (The reported
-    chord, not the near line: near Hough pieces come and go in a bend, the chord does not.)"""
+    """Agreement with `previous` (with several observations: the best agreement with any of
+    them): per side present in both, the reported segment (near end to the look-ahead) on the
+    floor: how far its near end lies from the previous one's line and how much it turned; the
+    worst side counts. 1 when there is nothing to compare. (The reported chord, not the near
+    line: near Hough pieces come and go in a bend, the chord does not.)"""
     if previous is None:
         return 1.0
+    if isinstance(previous, tuple):
+        if not previous:
+            return 1.0
+        return max(_agreement(left, right, p, view, config) for p in previous)
+    return _agreement(left, right, previous, view, config)
+
+
+def _agreement(left: LaneEdge | None, right: LaneEdge | None, previous: LaneObservation,
+               view: FloorView, config: PerceptionConfig) -> float:
     cc = config.confidence
     score = 1.0
     for now, before in ((left, previous.left), (right, previous.right)):

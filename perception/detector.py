@@ -67,7 +67,7 @@ from lanewarden.perception.ground import (
     ground_model_for,
 )
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
-from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
@@ -173,7 +173,7 @@ class LaneDetector:
         image: np.ndarray,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None = None,
+        previous: LaneReference = None,
     ) -> LaneObservation:
         """The lane observation for one frame (see `LaneObservation`). Raises PerceptionError
         for an unusable frame (not an array, wrong dtype or shape, too small, wrong size for
@@ -186,7 +186,7 @@ class LaneDetector:
         image: np.ndarray,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None = None,
+        previous: LaneReference = None,
     ) -> tuple[LaneObservation, DetectionDebug]:
         """`detect` plus the intermediate results, for `perception.overlay` and diagnosis."""
         observation, state, segments, choices, frame = self._run(
@@ -227,7 +227,7 @@ class LaneDetector:
         image: np.ndarray,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None,
+        previous: LaneReference,
     ) -> tuple[
         LaneObservation,
         SizeSetup,
@@ -318,7 +318,7 @@ class LaneDetector:
         state: SizeSetup,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None,
+        previous: LaneReference,
     ) -> LaneObservation:
         config = self.config
         left_floor = _evidence(rows, left)

@@ -390,16 +390,34 @@ def _polarity(
 def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,
           n_down: IntArray) -> FloatArray:
     """Per row, from which points step up (`up`) and down (`down`) clearly, and how many: +1
-    where at least `POLARITY_VOTE_SHARE` of the points, in one unbroken run from one end of the
-    line, step up, and at least `POLARITY_VOTE_MARGIN` times as many points step up as down; -1
-    the other way round; 0 otherwise. (An unbroken run from an end: a gap leaves the rest of a
-    tape in one piece that runs to the line's end, while on a speckled floor, or across a
-    patchy one where a stretch of lighter slats or chips happens to line up mid-line, a line of
-    no contrast has no such run.)"""
+    where at least `POLARITY_VOTE_SHARE` of the points step up, in one run from one end of the
+    line unbroken but for gaps of one or two points (`_bridged`), and at least
+    `POLARITY_VOTE_MARGIN` times as many points step up as down; -1 the other way round; 0
+    otherwise. (A run from an end: a gap leaves the rest of a tape in one piece that runs to the
+    line's end, while on a speckled floor, or across a patchy one where a stretch of lighter
+    slats or chips happens to line up mid-line, a line of no contrast has no such run.)"""
     need = math.ceil(POLARITY_VOTE_SHARE * up.shape[1])
-    rising = _run_from_an_end(up, need) & (n_up >= POLARITY_VOTE_MARGIN * n_down)
-    falling = _run_from_an_end(down, need) & (n_down >= POLARITY_VOTE_MARGIN * n_up)
+    rising = (_run_from_an_end(_bridged(up), need) & (n_up >= need)
+              & (n_up >= POLARITY_VOTE_MARGIN * n_down))
+    falling = (_run_from_an_end(_bridged(down), need) & (n_down >= need)
+               & (n_down >= POLARITY_VOTE_MARGIN * n_up))
     return np.where(rising, 1.0, np.where(falling, -1.0, 0.0))
+
+
+def _bridged(flags: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """`flags` with each gap of one or two False values between True ones filled: a point or
+    two of a dash's far end can show no clear step (the tape a few pixels wide there, a speck
+    of noise) without breaking its run. A gap of three or more still breaks it (its middle
+    point may be filled, its ends are not)."""
+    out = flags.copy()
+    before = np.zeros_like(flags)
+    after = np.zeros_like(flags)
+    before[:, 1:] |= flags[:, :-1]
+    before[:, 2:] |= flags[:, :-2]
+    after[:, :-1] |= flags[:, 1:]
+    after[:, :-2] |= flags[:, 2:]
+    out |= before & after
+    return out
 
 
 def _run_from_an_end(flags: NDArray[np.bool_], length: int) -> NDArray[np.bool_]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import TypeAlias
 
 
 @dataclass(frozen=True)
@@ -108,3 +109,9 @@ def weakest_component(components: Mapping[str, float]) -> tuple[str, float] | No
     equals), or None when none is below 1 (nothing held it down)."""
     lowest = min(components.items(), key=lambda item: item[1], default=None)
     return lowest if lowest is not None and lowest[1] < 1.0 else None
+
+
+#: What a frame's `consistency` is measured against: an earlier observation, several of them (the
+#: best agreement counts: the control loop passes the frame before and the last lane its
+#: supervisor trusted), or none (neutral).
+LaneReference: TypeAlias = "LaneObservation | tuple[LaneObservation, ...] | None"

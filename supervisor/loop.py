@@ -28,7 +28,7 @@ import numpy as np
 
 from lanewarden.actuation.base import STOP, Base, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
-from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.observation import LaneObservation, LaneReference
 from lanewarden.supervisor.control_io import ControlInputs, Controller, ControlOutput, FrameInfo
 from lanewarden.supervisor.errors import exception_line
 from lanewarden.supervisor.events import Event, ordered
@@ -70,7 +70,7 @@ class Detector(Protocol):
         image: np.ndarray,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None = None,
+        previous: LaneReference = None,
     ) -> LaneObservation: ...
 
 
@@ -158,6 +158,7 @@ class ControlLoop:
         # The lane perception's `consistency` is measured against (`_reference`), and how long it
         # stays so: read once here, so a gate without it fails at assembly, not frame by frame.
         self._reference_lane: LaneObservation | None = None
+        self._previous: LaneObservation | None = None
         self._lane_memory_s = float(gate.lane_memory_s)
         self._start = False
         self._resume = False
@@ -246,22 +247,30 @@ class ControlLoop:
             return info, None
         return info, observation
 
-    def _reference(self, frame_time_s: float) -> LaneObservation | None:
-        """The lane a new frame's `consistency` is measured against: the last one the supervisor
-        trusted, if its frame is at most `Gate.lane_memory_s` older than this one (else none:
-        perception scores `consistency` neutral). Not simply the previous frame's: after one
-        frame that took a floor seam for an edge, the next frame's true lane would disagree with
-        it, and one wrong frame in two would leave no frame consistent at all."""
-        lane = self._reference_lane
-        if lane is None or not 0.0 <= frame_time_s - lane.time_s <= self._lane_memory_s:
-            return None
-        return lane
+    def _reference(self, frame_time_s: float) -> LaneReference:
+        """What a new frame's `consistency` is measured against: the previous observation,
+        whatever it was, and the last lane the supervisor trusted, if its frame is at most
+        `Gate.lane_memory_s` older than this one; the better agreement counts. Not only the
+        previous one: after one frame that took a floor seam for an edge, the next frame's true
+        lane would disagree with it, and one wrong frame in two would leave no frame consistent
+        at all. Not only the trusted one: it may be several frames old, and a camera that moves
+        fast shifts the lane more than the per-frame tolerance in that time. Without a recent
+        trusted lane (before engaging, after a loss) each frame must agree with the one before,
+        as a false lane on bare floor rarely does."""
+        lane, previous = self._reference_lane, self._previous
+        if (lane is None or lane is previous
+                or not 0.0 <= frame_time_s - lane.time_s <= self._lane_memory_s):
+            return previous
+        return lane if previous is None else (previous, lane)
 
     def _remember(self, observation: LaneObservation | None, trusted: bool | None) -> None:
-        """Keep a new observation as the reference lane when the supervisor trusted it, or
-        when its controller judges no lanes (`trusted` None: the lecture's, which never had a
-        notion of a trusted lane: each frame is compared with the one before)."""
-        if observation is not None and trusted is not False:
+        """Keep a new observation as the previous one, and as the reference lane when the
+        supervisor trusted it, or when its controller judges no lanes (`trusted` None: the
+        lecture's, which never had a notion of a trusted lane)."""
+        if observation is None:
+            return
+        self._previous = observation
+        if trusted is not False:
             self._reference_lane = observation
 
     def _feedback(

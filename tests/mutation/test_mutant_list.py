@@ -16,7 +16,7 @@ SAFETY_FILES = {
     "supervisor/hazards.py", "supervisor/watchdog.py", "supervisor/controller.py",
     "supervisor/events.py", "supervisor/state_machine.py", "actuation/deadman_logic.py",
     "perception/tape_rules.py", "lanewarden/live_view.py", "lanewarden/operator.py",
-    "supervisor/lane_evidence.py", "supervisor/commands.py",
+    "supervisor/lane_evidence.py", "supervisor/commands.py", "supervisor/loop.py",
 }  # fmt: skip
 
 

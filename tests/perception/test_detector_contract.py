@@ -124,6 +124,22 @@ def test_consistency_with_a_previous_observation(detector: LaneDetector) -> None
     assert jumped.confidence < alone.confidence
 
 
+def test_consistency_with_several_observations_is_the_best_agreement(
+        detector: LaneDetector) -> None:
+    """The control loop passes the frame before and the last trusted lane: a frame agreeing
+    with either is consistent; one agreeing with neither is not; an empty tuple is neutral."""
+    straight = detector.detect(syn.frame(syn.STRAIGHT), 0, 0.0)
+    shifted = syn.frame(replace(syn.STRAIGHT, lateral_m=0.08))
+    jumped = detector.detect(shifted, 1, 0.05)
+    again = detector.detect(syn.frame(syn.STRAIGHT), 2, 0.1, previous=(jumped, straight))
+    assert again.components["consistency"] == 1.0
+    assert detector.detect(syn.frame(syn.STRAIGHT), 2, 0.1, previous=(straight, jumped)
+                           ).components["consistency"] == 1.0
+    neither = detector.detect(shifted, 2, 0.1, previous=(straight, straight))
+    assert neither.components["consistency"] < 0.5
+    assert detector.detect(shifted, 2, 0.1, previous=()).components["consistency"] == 1.0
+
+
 def test_detector_keeps_no_history(detector: LaneDetector) -> None:
     """Same frame, same answer, whatever came before (state lives in `previous` only)."""
     first = detector.detect(syn.frame(syn.BEND_LEFT), 0, 0.0)

@@ -85,3 +85,18 @@ def test_the_vote_needs_four_times_the_other_sign() -> None:
 
     assert polarity_of(with_light_far_end(0.12)) == 0.0
     assert polarity_of(with_light_far_end(0.05)) == -1.0
+
+
+@pytest.mark.parametrize(("gap_points", "expected"), [(2, -1.0), (3, 0.0)])
+def test_a_gap_of_two_points_in_the_run_is_bridged_not_three(gap_points: int,
+                                                             expected: float) -> None:
+    """Campaign scenario road-lines: the far end of a yellow dash read no clear step at two of
+    its points (it is a few pixels wide there), which broke the dash's run, left its inner edge
+    without polarity and the lane without its left tape for 7 frames. The tape covers the
+    nearest 45 % of the line (points 0-7 of 18), with floor over points 1 to `gap_points`: a gap
+    of two points in the run is bridged (the run from the near end holds: 6 clear points), a gap
+    of three breaks it (5 clear points, still a quarter, but no run); the median has no say."""
+    image = tape_on(0.45)
+    spacing = (BOTTOM - TOP) / 18  # sample i lies at (i + 0.5) spacings above the bottom end
+    image[round(BOTTOM - (gap_points + 1) * spacing):round(BOTTOM - spacing), 100:130] = 180
+    assert polarity_of(image) == expected

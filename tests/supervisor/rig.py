@@ -14,7 +14,7 @@ import numpy as np
 from lanewarden.actuation.base import STOP, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
 from lanewarden.perception.errors import PerceptionError
-from lanewarden.perception.observation import LaneEdge, LaneObservation
+from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
 from lanewarden.supervisor.clock import FakeClock
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
@@ -208,7 +208,7 @@ class ScriptedDetector:
         image: np.ndarray,
         frame_index: int,
         time_s: float,
-        previous: LaneObservation | None = None,
+        previous: LaneReference = None,
     ) -> LaneObservation:
         if not isinstance(image, np.ndarray) or image.size == 0:
             raise PerceptionError(f"frame {frame_index}: empty image")

@@ -358,38 +358,44 @@ def test_operator_stop_arriving_during_a_step_is_never_lost() -> None:
 
 
 class ReferenceDetector(ScriptedDetector):
-    """Records, per frame, which earlier frame perception was told to agree with (`previous`)."""
+    """Records, per frame, which earlier frames perception was told to agree with (`previous`:
+    none, one, or several, the best agreement counting)."""
 
     def __init__(self, untrusted: set[int]) -> None:
         super().__init__(script=lambda i, t: observation(
             i, t, confidence=0.0 if i in untrusted else 0.9))
-        self.reference: dict[int, int | None] = {}
+        self.reference: dict[int, tuple[int, ...]] = {}
 
     def detect(self, image, frame_index, time_s, previous=None):  # type: ignore[no-untyped-def]
-        self.reference[frame_index] = None if previous is None else previous.frame_index
+        lanes = previous if isinstance(previous, tuple) else (() if previous is None else
+                                                              (previous,))
+        self.reference[frame_index] = tuple(lane.frame_index for lane in lanes)
         return super().detect(image, frame_index, time_s, previous)
 
 
 def test_consistency_is_measured_against_the_last_trusted_lane_while_it_is_recent() -> None:
-    # Frames 40 and 41 are untrusted (a seam taken for an edge): 41 and 42 are still compared
-    # with frame 39, the last lane the supervisor trusted, not with the untrusted one before.
-    # From frame 60, untrusted frames until 60 + lane_lost_halt_s: past that window after
-    # frame 59 there is no lane left to agree with (None: neutral).
+    # Frames 40 and 41 are untrusted (a seam taken for an edge): 41 and 42 are compared with
+    # the frame before them and with frame 39, the last lane the supervisor trusted (the better
+    # agreement counts). From frame 60, untrusted frames until 60 + lane_lost_halt_s: past that
+    # window after frame 59 there is no trusted lane left, and each frame is compared with the
+    # one before only, as before engaging (a false lane must repeat itself to score).
     window_frames = round(CONFIG.lane_lost_halt_s / DT)  # 6
     untrusted = {40, 41, *range(60, 60 + window_frames + 3)}
     detector = ReferenceDetector(untrusted)
     run = Run(detector=detector)
     run.engage()
     run.until(3.0)
-    assert detector.reference[39] == 38
-    assert detector.reference[40] == 39
-    assert detector.reference[41] == 39
-    assert detector.reference[42] == 39
-    assert detector.reference[43] == 42
-    assert detector.reference[59 + window_frames] == 59  # exactly the window old: kept
-    assert detector.reference[59 + window_frames + 1] is None
-    assert detector.reference[60 + window_frames + 3] is None  # the first trusted one again
-    assert detector.reference[60 + window_frames + 4] == 60 + window_frames + 3
+    assert detector.reference[0] == ()  # nothing before the first frame
+    assert detector.reference[39] == (38,)  # the frame before is the trusted one
+    assert detector.reference[40] == (39,)
+    assert detector.reference[41] == (40, 39)
+    assert detector.reference[42] == (41, 39)
+    assert detector.reference[43] == (42,)
+    w = window_frames
+    assert detector.reference[59 + w] == (59 + w - 1, 59)  # exactly the window old: kept
+    assert detector.reference[59 + w + 1] == (59 + w,)
+    assert detector.reference[60 + w + 3] == (60 + w + 2,)
+    assert detector.reference[60 + w + 4] == (60 + w + 3,)  # trusted again
 
 
 def test_the_lectures_controller_compares_each_frame_with_the_one_before() -> None:
@@ -397,4 +403,4 @@ def test_the_lectures_controller_compares_each_frame_with_the_one_before() -> No
     run = Run(detector=detector, controller=LectureController(CONFIG))
     run.loop.start(0.0)
     run.until(2.0)
-    assert detector.reference[41] == 40 and detector.reference[42] == 41
+    assert detector.reference[41] == (40,) and detector.reference[42] == (41,)
