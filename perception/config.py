@@ -312,9 +312,9 @@ class ConfidenceConfig(BaseModel):
     - `support_full_frac_of_height`: an edge whose segments total this length (fraction of image
       height) gets full support 1; shorter scales linearly.
     - `consistency_offset_tol_m` / `consistency_angle_tol_deg`: how far an edge may move sideways
-      on the floor and turn since the previous observation (in the control loop: the last lane
-      the supervisor trusted, within `supervisor.lane_lost_halt_s`) and still score 1; the score
-      falls to 0 at twice that.
+      on the floor and turn since the previous observation (in the control loop: the frame
+      before, or the last lane the supervisor trusted within `supervisor.lane_lost_halt_s`,
+      whichever agrees better) and still score 1; the score falls to 0 at twice that.
     """
 
     model_config = _FROZEN

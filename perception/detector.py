@@ -124,9 +124,9 @@ class LaneDetector:
     a config this camera cannot work with is refused here (`PerceptionConfigError`), before any
     frame.
 
-    `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the lane to
-    agree with: the control loop passes the last one its supervisor trusted, see
-    `ControlLoop._reference`) only feeds the `consistency` confidence component; the detector
+    `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the lanes to
+    agree with, `LaneReference`: the control loop passes the frame before and the last lane its
+    supervisor trusted, see `ControlLoop._reference`) only feeds the `consistency` confidence component; the detector
     keeps no history of its own, so it is a pure function of its arguments and the config.
     """
 
