@@ -126,8 +126,9 @@ class LaneDetector:
 
     `detect(image, frame_index, time_s, previous=None)` is the hot path. `previous` (the lanes to
     agree with, `LaneReference`: the control loop passes the frame before and the last lane its
-    supervisor trusted, see `ControlLoop._reference`) only feeds the `consistency` confidence component; the detector
-    keeps no history of its own, so it is a pure function of its arguments and the config.
+    supervisor trusted, see `ControlLoop._reference`) only feeds the `consistency` confidence
+    component; the detector keeps no history of its own, so it is a pure function of its
+    arguments and the config.
     """
 
     def __init__(self, config: PerceptionConfig, undistorter: Undistorter | None = None,
