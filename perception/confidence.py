@@ -49,7 +49,12 @@ from types import MappingProxyType
 
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
-from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
+from lanewarden.perception.observation import (
+    LaneEdge,
+    LaneObservation,
+    LaneReference,
+    reference_lanes,
+)
 
 COMPONENT_NAMES = (
     "both_sides",
@@ -161,13 +166,8 @@ def consistency_component(
     floor: how far its near end lies from the previous one's line and how much it turned; the
     worst side counts. 1 when there is nothing to compare. (The reported chord, not the near
     line: near Hough pieces come and go in a bend, the chord does not.)"""
-    if previous is None:
-        return 1.0
-    if isinstance(previous, tuple):
-        if not previous:
-            return 1.0
-        return max(_agreement(left, right, p, view, config) for p in previous)
-    return _agreement(left, right, previous, view, config)
+    return max((_agreement(left, right, lane, view, config) for lane in reference_lanes(previous)),
+               default=1.0)
 
 
 def _agreement(left: LaneEdge | None, right: LaneEdge | None, previous: LaneObservation,

@@ -115,3 +115,10 @@ def weakest_component(components: Mapping[str, float]) -> tuple[str, float] | No
 #: best agreement counts: the control loop passes the frame before and the last lane its
 #: supervisor trusted), or none (neutral).
 LaneReference: TypeAlias = "LaneObservation | tuple[LaneObservation, ...] | None"
+
+
+def reference_lanes(previous: LaneReference) -> tuple[LaneObservation, ...]:
+    """The observations a `LaneReference` names, as a tuple (empty for None)."""
+    if previous is None:
+        return ()
+    return previous if isinstance(previous, tuple) else (previous,)

@@ -392,18 +392,14 @@ class SupervisorConfig(BaseModel):
             if not ok:
                 problems.append(text)
 
-        require(
-            self.engage_window_frames == 0
-            or self.engage_window_frames >= self.engage_confident_frames,
-            f"engage_window_frames ({self.engage_window_frames}) must be at least "
-            f"engage_confident_frames ({self.engage_confident_frames})",
-        )
-        require(
-            self.recover_window_frames == 0
-            or self.recover_window_frames >= self.recover_confident_frames,
-            f"recover_window_frames ({self.recover_window_frames}) must be at least "
-            f"recover_confident_frames ({self.recover_confident_frames})",
-        )
+        for kind in ("engage", "recover"):  # a k-of-n window holds at least its k frames
+            window = getattr(self, f"{kind}_window_frames")
+            needed = getattr(self, f"{kind}_confident_frames")
+            require(
+                window == 0 or window >= needed,
+                f"{kind}_window_frames ({window}) must be at least "
+                f"{kind}_confident_frames ({needed})",
+            )
         require(
             self.turn_exit_slope_sum < self.turn_enter_slope_sum,
             f"turn_exit_slope_sum ({self.turn_exit_slope_sum}) must be below "

@@ -9,6 +9,7 @@ import pytest
 
 from lanewarden.actuation.base import STOP
 from lanewarden.actuation.sim_base import SimBase
+from lanewarden.perception.observation import reference_lanes
 from lanewarden.supervisor.clock import FakeClock
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.controller import SupervisedController
@@ -367,9 +368,7 @@ class ReferenceDetector(ScriptedDetector):
         self.reference: dict[int, tuple[int, ...]] = {}
 
     def detect(self, image, frame_index, time_s, previous=None):  # type: ignore[no-untyped-def]
-        lanes = previous if isinstance(previous, tuple) else (() if previous is None else
-                                                              (previous,))
-        self.reference[frame_index] = tuple(lane.frame_index for lane in lanes)
+        self.reference[frame_index] = tuple(lane.frame_index for lane in reference_lanes(previous))
         return super().detect(image, frame_index, time_s, previous)
 
 
