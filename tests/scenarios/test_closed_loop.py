@@ -27,7 +27,8 @@ SEEDS = (0, 1)
 #: 320x240 (with a coarser floor texture, the size a Pi runs at) keeps the suite fast; the
 #: lecture's corners, the s-curve and wide-bends' 2 m bends pass there (wide-bends ran at 640x480
 #: until its slope sum, close to ±6 in those bends, stopped turning it across the inner tape in
-#: one seed of four: 8 of 8 seeds met its expectations at 320x240, docs/scenarios.md).
+#: one seed of four: 8 of 8 seeds met its expectations at 320x240, docs/scenarios.md; the
+#: default campaign draws it at 320x240 too).
 FAST = {"simulation": {"width_px": 320, "height_px": 240, "texture_mm_per_px": 5.0}}
 #: The demo test already runs `lecture` seed 0 at 640x480; here another seed.
 SEEDS_FOR = {"lecture": (1,), "wide-bends": (1,)}
