@@ -6,12 +6,13 @@ fact in `kobuki_geometry`, not a setting.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from lanewarden.actuation.kobuki_geometry import MAX_ANGULAR_RAD_S, MAX_LINEAR_M_S
+from lanewarden.documents import DocumentModel
 
 
-class SimBaseConfig(BaseModel):
+class SimBaseConfig(DocumentModel):
     """Dynamics of the simulated base (SimBase): acceleration and braking limits, battery, step."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -53,7 +54,7 @@ class SimBaseConfig(BaseModel):
     )
 
 
-class ActuationConfig(BaseModel):
+class ActuationConfig(DocumentModel):
     """How commands reach the base: the real Kobuki's serial link and dead-man process, the speed
     limits every command is scaled into, and the simulated base's dynamics.
 

@@ -17,7 +17,12 @@ from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lanewarden.actuation.config import ActuationConfig
-from lanewarden.documents import allowed_range, read_yaml_document, validation_error_lines
+from lanewarden.documents import (
+    DocumentModel,
+    allowed_range,
+    read_yaml_document,
+    validation_error_lines,
+)
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
@@ -26,7 +31,7 @@ from lanewarden.scenarios.config import SimulationConfig
 from lanewarden.supervisor.config import SupervisorConfig
 
 
-class LanewardenConfig(BaseModel):
+class LanewardenConfig(DocumentModel):
     """The whole configuration. `lanewarden config show` prints it as YAML."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)

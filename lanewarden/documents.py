@@ -18,6 +18,7 @@ Never prints.
 from __future__ import annotations
 
 import difflib
+import enum
 import reprlib
 import types
 import typing
@@ -27,7 +28,7 @@ from typing import Any
 
 import annotated_types
 import yaml
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ValidationError, ValidationInfo, field_validator
 from pydantic.fields import FieldInfo
 
 #: Largest config or scenario file read, bytes (the shipped ones are a few kB).
@@ -199,6 +200,58 @@ def _number_kind(field: FieldInfo) -> str | None:
     if options in ([float], [int, float], [float, int]):
         return "a finite number"
     return None
+
+
+def _plain(option: Any) -> Any:
+    """`Annotated[X, ...]` -> X; anything else as it is."""
+    return typing.get_args(option)[0] if typing.get_origin(option) is typing.Annotated else option
+
+
+def _takes_text(option: Any) -> bool:
+    option = _plain(option)
+    return option is str or typing.get_origin(option) is typing.Literal or (
+        isinstance(option, type) and issubclass(option, (str, enum.Enum, Path)))
+
+
+def _not_a_number(value: Any, options: Sequence[Any]) -> str:
+    """Why `value` may not stand for a number of a key whose annotation has these `options`
+    (its alternatives), or '' when it may: true/false is never a number (YAML's `yes` and `on`
+    are true too) and text is one only where the key also takes text (`look_ahead_m: auto`)."""
+    numeric = [o for o in map(_plain, options) if o in (int, float)]
+    if not numeric:
+        return ""
+    if isinstance(value, bool):
+        return "true/false"
+    if isinstance(value, str) and not any(_takes_text(o) for o in options):
+        return "text (write the number without quotes)"
+    return ""
+
+
+class DocumentModel(BaseModel):
+    """The base of every model read from a YAML document (config, scenario, campaign spec): a
+    numeric key refuses true/false and quoted text instead of converting them (pydantic would
+    read `lane_lost_halt_s: true` as 1.0 and `engage_confident_frames: yes` as 1), with the
+    same one-line error as a value out of range. Numbers inside lists and tuples too."""
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        name = info.field_name
+        field = cls.model_fields.get(name) if name is not None else None
+        if field is None:
+            return value
+        options = [o for o in _unwrap(field.annotation) if o is not type(None)]
+        problem = _not_a_number(value, options)
+        if not problem and isinstance(value, (list, tuple)):
+            items = [a for o in options if typing.get_origin(_plain(o)) in (list, tuple)
+                     for a in typing.get_args(_plain(o)) if a is not Ellipsis]
+            problem = next((p for v in value if (p := _not_a_number(v, items))), "")
+        if problem:
+            kind = _number_kind(field) or "a number"
+            allowed = allowed_range(field)
+            raise ValueError(f"expected {kind}{f' with {allowed}' if allowed else ''}, "
+                             f"not {problem}")
+        return value
 
 
 def _format_bound(value: Any) -> str:

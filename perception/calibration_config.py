@@ -7,10 +7,12 @@ only declares numbers: it never reads images or files.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
+
+from lanewarden.documents import DocumentModel
 
 
-class CalibrationConfig(BaseModel):
+class CalibrationConfig(DocumentModel):
     """Quality gates and per-view rules for camera calibration.
 
     - `max_rms_px`: largest acceptable overall RMS reprojection error, pixels.

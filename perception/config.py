@@ -19,7 +19,6 @@ import math
 from typing import Annotated, Literal, Self
 
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
     ValidationError,
@@ -28,6 +27,7 @@ from pydantic import (
     model_validator,
 )
 
+from lanewarden.documents import DocumentModel
 from lanewarden.perception.floor_config import LaneConfig, RoiConfig, TapeConfig
 
 _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -37,7 +37,7 @@ PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
 Weight = Annotated[float, Field(ge=0.0, le=4.0)]
 
 
-class BlurConfig(BaseModel):
+class BlurConfig(DocumentModel):
     """Gaussian blur before Canny.
 
     `kernel_px` is the kernel size for a 480-row image (odd); at other heights it is scaled with
@@ -71,7 +71,7 @@ class BlurConfig(BaseModel):
         return value
 
 
-class CannyConfig(BaseModel):
+class CannyConfig(DocumentModel):
     """Canny hysteresis thresholds (gradient magnitude, grey levels per pixel)."""
 
     model_config = _FROZEN
@@ -108,7 +108,7 @@ class CannyConfig(BaseModel):
         return self
 
 
-class HoughConfig(BaseModel):
+class HoughConfig(DocumentModel):
     """Probabilistic Hough transform (cv2.HoughLinesP). Lengths scale with the image height."""
 
     model_config = _FROZEN
@@ -146,7 +146,7 @@ class HoughConfig(BaseModel):
     )
 
 
-class EdgesConfig(BaseModel):
+class EdgesConfig(DocumentModel):
     """Turning Hough segments into lane-edge candidates.
 
     - `min_angle_from_horizontal_deg`: flatter segments are dropped (tile joints across the lane,
@@ -249,7 +249,7 @@ class EdgesConfig(BaseModel):
     )
 
 
-class ContrastConfig(BaseModel):
+class ContrastConfig(DocumentModel):
     """Contrast normalisation of dim and low-contrast frames, before Canny.
 
     A frame whose blurred floor region (the ROI) varies in brightness by less than
@@ -277,7 +277,7 @@ class ContrastConfig(BaseModel):
     )
 
 
-class ConfidenceWeights(BaseModel):
+class ConfidenceWeights(DocumentModel):
     """Exponents of the confidence components: confidence = product of component ** weight.
 
     1 makes a component a full multiplicative gate, 0.5 softens it (0.25 ** 0.5 = 0.5), 0 ignores
@@ -305,7 +305,7 @@ class ConfidenceWeights(BaseModel):
     consistency: Weight = Field(default=0.5, description="exponent of the consistency component")
 
 
-class ConfidenceConfig(BaseModel):
+class ConfidenceConfig(DocumentModel):
     """How the confidence score is computed (what counts as trusted is the supervisor's call:
     `supervisor.confidence_usable_min`).
 
@@ -343,7 +343,7 @@ class ConfidenceConfig(BaseModel):
     )
 
 
-class PerceptionConfig(BaseModel):
+class PerceptionConfig(DocumentModel):
     """Every perception tunable. `opencv_threads`: the process-wide OpenCV thread count that
     `LaneDetector` sets (1 by default, see `perception.detector`; -1 restores OpenCV's default)."""
 

@@ -15,7 +15,9 @@ from __future__ import annotations
 import functools
 from typing import Annotated, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
+
+from lanewarden.documents import DocumentModel
 
 _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
@@ -23,7 +25,7 @@ Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
 PositiveFraction = Annotated[float, Field(gt=0.0, le=1.0)]
 
 
-class RoiConfig(BaseModel):
+class RoiConfig(DocumentModel):
     """The region of interest: a rectangle of floor in the robot frame, projected into the image.
 
     It spans `near_m` to `far_m` ahead of the robot's centre and `lateral_m` to either side; the
@@ -59,7 +61,7 @@ class RoiConfig(BaseModel):
         return self
 
 
-class TapeConfig(BaseModel):
+class TapeConfig(DocumentModel):
     """The tape, and how a tape is told from a floor seam: by its width on the floor, in metres.
 
     A candidate tape is two nearly parallel edges of opposite polarity with a uniform band between
@@ -233,7 +235,7 @@ class TapeConfig(BaseModel):
         return self
 
 
-class LaneConfig(BaseModel):
+class LaneConfig(DocumentModel):
     """The lane: two tapes `width_m` apart (centre to centre) on a flat floor.
 
     - `width_tolerance_fraction`: the `lane_width` component scores 1 while the distance between

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
+
+from lanewarden.documents import DocumentModel
 
 _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-class VideoConfig(BaseModel):
+class VideoConfig(DocumentModel):
     """`simulation.video`: the run's video.mp4 (camera view with the perception overlay beside a
     top-down map, H.264 yuv420p so browsers play it)."""
 
@@ -37,7 +39,7 @@ class VideoConfig(BaseModel):
     ] = Field(default="ultrafast", description="x264 speed preset")
 
 
-class SimulationConfig(BaseModel):
+class SimulationConfig(DocumentModel):
     """`simulation:` the synthetic camera and the simulated run."""
 
     model_config = _FROZEN

@@ -22,7 +22,7 @@ from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from lanewarden.documents import read_yaml_document, validation_error_lines
+from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
 from lanewarden.perception.ground import (
     DEFAULT_HFOV_DEG,
     DEFAULT_POSE_FORWARD_M,
@@ -85,7 +85,7 @@ FaultKind = Literal[
 FLOOR_FAULT_KINDS = ("tape_patch", "floor_mark", "shadow_edge")
 
 
-class _Model(BaseModel):
+class _Model(DocumentModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 

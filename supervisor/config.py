@@ -18,10 +18,12 @@ from __future__ import annotations
 
 from typing import Self
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
+
+from lanewarden.documents import DocumentModel
 
 
-class SupervisorConfig(BaseModel):
+class SupervisorConfig(DocumentModel):
     """The supervisor's slope-sum filter, lane-evidence debounce, watchdog limits, per-state
     commands and command limiter.
 

@@ -55,6 +55,31 @@ def test_every_numeric_key_refuses_non_finite_and_absurd_values(path: tuple[str,
         ), lines[0]
 
 
+@pytest.mark.parametrize("path", NUMERIC_KEYS, ids=[".".join(p) for p in NUMERIC_KEYS])
+def test_every_numeric_key_refuses_true_false_and_quoted_numbers(path: tuple[str, ...]) -> None:
+    """YAML's `true`/`yes`/`on` and a quoted "0.5" are not numbers: pydantic would read them as
+    1 and 0.5 (`engage_confident_frames: yes` engaging on one frame), the tool refuses them."""
+    for value, why in ((True, "true/false"), (False, "true/false"),
+                       ("1", "text (write the number without quotes)")):
+        lines = refusal(path, value).splitlines()
+        assert len(lines) == 1, (value, lines)
+        assert lines[0].startswith(f"cfg.yaml: {'.'.join(path)} = "), lines[0]
+        assert re.search(r": expected (a finite number|an integer)( with .*)?, not "
+                         + re.escape(why) + "$", lines[0]), lines[0]
+
+
+def test_a_true_safety_setting_is_refused_not_read_as_one() -> None:
+    assert refusal(("supervisor", "engage_confident_frames"), True) == (
+        "cfg.yaml: supervisor.engage_confident_frames = True: expected an integer with "
+        "1 <= value <= 300, not true/false")
+
+
+def test_a_key_that_also_takes_a_word_still_takes_it() -> None:
+    config = config_from_mapping({"perception": {"edges": {"look_ahead_m": "auto"}}}, "cfg.yaml")
+    assert config.perception.edges.look_ahead_m == "auto"
+    assert "look_ahead_m = True" in refusal(("perception", "edges", "look_ahead_m"), True)
+
+
 def _is_int(path: tuple[str, ...]) -> bool:
     node: Any = LanewardenConfig()
     for part in path:

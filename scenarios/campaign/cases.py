@@ -24,7 +24,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from lanewarden.documents import read_yaml_document, validation_error_lines
+from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.spec import (
@@ -47,7 +47,7 @@ REACH_FRACTION = 0.7
 START_UP_S = 2.0
 
 
-class _Model(BaseModel):
+class _Model(DocumentModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 

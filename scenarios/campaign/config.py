@@ -7,10 +7,12 @@ This module only declares numbers: it never runs or judges anything.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
+
+from lanewarden.documents import DocumentModel
 
 
-class CampaignConfig(BaseModel):
+class CampaignConfig(DocumentModel):
     """`campaign:` judging fault-injection runs (outcome classes) and sizing the workers."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
