@@ -12,6 +12,7 @@ import sys
 from collections.abc import Sequence
 
 import click
+import cv2
 
 from lanewarden import __version__
 from lanewarden.commands import register_commands
@@ -42,6 +43,9 @@ def _error(message: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point. Returns the exit code of the one rule (`lanewarden.errors`)."""
+    # OpenCV's own warnings (a truncated PNG: "[ WARN:0@2.07] ... PNG input buffer is
+    # incomplete") would come before the command's one error line; the command says it itself.
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
     try:
         result = cli.main(args=list(argv) if argv is not None else None,
                           prog_name="lanewarden", standalone_mode=False)
@@ -52,7 +56,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         click.echo(exc.ctx.get_help() if exc.ctx else "", err=True)
         return EXIT_BAD_INPUT
     except click.UsageError as exc:
-        where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
+        # "lanewarden sim: ..." names the command; the bare group's own path is the prefix's.
+        path = exc.ctx.command_path if exc.ctx is not None else ""
+        where = f"{path}: " if path and path != "lanewarden" else ""
         _error(f"{where}{exc.format_message()}")
         return EXIT_BAD_INPUT
     except click.ClickException as exc:

@@ -10,6 +10,7 @@ command can report every bad file in one line. Never prints.
 from __future__ import annotations
 
 import glob
+import re
 import warnings
 from pathlib import Path
 from typing import IO
@@ -41,9 +42,12 @@ def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             with Image.open(path) as image:
                 width, height = image.size
-    except Image.DecompressionBombError:
-        # Pillow's own limit, far above the largest max_image_pixels allowed
-        return f"image has more pixels than {LIMIT_KEY} ({max_pixels})"
+    except Image.DecompressionBombError as exc:
+        # Pillow's own limit, far above the largest max_image_pixels allowed; its message
+        # ("Image size (10000000000 pixels) exceeds limit of ...") has the count, not the sides
+        count = re.search(r"\((\d+) pixels\)", str(exc))
+        pixels = f"{count.group(1)} pixels" if count else "more pixels than Pillow opens"
+        return f"image has {pixels}, more than {LIMIT_KEY} ({max_pixels})"
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
         return ""
     return too_many_pixels(int(width), int(height), max_pixels)

@@ -157,12 +157,15 @@ class LaneDetector:
             self._states[(width, height)] = setup
         return setup
 
-    def describe_ground(self, source: str | None = None) -> str:
+    def describe_ground(self, source: str | None = None,
+                        size: tuple[int, int] | None = None) -> str:
         """One line saying which ground model this detector uses (`perception.ground.
-        ground_model_for`'s words) and what a pixel covers at the look-ahead; `detect` and `run`
-        print it once. `source` names the calibration file."""
+        ground_model_for`'s words) and what a pixel covers at the look-ahead, for images of
+        `size` (width, height; default: the ground model's own); `detect` and `run` print it once
+        per image size. `source` names the calibration file. Raises PerceptionConfigError as
+        `setup_for` does for a size the config does not work at."""
         calibration = None if self.undistorter is None else self.undistorter.calibration
-        size = self.ground.image_size
+        size = self.ground.image_size if size is None else size
         if self._ground_given:
             which = f"the ground model given to the detector ({self.ground.pose.describe()})"
         else:

@@ -149,9 +149,9 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
                     "at most 200 items after validation, not 10000",
     "floor too large": "hostile: the lane and its 2.5 m margins cover",
     "texture too fine": "lecture: the floor texture would be",
-    "20000x20000 PNG detect": "huge.png: image has more pixels than "
+    "20000x20000 PNG detect": "huge.png: image has 400000000 pixels, more than "
                               "perception.max_image_pixels (10000000)",
-    "20000x20000 PNG undistort": "huge.png: image has more pixels than "
+    "20000x20000 PNG undistort": "huge.png: image has 400000000 pixels, more than "
                                  "perception.max_image_pixels (10000000)",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",

@@ -84,3 +84,17 @@ def test_run_refuses_an_oversized_camera_before_the_base(
         f"lanewarden: error: --camera '{sequence}': image is 160x120 = 19200 pixels, more than "
         "perception.max_image_pixels (4096)"
     ]
+
+
+def test_a_truncated_png_gets_one_line_not_opencvs_warning_too(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """OpenCV warns on stderr ("[ WARN:0@...] ... PNG input buffer is incomplete") while it
+    decodes a cut-off PNG; the command's own line is the only one."""
+    whole = tmp_path / "whole.png"
+    cv2.imwrite(str(whole), np.full((120, 160, 3), 128, np.uint8))
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(whole.read_bytes()[:200])
+    assert main(["detect", str(cut)]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable image"]

@@ -20,7 +20,9 @@ With `--out DIR`, `<name>_detect.png` overlays are written there too.
 
 Perception sees the floor through a ground model; one line says which one (the calibration's
 ground pose from `lanewarden calibrate ground`; without one the simulator's default mount) and
-what a pixel covers at the look-ahead: the first line of the text output, on stderr with `--json`.
+what a pixel covers at the look-ahead, for the images' own size (once per size, before the
+first result of that size; with a calibration, its size): in the text output, on stderr with
+`--json`.
 A config this camera cannot work with (`PerceptionConfigError`: the floor region or the
 look-ahead out of view, tape and seams not separable at the look-ahead) is a config error: one
 line, exit code 2.
@@ -129,12 +131,21 @@ def detect_command(
         detector = LaneDetector(config, undistorter)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    # which ground model: the first line of the text output; with --json on stderr (stdout
-    # stays one JSON object per line)
-    if as_json:
-        click.echo(f"lanewarden: {detector.describe_ground(calibration_path)}", err=True)
-    else:
-        _emit(detector.describe_ground(calibration_path))
+    # which ground model, for each image size met (a 160x120 frame is not seen as 640x480):
+    # before the first result of that size; with --json on stderr (stdout stays one JSON object
+    # per line)
+    described: set[tuple[int, int]] = set()
+
+    def describe(size: tuple[int, int]) -> None:
+        if size in described:
+            return
+        line = detector.describe_ground(calibration_path, size)
+        described.add(size)
+        if as_json:
+            click.echo(f"lanewarden: {line}", err=True)
+        else:
+            _emit(line)
+
     failures: list[str] = []
     unwritten: list[str] = []
     for index, name in enumerate(images):
@@ -144,6 +155,9 @@ def detect_command(
             failures.append(f"{path}: {why}")
             continue
         try:
+            # with a calibration every image must have its size (else the error says so)
+            describe(undistorter.calibration.image_size if undistorter is not None
+                     else (image.shape[1], image.shape[0]))
             observation, debug = (
                 (detector.detect(image, index, 0.0), None)
                 if out is None

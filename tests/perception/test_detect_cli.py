@@ -219,3 +219,18 @@ def test_without_a_look_ahead_the_camera_chooses_and_says_which(
 def test_no_images_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(["detect"], capsys)
     assert code == 2 and "IMAGE" in err
+
+
+def test_the_ground_line_is_for_the_images_own_size(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 160x120 frame is described at 160x120 (not the default 640x480), once per size."""
+    small, large = tmp_path / "small.png", tmp_path / "large.png"
+    cv2.imwrite(str(small), syn.render(syn.STRAIGHT, 160, 120))
+    cv2.imwrite(str(large), syn.render(syn.STRAIGHT, 640, 480))
+    code, out, _ = run(["detect", str(small), str(small), str(large)], capsys)
+    assert code == 0
+    grounds = [line for line in out.splitlines() if line.startswith("ground model:")]
+    assert len(grounds) == 2
+    assert "; 160x120: look-ahead" in grounds[0]
+    assert "; 640x480: look-ahead" in grounds[1]
