@@ -117,7 +117,8 @@ def run_story(name: str, m: Mapping[str, object]) -> str:
         ending = f"halted ({format_value(m.get('halt_reason'))}) {_past(m)}"
     else:
         ending = f"never stopped, ending {_past(m)}"
-        if isinstance(value, int | float) and value > 0.5:
+        if isinstance(value, int | float) and value > 0.5 and not m.get("crossed_tape"):
+            # a robot that crossed a tape left the lane before its end: not the tape's end
             ending += " (driving on tile seams once the tape was gone)"
     return f"the {name} controller {turns}{crossed} and {ending}"
 

@@ -61,6 +61,16 @@ def test_table_and_summary() -> None:
            "before the end of the tape." in summary
 
 
+def test_tile_seams_are_blamed_only_when_the_robot_stayed_in_the_lane() -> None:
+    """A robot 2.5 m past the tape's end that crossed a tape left the lane before the end (the
+    demo's lecture run, at corner A): no 'driving on tile seams once the tape was gone'."""
+    assert "(driving on tile seams" not in demo_summary(LECTURE, SUPERVISED)
+    stayed = {**LECTURE, "crossed_tape": False}
+    assert demo_summary(stayed, SUPERVISED).startswith(
+        "The lecture's controller completed turn A and never stopped, ending 2.50 m past the "
+        "end of the tape (driving on tile seams once the tape was gone);")
+
+
 def test_a_halt_position_on_a_lane_that_never_ends_is_x_and_y() -> None:
     rows = comparison_rows({"run": {"halt_position": {"x_m": 1.234, "y_m": -0.5,
                                                       "past_lane_end_m": None}}})
