@@ -278,11 +278,12 @@ class CameraFrameSource:
         self._capture.release()
 
 
-def require_camera_view(image: np.ndarray, camera: str) -> None:
+def require_camera_view(image: np.ndarray, named: str) -> None:
     """UsageError (exit 2, one line) when a recorded source's first frame is a run video's
     composite (`lanewarden sim`, `demo` or `replay`'s video.mp4: captions above the camera view
     and a map beside it) instead of a camera's own view: perception would look for tape in the
-    captions and the map, never engage, and the run would end as if nothing were wrong."""
+    captions and the map, never engage, and the run would end as if nothing were wrong. `named`
+    says where the frame came from (`--camera FILE`, `SOURCE 'FILE'`)."""
     from lanewarden.scenarios.video import run_video_layout  # only for files, never on a camera
 
     layout = run_video_layout(image)
@@ -290,7 +291,7 @@ def require_camera_view(image: np.ndarray, camera: str) -> None:
         return
     height, width = image.shape[:2]
     raise UsageError(
-        f"--camera {camera}: a run video ({width}x{height}: captions above a "
+        f"{named}: a run video ({width}x{height}: captions above a "
         f"{layout[0]}-pixel-wide camera panel and a {layout[1]}-pixel map), not a camera's view "
         "(expected the camera's own frames: `lanewarden sim --scenario NAME --camera-out "
         "clip.mp4` writes them)")

@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from lanewarden.actuation.base import BaseFeedback
-from lanewarden.camera_source import image_sequence_paths, quiet_opencv
+from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require_camera_view
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
 from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
 from lanewarden.errors import ConfigError, InputFileError, UsageError
@@ -636,6 +636,19 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
                          f"{SOURCE_HELP}")
     fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
     fps = fps if 1.0 <= fps <= 240.0 else camera_rate_hz
+    # a run's own video (captions and a map around the camera view) is not a camera's view,
+    # as `run --camera` says too; read its first frame, then start again from the beginning
+    with quiet_opencv():
+        ok, first = capture.read()
+    if ok and first is not None:
+        try:
+            require_camera_view(first, f"SOURCE '{source}'")
+        except UsageError:
+            capture.release()
+            raise
+    capture.release()
+    with quiet_opencv():
+        capture = cv2.VideoCapture(str(path))
     times = [i / fps for i in range(count)]
     return ReplaySource(kind="video", name=path.stem, steps=camera_steps(enumerate(times)),
                         frames=VideoFrames(capture), meta={"fps": fps})

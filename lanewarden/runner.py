@@ -165,7 +165,7 @@ def run_robot(
         first = _first_frame(frames, clock, camera)
         height, width = first.shape[:2]
         if replay_fps is not None:  # a file: a run's own video is not a camera's view
-            require_camera_view(first, camera)
+            require_camera_view(first, f"--camera {camera}")
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")

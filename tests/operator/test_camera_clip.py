@@ -157,6 +157,20 @@ def test_sims_composite_video_is_refused_as_a_camera(
     assert not record.exists(), "refused before anything was recorded or opened"
 
 
+def test_sims_composite_video_is_refused_as_a_replay_source(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`replay` refuses it as `run` does (it used to play the captions and the map)."""
+    video = _run_video(tmp_path / "video.mp4", (640, 480), 480)
+    code = main(["replay", str(video), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert err == [f"lanewarden: error: SOURCE '{video}': a run video (1120x590: captions above "
+                   "a 640-pixel-wide camera panel and a 480-pixel map), not a camera's view "
+                   "(expected the camera's own frames: `lanewarden sim --scenario NAME "
+                   "--camera-out clip.mp4` writes them)"]
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize(("camera_size", "map_px"), [((320, 240), 160), ((160, 120), 480)])
 def test_every_run_video_layout_is_recognised(camera_size: tuple[int, int], map_px: int,
                                               tmp_path: Path) -> None:
