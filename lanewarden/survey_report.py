@@ -99,13 +99,15 @@ def _pictures(title: str, pictures: Sequence[Picture], empty: str, note: str) ->
     return f"<section><h2>{_e(title)}</h2><p>{_e(note)}</p>{body}</section>"
 
 
-def _legend() -> str:
+def _legend(undistorted: bool) -> str:
     items = "".join(
         f'<li><span class="swatch" style="background:{_css_rgb(s.bgr)}"></span>'
         f"<b>{_e(s.label)}</b>: {_e(s.meaning)}</li>" for s in OVERLAY_STYLES.values())
+    how = ("undistorted with the calibration" if undistorted
+           else "as the camera gave it: no calibration, so not undistorted")
     return (f'<section class="legend"><h2>Reading the pictures</h2><p>Each picture is the frame '
-            f"perception analysed (undistorted with the calibration) with what it saw drawn on "
-            f"it; the caption is what perception said about it.</p><ul>{items}</ul></section>")
+            f"perception analysed ({how}) with what it saw drawn on it; the caption is what "
+            f"perception said about it.</p><ul>{items}</ul></section>")
 
 
 def _frame_row(result: FrameResult) -> str:
@@ -165,7 +167,7 @@ order.</p>
 {_pictures("Weakest lane frames", weak_pictures, "None: every lane frame was confident.",
            f"Lane frames that are not confident: the least confident of each of up to "
            f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")}
-{_legend()}
+{_legend(about.get("calibration", "none") != "none")}
 {"".join(_class_table(e, figures.results) for e in EXPECTS)}
 </body></html>
 """

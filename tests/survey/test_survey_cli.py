@@ -107,7 +107,8 @@ def test_a_floor_folder_with_a_calibration(floor: Path, tmp_path: Path,
     # in a row (engage_confident_frames 10 at 30 frames/s: 9 frame periods after the first)
     assert ("supervisor: engages on 3 of 3 lane stills held in view for 1.0 s after a start "
             "(after 0.30 s at the most)") in out
-    assert (tmp_path / "lanewarden-out" / "survey-floor" / "report.html").exists()
+    page = (tmp_path / "lanewarden-out" / "survey-floor" / "report.html").read_text()
+    assert "the frame perception analysed (undistorted with the calibration)" in page
 
 
 def test_stills_are_held_long_enough_for_the_supervisors_rule(
@@ -156,6 +157,8 @@ def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture
     assert '<div class="verdict unsafe"><b>NOT SAFE</b>' in page
     false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Weakest lane")]
     assert false_lanes.count("<figure>") == 1 and "<b>straight.jpg</b>" in false_lanes
+    # no --calibration: the pictures were not undistorted, and the caption says so
+    assert "the frame perception analysed (as the camera gave it: no calibration" in page
 
 
 @pytest.fixture(scope="module")
