@@ -66,6 +66,17 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"replay-{replay_source.name}"
+    # which ground model perception sees the frames through, as `run` and `detect` say it (a
+    # tub replayed without its camera's description is seen through the default camera)
+    first = replay_source.frames.image(0)
+    if first is not None:
+        from lanewarden.assembly import build_stack
+
+        size = (first.shape[1], first.shape[0])
+        detector = build_stack(config, controller=chosen, calibration=calibration,
+                               image_size=size).detector
+        named = calibration_path or ("the recording's calibration" if calibration else None)
+        click.echo(detector.describe_ground(named, size))
     metrics = run_replay(ReplayRequest(replay_source, config, calibration, chosen, out,
                                        video=not no_video))
     click.echo(f"{replay_source.name} ({replay_source.kind}, config: "

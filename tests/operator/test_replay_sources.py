@@ -36,6 +36,10 @@ def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     out = capsys.readouterr().out
     assert code == 0, out
     assert "donkeycar-tub (tub, config:" in out
+    # the first line says which ground model, at the tub's own size
+    assert out.splitlines()[0].startswith(
+        f"ground model: ground calibration from {DONKEYCAR_CALIBRATION}: h 0.230 m, pitch 19.7°")
+    assert "; 160x120: look-ahead 0.15 m" in out.splitlines()[0]
     metrics = _outputs_written(tmp_path / "out")
     assert (metrics["source_kind"], metrics["steps"], metrics["frames"]) == ("tub", 1000, 1000)
     # the tub's own timestamps: 1000 frames over 3.33 s
