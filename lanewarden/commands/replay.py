@@ -85,6 +85,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     click.echo(f"  states visited: {', '.join(metrics['states_visited'])}; final state "
                f"{metrics['final_state']}"
                + (f" ({metrics['halt_reason']})" if metrics.get("halt_reason") else ""))
+    # what ended the replay, as metrics.json, the plot and the report say it (the final state's
+    # reason can be a halt event raised while the robot was never engaged)
+    never = " (never engaged)" if metrics["states_visited"] == ["HALT"] else ""
+    click.echo(f"  ended: {metrics['end_reason']}{never}")
     if replay_source.kind == "bag":
         click.echo(f"  topic {replay_source.meta['topic']}, timed by its "
                    f"{replay_source.meta['times']}")

@@ -40,6 +40,7 @@ def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert out.splitlines()[0].startswith(
         f"ground model: ground calibration from {DONKEYCAR_CALIBRATION}: h 0.230 m, pitch 19.7°")
     assert "; 160x120: look-ahead 0.15 m" in out.splitlines()[0]
+    assert "  ended: end of the clip (never engaged)" in out.splitlines()
     metrics = _outputs_written(tmp_path / "out")
     assert (metrics["source_kind"], metrics["steps"], metrics["frames"]) == ("tub", 1000, 1000)
     # the tub's own timestamps: 1000 frames over 3.33 s
