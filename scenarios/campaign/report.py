@@ -163,11 +163,11 @@ def write_junit(path: Path, name: str, rows: Iterable[Row], summary: CampaignSum
                   f"failures=\"{sum(counts[o] for o in FAILURES)}\" "
                   f"errors=\"{counts['error']}\" time=\"{summary.wall_s:.3f}\">\n")
         for row in rows:
-            _junit_case(out, row)
+            _junit_case(out, row, path.parent)
         out.write("</testsuite>\n")
 
 
-def _junit_case(out: TextIO, row: Row) -> None:
+def _junit_case(out: TextIO, row: Row, out_dir: Path) -> None:
     outcome = str(row["outcome"])
     message = f"{outcome}: {row.get('reason') or ''}"
     classname = quoteattr(f"campaign.{row['scenario']}")
@@ -178,8 +178,9 @@ def _junit_case(out: TextIO, row: Row) -> None:
         out.write(f"    <failure message={quoteattr(message)} type={quoteattr(outcome)} />\n")
     elif outcome == "error":
         out.write(f"    <error message={quoteattr(message)} type=\"error\" />\n")
-    text = (f"{message}\nhalt reason: {row.get('halt_reason')}\n"
-            f"rerun: lanewarden sim --case cases/{row['id']}.yaml")
+    # the rerun command as report.html gives it: it works from wherever junit.xml is read
+    text = (f"{message}\nhalt reason: {row.get('halt_reason') or '-'}\n"
+            f"rerun: {rerun_command(out_dir.resolve(), str(row['id']))}")
     out.write(f"    <system-out>{html.escape(text, quote=False)}</system-out>\n  </testcase>\n")
 
 

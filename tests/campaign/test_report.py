@@ -117,6 +117,10 @@ def test_junit_counts_failures_and_errors(tmp_path: Path) -> None:
     cases = suite.findall("testcase")
     assert [c.get("name") for c in cases][:2] == ["r00000 glare_sweep", "r00001 bumper"]
     assert cases[8].find("failure").get("message") == "unsafe: crossed a tape"  # type: ignore
+    # the rerun command works from anywhere, as the report's does; no "None" for no halt
+    out = cases[0].findtext("system-out") or ""
+    assert f"rerun: lanewarden sim --case {tmp_path.resolve()}/cases/r00000.yaml" in out
+    assert "halt reason: None" not in "".join(c.findtext("system-out") or "" for c in cases)
 
 
 def test_blind_halts_are_listed_apart_from_the_failures(tmp_path: Path) -> None:
