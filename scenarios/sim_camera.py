@@ -16,7 +16,11 @@ real camera driver does. Camera faults change what `read` delivers:
 
 Every alteration of what `read` delivers (or of what was captured) is noted in `altered`
 (alteration name -> (frame index, time) of the latest one), so a fault schedule can tell that a
-fault really took effect, not merely that it was switched on.
+fault really took effect, not merely that it was switched on. The time is the frame's capture
+time for what happens to frames as they are captured or stamped (drop, rate, latency, future,
+time_jump), and the delivery time (`now`) for what `read` does to any frame it hands over while
+the fault is on (freeze, corrupt, error): a late frame captured before a corruption began is
+still delivered corrupted, and the loop halts on it then.
 
 Image buffers come from a fixed pool owned here (no per-frame allocation); a `Frame` stays valid
 for `pool_size - 1` further captures. Never reads a clock: time is the `now` passed in.
@@ -117,10 +121,10 @@ class SimCamera:
             return self._delivered
         if self._frozen_image is not None:
             newest = Frame(image=self._frozen_image, index=newest.index, time_s=newest.time_s)
-            self.altered["freeze"] = (newest.index, newest.time_s)
+            self.altered["freeze"] = (newest.index, now)
         elif self.corrupt:
             newest = Frame(image=_EMPTY, index=newest.index, time_s=newest.time_s)
-            self.altered["corrupt"] = (newest.index, newest.time_s)
+            self.altered["corrupt"] = (newest.index, now)
         shift = (self.future_s if self.future_s > 0 else 0.0) + self.time_offset_s
         if shift != 0.0:
             self.altered["future" if self.future_s > 0 else "time_jump"] = (

@@ -118,3 +118,29 @@ def test_schedule_starts_and_ends_faults_on_the_simulated_clock() -> None:
     assert button.pressed_at == [pytest.approx(0.35)]
     assert seen[0.1] == ["bumper begins"] and seen[0.2] == ["bumper ends"]
     assert seen[0.3] == ["base_link_loss begins"]
+
+
+def test_a_corruption_takes_effect_when_a_late_frame_is_delivered_corrupted() -> None:
+    """Campaign run r00356 (seed 1): late frames (0.106 s) and then a perception exception at
+    7.319 s. The first frame delivered corrupted was captured before 7.319 (it was late), the
+    loop halted on it at once, and the fault's effect was dated by the first corrupted frame
+    CAPTURED after the start, 0.13 s later: the judge found the halt before the fault acted and
+    called it a false halt. The effect is the delivery of a corrupted frame."""
+    faults = [FaultSpec(kind="late_frames", at_s=0.0, duration_s=5.0, latency_s=0.1),
+              FaultSpec(kind="perception_exception", at_s=0.5, duration_s=1.0)]
+    schedule = FaultSchedule(faults)
+    camera = SimCamera((2, 2), camera_pool_size(faults, 30.0))
+    base = SimBase()
+    first_corrupt = None
+    for k in range(40):
+        now = k * DT
+        schedule.apply(now, camera, base, StopButton())
+        capture(camera, k)
+        frame = camera.read(now)
+        schedule.observe(k, now, camera, base)
+        if first_corrupt is None and frame is not None and frame.image.size == 0:
+            first_corrupt = (now, frame.time_s)
+    assert first_corrupt is not None
+    delivered_s, captured_s = first_corrupt
+    assert captured_s < 0.5 <= delivered_s  # a late frame, captured before the fault began
+    assert schedule.effects[1].time_s == pytest.approx(delivered_s)
