@@ -218,20 +218,22 @@ def preparation_changed(source: ReplaySource, config: LanewardenConfig,
     recorded = source.config if source.config is not None else LanewardenConfig()
     if config.perception.blur != recorded.perception.blur:
         return (f"its frames were blurred on the run (perception.blur "
-                f"{recorded.perception.blur.model_dump()}), the replay's config blurs with "
+                f"{recorded.perception.blur.model_dump()}), the config given blurs with "
                 f"{config.perception.blur.model_dump()}")
     if not same_calibration(calibration, source.calibration):
+        if source.calibration is None:
+            return "the run had no calibration (its frames were not undistorted), not this one"
         return "its frames were undistorted on the run with its own calibration, not this one"
     return None
 
 
 def check_preparation(source: ReplaySource, config: LanewardenConfig,
-                      calibration: CameraCalibration | None) -> None:
+                      calibration: CameraCalibration | None, command: str = "replay") -> None:
     """UsageError (one line) when `preparation_changed` says why the source cannot be replayed
-    with this config and calibration."""
+    (or surveyed: `command`) with this config and calibration."""
     if why := preparation_changed(source, config, calibration):
-        raise UsageError(f"replay {source.name}: recorded as perception's input, and {why}; "
-                         "replay it with the recorded blur and calibration (record with "
+        raise UsageError(f"{command} {source.name}: recorded as perception's input, and {why}; "
+                         f"{command} it with the recorded blur and calibration (record with "
                          "--record-gray to try others)")
 
 

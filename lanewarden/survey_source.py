@@ -2,8 +2,9 @@
 
 `open_survey_source(FOLDER, labels)` recognises:
 - FOLDER with the class folders `lane/` and/or `no-lane/`: the images in each (natural name
-  order), labelled by the folder they are in; another sub-folder holding images is an error (an
-  unknown label), so a misspelt `nolane/` is not silently left out;
+  order; then those of its sub-folders, such as `no-lane/seams/`), labelled by the class folder
+  they are under; another sub-folder holding images is an error (an unknown label), so a
+  misspelt `nolane/` is not silently left out, and so are images beside the class folders;
 - FOLDER with a `labels.csv` (or `--labels FILE` naming one): `file,expect[,note]` rows name
   images by their path relative to FOLDER; the rows' order is the sequence order;
 - a recording with `--labels FILE` of `frames,expect[,note]` rows (a frame index or an inclusive
@@ -92,11 +93,21 @@ def read_labels(path: Path) -> LabelsTable:
 
 
 def _class_folders(folder: Path) -> list[StillFrame]:
-    """The images of FOLDER/lane and FOLDER/no-lane; an unknown sub-folder of images is an error."""
+    """The images of FOLDER/lane and FOLDER/no-lane, their sub-folders included (a user may sort
+    no-lane/ into seams/, one-tape/, ...: every image under a class folder is of that class);
+    an unknown sub-folder of images, or images beside the class folders, is an error: a frame
+    the survey cannot label is never silently left out."""
     by_folder = {name: expect for expect, name in CLASS_FOLDERS.items()}
     stills: list[StillFrame] = []
-    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
-        paths = image_sequence_paths(str(sub)) or []
+    subs = sorted(p for p in folder.iterdir() if p.is_dir())
+    loose = image_sequence_paths(str(folder)) or []
+    if loose and any(sub.name in by_folder for sub in subs):
+        names = ", ".join(p.name for p in loose[:3]) + (", ..." if len(loose) > 3 else "")
+        raise UsageError(f"FOLDER '{folder}': {len(loose)} images beside lane/ and no-lane/ "
+                         f"({names}); expected every image in lane/ or no-lane/ (or a "
+                         f"{LABELS_NAME})")
+    for sub in subs:
+        paths = _images_under(sub)
         if sub.name not in by_folder:
             if paths:
                 close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
@@ -105,12 +116,27 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                  f"images; expected lane/ or no-lane/{hint}")
             continue
         for path in paths:
-            stills.append(StillFrame(LabelledFrame(f"{sub.name}/{path.name}",
+            stills.append(StillFrame(LabelledFrame(path.relative_to(folder).as_posix(),
                                                    by_folder[sub.name], 0), path))
     order = {"lane": 0, "none": 1}
     stills.sort(key=lambda s: order[s.frame.expect])  # stable: name order within a class
     return [StillFrame(LabelledFrame(s.frame.name, s.frame.expect, i), s.path)
             for i, s in enumerate(stills)]
+
+
+def _images_under(folder: Path, seen: set[Path] | None = None) -> list[Path]:
+    """The images in `folder` (natural name order), then those of its sub-folders, each in
+    turn, in name order (hidden folders, such as .git, left out; a folder reached twice through
+    a link is read once, so a link loop ends)."""
+    seen = set() if seen is None else seen
+    real = folder.resolve()
+    if real in seen:
+        return []
+    seen.add(real)
+    paths = list(image_sequence_paths(str(folder)) or [])
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        paths.extend(_images_under(sub, seen))
+    return paths
 
 
 def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:

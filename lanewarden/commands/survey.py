@@ -58,6 +58,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from tqdm import tqdm
 
     from lanewarden.config import load_config
+    from lanewarden.image_files import read_image
     from lanewarden.perception.calibration import (
         Undistorter,
         load_calibration,
@@ -65,6 +66,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     )
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config
     from lanewarden.survey import NONE, false_lanes_text, judge, name_frames, summary_lines
     from lanewarden.survey_report import OUTPUTS, write_outputs
@@ -85,6 +87,11 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     if calibration is not None:
         require_usable_calibration(calibration, calibration.image_size, config.calibration,
                                    f"--calibration {calibration_path or 'of the recording'}")
+    if source.sequence is not None:
+        # a run folder holds perception's prepared input: refused, as replay refuses it, when
+        # --config or --calibration would prepare frames otherwise (its figures would be the
+        # recording's camera's, not the one named)
+        check_preparation(source.sequence, config, calibration, command="survey")
     frames = ([s.frame for s in source.stills] if source.sequence is None
               else list(source.labelled.values()))
     if not any(f.expect == NONE for f in frames):
@@ -104,7 +111,15 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
                                 Undistorter(calibration) if calibration is not None else None)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    ground = detector.describe_ground(calibration_path)
+    # the ground model at the frames' own size (the first frame's), as detect describes it
+    first = (source.sequence.frames.image(0) if source.sequence is not None
+             else read_image(source.stills[0].path, max_pixels=config.perception.max_image_pixels
+                             )[0])
+    size = None if first is None else (first.shape[1], first.shape[0])
+    try:
+        ground = detector.describe_ground(calibration_path, size)
+    except PerceptionConfigError as exc:
+        raise ConfigError(str(exc)) from None
     click.echo(f"lanewarden: {ground}" if as_json else ground, err=as_json)
     total = len(source.stills) if source.sequence is None else (
         max(source.labelled) - min(source.labelled) + 1)

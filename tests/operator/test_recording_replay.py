@@ -22,6 +22,7 @@ from lanewarden.assembly import build_stack
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.errors import UsageError
+from lanewarden.perception.calibration import save_calibration
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.recording import InputTap, RunRecorder, create_run_folder, default_run_folder
 from lanewarden.replay import (
@@ -35,6 +36,7 @@ from lanewarden.replay_outputs import replay_metrics
 from lanewarden.ros_bag import McapFile, decode
 from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
 from lanewarden.run_record import StepInput
+from lanewarden.scenarios.camera import CameraModel
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import frame_fingerprint
 from lanewarden.survey_run import CheckedFrames, camera_steps
@@ -327,11 +329,41 @@ def test_another_blur_is_refused_for_prepared_frames_not_for_camera_frames(
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
     assert ("replay prepared: recorded as perception's input, and its frames were blurred on "
-            "the run (perception.blur {'kernel_px': 5, 'sigma_px': 0.0}), the replay's config "
+            "the run (perception.blur {'kernel_px': 5, 'sigma_px': 0.0}), the config given "
             "blurs with {'kernel_px': 7, 'sigma_px': 0.0}") in err
     assert not (tmp_path / "out1").exists(), "refused before any output"
     assert main(["replay", str(camera), "--config", str(blur), "--no-video", "--out",
                  str(tmp_path / "out2")]) == 0
+
+
+def test_survey_refuses_what_replay_refuses_for_prepared_frames(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run folder holds perception's prepared input: surveyed with another blur or another
+    calibration, its figures would be the recording camera's, not the one named (they were,
+    with the named file in survey.json): refused in one line, before any output."""
+    blur = tmp_path / "blur7.yaml"
+    blur.write_text("perception:\n  blur:\n    kernel_px: 7\n")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("frames,expect\n0-11,lane\n")
+    lens = tmp_path / "lens.yaml"
+    save_calibration(CameraModel(width_px=640, height_px=480).calibration(), lens)
+    run = tmp_path / "prepared"
+    record_run(run, clip[:12], LanewardenConfig())
+    for flag, file, why in (
+            ("--config", blur, "its frames were blurred on the run (perception.blur "
+                               "{'kernel_px': 5, 'sigma_px': 0.0}), the config given blurs "
+                               "with {'kernel_px': 7, 'sigma_px': 0.0}"),
+            ("--calibration", lens, "the run had no calibration (its frames were not "
+                                    "undistorted), not this one")):
+        out = tmp_path / f"out{flag}"
+        code = main(["survey", str(run), "--labels", str(labels), flag, str(file), "--out",
+                     str(out)])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert err == (f"lanewarden: error: survey prepared: recorded as perception's input, and "
+                       f"{why}; survey it with the recorded blur and calibration (record with "
+                       "--record-gray to try others)\n")
+        assert not out.exists(), "refused before any output"
 
 
 def test_record_gray_and_record_lossy_are_one_choice(tmp_path: Path,

@@ -16,6 +16,7 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -214,6 +215,41 @@ def test_frame_labels_beyond_the_recording(clip: Path, tmp_path: Path,
                    "(video, frames 0-100)\n")
 
 
+def test_images_in_sub_folders_of_a_class_folder_are_of_that_class(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A user sorts no-lane/ into kinds of floor: a lane photo put in no-lane/tricky/ by mistake
+    (or on purpose) is judged as a no-lane frame, NOT SAFE, not silently left out (it was)."""
+    folder = tmp_path / "shots"
+    (folder / "lane").mkdir(parents=True)
+    (folder / "no-lane" / "tricky").mkdir(parents=True)
+    shutil.copy(RENDERED / "lane" / "dashed.jpg", folder / "lane")
+    shutil.copy(RENDERED / "no-lane" / "tiles.jpg", folder / "no-lane")
+    shutil.copy(RENDERED / "lane" / "straight.jpg", folder / "no-lane" / "tricky")
+    code, out, err = _survey([str(folder), "--out", str(tmp_path / "o")], capsys)
+    assert code == 3
+    assert err == ("lanewarden: not safe: 1 false lane (a decision on a no-lane frame): "
+                   "no-lane/tricky/straight.jpg\n")
+    names = [f["frame"] for f in json.loads((tmp_path / "o" / "survey.json").read_text())["frames"]]
+    assert names == ["lane/dashed.jpg", "no-lane/tiles.jpg", "no-lane/tricky/straight.jpg"]
+
+
+def test_the_ground_model_is_described_at_the_frames_size(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Without --calibration the ground model line is for the frames' own size, as `detect`
+    says it (it described a 640x480 camera for 160x120 frames)."""
+    folder = tmp_path / "small"
+    for sub, name in (("lane", "straight"), ("no-lane", "tiles")):
+        (folder / sub).mkdir(parents=True)
+        image = cv2.imread(str(RENDERED / sub / f"{name}.jpg"))
+        cv2.imwrite(str(folder / sub / f"{name}.png"),
+                    cv2.resize(image, (320, 240), interpolation=cv2.INTER_AREA))
+    code, out, _ = _survey([str(folder), "--out", str(tmp_path / "o")], capsys)
+    assert code == 0
+    first = out.splitlines()[0]
+    assert first.startswith("ground model: no ground calibration") and "; 320x240: " in first
+    assert json.loads((tmp_path / "o" / "survey.json").read_text())["ground_model"] == first
+
+
 def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     """Set up one kind of bad input; returns the arguments and what the error line must say."""
     folder = tmp_path / "f"
@@ -231,6 +267,12 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         shutil.copy(tiles, folder / "nolane")
         return [str(folder)], (f"{folder / 'nolane'}: unknown class folder 'nolane' with 1 images; "
                                "expected lane/ or no-lane/ (did you mean no-lane/?)")
+    if case == "images beside the class folders":
+        (folder / "lane").mkdir()
+        shutil.copy(lane, folder / "lane")
+        shutil.copy(tiles, folder)
+        return [str(folder)], (f"FOLDER '{folder}': 1 images beside lane/ and no-lane/ "
+                               "(tiles.jpg); expected every image in lane/ or no-lane/")
     if case == "no no-lane frame":
         (folder / "lane").mkdir()
         shutil.copy(lane, folder / "lane")
@@ -278,7 +320,8 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 
 
 @pytest.mark.parametrize("case", [
-    "missing folder", "no frames", "unknown class folder", "no no-lane frame", "not an image",
+    "missing folder", "no frames", "unknown class folder", "images beside the class folders",
+    "no no-lane frame", "not an image",
     "too many pixels", "unknown label", "bad labels line", "labelled file missing",
     "labels too large", "labels and class folders", "labels missing", "a file without labels"])
 def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,

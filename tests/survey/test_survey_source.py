@@ -4,13 +4,15 @@ sequence order, and a label for a frame the recording lacks is one line naming t
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from lanewarden.errors import InputFileError
 from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
-from lanewarden.survey_source import _labelled_frames
+from lanewarden.survey_source import _class_folders, _labelled_frames
 
 #: frames 2, 5 and 6 were dropped; frame 3 came with two steps
 RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
@@ -38,3 +40,15 @@ def test_labels_for_frames_the_recording_lacks(labels: str, message: str) -> Non
     with pytest.raises(InputFileError) as caught:
         _labelled_frames(RUN, parse_labels(labels, "run.csv"))
     assert str(caught.value) == message
+
+
+def test_a_link_loop_under_a_class_folder_ends(tmp_path: Path) -> None:
+    """no-lane/again -> no-lane: each image is read once, and the walk ends (a crafted folder
+    must not hang the tool)."""
+    (tmp_path / "lane").mkdir()
+    (tmp_path / "no-lane").mkdir()
+    (tmp_path / "lane" / "a.png").write_bytes(b"")
+    (tmp_path / "no-lane" / "b.png").write_bytes(b"")
+    (tmp_path / "no-lane" / "again").symlink_to(tmp_path / "no-lane", target_is_directory=True)
+    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path)]
+    assert names == [("lane/a.png", "lane"), ("no-lane/b.png", "none")]
