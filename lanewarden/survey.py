@@ -71,7 +71,11 @@ class LabelsTable:
 def _expect(value: str, where: str) -> str:
     expect = value.strip().lower()
     if expect not in EXPECTS:
-        raise InputFileError(f"{where}: label '{value.strip()[:60]}': expected lane or none")
+        # a class folder's name given as a label: say which label that folder stands for
+        folder = {name: label for label, name in CLASS_FOLDERS.items()}.get(expect.rstrip("/"))
+        hint = f" (did you mean {folder}? no-lane/ is the folder's name)" if folder == NONE else ""
+        raise InputFileError(f"{where}: label '{value.strip()[:60]}': expected lane or "
+                             f"none{hint}")
     return expect
 
 

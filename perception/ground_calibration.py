@@ -43,6 +43,11 @@ FloatArray = NDArray[np.float64]
 #: A camera this far (horizontally) from the robot's centre is not on a Kobuki: most likely
 #: --board-center-m or --square is wrong.
 MAX_CAMERA_OFFSET_M = 1.0
+#: A camera rolled further than this about its optical axis is not mounted on a robot that
+#: follows a lane (the mount keeps it level); most likely the board was not lying flat on the
+#: floor (held up, leaning on a wall). A camera really mounted rolled: calibrate from the mount
+#: (`--roll-deg`).
+MAX_PLAUSIBLE_ROLL_DEG = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,6 +206,11 @@ def plausibility_problems(solution: FloorChessboardSolution, max_error_m: float)
             f"reprojection error on the floor {error * 1000:.1f} mm exceeds "
             f"calibration.max_ground_error_m {max_error_m * 1000:g} mm: is the board flat and "
             "--square right?")
+    if not abs(pose.roll_deg) <= MAX_PLAUSIBLE_ROLL_DEG:
+        problems.append(
+            f"the solved camera is rolled {pose.roll_deg:+.1f}° about its axis (a camera on the "
+            f"robot is level to within {MAX_PLAUSIBLE_ROLL_DEG:g}°): is the board lying flat on "
+            "the floor? (a camera mounted rolled: calibrate from the mount with --roll-deg)")
     offset = math.hypot(pose.forward_m, pose.lateral_m)
     if offset > MAX_CAMERA_OFFSET_M:
         problems.append(

@@ -246,11 +246,13 @@ def _look_ahead(view: FloorView, near: float, far: float, config: PerceptionConf
     if chosen == "auto":
         if best is None:
             hyp = hypotheses_at(view, max(near, config.roi.near_m, 0.0), config)
+            covers = (f" (one pixel covers at least {1000 * hyp.m_per_px:.1f} mm of floor "
+                      "across the tape)" if math.isfinite(hyp.m_per_px) else
+                      " (the camera sees no floor there)")
             raise PerceptionConfigError(
                 f"perception.edges.look_ahead_m = auto: at {width}x{height} no distance in view "
                 f"({near:.2f} m on) tells the {_tapes_text(config)} from seams up to "
-                f"{1000 * config.tape.seam_width_m:g} mm (one pixel covers at least "
-                f"{1000 * hyp.m_per_px:.1f} mm of floor across the tape); expected a higher "
+                f"{1000 * config.tape.seam_width_m:g} mm{covers}; expected a higher "
                 "resolution, a narrower lens, a lower camera or a wider tape")
         return best, True
     if not _in_view(view, chosen, height):

@@ -12,7 +12,8 @@ sum this camera sees in bends of radius 0.5 m and 1 m (`--json`: one JSON object
 stdout line), write FILE (the calibration with the ground pose added; `--ros` also writes FILE's
 stem + .ros.yaml) and a check picture (the floor grid drawn over the undistorted photo; default
 FILE's stem + .ground-check.png). An implausible chessboard result (camera under the floor,
-horizon below the board, floor error above `calibration.max_ground_error_m`) exits 2 and writes
+horizon below the board, floor error above `calibration.max_ground_error_m`, camera rolled more
+than 10°) exits 2 and writes
 nothing; so does a mount from which the camera sees no floor.
 
 Only I/O lives here (files, the date, printing); the work is `perception.ground_calibration` and
@@ -107,7 +108,8 @@ def perception_refusal(model: GroundModel, config: LanewardenConfig) -> str | No
 
 
 def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
-                   solution: FloorChessboardSolution | None, gate_m: float) -> list[str]:
+                   solution: FloorChessboardSolution | None, gate_m: float,
+                   image_height_px: int) -> list[str]:
     lines = [f"Ground calibration {method}:", f"  camera: {pose.describe()}"]
     if solution is not None:
         errors = solution.floor_errors_m
@@ -117,7 +119,8 @@ def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
             f"RMS (worst corner {worst * 1000:.2f} mm; gate calibration.max_ground_error_m "
             f"{gate_m * 1000:g} mm); in the image {solution.image_error_px:.2f} px RMS")
     horizon = summary.horizon_y_px
-    where = "above the image" if horizon < 0 else "inside the image"
+    where = ("above the image" if horizon < 0 else "inside the image"
+             if horizon < image_height_px else "below the image")
     lines.append(f"  horizon: row {horizon:.0f} at the image centre ({where})")
     if math.isfinite(summary.look_ahead_m):
         lines.append(
@@ -125,20 +128,25 @@ def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
             f"{summary.look_ahead_m:.2f} m ahead of the robot's centre; one pixel at its centre is "
             f"{summary.mm_per_px_across_at_look_ahead:.1f} mm across and "
             f"{summary.mm_per_px_along_at_look_ahead:.1f} mm along")
-    else:
+    elif math.isfinite(summary.look_ahead_y_px):
         lines.append(
             f"  look-ahead: row {summary.look_ahead_y_px:.0f} is at or above the horizon: it "
             "sees no floor (move perception's look-ahead down)")
+    else:
+        lines.append("  look-ahead: no row of the image sees the floor at a distance perception "
+                     "can use")
 
     def fmt(value: float | None) -> str:
         return "not seen" if value is None else f"{value:+.1f}"
 
     bends = "; ".join(f"R {b.radius_m:g} m: right {fmt(b.right)}, left {fmt(b.left)}"
                       for b in summary.bends)
+    seen = any(v is not None for b in summary.bends for v in (b.right, b.left))
     lines.append(
         f"  strongest slope sum driving through a 90° bend (lane {summary.lane_width_m:g} m, "
-        f"tape {summary.tape_width_m * 1000:g} mm): {bends} (the lecture turns beyond "
-        "+-supervisor.turn_enter_slope_sum)")
+        f"tape {summary.tape_width_m * 1000:g} mm): {bends}"
+        + (" (the lecture turns beyond +-supervisor.turn_enter_slope_sum)" if seen
+           else ": this camera sees neither tape through these bends"))
     return lines
 
 
@@ -340,7 +348,8 @@ def ground_command(
         _emit_json(payload)
     else:
         for line in _summary_lines(pose, method, summary, solution,
-                                   config.calibration.max_ground_error_m):
+                                   config.calibration.max_ground_error_m,
+                                   calibration.image_size[1]):
             click.echo(line)
         refusal = perception_refusal(model, config)
         if refusal is not None:

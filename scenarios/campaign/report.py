@@ -47,7 +47,11 @@ Row = Mapping[str, Any]
 
 
 def rerun_command(out_dir: Path, case_id: str) -> str:
-    return f"lanewarden sim --case {shlex.quote(str(out_dir / 'cases' / f'{case_id}.yaml'))}"
+    """The command that reruns a case, with its absolute path: it works copied from the report
+    whatever folder the reader is in (a relative --out made it work only where the campaign
+    was started)."""
+    case = out_dir.resolve() / "cases" / f"{case_id}.yaml"
+    return f"lanewarden sim --case {shlex.quote(str(case))}"
 
 
 def _kinds(row: Row) -> list[str]:
@@ -180,7 +184,7 @@ def _junit_case(out: TextIO, row: Row, out_dir: Path) -> None:
         out.write(f"    <error message={quoteattr(message)} type=\"error\" />\n")
     # the rerun command as report.html gives it: it works from wherever junit.xml is read
     text = (f"{message}\nhalt reason: {row.get('halt_reason') or '-'}\n"
-            f"rerun: {rerun_command(out_dir.resolve(), str(row['id']))}")
+            f"rerun: {rerun_command(out_dir, str(row['id']))}")
     out.write(f"    <system-out>{html.escape(text, quote=False)}</system-out>\n  </testcase>\n")
 
 

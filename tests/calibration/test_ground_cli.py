@@ -208,3 +208,26 @@ def test_a_photo_of_another_size_or_without_the_board(
     code, _, err = _run(capsys, *flags, "--image", str(blank))
     assert code == 2
     assert "board not found" in _one_error_line(err)
+
+
+def test_the_summary_says_what_a_pose_that_sees_no_floor_shows() -> None:
+    """A horizon below the image is not 'inside the image', a look-ahead with no row is not
+    'row nan', and bends where neither tape is seen do not end with the lecture's turn rule
+    (OpenCV's left01/left02.jpg held up in a room printed all three)."""
+    from lanewarden.commands.calibrate_ground import _summary_lines
+    from lanewarden.perception.ground_report import BendSlopeSums, GroundSummary
+
+    nan = float("nan")
+    summary = GroundSummary(
+        horizon_y_px=868.0, look_ahead_y_px=nan, look_ahead_m=nan,
+        mm_per_px_across_at_look_ahead=nan, mm_per_px_along_at_look_ahead=nan,
+        bends=(BendSlopeSums(0.5, None, None), BendSlopeSums(1.0, None, None)),
+        lane_width_m=0.6, tape_width_m=0.048)
+    lines = _summary_lines(CameraPose(height_m=0.2, pitch_deg=48.9), "from the mount", summary,
+                           None, 0.01, 480)
+    assert lines[2:] == [
+        "  horizon: row 868 at the image centre (below the image)",
+        "  look-ahead: no row of the image sees the floor at a distance perception can use",
+        "  strongest slope sum driving through a 90° bend (lane 0.6 m, tape 48 mm): R 0.5 m: "
+        "right not seen, left not seen; R 1 m: right not seen, left not seen: this camera sees "
+        "neither tape through these bends"]

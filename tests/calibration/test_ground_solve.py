@@ -156,6 +156,18 @@ def test_a_camera_far_from_the_robot_is_refused() -> None:
     assert len(problems) == 1 and "1.20 m from the robot's centre" in problems[0]
 
 
+def test_a_rolled_camera_is_refused() -> None:
+    """A board held up or leaning solves to a camera rolled about its axis (OpenCV's left05.jpg:
+    +17.1°, accepted and written before): no robot carries its camera so."""
+    problems = plausibility_problems(_solution(replace(LEVEL_ENOUGH, roll_deg=17.0), BOARD_LOW),
+                                     0.01)
+    assert problems == ["the solved camera is rolled +17.0° about its axis (a camera on the robot "
+                        "is level to within 10°): is the board lying flat on the floor? (a camera "
+                        "mounted rolled: calibrate from the mount with --roll-deg)"]
+    level_enough = replace(LEVEL_ENOUGH, roll_deg=-9.9)
+    assert plausibility_problems(_solution(level_enough, BOARD_LOW), 0.01) == []
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     (dict(height_m=0.0, pitch_deg=30.0), "--height-m 0: expected a height above the floor"),
     (dict(height_m=0.3, pitch_deg=95.0), "--pitch-deg 95: expected -90..90"),

@@ -11,6 +11,8 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
 
+import pytest
+
 from lanewarden.scenarios.campaign.report import (
     LISTED_PER_OUTCOME,
     nice_axis,
@@ -66,10 +68,21 @@ def test_worst_cases_are_unsafe_false_halts_and_the_slowest_halts(tmp_path: Path
 
 def test_the_rerun_commands_can_be_selected_and_copied(tmp_path: Path) -> None:
     page = report_html("spec", summarize(ROWS), tmp_path, "text")
-    command = f"lanewarden sim --case {tmp_path / 'cases' / 'r00007.yaml'}"
+    command = f"lanewarden sim --case {tmp_path.resolve() / 'cases' / 'r00007.yaml'}"
     assert (f'<code class="cmd">{command}</code> <button type="button" class="copy" '
             f'data-copy="{command}"') in page
     assert "user-select: all" in page and "navigator.clipboard.writeText" in page
+
+
+def test_a_relative_out_folder_still_gives_commands_that_work_from_anywhere(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`campaign --out rel/c1`: the report's rerun commands name the case by its absolute path
+    (they named rel/c1/cases/..., which fails from any other folder, such as rel/c1 itself)."""
+    monkeypatch.chdir(tmp_path)
+    page = report_html("spec", summarize(ROWS), Path("rel/c1"), "text")
+    assert f"data-copy=\"lanewarden sim --case {tmp_path.resolve()}/rel/c1/cases/r00007.yaml\"" \
+        in page
+    assert "--case rel/c1/" not in page
 
 
 def test_time_to_halt_is_a_plot_per_kind_on_one_labelled_axis(tmp_path: Path) -> None:

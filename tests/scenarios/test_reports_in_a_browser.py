@@ -86,6 +86,6 @@ def test_a_rerun_command_is_copied_or_selected(browser: Any,  # noqa: F811 (the 
     WebDriverWait(browser, 10).until(lambda _: button.text == "copied")
     assert button.text == "copied"
     code = browser.find_element(By.CSS_SELECTOR, "code.cmd")
-    assert code.text == "lanewarden sim --case campaign-out/cases/r00007.yaml"
+    assert code.text == f"lanewarden sim --case {Path('campaign-out').resolve()}/cases/r00007.yaml"
     assert code.value_of_css_property("user-select") == "all", "one click selects it all"
     browser.save_screenshot(str(tmp_path / "campaign.png"))

@@ -53,6 +53,8 @@ def test_frame_labels_single_frames_and_ranges() -> None:
                                   "(images) or frames,expect[,note] (a video, run or tub)"),
     ("file,expect\n", "clip.csv: no labelled frames after the header"),
     ("file,expect\na.jpg,road\n", "clip.csv:2: label 'road': expected lane or none"),
+    ("file,expect\na.jpg,no-lane\n", "clip.csv:2: label 'no-lane': expected lane or none (did "
+                                     "you mean none? no-lane/ is the folder's name)"),
     ("file,expect\na.jpg\n", "clip.csv:2: 'a.jpg': expected 2 columns"),
     ("file,expect\na.jpg,lane,straight\n", "clip.csv:2: 'a.jpg,lane,straight': expected 2 "
                                            "columns"),
