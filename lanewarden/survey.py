@@ -360,9 +360,14 @@ def name_frames(names: Sequence[str], limit: int = NAMES_SHOWN) -> str:
     return shown + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
+def counted(count: int, noun: str) -> str:
+    """'1 frame', '3 frames' (`noun` singular; an s is added)."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def false_lanes_text(count: int) -> str:
     """'1 false lane', '3 false lanes'."""
-    return f"{count} false lane{'' if count == 1 else 's'}"
+    return counted(count, "false lane")
 
 
 def _percent(part: int, whole: int) -> str:
@@ -372,7 +377,7 @@ def _percent(part: int, whole: int) -> str:
 def class_line(figures: ClassFigures) -> str:
     """One line per class for the terminal."""
     title = CLASS_FOLDERS[figures.expect]
-    text = (f"{title}: {figures.frames} frames, {figures.decisions} with a decision "
+    text = (f"{title}: {counted(figures.frames, 'frame')}, {figures.decisions} with a decision "
             f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
     if figures.expect == NONE:
         text += f", {false_lanes_text(len(figures.false_lanes))}"
@@ -417,7 +422,7 @@ def engage_line(engage: EngageFigures | None) -> str:
             f"on {engage.engaged_lane_frames} of {engage.lane_frames} lane frames "
             f"({_percent(engage.engaged_lane_frames, engage.lane_frames)})")
     if engage.halts:
-        text += (f"; {len(engage.halts)} halts ({', '.join(engage.halts[:3])}"
+        text += (f"; {counted(len(engage.halts), 'halt')} ({', '.join(engage.halts[:3])}"
                  f"{', ...' if len(engage.halts) > 3 else ''})")
     return text
 

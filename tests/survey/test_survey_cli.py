@@ -183,7 +183,7 @@ def test_a_video_with_frame_labels(clip: Path, capsys: pytest.CaptureFixture[str
     # started at frame 0: the supervisor engages on its 10th confident frame in a row
     # (engage_confident_frames 10 at 30 frames/s), and halts once the tapes are gone
     assert "supervisor: engages at frame 9 (0.30 s after the start); engaged on 31 of 40 lane " \
-           "frames (78%); 1 halts (frame " in out
+           "frames (78%); 1 halt (frame " in out
     assert "LANE_LOST" in out
 
 
@@ -247,6 +247,7 @@ def test_the_ground_model_is_described_at_the_frames_size(
     assert code == 0
     first = out.splitlines()[0]
     assert first.startswith("ground model: no ground calibration") and "; 320x240: " in first
+    assert "\nlane: 1 frame, 1 with a decision" in out  # one frame, not "1 frames"
     assert json.loads((tmp_path / "o" / "survey.json").read_text())["ground_model"] == first
 
 

@@ -149,7 +149,7 @@ def test_engage_lines() -> None:
                              ("frame 250 LANE_LOST",))
     assert engage_line(sequence) == (
         "supervisor: engages at frame 41 (0.31 s after the start); engaged on 800 of 892 lane "
-        "frames (90%); 1 halts (frame 250 LANE_LOST)")
+        "frames (90%); 1 halt (frame 250 LANE_LOST)")
     never = EngageFigures("sequence", 3.3, 1, 0, lane_frames=892)
     assert engage_line(never) == ("supervisor: never engages on this sequence (3.3 s replayed, "
                                   "started at its first frame and resumed after every halt)")
