@@ -71,9 +71,10 @@ class LabelsTable:
 def _expect(value: str, where: str) -> str:
     expect = value.strip().lower()
     if expect not in EXPECTS:
-        # a class folder's name given as a label: say which label that folder stands for
-        folder = {name: label for label, name in CLASS_FOLDERS.items()}.get(expect.rstrip("/"))
-        hint = f" (did you mean {folder}? no-lane/ is the folder's name)" if folder == NONE else ""
+        # the no-lane class folder's name given as a label: say the label it stands for
+        folder = CLASS_FOLDERS[NONE]
+        hint = (f" (did you mean {NONE}? {folder}/ is the folder's name)"
+                if expect.rstrip("/") == folder else "")
         raise InputFileError(f"{where}: label '{value.strip()[:60]}': expected lane or "
                              f"none{hint}")
     return expect
