@@ -124,18 +124,27 @@ def _class_folders(folder: Path) -> list[StillFrame]:
             for i, s in enumerate(stills)]
 
 
-def _images_under(folder: Path, seen: set[Path] | None = None) -> list[Path]:
+def _images_under(folder: Path) -> list[Path]:
     """The images in `folder` (natural name order), then those of its sub-folders, each in
     turn, in name order (hidden folders, such as .git, left out; a folder reached twice through
-    a link is read once, so a link loop ends)."""
-    seen = set() if seen is None else seen
-    real = folder.resolve()
-    if real in seen:
-        return []
-    seen.add(real)
-    paths = list(image_sequence_paths(str(folder)) or [])
-    for sub in sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")):
-        paths.extend(_images_under(sub, seen))
+    a link is read once, so a link loop ends). A loop over a stack, not recursion: a folder
+    nested thousands deep is walked, not a RecursionError; an unreadable folder is one line."""
+    paths: list[Path] = []
+    seen: set[tuple[int, int]] = set()  # (device, inode): one stat, not a walk of the path
+    stack = [folder]
+    while stack:
+        here = stack.pop()
+        try:
+            info = here.stat()
+            if (info.st_dev, info.st_ino) in seen:
+                continue
+            seen.add((info.st_dev, info.st_ino))
+            paths.extend(image_sequence_paths(str(here)) or [])
+            subs = sorted(p for p in here.iterdir() if p.is_dir() and not p.name.startswith("."))
+        except OSError as exc:
+            raise InputFileError(f"{here}: cannot read this folder ({exc.strerror or exc})"
+                                 ) from None
+        stack.extend(reversed(subs))  # the first in name order is walked next
     return paths
 
 

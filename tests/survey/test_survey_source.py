@@ -4,6 +4,7 @@ sequence order, and a label for a frame the recording lacks is one line naming t
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -52,3 +53,35 @@ def test_a_link_loop_under_a_class_folder_ends(tmp_path: Path) -> None:
     (tmp_path / "no-lane" / "again").symlink_to(tmp_path / "no-lane", target_is_directory=True)
     names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path)]
     assert names == [("lane/a.png", "lane"), ("no-lane/b.png", "none")]
+
+
+def test_a_folder_nested_deeper_than_pythons_recursion_limit_is_walked(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A crafted no-lane/ nested 1200 deep (past the default recursion limit of 1000): the image
+    at the bottom is found, with no RecursionError."""
+    (tmp_path / "lane").mkdir()
+    (tmp_path / "lane" / "a.png").write_bytes(b"")
+    (tmp_path / "no-lane").mkdir()
+    monkeypatch.chdir(tmp_path / "no-lane")
+    for _ in range(1200):  # one level at a time: no long path handed to the system at once
+        Path("d").mkdir()
+        os.chdir("d")
+    Path("b.png").write_bytes(b"")
+    monkeypatch.chdir(tmp_path)
+    try:
+        stills = _class_folders(tmp_path)
+        assert [s.frame.expect for s in stills] == ["lane", "none"]
+        assert stills[1].frame.name == "no-lane/" + "d/" * 1200 + "b.png"
+    finally:
+        _remove_deep(tmp_path / "no-lane", 1200)
+
+
+def _remove_deep(top: Path, depth: int) -> None:
+    """Remove top/d/d/.../b.png bottom-up, one level at a time: shutil.rmtree (and so pytest's
+    own clean-up of old temporary folders) recurses once per level and would fail on it."""
+    os.chdir(top / ("d/" * depth))
+    Path("b.png").unlink()
+    for _ in range(depth):
+        os.chdir("..")
+        Path("d").rmdir()
+    os.chdir(top.parent)
