@@ -26,6 +26,7 @@ import numpy as np
 from lanewarden.errors import DeviceError, UsageError
 from lanewarden.image_files import header_problem, read_image, too_many_pixels
 from lanewarden.supervisor.loop import Frame
+from lanewarden.wording import counted
 
 
 @contextmanager
@@ -227,7 +228,7 @@ class CameraFrameSource:
                         self._error = failure
                     elif self._replay_period_s is not None and index > 0:
                         self._ended = True
-                        self._error = f"end of the recorded clip after {index} frames"
+                        self._error = f"end of the recorded clip after {counted(index, 'frame')}"
                     else:
                         self._error = "the camera stopped delivering frames"
                 return

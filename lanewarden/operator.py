@@ -30,6 +30,7 @@ from lanewarden.actuation.base import BaseFeedback
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.supervisor.events import LANE_LOSS_EVENTS, Event, Response, response_of
 from lanewarden.supervisor.loop import StepRecord
+from lanewarden.wording import counted
 
 #: Kobuki button bits (BaseFeedback.buttons): B0 starts or resumes, B1 stops.
 BUTTON_B0 = 0x01
@@ -328,8 +329,8 @@ def summary_lines(stats: RunStats, *, stopped: str | None = None,
         f"{stats.loop_time_s_mean * 1000:.1f} ms, max {stats.loop_time_s_max * 1000:.1f} ms",
     ]
     if recording is not None:
-        dropped = (f", {frames_dropped_recording} frames dropped (replay cannot be exact)"
-                   if frames_dropped_recording else "")
+        dropped = (f", {counted(frames_dropped_recording, 'frame')} dropped (replay cannot be "
+                   "exact)" if frames_dropped_recording else "")
         lines.append(f"  recorded in {recording}{dropped}")
     if view_dropped:
         lines.append(f"  live view: {view_dropped} view frames dropped (the loop never waits)")

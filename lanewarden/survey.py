@@ -27,6 +27,7 @@ from typing import Any
 
 from lanewarden.errors import InputFileError
 from lanewarden.perception.observation import weakest_component
+from lanewarden.wording import counted
 
 LANE = "lane"
 NONE = "none"
@@ -359,11 +360,6 @@ def name_frames(names: Sequence[str], limit: int = NAMES_SHOWN) -> str:
     items = _compact(names)
     shown = ", ".join(items[:limit])
     return shown + (f" and {len(items) - limit} more" if len(items) > limit else "")
-
-
-def counted(count: int, noun: str) -> str:
-    """'1 frame', '3 frames' (`noun` singular; an s is added)."""
-    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def false_lanes_text(count: int) -> str:

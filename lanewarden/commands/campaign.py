@@ -37,6 +37,7 @@ from lanewarden.scenarios.campaign.runner import (
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.progress import Progress
+from lanewarden.wording import counted
 
 EXAMPLES = """\b
 Examples:
@@ -107,8 +108,8 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         if progress.unstored_carried:
             carried = progress.unstored_carried
             click.echo(f"campaign {spec.name}: stored now what an earlier campaign could not "
-                       f"store ({carried} run{'' if carried == 1 else 's'})", err=True)
-        click.echo(f"campaign {spec.name}: {progress.total} runs (seed {seed}), "
+                       f"store ({counted(carried, 'run')})", err=True)
+        click.echo(f"campaign {spec.name}: {counted(progress.total, 'run')} (seed {seed}), "
                    f"{progress.done} already stored; running {where}", err=True)
         bar = Progress(progress.total, f"campaign {spec.name}", "runs", initial=progress.done,
                        enabled=not quiet, heartbeat=True)
@@ -141,7 +142,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         summary = summarize(store.iter_rows(plan.runs))
         ran = (f"{summary.runs - stored_at_start} run now" if stored_at_start
                else "all run now")
-        text = (f"{summary.runs} runs of spec {spec.name} (seed {seed}; {ran}, "
+        text = (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}; {ran}, "
                 f"{time.perf_counter() - started:.0f} s): {_counts(progress)}")
         try:
             write_junit(out / "junit.xml", spec.name, store.iter_rows(plan.runs), summary)

@@ -47,6 +47,7 @@ from types import MappingProxyType
 from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.spec import FaultSpec
 from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.wording import counted
 
 OUTCOMES = ("safe_halt", "recovered", "nominal", "false_halt", "unsafe", "error")
 #: A halted robot must be at rest (below AT_REST_M_S) this long after HALT (it brakes in well
@@ -336,7 +337,8 @@ def _blind_window(facts: RunFacts, halt: int, code: str, limits: Limits) -> str 
     last = [i for i in range(halt + 1) if halt_s - window_s + 1e-9 < float(facts.times[i])]
     if not last or any(shown[i] for i in last):
         return None
-    why = f"the detector could use in any of the last {len(last)} frames ({window_s:g} s)"
+    why = (f"the detector could use in any of the last {counted(len(last), 'frame')} "
+           f"({window_s:g} s)")
     if code == "DEGRADED_BUDGET_EXHAUSTED":
         start = halt
         while start > 0 and facts.states[start - 1] == "DEGRADED":

@@ -37,6 +37,7 @@ from lanewarden.scenarios.campaign.outcome import (
     answered_kind,
     blind_halt,
 )
+from lanewarden.wording import counted
 
 #: How many unsafe runs, false halts and errors the report lists (each; the rest are counted).
 LISTED_PER_OUTCOME = 25
@@ -258,8 +259,8 @@ def distribution_svg(values: Sequence[float], axis: tuple[float, float, list[flo
     median = _quantile(values, 0.5)
     marks.append(f'<line x1="{x(median):.1f}" y1="3" x2="{x(median):.1f}" y2="28" '
                  'stroke="#c62828" stroke-width="2"/>')
-    label = (f"{len(values)} halts from {min(values):.3f} s to {max(values):.3f} s, median "
-             f"{median:.3f} s")
+    label = (f"{counted(len(values), 'halt')} from {min(values):.3f} s to {max(values):.3f} s, "
+             f"median {median:.3f} s")
     return (f'<svg width="{_PLOT_W}" height="{_PLOT_H}" role="img" '
             f'aria-label="{html.escape(label)}"><title>{html.escape(label)}</title>'
             f'{"".join(marks)}</svg>')
@@ -324,7 +325,8 @@ def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
 
 def _more(kept: _Kept, what: str) -> str:
     hidden = kept.count - len(kept.heap)
-    return f"<p>... and {hidden} more {what} (results.sqlite has every row).</p>" if hidden else ""
+    return (f"<p>... and {counted(hidden, 'more ' + what)} (results.sqlite has every row).</p>"
+            if hidden else "")
 
 
 def _worst(summary: CampaignSummary, out_dir: Path) -> str:
@@ -337,7 +339,7 @@ def _worst(summary: CampaignSummary, out_dir: Path) -> str:
              "the button copies it.</p>"]
     if unsafe.count or false_halts.count:
         parts.append(_case_rows([*unsafe.rows(), *false_halts.rows()], out_dir))
-        parts.append(_more(unsafe, "unsafe runs") + _more(false_halts, "false halts"))
+        parts.append(_more(unsafe, "unsafe run") + _more(false_halts, "false halt"))
     else:
         parts.append("<p>No unsafe run and no false halt.</p>")
     if slowest:
@@ -354,7 +356,7 @@ def _blind(summary: CampaignSummary, out_dir: Path) -> str:
             "the frames the camera delivered showed no tape with a contrast the detector could "
             "use (a light switched up faster than the auto-exposure follows, ...): not failures "
             "of the supervisor, but of the camera's view.</p>"
-            + _case_rows(blind.rows(), out_dir) + _more(blind, "blind halts"))
+            + _case_rows(blind.rows(), out_dir) + _more(blind, "blind halt"))
 
 
 def _errors(summary: CampaignSummary, out_dir: Path) -> str:
@@ -391,8 +393,9 @@ def report_html(name: str, summary: CampaignSummary, out_dir: Path, text: str) -
     badges = " ".join(
         f'<span style="background:{_COLORS[o]};color:white;padding:2px 8px;border-radius:4px">'
         f"{o}: {counts[o]}</span>" for o in OUTCOMES)
-    cost = (f"<p>{summary.timed} runs timed: {summary.cpu_s:.0f} s CPU for {summary.sim_s:.0f} "
-            f"s simulated ({summary.cpu_s / max(summary.timed, 1):.2f} s CPU per run).</p>"
+    cost = (f"<p>{counted(summary.timed, 'run')} timed: {summary.cpu_s:.0f} s CPU for "
+            f"{summary.sim_s:.0f} s simulated "
+            f"({summary.cpu_s / max(summary.timed, 1):.2f} s CPU per run).</p>"
             ) if summary.timed else ""
     matrices = "\n".join(_matrix(title, table) for (title, _), table
                          in zip(summary.matrices, summary.tables, strict=True)

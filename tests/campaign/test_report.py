@@ -115,6 +115,16 @@ def test_many_halts_make_a_histogram_and_the_lists_stay_short(tmp_path: Path) ->
     assert f"... and {40 - LISTED_PER_OUTCOME} more unsafe runs" in worst
 
 
+def test_one_of_a_kind_is_singular(tmp_path: Path) -> None:
+    rows = [row(0, "safe_halt", "BUMPER answering bumper (fault 0)", 0.05)]
+    rows += [row(1000 + i, "unsafe", "crossed a tape", kinds="occlusion")
+             for i in range(LISTED_PER_OUTCOME + 1)]
+    page = report_html("spec", summarize(rows), tmp_path, "text")
+    plot = re.findall(r"<svg .*?</svg>", _section(page, "Time to halt (safe halts)"))[0]
+    assert 'aria-label="1 halt from 0.050 s to 0.050 s, median 0.050 s"' in plot
+    assert "... and 1 more unsafe run (results.sqlite" in _section(page, "Worst cases")
+
+
 def test_nice_axes() -> None:
     assert nice_axis(0.034, 2.4) == (0.0, 2.5, [0.0, 0.5, 1.0, 1.5, 2.0, 2.5])
     assert nice_axis(0.0, 0.067) == (0.0, 0.08, [0.0, 0.02, 0.04, 0.06, 0.08])
