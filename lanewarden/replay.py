@@ -180,8 +180,10 @@ class Divergence:
 
 
 def compare_step(step: int, recorded: RecordedStep, step_input: StepInput,
-                 replayed: StepRecord) -> Divergence | None:
-    """The first field of a step that differs: frame, state, events, command, halt reason."""
+                 replayed: StepRecord, start_s: float = 0.0) -> Divergence | None:
+    """The first field of a step that differs: frame, state, events, command, halt reason;
+    dated from `start_s` (the run's first step: a recording's times are the robot's monotonic
+    clock)."""
     command = (replayed.command.linear_m_s, replayed.command.angular_rad_s)
     checks: list[tuple[str, object, object]] = [
         ("frame index", recorded.frame_index, replayed.frame_index),
@@ -192,7 +194,7 @@ def compare_step(step: int, recorded: RecordedStep, step_input: StepInput,
     ]
     for what, was, now in checks:
         if was != now:
-            return Divergence(step, step_input.t, what, was, now)
+            return Divergence(step, step_input.t - start_s, what, was, now)
     return None
 
 
@@ -262,8 +264,11 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
     base = ScriptedBase()
     # the very stack `run` drives (detector, controller, gate), with the recorded images
     loop = ControlLoop(frames, ReplayDetection(tap, frames), stack.gate, base)
+    start_s: float | None = None
     for k, step_input in enumerate(source.steps):
         now = step_input.t
+        if start_s is None:
+            start_s = now
         for request in step_input.requests:
             if request == "start":
                 loop.start(now)
@@ -280,6 +285,6 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
         tap.last = None
         divergence = None
         if source.recorded is not None:
-            divergence = compare_step(k, source.recorded[k], step_input, record)
+            divergence = compare_step(k, source.recorded[k], step_input, record, start_s)
         yield ReplayedStep(k, step_input, record, frames.image, detection, divergence)
     source.frames.close()

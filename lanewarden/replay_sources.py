@@ -620,7 +620,10 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                 f"{SOURCE_HELP}")
     times = [i / camera_rate_hz for i in range(len(paths))]
     path = Path(source)
-    return ReplaySource(kind="images", name=path.name or source,
+    name = path.name or source
+    if any(c in name for c in "*?["):  # a glob: the folder it picks from names the replay
+        name = path.parent.resolve().name or "images"
+    return ReplaySource(kind="images", name=name,
                         steps=camera_steps(enumerate(times)),
                         frames=PathFrames(paths, max_pixels))
 

@@ -8,6 +8,7 @@ transitions, conditions and events are rendered from `TRANSITIONS`, the conditio
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from transitions.extensions import GraphMachine
@@ -105,5 +106,10 @@ def state_machine_markdown() -> str:
 
 
 if __name__ == "__main__":
+    if not DOC_PATH.parent.is_dir():  # an installed copy, run away from a clone's root
+        print(f"python -m lanewarden.supervisor.diagram: no docs folder at {DOC_PATH.parent}: "
+              "run it from the root of a clone (it rewrites the clone's docs/state-machine.md)",
+              file=sys.stderr)
+        sys.exit(2)
     DOC_PATH.write_text(state_machine_markdown(), encoding="utf-8")
     print(f"wrote {DOC_PATH}")

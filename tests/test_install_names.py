@@ -116,3 +116,16 @@ def test_installs_and_works_next_to_supervisord(wheel: Path, tmp_path: Path) -> 
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("ServerOptions\n")
     assert "supervisor:" in result.stdout  # lanewarden's config show printed its sections
+
+
+def test_a_clone_imported_from_its_root_is_the_clone_whole() -> None:
+    """`python benchmarks/...` or `python -m lanewarden.config_reference` from a clone's root with
+    a plain `pip install .`: the clone's lanewarden/ comes first on sys.path and hides the
+    installed copy, so its layers must come from the clone too (they were 'No module named
+    lanewarden.actuation'). `-S`: no site-packages, so no installed or editable copy answers."""
+    probe = ("import importlib.util as u, lanewarden; "
+             "print(*(u.find_spec('lanewarden.' + n).origin for n in "
+             f"{LAYERS!r}), sep='\\n')")
+    found = subprocess.run([sys.executable, "-S", "-c", probe], cwd=PROJECT_ROOT,
+                           capture_output=True, text=True, check=True)
+    assert found.stdout.split() == [str(PROJECT_ROOT / name / "__init__.py") for name in LAYERS]

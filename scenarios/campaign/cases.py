@@ -189,7 +189,8 @@ class Case(_Model):
     tape: str = "scenario"
     effect: str = "default"
     scenario: dict[str, Any]
-    #: the whole run's config overrides (config file shape), validated when the case runs
+    #: the whole run's config overrides (config file shape); each piece was checked when the
+    #: spec was read (`_config_problems`), the whole when the case runs
     config: dict[str, Any]
 
     def scenario_spec(self, source: str = "case") -> ScenarioSpec:
@@ -251,6 +252,7 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                 parse_scenario(_dress(base, choice), f"{what}.{i} ({choice.name})")
             except ScenarioError as exc:
                 problems.append(f"{path}: {what}.{i} ({choice.name}): {_one_line(exc)}")
+    problems += _config_problems(spec, path)
     rng = np.random.default_rng(0)
     for i, fault in enumerate(spec.faults):
         for _ in range(3):
@@ -264,6 +266,33 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                 break
     if problems:
         raise ScenarioError("\n".join(problems))
+
+
+def _config_problems(spec: CampaignSpec, path: Path) -> list[str]:
+    """The spec's config overrides checked now, not when a run draws them (a bad key would
+    otherwise turn every run with it into an error): the top-level `config:`, and each camera's
+    `config:` and `simulation:`, each floor's, tape's and effect's `config:` over it."""
+    from lanewarden.config import config_from_mapping  # lanewarden.config imports campaign/
+    from lanewarden.errors import ConfigError
+
+    pieces: list[tuple[str, dict[str, Any]]] = [("config", {})]
+    for i, camera in enumerate(spec.cameras):
+        pieces.append((f"cameras.{i} ({camera.name})", merge_overrides(camera.config, {
+            "simulation": {"width_px": camera.width_px, "height_px": camera.height_px,
+                           **camera.simulation}})))
+    groups: list[tuple[str, Sequence[Choice]]] = [
+        ("floors", spec.floors), ("tapes", spec.tapes), ("effects", spec.effects)]
+    for what, choices in groups:
+        pieces += [(f"{what}.{i} ({c.name})", c.config) for i, c in enumerate(choices) if c.config]
+    problems = []
+    for where, overrides in pieces:
+        try:
+            config_from_mapping(merge_overrides(spec.config, overrides), f"{path}: {where}")
+        except ConfigError as exc:
+            problems.append(str(exc))
+            if where == "config":  # every other piece goes over it: one report is enough
+                break
+    return problems
 
 
 def _placement(kind: str, params: Mapping[str, Any]) -> dict[str, Any]:

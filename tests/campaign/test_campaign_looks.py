@@ -101,6 +101,26 @@ def test_a_bad_look_is_refused_at_load_with_its_key(tmp_path: Path) -> None:
         load_campaign_spec(str(spec_file(tmp_path, unknown)))
 
 
+def test_a_bad_config_override_is_refused_at_load_not_in_every_run(tmp_path: Path) -> None:
+    # Each was a run-time ConfigError in every run that drew it: a campaign of errors, exit 0.
+    bad = LOOKS.replace("{perception: {tape: {width_m: 0.048}}}",
+                        "{perception: {tape: {width_mm: 48}}}")
+    with pytest.raises(ScenarioError, match=r"spec\.yaml: tapes\.2 \(black\).*unknown key "
+                       r"'perception\.tape\.width_mm'"):
+        load_campaign_spec(str(spec_file(tmp_path, bad)))
+    top = spec_file(tmp_path, LOOKS + "config: {supervisor: {follow_speed: 0.1}}\n")
+    with pytest.raises(ScenarioError, match=r"spec\.yaml: config: unknown key "
+                       r"'supervisor\.follow_speed'") as raised:
+        load_campaign_spec(str(top))
+    assert len(str(raised.value).splitlines()) == 1  # not once more for every piece over it
+    camera = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    camera["cameras"][0]["simulation"] = {"noise_sigma_levels": 4}
+    (tmp_path / "spec.yaml").write_text(yaml.safe_dump(camera), encoding="utf-8")
+    with pytest.raises(ScenarioError, match=r"cameras\.0 \(.*\).*unknown key "
+                       r"'simulation\.noise_sigma_levels'"):
+        load_campaign_spec(str(tmp_path / "spec.yaml"))
+
+
 def test_the_default_spec_draws_floors_tapes_and_effects() -> None:
     spec, where = load_campaign_spec("default")
     drawn = [draw_case(spec, where, 0, i, {}, 0.15) for i in range(200)]

@@ -171,7 +171,8 @@ def test_a_changed_step_is_the_first_divergence(clip: list[np.ndarray], tmp_path
     code = main(["replay", str(changed), "--check", "--no-video", "--out", str(tmp_path / "out")])
     captured = capsys.readouterr()
     assert code == 2
-    assert f"DIVERGES at step {moving + 3} " in captured.out
+    # dated from the run's first step, not by the robot's monotonic clock (T0 + ...)
+    assert f"DIVERGES at step {moving + 3} (t = {(moving + 3) * DT:.3f} s)" in captured.out
     assert "command was" in captured.out
     assert "diverges from the recording" in captured.err
 

@@ -68,6 +68,16 @@ def test_a_video_and_a_folder_of_images(tmp_path: Path,
     capsys.readouterr()
 
 
+def test_a_glob_of_images_is_named_after_its_folder(tmp_path: Path) -> None:
+    from lanewarden.replay_sources import open_replay_source
+
+    folder = write_images(lane_end_frames(start_m=2.0, end_m=2.2, speed_m_s=0.6)[:3],
+                          tmp_path / "lane")
+    # the default output folder is lanewarden-out/replay-<name>: not 'replay-*.png'
+    assert open_replay_source(str(folder / "*.png"), 30.0).name == "lane"
+    assert open_replay_source(str(folder), 30.0).name == "lane"
+
+
 def test_not_a_source_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "notes.txt").write_text("hello")
     for source in (tmp_path / "missing", tmp_path / "notes.txt"):
