@@ -24,7 +24,12 @@ import cv2
 import numpy as np
 
 from lanewarden.errors import DeviceError, UsageError
-from lanewarden.image_files import header_problem, read_image, too_many_pixels
+from lanewarden.image_files import (
+    DEFAULT_MAX_PIXELS,
+    header_problem,
+    read_image,
+    too_many_pixels,
+)
 from lanewarden.supervisor.loop import Frame
 from lanewarden.wording import counted
 
@@ -77,7 +82,7 @@ class ImageSequence:
 
     def __init__(self, paths: list[Path], max_pixels: int | None = None) -> None:
         self.paths = paths
-        self._max_pixels = max_pixels
+        self._max_pixels = DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels
         self._next = 0
         self.failure: str | None = None
 

@@ -41,7 +41,31 @@ MAX_EXPANDED_NODES = 100_000
 #: Bad values are shown cut to this many characters in error messages.
 MAX_SHOWN_CHARS = 60
 
-_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_SAFE_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]
+    """The safe loader (LibYAML's where there is one), refusing a mapping that repeats a key:
+    YAML keeps the last one silently, so `lane_lost_halt_s: 0.2` followed further down by
+    `lane_lost_halt_s: 0.9` would run with 0.9 while the reader sees 0.2."""
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                repeated = key in seen
+                seen.add(key)
+            except TypeError:  # an unhashable key: the base class says so
+                break
+            if repeated:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {shorten(_SHORT.repr(key))} appears twice in one mapping",
+                    key_node.start_mark)
+        return super().construct_mapping(node, deep)
+
+
+_LOADER: type[Any] = _Loader
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxtuple, _SHORT.maxdict = 2, 4, 4, 4
 _SHORT.maxstring = _SHORT.maxother = _SHORT.maxlong = MAX_SHOWN_CHARS
@@ -125,6 +149,8 @@ def parse_yaml_text(text: str, source: str, error: type[Exception]) -> Any:
         raise error(f"{source}: {exc}, refusing to read it") from None
     except yaml.YAMLError as exc:
         raise error(f"{source}: {_yaml_problem(exc)}") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts
+        raise error(f"{source}: a value YAML cannot read ({shorten(str(exc))})") from None
 
 
 def read_yaml_document(path: str | Path, what: str, error: type[Exception]) -> Any:
@@ -132,6 +158,10 @@ def read_yaml_document(path: str | Path, what: str, error: type[Exception]) -> A
     file) when it can't be. Never reads more than MAX_DOCUMENT_BYTES + 1 bytes."""
     path = Path(path)
     try:
+        if path.exists() and not path.is_dir() and not path.is_file():
+            # a FIFO or a device: reading waits for a writer, or never ends
+            raise error(f"{path}: not a regular file (a FIFO, socket or device), expected a "
+                        f"{what} YAML file")
         with path.open("rb") as stream:
             data = stream.read(MAX_DOCUMENT_BYTES + 1)
     except FileNotFoundError:

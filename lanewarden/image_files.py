@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import glob
 import re
+import stat
 import warnings
 from pathlib import Path
 from typing import IO
@@ -18,6 +19,8 @@ from typing import IO
 import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
+
+from lanewarden.perception.config import PerceptionConfig
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 
@@ -53,18 +56,51 @@ def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
     return too_many_pixels(int(width), int(height), max_pixels)
 
 
-def read_image(
-    path: Path, flags: int = cv2.IMREAD_COLOR, max_pixels: int | None = None
-) -> tuple[np.ndarray | None, str]:
-    """Decode an image file: (image, "") or (None, why it cannot be used). With `max_pixels`,
-    an image with more pixels is refused, from its header before decoding where the format
-    allows."""
-    if max_pixels is not None and path.is_file() and (why := header_problem(path, max_pixels)):
-        return None, why
+#: The pixel limit when a command has no config to take `perception.max_image_pixels` from: its
+#: default.
+DEFAULT_MAX_PIXELS: int = PerceptionConfig.model_fields["max_image_pixels"].default
+#: An image file may hold at most this many bytes per allowed pixel (plus a megabyte of
+#: headers and metadata): an uncompressed 4-channel 16-bit frame is 8; more is not an image
+#: within the limit, whatever its header says (a sparse file of gigabytes behind a 1x1 header).
+MAX_BYTES_PER_PIXEL = 8
+
+
+def file_problem(path: Path) -> str:
+    """Why `path` is not a file that can be read whole without waiting ('' when it is one):
+    missing, a folder, a FIFO or a device (reading those waits for a writer or never ends)."""
     try:
-        data = np.fromfile(str(path), dtype=np.uint8)
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return "no such file"
+    except OSError as exc:
+        return f"cannot read file ({exc.strerror or exc})"
+    if stat.S_ISDIR(mode):
+        return "is a folder, not an image file"
+    if not stat.S_ISREG(mode):
+        return "not a regular file (a FIFO, socket or device)"
+    return ""
+
+
+def read_image(
+    path: Path, flags: int = cv2.IMREAD_COLOR, max_pixels: int = DEFAULT_MAX_PIXELS
+) -> tuple[np.ndarray | None, str]:
+    """Decode an image file: (image, "") or (None, why it cannot be used). An image with more
+    than `max_pixels` pixels is refused, from its header before decoding where the format
+    allows; so is a file larger than any image within the limit, before it is read, and
+    anything but a regular file."""
+    if why := file_problem(path):
+        return None, why
+    if why := header_problem(path, max_pixels):
+        return None, why
+    limit = MAX_BYTES_PER_PIXEL * max_pixels + (1 << 20)
+    try:
+        with path.open("rb") as stream:
+            data = np.frombuffer(stream.read(limit + 1), dtype=np.uint8)
     except OSError as exc:
         return None, f"cannot read file ({exc.strerror or exc})"
+    if data.size > limit:
+        return None, (f"file is larger than {limit} bytes, more than any image within "
+                      f"{LIMIT_KEY} ({max_pixels}) holds")
     if data.size == 0:
         return None, "empty file, not an image"
     try:
@@ -73,8 +109,7 @@ def read_image(
         image = None
     if image is None or image.size == 0:
         return None, "not a readable image"
-    if max_pixels is not None and (why := too_many_pixels(image.shape[1], image.shape[0],
-                                                          max_pixels)):
+    if why := too_many_pixels(image.shape[1], image.shape[0], max_pixels):
         return None, why
     return image, ""
 

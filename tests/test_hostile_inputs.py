@@ -11,6 +11,7 @@ imports take seconds; each case's stderr and exit code are captured separately.
 from __future__ import annotations
 
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -95,6 +96,14 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         folder / "camera.yaml",
     )
     sim = ["--no-video", "--quiet", "--out", str(folder / "out")]
+    (folder / "views").mkdir()
+    (folder / "views" / "huge.png").write_bytes(big_png(20000, 20000))
+    # a 1x1 PNG header in front of 3 GB (sparse: no disk used): only reading it costs
+    with open(folder / "sparse.png", "wb") as sparse:
+        sparse.write(big_png(8, 1))
+        sparse.truncate(3 << 30)
+    os.mkfifo(folder / "fifo.yaml")
+    os.mkfifo(folder / "fifo.png")
     cases = {
         "config bomb": ["config", "show", "--config", write("bomb.yaml", yaml_bomb())],
         "scenario bomb": ["sim", "--scenario", write(
@@ -120,6 +129,20 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         "20000x20000 PNG detect": ["detect", str(folder / "huge.png")],
         "20000x20000 PNG undistort": ["undistort", str(folder / "huge.png"), "--calibration",
                                       str(folder / "camera.yaml"), "--out", str(folder / "u")],
+        "config with a repeated key": ["config", "show", "--config", write(
+            "twice.yaml", "supervisor:\n  lane_lost_halt_s: 0.2\n  lane_lost_halt_s: 0.9\n")],
+        "config with a 5000-digit number": ["config", "show", "--config", write(
+            "digits.yaml", "supervisor: {lane_lost_halt_s: " + "9" * 5000 + "}\n")],
+        "config that is a FIFO": ["config", "show", "--config", str(folder / "fifo.yaml")],
+        "image that is a FIFO": ["detect", str(folder / "fifo.png")],
+        "3 GB behind a 1x1 PNG header": ["detect", str(folder / "sparse.png")],
+        "20000x20000 PNG calibrate": ["calibrate", "--images", str(folder / "views"),
+                                      "--pattern", "9x6", "--square", "0.025", "--out",
+                                      str(folder / "c.yaml")],
+        "20000x20000 PNG calibrate ground": [
+            "calibrate", "ground", "--image", str(folder / "huge.png"), "--calibration",
+            str(folder / "camera.yaml"), "--pattern", "9x6", "--square", "0.025",
+            "--board-center-m", "0.5,0", "--out", str(folder / "g.yaml")],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
     }
@@ -153,6 +176,19 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
                               "perception.max_image_pixels (10000000)",
     "20000x20000 PNG undistort": "huge.png: image has 400000000 pixels, more than "
                                  "perception.max_image_pixels (10000000)",
+    "config with a repeated key": "twice.yaml: not valid YAML at line 3, column 3: key "
+                                  "'lane_lost_halt_s' appears twice in one mapping",
+    "config with a 5000-digit number": "digits.yaml: a value YAML cannot read (Exceeds the "
+                                       "limit",
+    "config that is a FIFO": "fifo.yaml: not a regular file (a FIFO, socket or device), "
+                             "expected a config YAML file",
+    "image that is a FIFO": "fifo.png: not a regular file (a FIFO, socket or device)",
+    "3 GB behind a 1x1 PNG header": "sparse.png: file is larger than 81048576 bytes, more than "
+                                    "any image within perception.max_image_pixels (10000000)",
+    # the view is refused from its header, not decoded (2.7 GB)
+    "20000x20000 PNG calibrate": "views': none of the 1 matching files is a readable image",
+    "20000x20000 PNG calibrate ground": "huge.png': image has 400000000 pixels, more than "
+                                        "perception.max_image_pixels (10000000)",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }
