@@ -108,7 +108,10 @@ def parse_labels(text: str, source: str) -> LabelsTable:
         if not raw.strip() or raw.lstrip().startswith("#"):
             continue
         where = f"{source}:{number}"
-        fields = next(csv.reader([raw]))
+        try:
+            fields = next(csv.reader([raw]))
+        except csv.Error as exc:  # a field beyond csv's limit (131072 characters), a stray NUL
+            raise InputFileError(f"{where}: not a CSV line ({exc})") from None
         if header is None:
             names = tuple(f.strip().lower() for f in fields)
             if names not in LABEL_HEADERS:

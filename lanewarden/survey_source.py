@@ -29,7 +29,7 @@ from pathlib import Path
 
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.errors import InputFileError, UsageError
-from lanewarden.image_files import header_problem
+from lanewarden.image_files import file_problem, header_problem
 from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -75,6 +75,8 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
 
 def read_labels(path: Path) -> LabelsTable:
     """The labels file at `path`, refused unread above MAX_LABELS_BYTES."""
+    if path.exists() and not path.is_file():
+        raise InputFileError(f"--labels '{path}': {file_problem(path)}, expected a labels file")
     try:
         with path.open("rb") as handle:
             data = handle.read(MAX_LABELS_BYTES + 1)
@@ -131,6 +133,7 @@ def _images_under(folder: Path) -> list[Path]:
     nested thousands deep is walked, not a RecursionError; an unreadable folder is one line."""
     paths: list[Path] = []
     seen: set[tuple[int, int]] = set()  # (device, inode): one stat, not a walk of the path
+    inside = folder.resolve().parent  # the survey's FOLDER (`folder` is a class folder in it)
     stack = [folder]
     while stack:
         here = stack.pop()
@@ -144,6 +147,11 @@ def _images_under(folder: Path) -> list[Path]:
         except OSError as exc:
             raise InputFileError(f"{here}: cannot read this folder ({exc.strerror or exc})"
                                  ) from None
+        for sub in subs:
+            if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
+                raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
+                                     "expected the survey's photos inside its folder (copy them "
+                                     "in)")
         stack.extend(reversed(subs))  # the first in name order is walked next
     return paths
 
@@ -152,9 +160,12 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     stills = []
     for order, row in enumerate(table.rows):
         assert row.file is not None
-        path = Path(row.file) if Path(row.file).is_absolute() else folder / row.file
-        if not path.is_file():
-            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: no such file "
+        path = folder / row.file
+        if Path(row.file).is_absolute() or not path.resolve().is_relative_to(folder.resolve()):
+            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: outside {folder}; "
+                                 "expected a path relative to it, inside it")
+        if why := file_problem(path):
+            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: {why} "
                                  f"(paths are relative to {folder})")
         stills.append(StillFrame(LabelledFrame(row.file, row.expect, order, row.note), path))
     return stills

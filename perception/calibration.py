@@ -151,6 +151,8 @@ class CameraCalibration:
             raise PerceptionError(
                 f"calibration: image_size {width}x{height} must be positive (width, height)"
             )
+        if why := image_size_problem(width, height):
+            raise PerceptionError(f"calibration: {why}")
         object.__setattr__(self, "camera_matrix", k)
         object.__setattr__(self, "dist_coeffs", d)
         object.__setattr__(self, "image_size", (width, height))
@@ -347,6 +349,21 @@ def _read_ground(storage: cv2.FileStorage, path: Path) -> GroundCalibration | No
         raise PerceptionError(f"{path}: {str(exc).removeprefix('calibration: ')}") from None
 
 
+#: A calibration's image may have at most this many pixels (the largest
+#: `perception.max_image_pixels` allowed) and this long a side: its undistortion tables are
+#: sized by it before any image is compared with it (20000x20000 asked for 5.6 GB).
+MAX_CALIBRATION_PIXELS = 50_000_000
+MAX_CALIBRATION_SIDE_PX = 20_000
+
+
+def image_size_problem(width: int, height: int) -> str:
+    """Why a calibration cannot be for a `width` x `height` image ('' when it can)."""
+    if max(width, height) > MAX_CALIBRATION_SIDE_PX or width * height > MAX_CALIBRATION_PIXELS:
+        return (f"image size {width}x{height} is larger than any camera image taken (at most "
+                f"{MAX_CALIBRATION_PIXELS} pixels, {MAX_CALIBRATION_SIDE_PX} px a side)")
+    return ""
+
+
 def load_calibration(path: str | Path) -> CameraCalibration:
     """Read a calibration written by `save_calibration` (or OpenCV's calibration sample, or a ROS
     camera_info YAML). Raises PerceptionError naming the file and the bad or missing node."""
@@ -355,6 +372,9 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         raise PerceptionError(f"{path}: calibration file not found")
     if path.is_dir():
         raise PerceptionError(f"{path}: is a directory, expected a calibration YAML file")
+    if not path.is_file():  # a FIFO or a device: OpenCV would wait for a writer
+        raise PerceptionError(f"{path}: not a regular file (a FIFO, socket or device), expected "
+                              "a calibration YAML file")
     if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
         raise PerceptionError(f"{path}: calibration file is larger than "
                               f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
@@ -390,6 +410,8 @@ def load_calibration(path: str | Path) -> CameraCalibration:
             raise PerceptionError(
                 f"{path}: image size {width}x{height} is not positive (image_width, image_height)"
             )
+        if why := image_size_problem(width, height):  # before anything sized by it is built
+            raise PerceptionError(f"{path}: {why} (image_width, image_height)")
         rms = _read_optional_real(storage.getNode("rms"), path, "rms")
         views_node = storage.getNode("views_used")
         views = None if views_node.isNone() else _read_int(views_node, path, "views_used")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -96,6 +97,10 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         folder / "camera.yaml",
     )
     sim = ["--no-video", "--quiet", "--out", str(folder / "out")]
+    calibration = (folder / "camera.yaml").read_text(encoding="utf-8")
+    write("h20k.yaml", re.sub(r"image_height: \d+", "image_height: 20000",
+                              re.sub(r"image_width: \d+", "image_width: 20000", calibration)))
+    (folder / "small.png").write_bytes(big_png(640, 480))
     (folder / "views").mkdir()
     (folder / "views" / "huge.png").write_bytes(big_png(20000, 20000))
     # a 1x1 PNG header in front of 3 GB (sparse: no disk used): only reading it costs
@@ -143,6 +148,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             "calibrate", "ground", "--image", str(folder / "huge.png"), "--calibration",
             str(folder / "camera.yaml"), "--pattern", "9x6", "--square", "0.025",
             "--board-center-m", "0.5,0", "--out", str(folder / "g.yaml")],
+        "calibration claiming 20000x20000": ["detect", str(folder / "small.png"),
+                                             "--calibration", str(folder / "h20k.yaml")],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
     }
@@ -189,6 +196,9 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "20000x20000 PNG calibrate": "views': none of the 1 matching files is a readable image",
     "20000x20000 PNG calibrate ground": "huge.png': image has 400000000 pixels, more than "
                                         "perception.max_image_pixels (10000000)",
+    # refused before its 20000x20000 undistortion tables are built (5.6 GB)
+    "calibration claiming 20000x20000": "h20k.yaml: image size 20000x20000 is larger than any "
+                                        "camera image taken",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }

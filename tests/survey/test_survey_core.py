@@ -68,6 +68,8 @@ def test_frame_labels_single_frames_and_ranges() -> None:
                                  "inclusive range (120-340)"),
     ("frames,expect\n10-20,lane\n20-25,none\n",
      "clip.csv:3: frames 20-25 overlap frames 10-20 of line 2"),
+    ("file,expect\na.jpg,lane," + "x" * 200_000 + "\n",  # csv's own field limit: was a traceback
+     "clip.csv:2: not a CSV line (field larger than field limit (131072))"),
 ])
 def test_bad_labels_are_one_line_naming_the_line_and_the_value(text: str, message: str) -> None:
     with pytest.raises(InputFileError) as caught:

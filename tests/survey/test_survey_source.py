@@ -13,7 +13,7 @@ from lanewarden.errors import InputFileError
 from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
-from lanewarden.survey_source import _class_folders, _labelled_frames
+from lanewarden.survey_source import _class_folders, _labelled_files, _labelled_frames
 
 #: frames 2, 5 and 6 were dropped; frame 3 came with two steps
 RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
@@ -53,6 +53,36 @@ def test_a_link_loop_under_a_class_folder_ends(tmp_path: Path) -> None:
     (tmp_path / "no-lane" / "again").symlink_to(tmp_path / "no-lane", target_is_directory=True)
     names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path)]
     assert names == [("lane/a.png", "lane"), ("no-lane/b.png", "none")]
+
+
+def test_a_link_out_of_the_survey_folder_is_refused(tmp_path: Path) -> None:
+    """no-lane/loop -> / walked the whole filesystem (23 s) and surveyed whatever images it held."""
+    (tmp_path / "survey" / "no-lane").mkdir(parents=True)
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "survey" / "no-lane" / "loop").symlink_to(tmp_path / "elsewhere",
+                                                          target_is_directory=True)
+    with pytest.raises(InputFileError, match=r"no-lane/loop: a link to .*elsewhere, outside "):
+        _class_folders(tmp_path / "survey")
+
+
+@pytest.mark.parametrize("row, message", [
+    ("../outside.png", "../outside.png: outside"),
+    ("{absolute}", "expected a path relative to it, inside it"),
+    ("fifo.png", "fifo.png: not a regular file (a FIFO, socket or device)"),
+])
+def test_a_labelled_file_must_be_a_file_inside_the_folder(tmp_path: Path, row: str,
+                                                        message: str) -> None:
+    """labels.csv rows reached ../../../etc/passwd and absolute paths; a FIFO hung the survey."""
+    folder = tmp_path / "survey"
+    folder.mkdir()
+    (tmp_path / "outside.png").write_bytes(b"")
+    os.mkfifo(folder / "fifo.png")
+    row = row.format(absolute=tmp_path / "outside.png")
+    table = parse_labels(f"file,expect\n{row},none\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(folder, table)
+    assert str(caught.value).startswith(f"labels.csv:2: {row}"[:20])
+    assert message in str(caught.value)
 
 
 def test_a_folder_nested_deeper_than_pythons_recursion_limit_is_walked(
