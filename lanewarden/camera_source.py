@@ -23,6 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from lanewarden.documents import shorten
 from lanewarden.errors import DeviceError, UsageError
 from lanewarden.image_files import (
     DEFAULT_MAX_PIXELS,
@@ -45,6 +46,8 @@ def quiet_opencv() -> Iterator[None]:
         cv2.utils.logging.setLogLevel(level)
 
 
+#: The largest camera index taken (OpenCV adds a backend's id, in the hundreds, to an index).
+MAX_CAMERA_INDEX = 9999
 _URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
 _GLOB_CHARS = re.compile(r"[*?\[]")
 #: File name endings read as images in a folder or glob sequence.
@@ -126,6 +129,9 @@ def open_camera(camera: str,
     source: int | str
     if camera.strip().isdigit():
         source = int(camera)
+        if source > MAX_CAMERA_INDEX:
+            raise UsageError(f"--camera '{shorten(camera)}': expected a camera index from 0 to "
+                             f"{MAX_CAMERA_INDEX} (0 is the first camera)")
     else:
         source = camera
         if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
@@ -136,7 +142,11 @@ def open_camera(camera: str,
     # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     with quiet_opencv():
-        capture = cv2.VideoCapture(source)
+        try:
+            capture = cv2.VideoCapture(source)
+        except (cv2.error, OverflowError, SystemError) as exc:
+            raise DeviceError(f"--camera '{shorten(camera)}': cannot open it "
+                              f"({shorten(str(exc))})") from None
         opened = capture.isOpened()
     if not opened:
         capture.release()

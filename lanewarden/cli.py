@@ -8,6 +8,9 @@ safety stop of `run`, 130 Ctrl-C), with no traceback.
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import os
 import sys
 from collections.abc import Sequence
 
@@ -21,6 +24,7 @@ from lanewarden.errors import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_RUNTIME_FAILURE,
     USER_ERRORS,
     Interrupted,
     exit_code_for,
@@ -73,10 +77,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         _error("interrupted")
         return EXIT_INTERRUPTED
+    except OSError as exc:
+        if exc.errno not in _OUTPUT_GONE:
+            raise
+        return _output_gone(exc)
     finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        except OSError as exc:  # the last of the output could not be written either
+            if exc.errno not in _OUTPUT_GONE:
+                raise
+            _output_gone(exc)
     return result if isinstance(result, int) else EXIT_OK
+
+
+#: A write that failed because the output itself is gone or full (`> /dev/full`, a closed pipe,
+#: a full or read-only disk): one line and exit 1, not a traceback.
+_OUTPUT_GONE = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EROFS, errno.EIO}
+
+
+def _output_gone(exc: OSError) -> int:
+    # stdout cannot take more: point it at /dev/null so the interpreter's own last flush at exit
+    # does not print "Exception ignored ..." after the one line
+    with contextlib.suppress(OSError, ValueError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    with contextlib.suppress(OSError):
+        _error(f"cannot write the output ({exc.strerror or exc})")
+    return EXIT_RUNTIME_FAILURE
 
 
 if __name__ == "__main__":

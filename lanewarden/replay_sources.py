@@ -43,7 +43,7 @@ from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
 from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
 from lanewarden.errors import ConfigError, InputFileError, UsageError
-from lanewarden.image_files import header_problem, read_image, too_many_pixels
+from lanewarden.image_files import file_problem, header_problem, read_image, too_many_pixels
 from lanewarden.perception.calibration import CameraCalibration, load_calibration
 from lanewarden.perception.detector import PreparedImage
 from lanewarden.perception.errors import PerceptionError
@@ -559,32 +559,52 @@ def _candidates(topics: dict[str, BagTopic], stamps: dict[str, list[float]]) -> 
 def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySource:
     records: list[dict[str, Any]] = []
     for catalog in catalogs:
-        for number, raw in enumerate(catalog.read_text(encoding="utf-8").splitlines(), 1):
+        try:
+            text = _read_small(catalog, "tub catalog").decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise InputFileError(f"{catalog}: not UTF-8 text ({exc.reason} at byte "
+                                 f"{exc.start})") from None
+        for number, raw in enumerate(text.splitlines(), 1):
             if raw.strip():
                 try:
-                    records.append(json.loads(raw))
-                except ValueError as exc:
-                    raise UsageError(f"{catalog}:{number}: not a JSON record ({exc})") from exc
+                    record = json.loads(raw)
+                except (ValueError, RecursionError) as exc:
+                    raise InputFileError(f"{catalog}:{number}: not a JSON record "
+                                         f"({shorten(str(exc))})") from None
+                if not isinstance(record, dict):
+                    raise InputFileError(f"{catalog}:{number}: a {type(record).__name__}, "
+                                         "expected a JSON object (a tub record)")
+                records.append(record)
     deleted: set[int] = set()
     manifest = folder / "manifest.json"
     if manifest.exists():
-        for raw in manifest.read_text(encoding="utf-8").splitlines():
+        for raw in _read_small(manifest, "tub manifest").decode("utf-8", "replace").splitlines():
             try:
                 entry = json.loads(raw)
-            except ValueError:
+            except (ValueError, RecursionError):
                 continue
-            if isinstance(entry, dict):
-                deleted |= set(entry.get("deleted_indexes", []))
+            if isinstance(entry, dict) and isinstance(entry.get("deleted_indexes"), list):
+                deleted |= {i for i in entry["deleted_indexes"] if isinstance(i, int)}
     records = [r for r in records if r.get("_index") not in deleted]
     try:
         records.sort(key=lambda r: int(r["_index"]))
         paths = [folder / "images" / str(r["cam/image_array"]) for r in records]
         stamps = [float(r["_timestamp_ms"]) / 1000.0 for r in records]
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise UsageError(f"{folder}: a tub record lacks _index, _timestamp_ms or cam/image_array "
-                         f"({exc})") from exc
+                         f"({shorten(str(exc))})") from None
     if not records:
         raise UsageError(f"{folder}: the tub holds no records")
+    for record, path in zip(records, paths, strict=True):
+        # a record names a file in images/: never one elsewhere (../../etc/passwd), never one
+        # that is not there (the replay would go on with fewer frames and no word)
+        if path.parent != folder / "images" or path.name in ("", ".", ".."):
+            raise InputFileError(f"{folder}: record {record.get('_index')}: cam/image_array "
+                                 f"{shorten(str(record['cam/image_array']))!r}: expected a file "
+                                 "name in images/")
+        if why := file_problem(path):
+            raise InputFileError(f"{folder}: record {record.get('_index')}: {path}: {why}")
+    _one_size(paths, str(folder), max_pixels)
     if not all(math.isfinite(s) for s in stamps):
         raise UsageError(f"{folder}: a tub record's _timestamp_ms is not a finite number")
     times = [t - stamps[0] for t in stamps]
@@ -596,11 +616,8 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                         meta={"frames_per_s_recorded": len(times) / max(times[-1], 1e-9)})
 
 
-def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
-                    camera_rate_hz: float) -> ReplaySource:
-    """A folder or glob of camera frames: images of one size (from their headers)."""
-    if not paths:
-        raise UsageError(f"SOURCE '{source}': no images there; expected {SOURCE_HELP}")
+def _one_size(paths: list[Path], source: str, max_pixels: int) -> None:
+    """UsageError unless the images are of one size (from their headers, within the limit)."""
     from PIL import Image, UnidentifiedImageError
 
     sizes: dict[tuple[int, int], Path] = {}
@@ -618,6 +635,15 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                 f"SOURCE '{source}': images of different sizes ({path_a.name} {a[0]}x{a[1]}, "
                 f"{path_b.name} {b[0]}x{b[1]}): not a sequence of camera frames; expected "
                 f"{SOURCE_HELP}")
+
+
+def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
+                    camera_rate_hz: float) -> ReplaySource:
+    """A folder or glob of camera frames: images of one size (from their headers)."""
+    if not paths:
+        raise UsageError(f"SOURCE '{source}': no images there; expected {SOURCE_HELP}")
+
+    _one_size(paths, source, max_pixels)
     times = [i / camera_rate_hz for i in range(len(paths))]
     path = Path(source)
     name = path.name or source

@@ -18,6 +18,7 @@ Never prints, never reads a clock (the date is given by the caller), never touch
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -188,6 +189,26 @@ def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
     path = Path(path)
     if path.parent and not path.parent.exists():
         raise PerceptionError(f"{path}: folder {path.parent} does not exist")
+    # Written beside it, read back, then moved over it: a full disk or a crash mid-write never
+    # leaves a calibration cut short in place of the one that was there (OpenCV's writer does
+    # not say when its last write fails). The same suffix: OpenCV picks the format by it.
+    partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+    try:
+        _write_storage(calibration, partial)
+        try:
+            load_calibration(partial)
+        except PerceptionError:
+            raise PerceptionError(f"{path}: cannot write calibration file (the written copy "
+                                  "does not read back: is the disk full?)") from None
+        os.replace(partial, path)
+    except OSError as exc:
+        raise PerceptionError(f"{path}: cannot write calibration file "
+                              f"({exc.strerror or exc})") from None
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def _write_storage(calibration: CameraCalibration, path: Path) -> None:
     try:
         storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
     except (cv2.error, SystemError) as exc:

@@ -17,11 +17,13 @@ import struct
 import subprocess
 import sys
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from lanewarden.scenarios.campaign.cases import case_yaml, draw_case, load_campaign_spec
 from tests.conftest import PROJECT_ROOT
 
 #: Address space the child may use above its baseline after the imports, bytes.
@@ -101,6 +103,9 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
     write("h20k.yaml", re.sub(r"image_height: \d+", "image_height: 20000",
                               re.sub(r"image_width: \d+", "image_width: 20000", calibration)))
     (folder / "small.png").write_bytes(big_png(640, 480))
+    spec, spec_path = load_campaign_spec("default")
+    case = case_yaml(draw_case(spec, spec_path, 0, 0, {}, 0.15))
+    write("negative-seed.yaml", re.sub(r"(?m)^seed: \d+$", "seed: -5", case))
     (folder / "views").mkdir()
     (folder / "views" / "huge.png").write_bytes(big_png(20000, 20000))
     # a 1x1 PNG header in front of 3 GB (sparse: no disk used): only reading it costs
@@ -150,6 +155,16 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             "--board-center-m", "0.5,0", "--out", str(folder / "g.yaml")],
         "calibration claiming 20000x20000": ["detect", str(folder / "small.png"),
                                              "--calibration", str(folder / "h20k.yaml")],
+        "camera index beyond any": ["run", "--camera", "99999999999999999999"],
+        "check picture not a picture": [
+            "calibrate", "ground", "--height-m", "0.3", "--pitch-deg", "40", "--calibration",
+            str(folder / "camera.yaml"), "--check-image", str(folder / "x.txt"), "--out",
+            str(folder / "g.yaml")],
+        "board centre 1e308 m away": [
+            "calibrate", "ground", "--image", str(folder / "small.png"), "--calibration",
+            str(folder / "camera.yaml"), "--pattern", "9x6", "--square", "0.025",
+            "--board-center-m", "1e308,0", "--out", str(folder / "g.yaml")],
+        "case with a negative seed": ["sim", "--case", str(folder / "negative-seed.yaml"), *sim],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
     }
@@ -199,6 +214,13 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     # refused before its 20000x20000 undistortion tables are built (5.6 GB)
     "calibration claiming 20000x20000": "h20k.yaml: image size 20000x20000 is larger than any "
                                         "camera image taken",
+    # each of these four was a traceback (cv2.error, ValueError)
+    "camera index beyond any": "--camera '99999999999999999999': expected a camera index from "
+                               "0 to 9999",
+    "check picture not a picture": "x.txt': expected a .png or .jpg file name",
+    "board centre 1e308 m away": "expected a board on the floor in view, within 10 m",
+    "case with a negative seed": "negative-seed.yaml: seed = -5: expected an integer with 0 <= "
+                                 "value",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }
@@ -216,3 +238,16 @@ def test_hostile_input_is_one_line_exit_2_without_large_memory(
     assert any(text in lines[0] for text in ((expected,) if isinstance(expected, str)
                                              else expected)), lines[0]
     assert len(lines[0]) < 400
+
+
+def test_output_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
+    """`lanewarden config show > /dev/full`: was an OSError traceback."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "lanewarden", "config", "show"],
+                              stdout=full, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                              check=False)
+    assert done.returncode == 1
+    assert done.stderr.splitlines() == [
+        "lanewarden: error: cannot write the output (No space left on device)"]

@@ -65,6 +65,10 @@ USAGE = ("usage: lanewarden calibrate ground --calibration FILE --height-m H --p
          "--square M --board-center-m X,Y --out FILE (from a floor chessboard)")
 
 
+#: A floor chessboard farther than this from the robot is not one its camera sees.
+MAX_BOARD_DISTANCE_M = 10.0
+
+
 class PointType(click.ParamType):
     """X,Y in metres (robot frame)."""
 
@@ -82,6 +86,9 @@ class PointType(click.ParamType):
                       "e.g. 0.6,0", param, ctx)
         if not (math.isfinite(x) and math.isfinite(y)):
             self.fail(f"{value!r}: expected finite metres", param, ctx)
+        if max(abs(x), abs(y)) > MAX_BOARD_DISTANCE_M:
+            self.fail(f"{value!r}: expected a board on the floor in view, within "
+                      f"{MAX_BOARD_DISTANCE_M:g} m of the robot", param, ctx)
         return (x, y)
 
 
@@ -272,6 +279,8 @@ def ground_command(
     if not out.parent.is_dir():
         raise UsageError(f"--out '{out}': folder '{out.parent}' does not exist")
     check = Path(check_path) if check_path else _default_check_path(out)
+    if check.suffix.lower() not in (".png", ".jpg", ".jpeg"):
+        raise UsageError(f"--check-image '{check}': expected a .png or .jpg file name")
     if not check.parent.is_dir():
         raise UsageError(f"--check-image '{check}': folder '{check.parent}' does not exist")
     config = load_config(config_path)
@@ -336,11 +345,19 @@ def ground_command(
             corners_px=None if solution is None else solution.corners_px,
             corners_floor=None if solution is None else solution.floor_points,
             lane_width_m=config.perception.lane.width_m)
+        # The picture first: if it cannot be written, the calibration is left as it was.
+        encoded, data = cv2.imencode(check.suffix, picture)
+        try:
+            if not encoded:
+                raise OSError("the picture could not be encoded")
+            check.write_bytes(data.tobytes())
+        except OSError as exc:
+            raise PerceptionError(f"--check-image '{check}': cannot write the picture "
+                                  f"({getattr(exc, 'strerror', None) or exc}); nothing written "
+                                  f"to {out}") from None
         save_calibration(updated, out)
         if ros_path is not None:
             save_ros_camera_info(updated, ros_path, camera_name=out.stem)
-        if not cv2.imwrite(str(check), picture):
-            raise PerceptionError(f"--check-image '{check}': cannot write the picture")
     payload["calibration_file"] = None if problems else str(out)
     payload["ros_file"] = None if problems or ros_path is None else str(ros_path)
     payload["check_image"] = None if problems else str(check)

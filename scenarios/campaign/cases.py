@@ -177,10 +177,10 @@ class Case(_Model):
 
     id: str
     campaign: str
-    campaign_seed: int
-    index: int
+    campaign_seed: Annotated[int, Field(ge=0)]
+    index: Annotated[int, Field(ge=0)]
     controller: str
-    seed: int
+    seed: Annotated[int, Field(ge=0)]
     camera: str
     fault_kinds: list[str]
     #: the drawn floor, tape and camera effects (names from the spec; `scenario`/`default`:

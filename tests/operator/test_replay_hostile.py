@@ -258,3 +258,58 @@ def test_a_sim_output_folder_is_not_a_recording(tmp_path: Path,
         (folder / name).unlink()
     code, _, err = replay(folder, tmp_path, capsys)
     assert_one_line(code, err, "images of different sizes", "not a sequence of camera frames")
+
+
+def _tub(folder: Path, records: list[str], catalog_tail: bytes = b"") -> Path:
+    """A Donkeycar tub of three 160x120 frames, its catalog lines replaced by `records` when
+    given (a JSON text per line)."""
+    import cv2
+
+    (folder / "images").mkdir(parents=True)
+    lines = []
+    for i in range(3):
+        cv2.imwrite(str(folder / "images" / f"{i}_cam_image_array_.jpg"),
+                    np.full((120, 160, 3), 90 + 10 * i, np.uint8))
+        lines.append(json.dumps({"_index": i, "_timestamp_ms": 1000 + 50 * i,
+                                 "cam/image_array": f"{i}_cam_image_array_.jpg"}))
+    text = "\n".join(records or lines) + "\n"
+    (folder / "catalog_0.catalog").write_bytes(text.encode() + catalog_tail)
+    return folder
+
+
+def _record(index: int, image: object, stamp: object = None) -> str:
+    return json.dumps({"_index": index, "_timestamp_ms": 1000 + 50 * index if stamp is None
+                       else stamp, "cam/image_array": image})
+
+
+@pytest.mark.parametrize("records, tail, message", [
+    ([], b"\xff\xfe garbage", "catalog_0.catalog: not UTF-8 text"),
+    (["[" * 100_000], b"", "catalog_0.catalog:1: not a JSON record"),
+    (['["a", "list"]'], b"", "catalog_0.catalog:1: a list, expected a JSON object"),
+    (['{"_index": 0, "_timestamp_ms": 1' + "0" * 400 + ', "cam/image_array": "0.jpg"}'], b"",
+     "a tub record lacks _index, _timestamp_ms or cam/image_array (int too large"),
+    ([_record(0, "0_cam_image_array_.jpg"), _record(1, "../../../../etc/passwd")], b"",
+     "record 1: cam/image_array '../../../../etc/passwd': expected a file name in images/"),
+    ([_record(0, "0_cam_image_array_.jpg"), _record(1, "missing.jpg")], b"",
+     "record 1: "),
+])
+def test_a_damaged_tub_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                   records: list[str], tail: bytes, message: str) -> None:
+    """Each was a traceback (UnicodeDecodeError, RecursionError, OverflowError) or a replay of
+    fewer frames with exit 0 and no word (a record naming a missing or outside file)."""
+    tub = _tub(tmp_path / "tub", records, tail)
+    code = main(["replay", str(tub), "--no-video", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert message in err
+
+
+def test_a_tub_frame_of_another_size_is_refused(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import cv2
+
+    tub = _tub(tmp_path / "tub", [])
+    cv2.imwrite(str(tub / "images" / "1_cam_image_array_.jpg"), np.zeros((480, 640, 3), np.uint8))
+    assert main(["replay", str(tub), "--no-video", "--out", str(tmp_path / "out")]) == 2
+    assert "images of different sizes" in capsys.readouterr().err
