@@ -229,7 +229,10 @@ def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
     re-import: ~2 s less each) only from a single-threaded process, where forking is safe."""
     single = threading.active_count() == 1
     method = "fork" if single and "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    pool = multiprocessing.get_context(method).Pool(processes=len(requests))
+    # Ctrl-C on a terminal reaches every process of the group: the workers leave it to this
+    # one, which terminates them (each had printed its own KeyboardInterrupt traceback).
+    pool = multiprocessing.get_context(method).Pool(processes=len(requests),
+                                                    initializer=_leave_interrupts_to_the_parent)
     # Installed after the workers exist (they keep the default): SIGTERM to the demo becomes an
     # interrupt here, so the workers are terminated instead of running on as orphans.
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -265,6 +268,10 @@ def _case_request(case_file: str, scenario: str | None, config_path: str | None,
     return RunRequest(spec=spec, config=config, controller=case.controller, seed=case.seed,
                       out_dir=out, build_stack=build_stack, video=not no_video,
                       progress=not quiet, source=case_file, judge=judge_metrics)
+
+
+def _leave_interrupts_to_the_parent() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:

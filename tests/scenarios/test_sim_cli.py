@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -133,6 +134,36 @@ def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None
     assert marker[2:] == ["  metrics.json", "  run.jsonl", "  video.mp4", "  poster.jpg",
                           "  plot.png", "  report.html"]
     assert not (out / "metrics.json").exists()
+
+
+def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches the whole process group: the demo's two worker processes
+    printed a KeyboardInterrupt traceback each (34-53 lines); they leave it to the demo now."""
+    out = tmp_path / "demo"
+
+    def own_group_sigint_as_from_a_terminal() -> None:
+        os.setpgrp()
+        sigint_as_from_a_terminal()
+
+    run = subprocess.Popen(
+        [sys.executable, "-m", "lanewarden", "demo", "--out", str(out), "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=own_group_sigint_as_from_a_terminal)
+    try:
+        deadline = time.monotonic() + 120.0
+        # one run finished (its worker idle, waiting for work), the other still going
+        done = [out / name / "metrics.json" for name in ("lecture", "supervised")]
+        while time.monotonic() < deadline and run.poll() is None and not any(
+                path.exists() for path in done):
+            threading.Event().wait(0.05)
+        assert run.poll() is None, run.communicate()
+        os.killpg(run.pid, signal.SIGINT)
+        _, err = run.communicate(timeout=120.0)
+    finally:
+        run.kill()
+    assert run.returncode == 130
+    assert err.splitlines() == [
+        f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
 
 
 @pytest.mark.parametrize(("given", "expected"), [
