@@ -15,8 +15,10 @@ Pure data and seeded draws: never runs a simulation, never reads a clock.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
@@ -253,12 +255,18 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
             except ScenarioError as exc:
                 problems.append(f"{path}: {what}.{i} ({choice.name}): {_one_line(exc)}")
     problems += _config_problems(spec, path)
-    rng = np.random.default_rng(0)
     for i, fault in enumerate(spec.faults):
-        for _ in range(3):
+        # Every value a draw can give at its extremes (each one_of option, each end of a range;
+        # every combination while they are few): three random draws had let {one_of: [99, 2]}
+        # through, and run 0 then failed.
+        try:
+            options = {key: _extremes(value, f"faults.{i}.params.{key}")
+                       for key, value in fault.params.items()}
+        except ValueError as exc:
+            problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
+            continue
+        for params in _combinations(options):
             try:
-                params = {key: _draw(rng, value, f"faults.{i}.params.{key}")
-                          for key, value in fault.params.items()}
                 FaultSpec.model_validate({"kind": fault.kind, **_placement(fault.kind, params),
                                           **params})
             except (ValueError, ValidationError) as exc:
@@ -326,6 +334,33 @@ def spec_fingerprint(spec: CampaignSpec, config_overrides: Mapping[str, Any]) ->
 
 
 # ---- drawing ----------------------------------------------------------------------------------
+#: Above this many combinations of extremes, each parameter's are checked with the others' first.
+MAX_CHECKED_COMBINATIONS = 256
+
+
+def _extremes(value: Any, where: str) -> list[Any]:
+    """The values a parameter's draws can take at their extremes (ValueError for a bad form)."""
+    rng = np.random.default_rng(0)
+    _draw(rng, value, where)  # the form is checked as a draw checks it
+    if isinstance(value, Mapping):
+        return list(value["one_of"])
+    if isinstance(value, list):
+        return list(value)
+    return [value]
+
+
+def _combinations(options: Mapping[str, list[Any]]) -> Iterator[dict[str, Any]]:
+    keys = list(options)
+    if math.prod(len(options[k]) for k in keys) <= MAX_CHECKED_COMBINATIONS:
+        for values in itertools.product(*(options[k] for k in keys)):
+            yield dict(zip(keys, values, strict=True))
+        return
+    first = {k: options[k][0] for k in keys}
+    for key in keys:
+        for value in options[key]:
+            yield {**first, key: value}
+
+
 def _draw(rng: np.random.Generator, value: Any, where: str) -> Any:
     if isinstance(value, Mapping):
         if set(value) != {"one_of"} or not isinstance(value["one_of"], list) or not value[

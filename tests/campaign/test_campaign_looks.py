@@ -121,6 +121,15 @@ def test_a_bad_config_override_is_refused_at_load_not_in_every_run(tmp_path: Pat
         load_campaign_spec(str(tmp_path / "spec.yaml"))
 
 
+def test_every_option_of_a_fault_parameter_is_checked_at_load(tmp_path: Path) -> None:
+    """Three random draws let {one_of: [2, 99]} through (99 bumper bits); run 0 then failed."""
+    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    spec["faults"] = [{"kind": "bumper", "params": {"bits": {"one_of": [2] * 30 + [99]}}}]
+    (tmp_path / "spec.yaml").write_text(yaml.safe_dump(spec), encoding="utf-8")
+    with pytest.raises(ScenarioError, match=r"faults\.0 \(bumper\): bits"):
+        load_campaign_spec(str(tmp_path / "spec.yaml"))
+
+
 def test_the_default_spec_draws_floors_tapes_and_effects() -> None:
     spec, where = load_campaign_spec("default")
     drawn = [draw_case(spec, where, 0, i, {}, 0.15) for i in range(200)]
