@@ -13,6 +13,7 @@ import glob
 import re
 import stat
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
@@ -122,3 +123,17 @@ def expand_images(pattern: str) -> list[Path]:
     else:
         candidates = [Path(p) for p in glob.glob(str(base), recursive=True)]
     return sorted(p for p in candidates if not p.is_dir())
+
+
+def same_output_name(names: Sequence[str], written: str) -> str:
+    """'' when each image's output (`written`, e.g. '{stem}_detect.png') has its own name, else
+    why not: two inputs of one stem (a/good.png and a/good.jpg, x/good.png and x/sub/good.png)
+    would write one file, the second over the first."""
+    first: dict[str, str] = {}
+    for name in names:
+        target = written.format(stem=Path(name).stem)
+        if target in first and first[target] != name:
+            return (f"{first[target]} and {name} would both write {target}; give the images "
+                    "different names, or run them in turn with different --out folders")
+        first[target] = name
+    return ""

@@ -107,6 +107,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
     case = case_yaml(draw_case(spec, spec_path, 0, 0, {}, 0.15))
     write("negative-seed.yaml", re.sub(r"(?m)^seed: \d+$", "seed: -5", case))
     (folder / "views").mkdir()
+    (folder / "dup").mkdir()
+    (folder / "dup" / "small.png").write_bytes(big_png(640, 480))
     (folder / "views" / "huge.png").write_bytes(big_png(20000, 20000))
     # a 1x1 PNG header in front of 3 GB (sparse: no disk used): only reading it costs
     with open(folder / "sparse.png", "wb") as sparse:
@@ -165,6 +167,12 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             str(folder / "camera.yaml"), "--pattern", "9x6", "--square", "0.025",
             "--board-center-m", "1e308,0", "--out", str(folder / "g.yaml")],
         "case with a negative seed": ["sim", "--case", str(folder / "negative-seed.yaml"), *sim],
+        "two detect overlays of one name": ["detect", str(folder / "small.png"),
+                                            str(folder / "dup" / "small.png"), "--out",
+                                            str(folder / "d")],
+        "two undistorted pictures of one name": [
+            "undistort", str(folder / "small.png"), str(folder / "dup" / "small.png"),
+            "--calibration", str(folder / "camera.yaml"), "--out", str(folder / "u2")],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
     }
@@ -221,6 +229,10 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "board centre 1e308 m away": "expected a board on the floor in view, within 10 m",
     "case with a negative seed": "negative-seed.yaml: seed = -5: expected an integer with 0 <= "
                                  "value",
+    # the second had silently overwritten the first (exit 0)
+    "two detect overlays of one name": "dup/small.png would both write small_detect.png",
+    "two undistorted pictures of one name": "dup/small.png would both write "
+                                            "small_compare.png",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }

@@ -47,8 +47,8 @@ from lanewarden.assembly import decision_rule
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
-from lanewarden.errors import ConfigError, InputFileError, OutputError
-from lanewarden.image_files import read_image
+from lanewarden.errors import ConfigError, InputFileError, OutputError, UsageError
+from lanewarden.image_files import read_image, same_output_name
 from lanewarden.perception.calibration import (
     Undistorter,
     load_calibration,
@@ -126,6 +126,8 @@ def detect_command(
         undistorter = Undistorter(calibration)
     out = None
     if out_dir is not None:
+        if clash := same_output_name(images, "{stem}_detect.png"):
+            raise UsageError(f"--out {out_dir}: {clash}")
         out = create_output_folder(Path(out_dir))
     try:
         detector = LaneDetector(config, undistorter)

@@ -21,8 +21,8 @@ import cv2
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
-from lanewarden.errors import InputFileError, OutputError
-from lanewarden.image_files import IMAGE_SUFFIXES, read_image
+from lanewarden.errors import InputFileError, OutputError, UsageError
+from lanewarden.image_files import IMAGE_SUFFIXES, read_image, same_output_name
 from lanewarden.perception.calibration import (
     Undistorter,
     load_calibration,
@@ -55,6 +55,8 @@ def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: s
     calibration = load_calibration(calibration_path)
     require_usable_calibration(calibration, calibration.image_size, config.calibration,
                                f"--calibration {calibration_path}")
+    if clash := same_output_name(images, "{stem}_compare.png"):
+        raise UsageError(f"--out {out_dir}: {clash}")
     out = create_output_folder(Path(out_dir))
     undistorter = Undistorter(calibration)
     failures: list[str] = []
