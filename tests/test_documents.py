@@ -61,10 +61,16 @@ def test_file_size_is_capped_without_reading_past_it(tmp_path: Path) -> None:
     exact = tmp_path / "exact.yaml"
     exact.write_bytes(b"#" * (MAX_DOCUMENT_BYTES - 1) + b"\n")
     assert read_yaml_document(exact, "config", Refused) is None
+    over = tmp_path / "over.yaml"
+    with over.open("wb") as sparse:  # 1 GB, sparse: only 1 MB + 1 byte of it is read
+        sparse.truncate(1 << 30)
     with pytest.raises(Refused) as err:
-        read_yaml_document("/dev/zero", "config", Refused)  # endless: only 1 MB + 1 byte is read
-    assert str(err.value) == ("/dev/zero: config file is larger than 1000 kB, refusing to read "
-                              "it")
+        read_yaml_document(over, "config", Refused)
+    assert str(err.value) == f"{over}: config file is larger than 1000 kB, refusing to read it"
+    with pytest.raises(Refused) as err:  # endless, and a device: refused before any read
+        read_yaml_document("/dev/zero", "config", Refused)
+    assert str(err.value) == ("/dev/zero: not a regular file (a FIFO, socket or device), "
+                              "expected a config YAML file")
 
 
 def test_bad_yaml_and_bad_bytes_are_one_line(tmp_path: Path) -> None:

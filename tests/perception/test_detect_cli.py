@@ -120,10 +120,10 @@ def test_bad_images_are_named_and_good_results_kept(
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert err.startswith("lanewarden: error: 4 of 6 images not analysed")
     for name, why in [
-        (missing, "cannot read file"),
+        (missing, "no such file"),
         (frames / "empty.png", "empty file"),
         (frames / "notes.png", "not a readable image"),
-        (frames, "cannot read file"),
+        (frames, "is a folder, not an image file"),
     ]:
         assert f"{name}: {why}" in err
 
