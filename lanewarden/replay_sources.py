@@ -29,6 +29,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import tempfile
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -655,6 +656,8 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
 
 
 def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
+    # FFmpeg logs each frame it cannot decode itself; the replay says what it could not read.
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     with quiet_opencv():
         capture = cv2.VideoCapture(str(path))
         opened = capture.isOpened()

@@ -12,7 +12,7 @@ from pathlib import Path
 import click
 
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.errors import QualityGateError
+from lanewarden.errors import InputFileError, QualityGateError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 REPLAY_EXAMPLES = """\b
@@ -106,6 +106,14 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                        f"{'' if replay_source.meta.get('lossless') else ', lossy frames'}): the "
                        "replay cannot be exact")
     click.echo(f"  outputs in {out}/ (report: {out / 'report.html'})")
+    if replay_source.kind != "run" and metrics["frames"] < metrics["steps"]:
+        # a recorded run can lack frames (the camera failed: the replay shows the halt); a
+        # video, images, a tub or a bag lacking them is damaged
+        if not metrics["frames"]:
+            raise InputFileError(f"SOURCE '{source}': none of its {metrics['steps']} frames "
+                                 "could be decoded (a damaged or cut file?)")
+        click.echo(f"  {metrics['steps'] - metrics['frames']} of its {metrics['steps']} frames "
+                   "could not be decoded (a damaged or cut file?)")
     if check and replay_source.kind != "run":
         raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
                                "there is nothing to compare with")

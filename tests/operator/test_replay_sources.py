@@ -68,6 +68,21 @@ def test_a_video_and_a_folder_of_images(tmp_path: Path,
     capsys.readouterr()
 
 
+def test_a_video_whose_frames_cannot_be_decoded_is_bad_input(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Its container intact, its picture data zeroed: it replayed '76 steps, 0 frames', exit 0."""
+    video = write_video(lane_end_frames(start_m=2.0, end_m=3.5, speed_m_s=0.6),
+                        tmp_path / "clip.mp4")
+    data = bytearray(video.read_bytes())
+    start, end = data.find(b"mdat") + 64, data.find(b"moov") - 64
+    data[start:end] = bytes(end - start)
+    video.write_bytes(bytes(data))
+    assert main(["replay", str(video), "--no-video", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines() == [f"lanewarden: error: SOURCE '{video}': none of its 76 frames "
+                                "could be decoded (a damaged or cut file?)"]
+
+
 def test_a_glob_of_images_is_named_after_its_folder(tmp_path: Path) -> None:
     from lanewarden.replay_sources import open_replay_source
 
