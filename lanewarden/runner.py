@@ -134,7 +134,9 @@ def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
             return f"BASE_LINK_LOST: {lost}"
         if base.deadman_mode is DeadmanMode.TRIPPED:
             return f"DEADMAN_TRIPPED: the dead-man stopped the base ({base.deadman_reason})"
-    if frames.error is not None and not recorded:
+    # A recorded clip that ran out ends the run (the caller's CLIP end); one that failed (a frame
+    # over the pixel limit, an unreadable file) is a lost camera like a live one's failure.
+    if frames.error is not None and not (recorded and frames.ended):
         return f"CAMERA_LOST: --camera {camera}: {frames.error}"
     return None
 

@@ -354,3 +354,24 @@ def test_a_bumper_that_held_when_the_clip_ended_is_the_reason(
     assert (text.startswith("safety stop: BUMPER: bumper pressed")
             or (text.startswith("safety stop: DEADMAN_LATCHED:")
                 and "bumper pressed" in text)), text
+
+
+def test_a_frame_of_an_image_folder_that_fails_is_a_lost_camera_not_the_clips_end(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A later image over the pixel limit ended the run as 'end of the clip', exit 0, the
+    reason only in summary.json."""
+    from tests.operator.clips import lane_end_frames
+    from tests.test_hostile_inputs import big_png
+
+    folder = tmp_path / "shots"
+    folder.mkdir()
+    for i, frame in enumerate(lane_end_frames(start_m=1.0, end_m=3.5, speed_m_s=0.6)[:30]):
+        cv2.imwrite(str(folder / f"f_{i:03d}.png"), frame)
+    (folder / "f_020.png").write_bytes(big_png(20000, 20000))
+    code = main(["run", "--camera", str(folder), "--base", "sim", "--record",
+                 str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert err.splitlines()[-1] == (
+        f"lanewarden: safety stop: CAMERA_LOST: --camera {folder}: {folder / 'f_020.png'}: image "
+        "has 400000000 pixels, more than perception.max_image_pixels (10000000)")
