@@ -40,6 +40,8 @@ MAX_NESTING_DEPTH = 32
 MAX_EXPANDED_NODES = 100_000
 #: Bad values are shown cut to this many characters in error messages.
 MAX_SHOWN_CHARS = 60
+#: At most this many problems of one document are listed.
+MAX_PROBLEM_LINES = 10
 
 _SAFE_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -357,8 +359,12 @@ def validation_error_lines(
     unknown_key_hint: str = "",
     prefix: Sequence[str | int] = (),
 ) -> str:
-    """Every problem of `exc`, one line each."""
-    return "\n".join(
-        describe_validation_error(source, err, model, unknown_key_hint, prefix)
-        for err in exc.errors()
-    )
+    """Every problem of `exc`, one line each, at most MAX_PROBLEM_LINES of them (a file that is
+    not this kind of document at all, say a password file named as a scenario, would otherwise
+    echo every line of it)."""
+    errors = exc.errors()
+    lines = [describe_validation_error(source, err, model, unknown_key_hint, prefix)
+             for err in errors[:MAX_PROBLEM_LINES]]
+    if len(errors) > MAX_PROBLEM_LINES:
+        lines.append(f"{source}: ... and {len(errors) - MAX_PROBLEM_LINES} more problems")
+    return "\n".join(lines)

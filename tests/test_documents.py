@@ -92,3 +92,16 @@ def test_values_in_messages_are_short() -> None:
     assert shown_value("y" * 1000).startswith("'yyy") and len(shown_value("y" * 1000)) <= 60
     assert shown_value([[[[[1]]]]]) == "[[[...]]]"
 
+
+
+def test_a_document_of_another_kind_lists_ten_problems_not_all(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A password-like file named as a config echoed all its lines, one unknown key each."""
+    from lanewarden.cli import main
+
+    other = tmp_path / "passwd.yaml"
+    other.write_text("".join(f"user{i}: x:{i}:{i}::/home/u:/bin/sh\n" for i in range(27)))
+    assert main(["config", "show", "--config", str(other)]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 11
+    assert lines[-1] == f"lanewarden: error: {other}: ... and 17 more problems"
