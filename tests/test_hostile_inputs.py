@@ -106,6 +106,7 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
     spec, spec_path = load_campaign_spec("default")
     case = case_yaml(draw_case(spec, spec_path, 0, 0, {}, 0.15))
     write("negative-seed.yaml", re.sub(r"(?m)^seed: \d+$", "seed: -5", case))
+    write("evil-controller.yaml", re.sub(r"(?m)^controller: \w+$", "controller: evil", case))
     (folder / "views").mkdir()
     (folder / "dup").mkdir()
     (folder / "dup" / "small.png").write_bytes(big_png(640, 480))
@@ -167,6 +168,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             str(folder / "camera.yaml"), "--pattern", "9x6", "--square", "0.025",
             "--board-center-m", "1e308,0", "--out", str(folder / "g.yaml")],
         "case with a negative seed": ["sim", "--case", str(folder / "negative-seed.yaml"), *sim],
+        "case with an unknown controller": ["sim", "--case",
+                                            str(folder / "evil-controller.yaml"), *sim],
         "two detect overlays of one name": ["detect", str(folder / "small.png"),
                                             str(folder / "dup" / "small.png"), "--out",
                                             str(folder / "d")],
@@ -233,6 +236,9 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "two detect overlays of one name": "dup/small.png would both write small_detect.png",
     "two undistorted pictures of one name": "dup/small.png would both write "
                                             "small_compare.png",
+    # was exit 1, blaming the --controller flag
+    "case with an unknown controller": "evil-controller.yaml: controller = 'evil': input should "
+                                       "be 'supervised' or 'lecture'",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }

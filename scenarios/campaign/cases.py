@@ -181,7 +181,7 @@ class Case(_Model):
     campaign: str
     campaign_seed: Annotated[int, Field(ge=0)]
     index: Annotated[int, Field(ge=0)]
-    controller: str
+    controller: Literal["supervised", "lecture"]
     seed: Annotated[int, Field(ge=0)]
     camera: str
     fault_kinds: list[str]
