@@ -176,6 +176,9 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         "two undistorted pictures of one name": [
             "undistort", str(folder / "small.png"), str(folder / "dup" / "small.png"),
             "--calibration", str(folder / "camera.yaml"), "--out", str(folder / "u2")],
+        "camera clip over the run's report": [
+            "sim", "--scenario", "straight", "--out", str(folder / "clash"), "--camera-out",
+            str(folder / "clash" / "report.html"), "--no-video", "--quiet"],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
     }
@@ -239,6 +242,8 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     # was exit 1, blaming the --controller flag
     "case with an unknown controller": "evil-controller.yaml: controller = 'evil': input should "
                                        "be 'supervised' or 'lecture'",
+    # found before simulating (it had failed at the end, 'Is a directory', exit 1)
+    "camera clip over the run's report": "report.html is one of the run's own outputs in --out",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
 }

@@ -147,6 +147,8 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
             spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
             build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario,
             camera_out=camera_out)
+    if camera_out is not None:
+        _check_clip_beside_outputs(camera_out, out)
     create_output_folder(out)
     try:
         metrics = run_to_directory(request)
@@ -222,6 +224,21 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     click.echo("")
     click.echo(summary)
     click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")
+
+
+def _check_clip_beside_outputs(camera_out: Path, out: Path) -> None:
+    """UsageError when --camera-out (or a file beside it) would take the place of one of the
+    run's own outputs, or of its folder: found before simulating, not when the report is
+    written at the end."""
+    from lanewarden.scenarios.camera_clip import ClipFiles
+    from lanewarden.scenarios.sim_run import RUN_OUTPUTS
+
+    taken = {out.resolve()} | {(out / name).resolve() for name in (*RUN_OUTPUTS, "PARTIAL")}
+    files = ClipFiles.for_target(camera_out)
+    for path in (files.clip, files.calibration, files.config):
+        if path.resolve() in taken:
+            raise UsageError(f"--camera-out {camera_out}: {path} is one of the run's own outputs "
+                             f"in --out {out}; put the clip elsewhere")
 
 
 def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
