@@ -521,6 +521,11 @@ class Undistorter:
 # -------------------------------------------------------------------------------------- checking
 
 
+#: Larger distortion coefficients describe no lens (OpenCV's rational model's fit the strongest
+#: fisheyes with values in the tens); they only turn undistortion into noise.
+MAX_DISTORTION_COEFFICIENT = 1.0e4
+
+
 def check_calibration(
     calibration: CameraCalibration, image_size: tuple[int, int], gates: CalibrationConfig
 ) -> list[str]:
@@ -536,6 +541,9 @@ def check_calibration(
         problems.append("camera_matrix has non-finite values")
     if not np.all(np.isfinite(d)):
         problems.append("dist_coeffs has non-finite values")
+    elif np.any(np.abs(d) > MAX_DISTORTION_COEFFICIENT):
+        problems.append(f"dist_coeffs has a value of {float(np.max(np.abs(d))):g}, beyond any "
+                        f"lens (at most {MAX_DISTORTION_COEFFICIENT:g} in size)")
     if np.all(np.isfinite(k)):
         if k[0, 0] <= 0 or k[1, 1] <= 0:
             problems.append(
@@ -553,6 +561,8 @@ def check_calibration(
     if rms is not None:
         if not math.isfinite(rms):
             problems.append("rms is not finite")
+        elif rms < 0:
+            problems.append(f"rms {rms:g} px is negative (a reprojection error is 0 or more)")
         elif rms > gates.max_rms_px:
             problems.append(
                 f"rms {rms:.3f} px exceeds calibration.max_rms_px {gates.max_rms_px:g} px"

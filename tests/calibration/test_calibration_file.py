@@ -137,6 +137,11 @@ def test_check_calibration_flags_each_problem() -> None:
                for p in check_calibration(_calibration(camera_matrix=k_nan), (640, 480), gates))
     assert any("dist_coeffs has non-finite" in p for p in check_calibration(
         _calibration(dist_coeffs=[math.inf, 0, 0, 0, 0]), (640, 480), gates))
+    # finite but absurd: accepted before (a hostile file's 1e300, a negative rms)
+    assert "dist_coeffs has a value of 1e+300, beyond any lens (at most 10000 in size)" in \
+        check_calibration(_calibration(dist_coeffs=[1e300, 0, 0, 0, 0]), (640, 480), gates)
+    assert "rms -1 px is negative (a reprojection error is 0 or more)" in \
+        check_calibration(_calibration(rms=-1.0), (640, 480), gates)
     # Not stored -> not judged.
     assert check_calibration(_calibration(rms=None, views_used=None), (640, 480), gates) == []
 
