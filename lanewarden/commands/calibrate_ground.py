@@ -35,7 +35,7 @@ import numpy as np
 from lanewarden.commands.calibrate import PATTERN, _emit_json, _positive_length, read_image
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import LanewardenConfig, load_config
-from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.errors import OutputError, QualityGateError, UsageError
 from lanewarden.perception.calibration import (
     CameraCalibration,
     GroundCalibration,
@@ -351,13 +351,16 @@ def ground_command(
             if not encoded:
                 raise OSError("the picture could not be encoded")
             check.write_bytes(data.tobytes())
-        except OSError as exc:
-            raise PerceptionError(f"--check-image '{check}': cannot write the picture "
-                                  f"({getattr(exc, 'strerror', None) or exc}); nothing written "
-                                  f"to {out}") from None
-        save_calibration(updated, out)
-        if ros_path is not None:
-            save_ros_camera_info(updated, ros_path, camera_name=out.stem)
+        except OSError as exc:  # a runtime failure (exit 1), as `calibrate` says it
+            raise OutputError(f"--check-image '{check}': cannot write the picture "
+                              f"({getattr(exc, 'strerror', None) or exc}); nothing written to "
+                              f"{out}") from None
+        try:
+            save_calibration(updated, out)
+            if ros_path is not None:
+                save_ros_camera_info(updated, ros_path, camera_name=out.stem)
+        except PerceptionError as exc:  # the calibration is good; writing it failed
+            raise OutputError(str(exc)) from None
     payload["calibration_file"] = None if problems else str(out)
     payload["ros_file"] = None if problems or ros_path is None else str(ros_path)
     payload["check_image"] = None if problems else str(check)

@@ -3,6 +3,7 @@ writes, what it prints, and what it refuses (one line, exit 2, nothing written).
 
 from __future__ import annotations
 
+import errno
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -62,6 +63,27 @@ def test_from_the_mount_round_trips_through_the_file(
     picture = cv2.imread(str(tmp_path / "grounded.ground-check.png"))
     assert picture is not None and picture.shape == (480, 640, 3)
     assert payload["check_image"] == str(tmp_path / "grounded.ground-check.png")
+
+
+def test_a_check_picture_that_cannot_be_written_leaves_the_calibration_as_it_was(
+        intrinsics: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a full disk the calibration had been rewritten, then the picture failed (exit 2):
+    the picture now goes first, and a file that cannot be written is a runtime failure (1).
+    The full disk is the operating system's answer to the write (not our code, replaced)."""
+    before = intrinsics.read_bytes()
+
+    def disk_full(self: Path, data: bytes) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_bytes", disk_full)
+    code, _, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.26",
+                        "--pitch-deg", "40", "--out", str(intrinsics), "--check-image",
+                        str(tmp_path / "check.png"))
+    assert code == 1, err
+    assert ("cannot write the picture (No space left on device); nothing written to "
+            f"{intrinsics}") in err
+    assert intrinsics.read_bytes() == before
 
 
 def test_from_the_mount_prints_what_it_means(
