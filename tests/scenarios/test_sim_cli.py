@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -106,27 +107,45 @@ def test_an_output_folder_that_is_a_file_is_bad_input(
     assert err.count("\n") == 1 and "Invalid value for '--out'" in err and "is a file" in err
 
 
+def _interrupted(args: list[str], ready: Callable[[], bool],
+                 whole_group: bool) -> tuple[int, str]:
+    """Start `lanewarden ARGS`, wait (generously) until `ready()`, then send SIGINT: to the
+    process, or, as a terminal's Ctrl-C does, to its whole process group. Its exit code and
+    stderr."""
+
+    def setup() -> None:
+        if whole_group:
+            os.setpgrp()
+        sigint_as_from_a_terminal()
+
+    run = subprocess.Popen([sys.executable, "-m", "lanewarden", *args], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, preexec_fn=setup)
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and run.poll() is None and not ready():
+            threading.Event().wait(0.05)
+        assert run.poll() is None, run.communicate()
+        if whole_group:
+            os.killpg(run.pid, signal.SIGINT)
+        else:
+            run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=120.0)
+    finally:
+        run.kill()
+    return run.returncode, err
+
+
 def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None:
     scenario = tmp_path / "long.yaml"
     scenario.write_text(SHORT.replace("max_time_s: 3", "max_time_s: 60")
                         .replace("straight_m: 3.0", "straight_m: 30.0"), encoding="utf-8")
     out = tmp_path / "run"
-    run = subprocess.Popen(
-        [sys.executable, "-m", "lanewarden", "sim", "--scenario", str(scenario), "--out",
-         str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=sigint_as_from_a_terminal)
-    try:
-        # Wait (generously) until the run is under way: steps are being recorded.
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and run.poll() is None and not (
-                (out / "run.jsonl").exists() and (out / "run.jsonl").stat().st_size > 0):
-            threading.Event().wait(0.05)
-        assert run.poll() is None, run.communicate()
-        run.send_signal(signal.SIGINT)
-        _, err = run.communicate(timeout=120.0)
-    finally:
-        run.kill()
-    assert run.returncode == 130
+    log = out / "run.jsonl"
+    # Interrupted once the run is under way: steps are being recorded.
+    code, err = _interrupted(
+        ["sim", "--scenario", str(scenario), "--out", str(out), "--quiet"],
+        lambda: log.exists() and log.stat().st_size > 0, whole_group=False)
+    assert code == 130
     assert err.splitlines() == [
         f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
     marker = (out / "PARTIAL").read_text().splitlines()
@@ -140,28 +159,11 @@ def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> No
     """A terminal's Ctrl-C reaches the whole process group: the demo's two worker processes
     printed a KeyboardInterrupt traceback each (34-53 lines); they leave it to the demo now."""
     out = tmp_path / "demo"
-
-    def own_group_sigint_as_from_a_terminal() -> None:
-        os.setpgrp()
-        sigint_as_from_a_terminal()
-
-    run = subprocess.Popen(
-        [sys.executable, "-m", "lanewarden", "demo", "--out", str(out), "--quiet"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=own_group_sigint_as_from_a_terminal)
-    try:
-        deadline = time.monotonic() + 120.0
-        # one run finished (its worker idle, waiting for work), the other still going
-        done = [out / name / "metrics.json" for name in ("lecture", "supervised")]
-        while time.monotonic() < deadline and run.poll() is None and not any(
-                path.exists() for path in done):
-            threading.Event().wait(0.05)
-        assert run.poll() is None, run.communicate()
-        os.killpg(run.pid, signal.SIGINT)
-        _, err = run.communicate(timeout=120.0)
-    finally:
-        run.kill()
-    assert run.returncode == 130
+    done = [out / name / "metrics.json" for name in ("lecture", "supervised")]
+    # Interrupted once one run has finished (its worker idle, waiting for work), the other going.
+    code, err = _interrupted(["demo", "--out", str(out), "--quiet"],
+                             lambda: any(path.exists() for path in done), whole_group=True)
+    assert code == 130
     assert err.splitlines() == [
         f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
 
