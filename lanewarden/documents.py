@@ -20,6 +20,7 @@ from __future__ import annotations
 import difflib
 import enum
 import reprlib
+import stat
 import types
 import typing
 from collections.abc import Mapping, Sequence
@@ -43,7 +44,21 @@ MAX_SHOWN_CHARS = 60
 #: At most this many problems of one document are listed.
 MAX_PROBLEM_LINES = 10
 
+#: Why a FIFO, socket or device is refused where a file is expected (reading one waits for a
+#: writer, or never ends).
+NOT_A_REGULAR_FILE = "not a regular file (a FIFO, socket or device)"
+
 _SAFE_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def is_special_file(path: Path) -> bool:
+    """Does `path` exist as something neither a regular file nor a folder (a FIFO, socket or
+    device)? Missing or unreadable: False (opening it then says why)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]
@@ -160,10 +175,8 @@ def read_yaml_document(path: str | Path, what: str, error: type[Exception]) -> A
     file) when it can't be. Never reads more than MAX_DOCUMENT_BYTES + 1 bytes."""
     path = Path(path)
     try:
-        if path.exists() and not path.is_dir() and not path.is_file():
-            # a FIFO or a device: reading waits for a writer, or never ends
-            raise error(f"{path}: not a regular file (a FIFO, socket or device), expected a "
-                        f"{what} YAML file")
+        if is_special_file(path):
+            raise error(f"{path}: {NOT_A_REGULAR_FILE}, expected a {what} YAML file")
         with path.open("rb") as stream:
             data = stream.read(MAX_DOCUMENT_BYTES + 1)
     except FileNotFoundError:

@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from lanewarden.documents import NOT_A_REGULAR_FILE
 from lanewarden.perception.config import PerceptionConfig
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
@@ -78,7 +79,7 @@ def file_problem(path: Path) -> str:
     if stat.S_ISDIR(mode):
         return "is a folder, not an image file"
     if not stat.S_ISREG(mode):
-        return "not a regular file (a FIFO, socket or device)"
+        return NOT_A_REGULAR_FILE
     return ""
 
 

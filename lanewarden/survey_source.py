@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lanewarden.camera_source import image_sequence_paths
+from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
 from lanewarden.image_files import file_problem, header_problem
 from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
@@ -75,8 +76,8 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
 
 def read_labels(path: Path) -> LabelsTable:
     """The labels file at `path`, refused unread above MAX_LABELS_BYTES."""
-    if path.exists() and not path.is_file():
-        raise InputFileError(f"--labels '{path}': {file_problem(path)}, expected a labels file")
+    if is_special_file(path):
+        raise InputFileError(f"--labels '{path}': {NOT_A_REGULAR_FILE}, expected a labels file")
     try:
         with path.open("rb") as handle:
             data = handle.read(MAX_LABELS_BYTES + 1)

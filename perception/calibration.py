@@ -28,7 +28,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from lanewarden.documents import MAX_DOCUMENT_BYTES
+from lanewarden.documents import MAX_DOCUMENT_BYTES, NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
 
@@ -393,9 +393,8 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         raise PerceptionError(f"{path}: calibration file not found")
     if path.is_dir():
         raise PerceptionError(f"{path}: is a directory, expected a calibration YAML file")
-    if not path.is_file():  # a FIFO or a device: OpenCV would wait for a writer
-        raise PerceptionError(f"{path}: not a regular file (a FIFO, socket or device), expected "
-                              "a calibration YAML file")
+    if is_special_file(path):  # OpenCV would wait for a writer
+        raise PerceptionError(f"{path}: {NOT_A_REGULAR_FILE}, expected a calibration YAML file")
     if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
         raise PerceptionError(f"{path}: calibration file is larger than "
                               f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")

@@ -117,6 +117,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         sparse.truncate(3 << 30)
     os.mkfifo(folder / "fifo.yaml")
     os.mkfifo(folder / "fifo.png")
+    os.mkfifo(folder / "fifo-calibration.yaml")
+    os.mkfifo(folder / "fifo-labels.csv")
     cases = {
         "config bomb": ["config", "show", "--config", write("bomb.yaml", yaml_bomb())],
         "scenario bomb": ["sim", "--scenario", write(
@@ -148,6 +150,10 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             "digits.yaml", "supervisor: {lane_lost_halt_s: " + "9" * 5000 + "}\n")],
         "config that is a FIFO": ["config", "show", "--config", str(folder / "fifo.yaml")],
         "image that is a FIFO": ["detect", str(folder / "fifo.png")],
+        "calibration that is a FIFO": ["detect", str(folder / "small.png"), "--calibration",
+                                       str(folder / "fifo-calibration.yaml")],
+        "labels that are a FIFO": ["survey", str(folder / "dup"), "--labels",
+                                   str(folder / "fifo-labels.csv")],
         "3 GB behind a 1x1 PNG header": ["detect", str(folder / "sparse.png")],
         "20000x20000 PNG calibrate": ["calibrate", "--images", str(folder / "views"),
                                       "--pattern", "9x6", "--square", "0.025", "--out",
@@ -219,6 +225,10 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "config that is a FIFO": "fifo.yaml: not a regular file (a FIFO, socket or device), "
                              "expected a config YAML file",
     "image that is a FIFO": "fifo.png: not a regular file (a FIFO, socket or device)",
+    "calibration that is a FIFO": "fifo-calibration.yaml: not a regular file (a FIFO, socket or "
+                                  "device), expected a calibration YAML file",
+    "labels that are a FIFO": "fifo-labels.csv': not a regular file (a FIFO, socket or device), "
+                              "expected a labels file",
     "3 GB behind a 1x1 PNG header": "sparse.png: file is larger than 81048576 bytes, more than "
                                     "any image within perception.max_image_pixels (10000000)",
     # the view is refused from its header, not decoded (2.7 GB)
