@@ -643,7 +643,6 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
     """A folder or glob of camera frames: images of one size (from their headers)."""
     if not paths:
         raise UsageError(f"SOURCE '{source}': no images there; expected {SOURCE_HELP}")
-
     _one_size(paths, source, max_pixels)
     times = [i / camera_rate_hz for i in range(len(paths))]
     path = Path(source)

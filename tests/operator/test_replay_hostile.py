@@ -277,9 +277,9 @@ def _tub(folder: Path, records: list[str], catalog_tail: bytes = b"") -> Path:
     return folder
 
 
-def _record(index: int, image: object, stamp: object = None) -> str:
-    return json.dumps({"_index": index, "_timestamp_ms": 1000 + 50 * index if stamp is None
-                       else stamp, "cam/image_array": image})
+def _record(index: int, image: object) -> str:
+    return json.dumps({"_index": index, "_timestamp_ms": 1000 + 50 * index,
+                       "cam/image_array": image})
 
 
 @pytest.mark.parametrize("records, tail, message", [
