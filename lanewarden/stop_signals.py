@@ -9,6 +9,12 @@ group, and returns once something sends SIGCONT.
 
 The dead-man process is in a session of its own and never sees these signals: while this
 process is suspended it holds the stop (see `KobukiBase.hold_stopped`).
+
+The simulation commands' worker processes (the demo's pool, the campaign's Dask workers) are in
+the terminal's process group, so a terminal's Ctrl-C reaches them too: they ignore it
+(`leave_interrupts_to_the_parent`) and the command, which gets it as well, shuts them down and
+says so in one line, instead of each worker printing its own KeyboardInterrupt traceback.
+SIGTERM to such a command becomes an interrupt (`raise_interrupt`), so it ends the same way.
 """
 
 from __future__ import annotations
@@ -58,3 +64,14 @@ def signal_requests() -> Iterator[SignalRequests]:
 def suspend() -> None:
     """Stop this process now (the robot must already be stopped); returns after SIGCONT."""
     os.kill(os.getpid(), signal.SIGSTOP)
+
+
+def leave_interrupts_to_the_parent() -> None:
+    """In a worker process: ignore SIGINT (its parent gets the same Ctrl-C and ends the work)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    """A signal handler that turns the signal into KeyboardInterrupt (SIGTERM ends a simulation
+    command as Ctrl-C does)."""
+    raise KeyboardInterrupt

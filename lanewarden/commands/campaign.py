@@ -13,7 +13,6 @@ import os
 import signal
 import time
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import click
@@ -37,6 +36,7 @@ from lanewarden.scenarios.campaign.runner import (
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.progress import Progress
+from lanewarden.stop_signals import raise_interrupt
 from lanewarden.wording import counted
 
 EXAMPLES = """\b
@@ -121,7 +121,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
             bar.advance_to(progress.done)
 
     # SIGTERM stops a campaign like Ctrl-C: the cluster is shut down, finished rows stay.
-    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    previous = signal.signal(signal.SIGTERM, raise_interrupt)
     finished = False
     try:
         progress = run_campaign(plan, scheduler, workers, on_start, on_row, recover=recover)
@@ -152,10 +152,6 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     click.echo(text)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
-
-
-def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
 
 
 def commands() -> list[click.Command]:

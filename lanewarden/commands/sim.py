@@ -15,7 +15,6 @@ import threading
 import time
 from dataclasses import replace
 from pathlib import Path
-from types import FrameType
 
 import click
 
@@ -36,6 +35,7 @@ from lanewarden.scenarios.report import (
 )
 from lanewarden.scenarios.sim_run import RunRequest, run_title, run_to_directory
 from lanewarden.scenarios.spec import ScenarioSpec
+from lanewarden.stop_signals import leave_interrupts_to_the_parent, raise_interrupt
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 
 DEMO_SCENARIO = "lecture"
@@ -249,10 +249,10 @@ def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
     # Ctrl-C on a terminal reaches every process of the group: the workers leave it to this
     # one, which terminates them (each had printed its own KeyboardInterrupt traceback).
     pool = multiprocessing.get_context(method).Pool(processes=len(requests),
-                                                    initializer=_leave_interrupts_to_the_parent)
+                                                    initializer=leave_interrupts_to_the_parent)
     # Installed after the workers exist (they keep the default): SIGTERM to the demo becomes an
     # interrupt here, so the workers are terminated instead of running on as orphans.
-    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    previous = signal.signal(signal.SIGTERM, raise_interrupt)
     try:
         pending = [pool.apply_async(run_to_directory, (r,)) for r in requests]
         results = [p.get() for p in pending]
@@ -285,14 +285,6 @@ def _case_request(case_file: str, scenario: str | None, config_path: str | None,
     return RunRequest(spec=spec, config=config, controller=case.controller, seed=case.seed,
                       out_dir=out, build_stack=build_stack, video=not no_video,
                       progress=not quiet, source=case_file, judge=judge_metrics)
-
-
-def _leave_interrupts_to_the_parent() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
 
 
 def commands() -> list[click.Command]:

@@ -19,8 +19,11 @@ from __future__ import annotations
 import itertools
 import logging
 import os
+import signal
+import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -192,21 +195,43 @@ def _execute(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
                                 workers, memory_limit_mb)
 
 
+@contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """SIGINT ignored in this process for the block (main thread only; elsewhere a no-op)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
                      workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     import dask
     from distributed import Client, LocalCluster, as_completed
 
+    from lanewarden.scenarios.campaign.worker_plugin import LeaveInterruptsToTheParent
+
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
         if scheduler == LOCAL:
-            cluster = LocalCluster(
-                n_workers=workers or machine_workers(), threads_per_worker=1, processes=True,
-                memory_limit=f"{memory_limit_mb}MB", host="127.0.0.1", dashboard_address=None,
-                # no dashboard; its health/metrics HTTP server on any free local port
-                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                silence_logs=logging.ERROR)
+            # A terminal's Ctrl-C reaches the worker processes too (one process group): they
+            # leave it to this process, which closes the cluster. Ignored while they start (a
+            # process started with SIGINT ignored keeps ignoring it), and by the plugin in any
+            # worker the nanny starts later (a restart after the memory limit).
+            with _interrupts_ignored():
+                cluster = LocalCluster(
+                    n_workers=workers or machine_workers(), threads_per_worker=1, processes=True,
+                    memory_limit=f"{memory_limit_mb}MB", host="127.0.0.1",
+                    dashboard_address=None,
+                    # no dashboard; its health/metrics HTTP server on any free local port
+                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                    silence_logs=logging.ERROR)
             client = Client(cluster)
+            client.register_plugin(LeaveInterruptsToTheParent(), name="lanewarden-sigint")
         else:
             try:
                 client = Client(scheduler, timeout="20s")

@@ -1,6 +1,7 @@
 """Campaigns on Dask distributed: the same rows in this process, on a LocalCluster and on a
 separately started scheduler with two workers on 127.0.0.1; a worker killed mid-campaign gives
-error rows for its runs, and a rerun fills them in.
+error rows for its runs, and a rerun fills them in; a terminal's Ctrl-C stops a local-cluster
+campaign with one line.
 
 Heavy (starts Dask processes): about 20-40 s in all."""
 
@@ -23,6 +24,7 @@ from lanewarden.scenarios.campaign.cases import load_campaign_spec
 from lanewarden.scenarios.campaign.run_case import DETERMINISTIC_COLUMNS
 from lanewarden.scenarios.campaign.runner import IN_PROCESS, LOCAL, CampaignPlan, run_campaign
 from lanewarden.scenarios.campaign.store import ResultStore
+from tests.processes import interrupted
 
 pytest.importorskip("distributed")
 
@@ -134,3 +136,30 @@ def test_a_killed_worker_gives_error_rows_and_a_rerun_fills_them_in(
     run_campaign(plan(tiny_spec, out, 8), IN_PROCESS)
     with ResultStore(out / "results.sqlite") as store:
         assert [r["outcome"] for r in store.rows() if r["outcome"] == "error"] == []
+
+
+def test_ctrl_c_on_a_terminal_stops_a_local_cluster_campaign_with_one_line(
+        tiny_spec: Path, tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches the whole process group, Dask's worker processes too: each
+    printed a KeyboardInterrupt traceback (about 30 lines) after the campaign's own line. They
+    leave it to the campaign now, which closes the cluster and keeps the finished runs."""
+    out = tmp_path / "campaign"
+
+    def stored() -> int:
+        if not (out / "results.sqlite").exists():
+            return 0
+        with ResultStore(out / "results.sqlite") as store:
+            return len(store.rows())
+
+    # Interrupted once a run is stored: both workers started, one between runs or in the next.
+    code, err = interrupted(["campaign", "--spec", str(tiny_spec), "--out", str(out),
+                             "--runs", "8", "--workers", "2", "--quiet"],
+                            lambda: stored() >= 1, whole_group=True)
+    assert code == 130
+    assert [line for line in err.splitlines() if line.strip()] == [
+        "campaign tiny: 8 runs (seed 0), 0 already stored; running local Dask cluster, 2 worker "
+        "processes",
+        f"campaign interrupted: finished runs are stored in {out / 'results.sqlite'}; run the "
+        "same command again to resume",
+        "lanewarden: error: interrupted"]
+    assert 1 <= stored() < 8

@@ -3,20 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
-import sys
-import threading
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import pytest
 
 from lanewarden.cli import main
-from tests.processes import sigint_as_from_a_terminal
+from tests.processes import interrupted
 
 SHORT = """\
 name: short
@@ -107,34 +100,6 @@ def test_an_output_folder_that_is_a_file_is_bad_input(
     assert err.count("\n") == 1 and "Invalid value for '--out'" in err and "is a file" in err
 
 
-def _interrupted(args: list[str], ready: Callable[[], bool],
-                 whole_group: bool) -> tuple[int, str]:
-    """Start `lanewarden ARGS`, wait (generously) until `ready()`, then send SIGINT: to the
-    process, or, as a terminal's Ctrl-C does, to its whole process group. Its exit code and
-    stderr."""
-
-    def setup() -> None:
-        if whole_group:
-            os.setpgrp()
-        sigint_as_from_a_terminal()
-
-    run = subprocess.Popen([sys.executable, "-m", "lanewarden", *args], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True, preexec_fn=setup)
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and run.poll() is None and not ready():
-            threading.Event().wait(0.05)
-        assert run.poll() is None, run.communicate()
-        if whole_group:
-            os.killpg(run.pid, signal.SIGINT)
-        else:
-            run.send_signal(signal.SIGINT)
-        _, err = run.communicate(timeout=120.0)
-    finally:
-        run.kill()
-    return run.returncode, err
-
-
 def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None:
     scenario = tmp_path / "long.yaml"
     scenario.write_text(SHORT.replace("max_time_s: 3", "max_time_s: 60")
@@ -142,7 +107,7 @@ def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None
     out = tmp_path / "run"
     log = out / "run.jsonl"
     # Interrupted once the run is under way: steps are being recorded.
-    code, err = _interrupted(
+    code, err = interrupted(
         ["sim", "--scenario", str(scenario), "--out", str(out), "--quiet"],
         lambda: log.exists() and log.stat().st_size > 0, whole_group=False)
     assert code == 130
@@ -161,7 +126,7 @@ def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> No
     out = tmp_path / "demo"
     done = [out / name / "metrics.json" for name in ("lecture", "supervised")]
     # Interrupted once one run has finished (its worker idle, waiting for work), the other going.
-    code, err = _interrupted(["demo", "--out", str(out), "--quiet"],
+    code, err = interrupted(["demo", "--out", str(out), "--quiet"],
                              lambda: any(path.exists() for path in done), whole_group=True)
     assert code == 130
     assert err.splitlines() == [
