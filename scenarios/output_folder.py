@@ -7,7 +7,8 @@ So after an interrupted or failed run the folder says which of its files are inc
 complete folder never holds a stale file from another run (e.g. an old video.mp4 beside a new
 `--no-video` run's metrics).
 
-File I/O only; the caller decides what the outputs are.
+File I/O only; the caller decides what the outputs are. A folder it cannot write is a runtime
+failure (ScenarioOutputError, exit 1), as every command says of an output it cannot write.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioOutputError
 
 PARTIAL = "PARTIAL"
 
@@ -49,7 +50,7 @@ class OutputFolder:
                 (self.folder / name).unlink(missing_ok=True)
             self.marker.write_text("\n".join(lines), encoding="utf-8")
         except OSError as exc:
-            raise ScenarioError(
+            raise ScenarioOutputError(
                 f"{self.folder}: cannot prepare the output folder ({exc})") from exc
 
     def finish(self) -> None:
@@ -57,4 +58,4 @@ class OutputFolder:
         try:
             self.marker.unlink(missing_ok=True)
         except OSError as exc:
-            raise ScenarioError(f"{self.marker}: cannot remove ({exc})") from exc
+            raise ScenarioOutputError(f"{self.marker}: cannot remove ({exc})") from exc

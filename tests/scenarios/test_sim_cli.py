@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 from pathlib import Path
 
@@ -98,6 +99,25 @@ def test_an_output_folder_that_is_a_file_is_bad_input(
     assert main(["sim", "--scenario", "straight", "--out", str(tmp_path / "taken")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Invalid value for '--out'" in err and "is a file" in err
+
+
+def test_an_output_folder_that_cannot_be_written_is_a_runtime_failure(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An existing --out on a read-only file system: the first write (the PARTIAL marker) gets
+    the operating system's answer, given here in place of the write (it had exited 2, bad
+    input; the scenario was fine, so 1, as calibrate and detect say of an unwritable output)."""
+    out = tmp_path / "mounted"
+    out.mkdir()
+
+    def read_only(self: Path, *args: object, **kwargs: object) -> int:
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(Path, "write_text", read_only)
+    assert main(["sim", "--scenario", "straight", "--out", str(out), "--quiet"]) == 1
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {out}: cannot prepare the output folder ([Errno 30] Read-only file "
+        "system)"]
 
 
 def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None:
