@@ -153,8 +153,11 @@ class VideoFrames(FrameStore):
 
 
 def _decode_encoded(data: bytes) -> np.ndarray | None:
+    """A compressed frame, or None when it does not decode (counted and reported by replay, so
+    OpenCV's own message for each is silenced)."""
     try:
-        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        with quiet_opencv():
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     except cv2.error:
         return None
     return image if image is not None and image.dtype == np.uint8 and image.size else None

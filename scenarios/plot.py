@@ -251,8 +251,9 @@ def write_plot(
     ax_slope.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     for ax in (ax_slope, ax_conf, ax_decision):
         ax.grid(True, alpha=0.3)
-    ax_decision.set_xlim(float(times[0]) if len(times) else 0.0,
-                         latest + 0.5 if latest > end else end)
+    start = float(times[0]) if len(times) else 0.0
+    # a run of one step has no span: a tenth of a second, not matplotlib's singular-limits warning
+    ax_decision.set_xlim(start, max(latest + 0.5 if latest > end else end, start + 0.1))
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

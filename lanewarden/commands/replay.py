@@ -14,6 +14,7 @@ import click
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.errors import InputFileError, QualityGateError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
+from lanewarden.wording import counted
 
 REPLAY_EXAMPLES = """\b
 Examples:
@@ -80,8 +81,9 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     metrics = run_replay(ReplayRequest(replay_source, config, calibration, chosen, out,
                                        video=not no_video))
     click.echo(f"{replay_source.name} ({replay_source.kind}, config: "
-               f"{replay_source.config_origin}): {metrics['steps']} steps, {metrics['frames']} "
-               f"frames, {metrics['sim_time_s']} s replayed in {metrics['wall_time_s']} s")
+               f"{replay_source.config_origin}): {counted(metrics['steps'], 'step')}, "
+               f"{counted(metrics['frames'], 'frame')}, {metrics['sim_time_s']} s replayed in "
+               f"{metrics['wall_time_s']} s")
     click.echo(f"  states visited: {', '.join(metrics['states_visited'])}; final state "
                f"{metrics['final_state']}"
                + (f" ({metrics['halt_reason']})" if metrics.get("halt_reason") else ""))
@@ -110,10 +112,12 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         # a recorded run can lack frames (the camera failed: the replay shows the halt); a
         # video, images, a tub or a bag lacking them is damaged
         if not metrics["frames"]:
-            raise InputFileError(f"SOURCE '{source}': none of its {metrics['steps']} frames "
-                                 "could be decoded (a damaged or cut file?)")
-        click.echo(f"  {metrics['steps'] - metrics['frames']} of its {metrics['steps']} frames "
-                   "could not be decoded (a damaged or cut file?)")
+            none = ("its only frame could not be decoded" if metrics["steps"] == 1
+                    else f"none of its {metrics['steps']} frames could be decoded")
+            raise InputFileError(f"SOURCE '{source}': {none} (a damaged or cut file?)")
+        click.echo(f"  {metrics['steps'] - metrics['frames']} of its "
+                   f"{counted(metrics['steps'], 'frame')} could not be decoded (a damaged or cut "
+                   "file?)")
     if check and replay_source.kind != "run":
         raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
                                "there is nothing to compare with")

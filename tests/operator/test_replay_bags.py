@@ -193,3 +193,33 @@ def test_no_image_topic_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
     assert "no sensor_msgs/msg/Image or CompressedImage messages (topics: /cmd_vel)" in err
+
+
+@pytest.mark.parametrize("count", [1, 3])
+def test_a_bag_of_which_no_image_decodes_is_one_line(tmp_path: Path, count: int) -> None:
+    """A CompressedImage whose data is not a picture (a PNG signature, then garbage), the bag's
+    only image or all three: bad input in one line. Run as a user runs it, so that nothing else
+    reaches stderr: OpenCV's own message for each frame it cannot decode, and matplotlib's
+    warning about a plot of one step, had added lines to it."""
+    import subprocess
+    import sys
+
+    msgtype = "sensor_msgs/msg/CompressedImage"
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        camera = writer.add_connection("/camera/image_raw/compressed", msgtype, typestore=STORE)
+        for i in range(count):
+            message = STORE.types[msgtype](
+                header=_header(i), format="png",
+                data=np.frombuffer(b"\x89PNG\r\n\x1a\n" + b"garbage" * 10, np.uint8))
+            writer.write(camera, EPOCH_NS + i * PERIOD_NS, STORE.serialize_cdr(message, msgtype))
+    done = subprocess.run([sys.executable, "-m", "lanewarden", "replay", str(bag), "--no-video",
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True,
+                          timeout=120)
+    what = ("its only frame could not be decoded" if count == 1
+            else "none of its 3 frames could be decoded")
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [
+        f"lanewarden: error: SOURCE '{bag}': {what} (a damaged or cut file?)"]
+    assert f"bag (bag, config: defaults): {count} step{'s' if count > 1 else ''}, 0 frames" in (
+        done.stdout)
