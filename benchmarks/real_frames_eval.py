@@ -5,11 +5,12 @@ Run on demand from the project root:
     python benchmarks/real_frames_eval.py [--footage DIR] [--no-rendered] [--narrow]
 
 Two kinds of sets:
-- real footage: every sub-folder of `--footage` (default `$LANEWARDEN_FOOTAGE`, else `footage/`
-  beside the project root) holding `labels.csv` (`file,expect`, expect `lane` or `none`, in the
-  order the frames were taken), `camera.yaml` (the `perception:` section a user describes that floor
-  with) and `calibration.yaml` (the camera, with its ground pose). None of it is in the repo
-  (see the folder's PROVENANCE.md); the shared Donkeycar tub is one of them.
+- real footage: every sub-folder of `--footage` (default `$LANEWARDEN_FOOTAGE`, else the repo's
+  own `data/real`) holding `labels.csv` (`file,expect`, expect `lane` or `none`, in the
+  order the frames were taken), `camera.yaml` (the config a user describes that floor with; its
+  `perception:` section is used), `calibration.yaml` (the camera, with its ground pose), a
+  `PROVENANCE.md`, and optionally `eval.yaml` (`tapes: dark` for dark tapes on a light floor).
+  The repo holds the JetBot tape lane; the shared Donkeycar tub can be one too, outside it.
 - the rendered set (`tests/perception/rendered_set.py`): ours, generated here at 640x480 and
   320x240 with the simulator's default camera.
 
@@ -23,7 +24,7 @@ repeats everything with `lane.width_m` at the narrowest the config accepts for t
 the configuration most likely to take one tape's two edges for a lane.
 
 Edges on the tapes: for rendered frames from the world (`rendered_set.edges_on_tapes`); for real
-frames, light tapes on a darker floor (`camera.yaml` may say `eval: {tapes: dark}`), an edge is
+frames, light tapes on a darker floor (an `eval.yaml` beside it may say `tapes: dark`), an edge is
 on a tape when along at least 60% of it the image is brighter (darker) 3 px outwards than 3 px
 inwards by 20 grey levels: the reported edge is a tape's inner boundary. `--sheet DIR` writes
 contact sheets of the decisions to check by eye.
@@ -34,7 +35,6 @@ Not a test: it asserts nothing; the tests hold the figures that must not regress
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import os
 import sys
@@ -56,19 +56,21 @@ from lanewarden.perception.config import PerceptionConfig, narrowest_lane_width_
 from lanewarden.perception.decision import decide  # noqa: E402
 from lanewarden.perception.detector import LaneDetector  # noqa: E402
 from lanewarden.perception.errors import PerceptionConfigError  # noqa: E402
+from lanewarden.perception.floor_config import LaneConfig  # noqa: E402
 from lanewarden.perception.ground import GroundModel, default_ground_model  # noqa: E402
 from lanewarden.perception.observation import LaneEdge, LaneObservation  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
+from lanewarden.survey import parse_labels  # noqa: E402
 from tests.perception import rendered_set  # noqa: E402
 
 SUPERVISOR = LanewardenConfig().supervisor
 USABLE = SUPERVISOR.confidence_usable_min
 CONFIDENT = SUPERVISOR.confidence_confident_min
 TURN = SUPERVISOR.turn_enter_slope_sum
-#: Real footage lives outside the repo: `$LANEWARDEN_FOOTAGE`, else `footage/` beside the project
-#: root (/work/footage for a clone at /work/main).
+#: Real footage: `$LANEWARDEN_FOOTAGE` (e.g. a folder of sets beside shared data that must not be
+#: copied into the repo), else the repo's own `data/real`.
 DEFAULT_FOOTAGE = Path(os.environ.get("LANEWARDEN_FOOTAGE", "").strip()
-                       or Path(__file__).resolve().parents[2] / "footage")
+                       or Path(__file__).resolve().parents[1] / "data" / "real")
 
 
 @dataclass
@@ -128,20 +130,27 @@ class RealSet:
 
 def real_sets(footage: Path) -> Iterator[RealSet]:
     for folder in sorted(p for p in footage.iterdir() if (p / "labels.csv").is_file()):
-        with (folder / "labels.csv").open() as f:
-            labels = [(r["file"], r["expect"]) for r in csv.DictReader(f)]
+        # the survey's own reading of a labels file (comments, notes); file rows only here
+        table = parse_labels((folder / "labels.csv").read_text(encoding="utf-8"),
+                             str(folder / "labels.csv"))
+        labels = [(row.file, row.expect) for row in table.rows if row.file is not None]
         described = yaml.safe_load((folder / "camera.yaml").read_text()) or {}
+        # the tapes' polarity: `eval.yaml` beside camera.yaml (which stays a config `survey`
+        # takes as it is), or an `eval:` section in camera.yaml (older footage folders)
+        judged = (yaml.safe_load((folder / "eval.yaml").read_text()) or {}
+                  if (folder / "eval.yaml").is_file() else described.get("eval", {}))
         yield RealSet(folder.name, folder, labels, described.get("perception", {}),
-                      described.get("eval", {}).get("tapes", "light"),
-                      folder / "calibration.yaml")
+                      judged.get("tapes", "light"), folder / "calibration.yaml")
 
 
 def _perception(overrides: dict[str, Any], narrow: bool, source: str) -> PerceptionConfig:
     config = config_from_mapping({"perception": overrides}, source).perception
     if not narrow:
         return config
-    lane = {**overrides.get("lane", {}), "width_m": narrowest_lane_width_m(
-        config.tape, config.lane.width_tolerance_fraction)}
+    # the narrowest the tape allows, or, for a thin tape, just above the field's own bound
+    above = next(m.gt for m in LaneConfig.model_fields["width_m"].metadata if hasattr(m, "gt"))
+    lane = {**overrides.get("lane", {}), "width_m": max(narrowest_lane_width_m(
+        config.tape, config.lane.width_tolerance_fraction), round(above + 0.001, 3))}
     return config_from_mapping({"perception": {**overrides, "lane": lane}}, source).perception
 
 

@@ -71,6 +71,10 @@ RUN_ELSEWHERE = {
      "tests/perception/donkeycar_camera.yaml --calibration "
      "tests/perception/donkeycar_calibration.yaml"):
         "tests/operator/test_replay_sources.py (the same tub, config and calibration)",
+    ("lanewarden survey data/real/jetbot-tape-lane --calibration "
+     "data/real/jetbot-tape-lane/calibration.yaml --config data/real/jetbot-tape-lane/camera.yaml"):
+        "tests/survey/test_survey_real.py (the same folder, calibration and config, into a "
+        "temporary --out)",
     "lanewarden survey data/survey/rendered":
         "tests/survey/test_survey_cli.py (the same command, into a temporary --out)",
     "lanewarden survey floor/ --calibration camera.yaml":
