@@ -38,6 +38,19 @@ def too_many_pixels(width: int, height: int, max_pixels: int) -> str:
             f"{LIMIT_KEY} ({max_pixels})")
 
 
+def header_size(path: Path) -> tuple[int, int] | None:
+    """The image's (width, height) from its file header, without decoding it; None when Pillow
+    cannot tell (a format it does not read, a damaged header, a decompression bomb)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as image:
+                return int(image.size[0]), int(image.size[1])
+    except (Image.DecompressionBombError, UnidentifiedImageError, OSError, ValueError,
+            SyntaxError):
+        return None
+
+
 def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
     """Why the image file (a path, or an open binary file such as `io.BytesIO(data)`) is too
     large, judged from its header without decoding it; '' when it is within the limit or its

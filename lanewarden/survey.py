@@ -398,6 +398,8 @@ def verdict_line(verdict: Verdict) -> str:
     if verdict.no_lane_frames == 0:
         return "verdict: NOT SAFE: no no-lane frame was surveyed"
     if verdict.safe:
+        if verdict.no_lane_frames == 1:
+            return "verdict: SAFE: no decision on the only no-lane frame"
         return (f"verdict: SAFE: no decision on any of the {verdict.no_lane_frames} no-lane "
                 "frames")
     names = [r.frame.name for r in verdict.false_lanes]
@@ -430,6 +432,25 @@ def engage_line(engage: EngageFigures | None) -> str:
 def summary_lines(figures: SurveyFigures) -> list[str]:
     return [*(class_line(figures.classes[e]) for e in EXPECTS), verdict_line(figures.verdict),
             engage_line(figures.verdict.engage)]
+
+
+def survey_notes(figures: SurveyFigures, calibrated: bool) -> list[str]:
+    """What a SAFE verdict does not say: that perception never found the lane either (SAFE then
+    proves little: a wrong tape width or camera also gives no decision anywhere), and that
+    without a calibration the frames were judged through the simulator's default camera."""
+    notes = []
+    lane = figures.classes[LANE]
+    if lane.frames and not lane.decisions:
+        notes.append(f"note: no decision on any of the {counted(lane.frames, 'lane frame')} "
+                     "either: perception never found your lane, so SAFE says little; check "
+                     "perception.tape and perception.lane in --config (the widths of your tape "
+                     "and lane) and --calibration (the camera and its pose)")
+    if not calibrated:
+        notes.append("note: no --calibration: the frames were judged as if from the simulator's "
+                     "default camera (its lens, height and pitch); with your camera's "
+                     "calibration (lanewarden calibrate, then calibrate ground) the figures are "
+                     "your camera's")
+    return notes
 
 
 # ---- survey.json ------------------------------------------------------------------------------

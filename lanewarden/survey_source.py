@@ -30,7 +30,7 @@ from pathlib import Path
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
-from lanewarden.image_files import file_problem, header_problem
+from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_problem, header_size
 from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -39,6 +39,7 @@ from lanewarden.survey import (
     LabelsTable,
     parse_labels,
 )
+from lanewarden.wording import counted
 
 LABELS_NAME = "labels.csv"
 FOLDER_HELP = (f"a folder with lane/ and no-lane/ sub-folders of images, or with a {LABELS_NAME}"
@@ -106,7 +107,8 @@ def _class_folders(folder: Path) -> list[StillFrame]:
     loose = image_sequence_paths(str(folder)) or []
     if loose and any(sub.name in by_folder for sub in subs):
         names = ", ".join(p.name for p in loose[:3]) + (", ..." if len(loose) > 3 else "")
-        raise UsageError(f"FOLDER '{folder}': {len(loose)} images beside lane/ and no-lane/ "
+        raise UsageError(f"FOLDER '{folder}': {counted(len(loose), 'image')} beside lane/ and "
+                         "no-lane/ "
                          f"({names}); expected every image in lane/ or no-lane/ (or a "
                          f"{LABELS_NAME})")
     for sub in subs:
@@ -115,8 +117,9 @@ def _class_folders(folder: Path) -> list[StillFrame]:
             if paths:
                 close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
                 hint = f" (did you mean {close[0]}/?)" if close else ""
-                raise UsageError(f"{sub}: unknown class folder '{sub.name}' with {len(paths)} "
-                                 f"images; expected lane/ or no-lane/{hint}")
+                raise UsageError(f"{sub}: unknown class folder '{sub.name}' with "
+                                 f"{counted(len(paths), 'image')}; expected lane/ or "
+                                 f"no-lane/{hint}")
             continue
         for path in paths:
             stills.append(StillFrame(LabelledFrame(path.relative_to(folder).as_posix(),
@@ -144,10 +147,20 @@ def _images_under(folder: Path) -> list[Path]:
                 continue
             seen.add((info.st_dev, info.st_ino))
             paths.extend(image_sequence_paths(str(here)) or [])
+            others = sorted(p for p in here.iterdir() if not p.name.startswith(".")
+                            and p.suffix.lower() not in IMAGE_SUFFIXES and p.is_file())
             subs = sorted(p for p in here.iterdir() if p.is_dir() and not p.name.startswith("."))
         except OSError as exc:
             raise InputFileError(f"{here}: cannot read this folder ({exc.strerror or exc})"
                                  ) from None
+        if others:
+            # a photo the survey cannot read (HEIC from a phone, a GIF) is never silently left
+            # out: the survey would judge fewer frames than the user put there, or none
+            more = f" and {counted(len(others) - 1, 'other file')}" if len(others) > 1 else ""
+            raise InputFileError(
+                f"{others[0]}{more}: not an image the survey reads (a file under a class folder "
+                f"is a photo of that class); expected {', '.join(sorted(IMAGE_SUFFIXES))}: "
+                "convert them, or move other files out of lane/ and no-lane/")
         for sub in subs:
             if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
                 raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
@@ -203,14 +216,29 @@ def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, Labe
 
 def _name(folder: Path) -> str:
     """The folder's own name, also for '.' or '..'."""
-    return folder.name or folder.resolve().name or "folder"
+    name = folder.name if folder.name not in ("", ".", "..") else folder.resolve().name
+    return name or "folder"
 
 
 def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
+    """Every image within the pixel limit, and all of one size: a survey judges one camera (a
+    frame of another size was another camera, or a crop, and would be judged through the wrong
+    ground model)."""
     problems = [f"{name}: {why}" for name, path in paths
                 if (why := header_problem(path, max_pixels))]
     if problems:
         raise InputFileError(problems_line("frames cannot be used", len(paths), problems))
+    sizes: dict[tuple[int, int], list[str]] = {}
+    for name, path in paths:
+        if (size := header_size(path)) is not None:
+            sizes.setdefault(size, []).append(name)
+    if len(sizes) > 1:
+        ranked = sorted(sizes.items(), key=lambda item: -len(item[1]))
+        listed = "; ".join(f"{w}x{h}: {counted(len(names), 'frame')} ({names[0]}"
+                           f"{', ...' if len(names) > 1 else ''})"
+                           for (w, h), names in ranked[:4])
+        raise InputFileError(f"frames of {len(sizes)} sizes ({listed}); expected every frame "
+                             "from the one camera at one size (survey each camera on its own)")
 
 
 def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,

@@ -68,7 +68,14 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.perception.errors import PerceptionConfigError
     from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config
-    from lanewarden.survey import NONE, false_lanes_text, judge, name_frames, summary_lines
+    from lanewarden.survey import (
+        NONE,
+        false_lanes_text,
+        judge,
+        name_frames,
+        summary_lines,
+        survey_notes,
+    )
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
     from lanewarden.survey_source import open_survey_source
@@ -98,6 +105,10 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
         raise UsageError(f"FOLDER '{folder}': no no-lane frame; a survey shows that perception "
                          "sees no lane on bare floor, seams, one tape alone, a tape's end: put "
                          "such frames in no-lane/ or label them none")
+    if not any(f.expect != NONE for f in frames):
+        raise UsageError(f"FOLDER '{folder}': no lane frame; a survey also shows that perception "
+                         "finds your lane and the supervisor engages on it: put photos of the "
+                         "lane in lane/ or label them lane")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
     create_output_folder(out)
     try:
@@ -142,6 +153,8 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     else:
         for line in summary_lines(figures):
             click.echo(line)
+    for note in survey_notes(figures, calibration is not None):
+        click.echo(note, err=as_json)
     click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)
     verdict = figures.verdict
     if not verdict.safe:

@@ -112,6 +112,41 @@ def test_a_floor_folder_with_a_calibration(floor: Path, tmp_path: Path,
     assert "the frame perception analysed (undistorted with the calibration)" in page
 
 
+def test_a_safe_verdict_says_what_it_does_not_prove(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A tape width far from the real one: no decision anywhere, so SAFE (exit 0), but a note
+    says perception never found the lane; without --calibration, another says whose camera the
+    frames were judged through (a student had read a bare SAFE as 'good to go')."""
+    wrong = tmp_path / "wrong-tape.yaml"
+    wrong.write_text("perception: {tape: {width_m: 0.15}}\n")
+    code, out, err = _survey([str(floor), "--config", str(wrong), "--out", str(tmp_path / "o")],
+                             capsys)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[-3] == ("note: no decision on any of the 3 lane frames either: perception never "
+                         "found your lane, so SAFE says little; check perception.tape and "
+                         "perception.lane in --config (the widths of your tape and lane) and "
+                         "--calibration (the camera and its pose)")
+    assert lines[-2].startswith("note: no --calibration: the frames were judged as if from the "
+                                "simulator's default camera")
+    # with the calibration and the right widths: neither note
+    code, out, _ = _survey([str(floor), "--calibration", str(floor.parent / "camera.yaml"),
+                            "--out", str(tmp_path / "o")], capsys)
+    assert code == 0 and "note:" not in out
+
+
+def test_a_folder_named_dot_or_dot_dot_names_its_outputs_after_itself(
+        floor: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """`survey ..` had written to lanewarden-out/survey-../ (one level up, under a folder named
+    '..'); `.` and `..` name the folder they are."""
+    (floor / "lane" / "deeper").mkdir()
+    monkeypatch.chdir(floor / "lane" / "deeper")
+    code, out, _ = _survey(["../..", "--calibration", "../../../camera.yaml"], capsys)
+    assert code == 0
+    assert out.splitlines()[-1] == ("outputs in lanewarden-out/survey-floor/ (report: "
+                                    "lanewarden-out/survey-floor/report.html)")
+
+
 def test_stills_are_held_long_enough_for_the_supervisors_rule(
         floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Needing 40 confident frames, each still is held 2.7 s (twice the 1.33 s they take) and the
@@ -266,18 +301,37 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         (folder / "nolane").mkdir()
         shutil.copy(lane, folder / "lane")
         shutil.copy(tiles, folder / "nolane")
-        return [str(folder)], (f"{folder / 'nolane'}: unknown class folder 'nolane' with 1 images; "
+        return [str(folder)], (f"{folder / 'nolane'}: unknown class folder 'nolane' with 1 image; "
                                "expected lane/ or no-lane/ (did you mean no-lane/?)")
     if case == "images beside the class folders":
         (folder / "lane").mkdir()
         shutil.copy(lane, folder / "lane")
         shutil.copy(tiles, folder)
-        return [str(folder)], (f"FOLDER '{folder}': 1 images beside lane/ and no-lane/ "
+        return [str(folder)], (f"FOLDER '{folder}': 1 image beside lane/ and no-lane/ "
                                "(tiles.jpg); expected every image in lane/ or no-lane/")
     if case == "no no-lane frame":
         (folder / "lane").mkdir()
         shutil.copy(lane, folder / "lane")
         return [str(folder)], f"FOLDER '{folder}': no no-lane frame"
+    if case == "no lane frame":
+        (folder / "no-lane").mkdir()
+        shutil.copy(tiles, folder / "no-lane")
+        return [str(folder)], f"FOLDER '{folder}': no lane frame"
+    if case in ("a photo the survey cannot read", "frames of two sizes"):
+        for sub, source in (("lane", lane), ("no-lane", tiles)):
+            (folder / sub).mkdir()
+            shutil.copy(source, folder / sub)
+        if case == "frames of two sizes":  # another camera's photo (160x120) among 640x480
+            cv2.imwrite(str(folder / "no-lane" / "small.png"),
+                        cv2.resize(cv2.imread(str(tiles)), (160, 120)))
+            return [str(folder)], (
+                "frames of 2 sizes (640x480: 2 frames (lane/straight.jpg, ...); 160x120: 1 frame "
+                "(no-lane/small.png)); expected every frame from the one camera at one size")
+        # a phone's HEIC photo: it had been left out silently (lane/ with only HEIC photos
+        # surveyed 0 lane frames, SAFE, exit 0)
+        (folder / "lane" / "IMG_0001.HEIC").write_bytes(b"\x00\x00\x00\x18ftypheic")
+        return [str(folder)], (f"{folder / 'lane' / 'IMG_0001.HEIC'}: not an image the survey "
+                               "reads (a file under a class folder is a photo of that class)")
     if case == "not an image":
         for sub, source in (("lane", lane), ("no-lane", tiles)):
             (folder / sub).mkdir()
@@ -322,7 +376,8 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 
 @pytest.mark.parametrize("case", [
     "missing folder", "no frames", "unknown class folder", "images beside the class folders",
-    "no no-lane frame", "not an image",
+    "no no-lane frame", "no lane frame", "a photo the survey cannot read", "frames of two sizes",
+    "not an image",
     "too many pixels", "unknown label", "bad labels line", "labelled file missing",
     "labels too large", "labels and class folders", "labels missing", "a file without labels"])
 def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,

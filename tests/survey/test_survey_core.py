@@ -127,8 +127,7 @@ def test_no_decision_on_no_lane_frames_is_safe_and_lane_decisions_are_no_false_l
                result("no-lane/b.jpg", "none", 1, "none", 0.1)]
     figures = judge(results, None)
     assert figures.verdict.safe
-    assert verdict_line(figures.verdict) == ("verdict: SAFE: no decision on any of the 1 no-lane "
-                                             "frames")
+    assert verdict_line(figures.verdict) == "verdict: SAFE: no decision on the only no-lane frame"
 
 
 def test_without_no_lane_frames_nothing_is_safe() -> None:
