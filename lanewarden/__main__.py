@@ -1,3 +1,3 @@
-from lanewarden.cli import main
+from lanewarden.launcher import main
 
 raise SystemExit(main())

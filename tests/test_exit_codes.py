@@ -169,3 +169,23 @@ def test_ctrl_c_exits_130_with_one_line(files: dict[str, str]) -> None:
     assert sim.returncode == 130, err
     assert err.splitlines() == [
         f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
+
+
+def test_ctrl_c_while_the_command_starts_is_one_line() -> None:
+    """The CLI takes seconds to import; a Ctrl-C then (here: the KeyboardInterrupt it raises,
+    at the import of lanewarden.cli, without a race against a real signal) had printed Python's
+    traceback and exited -2. The entry point says it in one line, exit 130."""
+    program = "\n".join([
+        "import builtins",
+        "real = builtins.__import__",
+        "def ctrl_c(name, *args, **kwargs):",
+        "    if name == 'lanewarden.cli':",
+        "        raise KeyboardInterrupt",
+        "    return real(name, *args, **kwargs)",
+        "builtins.__import__ = ctrl_c",
+        "from lanewarden.launcher import main",
+        "raise SystemExit(main())",
+    ])
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                          timeout=120)
+    assert (done.returncode, done.stderr) == (130, "lanewarden: error: interrupted\n")
