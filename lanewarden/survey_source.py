@@ -58,13 +58,17 @@ class StillFrame:
 @dataclass
 class SurveySource:
     """What to survey: `stills` (independent images) or `sequence` (a recording, with the
-    labelled frames by the recording's frame index in `labelled`)."""
+    labelled frames by the recording's frame index in `labelled`). `unlabelled`: images in a
+    labels file's folder that it does not name, `skipped`: frame indices within labelled ranges
+    that the recording lacks (neither surveyed; the command says so)."""
 
     name: str
     description: str
     stills: list[StillFrame] = field(default_factory=list)
     sequence: ReplaySource | None = None
     labelled: dict[int, LabelledFrame] = field(default_factory=dict)
+    unlabelled: list[str] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
 
 
 def problems_line(what: str, total: int, problems: list[str]) -> str:
@@ -185,15 +189,37 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     return stills
 
 
-def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, LabelledFrame]:
-    """The labelled frames by the recording's frame index. A range labels the frames the
-    recording has within it (a run folder may lack frames the camera dropped); a frame index or a
-    range end beyond the recording, or a range without any frame, is an error naming its line."""
+#: Images looked for beyond a labels file's rows (a bound on a huge folder's walk).
+UNLABELLED_SCAN_LIMIT = 100_000
+
+
+def _unlabelled(folder: Path, stills: list[StillFrame]) -> list[str]:
+    """Images under `folder` (hidden folders left out) that no row names, in name order."""
+    named = {s.path.resolve() for s in stills}
+    found = []
+    for count, path in enumerate(folder.rglob("*")):
+        if count >= UNLABELLED_SCAN_LIMIT:
+            break
+        if (path.suffix.lower() in IMAGE_SUFFIXES
+                and not any(part.startswith(".") for part in path.relative_to(folder).parts)
+                and path.resolve() not in named and path.is_file()):
+            found.append(path.relative_to(folder).as_posix())
+    return sorted(found)
+
+
+def _labelled_frames(source: ReplaySource, table: LabelsTable
+                     ) -> tuple[dict[int, LabelledFrame], list[int]]:
+    """The labelled frames by the recording's frame index, and the indices within labelled
+    ranges the recording lacks. A range labels the frames the recording has within it (a run
+    folder may lack frames the camera dropped or the loop skipped: the command says how many); a
+    frame index or a range end beyond the recording, a single frame it lacks, or a range without
+    any frame, is an error naming its line."""
     available = sorted({s.frame[0] for s in source.steps if s.frame is not None})
     present = set(available)
     # sequence order: the place among the recording's frames (a dropped frame is no gap)
     position = {index: k for k, index in enumerate(available)}
     labelled: dict[int, LabelledFrame] = {}
+    skipped: list[int] = []
     for row in table.rows:
         assert row.frames is not None
         first, last = row.frames
@@ -202,16 +228,19 @@ def _labelled_frames(source: ReplaySource, table: LabelsTable) -> dict[int, Labe
         if not available or last > available[-1] or (first == last and first not in present):
             missing = last if not available or last > available[-1] else first
             what = f"frame {first}" if first == last else f"frames {span}: frame {missing}"
+            gap = ("; it has no frame there (one dropped or skipped while recording)"
+                   if available and available[0] < missing < available[-1] else "")
             raise InputFileError(f"{table.source}:{row.line}: {what} is not in {source.name} "
-                                 f"({source.kind}, {have})")
+                                 f"({source.kind}, {have}){gap}")
         inside = [i for i in range(first, last + 1) if i in present]  # last is within the source
+        skipped.extend(i for i in range(first, last + 1) if i not in present)
         if not inside:
             raise InputFileError(f"{table.source}:{row.line}: frames {span}: none of these "
                                  f"frames is in {source.name} ({source.kind}, {have})")
         for index in inside:
             labelled[index] = LabelledFrame(f"frame {index}", row.expect, position[index],
                                             row.note)
-    return labelled
+    return labelled, skipped
 
 
 def _name(folder: Path) -> str:
@@ -277,12 +306,24 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         stills = _labelled_files(path, table)
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",
-                            stills=stills)
-    source = open_replay_source(folder, camera_rate_hz)
-    labelled = _labelled_frames(source, table)
+                            stills=stills, unlabelled=_unlabelled(path, stills))
+    classes = [n for n in CLASS_FOLDERS.values() if (path / n).is_dir()]
+    if classes:
+        raise UsageError(f"FOLDER '{folder}': {table.source} labels frame numbers "
+                         f"(frames,expect) of a recording, but FOLDER holds "
+                         f"{'/ and '.join(classes)}/ of photos: label the photos by file "
+                         "(file,expect), or drop --labels")
+    try:
+        source = open_replay_source(folder, camera_rate_hz)
+    except (UsageError, InputFileError) as exc:  # replay's SOURCE is the survey's FOLDER
+        message = str(exc)
+        if message.startswith("SOURCE '"):
+            raise type(exc)("FOLDER '" + message.removeprefix("SOURCE '")) from None
+        raise
+    labelled, skipped = _labelled_frames(source, table)
     if isinstance(source.frames, PathFrames):
         first, last = min(labelled), max(labelled)
         _check_headers([(f"frame {i}", p) for i, p in enumerate(source.frames.paths)
                         if first <= i <= last], max_pixels)
     return SurveySource(source.name, f"{folder} ({source.kind}; labels: {table.source})",
-                        sequence=source, labelled=labelled)
+                        sequence=source, labelled=labelled, skipped=skipped)

@@ -79,6 +79,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
     from lanewarden.survey_source import open_survey_source
+    from lanewarden.wording import counted
 
     config = load_config(config_path)
     config_origin = config_path or "defaults"
@@ -109,6 +110,19 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
         raise UsageError(f"FOLDER '{folder}': no lane frame; a survey also shows that perception "
                          "finds your lane and the supervisor engages on it: put photos of the "
                          "lane in lane/ or label them lane")
+    # the frames' own size (the first frame's: a survey's stills are of one size), for the
+    # ground model as detect describes it, and to check the calibration before any work
+    first = (source.sequence.frames.image(0) if source.sequence is not None
+             else read_image(source.stills[0].path, max_pixels=config.perception.max_image_pixels
+                             )[0])
+    size = None if first is None else (first.shape[1], first.shape[0])
+    if calibration is not None and size is not None and size != calibration.image_size:
+        named = (f"--calibration '{calibration_path}'" if calibration_path
+                 else "the recording's calibration")
+        example = source.stills[0].frame.name if source.sequence is None else "frame 0"
+        raise UsageError(f"{named}: for {calibration.image_size[0]}x{calibration.image_size[1]} "
+                         f"images, the frames are {size[0]}x{size[1]} ({example}); expected the "
+                         "calibration of the camera that took them, at their size")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
     create_output_folder(out)
     try:
@@ -122,11 +136,6 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
                                 Undistorter(calibration) if calibration is not None else None)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
-    # the ground model at the frames' own size (the first frame's), as detect describes it
-    first = (source.sequence.frames.image(0) if source.sequence is not None
-             else read_image(source.stills[0].path, max_pixels=config.perception.max_image_pixels
-                             )[0])
-    size = None if first is None else (first.shape[1], first.shape[0])
     try:
         ground = detector.describe_ground(calibration_path, size)
     except PerceptionConfigError as exc:
@@ -153,7 +162,16 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     else:
         for line in summary_lines(figures):
             click.echo(line)
-    for note in survey_notes(figures, calibration is not None):
+    notes = survey_notes(figures, calibration is not None)
+    if source.unlabelled:
+        shown = ", ".join(source.unlabelled[:3]) + (", ..." if len(source.unlabelled) > 3 else "")
+        notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
+                     f"labels file, not surveyed ({shown})")
+    if source.skipped:
+        notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
+                     f"recording, not surveyed (dropped or skipped while recording: frame "
+                     f"{source.skipped[0]}{', ...' if len(source.skipped) > 1 else ''})")
+    for note in notes:
         click.echo(note, err=as_json)
     click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)
     verdict = figures.verdict

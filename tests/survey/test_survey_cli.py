@@ -135,6 +135,20 @@ def test_a_safe_verdict_says_what_it_does_not_prove(
     assert code == 0 and "note:" not in out
 
 
+def test_images_a_labels_file_leaves_out_are_named(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A labels file names some of the folder's photos: the others are not surveyed, and a note
+    says which (they had been left out without a word)."""
+    labels = tmp_path / "some.csv"
+    labels.write_text("file,expect\nlane/straight.jpg,lane\nno-lane/tiles.jpg,none\n")
+    code, out, _ = _survey([str(floor), "--labels", str(labels), "--calibration",
+                            str(floor.parent / "camera.yaml"), "--out", str(tmp_path / "o")],
+                           capsys)
+    assert code == 0
+    assert (f"note: 3 images in {floor} not in the labels file, not surveyed (lane/dashed.jpg, "
+            "lane/tiles-lane.jpg, no-lane/one-tape-left.jpg)") in out.splitlines()
+
+
 def test_a_folder_named_dot_or_dot_dot_names_its_outputs_after_itself(
         floor: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     """`survey ..` had written to lanewarden-out/survey-../ (one level up, under a folder named
@@ -332,6 +346,26 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         (folder / "lane" / "IMG_0001.HEIC").write_bytes(b"\x00\x00\x00\x18ftypheic")
         return [str(folder)], (f"{folder / 'lane' / 'IMG_0001.HEIC'}: not an image the survey "
                                "reads (a file under a class folder is a photo of that class)")
+    if case == "frame labels for photos":
+        for sub, source in (("lane", lane), ("no-lane", tiles)):
+            (folder / sub).mkdir()
+            shutil.copy(source, folder / sub)
+        frames = tmp_path / "frames.csv"
+        frames.write_text("frames,expect\n0-1,lane\n")
+        # it had said "SOURCE '...': no recording and no images there" of a folder of photos
+        return [str(folder), "--labels", str(frames)], (
+            f"FOLDER '{folder}': {frames} labels frame numbers (frames,expect) of a recording, "
+            "but FOLDER holds lane/ and no-lane/ of photos: label the photos by file")
+    if case == "calibration of another size":
+        for sub, source in (("lane", lane), ("no-lane", tiles)):
+            (folder / sub).mkdir()
+            shutil.copy(source, folder / sub)
+        calibration = PROJECT_ROOT / "tests" / "perception" / "donkeycar_calibration.yaml"
+        # it had printed a ground model at 640x480 from it, then one error per frame in one
+        # line of 1000 characters, never naming --calibration
+        return [str(folder), "--calibration", str(calibration)], (
+            f"--calibration '{calibration}': for 160x120 images, the frames are 640x480 "
+            "(lane/straight.jpg); expected the calibration of the camera that took them")
     if case == "not an image":
         for sub, source in (("lane", lane), ("no-lane", tiles)):
             (folder / sub).mkdir()
@@ -377,7 +411,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 @pytest.mark.parametrize("case", [
     "missing folder", "no frames", "unknown class folder", "images beside the class folders",
     "no no-lane frame", "no lane frame", "a photo the survey cannot read", "frames of two sizes",
-    "not an image",
+    "frame labels for photos", "calibration of another size", "not an image",
     "too many pixels", "unknown label", "bad labels line", "labelled file missing",
     "labels too large", "labels and class folders", "labels missing", "a file without labels"])
 def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,

@@ -23,7 +23,8 @@ RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
 
 def test_ranges_label_the_frames_the_recording_has_in_sequence_order() -> None:
     table = parse_labels("frames,expect,note\n0-4,lane,two tapes\n7,none,tiles\n", "run.csv")
-    labelled = _labelled_frames(RUN, table)
+    labelled, skipped = _labelled_frames(RUN, table)
+    assert skipped == [2]  # in the range 0-4, not in the recording: the survey says so
     assert {i: (f.name, f.expect, f.order, f.note) for i, f in labelled.items()} == {
         0: ("frame 0", "lane", 0, "two tapes"), 1: ("frame 1", "lane", 1, "two tapes"),
         3: ("frame 3", "lane", 2, "two tapes"), 4: ("frame 4", "lane", 3, "two tapes"),
@@ -31,7 +32,9 @@ def test_ranges_label_the_frames_the_recording_has_in_sequence_order() -> None:
 
 
 @pytest.mark.parametrize(("labels", "message"), [
-    ("frames,expect\n2,lane\n", "run.csv:2: frame 2 is not in run-1 (run, frames 0-7)"),
+    # "frames 0-7" alone had read as a contradiction: the recording has no frame 2
+    ("frames,expect\n2,lane\n", "run.csv:2: frame 2 is not in run-1 (run, frames 0-7); it has no "
+                                 "frame there (one dropped or skipped while recording)"),
     ("frames,expect\n0-1,lane\n5-6,none\n",
      "run.csv:3: frames 5-6: none of these frames is in run-1 (run, frames 0-7)"),
     ("frames,expect\n4-9,lane\n", "run.csv:2: frames 4-9: frame 9 is not in run-1 (run, frames "
