@@ -300,6 +300,13 @@ def test_the_ground_model_is_described_at_the_frames_size(
     assert json.loads((tmp_path / "o" / "survey.json").read_text())["ground_model"] == first
 
 
+def _photos(folder: Path, lane: Path, no_lane: Path) -> None:
+    """FOLDER/lane/ with the one lane photo, FOLDER/no-lane/ with the one no-lane photo."""
+    for sub, source in (("lane", lane), ("no-lane", no_lane)):
+        (folder / sub).mkdir()
+        shutil.copy(source, folder / sub)
+
+
 def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     """Set up one kind of bad input; returns the arguments and what the error line must say."""
     folder = tmp_path / "f"
@@ -332,9 +339,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         shutil.copy(tiles, folder / "no-lane")
         return [str(folder)], f"FOLDER '{folder}': no lane frame"
     if case in ("a photo the survey cannot read", "frames of two sizes"):
-        for sub, source in (("lane", lane), ("no-lane", tiles)):
-            (folder / sub).mkdir()
-            shutil.copy(source, folder / sub)
+        _photos(folder, lane, tiles)
         if case == "frames of two sizes":  # another camera's photo (160x120) among 640x480
             cv2.imwrite(str(folder / "no-lane" / "small.png"),
                         cv2.resize(cv2.imread(str(tiles)), (160, 120)))
@@ -347,9 +352,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         return [str(folder)], (f"{folder / 'lane' / 'IMG_0001.HEIC'}: not an image the survey "
                                "reads (a file under a class folder is a photo of that class)")
     if case == "frame labels for photos":
-        for sub, source in (("lane", lane), ("no-lane", tiles)):
-            (folder / sub).mkdir()
-            shutil.copy(source, folder / sub)
+        _photos(folder, lane, tiles)
         frames = tmp_path / "frames.csv"
         frames.write_text("frames,expect\n0-1,lane\n")
         # it had said "SOURCE '...': no recording and no images there" of a folder of photos
@@ -357,9 +360,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
             f"FOLDER '{folder}': {frames} labels frame numbers (frames,expect) of a recording, "
             "but FOLDER holds lane/ and no-lane/ of photos: label the photos by file")
     if case == "calibration of another size":
-        for sub, source in (("lane", lane), ("no-lane", tiles)):
-            (folder / sub).mkdir()
-            shutil.copy(source, folder / sub)
+        _photos(folder, lane, tiles)
         calibration = PROJECT_ROOT / "tests" / "perception" / "donkeycar_calibration.yaml"
         # it had printed a ground model at 640x480 from it, then one error per frame in one
         # line of 1000 characters, never naming --calibration
@@ -367,16 +368,12 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
             f"--calibration '{calibration}': for 160x120 images, the frames are 640x480 "
             "(lane/straight.jpg); expected the calibration of the camera that took them")
     if case == "not an image":
-        for sub, source in (("lane", lane), ("no-lane", tiles)):
-            (folder / sub).mkdir()
-            shutil.copy(source, folder / sub)
+        _photos(folder, lane, tiles)
         (folder / "no-lane" / "notes.jpg").write_text("not a photo\n")
         return [str(folder)], ("1 of 3 frames cannot be used: no-lane/notes.jpg: not a readable "
                                "image")
     if case == "too many pixels":
-        for sub, source in (("lane", lane), ("no-lane", tiles)):
-            (folder / sub).mkdir()
-            shutil.copy(source, folder / sub)
+        _photos(folder, lane, tiles)
         config = tmp_path / "small.yaml"
         config.write_text("perception: {max_image_pixels: 4096}\n")
         return [str(folder), "--config", str(config)], (
