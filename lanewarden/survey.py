@@ -490,18 +490,19 @@ def _class_json(figures: ClassFigures) -> dict[str, Any]:
 def _engage_json(engage: EngageFigures | None) -> dict[str, Any] | None:
     if engage is None:
         return None
-    return {
+    figures: dict[str, Any] = {
         "how": engage.how,
         "would_engage": engage.would_engage,
         "window_s": round(engage.window_s, 4),
         "attempts": engage.attempts,
         "engaged": engage.engaged,
         "times_s": [round(t, 4) for t in engage.times_s],
-        "first_engaged": engage.first_engaged,
-        "engaged_lane_frames": engage.engaged_lane_frames,
-        "lane_frames": engage.lane_frames,
-        "halts": list(engage.halts),
     }
+    if engage.how == "sequence":  # a sequence's own figures (stills had shown 0s and null)
+        figures.update(first_engaged=engage.first_engaged,
+                       engaged_lane_frames=engage.engaged_lane_frames,
+                       lane_frames=engage.lane_frames, halts=list(engage.halts))
+    return figures
 
 
 def survey_json(figures: SurveyFigures, about: Mapping[str, Any]) -> dict[str, Any]:

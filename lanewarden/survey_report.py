@@ -136,12 +136,19 @@ def _class_table(expect: str, results: Sequence[FrameResult]) -> str:
             f"<table>{head}{''.join(_frame_row(r) for r in shown)}</table></section>")
 
 
+def _about_row(key: str, value: Any) -> str:
+    """'ground model: ...' once (the value may already say what it is)."""
+    name = key.replace("_", " ")
+    text = str(value)
+    return text if text.startswith(f"{name}:") else f"{name}: {text}"
+
+
 def report_html(figures: SurveyFigures, about: Mapping[str, Any],
                 false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture]) -> str:
     verdict = figures.verdict
     css = "safe" if verdict.safe else "unsafe"
     text = verdict_line(verdict).removeprefix("verdict: ").removeprefix(verdict.headline)
-    about_rows = "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in about.items())
+    about_rows = "".join(f"<li>{_e(_about_row(k, v))}</li>" for k, v in about.items())
     false_count = len(verdict.false_lanes)
     false_note = (f"Any decision on a no-lane frame is a false lane: the supervisor would trust "
                   f"it (a usable confidence also resets the lane-loss timer). Pictures of the "

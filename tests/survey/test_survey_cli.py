@@ -178,8 +178,17 @@ def test_json_prints_survey_json(floor: Path, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = _survey([str(floor), "--json", "--out", str(tmp_path / "o")], capsys)
     assert code == 0
-    assert json.loads(out) == json.loads((tmp_path / "o" / "survey.json").read_text())
+    document = json.loads(out)
+    assert document == json.loads((tmp_path / "o" / "survey.json").read_text())
     assert err.startswith("lanewarden: ground model:")
+    # stills: the held-in-view figures only (a sequence's first_engaged, lane_frames, ... had
+    # read null and 0 beside "engaged": 3)
+    assert sorted(document["engage"]) == ["attempts", "engaged", "how", "times_s", "window_s",
+                                          "would_engage"]
+    assert (document["engage"]["how"], document["engage"]["engaged"]) == ("held", 3)
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "<li>ground model: ground model" not in page and "ground_model:" not in page
+    assert "<li>ground model: no ground calibration: assuming the simulator&#x27;s default" in page
 
 
 def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
