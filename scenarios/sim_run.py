@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lanewarden.scenarios.camera_clip import CameraClipWriter, check_clip_target
-from lanewarden.scenarios.errors import ScenarioOutputError
+from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
@@ -27,6 +27,7 @@ from lanewarden.scenarios.report import run_summary, write_report
 from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
 from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.scenarios.state_reasons import state_reasons
+from lanewarden.scenarios.world import build_world
 from lanewarden.supervisor.recorder import JsonlRecorder
 
 if TYPE_CHECKING:
@@ -90,11 +91,27 @@ def ordered_metrics(metrics: dict[str, object]) -> dict[str, object]:
     return {**first, **rest}
 
 
+def _check_world(request: RunRequest, config: LanewardenConfig) -> None:
+    """The scenario's world (its geometry against the size limits), built before any output is
+    touched; a problem names the scenario's file, as its other problems do (the world's own
+    checks know only the scenario's name)."""
+    try:
+        build_world(request.spec, margin_m=config.simulation.world_margin_m)
+    except ScenarioOutputError:
+        raise
+    except ScenarioError as exc:
+        message, named = str(exc), f"{request.spec.name}: "
+        if request.source and message.startswith(named):
+            raise ScenarioError(f"{request.source}: {message.removeprefix(named)}") from None
+        raise
+
+
 def run_to_directory(request: RunRequest) -> dict[str, object]:
     """Run one scenario and write its outputs into `request.out_dir` (old outputs cleared first,
     a PARTIAL marker until all are written); returns the metrics."""
     started = time.perf_counter()
     config = effective_config(request.config, request.spec, request.source)
+    _check_world(request, config)
     out = request.out_dir
     folder = OutputFolder(out, RUN_OUTPUTS)
     folder.begin()

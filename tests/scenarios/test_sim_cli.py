@@ -167,6 +167,23 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path, capsys: pytest.Cap
     assert err == [f"lanewarden: error: {bad}: run.max_time_s = {expected}"]
 
 
+def test_a_world_too_large_names_the_scenario_file(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The world's own size check knew only the scenario's name ('geo: the lane ... covers');
+    every other scenario problem names its file. Checked before any output is touched."""
+    bad = tmp_path / "wide.yaml"
+    bad.write_text("name: geo\nlane:\n  segments:\n    - straight_m: 2.0\n"
+                   "    - {turn_deg: 180, arc_radius_m: 15.0}\nrun:\n  max_time_s: 3\n",
+                   encoding="utf-8")
+    out = tmp_path / "o"
+    assert main(["sim", "--scenario", str(bad), "--out", str(out), "--quiet"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {bad}: the lane and its 2.5 m margins cover 22.6 x 35.6 m = 805 m^2 "
+        "of floor, expected at most 300 m^2 (a more compact lane, or a smaller "
+        "simulation.world_margin_m)"]
+    assert not (out / "PARTIAL").exists()
+
+
 def test_sim_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scenario = tmp_path / "short.yaml"
     scenario.write_text(SHORT, encoding="utf-8")
