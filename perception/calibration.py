@@ -51,6 +51,9 @@ GROUND_POSE_KEYS = (
     ("ground_forward_m", "forward_m"),
     ("ground_lateral_m", "lateral_m"),
 )
+#: The farthest a camera is mounted from the floor or the robot's centre, metres: a robot's
+#: camera, not a building's (1e308 had overflowed the floor model into NumPy warnings).
+MAX_MOUNT_DISTANCE_M = 10.0
 #: How the ground pose was obtained, its error on the floor and when (optional keys).
 GROUND_METHOD_KEY = "ground_method"
 GROUND_ERROR_KEY = "ground_reprojection_error_m"
@@ -84,9 +87,10 @@ class GroundCalibration:
 
     def __post_init__(self) -> None:
         pose = self.pose
-        if not (math.isfinite(pose.height_m) and pose.height_m > 0):
+        if not (math.isfinite(pose.height_m) and 0 < pose.height_m <= MAX_MOUNT_DISTANCE_M):
             raise PerceptionError(
-                f"calibration: ground_height_m {pose.height_m:g} must be above the floor (> 0 m)"
+                f"calibration: ground_height_m {pose.height_m:g} must be above the floor and "
+                f"within {MAX_MOUNT_DISTANCE_M:g} m of it (0 < value <= {MAX_MOUNT_DISTANCE_M:g})"
             )
         for key, field in GROUND_POSE_KEYS[1:]:
             value = getattr(pose, field)
@@ -96,6 +100,14 @@ class GroundCalibration:
             raise PerceptionError(
                 f"calibration: ground_pitch_deg {pose.pitch_deg:g} must be within -90..90"
             )
+        for key, value in (("ground_roll_deg", pose.roll_deg), ("ground_yaw_deg", pose.yaw_deg)):
+            if not -180.0 <= value <= 180.0:
+                raise PerceptionError(f"calibration: {key} {value:g} must be within -180..180")
+        for key, value in (("ground_forward_m", pose.forward_m),
+                           ("ground_lateral_m", pose.lateral_m)):
+            if abs(value) > MAX_MOUNT_DISTANCE_M:
+                raise PerceptionError(f"calibration: {key} {value:g} must be within "
+                                      f"{MAX_MOUNT_DISTANCE_M:g} m of the robot's centre")
         error = self.reprojection_error_m
         if error is not None and not (math.isfinite(error) and error >= 0):
             raise PerceptionError(

@@ -72,6 +72,13 @@ def _with_keys(tmp_path: Path, extra: str) -> Path:
     ("ground_pitch_deg: 30.0\n", "node 'ground_height_m' is missing"),
     ("ground_height_m: -0.3\nground_pitch_deg: 30.0\n", "ground_height_m -0.3 must be above"),
     ("ground_height_m: 0.3\nground_pitch_deg: 130.0\n", "ground_pitch_deg 130 must be within"),
+    # a mount no robot has (1e308 had overflowed the floor model into NumPy warnings)
+    ("ground_height_m: 1e308\nground_pitch_deg: 30.0\n",
+     "ground_height_m 1e+308 must be above the floor and within 10 m of it"),
+    ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_forward_m: -40.0\n",
+     "ground_forward_m -40 must be within 10 m of the robot's centre"),
+    ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_yaw_deg: 720.0\n",
+     "ground_yaw_deg 720 must be within -180..180"),
     ("ground_height_m: high\nground_pitch_deg: 30.0\n", "node 'ground_height_m' is not a number"),
     ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_reprojection_error_m: -1.0\n",
      "ground_reprojection_error_m -1.0 must be"),
