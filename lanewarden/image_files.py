@@ -10,6 +10,7 @@ command can report every bad file in one line. Never prints.
 from __future__ import annotations
 
 import glob
+import io
 import re
 import stat
 import warnings
@@ -96,6 +97,24 @@ def file_problem(path: Path) -> str:
     return ""
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def png_damage(data: bytes | np.ndarray) -> str:
+    """Why PNG `data` is cut short or damaged (a chunk's CRC), '' when whole or not a PNG.
+    Pillow walks the chunks without decoding; OpenCV's libpng would print its own 'libpng
+    error: ...' line on stderr for such a file, beside the command's one line."""
+    raw = data.tobytes() if isinstance(data, np.ndarray) else data
+    if not raw.startswith(PNG_SIGNATURE):
+        return ""
+    try:
+        with Image.open(io.BytesIO(raw)) as image:
+            image.verify()
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        return f"a cut-off or damaged PNG ({str(exc)[:80] or type(exc).__name__})"
+    return ""
+
+
 def read_image(
     path: Path, flags: int = cv2.IMREAD_COLOR, max_pixels: int = DEFAULT_MAX_PIXELS
 ) -> tuple[np.ndarray | None, str]:
@@ -118,6 +137,8 @@ def read_image(
                       f"{LIMIT_KEY} ({max_pixels}) holds")
     if data.size == 0:
         return None, "empty file, not an image"
+    if png_damage(data):
+        return None, "not a readable image"
     try:
         image = cv2.imdecode(data, flags)
     except cv2.error:

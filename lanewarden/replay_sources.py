@@ -44,7 +44,13 @@ from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
 from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
 from lanewarden.errors import ConfigError, InputFileError, UsageError
-from lanewarden.image_files import file_problem, header_problem, read_image, too_many_pixels
+from lanewarden.image_files import (
+    file_problem,
+    header_problem,
+    png_damage,
+    read_image,
+    too_many_pixels,
+)
 from lanewarden.perception.calibration import CameraCalibration, load_calibration
 from lanewarden.perception.detector import PreparedImage
 from lanewarden.perception.errors import PerceptionError
@@ -155,6 +161,8 @@ class VideoFrames(FrameStore):
 def _decode_encoded(data: bytes) -> np.ndarray | None:
     """A compressed frame, or None when it does not decode (counted and reported by replay, so
     OpenCV's own message for each is silenced)."""
+    if png_damage(data):  # libpng's own message for it is not silenced by OpenCV's log level
+        return None
     try:
         with quiet_opencv():
             image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)

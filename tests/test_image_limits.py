@@ -93,8 +93,15 @@ def test_a_truncated_png_gets_one_line_not_opencvs_warning_too(
     decodes a cut-off PNG; the command's own line is the only one."""
     whole = tmp_path / "whole.png"
     cv2.imwrite(str(whole), np.full((120, 160, 3), 128, np.uint8))
-    cut = tmp_path / "cut.png"
-    cut.write_bytes(whole.read_bytes()[:200])
-    assert main(["detect", str(cut)]) == 2
-    err = capfd.readouterr().err.strip().splitlines()
-    assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable image"]
+    # a picture with detail, cut inside its pixel data: libpng itself printed "libpng error:
+    # PNG input buffer is incomplete" (OpenCV's log level does not reach it)
+    detailed = tmp_path / "detailed.png"
+    cv2.imwrite(str(detailed), np.random.default_rng(7).integers(0, 255, (120, 160, 3),
+                                                                 dtype=np.uint8))
+    for source, keep in ((whole, 200), (detailed, detailed.stat().st_size // 2)):
+        cut = tmp_path / f"cut-{source.name}"
+        cut.write_bytes(source.read_bytes()[:keep])
+        assert main(["detect", str(cut)]) == 2
+        err = capfd.readouterr().err.strip().splitlines()
+        assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable "
+                       "image"]
