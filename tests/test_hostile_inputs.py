@@ -212,7 +212,7 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "1e6 segments": "segments.yaml: scenario file is larger than 1000 kB, refusing to read it",
     "1e4 segments": "segments-1e4.yaml: lane.segments = a list of 10000 items: list should have "
                     "at most 200 items after validation, not 10000",
-    "floor too large": "hostile: the lane and its 2.5 m margins cover",
+    "floor too large": "square.yaml: the lane and its 2.5 m margins cover",
     "texture too fine": "lecture: the floor texture would be",
     "20000x20000 PNG detect": "huge.png: image has 400000000 pixels, more than "
                               "perception.max_image_pixels (10000000)",
