@@ -116,7 +116,8 @@ class SizeSetup:
             how = "auto: the farthest where this camera tells tape from seam"
         return (
             f"{self.size[0]}x{self.size[1]}: look-ahead {self.look_ahead_m:.2f} m ({how}); there "
-            f"one pixel covers {1000 * hyp.m_per_px:.1f} mm across the tape (a tape measures "
+            f"one pixel covers {1000 * hyp.m_per_px:.1f} mm across a tape where the lane's tapes "
+            f"run (a tape measures "
             f"{1000 * hyp.tape_min_m:.1f} mm or more there, a seam at most "
             f"{1000 * hyp.seam_max_m:.1f} mm)"
         )

@@ -132,7 +132,8 @@ def _summary_lines(pose: CameraPose, method: str, summary: GroundSummary,
     if math.isfinite(summary.look_ahead_m):
         lines.append(
             f"  look-ahead: row {summary.look_ahead_y_px:.0f} sees the floor "
-            f"{summary.look_ahead_m:.2f} m ahead of the robot's centre; one pixel at its centre is "
+            f"{summary.look_ahead_m:.2f} m ahead of the robot's centre; one pixel in the middle of "
+            f"that row is "
             f"{summary.mm_per_px_across_at_look_ahead:.1f} mm across and "
             f"{summary.mm_per_px_along_at_look_ahead:.1f} mm along")
     elif math.isfinite(summary.look_ahead_y_px):

@@ -19,8 +19,9 @@ KEYS = ["image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_ra
 GROUND_LINE = (
     "lanewarden: ground model: no ground calibration: assuming the simulator's default camera "
     "(70° HFOV, h 0.400 m, pitch 35.0°, 0.150 m ahead of the robot's centre); 640x480: "
-    "look-ahead 0.87 m (auto: edges.max_look_ahead_m); there one pixel covers 2.1 mm across the "
-    "tape (a tape measures 38.7 mm or more there, a seam at most 26.1 mm)\n"
+    "look-ahead 0.87 m (auto: edges.max_look_ahead_m); there one pixel covers 2.1 mm across a "
+    "tape where the lane's tapes run (a tape measures 38.7 mm or more there, a seam at most "
+    "26.1 mm)\n"
 )
 
 
