@@ -327,12 +327,18 @@ _RANGE_ERRORS = {
 
 
 def _did_you_mean(model: type[BaseModel] | None, key: str) -> str:
-    """`key` with its last part replaced by the closest known key of `model`, or ''."""
+    """`key` with its last part replaced by the closest known key of `model`, or ''. A section's
+    key run together with its section's name (`tape_widht_m` for `tape.width_m`) is found too."""
     if model is None:
         return ""
     *parents, name = key.split(".")
-    close = difflib.get_close_matches(name, list(model.model_fields), n=1, cutoff=0.6)
-    return ".".join([*parents, close[0]]) if close else ""
+    candidates = {known: known for known in model.model_fields}
+    for known, field in model.model_fields.items():
+        if (sub := _submodel(field.annotation)) is not None:
+            candidates.update({f"{known}_{inner}": f"{known}.{inner}"
+                               for inner in sub.model_fields})
+    close = difflib.get_close_matches(name, list(candidates), n=1, cutoff=0.6)
+    return ".".join([*parents, candidates[close[0]]]) if close else ""
 
 
 def describe_validation_error(

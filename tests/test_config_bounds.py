@@ -129,6 +129,10 @@ def test_a_long_bad_value_is_cut() -> None:
          "cfg.yaml: unknown key 'perception.canny.low_treshold': did you mean "
          "'perception.canny.low_threshold'?"),
         ({"supervisr": {}}, "cfg.yaml: unknown key 'supervisr': did you mean 'supervisor'?"),
+        # a section's key run together with the section's name (it had got no hint)
+        ({"perception": {"tape_widht_m": 0.02}},
+         "cfg.yaml: unknown key 'perception.tape_widht_m': did you mean "
+         "'perception.tape.width_m'?"),
         ({"supervisor": {"lane_lost_halt": 0.2}},
          "cfg.yaml: unknown key 'supervisor.lane_lost_halt': did you mean "
          "'supervisor.lane_lost_halt_s'?"),
