@@ -250,4 +250,4 @@ def test_the_ground_line_names_a_ground_model_given_to_the_detector() -> None:
     assert line.startswith("ground model: the ground model given to the detector (h 0.260 m, "
                            "pitch 40.0°, 0.150 m ahead of the robot's centre); 320x240: "
                            "look-ahead 0.87 m (auto: edges.max_look_ahead_m); there one pixel "
-                           "covers 3.6 mm across the tape")
+                           "covers 3.6 mm across a tape where the lane's tapes run")
