@@ -79,7 +79,7 @@ def test_the_jetbot_set_is_whole_and_says_where_it_comes_from() -> None:
     labelled = {row.file: row.expect for row in table.rows}
     on_disk = {str(p.relative_to(JETBOT)) for p in JETBOT.rglob("*.jpg")}
     assert set(labelled) == on_disk
-    assert sorted(Counter(labelled.values()).items()) == [("lane", 316), ("none", 8)]
+    assert sorted(Counter(labelled.values()).items()) == [("lane", 338), ("none", 17)]
     provenance = (JETBOT / "PROVENANCE.md").read_text(encoding="utf-8")
     assert "https://github.com/JimmyTan2000/thd-self-driving-toy-car" in provenance
     assert "87c9a575adfba08b27eab7cc7d728995ed4e4d10" in provenance
@@ -95,32 +95,39 @@ def _survey_jetbot(tmp_path: Path, capsys: pytest.CaptureFixture[str],
 
 
 def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Real frames of a taped lane and of one tape line with the other at most a sliver at the
-    frame's edge, through the real CLI (CI runs it). Today NOT SAFE (exit 3): one false lane,
-    a usable but not confident decision ("straight", 0.39) pairing the tape in view with the
-    sliver of the other (docs/perception.md). What must hold until that is fixed: that one and
-    no other, never confident. How useful: floors under today's figures (140 of the 316 lane
-    frames with a decision, 137 confident; the supervisor engages on 101 of them)."""
+    """Real frames of a taped lane, and of one tape line with the other absent or at most a
+    short sliver at the frame's edge, through the real CLI (CI runs it). Today NOT SAFE (exit 3):
+    one false lane, a usable but not confident decision ("straight", 0.39) pairing the tape in
+    view with the sliver of the other (docs/perception.md). What must hold until that is fixed:
+    that one and no other, never confident. How useful: floors under today's figures (144 of the
+    338 lane frames with a decision, 139 confident; the supervisor engages on 102 of them)."""
     code, out = _survey_jetbot(tmp_path, capsys, JETBOT / "camera.yaml")
     assert code == 3, out
-    assert "no-lane: 8 frames, 1 with a decision (12%), 0 confident, 1 false lane" in out
+    assert "no-lane: 17 frames, 1 with a decision (6%), 0 confident, 1 false lane" in out
     assert ("verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame): "
             "road/xy_087_057_5db8974e-f570-11ec-b631-16f63a1aa8c9.jpg") in out
-    found = re.search(r"lane: 316 frames, (\d+) with a decision \(\d+%\), (\d+) confident", out)
+    found = re.search(r"lane: 338 frames, (\d+) with a decision \(\d+%\), (\d+) confident", out)
     assert found is not None, out
-    assert int(found.group(1)) >= 130 and int(found.group(2)) >= 125
-    engaged = re.search(r"supervisor: engages on (\d+) of 316 lane stills", out)
-    assert engaged is not None and int(engaged.group(1)) >= 90, out
+    assert int(found.group(1)) >= 135 and int(found.group(2)) >= 130
+    engaged = re.search(r"supervisor: engages on (\d+) of 338 lane stills", out)
+    assert engaged is not None and int(engaged.group(1)) >= 95, out
     assert (tmp_path / "out" / "report.html").exists()
 
 
-def test_no_lane_width_lets_one_real_tape_pass_as_a_lane(
+def test_the_narrowest_lane_on_the_jetbot_frames(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The narrowest lane the config accepts for this 19 mm tape (just above its 0.1 m bound):
-    no decision on a frame of one tape line (the narrow lane takes no one tape's two edges, and
-    no longer fits the pair of the tape and the other's sliver either)."""
+    no lane frame is confident (the lane is narrower than the real one), and no one tape's
+    own two edges pass as a lane. One no-lane frame gets a usable, not confident decision: its
+    one tape paired with a 15-pixel edge at the image's left border, whose tape nothing can
+    verify (docs/perception.md). Held exactly, as the default's false lane is."""
     narrow = tmp_path / "narrow.yaml"
     narrow.write_text((JETBOT / "camera.yaml").read_text(encoding="utf-8").replace(
         "lane: {width_m: 0.19}", "lane: {width_m: 0.101}"), encoding="utf-8")
     code, out = _survey_jetbot(tmp_path, capsys, narrow)
-    _safe_with_lane_figures(code, out, lanes=316, no_lanes=8)
+    assert code == 3, out
+    assert "no-lane: 17 frames, 1 with a decision (6%), 0 confident, 1 false lane" in out
+    assert ("verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame): "
+            "free/9c94bd4e-f6c4-11ec-b914-16f63a1aa8c9.jpg") in out
+    found = re.search(r"\nlane: 338 frames, (\d+) with a decision \(\d+%\), 0 confident", out)
+    assert found is not None and int(found.group(1)) <= 1, out  # 1 today, usable only
