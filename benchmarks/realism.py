@@ -2,10 +2,11 @@
 course rendered three ways (as before camera effects; through a Pi-class camera on a glossy
 floor; through a USB camera sending MJPEG), each run through the detector as a sequence.
 
-Writes `docs/generated/realism.png` (four frames of each, side by side; the real frames are the
-Donkeycar project's, MIT licence: the figure is generated, never committed) and prints the
-statistics table of docs/scenarios.md ("Does it look real?"); tests/scenarios/test_realism.py
-checks that table against the same computation.
+Also the repo's real JetBot tape-lane stills beside the same kind of course rendered (plain and
+through a Pi-class camera). Writes `docs/generated/realism.png` and `realism-jetbot.png` (four
+frames of each set, side by side: generated, never committed) and prints the statistics tables
+of docs/scenarios.md ("Does it look real?"); tests/scenarios/test_realism.py checks those tables
+against the same computation.
 
     python benchmarks/realism.py [--frames 150] [--data DIR]
 """
@@ -37,16 +38,21 @@ def data_folder(given: str | None) -> Path:
     return Path(os.environ.get("LANEWARDEN_DATA", ROOT.parent / "shared" / "data"))
 
 
+def read_frames(paths: list[Path]) -> list[np.ndarray]:
+    """The images, in order; a missing or unreadable one ends the script naming it."""
+    frames = []
+    for path in paths:
+        image = cv2.imread(str(path))
+        if image is None:
+            raise SystemExit(f"{path}: cannot read it")
+        frames.append(image)
+    return frames
+
+
 def tub_frames(folder: Path) -> list[np.ndarray]:
     records = [json.loads(line) for line in (folder / "catalog_0.catalog").read_text()
                .splitlines() if line.strip()]
-    frames = []
-    for record in records:
-        image = cv2.imread(str(folder / "images" / record["cam/image_array"]))
-        if image is None:
-            raise SystemExit(f"{folder}: cannot read {record['cam/image_array']}")
-        frames.append(image)
-    return frames
+    return read_frames([folder / "images" / record["cam/image_array"] for record in records])
 
 
 def compare(tub: list[np.ndarray], frames: int,
@@ -76,6 +82,54 @@ def compare(tub: list[np.ndarray], frames: int,
         shown: list[np.ndarray] = []
         if samples:
             colour, _ = rendered_tub_like(changes, effects_on, 3 * frames // 4 + 1, color=True)
+            shown = [colour[i * frames // 4] for i in range(4)]
+        out.append((name, stats, shown))
+    return out
+
+
+JETBOT = ROOT / "data" / "real" / "jetbot-tape-lane"
+
+
+def jetbot_frames() -> list[np.ndarray]:
+    """The repo's real JetBot frames labelled lane (data/real/jetbot-tape-lane, MIT as its
+    PROVENANCE.md reads it), in the labels file's order."""
+    from lanewarden.survey import parse_labels
+
+    table = parse_labels((JETBOT / "labels.csv").read_text(encoding="utf-8"),
+                         str(JETBOT / "labels.csv"))
+    return read_frames([JETBOT / row.file for row in table.rows
+                        if row.expect == "lane" and row.file is not None])
+
+
+def jetbot(real: list[np.ndarray], frames: int,
+           samples: bool = False) -> list[tuple[str, object, list[np.ndarray]]]:
+    """(name, SequenceStats, four sample frames when `samples`) for the real JetBot stills (each
+    judged on its own, through the folder's camera description) and the JetBot-like course
+    rendered (a sequence, driven at 0.2 m/s), with the folder's perception config."""
+    from lanewarden.config import LanewardenConfig, config_from_mapping
+    from lanewarden.perception.calibration import Undistorter, load_calibration
+    from lanewarden.perception.detector import LaneDetector
+    from lanewarden.scenarios.realism import JETBOT_SETS, rendered_jetbot_like, sequence_stats
+
+    described = yaml.safe_load((JETBOT / "camera.yaml").read_text())
+    perception = config_from_mapping({"perception": described["perception"]},
+                                     str(JETBOT / "camera.yaml")).perception
+    confident_min = LanewardenConfig().supervisor.confidence_confident_min
+    detector = LaneDetector(perception, Undistorter(load_calibration(JETBOT / "calibration.yaml")))
+    stats = sequence_stats(detector, real, [i / 20.0 for i in range(len(real))], confident_min,
+                           stills=True)
+    out: list[tuple[str, object, list[np.ndarray]]] = [
+        (f"real: JetBot tape lane ({len(real)} lane stills)", stats,
+         [real[i * len(real) // 4] for i in range(4)] if samples else [])]
+    for name, changes, effects_on in JETBOT_SETS:
+        sequence, camera = rendered_jetbot_like(changes, effects_on, frames)
+        detector = LaneDetector(perception, Undistorter(camera.calibration()))
+        stats = sequence_stats(detector, sequence, [i / 20.0 for i in range(frames)],
+                               confident_min)
+        shown: list[np.ndarray] = []
+        if samples:
+            colour, _ = rendered_jetbot_like(changes, effects_on, 3 * frames // 4 + 1,
+                                             color=True)
             shown = [colour[i * frames // 4] for i in range(4)]
         out.append((name, stats, shown))
     return out
@@ -111,8 +165,9 @@ def table(rows: list[tuple[str, object, list[np.ndarray]]], engage: int) -> str:
             f"| {name} | {s.mean_level:.0f} | {s.rms_contrast:.2f} "  # type: ignore[attr-defined]
             f"| {s.noise_levels:.1f} | {s.edge_density:.3f} "  # type: ignore[attr-defined]
             f"| {s.both_edges_share:.0%} | {s.confident_share:.0%} "  # type: ignore[attr-defined]
-            f"| {runs[len(runs) // 2]} / {s.longest_run} / "  # type: ignore[attr-defined]
-            f"{s.runs_at_least(engage)} |")  # type: ignore[attr-defined]
+            + ("| — (stills) |" if s.stills else  # type: ignore[attr-defined]
+               f"| {runs[len(runs) // 2]} / {s.longest_run} / "  # type: ignore[attr-defined]
+               f"{s.runs_at_least(engage)} |"))  # type: ignore[attr-defined]
     return "\n".join(lines)
 
 
@@ -145,6 +200,10 @@ def main() -> None:
     engage = LanewardenConfig().supervisor.engage_confident_frames
     rows = compare(tub_frames(folder), args.frames, samples=True)
     figure(rows, ROOT / "docs" / "generated" / "realism.png")
+    print(table(rows, engage))
+    print()
+    rows = jetbot(jetbot_frames(), args.frames, samples=True)
+    figure(rows, ROOT / "docs" / "generated" / "realism-jetbot.png")
     print(table(rows, engage))
     print()
     print(table(floors(args.frames), engage))

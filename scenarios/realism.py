@@ -111,6 +111,8 @@ class SequenceStats:
     both_edges_share: float
     confident_share: float
     runs: tuple[int, ...]
+    #: photos, each judged on its own: `runs` mean nothing
+    stills: bool = False
 
     @property
     def longest_run(self) -> int:
@@ -122,16 +124,17 @@ class SequenceStats:
 
 
 def sequence_stats(detector: LaneDetector, frames: Iterable[U8], times_s: Sequence[float],
-                   confident_min: float) -> SequenceStats:
+                   confident_min: float, stills: bool = False) -> SequenceStats:
     """Run `frames` (gray or BGR) through `detector` in order, each with the previous
-    observation, and measure them (see the module docstring)."""
+    observation, and measure them (see the module docstring). `stills`: photos, not a
+    sequence: each frame on its own (no previous observation; its runs mean nothing)."""
     per_frame: list[FrameStats] = []
     both: list[bool] = []
     confident: list[bool] = []
     previous: LaneObservation | None = None
     for index, (frame, time_s) in enumerate(zip(frames, times_s, strict=False)):
         observation = detector.detect(frame, index, time_s, previous)
-        previous = observation
+        previous = None if stills else observation
         gray = perception_gray(frame)
         if detector.undistorter is not None:
             gray = detector.undistorter.apply(gray)
@@ -149,7 +152,7 @@ def sequence_stats(detector: LaneDetector, frames: Iterable[U8], times_s: Sequen
         edge_density=float(np.mean([s.edge_density for s in per_frame])),
         both_edges_share=sum(both) / n,
         confident_share=sum(confident) / n,
-        runs=tuple(confident_runs(confident)))
+        runs=tuple(confident_runs(confident)), stills=stills)
 
 
 def drive_sequence(world: World, renderer: CameraRenderer, frames: int, rate_hz: float,
@@ -242,6 +245,42 @@ def _render(spec: ScenarioSpec, camera: CameraModel, effects_on: bool, frames: i
             highlights = Highlights(ceiling, camera, spec.floor.roughness_rad)
     renderer = CameraRenderer(texture, camera, seed=seed, effects=effects, highlights=highlights)
     return drive_sequence(world, renderer, frames, rate_hz, speed_m_s, seed, color), camera
+
+
+# ---- a rendered course of the JetBot tape lane's kind -----------------------------------------
+#: The repo's real JetBot frames (data/real/jetbot-tape-lane) as a scenario: black 19 mm tape,
+#: 0.19 m apart, with sharp corners, on a light wooden floor; its camera as that folder's
+#: camera.yaml and calibration.yaml describe it (224x224, about 100 deg, 0.125 m up, pitched 18
+#: deg; the real one is a squeezed fisheye, here square pixels and no distortion).
+JETBOT_LIKE: dict[str, object] = {
+    "name": "jetbot-like",
+    "floor": {"kind": "wood", "color": "#c9ab8a"},
+    "tape": {"width_m": 0.019, "color": "#1c1c1e"},
+    "lane": {"width_m": 0.19,
+             "segments": [{"straight_m": 0.8}, {"arc_radius_m": 0.2, "turn_deg": 90},
+                          {"straight_m": 0.6}, {"arc_radius_m": 0.2, "turn_deg": -90},
+                          {"straight_m": 0.8}]},
+    "camera": {"width_px": 224, "height_px": 224, "hfov_deg": 100.0, "height_m": 0.125,
+               "pitch_deg": 18.0, "forward_m": 0.0, "distortion": [0.0, 0.0, 0.0, 0.0, 0.0]},
+}
+
+#: The rendered sets compared with the real JetBot frames: (name, changes, camera effects on).
+JETBOT_SETS: tuple[tuple[str, dict[str, object], bool], ...] = (
+    ("rendered, no camera effects", {}, False),
+    ("rendered, Pi camera", {}, True),
+)
+
+
+def rendered_jetbot_like(changes: dict[str, object], effects_on: bool, frames: int,
+                         rate_hz: float = 20.0, speed_m_s: float = 0.2, seed: int = 0,
+                         color: bool = False) -> tuple[list[U8], CameraModel]:
+    """`frames` frames of the JetBot-like course with `changes` (see `rendered_tub_like`)."""
+    from lanewarden.scenarios.simulator import camera_model_of
+
+    spec = parse_scenario(merge_overrides(JETBOT_LIKE, changes), "jetbot-like")
+    assert spec.camera is not None and spec.camera.width_px and spec.camera.height_px
+    camera = camera_model_of(spec.camera, spec.camera.width_px, spec.camera.height_px)
+    return _render(spec, camera, effects_on, frames, rate_hz, speed_m_s, seed, color, 1.5)
 
 
 #: Floors compared through the simulator's default camera (320x240) on a straight lane: (name,

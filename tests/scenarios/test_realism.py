@@ -1,6 +1,7 @@
 """The realism statistics (scenarios.realism) measure what they say, and docs/scenarios.md's
 "Does it look real?" tables are what `python benchmarks/realism.py` computes now (the real
-Donkeycar frames from the shared data folder: skipped without it). Heavy: the two tables render
+Donkeycar frames from the shared data folder: skipped without it; the real JetBot frames from
+the repo's data/real). Heavy: the two tables render
 and analyse some 2500 frames (about 30 s on the development machine)."""
 
 from __future__ import annotations
@@ -93,3 +94,9 @@ def test_the_docs_real_frames_table_is_current() -> None:
     bench = _benchmark()
     rows = bench.compare(bench.tub_frames(folder), bench.FRAMES)
     _assert_matches(_doc_table("tub"), bench.table(rows, ENGAGE))
+
+
+def test_the_docs_jetbot_table_is_current() -> None:
+    bench = _benchmark()
+    rows = bench.jetbot(bench.jetbot_frames(), bench.FRAMES)
+    _assert_matches(_doc_table("jetbot"), bench.table(rows, ENGAGE))
