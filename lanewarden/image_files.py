@@ -39,16 +39,24 @@ def too_many_pixels(width: int, height: int, max_pixels: int) -> str:
             f"{LIMIT_KEY} ({max_pixels})")
 
 
-def header_size(path: Path) -> tuple[int, int] | None:
-    """The image's (width, height) from its file header, without decoding it; None when Pillow
-    cannot tell (a format it does not read, a damaged header, a decompression bomb)."""
+def _opened_size(path: Path | IO[bytes]) -> tuple[int, int] | None:
+    """(width, height) from the file's header, without decoding; None when Pillow cannot tell
+    (a format it does not read, a damaged header). Raises Pillow's DecompressionBombError."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             with Image.open(path) as image:
                 return int(image.size[0]), int(image.size[1])
-    except (Image.DecompressionBombError, UnidentifiedImageError, OSError, ValueError,
-            SyntaxError):
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+        return None
+
+
+def header_size(path: Path) -> tuple[int, int] | None:
+    """The image's (width, height) from its file header, without decoding it; None when Pillow
+    cannot tell (a format it does not read, a damaged header, a decompression bomb)."""
+    try:
+        return _opened_size(path)
+    except Image.DecompressionBombError:
         return None
 
 
@@ -57,19 +65,14 @@ def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
     large, judged from its header without decoding it; '' when it is within the limit or its
     format is not one Pillow reads (it is then checked once decoded)."""
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(path) as image:
-                width, height = image.size
+        size = _opened_size(path)
     except Image.DecompressionBombError as exc:
         # Pillow's own limit, far above the largest max_image_pixels allowed; its message
         # ("Image size (10000000000 pixels) exceeds limit of ...") has the count, not the sides
         count = re.search(r"\((\d+) pixels\)", str(exc))
         pixels = f"{count.group(1)} pixels" if count else "more pixels than Pillow opens"
         return f"image has {pixels}, more than {LIMIT_KEY} ({max_pixels})"
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
-        return ""
-    return too_many_pixels(int(width), int(height), max_pixels)
+    return "" if size is None else too_many_pixels(size[0], size[1], max_pixels)
 
 
 #: The pixel limit when a command has no config to take `perception.max_image_pixels` from: its

@@ -30,7 +30,13 @@ from pathlib import Path
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
-from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_problem, header_size
+from lanewarden.image_files import (
+    IMAGE_SUFFIXES,
+    file_problem,
+    header_problem,
+    header_size,
+    too_many_pixels,
+)
 from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -39,7 +45,7 @@ from lanewarden.survey import (
     LabelsTable,
     parse_labels,
 )
-from lanewarden.wording import counted
+from lanewarden.wording import counted, first_few
 
 LABELS_NAME = "labels.csv"
 FOLDER_HELP = (f"a folder with lane/ and no-lane/ sub-folders of images, or with a {LABELS_NAME}"
@@ -110,7 +116,7 @@ def _class_folders(folder: Path) -> list[StillFrame]:
     subs = sorted(p for p in folder.iterdir() if p.is_dir())
     loose = image_sequence_paths(str(folder)) or []
     if loose and any(sub.name in by_folder for sub in subs):
-        names = ", ".join(p.name for p in loose[:3]) + (", ..." if len(loose) > 3 else "")
+        names = first_few([p.name for p in loose])
         raise UsageError(f"FOLDER '{folder}': {counted(len(loose), 'image')} beside lane/ and "
                          "no-lane/ "
                          f"({names}); expected every image in lane/ or no-lane/ (or a "
@@ -243,6 +249,11 @@ def _labelled_frames(source: ReplaySource, table: LabelsTable
     return labelled, skipped
 
 
+def _class_folder_names(path: Path) -> list[str]:
+    """The class folders (lane, no-lane) `path` holds."""
+    return [name for name in CLASS_FOLDERS.values() if (path / name).is_dir()]
+
+
 def _name(folder: Path) -> str:
     """The folder's own name, also for '.' or '..'."""
     name = folder.name if folder.name not in ("", ".", "..") else folder.resolve().name
@@ -253,14 +264,17 @@ def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
     """Every image within the pixel limit, and all of one size: a survey judges one camera (a
     frame of another size was another camera, or a crop, and would be judged through the wrong
     ground model)."""
-    problems = [f"{name}: {why}" for name, path in paths
-                if (why := header_problem(path, max_pixels))]
+    problems: list[str] = []
+    sizes: dict[tuple[int, int], list[str]] = {}
+    for name, path in paths:  # each header read once (header_problem only for the unsized)
+        size = header_size(path)
+        if size is not None:
+            sizes.setdefault(size, []).append(name)
+        if why := (too_many_pixels(size[0], size[1], max_pixels) if size is not None
+                   else header_problem(path, max_pixels)):
+            problems.append(f"{name}: {why}")
     if problems:
         raise InputFileError(problems_line("frames cannot be used", len(paths), problems))
-    sizes: dict[tuple[int, int], list[str]] = {}
-    for name, path in paths:
-        if (size := header_size(path)) is not None:
-            sizes.setdefault(size, []).append(name)
     if len(sizes) > 1:
         ranked = sorted(sizes.items(), key=lambda item: -len(item[1]))
         listed = "; ".join(f"{w}x{h}: {counted(len(names), 'frame')} ({names[0]}"
@@ -283,8 +297,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
             raise UsageError(f"FOLDER '{folder}': a file; a video or a run needs --labels FILE "
                              f"(frames,expect[,note]); expected {FOLDER_HELP}")
         if (path / LABELS_NAME).is_file():
-            classes = [n for n in CLASS_FOLDERS.values() if (path / n).is_dir()]
-            if classes:
+            if classes := _class_folder_names(path):
                 raise UsageError(f"FOLDER '{folder}': has both {LABELS_NAME} and "
                                  f"{'/ and '.join(classes)}/: keep one way of labelling, or "
                                  "name the labels with --labels")
@@ -307,8 +320,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",
                             stills=stills, unlabelled=_unlabelled(path, stills))
-    classes = [n for n in CLASS_FOLDERS.values() if (path / n).is_dir()]
-    if classes:
+    if classes := _class_folder_names(path):
         raise UsageError(f"FOLDER '{folder}': {table.source} labels frame numbers "
                          f"(frames,expect) of a recording, but FOLDER holds "
                          f"{'/ and '.join(classes)}/ of photos: label the photos by file "

@@ -79,7 +79,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
     from lanewarden.survey_source import open_survey_source
-    from lanewarden.wording import counted
+    from lanewarden.wording import counted, first_few
 
     config = load_config(config_path)
     config_origin = config_path or "defaults"
@@ -164,9 +164,8 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
             click.echo(line)
     notes = survey_notes(figures, calibration is not None)
     if source.unlabelled:
-        shown = ", ".join(source.unlabelled[:3]) + (", ..." if len(source.unlabelled) > 3 else "")
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
-                     f"labels file, not surveyed ({shown})")
+                     f"labels file, not surveyed ({first_few(source.unlabelled)})")
     if source.skipped:
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "
