@@ -51,19 +51,10 @@ def _opened_size(path: Path | IO[bytes]) -> tuple[int, int] | None:
         return None
 
 
-def header_size(path: Path) -> tuple[int, int] | None:
-    """The image's (width, height) from its file header, without decoding it; None when Pillow
-    cannot tell (a format it does not read, a damaged header, a decompression bomb)."""
-    try:
-        return _opened_size(path)
-    except Image.DecompressionBombError:
-        return None
-
-
-def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
-    """Why the image file (a path, or an open binary file such as `io.BytesIO(data)`) is too
-    large, judged from its header without decoding it; '' when it is within the limit or its
-    format is not one Pillow reads (it is then checked once decoded)."""
+def header_facts(path: Path | IO[bytes], max_pixels: int) -> tuple[tuple[int, int] | None, str]:
+    """From one read of the image file's header, without decoding it: its (width, height) or
+    None when Pillow cannot tell, and why it is too large ('' when within the limit or unknown:
+    it is then checked once decoded)."""
     try:
         size = _opened_size(path)
     except Image.DecompressionBombError as exc:
@@ -71,8 +62,15 @@ def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
         # ("Image size (10000000000 pixels) exceeds limit of ...") has the count, not the sides
         count = re.search(r"\((\d+) pixels\)", str(exc))
         pixels = f"{count.group(1)} pixels" if count else "more pixels than Pillow opens"
-        return f"image has {pixels}, more than {LIMIT_KEY} ({max_pixels})"
-    return "" if size is None else too_many_pixels(size[0], size[1], max_pixels)
+        return None, f"image has {pixels}, more than {LIMIT_KEY} ({max_pixels})"
+    return size, "" if size is None else too_many_pixels(size[0], size[1], max_pixels)
+
+
+def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
+    """Why the image file (a path, or an open binary file such as `io.BytesIO(data)`) is too
+    large, judged from its header without decoding it; '' when it is within the limit or its
+    format is not one Pillow reads (it is then checked once decoded)."""
+    return header_facts(path, max_pixels)[1]
 
 
 #: The pixel limit when a command has no config to take `perception.max_image_pixels` from: its

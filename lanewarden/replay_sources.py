@@ -46,6 +46,7 @@ from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import (
     file_problem,
+    header_facts,
     header_problem,
     png_damage,
     read_image,
@@ -630,17 +631,14 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
 
 def _one_size(paths: list[Path], source: str, max_pixels: int) -> None:
     """UsageError unless the images are of one size (from their headers, within the limit)."""
-    from PIL import Image, UnidentifiedImageError
-
     sizes: dict[tuple[int, int], Path] = {}
     for path in paths:
-        if problem := header_problem(path, max_pixels):
+        size, problem = header_facts(path, max_pixels)  # one read of each header
+        if problem:
             raise InputFileError(f"{path}: {problem}")
-        try:
-            with Image.open(path) as image:
-                sizes.setdefault((int(image.size[0]), int(image.size[1])), path)
-        except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+        if size is None:
             continue  # a format Pillow does not know: judged when decoded
+        sizes.setdefault(size, path)
         if len(sizes) > 1:
             (a, path_a), (b, path_b) = list(sizes.items())[:2]
             raise UsageError(

@@ -30,13 +30,7 @@ from pathlib import Path
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
-from lanewarden.image_files import (
-    IMAGE_SUFFIXES,
-    file_problem,
-    header_problem,
-    header_size,
-    too_many_pixels,
-)
+from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_facts
 from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -266,12 +260,11 @@ def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
     ground model)."""
     problems: list[str] = []
     sizes: dict[tuple[int, int], list[str]] = {}
-    for name, path in paths:  # each header read once (header_problem only for the unsized)
-        size = header_size(path)
+    for name, path in paths:
+        size, why = header_facts(path, max_pixels)  # one read of each header
         if size is not None:
             sizes.setdefault(size, []).append(name)
-        if why := (too_many_pixels(size[0], size[1], max_pixels) if size is not None
-                   else header_problem(path, max_pixels)):
+        if why:
             problems.append(f"{name}: {why}")
     if problems:
         raise InputFileError(problems_line("frames cannot be used", len(paths), problems))
