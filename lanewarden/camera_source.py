@@ -27,6 +27,7 @@ from lanewarden.documents import shorten
 from lanewarden.errors import DeviceError, UsageError
 from lanewarden.image_files import (
     DEFAULT_MAX_PIXELS,
+    IMAGE_SUFFIXES,
     header_problem,
     read_image,
     too_many_pixels,
@@ -50,8 +51,6 @@ def quiet_opencv() -> Iterator[None]:
 MAX_CAMERA_INDEX = 9999
 _URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
 _GLOB_CHARS = re.compile(r"[*?\[]")
-#: File name endings read as images in a folder or glob sequence.
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
 
 
 class CameraLost(Exception):

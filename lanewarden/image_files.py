@@ -25,7 +25,8 @@ from PIL import Image, UnidentifiedImageError
 from lanewarden.documents import NOT_A_REGULAR_FILE
 from lanewarden.perception.config import PerceptionConfig
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+#: File name endings read as images (a folder or glob of frames, a survey's class folders).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
 
 #: The config key of the limit, named in the messages.
 LIMIT_KEY = "perception.max_image_pixels"
