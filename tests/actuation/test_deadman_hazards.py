@@ -196,15 +196,19 @@ def test_the_deadman_keeps_commands_inside_the_envelope(standin: KobukiStandIn,
                                                         kobuki: KobukiBase) -> None:
     # a control process asking for the full 0.7 m/s at once gets the dead-man's 1 m/s^2 ramp
     _drive_until_mode(kobuki, DeadmanMode.ARMED)
-    mark = len(standin.snapshot())
-    _drive_until(kobuki, lambda: (700, 0) in _controls_from(standin, mark),
+    _drive_until(kobuki, lambda: (700, 0) in _controls_from(standin, 0),
                  "it never reached the commanded speed", VelocityCommand(0.7, 0.0))
     kobuki.send(STOP, time.monotonic())
-    speeds = [speed for speed, _ in _controls_from(standin, mark) if speed > 0]
-    ramp = speeds[:speeds.index(700) + 1]
-    # 20 mm/s more per 20 ms packet (+-1: the protocol truncates to whole mm/s), never a jump
-    assert len(ramp) >= 34
+    # the whole climb from standstill: arming forwards MOVE's first steps (how many depends on
+    # when the test sees ARMED), then 0.7 m/s continues the same ramp
+    speeds = [speed for speed, _ in _controls_from(standin, 0)]
+    top = speeds.index(700)
+    last_stop = top - speeds[top::-1].index(0)
+    ramp = speeds[last_stop:top + 1]
+    # 20 mm/s more per 20 ms packet (+-1: the protocol truncates to whole mm/s), never a jump:
+    # so at least 700 / 21 packets from 0 to 700
     assert all(0 < later - earlier <= 21 for earlier, later in zip(ramp, ramp[1:], strict=False))
+    assert ramp[0] == 0 and len(ramp) - 1 >= 34
 
 
 # ---- `run`: the gate halts on the dead-man's latch and the summary names it -------------------
