@@ -22,6 +22,11 @@ Components (each in [0, 1], all reported in `LaneObservation.components`):
   edges are not lines of one and the same tape. Else 0; always a full gate. One tape's two
   edges, a light floor strip taken for a tape beside a dark one, or an edge whose brightness
   says nothing (polarity 0) never make a lane.
+- `heading`: 1 when the lane (the line midway between the two edges on the floor) runs within
+  `lane.max_heading_deg` of the robot's heading, else 0; always a full gate. A robot following
+  its lane never faces it that steeply (the simulator's courses stay within 25 degrees); a pair
+  seen across the view is a corner to find again, not a lane to steer along, and the lecture's
+  slope sum, which cannot tell, would drive across the tape in front.
 - `consistency`: agreement with the previous observation (each reported edge's position and
   direction on the floor), when one is given; 1 when there is none or nothing to compare
   (neutral).
@@ -30,7 +35,7 @@ Combination (a weighted geometric product, weights in `confidence.weights`):
 
     confidence = both_sides^w_b * support_left^(w_s/2) * support_right^(w_s/2) * lane_width^w_w
                  * parallel^w_p * tape_pair_left^(w_t/2) * tape_pair_right^(w_t/2)
-                 * verified_tape * floor_between * consistency^w_c
+                 * verified_tape * floor_between * heading * consistency^w_c
 
 A weight of 1 makes a component a full gate (a 0 forces confidence 0), smaller weights soften it,
 0 ignores it. Per-side components share their weight. Components that need both edges are 0 when
@@ -66,6 +71,7 @@ COMPONENT_NAMES = (
     "tape_pair_right",
     "verified_tape",
     "floor_between",
+    "heading",
     "consistency",
 )
 
@@ -122,9 +128,12 @@ def lane_components(
         "tape_pair_right": right.tape_score if right is not None else 0.0,
         "verified_tape": 1.0 if any(e is not None and e.verified for e in (left, right)) else 0.0,
         "floor_between": 0.0,
+        "heading": 0.0,
     }
     if left is not None and right is not None:
         comps["floor_between"] = floor_between(left, right)
+        heading_deg = math.degrees(abs(lane_heading_rad(left.direction, right.direction)))
+        comps["heading"] = 1.0 if heading_deg <= config.lane.max_heading_deg else 0.0
         gap = 0.5 * (distance_to_line(left.point, right.point, right.direction)
                      + distance_to_line(right.point, left.point, left.direction))
         tape = config.tape
@@ -138,6 +147,12 @@ def lane_components(
         comps["parallel"] = _ramp(floor_angle_deg(left.direction, right.direction),
                                   config.lane.parallel_tolerance_deg)
     return comps
+
+
+def lane_heading_rad(left: Point, right: Point) -> float:
+    """The direction of the line midway between two edges with floor directions `left` and
+    `right` (unit vectors away from the robot): radians from the robot's heading, left +."""
+    return math.atan2(left[1] + right[1], left[0] + right[0])
 
 
 def floor_between(left: EdgeEvidence, right: EdgeEvidence) -> float:
@@ -204,6 +219,7 @@ def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
         "tape_pair_right": w.tape_pair / 2.0,
         "verified_tape": 1.0,
         "floor_between": 1.0,
+        "heading": 1.0,
         "consistency": w.consistency,
     }
     total = 1.0

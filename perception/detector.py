@@ -55,6 +55,7 @@ from lanewarden.perception.confidence import (
     consistency_component,
     frozen_components,
     lane_components,
+    lane_heading_rad,
 )
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.edge_choice import SideChoice, choose_edges
@@ -416,9 +417,7 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
 def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]:
     """(offset, heading) of the line midway between the two edges on the floor: its signed
     distance from the robot's centre (left +) and its direction (radians, left +)."""
-    dx = left.direction[0] + right.direction[0]
-    dy = left.direction[1] + right.direction[1]
-    heading = math.atan2(dy, dx)
+    heading = lane_heading_rad(left.direction, right.direction)
     d = (math.cos(heading), math.sin(heading))
     offset = 0.5 * (signed_offset(left.point, d) + signed_offset(right.point, d))
     return offset, heading

@@ -247,6 +247,8 @@ class LaneConfig(DocumentModel):
     - `parallel_tolerance_deg`: the `parallel` component scores 1 while the two edges' directions
       on the floor differ by at most this, 0 at twice (lane edges are parallel; random lines
       are not).
+    - `max_heading_deg`: the `heading` component (a full gate) is 0 when the lane runs more than
+      this from the robot's heading: a lane seen across the view is not one to steer along.
     """
 
     model_config = _FROZEN
@@ -272,6 +274,13 @@ class LaneConfig(DocumentModel):
         description=(
             "parallel scores 1 while the two edges' directions on the floor differ by at most "
             "this, 0 at twice it, degrees"
+        ),
+    )
+    max_heading_deg: Annotated[float, Field(gt=0.0, le=90.0)] = Field(
+        default=45.0,
+        description=(
+            "no lane (confidence 0) when the lane runs more than this from the robot's heading, "
+            "degrees"
         ),
     )
 

@@ -110,7 +110,8 @@ def _components(**overrides: float) -> MappingProxyType[str, float]:
 def test_confidence_is_a_weighted_geometric_product() -> None:
     assert COMPONENT_NAMES == (
         "both_sides", "support_left", "support_right", "lane_width", "parallel",
-        "tape_pair_left", "tape_pair_right", "verified_tape", "floor_between", "consistency",
+        "tape_pair_left", "tape_pair_right", "verified_tape", "floor_between", "heading",
+        "consistency",
     )
     config = PerceptionConfig()
     assert combine(_components(), config) == 1.0

@@ -12,6 +12,7 @@ robot's centre), so each case states its geometry in metres.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from functools import cache
 
@@ -270,6 +271,29 @@ def test_a_lane_encloses_floor_not_a_tape(left: EdgeEvidence, right: EdgeEvidenc
         assert confidence > 0.7
     else:
         assert confidence == 0.0
+
+
+@pytest.mark.parametrize(("heading_deg", "lane"), [
+    (0.0, True), (25.0, True), (-44.0, True), (46.0, False), (-48.6, False), (60.0, False)])
+def test_a_lane_seen_across_the_view_is_no_lane(heading_deg: float, lane: bool) -> None:
+    """`heading` is a full gate: a lane running more than `lane.max_heading_deg` (45) from the
+    robot's heading is not one to steer along. The real JetBot frame this comes from: a tape
+    in front at 48.6 degrees, paired with a sliver of the other line at the border, "straight"
+    at 0.39. The simulator's courses stay within 25 degrees."""
+    turn = math.radians(heading_deg)
+    c, s_ = math.cos(turn), math.sin(turn)
+
+    def turned(edge: EdgeEvidence) -> EdgeEvidence:
+        (x, y), (dx, dy) = edge.point, edge.direction
+        return dataclasses.replace(edge, point=(c * x - s_ * y, s_ * x + c * y),
+                                   direction=(c * dx - s_ * dy, s_ * dx + c * dy))
+
+    comps = lane_components(height_px=480, left=turned(_edge(True, 1.0, 0.276)),
+                            right=turned(_edge(True, 1.0, -0.276)), config=CONFIG)
+    assert comps["lane_width"] == 1.0 and comps["parallel"] == 1.0
+    assert comps["floor_between"] == 1.0
+    assert comps["heading"] == (1.0 if lane else 0.0)
+    assert combine({**comps, "consistency": 1.0}, CONFIG) == (1.0 if lane else 0.0)
 
 
 def test_border_edges_alone_give_no_confidence_in_a_frame() -> None:
