@@ -15,6 +15,12 @@ Nothing stored is lost to damage (a bad disk, a copy cut short, a page overwritt
   to `results.unstored.jsonl` beside it instead, and the campaign stops with one line; the next
   campaign in that directory stores those rows first.
 
+Another program may read the file while a campaign writes it (`sqlite3`, a database viewer, a
+script): a reader holds SQLite's shared lock while it reads, and each write waits for it, up to
+`LOCK_WAIT_S` (SQLite's busy timeout; Python's default is 5 s, and a campaign once stopped on a
+reader's loop). A reader that keeps its lock longer still makes the write fail: the row is kept
+as above, and the one line says the file is locked by another program.
+
 Never runs anything; only the campaign shell writes here.
 """
 
@@ -39,6 +45,8 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 )
 COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
 _SELECT = f"SELECT {', '.join(COLUMN_NAMES)} FROM runs"
+#: How long a write waits for another program's read of the file to end, seconds.
+LOCK_WAIT_S = 600.0
 #: Rows that could not be written, beside the database (a name of its own, never overwritten).
 UNSTORED_SUFFIX = ".unstored.jsonl"
 DAMAGED_SUFFIX = ".damaged"
@@ -56,11 +64,19 @@ def _problem(exc: sqlite3.Error) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+def _locked(exc: sqlite3.Error) -> bool:
+    """Whether a write failed only because another connection held the file's lock."""
+    return isinstance(exc, sqlite3.OperationalError) and any(
+        word in str(exc) for word in ("database is locked", "database is busy"))
+
+
 class ResultStore:
     """DIR/results.sqlite. Use as a context manager. `recover`: see the module docstring."""
 
-    def __init__(self, path: Path, *, recover: bool = False) -> None:
+    def __init__(self, path: Path, *, recover: bool = False,
+                 lock_wait_s: float = LOCK_WAIT_S) -> None:
         self.path = path
+        self._lock_wait_s = lock_wait_s
         self.recovered: Recovery | None = None
         self.unstored_path = path.with_name(path.name + UNSTORED_SUFFIX)
         problem = _damage(path) if path.exists() else None
@@ -73,7 +89,7 @@ class ResultStore:
                     "read and rerun the rest")
             self.recovered = _recover(path)
         try:
-            self._db = sqlite3.connect(path)
+            self._db = sqlite3.connect(path, timeout=lock_wait_s)
             self._db.execute(f"CREATE TABLE IF NOT EXISTS runs "
                              f"({', '.join(f'{n} {t}' for n, t in COLUMNS)})")
             # A results file from before a column existed gets it (empty for its old rows).
@@ -130,6 +146,12 @@ class ResultStore:
             self._db.commit()
         except sqlite3.Error as exc:
             kept = self._keep_unstored(row)
+            if _locked(exc):
+                raise DamagedResults(
+                    f"{self.path}: cannot store run {row.get('id')}: another program kept the "
+                    f"file locked for longer than {self._lock_wait_s:g} s (a reader that holds "
+                    f"its query open): {kept}; close it and run the same command again"
+                ) from None
             raise DamagedResults(
                 f"{self.path}: cannot store run {row.get('id')} ({_problem(exc)}): {kept}; run "
                 "the same command again (with --recover if the database is damaged)") from None
