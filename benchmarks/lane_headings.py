@@ -24,15 +24,13 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from lanewarden.config import LanewardenConfig  # noqa: E402
+
 LIBRARY = ROOT / "scenarios" / "library"
 SIZES = ((640, 480), (320, 240))
-
-
-def _usable_min() -> float:
-    sys.path.insert(0, str(ROOT))
-    from lanewarden.config import LanewardenConfig
-
-    return LanewardenConfig().supervisor.confidence_usable_min
+USABLE = LanewardenConfig().supervisor.confidence_usable_min
 
 
 def steepest(job: tuple[str, tuple[int, int], str]) -> tuple[str, str, int, float | None]:
@@ -47,11 +45,10 @@ def steepest(job: tuple[str, tuple[int, int], str]) -> tuple[str, str, int, floa
     subprocess.run([sys.executable, "-m", "lanewarden", "sim", "--scenario", str(scenario),
                     "--out", str(out / "run"), "--no-video", "--quiet"],
                    check=False, capture_output=True)
-    usable = _usable_min()
     headings = []
     for line in (out / "run" / "run.jsonl").read_text(encoding="utf-8").splitlines():
         seen = json.loads(line).get("observation") or {}
-        if seen.get("lane_heading_rad") is not None and seen["confidence"] >= usable:
+        if seen.get("lane_heading_rad") is not None and seen["confidence"] >= USABLE:
             headings.append(abs(math.degrees(seen["lane_heading_rad"])))
     return name, f"{width}x{height}", len(headings), max(headings, default=None)
 

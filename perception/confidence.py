@@ -23,10 +23,10 @@ Components (each in [0, 1], all reported in `LaneObservation.components`):
   edges, a light floor strip taken for a tape beside a dark one, or an edge whose brightness
   says nothing (polarity 0) never make a lane.
 - `heading`: 1 when the lane (the line midway between the two edges on the floor) runs within
-  `lane.max_heading_deg` of the robot's heading, else 0; always a full gate. A robot following
-  its lane never faces it that steeply (the simulator's courses stay within 25 degrees); a pair
-  seen across the view is a corner to find again, not a lane to steer along, and the lecture's
-  slope sum, which cannot tell, would drive across the tape in front.
+  `lane.max_heading_deg` of the robot's heading, else 0; always a full gate. In the simulator's
+  courses a robot following its lane stays within 25 degrees (benchmarks/lane_headings.py); a
+  pair seen across the view is a corner to find again, not a lane to steer along, and the
+  lecture's slope sum may read it as straight and steer across the tape in front.
 - `consistency`: agreement with the previous observation (each reported edge's position and
   direction on the floor), when one is given; 1 when there is none or nothing to compare
   (neutral).

@@ -65,9 +65,10 @@ def _problem(exc: sqlite3.Error) -> str:
 
 
 def _locked(exc: sqlite3.Error) -> bool:
-    """Whether a write failed only because another connection held the file's lock."""
-    return isinstance(exc, sqlite3.OperationalError) and any(
-        word in str(exc) for word in ("database is locked", "database is busy"))
+    """Whether a write failed only because another connection held the file's lock (SQLite's
+    SQLITE_BUSY or SQLITE_LOCKED, extended codes included)."""
+    code = getattr(exc, "sqlite_errorcode", None)
+    return code is not None and code & 0xFF in (sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED)
 
 
 class ResultStore:
