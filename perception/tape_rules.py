@@ -10,7 +10,8 @@ ends, the lecture's pipeline follows tile seams; these rules are what refuse the
    falling back to 0 above the widest tape. Where the two hypotheses overlap (far away, coarse
    pixels) nothing scores: the camera cannot tell, so nothing passes as tape.
 2. Band (`band_is_tape`): between the two edges a uniform band, darker (or lighter) than the floor
-   beyond BOTH edges by more than those two floor samples differ from each other. A band with a
+   beyond BOTH edges by more than half what those two floor samples differ from each other (one
+   floor, shaded: `FLOOR_SHADE`). A band with a
    tape edge inside it fails (not uniform), so does a floor strip with tape on one side and floor
    on the other. (A light strip between a dark tape and a wide seam does look like a light tape:
    the choice of tapes rejects it, both tapes of a lane being of one kind.)
@@ -39,6 +40,15 @@ from lanewarden.perception.lines import LineRow
 
 #: A lone edge's profile is only read where the tape spans at least this many pixels.
 MIN_PROFILE_TAPE_PX = 3.0
+
+#: One floor, shaded: the floor on the two sides of a tape may differ by up to this many times
+#: the tape's own step from the floor. A real camera's picture darkens towards its sides
+#: (vignetting, light falling off towards the walls): the JetBot set's left tape reads 32-58 grey
+#: levels between a floor of 71-79 outside the lane and 97-131 inside it; of the band samples a
+#: rule of one unshaded floor (a factor of 1) refused there, nine in ten had floors less than
+#: twice the step apart. Past twice the step, the band is a dark strip between two floors (a
+#: baseboard between a wall and the floor, a dark plank between two others).
+FLOOR_SHADE = 2.0
 
 
 @dataclass(frozen=True)
@@ -102,7 +112,8 @@ def band_is_tape(
     """Whether the band between lines a and b (image rows y_lo..y_hi) looks like tape: along
     enough of it, the band (at a quarter, half and three quarters across) is darker (or
     lighter) than the floor beyond BOTH edges by more than `min_contrast_levels`; the band
-    varies across, and the floor differs between its two sides, by less than that step. The
+    varies across by less than that step, and the floor differs between its two sides by less
+    than `FLOOR_SHADE` times it (one floor, shaded). The
     floor beyond each edge is read 0.3 and 0.6 band widths out and the more floor-like of the
     two counts (the lighter one beside a dark band), so a seam running close beside a tape does
     not hide the floor. Samples whose outside points are all outside the image don't count
@@ -141,13 +152,13 @@ def band_is_tape(
         band_min, band_max = min(band), max(band)
         spread = band_max - band_min
         # Beside a dark band the lighter floor point of each side counts, beside a light band
-        # the darker one; the floor on both sides must be one floor.
+        # the darker one; the floor on both sides must be one floor, shaded at most FLOOR_SHADE.
         step = min(left[0], right[0]) - band_max
-        if step > c and spread < step and abs(left[0] - right[0]) < step:
+        if step > c and spread < step and abs(left[0] - right[0]) < FLOOR_SHADE * step:
             tape_like += 1
             continue
         step = band_min - max(left[1], right[1])
-        if step > c and spread < step and abs(left[1] - right[1]) < step:
+        if step > c and spread < step and abs(left[1] - right[1]) < FLOOR_SHADE * step:
             tape_like += 1
     return seen > 0 and tape_like >= tape.min_band_fraction * seen
 
@@ -185,8 +196,9 @@ def tape_profile_fraction(
     the INNER edge of a tape: a quarter, half and three quarters of a tape width outwards (on
     the floor, left for a left edge) the brightness is uniform and differs, in the same
     direction, from both the lane floor half a width inwards and the floor 1.75 widths outwards,
-    by more than those two floor samples differ from each other. A seam fails (the floor just
-    beyond it is floor again), so does, mostly, a boundary between two floor shades. Points
+    by more than half what those two floor samples differ from each other (`FLOOR_SHADE`). A
+    seam fails (the floor just beyond it is floor again), so does, mostly, a boundary between two
+    floor shades. Points
     where the tape would span fewer than MIN_PROFILE_TAPE_PX pixels are skipped. None when most
     samples fall outside the image (a tape at the image border: its far side cannot be seen)."""
     height, width = smooth_gray.shape[:2]
@@ -226,7 +238,8 @@ def tape_profile_fraction(
         seen += 1
         floor = (inner, beyond)
         step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
-        if step > c and max(b1, b2, b3) - min(b1, b2, b3) < step and abs(inner - beyond) < step:
+        spread = max(b1, b2, b3) - min(b1, b2, b3)
+        if step > c and spread < step and abs(inner - beyond) < FLOOR_SHADE * step:
             tape_like += 1
     if seen == 0 or hidden > seen:
         return None if hidden else 0.0

@@ -25,12 +25,22 @@ def _band_rows(a: LineRow, b: LineRow) -> tuple[float, float]:
 
 
 def test_a_dark_band_between_a_floor_and_a_darker_floor_is_not_tape() -> None:
-    """Darker than both sides by 65 grey levels, but the two sides differ by 70: two floors."""
-    picture = floor_picture([(TAPE_LO, TAPE_HI, DARK), (0.15, TAPE_LO, 110)])
+    """Darker than both sides by 35 grey levels (45 between 80 and 180), but the two sides
+    differ by 100, more than twice that: two floors, not one floor shaded."""
+    picture = floor_picture([(TAPE_LO, TAPE_HI, DARK), (0.15, TAPE_LO, 80)])
     a, b = along(TAPE_LO, 1.0), along(TAPE_HI, -1.0)
     assert band_is_tape(picture, a, b, *_band_rows(a, b), TAPE) is False
     even = floor_picture([(TAPE_LO, TAPE_HI, DARK), (0.15, TAPE_LO, 170)])  # one floor: tape
     assert band_is_tape(even, a, b, *_band_rows(a, b), TAPE) is True
+
+
+def test_a_tape_on_a_shaded_floor_is_tape() -> None:
+    """The JetBot set's left tape, in levels: a band of 45 between the lane's floor (120) and a
+    floor darkened towards the picture's side (75). The sides differ by 45, more than the band's
+    step (30) but less than twice it: one floor, shaded."""
+    picture = floor_picture([(TAPE_LO, TAPE_HI, DARK), (0.15, TAPE_LO, 120), (TAPE_HI, 0.6, 75)])
+    a, b = along(TAPE_LO, 1.0), along(TAPE_HI, -1.0)
+    assert band_is_tape(picture, a, b, *_band_rows(a, b), TAPE) is True
 
 
 def test_a_band_darker_than_one_side_only_is_not_tape() -> None:

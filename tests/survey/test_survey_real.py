@@ -99,17 +99,18 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     short sliver at the frame's edge, through the real CLI (CI runs it): SAFE (exit 0), no
     decision on any no-lane frame. Until the `heading` gate it was NOT SAFE: a tape in front at
     48.6 degrees paired with a sliver of the other line at the border gave "straight" at 0.39
-    (docs/perception.md). How useful: floors under today's figures (139 of the 338 lane frames
-    with a decision, 136 confident; the supervisor engages on 101 of them)."""
+    (docs/perception.md). How useful: floors under today's figures (213 of the 338 lane frames
+    with a decision, 204 confident; the supervisor engages on 139 of them; before one floor
+    could be shaded, `tape_rules.FLOOR_SHADE`, 139, 136 and 101)."""
     code, out = _survey_jetbot(tmp_path, capsys, JETBOT / "camera.yaml")
     assert code == 0, out
     assert "no-lane: 17 frames, 0 with a decision (0%), 0 confident, 0 false lanes" in out
     assert "verdict: SAFE: no decision on any of the 17 no-lane frames" in out
     found = re.search(r"lane: 338 frames, (\d+) with a decision \(\d+%\), (\d+) confident", out)
     assert found is not None, out
-    assert int(found.group(1)) >= 135 and int(found.group(2)) >= 130
+    assert int(found.group(1)) >= 205 and int(found.group(2)) >= 195
     engaged = re.search(r"supervisor: engages on (\d+) of 338 lane stills", out)
-    assert engaged is not None and int(engaged.group(1)) >= 95, out
+    assert engaged is not None and int(engaged.group(1)) >= 130, out
     assert (tmp_path / "out" / "report.html").exists()
 
 
@@ -128,4 +129,7 @@ def test_the_narrowest_lane_on_the_jetbot_frames(
     assert "no-lane: 17 frames, 0 with a decision (0%), 0 confident, 0 false lanes" in out
     assert "verdict: SAFE: no decision on any of the 17 no-lane frames" in out
     found = re.search(r"\nlane: 338 frames, (\d+) with a decision \(\d+%\), 0 confident", out)
-    assert found is not None and int(found.group(1)) <= 1, out  # 1 today, usable only
+    # 2 today, usable only (free/b15dc6da..., free/bf257c5e...): by eye, the left edge on the
+    # other tape at the image's left border, where the fisheye squeezes the lane narrower; no
+    # one tape's own two edges
+    assert found is not None and int(found.group(1)) <= 2, out
