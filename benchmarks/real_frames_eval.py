@@ -178,6 +178,22 @@ def edge_on_light_tape(gray: np.ndarray, edge: LaneEdge, side: str, light: bool)
     return seen > 0 and hits >= 0.6 * seen
 
 
+def tape_under_camera(image: np.ndarray, dark: bool) -> bool:
+    """Whether a tape runs under the camera: in one of the rows at 89%, 94% and 97% of the
+    height (200, 210 and 218 of 224), a point of the central fifth of the columns at least 30
+    grey levels darker (lighter, for light tapes) than the row's median, after a 5x5 blur. A
+    rough measure of the robot standing on or just beside a line."""
+    gray = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), (5, 5), 0).astype(int)
+    h, w = gray.shape
+    lo, hi = round(w * 0.4), round(w * 0.6)
+    for row in (round(h * 0.893), round(h * 0.9375), round(h * 0.973)):
+        line = gray[row]
+        centre, median = line[lo:hi], float(np.median(line))
+        if (centre.min() < median - 30) if dark else (centre.max() > median + 30):
+            return True
+    return False
+
+
 def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
     calibration = load_calibration(rs.calibration)
     undistorter = Undistorter(calibration)
@@ -194,6 +210,7 @@ def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
     confident_flags: list[bool] = []
     previous: LaneObservation | None = None
     pictures: list[np.ndarray] = []
+    under = Counter[tuple[bool, bool]]()  # lane frames by (tape under the camera, decided)
     for index, (file, expect) in enumerate(rs.labels):
         image = cv2.imread(str(rs.folder / file))
         if image is None:
@@ -208,6 +225,8 @@ def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
               and edge_on_light_tape(gray, obs.right, "right", rs.tapes == "light"))
         tallies.setdefault(expect, Tally()).add(file, expect, obs, on)
         decided = decide(obs, trust_min_confidence=USABLE, turn_slope_sum=TURN) != "none"
+        if expect == "lane":
+            under[(tape_under_camera(image, rs.tapes == "dark"), decided)] += 1
         if sheet is not None and decided:
             pic = draw_overlay(debug.image, obs, debug, decide(
                 obs, trust_min_confidence=USABLE, turn_slope_sum=TURN))
@@ -222,6 +241,12 @@ def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
         print(tally.row(expect, expect))
         if tally.false_names:
             print(f"  false lanes: {', '.join(tally.false_names[:20])}")
+    for flag, text in ((True, "a tape under the camera"), (False, "no tape under the camera")):
+        total = under[(flag, True)] + under[(flag, False)]
+        if total:
+            done = under[(flag, True)]
+            print(f"lane frames with {text} (`tape_under_camera`): {total}, "
+                  f"{done} with a decision ({100 * done / total:.0f}%)")
     if sheet is not None and pictures:
         _write_sheets(pictures, sheet / f"{rs.name}{'-narrow' if narrow else ''}")
 
