@@ -44,9 +44,9 @@ MIN_PROFILE_TAPE_PX = 3.0
 #: One floor, shaded: the floor on the two sides of a tape may differ by up to this many times
 #: the tape's own step from the floor. A real camera's picture darkens towards its sides
 #: (vignetting, light falling off towards the walls): the JetBot set's left tape reads 32-58 grey
-#: levels between a floor of 71-79 outside the lane and 97-131 inside it; of the band samples a
-#: rule of one unshaded floor (a factor of 1) refused there, nine in ten had floors less than
-#: twice the step apart. Past twice the step, the band is a dark strip between two floors (a
+#: levels between a floor of 71-79 outside the lane and 97-131 inside it; of the dark-band
+#: samples a rule of one unshaded floor (a factor of 1) refused there for the floors alone, 86%
+#: had floors less than twice the step apart. Past twice the step, the band is a dark strip between two floors (a
 #: baseboard between a wall and the floor, a dark plank between two others).
 FLOOR_SHADE = 2.0
 

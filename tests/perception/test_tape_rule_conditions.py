@@ -1,7 +1,8 @@
 """Each condition of the band and lone-edge rules on its own (perception/tape_rules.py), with a
 case that only that condition refuses: the mutation run (tests/mutation/mutants.toml) drops or
-weakens each one and one of these must fail. The cases use the floor pictures and lines of
-test_tape_rules.py (the default camera, geometry in metres)."""
+weakens each one and one of these must fail. One case is the other way round: a tape on a
+floor shaded across it (`FLOOR_SHADE`) must pass; it fails with the factor at 1. The cases use
+the floor pictures and lines of test_tape_rules.py (the default camera, geometry in metres)."""
 
 from __future__ import annotations
 
@@ -75,8 +76,8 @@ def test_a_lone_edge_beside_a_two_shade_strip_is_not_a_tape_edge() -> None:
 
 
 def test_a_lone_edge_between_two_floors_is_not_a_tape_edge() -> None:
-    """A tape-wide dark strip beyond the edge, but the lane floor inside (180) and the floor
-    beyond the strip (60) differ by more than the strip differs from either."""
+    """A tape-wide dark strip (45) beyond the edge, but the lane floor inside (180) and the
+    floor beyond the strip (60) differ by 120, more than twice the strip's step (15)."""
     picture = floor_picture([(TAPE_LO, TAPE_HI, DARK), (TAPE_HI, 0.6, 60)])
     edge = along(TAPE_LO, 1.0)
     assert tape_profile_fraction(picture, [edge], (0,), "left", VIEW, TAPE) == 0.0
