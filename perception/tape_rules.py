@@ -46,8 +46,10 @@ MIN_PROFILE_TAPE_PX = 3.0
 #: (vignetting, light falling off towards the walls): the JetBot set's left tape reads 32-58 grey
 #: levels between a floor of 71-79 outside the lane and 97-131 inside it; of the dark-band
 #: samples a rule of one unshaded floor (a factor of 1) refused there for the floors alone, 86%
-#: had floors less than twice the step apart. Past twice the step, the band is a dark strip between two floors (a
-#: baseboard between a wall and the floor, a dark plank between two others).
+#: had floors less than twice the step apart. Past twice the step, the band is a dark strip
+#: between two floors (a baseboard between a wall and the floor, a dark plank between two
+#: others). The allowance has a cost (docs/campaigns.md, the ninth run): a light parquet slat
+#: between two differently shaded slats passes as a light tape more often.
 FLOOR_SHADE = 2.0
 
 
