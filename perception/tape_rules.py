@@ -11,10 +11,10 @@ ends, the lecture's pipeline follows tile seams; these rules are what refuse the
    pixels) nothing scores: the camera cannot tell, so nothing passes as tape.
 2. Band (`band_is_tape`): between the two edges a uniform band, darker (or lighter) than the floor
    beyond BOTH edges by more than half what those two floor samples differ from each other (one
-   floor, shaded: `FLOOR_SHADE`). A band with a
-   tape edge inside it fails (not uniform), so does a floor strip with tape on one side and floor
-   on the other. (A light strip between a dark tape and a wide seam does look like a light tape:
-   the choice of tapes rejects it, both tapes of a lane being of one kind.)
+   floor, shaded: `FLOOR_SHADE`). A band with a tape edge inside it fails (not uniform), so does
+   a floor strip with tape on one side and floor on the other. (A light strip between a dark
+   tape and a wide seam does look like a light tape: the choice of tapes rejects it, both tapes
+   of a lane being of one kind.)
 3. Profile of a lone edge (`tape_profile_fraction`): an edge whose partner Hough missed is
    checked by the brightness across it, where the tape's other side would be on the floor
    (`width_m` outwards). It can make the edge a tape edge, never a verified tape: only a pair
@@ -115,11 +115,11 @@ def band_is_tape(
     enough of it, the band (at a quarter, half and three quarters across) is darker (or
     lighter) than the floor beyond BOTH edges by more than `min_contrast_levels`; the band
     varies across by less than that step, and the floor differs between its two sides by less
-    than `FLOOR_SHADE` times it (one floor, shaded). The
-    floor beyond each edge is read 0.3 and 0.6 band widths out and the more floor-like of the
-    two counts (the lighter one beside a dark band), so a seam running close beside a tape does
-    not hide the floor. Samples whose outside points are all outside the image don't count
-    against it; at least `min_band_fraction` of the others must look like tape.
+    than `FLOOR_SHADE` times it (one floor, shaded). The floor beyond each edge is read 0.3 and
+    0.6 band widths out and the more floor-like of the two counts (the lighter one beside a dark
+    band), so a seam running close beside a tape does not hide the floor. Samples whose outside
+    points are all outside the image don't count against it; at least `min_band_fraction` of the
+    others must look like tape.
 
     Plain Python on a handful of pixels (`ndarray.item`: ints, so every difference is exact),
     which is several times faster than numpy on arrays this small."""
@@ -200,9 +200,9 @@ def tape_profile_fraction(
     direction, from both the lane floor half a width inwards and the floor 1.75 widths outwards,
     by more than half what those two floor samples differ from each other (`FLOOR_SHADE`). A
     seam fails (the floor just beyond it is floor again), so does, mostly, a boundary between two
-    floor shades. Points
-    where the tape would span fewer than MIN_PROFILE_TAPE_PX pixels are skipped. None when most
-    samples fall outside the image (a tape at the image border: its far side cannot be seen)."""
+    floor shades. Points where the tape would span fewer than MIN_PROFILE_TAPE_PX pixels are
+    skipped. None when most samples fall outside the image (a tape at the image border: its far
+    side cannot be seen)."""
     height, width = smooth_gray.shape[:2]
     c = tape.min_contrast_levels
     near_y = rows[chain[0]].near_y
