@@ -335,7 +335,8 @@ def _polarity(
     """Sign of the median of (right side - left side) brightness over a few points sampled
     along each line (0 when it is within `min_contrast_levels`), or the sign of the median over
     the least-lit half of them (the half whose darker side is darkest) when that is a clear
-    step of the other sign."""
+    step of the other sign, or of any sign where the median and the vote said none and the
+    steps show a mirrored light along a tape (see below)."""
     height, width = gray.shape[:2]
     k = POLARITY_SAMPLE_FACTOR * tape.polarity_samples
     frac = _sample_fractions(k)
@@ -376,14 +377,31 @@ def _polarity(
     # lines of no contrast a polarity (more candidate pairs to refute). A half's median is a
     # clear step against the line's sign only where at least half of the half's points (the
     # lower middle one included) are, so only lines with that many such steps are read.
+    #
+    # A row of lights mirrored along a tape can also leave the edge with no sign at all: lit
+    # points stepping one way, unlit ones the other, neither four times the other, no run from
+    # an end (campaign runs r00412, r00718 of the ninth run). Such a line is read where it is
+    # least lit too, but only on the evidence a mirrored light leaves and a textured floor or a
+    # patch beside a line does not: at least three quarters of the least-lit half step clearly
+    # one way, some other point clearly the other way (the light, lighter than the floor), and
+    # the unlit steps reach both halves of the line (a tape along all of it, not a patch).
     half = k // 2
-    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, 0))
-    rows = np.flatnonzero(against >= (half - 1) // 2 + 1)
+    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.maximum(n_up, n_down)))
+    quarter = (half - 1) // 2 + 1
+    rows = np.flatnonzero(against >= quarter)
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]
         unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), threshold)
-        whole[rows] = np.where(whole[rows] * unlit < 0.0, unlit, whole[rows])
+        was = whole[rows]
+        rising = (unlit > 0.0)[:, None]
+        same = np.where(rising, up[rows], down[rows])
+        other = np.where(rising, down[rows], up[rows])
+        unlit_same = np.take_along_axis(same, least_lit, axis=1).sum(axis=1)
+        mirrored = ((was == 0.0) & (unlit != 0.0) & (other.sum(axis=1) >= quarter)
+                    & (4 * unlit_same >= 3 * half)
+                    & same[:, :half].any(axis=1) & same[:, half:].any(axis=1))
+        whole[rows] = np.where((was * unlit < 0.0) | mirrored, unlit, was)
     return whole
 
 

@@ -100,3 +100,33 @@ def test_a_gap_of_two_points_in_the_run_is_bridged_not_three(gap_points: int,
     spacing = (BOTTOM - TOP) / 18  # sample i lies at (i + 0.5) spacings above the bottom end
     image[round(BOTTOM - (gap_points + 1) * spacing):round(BOTTOM - spacing), 100:130] = 180
     assert polarity_of(image) == expected
+
+
+def along_line(pattern: str) -> np.ndarray:
+    """The tape's side of the line, sample by sample from the near end (18 letters): `U` the
+    unlit tape (60), `L` the tape under a mirrored ceiling light (230, lighter than the floor),
+    `P` the light's rim (180, as light as the floor), `F` floor (180)."""
+    image = np.full((HEIGHT, WIDTH), 180, np.uint8)
+    spacing = (BOTTOM - TOP) / 18
+    shade = {"U": 60, "L": 230, "P": 180, "F": 180}
+    for i, letter in enumerate(pattern):
+        rows = slice(round(BOTTOM - (i + 1) * spacing), round(BOTTOM - i * spacing) + 1)
+        image[rows, 100:130] = shade[letter]
+    return image
+
+
+@pytest.mark.parametrize(("pattern", "expected"), [
+    # Campaign runs r00412 and r00718 (the ninth run, glossy black tape): a row of ceiling
+    # lights mirrored along the tape. 8 unlit points step light to dark, 7 lit ones the other
+    # way, 3 show nothing: the median says 0, the vote 0 (fewer than four times as many). Where
+    # the tape is least lit, 8 of the 9 points step light to dark, along both halves of the
+    # line, and light only adds light: the edge's polarity is the unlit tape's.
+    ("UULLPUULLPUULLPUUL", -1.0),
+    # The same counts, but the unlit tape only along the near half and the far half lit or
+    # bare: no tape edge shows along the whole line (a dark patch beside a light one), none.
+    ("UUUUUUUUPLLLLLLLPP", 0.0),
+])
+def test_a_row_of_lights_mirrored_along_a_tape_keeps_its_edges_polarity(
+        pattern: str, expected: float) -> None:
+    assert len(pattern) == 18
+    assert polarity_of(along_line(pattern)) == expected
