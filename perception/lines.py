@@ -383,8 +383,9 @@ def _polarity(
     # an end (campaign runs r00412, r00718 of the ninth run). Such a line is read where it is
     # least lit too, but only on the evidence a mirrored light leaves and a textured floor or a
     # patch beside a line does not: at least three quarters of the least-lit half step clearly
-    # one way, some other point clearly the other way (the light, lighter than the floor), and
-    # the unlit steps reach both halves of the line (a tape along all of it, not a patch).
+    # one way; a quarter of the points step clearly the other way (the light, lighter than the
+    # floor, enough of it to be what hid the median); and the unlit steps reach both halves of
+    # the line (a tape along all of it, not a patch).
     half = k // 2
     against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.maximum(n_up, n_down)))
     quarter = (half - 1) // 2 + 1

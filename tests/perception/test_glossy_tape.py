@@ -100,3 +100,39 @@ def test_a_ceiling_light_over_most_of_a_glossy_tape_edge_keeps_its_polarity() ->
         assert obs.components["tape_pair_left"] == 1.0, dict(obs.components)
         assert obs.confidence > 0.5, dict(obs.components)
         assert obs.left is not None and obs.left.offset_m == pytest.approx(0.276, abs=0.03)
+
+
+ROW_OF_LIGHTS_SCENARIO = {
+    **SCENARIO,
+    "lighting": {"gradient": {"per_m": -0.06}},
+    "camera": {"compression": {"format": "jpeg", "quality": 30},
+               "sensor": {"full_well_e": 2500, "read_noise_e": 6.0}},
+}
+ROW_OF_LIGHTS_CONFIG = {"simulation": {"width_px": 640, "height_px": 480, "progress": False}}
+
+
+def test_a_row_of_lights_mirrored_along_a_glossy_tape_keeps_its_edges_polarity() -> None:
+    """Campaign run r00412 of the ninth default campaign run (seed 1: wood planks, black glossy
+    tape, the cheap USB camera at 640x480, the run's seed 0), LANE_LOST at 3.4 s on a good
+    lane. 0.30 m to 0.44 m along the lane's straight start the ceiling lights mirrored in the
+    left tape cover its edges in places: lit points step one way, unlit ones the other, and
+    neither the median step nor the vote gave the tape's edges a sign (no tape pair, the left
+    side fell to a plank seam, confidence 0 at these six poses). Read where the edge is least
+    lit, with steps along both halves of it, they keep their sign: the left tape is verified,
+    the lane confident, its left edge on the tape's inner edge (0.276 m, within 3 cm)."""
+    spec = spec_from(ROW_OF_LIGHTS_SCENARIO)
+    config = effective_config(config_from_mapping(ROW_OF_LIGHTS_CONFIG), spec)
+    sim = Simulation(spec, config, build_stack, seed=0)  # the run's seed
+    w, h = sim.camera.width_px, sim.camera.height_px
+    ahead, left = sim.camera.pixel_ground_points(distorted=True)
+    tape = (ahead < 1.0) & (left > 0.281) & (left < 0.319)  # inside the left tape
+    floor = (ahead < 1.0) & (left > 0.15) & (left < 0.25)  # the lane's floor beside it
+    for i, x in enumerate([0.30, 0.34, 0.38, 0.40, 0.42, 0.44]):
+        image = sim.renderer.render_gray(Pose2D(x, 0.0, 0.0), np.empty((h, w), np.uint8),
+                                         noise_index=0)
+        # the premise: a light mirrored in the tape, far lighter than the floor beside it
+        assert np.percentile(image[tape], 95) - np.median(image[floor]) > 40.0
+        obs = sim.detector.detect(image, i, 0.0)
+        assert obs.components["tape_pair_left"] == 1.0, (x, dict(obs.components))
+        assert obs.confidence > 0.5, (x, dict(obs.components))
+        assert obs.left is not None and obs.left.offset_m == pytest.approx(0.276, abs=0.03)

@@ -125,6 +125,9 @@ def along_line(pattern: str) -> np.ndarray:
     # The same counts, but the unlit tape only along the near half and the far half lit or
     # bare: no tape edge shows along the whole line (a dark patch beside a light one), none.
     ("UUUUUUUUPLLLLLLLPP", 0.0),
+    # Unlit tape along both halves but one lit point: too little light to be what hid the
+    # median (gaps did, the vote's case, and no run reaches an end), none.
+    ("UUFFFUUFFFUUFFFUUL", 0.0),
 ])
 def test_a_row_of_lights_mirrored_along_a_tape_keeps_its_edges_polarity(
         pattern: str, expected: float) -> None:
