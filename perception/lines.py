@@ -386,8 +386,10 @@ def _polarity(
     # one way; a quarter of the points step clearly the other way (the light, lighter than the
     # floor, enough of it to be what hid the median); and the unlit steps reach both halves of
     # the line (a tape along all of it, not a patch).
+    # (A line of no sign is only read when both signs show on a quarter of its points, which
+    # the mirrored-light reading needs: the others would change nothing.)
     half = k // 2
-    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.maximum(n_up, n_down)))
+    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.minimum(n_up, n_down)))
     quarter = (half - 1) // 2 + 1
     rows = np.flatnonzero(against >= quarter)
     if rows.size:
