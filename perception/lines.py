@@ -386,8 +386,9 @@ def _polarity(
     # one way; a quarter of the points step clearly the other way (the light, lighter than the
     # floor, enough of it to be what hid the median); and the unlit steps reach both halves of
     # the line (a tape along all of it, not a patch).
-    # (A line of no sign is only read when both signs show on a quarter of its points, which
-    # the mirrored-light reading needs: the others would change nothing.)
+    # A line of no sign is only read at all when both signs show on a quarter of its points:
+    # that guard is the mirrored-light reading's "a quarter lit the other way" (the unlit
+    # half's own sign is the other quarter), and it spares the others the sort.
     half = k // 2
     against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.minimum(n_up, n_down)))
     quarter = (half - 1) // 2 + 1
@@ -399,9 +400,8 @@ def _polarity(
         was = whole[rows]
         rising = (unlit > 0.0)[:, None]
         same = np.where(rising, up[rows], down[rows])
-        other = np.where(rising, down[rows], up[rows])
         unlit_same = np.take_along_axis(same, least_lit, axis=1).sum(axis=1)
-        mirrored = ((was == 0.0) & (unlit != 0.0) & (other.sum(axis=1) >= quarter)
+        mirrored = ((was == 0.0) & (unlit != 0.0)
                     & (4 * unlit_same >= 3 * half)
                     & same[:, :half].any(axis=1) & same[:, half:].any(axis=1))
         whole[rows] = np.where((was * unlit < 0.0) | mirrored, unlit, was)
