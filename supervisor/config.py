@@ -149,6 +149,15 @@ class SupervisorConfig(DocumentModel):
         "far ahead of the robot's centre (a tape seen only farther off tells little about "
         "where the robot is now), m",
     )
+    lane_departure_jump_m: float = Field(
+        default=0.03,
+        ge=0.0,
+        le=0.5,
+        description="A confident frame counts towards (or against) a departure only when its "
+        "edges lie within limiter_max_linear_m_s x the time since the last frame that counted, "
+        "plus this, of where that frame had them: the robot cannot have moved further, so the "
+        "rest is a jump of perception (a slat or seam beside the tape), m",
+    )
     lane_departure_frames: int = Field(
         default=3,
         ge=1,

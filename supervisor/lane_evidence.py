@@ -21,10 +21,21 @@ Per new frame:
   far by as much, so half-way cancels to second order (and an error in the measured direction
   counts half). Only an edge seen beginning within `lane_departure_view_m` ahead counts.
   Frames that are not confident neither count nor reset the streak.
+- A departure must be reachable: the robot moves its centre at most `limiter_max_linear_m_s`
+  (the gate's cap), so an edge line's distance from its centre (`LaneEdge.offset_m`, which
+  turning in place does not change) can change by at most that speed times the time since the
+  last confident frame that counted, plus `lane_departure_jump_m` of measurement noise. A
+  confident frame whose edges moved further (perception jumped to a light slat or a seam beside
+  the tape, a whole lane 0.10-0.16 m to one side, and back: the 1000-run campaigns' parquet
+  LANE_DEPARTURE false halts) neither counts nor resets the streak, and is not the reference
+  for the next frame. The bound grows with the time since the reference, so a reading that
+  stays where it jumped to counts after at most (jump - lane_departure_jump_m) /
+  limiter_max_linear_m_s seconds: it delays a departure that follows a jump, never hides one.
 "Usable" (resets the lane-lost timer): at least one edge and confidence >= the usable minimum.
 "Confident" (counts towards engage/recover): both edges and confidence >=
 `confidence_confident_min`.
-Pure; the only memory is the low-confidence and departure streaks.
+Pure; the only memory is the low-confidence and departure streaks and the reference for the
+departure's reachability (the last confident frame that counted: its time and edge offsets).
 """
 
 from __future__ import annotations
@@ -103,11 +114,33 @@ def departure_of(observation: LaneObservation, clearance_m: float,
     return None
 
 
+def _edge_offsets(observation: LaneObservation) -> tuple[float | None, float | None]:
+    """The left and right edge lines' signed distances from the robot's centre (None: no
+    edge, or not measured on the floor)."""
+    return (None if observation.left is None else observation.left.offset_m,
+            None if observation.right is None else observation.right.offset_m)
+
+
+def reachable(offsets: tuple[float | None, float | None],
+              reference: tuple[float, tuple[float | None, float | None]] | None,
+              time_s: float, max_speed_m_s: float, jump_m: float) -> bool:
+    """Could the robot's own motion have carried the edges from `reference` (its time and
+    edge offsets) to `offsets` at `time_s`? Each side measured in both may have moved by at
+    most `max_speed_m_s` times the time between them, plus `jump_m`. No reference: yes."""
+    if reference is None:
+        return True
+    then, before = reference
+    allowed = max_speed_m_s * max(0.0, time_s - then) + jump_m
+    return all(now is None or old is None or abs(now - old) <= allowed
+               for now, old in zip(offsets, before, strict=True))
+
+
 class LaneEvidence:
     def __init__(self, config: SupervisorConfig) -> None:
         self._config = config
         self._low_confidence_frames = 0
         self._departure_frames = 0
+        self._reference: tuple[float, tuple[float | None, float | None]] | None = None
 
     def assess(self, observation: LaneObservation) -> LaneAssessment:
         """Events and flags for one well-formed observation of a new frame."""
@@ -131,7 +164,12 @@ class LaneEvidence:
         usable = edges > 0 and trusted
         confident = edges == 2 and obs.confidence >= cfg.confidence_confident_min
         departure = None
-        if confident:  # only confident frames count towards a departure, or reset it
+        offsets = _edge_offsets(obs)
+        # only confident frames count towards a departure, or reset it, and only those the
+        # robot's own motion could have brought there (module docstring)
+        if confident and reachable(offsets, self._reference, obs.time_s,
+                                   cfg.limiter_max_linear_m_s, cfg.lane_departure_jump_m):
+            self._reference = (obs.time_s, offsets)
             departure = departure_of(obs, cfg.lane_departure_clearance_m,
                                      cfg.lane_departure_view_m)
             self._departure_frames = self._departure_frames + 1 if departure else 0

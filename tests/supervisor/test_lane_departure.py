@@ -89,9 +89,40 @@ def test_departure_frames_in_a_row_halt_and_fewer_do_not() -> None:
 
 
 def test_a_clear_frame_resets_the_departure_streak() -> None:
+    # each step within reach of the last (0.3 m/s x 1/30 s + 0.03 m = 0.04 m)
     rig = _engaged()
-    for edge in (0.12, 0.12, 0.25, 0.12, 0.12):
+    for edge in (0.16, 0.16, 0.18, 0.16, 0.16):
         assert rig.step(left_edge_m=edge).state == "FOLLOW"
+
+
+def test_a_jump_of_the_edge_counts_only_once_the_robot_could_have_moved_there() -> None:
+    # the left edge seen 0.275 m left, then 0.12 m: 0.155 m away, which the robot (at most
+    # 0.3 m/s) can reach, with 0.03 m of noise, only n frames later where
+    # 0.3 * n / 30 + 0.03 >= 0.155, n >= 12.5: the 13th such frame is the first to count, the
+    # 15th the third in a row
+    rig = _engaged()
+    assert rig.config.limiter_max_linear_m_s == 0.3
+    assert rig.config.lane_departure_jump_m == 0.03
+    assert rig.step(left_edge_m=0.275).state == "FOLLOW"
+    for _ in range(14):
+        assert rig.step(left_edge_m=0.12).state == "FOLLOW"
+    out = rig.step(left_edge_m=0.12)
+    assert out.state == "HALT"
+    assert rig.controller.halt_reason is not None
+    assert rig.controller.halt_reason.startswith("LANE_DEPARTURE")
+
+
+def test_a_lane_flickering_to_a_slat_beside_it_is_no_departure() -> None:
+    # the tenth campaign run's parquet false halts (r00233, r00690): perception alternates
+    # between the true lane (its edge 0.275 m left, the frame untrusted) and a whole lane
+    # shifted 0.155 m to one side (confident); the old rule counted the shifted frames across
+    # the untrusted ones and halted a centred robot
+    rig = _engaged()
+    assert rig.step(left_edge_m=0.275).state == "FOLLOW"
+    for _ in range(3):
+        assert rig.step(left_edge_m=0.12).state != "HALT"
+        assert rig.step(left_edge_m=0.12).state != "HALT"
+        assert rig.step(left_edge_m=0.275, confidence=0.0).state != "HALT"
 
 
 def test_a_frame_that_is_not_confident_neither_counts_nor_resets_the_streak() -> None:
