@@ -101,16 +101,26 @@ class CameraModel:
         """H mapping floor points (x, y, 1) in the robot frame to UNDISTORTED pixels (u, v, 1)."""
         return self.ground.floor_to_image_h.copy()
 
+    @cached_property
+    def _projection(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(rvec, tvec, K, dist coeffs) for cv2.projectPoints, read-only: the simulator projects
+        ground truth through the camera every frame, and the Rodrigues and copies cost as much
+        as the projection of a few dozen points."""
+        rvec, tvec = self.extrinsics()
+        arrays = (rvec, tvec, self.camera_matrix(), self.distortion())
+        for array in arrays:
+            array.setflags(write=False)
+        return arrays
+
     def project_ground(self, points_xy: FloatArray, distort: bool = True) -> FloatArray:
         """Floor points (N, 2), robot frame -> pixels (N, 2); points behind the camera -> NaN."""
         pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
-        rot = self.rotation_robot_to_camera()
-        cam = (rot @ (np.column_stack([pts, np.zeros(len(pts))]) - self.position_robot()).T).T
+        obj = np.column_stack([pts, np.zeros(len(pts))])
+        cam = (self.ground.rotation @ (obj - self.ground.position).T).T
         behind = cam[:, 2] <= 1e-6
         if distort:
-            rvec, tvec = self.extrinsics()
-            obj = np.column_stack([pts, np.zeros(len(pts))]).reshape(-1, 1, 3)
-            img, _ = cv2.projectPoints(obj, rvec, tvec, self.camera_matrix(), self.distortion())
+            rvec, tvec, k, dist = self._projection
+            img, _ = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, k, dist)
             out = np.asarray(img, dtype=np.float64).reshape(-1, 2)
         else:
             h = self.ground_to_image_homography()

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -220,6 +221,25 @@ CONTRAST_SAMPLES = 24
 MIN_CONTRAST_SAMPLES = 3
 
 
+@lru_cache(maxsize=1024)
+def _evenly_chosen(count: int) -> NDArray[np.intp]:
+    """Which `CONTRAST_SAMPLES` of `count` samples (in order) a tape is read at, evenly spread;
+    computed once per count (read-only)."""
+    index = np.linspace(0, count - 1, CONTRAST_SAMPLES).round().astype(np.intp)
+    index.setflags(write=False)
+    return index
+
+
+def _median(levels: list[int]) -> float:
+    """np.median of a few integers, exactly (the mean of the middle two for an even count),
+    without its overhead on arrays of two dozen values."""
+    ordered = sorted(levels)
+    middle = len(ordered) // 2
+    if len(ordered) % 2:
+        return float(ordered[middle])
+    return (ordered[middle - 1] + ordered[middle]) / 2
+
+
 def _gray_values(frame: NDArray[np.uint8], rows: NDArray[np.intp],
                  cols: NDArray[np.intp]) -> NDArray[np.int16]:
     """Perception's gray levels (`perception_gray`: OpenCV's BGR->gray) at a few pixels."""
@@ -278,7 +298,9 @@ class LaneContrast:
         #: every tape's centre-line samples, the floor either side of each, the tape of each
         self._centre = np.vstack(centres) if centres else np.zeros((0, 2))
         offset = np.vstack(beside) if beside else np.zeros((0, 2))
-        self._floor_a, self._floor_b = self._centre + offset, self._centre - offset
+        #: (3, N, 2): the centre-line samples, then the floor on one side and on the other (one
+        #: index picks a sample's three points)
+        self._points = np.stack([self._centre, self._centre + offset, self._centre - offset])
         self._tape_of = np.concatenate(owner) if owner else np.zeros(0, np.intp)
 
     def measure(self, frame: NDArray[np.uint8], pose: Pose2D) -> FloatArray:
@@ -287,33 +309,33 @@ class LaneContrast:
         out = np.full(self.tapes, np.nan)
         w, h = self._size
         in_roi = self._roi.inside(pose, self._centre)
+        tape_of = self._tape_of[in_roi]
         groups: list[tuple[int, NDArray[np.intp]]] = []
         for tape in range(self.tapes):
-            chosen = in_roi[self._tape_of[in_roi] == tape]
+            chosen = in_roi[tape_of == tape]
             if len(chosen) < MIN_CONTRAST_SAMPLES:
                 continue
             if len(chosen) > CONTRAST_SAMPLES:
-                chosen = chosen[np.linspace(0, len(chosen) - 1, CONTRAST_SAMPLES).round()
-                                .astype(np.intp)]
+                chosen = chosen[_evenly_chosen(len(chosen))]
             groups.append((tape, chosen))
         if not groups:
             return out
         picked = np.concatenate([chosen for _, chosen in groups])
-        world_pts = np.vstack([self._centre[picked], self._floor_a[picked],
-                               self._floor_b[picked]])
+        world_pts = self._points[:, picked].reshape(-1, 2)
         px = self._camera.project_ground(np.column_stack(robot_frame(world_pts, pose)))
         valid = np.asarray(np.isfinite(px).all(axis=1), dtype=bool)
-        cols = np.clip(np.nan_to_num(px[:, 0]) + 0.5, 0, w - 1).astype(np.intp)
-        rows = np.clip(np.nan_to_num(px[:, 1]) + 0.5, 0, h - 1).astype(np.intp)
-        values = _gray_values(frame, rows, cols)
+        # A point not projected is read anywhere (its difference is 0 below).
+        px[~valid] = 0.0
+        pixel = np.clip(px + 0.5, 0, (w - 1, h - 1)).astype(np.intp)
+        values = _gray_values(frame, pixel[:, 1], pixel[:, 0])
         k = len(picked)
         da = values[:k] - values[k:2 * k]
         db = values[:k] - values[2 * k:]
         same = (np.sign(da) == np.sign(db)) & valid[:k] & valid[k:2 * k] & valid[2 * k:]
-        diff = np.where(same, np.where(np.abs(da) < np.abs(db), da, db), 0)
+        diff = np.where(same, np.where(np.abs(da) < np.abs(db), da, db), 0).tolist()
         start = 0
         for tape, chosen in groups:
-            out[tape] = abs(float(np.median(diff[start:start + len(chosen)])))
+            out[tape] = abs(_median(diff[start:start + len(chosen)]))
             start += len(chosen)
         return out
 
