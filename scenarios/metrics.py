@@ -121,6 +121,50 @@ def convex_half_planes(polygon: FloatArray) -> FloatArray | None:
     return np.column_stack([a, b, -(a * poly[:, 0] + b * poly[:, 1])])
 
 
+def clip_convex(polygon: FloatArray, plane: FloatArray) -> FloatArray:
+    """The part of a convex polygon (K, 2) where a*x + b*y + c >= 0 (`plane` (a, b, c))
+    (Sutherland-Hodgman; (0, 2) when none of it is)."""
+    a, b, c = plane
+    kept: list[FloatArray] = []
+    for p, q in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        fp, fq = a * p[0] + b * p[1] + c, a * q[0] + b * q[1] + c
+        if fp >= 0.0:
+            kept.append(p)
+        if (fp >= 0.0) != (fq >= 0.0):
+            kept.append(p + fp / (fp - fq) * (q - p))
+    return np.array(kept, dtype=np.float64).reshape(-1, 2)
+
+
+class FloorSamples:
+    """Fixed floor points (N, 2, world metres: a tape's samples), and a circle around every run
+    of `RUN` consecutive ones: `GroundRoi.inside` then tests only the points of the runs whose
+    circle reaches the ROI (samples along a tape come in order, so a run is a short stretch of
+    it), and finds the same indices as testing them all."""
+
+    RUN = 32
+
+    def __init__(self, points: FloatArray) -> None:
+        self.points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        starts = np.arange(0, len(self.points), self.RUN)
+        if len(starts):
+            low = np.minimum.reduceat(self.points, starts, axis=0)
+            high = np.maximum.reduceat(self.points, starts, axis=0)
+        else:
+            low = high = np.zeros((0, 2))
+        self._centres = (low + high) / 2.0
+        self._radii = np.hypot(high[:, 0] - low[:, 0], high[:, 1] - low[:, 1]) / 2.0
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def near(self, x_m: float, y_m: float, radius_m: float) -> NDArray[np.intp]:
+        """The indices (in order) of the points in runs whose circle comes within `radius_m` of
+        (x_m, y_m): every point that close, and some more."""
+        reach = np.hypot(self._centres[:, 0] - x_m, self._centres[:, 1] - y_m)
+        runs = reach <= self._radii + radius_m
+        return np.nonzero(np.repeat(runs, self.RUN)[:len(self.points)])[0]
+
+
 class GroundRoi:
     """Which floor points a camera at a pose sees inside perception's ROI.
 
@@ -131,10 +175,15 @@ class GroundRoi:
     For a convex ROI (the lecture's triangle, clipped to the image) every one of those tests is a
     half-plane in the robot's frame (a homography keeps a line a line in front of the camera), so
     a pose's test is one matrix product over the points in world metres; another polygon is
-    tested point by point in pixels (`points_in_polygon`).
+    tested point by point in pixels (`points_in_polygon`). Those half-planes bound a polygon in
+    the robot's frame (a metre or two across, where the camera's ROI meets the floor): given
+    `FloorSamples`, only the runs of points whose circle reaches that polygon's are tested.
     """
 
     MAX_RANGE_M = 8.0
+    #: The circle around the ROI's polygon on the floor is this much wider than its corners
+    #: (rounding in clipping the polygon must never leave a point out).
+    REACH_MARGIN_M = 0.01
 
     def __init__(self, camera: CameraModel, roi_polygon_px: FloatArray) -> None:
         self._h = camera.ground_to_image_homography()
@@ -155,17 +204,40 @@ class GroundRoi:
                 self._h[1], (h - 1) * hz - self._h[1],  # 0 <= v <= h-1
                 roi @ self._h,  # inside the ROI
             ]).T
+        #: robot-frame (forward, left) centre and radius of a circle holding the ROI on the floor
+        self._reach: tuple[float, float, float] | None = None
+        if self._robot_planes is not None:
+            r = self.MAX_RANGE_M
+            region = np.array([[0.0, -r], [r, -r], [r, r], [0.0, r]])
+            for plane in self._robot_planes.T:
+                region = clip_convex(region, plane)
+            if len(region) >= 3:
+                centre = (region.min(axis=0) + region.max(axis=0)) / 2.0
+                radius = float(np.hypot(*(region - centre).T).max())
+                self._reach = (float(centre[0]), float(centre[1]),
+                               radius + self.REACH_MARGIN_M)
 
-    def inside(self, pose: Pose2D, points: FloatArray) -> NDArray[np.intp]:
-        """The indices of `points` (N, 2, world metres) inside the ROI at `pose`, in order."""
+    def inside(self, pose: Pose2D, points: FloatArray | FloorSamples) -> NDArray[np.intp]:
+        """The indices of `points` (N, 2, world metres, or `FloorSamples`) inside the ROI at
+        `pose`, in order."""
         if len(points) == 0:
             return np.zeros(0, np.intp)
+        runs: FloorSamples | None = None
+        if isinstance(points, FloorSamples):
+            runs, points = points, points.points
         if self._robot_planes is not None:
             c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
             robot_from_world = np.array([[c, s, -(pose.x_m * c + pose.y_m * s)],
                                          [-s, c, pose.x_m * s - pose.y_m * c],
                                          [0.0, 0.0, 1.0]])
             planes = robot_from_world.T @ self._robot_planes
+            if runs is not None and self._reach is not None:
+                forward, left, radius = self._reach
+                near = runs.near(pose.x_m + c * forward - s * left,
+                                 pose.y_m + s * forward + c * left, radius)
+                # (The product is row by row: a row's values are the same as among all points.)
+                values = runs.points[near] @ planes[:2] + planes[2]
+                return near[(values > 0.0).all(axis=1)]
             values = np.asarray(points, dtype=np.float64) @ planes[:2] + planes[2]
             return np.nonzero((values > 0.0).all(axis=1))[0]
         fx, fy = robot_frame(points, pose)
@@ -185,13 +257,13 @@ class TapeVisibility:
     """Ground truth: is any tape inside the camera's ROI at a pose? (`GroundRoi`)"""
 
     def __init__(self, world: World, camera: CameraModel, roi_polygon_px: FloatArray) -> None:
-        self._samples = world.tape_samples
+        self._samples = FloorSamples(world.tape_samples)
         self._roi = GroundRoi(camera, roi_polygon_px)
 
     def visible(self, pose: Pose2D) -> bool:
         return self.visible_points(pose, self._samples)
 
-    def visible_points(self, pose: Pose2D, samples: FloatArray) -> bool:
+    def visible_points(self, pose: Pose2D, samples: FloatArray | FloorSamples) -> bool:
         """Is any of `samples` (N, 2) world metres inside the ROI at `pose`?"""
         return len(self._roi.inside(pose, samples)) > 0
 
@@ -302,13 +374,14 @@ class LaneContrast:
         #: index picks a sample's three points)
         self._points = np.stack([self._centre, self._centre + offset, self._centre - offset])
         self._tape_of = np.concatenate(owner) if owner else np.zeros(0, np.intp)
+        self._centre_runs = FloorSamples(self._centre)
 
     def measure(self, frame: NDArray[np.uint8], pose: Pose2D) -> FloatArray:
         """Each tape's contrast in `frame` (gray HxW or BGR HxWx3) seen from `pose`, grey levels;
         NaN for a tape not in the ROI. (All tapes in one pass: a few small array operations.)"""
         out = np.full(self.tapes, np.nan)
         w, h = self._size
-        in_roi = self._roi.inside(pose, self._centre)
+        in_roi = self._roi.inside(pose, self._centre_runs)
         tape_of = self._tape_of[in_roi]
         groups: list[tuple[int, NDArray[np.intp]]] = []
         for tape in range(self.tapes):
