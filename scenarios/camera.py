@@ -13,7 +13,7 @@ robot frame) is fixed and computed once. Pure geometry: no clock, no I/O.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import cv2
 import numpy as np
@@ -132,22 +132,30 @@ class CameraModel:
     def pixel_ground_points(self, distorted: bool = True) -> tuple[FloatArray, FloatArray]:
         """For every pixel, the floor point (x, y) in the robot frame it sees.
 
-        Returns two (height, width) arrays; pixels looking at or above the horizon are NaN.
-        With `distorted=True` the pixel grid is the real (distorted) image.
+        Returns two (height, width) arrays, read-only; pixels looking at or above the horizon are
+        NaN. With `distorted=True` the pixel grid is the real (distorted) image. Computed once
+        per camera: every run of a campaign's worker asks for the same camera's (its renderer's
+        floor grid and its ceiling lights' highlights).
         """
-        u, v = np.meshgrid(
-            np.arange(self.width_px, dtype=np.float64), np.arange(self.height_px, dtype=np.float64)
-        )
-        pix: FloatArray = np.stack([u.ravel(), v.ravel()], axis=1)
-        if distorted:
-            k = self.camera_matrix()
-            # OpenCV's default of 5 fixed-point iterations does not converge near the corners
-            # of a wide lens (120 deg with k1 -0.2: tapes bent outward there); iterate to
-            # convergence instead.
-            criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-9)
-            pix = np.asarray(cv2.undistortPoints(pix.reshape(-1, 1, 2), k, self.distortion(),
-                                                 None, None, k, criteria),
-                             dtype=np.float64).reshape(-1, 2)
-        ground = self.ground.image_to_floor(pix)
-        shape = (self.height_px, self.width_px)
-        return ground[:, 0].reshape(shape), ground[:, 1].reshape(shape)
+        return _pixel_ground_points(self, distorted)
+
+
+@lru_cache(maxsize=4)
+def _pixel_ground_points(camera: CameraModel, distorted: bool) -> tuple[FloatArray, FloatArray]:
+    u, v = np.meshgrid(
+        np.arange(camera.width_px, dtype=np.float64), np.arange(camera.height_px, dtype=np.float64)
+    )
+    pix: FloatArray = np.stack([u.ravel(), v.ravel()], axis=1)
+    if distorted:
+        k = camera.camera_matrix()
+        # OpenCV's default of 5 fixed-point iterations does not converge near the corners
+        # of a wide lens (120 deg with k1 -0.2: tapes bent outward there); iterate to
+        # convergence instead.
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-9)
+        pix = np.asarray(cv2.undistortPoints(pix.reshape(-1, 1, 2), k, camera.distortion(),
+                                             None, None, k, criteria),
+                         dtype=np.float64).reshape(-1, 2)
+    ground = camera.ground.image_to_floor(pix)
+    ground.setflags(write=False)
+    shape = (camera.height_px, camera.width_px)
+    return ground[:, 0].reshape(shape), ground[:, 1].reshape(shape)
