@@ -19,6 +19,7 @@ Pure: no images, no files, no clock, no printing.
 from __future__ import annotations
 
 import csv
+import math
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -170,7 +171,9 @@ class FrameResult:
     """What perception made of one labelled frame. `decision`: "straight", "left", "right" or
     "none"; `confident`: the supervisor's test; `engaged_after_s`: for a lane still held in view,
     how long the supervisor took to engage (None: it did not, or the frame was not held);
-    `engaged`: for a frame of a sequence, whether the supervisor was engaged at it."""
+    `engaged`: for a frame of a sequence, whether the supervisor was engaged at it;
+    `not_engaged`: for a lane still the supervisor did not engage on, its halt reason at the end
+    of the hold (why it stayed halted)."""
 
     frame: LabelledFrame
     decision: str
@@ -179,6 +182,7 @@ class FrameResult:
     components: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     engaged_after_s: float | None = None
     engaged: bool | None = None
+    not_engaged: str | None = None
 
     @property
     def has_decision(self) -> bool:
@@ -205,12 +209,13 @@ class ConfidentRun:
 
 @dataclass(frozen=True)
 class ComponentFigure:
-    """One confidence component over a class: in how many frames it was the weakest, and its
-    median."""
+    """One confidence component over a class: in how many frames it was the weakest, its median
+    over the class and its median over the frames where it was the weakest (NaN: none)."""
 
     name: str
     weakest_in: int
     median: float
+    median_where_weakest: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -233,7 +238,8 @@ class EngageFigures:
     """Whether the real supervisor engaged.
 
     `how`: "held" (each lane still held in view for `window_s` at the camera rate after a start;
-    `attempts` stills, `engaged` of them engaged, `times_s` how long each took) or "sequence"
+    `attempts` stills, `engaged` of them engaged, `times_s` how long each took, `not_engaged`
+    the others counted by the supervisor's reason, most first) or "sequence"
     (the frames replayed in order at their own times, a start at the first and a resume after
     every halt; `engaged` 1 or 0, `first_engaged` the frame and `times_s` the time after the start,
     `engaged_lane_frames` of `lane_frames` with the supervisor engaged, `halts` where it halted
@@ -248,6 +254,7 @@ class EngageFigures:
     engaged_lane_frames: int = 0
     lane_frames: int = 0
     halts: tuple[str, ...] = ()
+    not_engaged: tuple[tuple[str, int], ...] = ()
 
     @property
     def would_engage(self) -> bool:
@@ -271,6 +278,29 @@ class SurveyFigures:
     classes: Mapping[str, ClassFigures]
     verdict: Verdict
     results: tuple[FrameResult, ...]
+
+
+def reason_key(reason: str) -> str:
+    """A halt reason as counted: its event name ("LANE_DEPARTURE: a lane edge ..." ->
+    "LANE_DEPARTURE"), or the supervisor's words before any detail ("not engaged yet: waiting
+    for start and a confident lane" -> "not engaged yet")."""
+    return reason.split(":", 1)[0].strip() or reason
+
+
+#: What "not engaged yet" means for a still held in view from a start: never confident enough,
+#: long enough.
+NOT_ENGAGED_WORDS = {"not engaged yet": "no confident lane long enough"}
+
+
+def not_engaged_counts(reasons: Iterable[str | None]) -> tuple[tuple[str, int], ...]:
+    """Lane stills the supervisor did not engage on, counted by reason (`reason_key`), most
+    first (ties: by name)."""
+    counts: dict[str, int] = {}
+    for reason in reasons:
+        if reason is not None:
+            key = reason_key(reason)
+            counts[key] = counts.get(key, 0) + 1
+    return tuple(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
 def confident_runs(results: Sequence[FrameResult]) -> list[ConfidentRun]:
@@ -298,14 +328,15 @@ def confident_runs(results: Sequence[FrameResult]) -> list[ConfidentRun]:
 def component_figures(results: Sequence[FrameResult]) -> list[ComponentFigure]:
     """Every component seen, most often the weakest first (then the lowest median)."""
     values: dict[str, list[float]] = {}
-    weakest: dict[str, int] = {}
+    weakest: dict[str, list[float]] = {}
     for result in results:
         for name, value in result.components.items():
             values.setdefault(name, []).append(value)
         low = result.weakest
         if low is not None:
-            weakest[low[0]] = weakest.get(low[0], 0) + 1
-    figures = [ComponentFigure(name, weakest.get(name, 0), statistics.median(v))
+            weakest.setdefault(low[0], []).append(low[1])
+    figures = [ComponentFigure(name, len(weakest.get(name, ())), statistics.median(v),
+                               statistics.median(weakest[name]) if name in weakest else math.nan)
                for name, v in values.items()]
     figures.sort(key=lambda f: (-f.weakest_in, f.median, f.name))
     return figures
@@ -389,8 +420,11 @@ def class_line(figures: ClassFigures) -> str:
         text += "; no confident frame"
     weak = [c for c in figures.components if c.weakest_in][:3]
     if weak:
-        text += "; weakest: " + ", ".join(f"{c.name} (in {c.weakest_in}, median {c.median:.2f})"
-                                          for c in weak)
+        first, *others = weak
+        text += (f"; weakest: {first.name} in {first.weakest_in} frames (median there "
+                 f"{first.median_where_weakest:.2f})" + "".join(
+                     f", {c.name} in {c.weakest_in} ({c.median_where_weakest:.2f})"
+                     for c in others))
     return text
 
 
@@ -415,6 +449,10 @@ def engage_line(engage: EngageFigures | None) -> str:
                 f"in view for {engage.window_s:.1f} s after a start")
         if engage.times_s:
             text += f" (after {max(engage.times_s):.2f} s at the most)"
+        if engage.not_engaged:
+            missed = sum(n for _, n in engage.not_engaged)
+            text += f"; not on {missed} (" + "; ".join(
+                f"{n}: {NOT_ENGAGED_WORDS.get(key, key)}" for key, n in engage.not_engaged) + ")"
         return text
     if not engage.engaged:
         return (f"supervisor: never engages on this sequence ({engage.window_s:.1f} s replayed, "
@@ -469,6 +507,8 @@ def _result_json(result: FrameResult) -> dict[str, Any]:
         out["engaged"] = bool(result.engaged) if result.engaged is not None else True
     if result.engaged_after_s is not None:
         out["engaged_after_s"] = round(result.engaged_after_s, 4)
+    if result.not_engaged is not None:
+        out["not_engaged_because"] = result.not_engaged
     if result.frame.note:
         out["note"] = result.frame.note
     return out
@@ -483,7 +523,10 @@ def _class_json(figures: ClassFigures) -> dict[str, Any]:
         "longest_confident_runs": [{"first": r.first, "last": r.last, "frames": r.length}
                                    for r in figures.runs],
         "components": [{"name": c.name, "weakest_in": c.weakest_in,
-                        "median": round(c.median, 4)} for c in figures.components],
+                        "median": round(c.median, 4),
+                        "median_where_weakest": (None if math.isnan(c.median_where_weakest)
+                                                 else round(c.median_where_weakest, 4))}
+                       for c in figures.components],
     }
 
 
@@ -498,6 +541,8 @@ def _engage_json(engage: EngageFigures | None) -> dict[str, Any] | None:
         "engaged": engage.engaged,
         "times_s": [round(t, 4) for t in engage.times_s],
     }
+    if engage.how == "held":
+        figures["not_engaged"] = {key: n for key, n in engage.not_engaged}
     if engage.how == "sequence":  # a sequence's own figures (stills had shown 0s and null)
         figures.update(first_engaged=engage.first_engaged,
                        engaged_lane_frames=engage.engaged_lane_frames,

@@ -71,13 +71,13 @@ def _css_rgb(bgr: tuple[int, int, int]) -> str:
 def _summary_table(classes: Mapping[str, ClassFigures]) -> str:
     head = ("<tr><th>class</th><th>frames</th><th>with a decision</th><th>confident</th>"
             "<th>false lanes</th><th>longest confident runs</th><th>weakest components "
-            "(frames where weakest, median)</th></tr>")
+            "(frames where weakest, its median there)</th></tr>")
     rows = []
     for expect in EXPECTS:
         f = classes[expect]
         runs = "<br>".join(_e(f"{r.length}: {r.first}" + (f" .. {r.last}" if r.length > 1
                                                            else "")) for r in f.runs) or "-"
-        weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median:.2f}")
+        weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median_where_weakest:.2f}")
                            for c in f.components if c.weakest_in) or "-"
         false = str(len(f.false_lanes)) if expect == NONE else "-"
         rows.append(f"<tr><th>{_e(CLASS_FOLDERS[expect])}</th><td class=num>{f.frames}</td>"
@@ -119,10 +119,12 @@ def _frame_row(result: FrameResult) -> str:
         engaged = "-"
     else:
         engaged = "yes" if result.engaged else "no"
+    if result.not_engaged is not None:
+        engaged += f": {result.not_engaged}"
     css = "false" if result.false_lane else ("confident" if result.confident else "")
     return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(result.decision)}</td>'
             f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
-            f"</td><td>{_e(weak)}</td><td>{engaged}</td><td>{_e(result.frame.note)}</td></tr>")
+            f"</td><td>{_e(weak)}</td><td>{_e(engaged)}</td><td>{_e(result.frame.note)}</td></tr>")
 
 
 def _class_table(expect: str, results: Sequence[FrameResult]) -> str:

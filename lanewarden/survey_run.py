@@ -45,7 +45,13 @@ from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import LaneEvidence
 from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
-from lanewarden.survey import LANE, EngageFigures, FrameResult, LabelledFrame
+from lanewarden.survey import (
+    LANE,
+    EngageFigures,
+    FrameResult,
+    LabelledFrame,
+    not_engaged_counts,
+)
 from lanewarden.survey_source import StillFrame, SurveySource, problems_line
 
 CONTROLLER = "supervised"
@@ -90,11 +96,12 @@ def is_engaged(state: str) -> bool:
 
 def frame_result(frame: LabelledFrame, observation: LaneObservation, decide: DecisionRule,
                  supervisor: SupervisorConfig, *, engaged_after_s: float | None = None,
-                 engaged: bool | None = None) -> FrameResult:
+                 engaged: bool | None = None, not_engaged: str | None = None) -> FrameResult:
     return FrameResult(
         frame=frame, decision=decide(observation), confidence=observation.confidence,
         confident=LaneEvidence(supervisor).assess(observation).confident,
-        components=observation.components, engaged_after_s=engaged_after_s, engaged=engaged)
+        components=observation.components, engaged_after_s=engaged_after_s, engaged=engaged,
+        not_engaged=not_engaged)
 
 
 def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug) -> Picture:
@@ -195,17 +202,21 @@ def _steps(source: ReplaySource, config: LanewardenConfig,
 
 
 def held_engage(image: np.ndarray, config: LanewardenConfig,
-                calibration: CameraCalibration | None, hold_s: float) -> float | None:
-    """Seconds after a start until the supervisor engages on `image` held in view (None: not
-    within `hold_s`)."""
+                calibration: CameraCalibration | None,
+                hold_s: float) -> tuple[float | None, str | None]:
+    """(seconds after a start until the supervisor engages on `image` held in view, None) or,
+    when it does not within `hold_s`, (None, why: the supervisor's own halt reason at the last
+    frame, e.g. a lane edge inside the robot's footprint)."""
     period = config.supervisor.camera_period_s
     count = math.floor(hold_s / period + 1e-9) + 1
     held = ReplaySource(kind="images", name="held", steps=camera_steps(
         ((k, k * period) for k in range(count)), later=("resume",)), frames=HeldImage(image))
+    why: str | None = None
     for step in replay_steps(held, config, calibration, CONTROLLER):
         if is_engaged(step.record.state):
-            return step.step_input.t
-    return None
+            return step.step_input.t, None
+        why = step.record.halt_reason
+    return None, why or "no reason given"
 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
@@ -233,22 +244,23 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
         except PerceptionError as exc:
             problems.append(f"{still.frame.name}: {exc}")
             continue
-        engaged_after = None
+        engaged_after = why_not = None
         if still.frame.expect == LANE:
             attempts += 1
-            engaged_after = held_engage(image, config, calibration, hold_s)
+            engaged_after, why_not = held_engage(image, config, calibration, hold_s)
             if engaged_after is not None:
                 times.append(engaged_after)
         result = frame_result(still.frame, observation, decide, config.supervisor,
                               engaged_after_s=engaged_after,
                               engaged=None if still.frame.expect != LANE else
-                              engaged_after is not None)
+                              engaged_after is not None, not_engaged=why_not)
         results.append(result)
         keeper.offer(result, partial(picture, result, observation, debug))
     if problems:
         raise InputFileError(problems_line("frames cannot be used", len(stills), problems))
     engage = EngageFigures(how="held", window_s=hold_s, attempts=attempts, engaged=len(times),
-                           times_s=tuple(times))
+                           times_s=tuple(times),
+                           not_engaged=not_engaged_counts(r.not_engaged for r in results))
     return SurveyRun(results, engage, keeper.false_lanes, keeper.weak)
 
 

@@ -134,6 +134,11 @@ def _class_folders(folder: Path) -> list[StillFrame]:
             for i, s in enumerate(stills)]
 
 
+#: Files an operating system leaves in a folder of photos (Windows' thumbnail caches and folder
+#: settings), passed over like hidden files (macOS's .DS_Store): no photo of a class.
+SYSTEM_FILES = frozenset({"thumbs.db", "ehthumbs.db", "ehthumbs_vista.db", "desktop.ini"})
+
+
 def _images_under(folder: Path) -> list[Path]:
     """The images in `folder` (natural name order), then those of its sub-folders, each in
     turn, in name order (hidden folders, such as .git, left out; a folder reached twice through
@@ -152,6 +157,7 @@ def _images_under(folder: Path) -> list[Path]:
             seen.add((info.st_dev, info.st_ino))
             paths.extend(image_sequence_paths(str(here)) or [])
             others = sorted(p for p in here.iterdir() if not p.name.startswith(".")
+                            and p.name.lower() not in SYSTEM_FILES
                             and p.suffix.lower() not in IMAGE_SUFFIXES and p.is_file())
             subs = sorted(p for p in here.iterdir() if p.is_dir() and not p.name.startswith("."))
         except OSError as exc:

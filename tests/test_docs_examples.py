@@ -77,9 +77,9 @@ RUN_ELSEWHERE = {
         "temporary --out)",
     "lanewarden survey data/survey/rendered":
         "tests/survey/test_survey_cli.py (the same command, into a temporary --out)",
-    "lanewarden survey floor/ --calibration camera.yaml":
+    "lanewarden survey floor/ --calibration camera.yaml --config robot.yaml":
         "tests/survey/test_survey_cli.py (a floor/ of rendered photos, the simulated camera's "
-        "calibration)",
+        "calibration, a robot.yaml with their tape and lane)",
     ("lanewarden survey ../shared/data/donkeycar-tub --labels data/survey/donkeycar-tub.csv "
      "--config tests/perception/donkeycar_camera.yaml --calibration "
      "tests/perception/donkeycar_calibration.yaml"):

@@ -15,15 +15,22 @@ writes.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP, ConfigError, OutputError, UsageError
+
+if TYPE_CHECKING:
+    from lanewarden.config import LanewardenConfig
+    from lanewarden.perception.calibration import CameraCalibration
+    from lanewarden.survey_source import SurveySource
 
 SURVEY_EXAMPLES = """\b
 Examples:
@@ -55,31 +62,13 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     confident ones, the false lanes (a decision on a no-lane frame), the weakest confidence
     components and the longest runs of confident frames; the verdict, SAFE or NOT SAFE, and
     whether the supervisor engages. Exit 0 when SAFE, 3 when NOT SAFE."""
-    from tqdm import tqdm
-
     from lanewarden.config import load_config
     from lanewarden.image_files import read_image
-    from lanewarden.perception.calibration import (
-        Undistorter,
-        load_calibration,
-        require_usable_calibration,
-    )
-    from lanewarden.perception.detector import LaneDetector
-    from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.perception.calibration import load_calibration, require_usable_calibration
     from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config
-    from lanewarden.survey import (
-        NONE,
-        false_lanes_text,
-        judge,
-        name_frames,
-        summary_lines,
-        survey_notes,
-    )
-    from lanewarden.survey_report import OUTPUTS, write_outputs
-    from lanewarden.survey_run import survey_sequence, survey_stills
+    from lanewarden.survey import NONE
     from lanewarden.survey_source import open_survey_source
-    from lanewarden.wording import counted, first_few
 
     config = load_config(config_path)
     config_origin = config_path or "defaults"
@@ -99,7 +88,8 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
         # a run folder holds perception's prepared input: refused, as replay refuses it, when
         # --config or --calibration would prepare frames otherwise (its figures would be the
         # recording's camera's, not the one named)
-        check_preparation(source.sequence, config, calibration, command="survey")
+        check_preparation(source.sequence, config, calibration, command="survey",
+                          config_path=config_path, calibration_path=calibration_path)
     frames = ([s.frame for s in source.stills] if source.sequence is None
               else list(source.labelled.values()))
     if not any(f.expect == NONE for f in frames):
@@ -124,7 +114,33 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
                          f"images, the frames are {size[0]}x{size[1]} ({example}); expected the "
                          "calibration of the camera that took them, at their size")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
+    made = not out.exists()
     create_output_folder(out)
+    try:
+        return _survey_into(out, folder, source, config, config_origin, calibration,
+                            calibration_path, size, as_json)
+    except BaseException:
+        if made:  # a survey that fails leaves no empty folder behind (nothing was written)
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
+
+
+def _survey_into(out: Path, folder: str, source: SurveySource, config: LanewardenConfig,
+                 config_origin: str, calibration: CameraCalibration | None,
+                 calibration_path: str | None, size: tuple[int, int] | None,
+                 as_json: bool) -> int:
+    """The survey proper, once its inputs passed their checks: into the output folder `out`."""
+    from tqdm import tqdm
+
+    from lanewarden.perception.calibration import Undistorter
+    from lanewarden.perception.detector import LaneDetector
+    from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.survey import false_lanes_text, judge, name_frames, summary_lines, survey_notes
+    from lanewarden.survey_report import OUTPUTS, write_outputs
+    from lanewarden.survey_run import survey_sequence, survey_stills
+    from lanewarden.wording import counted, first_few
+
     try:
         for name in OUTPUTS:  # a failed survey leaves no stale verdict behind
             (out / name).unlink(missing_ok=True)
@@ -153,7 +169,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     finally:
         bar.close()
     figures = judge(run.results, run.engage)
-    about = {"source": folder, "frames": source.description, "config": config_origin,
+    about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground}
     document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures)

@@ -25,6 +25,7 @@ from lanewarden.perception.calibration import save_calibration
 from lanewarden.scenarios.camera import CameraModel
 from tests.conftest import PROJECT_ROOT
 from tests.operator.clips import lane_end_frames, write_video
+from tests.survey.rendered_set import LANE_WIDTH_M
 
 RENDERED = PROJECT_ROOT / "data" / "survey" / "rendered"
 README_EXAMPLE = "lanewarden survey data/survey/rendered"
@@ -96,9 +97,13 @@ def floor(tmp_path: Path) -> Path:
 def test_a_floor_folder_with_a_calibration(floor: Path, tmp_path: Path,
                                            monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str]) -> None:
-    """README's recipe: `lanewarden survey floor/ --calibration camera.yaml` (default --out)."""
+    """README's recipe: `lanewarden survey floor/ --calibration camera.yaml --config robot.yaml`
+    (default --out; the robot.yaml of the recipe's example, with this floor's tape and lane)."""
     monkeypatch.chdir(tmp_path)
-    code, out, err = _survey(["floor/", "--calibration", "camera.yaml"], capsys)
+    (tmp_path / "robot.yaml").write_text(
+        f"perception: {{tape: {{width_m: 0.048}}, lane: {{width_m: {LANE_WIDTH_M}}}}}\n")
+    code, out, err = _survey(["floor/", "--calibration", "camera.yaml", "--config", "robot.yaml"],
+                             capsys)
     assert code == 0, err
     assert out.splitlines()[0].startswith("ground model: ground calibration from camera.yaml")
     assert "no-lane: 2 frames, 0 with a decision (0%), 0 confident, 0 false lanes" in out
@@ -183,8 +188,12 @@ def test_json_prints_survey_json(floor: Path, tmp_path: Path,
     assert err.startswith("lanewarden: ground model:")
     # stills: the held-in-view figures only (a sequence's first_engaged, lane_frames, ... had
     # read null and 0 beside "engaged": 3)
-    assert sorted(document["engage"]) == ["attempts", "engaged", "how", "times_s", "window_s",
-                                          "would_engage"]
+    assert sorted(document["engage"]) == ["attempts", "engaged", "how", "not_engaged",
+                                          "times_s", "window_s", "would_engage"]
+    assert document["engage"]["not_engaged"] == {}  # all three engage
+    # where the frames came from (it had been overwritten by the per-frame list)
+    assert document["labelled"].endswith("(class folders lane/, no-lane/)")
+    assert len(document["frames"]) == 5
     assert (document["engage"]["how"], document["engage"]["engaged"]) == ("held", 3)
     page = (tmp_path / "o" / "report.html").read_text()
     assert "<li>ground model: ground model" not in page and "ground_model:" not in page
@@ -349,6 +358,10 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         return [str(folder)], f"FOLDER '{folder}': no lane frame"
     if case in ("a photo the survey cannot read", "frames of two sizes"):
         _photos(folder, lane, tiles)
+        # files Windows leaves in a folder of photos are passed over, as hidden ones are (a
+        # Thumbs.db had stopped a survey)
+        (folder / "lane" / "Thumbs.db").write_bytes(b"\xd0\xcf\x11\xe0")
+        (folder / "no-lane" / "desktop.ini").write_text("[.ShellClassInfo]\n")
         if case == "frames of two sizes":  # another camera's photo (160x120) among 640x480
             cv2.imwrite(str(folder / "no-lane" / "small.png"),
                         cv2.resize(cv2.imread(str(tiles)), (160, 120)))
@@ -427,4 +440,6 @@ def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,
     assert code == 2, err
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith(f"lanewarden: error: {says}"), err
-    assert not (tmp_path / "o" / "survey.json").exists()
+    # no output folder left behind, not even an empty one (a reviewer found one after a photo
+    # that could not be read)
+    assert not (tmp_path / "o").exists()

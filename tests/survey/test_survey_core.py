@@ -3,21 +3,24 @@ written out by hand (no image, no detector). Expected answers are literals."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from lanewarden.errors import InputFileError
 from lanewarden.survey import (
-    ComponentFigure,
     ConfidentRun,
     EngageFigures,
     FrameResult,
     LabelledFrame,
+    class_figures,
     class_line,
     component_figures,
     confident_runs,
     engage_line,
     judge,
     name_frames,
+    not_engaged_counts,
     parse_labels,
     survey_json,
     verdict_line,
@@ -96,10 +99,32 @@ def test_weakest_components_count_only_components_below_one() -> None:
     ]
     assert results[2].weakest is None
     assert results[1].weakest == ("parallel", 0.1)
-    # most often the weakest first, then the lowest median
-    assert component_figures(results) == [
-        ComponentFigure("tape_pair_left", 1, 0.2), ComponentFigure("parallel", 1, 0.5),
-        ComponentFigure("both_sides", 0, 1.0)]
+    # most often the weakest first, then the lowest median over the class; beside it the
+    # median over the frames where it was the weakest (none: NaN)
+    figures = component_figures(results)
+    assert [(f.name, f.weakest_in, f.median) for f in figures] == [
+        ("tape_pair_left", 1, 0.2), ("parallel", 1, 0.5), ("both_sides", 0, 1.0)]
+    assert [f.median_where_weakest for f in figures[:2]] == [0.0, 0.1]
+    assert math.isnan(figures[2].median_where_weakest)
+    # the class line names where each is weakest and how weak it is there
+    line = class_line(class_figures("lane", results))
+    assert line.endswith("; weakest: tape_pair_left in 1 frames (median there 0.00), "
+                         "parallel in 1 (0.10)")
+
+
+def test_stills_not_engaged_are_counted_by_the_supervisors_reason() -> None:
+    reasons = [None, "not engaged yet: waiting for start and a confident lane",
+               "LANE_DEPARTURE: a lane edge inside the robot's footprint (left edge 0.01 m)",
+               "LANE_DEPARTURE: a lane edge inside the robot's footprint (left edge 0.02 m)",
+               "not engaged yet: waiting for start and a confident lane",
+               "not engaged yet: waiting for start and a confident lane"]
+    counts = not_engaged_counts(reasons)
+    assert counts == (("not engaged yet", 3), ("LANE_DEPARTURE", 2))
+    engage = EngageFigures(how="held", window_s=1.0, attempts=6, engaged=1, times_s=(0.3,),
+                           not_engaged=counts)
+    assert engage_line(engage) == (
+        "supervisor: engages on 1 of 6 lane stills held in view for 1.0 s after a start (after "
+        "0.30 s at the most); not on 5 (3: no confident lane long enough; 2: LANE_DEPARTURE)")
 
 
 def test_a_decision_on_a_no_lane_frame_makes_it_not_safe_and_names_the_frames() -> None:
