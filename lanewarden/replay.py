@@ -211,31 +211,52 @@ class ReplayedStep:
 
 
 def preparation_changed(source: ReplaySource, config: LanewardenConfig,
-                        calibration: CameraCalibration | None) -> str | None:
-    """Why a recording of perception's prepared input cannot be replayed with this config and
-    calibration (its frames are already undistorted and blurred as the run's were); None: it
-    can (or it holds the camera's own frames)."""
+                        calibration: CameraCalibration | None, *,
+                        config_named: str = "the config given",
+                        calibration_named: str = "the calibration given"
+                        ) -> tuple[str, str] | None:
+    """(why, what was expected) when a recording of perception's prepared input cannot be
+    replayed with this config and calibration (its frames are already undistorted and blurred
+    as the run's were); `why` begins with what was given (`config_named`, `calibration_named`:
+    e.g. "--config 'blur7.yaml'"). None: it can (or it holds the camera's own frames)."""
     if source.meta.get("image") != PERCEPTION_INPUT:
         return None
     recorded = source.config if source.config is not None else LanewardenConfig()
     if config.perception.blur != recorded.perception.blur:
-        return (f"its frames were blurred on the run (perception.blur "
-                f"{recorded.perception.blur.model_dump()}), the config given blurs with "
-                f"{config.perception.blur.model_dump()}")
+        return (f"{config_named}: perception.blur {config.perception.blur.model_dump()}, but "
+                f"{source.name} was recorded as perception's input, its frames blurred on the "
+                f"run with {recorded.perception.blur.model_dump()}", "the recorded blur")
     if not same_calibration(calibration, source.calibration):
+        if calibration is None:
+            given = "no calibration"
+        else:
+            w, h = calibration.image_size
+            given = f"{calibration_named} (for {w}x{h} images)"
         if source.calibration is None:
-            return "the run had no calibration (its frames were not undistorted), not this one"
-        return "its frames were undistorted on the run with its own calibration, not this one"
+            return (f"{given}: {source.name} was recorded as perception's input without a "
+                    "calibration (its frames were not undistorted)", "no --calibration")
+        w, h = source.calibration.image_size
+        return (f"{given}: {source.name} was recorded as perception's input, its frames "
+                f"undistorted on the run with another calibration (for {w}x{h} images)",
+                "no --calibration (the recording's own)")
     return None
 
 
 def check_preparation(source: ReplaySource, config: LanewardenConfig,
-                      calibration: CameraCalibration | None, command: str = "replay") -> None:
+                      calibration: CameraCalibration | None, command: str = "replay", *,
+                      config_path: str | None = None,
+                      calibration_path: str | None = None) -> None:
     """UsageError (one line) when `preparation_changed` says why the source cannot be replayed
-    (or surveyed: `command`) with this config and calibration."""
-    if why := preparation_changed(source, config, calibration):
-        raise UsageError(f"{command} {source.name}: recorded as perception's input, and {why}; "
-                         f"{command} it with the recorded blur and calibration (record with "
+    (or surveyed: `command`) with this config and calibration; it names the flag and file
+    given (`config_path`, `calibration_path`)."""
+    why = preparation_changed(
+        source, config, calibration,
+        config_named=f"--config '{config_path}'" if config_path else "the config given",
+        calibration_named=(f"--calibration '{calibration_path}'" if calibration_path
+                           else "the calibration given"))
+    if why:
+        text, expected = why
+        raise UsageError(f"{text}; expected {expected}, to {command} it as recorded (record with "
                          "--record-gray to try others)")
 
 

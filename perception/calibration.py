@@ -312,7 +312,7 @@ def save_ros_camera_info(
 def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:
     """An opencv-matrix node, or a ROS-style {rows, cols, data} mapping."""
     if node.isNone():
-        raise PerceptionError(f"{path}: missing node '{name}'")
+        raise PerceptionError(f"{path}: missing node '{name}'; {EXPECTED_CALIBRATION}")
     if not node.isMap():
         raise PerceptionError(f"{path}: node '{name}' is not a matrix (expected rows, cols, data)")
     data_node = node.getNode("data")
@@ -335,7 +335,7 @@ def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:
 
 def _read_int(node: cv2.FileNode, path: Path, name: str) -> int:
     if node.isNone():
-        raise PerceptionError(f"{path}: missing node '{name}'")
+        raise PerceptionError(f"{path}: missing node '{name}'; {EXPECTED_CALIBRATION}")
     if not node.isInt():
         raise PerceptionError(f"{path}: node '{name}' is not an integer")
     return int(node.real())
@@ -397,6 +397,13 @@ def image_size_problem(width: int, height: int) -> str:
     return ""
 
 
+#: What a calibration file is, for errors about one that is not.
+EXPECTED_CALIBRATION = ("expected a camera calibration as `lanewarden calibrate` writes it "
+                        "(camera_matrix, distortion_coefficients, image_width, image_height)")
+#: Top-level sections of a lanewarden config: a file with one of them given as a calibration.
+CONFIG_SECTIONS = ("perception", "supervisor", "actuation", "simulation", "campaign")
+
+
 def load_calibration(path: str | Path) -> CameraCalibration:
     """Read a calibration written by `save_calibration` (or OpenCV's calibration sample, or a ROS
     camera_info YAML). Raises PerceptionError naming the file and the bad or missing node."""
@@ -422,6 +429,11 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         root = storage.root()
         if not root.isMap():
             raise PerceptionError(f"{path}: expected a mapping of calibration nodes")
+        sections = [k for k in CONFIG_SECTIONS if not storage.getNode(k).isNone()]
+        if sections and storage.getNode("camera_matrix").isNone():
+            raise PerceptionError(f"{path}: a lanewarden config (it has '{sections[0]}:'), not "
+                                  f"a calibration; {EXPECTED_CALIBRATION} (give this file to "
+                                  "--config)")
         camera_matrix = _read_matrix(storage.getNode("camera_matrix"), path, "camera_matrix")
         if camera_matrix.shape != (3, 3):
             raise PerceptionError(

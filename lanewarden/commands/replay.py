@@ -62,7 +62,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     config = replay_config(replay_source, config_path)
     calibration = (load_calibration(calibration_path) if calibration_path
                    else replay_source.calibration)
-    check_preparation(replay_source, config, calibration)  # before any output is written
+    check_preparation(replay_source, config, calibration, config_path=config_path,
+                      calibration_path=calibration_path)  # before any output is written
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER
@@ -84,13 +85,19 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                f"{replay_source.config_origin}): {counted(metrics['steps'], 'step')}, "
                f"{counted(metrics['frames'], 'frame')}, {metrics['sim_time_s']} s replayed in "
                f"{metrics['wall_time_s']} s")
-    click.echo(f"  states visited: {', '.join(metrics['states_visited'])}; final state "
-               f"{metrics['final_state']}"
-               + (f" ({metrics['halt_reason']})" if metrics.get("halt_reason") else ""))
-    # what ended the replay, as metrics.json, the plot and the report say it (the final state's
-    # reason can be a halt event raised while the robot was never engaged)
-    never = " (never engaged)" if metrics["states_visited"] == ["HALT"] else ""
-    click.echo(f"  ended: {metrics['end_reason']}{never}")
+    never = metrics["states_visited"] == ["HALT"]
+    reason = metrics.get("halt_reason")
+    if never:
+        # the robot never left HALT: its last halt reason is what held it there, not a halt
+        # (a replay of a tub had read "final state HALT (LANE_DEPARTURE: ...)" for a robot that
+        # never moved)
+        click.echo("  states visited: HALT; never engaged"
+                   + (f" (held by {reason})" if reason else ""))
+    else:
+        click.echo(f"  states visited: {', '.join(metrics['states_visited'])}; final state "
+                   f"{metrics['final_state']}" + (f" ({reason})" if reason else ""))
+    # what ended the replay, as metrics.json, the plot and the report say it
+    click.echo(f"  ended: {metrics['end_reason']}{' (never engaged)' if never else ''}")
     if replay_source.kind == "bag":
         click.echo(f"  topic {replay_source.meta['topic']}, timed by its "
                    f"{replay_source.meta['times']}")

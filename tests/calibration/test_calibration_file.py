@@ -74,7 +74,14 @@ def test_loads_ros_camera_info_yaml(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
-        ("image_width: 640\nimage_height: 480\n", "missing node 'camera_matrix'"),
+        ("image_width: 640\nimage_height: 480\n",
+         "missing node 'camera_matrix'; expected a camera calibration as `lanewarden calibrate` "
+         "writes it"),
+        # a lanewarden config given as the calibration (a reviewer's slip: the JetBot set's
+        # camera.yaml for calibration.yaml): said so, and where it belongs
+        ("perception:\n  tape:\n    width_m: 0.019\n",
+         "a lanewarden config \\(it has 'perception:'\\), not a calibration; expected a camera "
+         "calibration .* \\(give this file to --config\\)"),
         ("camera_matrix: 5\n", "node 'camera_matrix' is not a matrix"),
         ("camera_matrix:\n  rows: 2\n  cols: 2\n  data: [1, 2, 3, 4]\n", "expected 3x3"),
         ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 2, 3]\n", "is 3x3 but has 3 values"),

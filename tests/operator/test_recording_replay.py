@@ -329,9 +329,11 @@ def test_another_blur_is_refused_for_prepared_frames_not_for_camera_frames(
                  str(tmp_path / "out1")])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
-    assert ("replay prepared: recorded as perception's input, and its frames were blurred on "
-            "the run (perception.blur {'kernel_px': 5, 'sigma_px': 0.0}), the config given "
-            "blurs with {'kernel_px': 7, 'sigma_px': 0.0}") in err
+    assert err == (f"lanewarden: error: --config '{blur}': perception.blur {{'kernel_px': 7, "
+                   "'sigma_px': 0.0}, but prepared was recorded as perception's input, its "
+                   "frames blurred on the run with {'kernel_px': 5, 'sigma_px': 0.0}; expected "
+                   "the recorded blur, to replay it as recorded (record with --record-gray to "
+                   "try others)\n")
     assert not (tmp_path / "out1").exists(), "refused before any output"
     assert main(["replay", str(camera), "--config", str(blur), "--no-video", "--out",
                  str(tmp_path / "out2")]) == 0
@@ -350,19 +352,22 @@ def test_survey_refuses_what_replay_refuses_for_prepared_frames(
     save_calibration(CameraModel(width_px=640, height_px=480).calibration(), lens)
     run = tmp_path / "prepared"
     record_run(run, clip[:12], LanewardenConfig())
+    # the error names the flag and the file given, the recording and what was expected (it had
+    # named neither flag nor file)
     for flag, file, why in (
-            ("--config", blur, "its frames were blurred on the run (perception.blur "
-                               "{'kernel_px': 5, 'sigma_px': 0.0}), the config given blurs "
-                               "with {'kernel_px': 7, 'sigma_px': 0.0}"),
-            ("--calibration", lens, "the run had no calibration (its frames were not "
-                                    "undistorted), not this one")):
+            ("--config", blur, f"--config '{blur}': perception.blur {{'kernel_px': 7, "
+                               "'sigma_px': 0.0}, but prepared was recorded as perception's "
+                               "input, its frames blurred on the run with {'kernel_px': 5, "
+                               "'sigma_px': 0.0}; expected the recorded blur"),
+            ("--calibration", lens, f"--calibration '{lens}' (for 640x480 images): prepared was "
+                                    "recorded as perception's input without a calibration (its "
+                                    "frames were not undistorted); expected no --calibration")):
         out = tmp_path / f"out{flag}"
         code = main(["survey", str(run), "--labels", str(labels), flag, str(file), "--out",
                      str(out)])
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1, err
-        assert err == (f"lanewarden: error: survey prepared: recorded as perception's input, and "
-                       f"{why}; survey it with the recorded blur and calibration (record with "
+        assert err == (f"lanewarden: error: {why}, to survey it as recorded (record with "
                        "--record-gray to try others)\n")
         assert not out.exists(), "refused before any output"
 

@@ -41,6 +41,11 @@ def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
         f"ground model: ground calibration from {DONKEYCAR_CALIBRATION}: h 0.230 m, pitch 19.7°")
     assert "; 160x120: look-ahead 0.15 m" in out.splitlines()[0]
     assert "  ended: end of the clip (never engaged)" in out.splitlines()
+    # a robot that never left HALT is said never to have engaged, with what held it (the line
+    # had read "final state HALT (LANE_DEPARTURE: ...)", as if it had halted)
+    held = next(line for line in out.splitlines() if line.startswith("  states visited:"))
+    assert held.startswith("  states visited: HALT; never engaged"), held
+    assert "final state" not in held
     metrics = _outputs_written(tmp_path / "out")
     assert (metrics["source_kind"], metrics["steps"], metrics["frames"]) == ("tub", 1000, 1000)
     # the tub's own timestamps: 1000 frames over 3.33 s
