@@ -72,6 +72,20 @@ def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]
     return rows
 
 
+def table_notes(runs: Mapping[str, Mapping[str, object]]) -> list[str]:
+    """What a reader of the table needs to read a sign: a negative lane-loss time (the
+    supervisor halted before the lane left the view) or distance past the lane's end."""
+    notes = []
+    for key, label, meaning in (
+            ("lane_loss_to_halt_s", "lane out of view -> HALT",
+             "halted before the lane left the view"),
+            ("distance_past_lane_end_m", "distance past lane end", "stopped before the end")):
+        values = [m.get(key) for m in runs.values()]
+        if any(isinstance(v, int | float) and v < 0 for v in values):
+            notes.append(f"{label}: negative = {meaning}")
+    return notes
+
+
 def format_metric(metrics: Mapping[str, object], key: str) -> str:
     """One metric as the table shows it; an extrapolated lane-loss time says it is estimated."""
     text = format_value(metrics.get(key))

@@ -31,6 +31,7 @@ from lanewarden.scenarios.report import (
     demo_summary,
     format_table,
     format_value,
+    table_notes,
     write_report,
 )
 from lanewarden.scenarios.sim_run import RunRequest, run_title, run_to_directory
@@ -221,6 +222,8 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     folder.finish()
     sys.stderr.flush()
     click.echo(format_table(comparison_rows(runs)))
+    for note in table_notes(runs):
+        click.echo(f"  ({note})")
     click.echo("")
     click.echo(summary)
     click.echo(f"Report: {out / 'report.html'}  ({time.perf_counter() - started:.1f} s)")

@@ -12,7 +12,13 @@ import pytest
 from lanewarden.actuation.base import STOP
 from lanewarden.perception.overlay import OVERLAY_STYLES, put_text_lines
 from lanewarden.scenarios.plot import decision_shares, state_runs
-from lanewarden.scenarios.report import comparison_rows, demo_summary, format_table, write_report
+from lanewarden.scenarios.report import (
+    comparison_rows,
+    demo_summary,
+    format_table,
+    table_notes,
+    write_report,
+)
 from lanewarden.scenarios.state_reasons import state_reasons, state_with_reason
 from lanewarden.scenarios.texture import paint_ground
 from lanewarden.scenarios.video import (
@@ -51,6 +57,12 @@ def test_table_and_summary() -> None:
     assert table["states visited"] == ["FOLLOW, TURN_RIGHT, TURN_LEFT", "HALT, FOLLOW, DEGRADED"]
     assert table["turns completed"] == ["A", "A, B"]
     assert table["lane out of view -> HALT (s)"] == ["-", "-2.07 (estimated)"]
+    # the sign explained under the table (a reviewer met an unexplained -1.167 in the demo);
+    # LECTURE ran 2.5 m past the end, SUPERVISED halted 0.36 m before it
+    assert table_notes({"lecture's": LECTURE, "supervised": SUPERVISED}) == [
+        "lane out of view -> HALT: negative = halted before the lane left the view",
+        "distance past lane end: negative = stopped before the end"]
+    assert table_notes({"lecture's": LECTURE}) == []
     assert table["max cross-track error (m)"] == ["0.7", "0.051"]
     text = format_table(rows)
     assert text.splitlines()[1].startswith("---")
