@@ -131,6 +131,9 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert len(held) == departure
     assert all(f["not_engaged_because"].startswith("LANE_DEPARTURE: a lane edge inside the "
                                                    "robot's footprint") for f in held)
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "<td>no: no confident lane long enough</td>" in page
+    assert "<td>no: LANE_DEPARTURE: a lane edge inside the robot&#x27;s footprint" in page
 
 
 def test_the_narrowest_lane_on_the_jetbot_frames(
