@@ -211,10 +211,8 @@ class ReplayedStep:
 
 
 def preparation_changed(source: ReplaySource, config: LanewardenConfig,
-                        calibration: CameraCalibration | None, *,
-                        config_named: str = "the config given",
-                        calibration_named: str = "the calibration given"
-                        ) -> tuple[str, str] | None:
+                        calibration: CameraCalibration | None, *, config_named: str,
+                        calibration_named: str) -> tuple[str, str] | None:
     """(why, what was expected) when a recording of perception's prepared input cannot be
     replayed with this config and calibration (its frames are already undistorted and blurred
     as the run's were); `why` begins with what was given (`config_named`, `calibration_named`:

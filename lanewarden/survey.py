@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import math
 import statistics
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -292,14 +293,16 @@ def reason_key(reason: str) -> str:
 NOT_ENGAGED_WORDS = {"not engaged yet": "no confident lane long enough"}
 
 
+def not_engaged_words(reason: str) -> str:
+    """A halt reason (or its `reason_key`) as the survey says it of a still that did not engage:
+    "no confident lane long enough" for the supervisor's "not engaged yet", else as it is."""
+    return NOT_ENGAGED_WORDS.get(reason_key(reason), reason)
+
+
 def not_engaged_counts(reasons: Iterable[str | None]) -> tuple[tuple[str, int], ...]:
     """Lane stills the supervisor did not engage on, counted by reason (`reason_key`), most
     first (ties: by name)."""
-    counts: dict[str, int] = {}
-    for reason in reasons:
-        if reason is not None:
-            key = reason_key(reason)
-            counts[key] = counts.get(key, 0) + 1
+    counts = Counter(reason_key(reason) for reason in reasons if reason is not None)
     return tuple(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
@@ -452,7 +455,7 @@ def engage_line(engage: EngageFigures | None) -> str:
         if engage.not_engaged:
             missed = sum(n for _, n in engage.not_engaged)
             text += f"; not on {missed} (" + "; ".join(
-                f"{n}: {NOT_ENGAGED_WORDS.get(key, key)}" for key, n in engage.not_engaged) + ")"
+                f"{n}: {not_engaged_words(key)}" for key, n in engage.not_engaged) + ")"
         return text
     if not engage.engaged:
         return (f"supervisor: never engages on this sequence ({engage.window_s:.1f} s replayed, "

@@ -23,12 +23,11 @@ from lanewarden.survey import (
     CLASS_FOLDERS,
     EXPECTS,
     NONE,
-    NOT_ENGAGED_WORDS,
     ClassFigures,
     FrameResult,
     SurveyFigures,
     engage_line,
-    reason_key,
+    not_engaged_words,
     survey_json,
     verdict_line,
 )
@@ -122,7 +121,7 @@ def _frame_row(result: FrameResult) -> str:
     else:
         engaged = "yes" if result.engaged else "no"
     if result.not_engaged is not None:
-        engaged += f": {NOT_ENGAGED_WORDS.get(reason_key(result.not_engaged), result.not_engaged)}"
+        engaged += f": {not_engaged_words(result.not_engaged)}"
     css = "false" if result.false_lane else ("confident" if result.confident else "")
     return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(result.decision)}</td>'
             f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
