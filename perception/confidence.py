@@ -53,7 +53,13 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
+from lanewarden.perception.floor_view import (
+    FloorView,
+    Point,
+    direction,
+    distance_to_line,
+    signed_offset,
+)
 from lanewarden.perception.observation import (
     LaneEdge,
     LaneObservation,
@@ -147,6 +153,15 @@ def lane_components(
         comps["parallel"] = _ramp(floor_angle_deg(left.direction, right.direction),
                                   config.lane.parallel_tolerance_deg)
     return comps
+
+
+def lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]:
+    """(offset, heading) of the line midway between the two edges on the floor: its signed
+    distance from the robot's centre (left +) and its direction (radians, left +)."""
+    heading = lane_heading_rad(left.direction, right.direction)
+    d = (math.cos(heading), math.sin(heading))
+    offset = 0.5 * (signed_offset(left.point, d) + signed_offset(right.point, d))
+    return offset, heading
 
 
 def lane_heading_rad(left: Point, right: Point) -> float:

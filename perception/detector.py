@@ -54,8 +54,8 @@ from lanewarden.perception.confidence import (
     combine,
     consistency_component,
     frozen_components,
+    lane_centre,
     lane_components,
-    lane_heading_rad,
 )
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.edge_choice import SideChoice, choose_edges
@@ -69,6 +69,7 @@ from lanewarden.perception.ground import (
 )
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
 from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
+from lanewarden.perception.one_side import lane_from_one_side
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
@@ -341,8 +342,8 @@ class LaneDetector:
         if left_edge is not None and right_edge is not None:
             slope_sum = left_edge.slope + right_edge.slope
             if left_floor is not None and right_floor is not None:
-                lane_offset, lane_heading = _lane_centre(left_floor, right_floor)
-        return LaneObservation(
+                lane_offset, lane_heading = lane_centre(left_floor, right_floor)
+        observation = LaneObservation(
             frame_index=frame_index,
             time_s=time_s,
             left=left_edge,
@@ -353,6 +354,18 @@ class LaneDetector:
             lane_offset_m=lane_offset,
             lane_heading_rad=lane_heading,
         )
+        dashed = config.lane.dashed_side
+        if dashed is None or previous is None:
+            return observation
+        # the dashed line out of sight, the other tape seen where the lane was (perception.one_side)
+        seen: Side = "right" if dashed == "left" else "left"
+        edge, floor = (right_edge, right_floor) if seen == "right" else (left_edge, left_floor)
+        if edge is not None and floor is not None:
+            one_side = lane_from_one_side(seen, edge, floor, state.view, state.size[1], config,
+                                          previous, frame_index, time_s)
+            if one_side is not None and one_side.confidence > observation.confidence:
+                observation = one_side
+        return observation
 
     def _edge(self, choice: SideChoice | None, side: Side,
               floor: EdgeEvidence | None) -> LaneEdge | None:
@@ -412,15 +425,6 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
                         tape_score=choice.tape_score, verified=choice.verified,
                         dark=choice.tape_dark, polarity=choice.polarity,
                         line_ids=choice.line_ids)
-
-
-def _lane_centre(left: EdgeEvidence, right: EdgeEvidence) -> tuple[float, float]:
-    """(offset, heading) of the line midway between the two edges on the floor: its signed
-    distance from the robot's centre (left +) and its direction (radians, left +)."""
-    heading = lane_heading_rad(left.direction, right.direction)
-    d = (math.cos(heading), math.sin(heading))
-    offset = 0.5 * (signed_offset(left.point, d) + signed_offset(right.point, d))
-    return offset, heading
 
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:

@@ -90,6 +90,16 @@ class LaneObservation:
     def both_edges(self) -> bool:
         return self.left is not None and self.right is not None
 
+    @property
+    def sides_seen(self) -> int:
+        """The edges perception found in the image: those present, less the one it placed the
+        lane's width from the other while that tape was out of sight (`perception.one_side`:
+        both edges present with `components["both_sides"]` 0.5)."""
+        edges = (self.left is not None) + (self.right is not None)
+        if edges == 2 and self.components.get("both_sides", 1.0) < 1.0:
+            return 1
+        return edges
+
     def as_json(self) -> dict[str, object]:
         return {
             "frame_index": self.frame_index,

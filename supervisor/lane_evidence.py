@@ -32,8 +32,12 @@ Per new frame:
   stays where it jumped to counts after at most (jump - lane_departure_jump_m) /
   limiter_max_linear_m_s seconds: it delays a departure that follows a jump, never hides one.
 "Usable" (resets the lane-lost timer): at least one edge and confidence >= the usable minimum.
-"Confident" (counts towards engage/recover): both edges and confidence >=
-`confidence_confident_min`.
+"Confident" (counts towards engage/recover): both edges seen and confidence >=
+`confidence_confident_min`. A lane perception placed from one tape while the other was out of
+sight (`perception.one_side`: both edges, `sides_seen` 1) raises ONE_EDGE_LOST like a lone edge
+(DEGRADED and its budget), is usable when its confidence is, is never confident (so it breaks a
+run of confident frames, to engage or to recover, like any unconfident frame), and feeds the
+slope filter.
 Pure; the only memory is the low-confidence and departure streaks and the reference for the
 departure's reachability (the last confident frame that counted: its time and edge offsets).
 """
@@ -148,9 +152,10 @@ class LaneEvidence:
         obs = observation
         events: set[Event] = set()
         edges = (obs.left is not None) + (obs.right is not None)
+        seen = obs.sides_seen
         if edges == 0:
             events.add(Event.BOTH_EDGES_LOST)
-        elif edges == 1:
+        elif seen == 1:
             events.add(Event.ONE_EDGE_LOST)
         trusted = obs.confidence >= cfg.confidence_usable_min
         if edges > 0 and not trusted:
@@ -162,7 +167,7 @@ class LaneEvidence:
         if self._low_confidence_frames >= cfg.low_confidence_degrade_frames:
             events.add(Event.LANE_LOW_CONFIDENCE)
         usable = edges > 0 and trusted
-        confident = edges == 2 and obs.confidence >= cfg.confidence_confident_min
+        confident = seen == 2 and obs.confidence >= cfg.confidence_confident_min
         departure = None
         offsets = _edge_offsets(obs)
         # only confident frames count towards a departure, or reset it, and only those the

@@ -17,7 +17,7 @@ SAFETY_FILES = {
     "supervisor/events.py", "supervisor/state_machine.py", "actuation/deadman_logic.py",
     "perception/tape_rules.py", "lanewarden/live_view.py", "lanewarden/operator.py",
     "supervisor/lane_evidence.py", "supervisor/commands.py", "supervisor/loop.py",
-    "perception/confidence.py", "perception/lines.py",
+    "perception/confidence.py", "perception/lines.py", "perception/one_side.py",
 }  # fmt: skip
 
 

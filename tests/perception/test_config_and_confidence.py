@@ -48,6 +48,8 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
          "width_tolerance_fraction) = 0.02125 m"),
         ("tape: {right_width_m: 0.3}", "perception.tape.right_width_m = 0.3"),
         ("lane: {horizon_y_norm: 0.3}", "unknown key 'perception.lane.horizon_y_norm'"),
+        ("lane: {dashed_side: centre}",
+         "perception.lane.dashed_side = 'centre': input should be 'left' or 'right'"),
         ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
         ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1: expected a distance "
          "in metres above 0 and at most 10, or auto"),
