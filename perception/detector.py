@@ -61,7 +61,7 @@ from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.edge_choice import SideChoice, choose_edges
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.floor_view import direction, signed_offset
-from lanewarden.perception.geometry import Side, edge_slope
+from lanewarden.perception.geometry import Side, edge_slope, other_side
 from lanewarden.perception.ground import (
     GroundModel,
     default_ground_model,
@@ -358,7 +358,7 @@ class LaneDetector:
         if dashed is None or previous is None:
             return observation
         # the dashed line out of sight, the other tape seen where the lane was (perception.one_side)
-        seen: Side = "right" if dashed == "left" else "left"
+        seen = other_side(dashed)
         edge, floor = (right_edge, right_floor) if seen == "right" else (left_edge, left_floor)
         if edge is not None and floor is not None:
             one_side = lane_from_one_side(seen, edge, floor, state.view, state.size[1], config,

@@ -33,6 +33,11 @@ from typing import Literal
 Side = Literal["left", "right"]
 
 
+def other_side(side: Side) -> Side:
+    """The lane's other side."""
+    return "right" if side == "left" else "left"
+
+
 def edge_angle_deg(x1: float, y1: float, x2: float, y2: float) -> float:
     """Direction of the segment from its near end (x1, y1) to its far end (x2, y2), in degrees,
     counter-clockwise from the +x axis with y UP: in [0, 180] for a segment that rises.

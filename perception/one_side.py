@@ -41,7 +41,7 @@ from lanewarden.perception.confidence import (
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.edge_choice import free_width_m
 from lanewarden.perception.floor_view import FloorView, Point, direction, signed_offset
-from lanewarden.perception.geometry import Side, edge_slope
+from lanewarden.perception.geometry import Side, edge_slope, other_side
 from lanewarden.perception.observation import (
     LaneEdge,
     LaneObservation,
@@ -70,7 +70,7 @@ def lane_from_one_side(
     references = tuple(lane for lane in reference_lanes(previous) if lane.both_edges)
     if not references or not floor.verified:
         return None
-    other: Side = "right" if seen == "left" else "left"
+    other = other_side(seen)
     free = free_width_m(config)
     # The reported chord, near end to the look-ahead, moved across the lane on the floor.
     a0, a1 = view.to_floor(edge.x1, edge.y1), view.to_floor(edge.x2, edge.y2)
