@@ -69,7 +69,7 @@ from lanewarden.perception.ground import (
 )
 from lanewarden.perception.lines import LineRow, LineSet, build_line_set
 from lanewarden.perception.observation import LaneEdge, LaneObservation, LaneReference
-from lanewarden.perception.one_side import lane_from_one_side
+from lanewarden.perception.one_side import lane_from_one_side, one_side_ceiling
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
@@ -355,8 +355,9 @@ class LaneDetector:
             lane_heading_rad=lane_heading,
         )
         dashed = config.lane.dashed_side
-        if dashed is None or previous is None:
-            return observation
+        if (dashed is None or previous is None
+                or observation.confidence >= one_side_ceiling(config)):
+            return observation  # (a lane from one tape could not score higher)
         # the dashed line out of sight, the other tape seen where the lane was (perception.one_side)
         seen = other_side(dashed)
         edge, floor = (right_edge, right_floor) if seen == "right" else (left_edge, left_floor)

@@ -53,6 +53,12 @@ from lanewarden.perception.observation import (
 ONE_SIDE = 0.5
 
 
+def one_side_ceiling(config: PerceptionConfig) -> float:
+    """The most a lane from one tape can score (`combine`: `both_sides` is ONE_SIDE, every other
+    component at most 1): a frame whose own lane scores this much is never replaced by one."""
+    return ONE_SIDE ** config.confidence.weights.both_sides
+
+
 def lane_from_one_side(
     seen: Side,
     edge: LaneEdge,
