@@ -193,15 +193,15 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
     if y_hi <= y_lo:
         return None
     xa, xb = a.x_at(y_hi), b.x_at(y_hi)
-    inner, outer = (a, b) if (xa > xb) == (side == "left") else (b, a)
-    u = inner.x_at(y_hi)
+    inner, outer, u = (a, b, xa) if (xa > xb) == (side == "left") else (b, a, xb)
     at = view.to_floor(u, y_hi)
     o_near = (outer.near_fx, outer.near_fy)
     o_dir = direction(o_near, (outer.far_fx, outer.far_fy))
     if not math.isfinite(sum((*at, *o_near, *o_dir))) or o_dir == (0.0, 0.0):
         return None
     width_m = distance_to_line(at, o_near, o_dir)
-    m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]))
+    m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]),
+                                         floor_at=at)
     score = tape_width_score(width_m, m_per_px, config.tape.for_side(side))
     return inner, outer, score, width_m, at
 
@@ -285,20 +285,31 @@ def pick_tapes(
     that would be chosen): with tapes on both sides, the pair of the same kind (dark or light)
     that best fits the lane's width, then the best width scores, then the nearest; otherwise
     each side's best (`TapeCandidate.rank`)."""
+    left_ranks = [t.rank() for t in left]
+    right_ranks = [t.rank() for t in right]
     combos = sorted(
         ((lt.dark == rt.dark, lane_fit(lt, rt, config) * lt.score * rt.score,
-          lt.score * rt.score, lt.rank()[1] + rt.rank()[1], lt.rank()[2] + rt.rank()[2], -i, -j)
-         for i, lt in enumerate(left) for j, rt in enumerate(right)),
+          lt.score * rt.score, lr[1] + rr[1], lr[2] + rr[2], -i, -j)
+         for i, (lt, lr) in enumerate(zip(left, left_ranks, strict=True))
+         for j, (rt, rr) in enumerate(zip(right, right_ranks, strict=True))),
         reverse=True,
     )
     for *_, neg_i, neg_j in combos:  # the indices are negated so that ties keep list order
         lt, rt = left[-neg_i], right[-neg_j]
         if accept(lt) and accept(rt):
             return lt, rt
-    return (next((t for t in sorted(left, key=TapeCandidate.rank, reverse=True) if accept(t)),
-                 None),
-            next((t for t in sorted(right, key=TapeCandidate.rank, reverse=True) if accept(t)),
-                 None))
+    return _best_accepted(left, left_ranks, accept), _best_accepted(right, right_ranks, accept)
+
+
+def _best_accepted(
+    tapes: list[TapeCandidate],
+    ranks: list[tuple[float, float, float]],
+    accept: Callable[[TapeCandidate], bool],
+) -> TapeCandidate | None:
+    """The best ranked of `tapes` (their `rank()`s: `ranks`) that `accept` takes (ties: the
+    first)."""
+    order = sorted(range(len(tapes)), key=ranks.__getitem__, reverse=True)
+    return next((tapes[i] for i in order if accept(tapes[i])), None)
 
 
 def _side_choice(

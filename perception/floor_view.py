@@ -73,22 +73,32 @@ class FloorView:
         return (h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w
 
     def metres_per_px_across(self, u: float, v: float, du: float, dv: float,
-                             floor_normal: Point) -> float:
+                             floor_normal: Point, floor_at: Point | None = None) -> float:
         """How far, in metres along `floor_normal` (unit), one pixel step perpendicular to the
         image direction (du, dv) (unit) at pixel (u, v) moves on the floor: the size of one pixel
-        of error in a width measured across a line running that way. NaN above the horizon."""
-        x0, y0 = self.to_floor(u, v)
+        of error in a width measured across a line running that way. NaN above the horizon.
+        `floor_at`: `to_floor(u, v)` when the caller has it already."""
+        x0, y0 = self.to_floor(u, v) if floor_at is None else floor_at
         x1, y1 = self.to_floor(u - dv, v + du)
         return abs((x1 - x0) * floor_normal[0] + (y1 - y0) * floor_normal[1])
 
     def line_column_at(self, a: Point, b: Point, v: float) -> float:
         """Column where the image of the floor line through a and b crosses image row v (NaN if
         it runs along the row or a point is behind the camera)."""
-        ua, va = self.to_image(*a)
-        ub, vb = self.to_image(*b)
-        if not (math.isfinite(ua) and math.isfinite(ub)) or abs(vb - va) < 1e-12:
-            return math.nan
-        return ua + (v - va) * (ub - ua) / (vb - va)
+        return column_at(self.image_line(a, b), v)
+
+    def image_line(self, a: Point, b: Point) -> tuple[float, float, float, float]:
+        """The images (ua, va, ub, vb) of floor points a and b, for `column_at` at many rows."""
+        return (*self.to_image(*a), *self.to_image(*b))
+
+
+def column_at(image_line: tuple[float, float, float, float], v: float) -> float:
+    """Column where the image line through (ua, va) and (ub, vb) (`FloorView.image_line`)
+    crosses image row v (NaN if it runs along the row or a point is behind the camera)."""
+    ua, va, ub, vb = image_line
+    if not (math.isfinite(ua) and math.isfinite(ub)) or abs(vb - va) < 1e-12:
+        return math.nan
+    return ua + (v - va) * (ub - ua) / (vb - va)
 
 
 def direction(a: Point, b: Point) -> Point:

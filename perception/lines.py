@@ -130,6 +130,8 @@ class LineRow(NamedTuple):
 
 
 _EMPTY_F = np.zeros(0, dtype=np.float64)
+#: A segment's columns with its two ends swapped.
+_REVERSED = [2, 3, 0, 1]
 
 
 def empty_line_set(segment_count: int = 0) -> LineSet:
@@ -166,16 +168,17 @@ def build_line_set(
         return empty_line_set()
     seg, angle = _oriented_segments(segments)
     min_h = edges.min_angle_from_horizontal_deg
-    kept = np.flatnonzero((angle >= min_h) & (angle <= 180.0 - min_h))
+    kept = np.nonzero((angle >= min_h) & (angle <= 180.0 - min_h))[0]
     if len(kept) == 0:
         return empty_line_set(len(seg))
     width = smooth_gray.shape[1]
     offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
-    pieces = _Pieces.of(seg[kept], angle[kept])
-    line_of = _cluster_collinear(pieces, edges.cluster_angle_tol_deg, offset_tol)
+    pieces = (_Pieces.of(seg, angle) if len(kept) == len(seg)
+              else _Pieces.of(seg[kept], angle[kept]))
+    line_of, lines = _cluster_collinear(pieces, edges.cluster_angle_tol_deg, offset_tol)
     label = np.full(len(seg), -1, dtype=np.intp)
     label[kept] = line_of
-    fit = _fit_lines(pieces, line_of)
+    fit = _fit_lines(pieces, line_of, lines)
     x_bottom = fit.cx + (y_bottom - fit.cy) * fit.ux / np.minimum(fit.uy, -1e-9)
     polarity = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y, fit.ux,
                          fit.uy, tape)
@@ -206,10 +209,8 @@ def build_line_set(
 def _oriented_segments(segments: NDArray[np.int32]) -> tuple[FloatArray, FloatArray]:
     """Segments (N, 4) as floats running near (bottom) -> far (top), and their angle from the
     image's x axis with y up, degrees in [0, 180]."""
-    seg = segments.reshape(-1, 4).astype(np.float64)
-    flip = seg[:, 1] < seg[:, 3]
-    if flip.any():
-        seg[flip] = seg[flip][:, [2, 3, 0, 1]]
+    raw = segments.reshape(-1, 4)
+    seg = np.where((raw[:, 1] < raw[:, 3])[:, None], raw[:, _REVERSED], raw).astype(np.float64)
     angle = np.degrees(np.arctan2(seg[:, 1] - seg[:, 3], seg[:, 2] - seg[:, 0]))
     return seg, angle
 
@@ -236,8 +237,9 @@ class _Pieces:
 
 
 def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
-                       offset_tol_px: float) -> NDArray[np.intp]:
-    """Greedy leader clustering, longest segment first: the line index of every segment. A
+                       offset_tol_px: float) -> tuple[NDArray[np.intp], int]:
+    """Greedy leader clustering, longest segment first: the line index of every segment, and
+    the number of lines. A
     segment joins the leader's line when its direction is within `angle_tol_deg` and its
     midpoint within `offset_tol_px` of the leader's line (a precomputed compatibility matrix).
 
@@ -251,15 +253,24 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
     compatible = ((np.abs(angle[None, :] - angle[:, None]) <= angle_tol_deg)
                   & (off_line <= offset_tol_px))
     count = len(angle)
-    row_bytes = (count + 7) // 8
-    packed = np.packbits(compatible, axis=1, bitorder="little").tobytes()
-    compatible_with = [int.from_bytes(packed[i * row_bytes:(i + 1) * row_bytes], "little")
-                       for i in range(count)]
+    packed = np.packbits(compatible, axis=1, bitorder="little")
+    compatible_with: list[int]
+    if count <= 64:  # each row's bits in one 64-bit word: one conversion for all rows
+        words = np.zeros((count, 8), dtype=np.uint8)
+        words[:, :packed.shape[1]] = packed
+        compatible_with = words.view("<u8").ravel().tolist()
+    else:
+        row_bytes = packed.shape[1]
+        flat = packed.tobytes()
+        compatible_with = [int.from_bytes(flat[i * row_bytes:(i + 1) * row_bytes], "little")
+                           for i in range(count)]
     line_of = [-1] * count
     free = (1 << count) - 1
     lines = 0
     for leader in np.argsort(-pieces.length, kind="stable").tolist():
         if not (free >> leader) & 1:
+            if not free:
+                break  # every segment has its line
             continue
         member = (compatible_with[leader] & free) | (1 << leader)
         free &= ~member
@@ -268,7 +279,7 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
             line_of[lowest.bit_length() - 1] = lines
             member ^= lowest
         lines += 1
-    return np.array(line_of, dtype=np.intp)
+    return np.array(line_of, dtype=np.intp), lines
 
 
 @dataclass(frozen=True)
@@ -287,12 +298,12 @@ class _LineFit:
     support_px: FloatArray
 
 
-def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp]) -> _LineFit:
-    """Each line from its member segments (oriented near -> far): direction and centre weighted
-    by length; its extent is the lowest and highest projection of its members' ends on it (all
-    members run near -> far within a few degrees of the line)."""
-    lines = int(line_of.max()) + 1
-    x1, y1, x2, y2 = pieces.seg.T
+def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp], lines: int) -> _LineFit:
+    """Each of the `lines` lines from its member segments (oriented near -> far): direction and
+    centre weighted by length; its extent is the lowest and highest projection of its members'
+    ends on it (all members run near -> far within a few degrees of the line)."""
+    seg = pieces.seg
+    x1, y1, x2, y2 = seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 3]
     length = pieces.length
     support = _sum_by(line_of, length, lines)
     ux = _sum_by(line_of, pieces.dx, lines)  # sum(unit * length)
@@ -365,8 +376,8 @@ def _polarity(
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
     up, down = step > threshold, step < -threshold
-    n_up, n_down = np.count_nonzero(up, axis=1), np.count_nonzero(down, axis=1)
-    unclear = np.flatnonzero(whole == 0.0)
+    n_up, n_down = up.sum(axis=1), down.sum(axis=1)
+    unclear = np.nonzero(whole == 0.0)[0]
     if unclear.size:
         whole[unclear] = _vote(up[unclear], down[unclear], n_up[unclear], n_down[unclear])
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
@@ -392,7 +403,7 @@ def _polarity(
     half = k // 2
     against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.minimum(n_up, n_down)))
     quarter = (half - 1) // 2 + 1
-    rows = np.flatnonzero(against >= quarter)
+    rows = np.nonzero(against >= quarter)[0]
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]

@@ -29,12 +29,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.floor_config import TapeConfig
-from lanewarden.perception.floor_view import FloorView, Point
+from lanewarden.perception.floor_view import FloorView, Point, column_at
 from lanewarden.perception.geometry import Side
 from lanewarden.perception.lines import LineRow
 
@@ -74,14 +75,49 @@ class WidthHypotheses:
 
 def width_hypotheses(m_per_px: float, tape: TapeConfig) -> WidthHypotheses:
     """The seam and tape hypotheses where one pixel covers `m_per_px` metres across a line."""
-    error = tape.width_error_px * m_per_px
-    return WidthHypotheses(
-        m_per_px=m_per_px,
-        error_m=error,
-        seam_max_m=max(tape.seam_width_m, tape.min_gap_px * m_per_px) + error,
-        tape_min_m=tape.width_m * (1.0 - tape.width_tolerance_fraction) - error,
-        tape_max_m=tape.width_m * (1.0 + tape.width_tolerance_fraction) + error,
+    return WidthHypotheses(m_per_px, *_hypotheses(m_per_px, _width_terms(tape)))
+
+
+class _WidthTerms(NamedTuple):
+    """What the width hypotheses take from a tape config (`width_hypotheses`): the error in
+    pixels, the widest seam and thinnest line (pixels), and the tape's narrowest and widest
+    width before the error."""
+
+    error_px: float
+    seam_m: float
+    min_gap_px: float
+    tape_lo_m: float
+    tape_hi_m: float
+
+
+#: `_width_terms` per config object, by identity (a config's properties cost more than the
+#: score's arithmetic, and the score is taken for every candidate pair of every frame).
+_TERMS: dict[int, tuple[TapeConfig, _WidthTerms]] = {}
+
+
+def _width_terms(tape: TapeConfig) -> _WidthTerms:
+    hit = _TERMS.get(id(tape))
+    if hit is not None and hit[0] is tape:
+        return hit[1]
+    terms = _WidthTerms(
+        error_px=tape.width_error_px,
+        seam_m=tape.seam_width_m,
+        min_gap_px=tape.min_gap_px,
+        tape_lo_m=tape.width_m * (1.0 - tape.width_tolerance_fraction),
+        tape_hi_m=tape.width_m * (1.0 + tape.width_tolerance_fraction),
     )
+    if len(_TERMS) >= 64:
+        _TERMS.clear()
+    _TERMS[id(tape)] = (tape, terms)
+    return terms
+
+
+def _hypotheses(m_per_px: float, terms: _WidthTerms) -> tuple[float, float, float, float]:
+    """(error, widest seam, narrowest tape, widest tape) in metres where one pixel covers
+    `m_per_px`."""
+    error = terms.error_px * m_per_px
+    return (error, max(terms.seam_m, terms.min_gap_px * m_per_px) + error,
+            terms.tape_lo_m - error, terms.tape_hi_m + error)
 
 
 def tape_width_score(width_m: float, m_per_px: float, tape: TapeConfig) -> float:
@@ -91,16 +127,16 @@ def tape_width_score(width_m: float, m_per_px: float, tape: TapeConfig) -> float
     do not separate (nothing there can be told from a seam) and for non-finite input."""
     if not (math.isfinite(width_m) and math.isfinite(m_per_px)) or m_per_px <= 0.0:
         return 0.0
-    hyp = width_hypotheses(m_per_px, tape)
-    if not hyp.resolvable:
+    error, seam_max, tape_min, tape_max = _hypotheses(m_per_px, _width_terms(tape))
+    if not tape_min - seam_max > error:  # not `WidthHypotheses.resolvable`
         return 0.0
-    if width_m <= hyp.seam_max_m:
+    if width_m <= seam_max:
         return 0.0
-    if width_m < hyp.tape_min_m:
-        return (width_m - hyp.seam_max_m) / (hyp.tape_min_m - hyp.seam_max_m)
-    if width_m <= hyp.tape_max_m:
+    if width_m < tape_min:
+        return (width_m - seam_max) / (tape_min - seam_max)
+    if width_m <= tape_max:
         return 1.0
-    return max(0.0, 1.0 - (width_m - hyp.tape_max_m) / (0.5 * hyp.tape_max_m))
+    return max(0.0, 1.0 - (width_m - tape_max) / (0.5 * tape_max))
 
 
 def band_is_tape(
@@ -210,7 +246,7 @@ def tape_profile_fraction(
     n = tape.polarity_samples
     seen = hidden = tape_like = 0
     member = -1
-    outer: tuple[Point, Point] | None = None
+    outer: tuple[float, float, float, float] | None = None  # in the image (`image_line`)
     for i in range(n):
         y = near_y + (far_y - near_y) * (i + 0.5) / n
         k = member
@@ -218,12 +254,13 @@ def tape_profile_fraction(
             k += 1
         if k != member:
             member = k
-            outer = _outer_line(rows[chain[member]], side, view, tape.width_m)
+            floor_line = _outer_line(rows[chain[member]], side, view, tape.width_m)
+            outer = None if floor_line is None else view.image_line(*floor_line)
         if outer is None:
             continue
         line = rows[chain[member]]
         x = line.x_at(y)
-        x_tape = view.line_column_at(outer[0], outer[1], y)
+        x_tape = column_at(outer, y)
         w = x_tape - x  # signed: outwards in the image
         if not math.isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
             continue
