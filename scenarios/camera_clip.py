@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.perception.errors import PerceptionError
+from lanewarden.scenarios.encoder_pipe import send_whole
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 
 #: FILE endings written as a video (what OpenCV and `lanewarden run --camera` read back).
@@ -123,7 +124,7 @@ class CameraClipWriter:
         """One camera frame (gray or BGR, at `size`)."""
         try:
             if self._writer is not None:
-                self._writer.send(np.ascontiguousarray(image))
+                send_whole(self._writer, np.ascontiguousarray(image))
             elif not cv2.imwrite(str(self.files.clip / f"frame_{self.frames:06d}.png"), image,
                                  [cv2.IMWRITE_PNG_COMPRESSION, 1]):
                 raise OSError("cv2.imwrite failed")

@@ -37,6 +37,7 @@ from lanewarden.perception.overlay import (
     text_scale,
 )
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.encoder_pipe import send_whole
 from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.state_reasons import StateReasons, state_with_reason
 from lanewarden.scenarios.texture import GroundTexture
@@ -370,7 +371,7 @@ class VideoRecorder:
         cv2.line(self._frame, (panel_w, 0), (panel_w, self._frame.shape[0] - 1), (0, 0, 0), 2)
         assert self._writer is not None
         try:
-            self._writer.send(self._frame)
+            send_whole(self._writer, self._frame)
         except (OSError, RuntimeError) as exc:
             raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
         self.frames += 1

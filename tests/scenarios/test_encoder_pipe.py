@@ -1,0 +1,41 @@
+"""A frame goes to the video encoder whole: a stop signal that lands while it is being written
+takes effect after the write (scenarios/encoder_pipe.py). Without that, a Ctrl-C left ffmpeg a
+truncated frame, which it reported on the terminal in six lines beside the command's one."""
+
+from __future__ import annotations
+
+import os
+import signal
+from collections.abc import Generator
+
+import pytest
+
+from lanewarden.scenarios.encoder_pipe import send_whole
+
+
+def encoder(written: list[str]) -> Generator[None, str, None]:
+    """A stand-in for imageio-ffmpeg's writer whose frame write is interrupted half way."""
+    while True:
+        frame = yield
+        written.append(f"{frame}: first half")
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the pipe write
+        written.append(f"{frame}: second half")
+
+
+def test_a_ctrl_c_during_a_frame_takes_effect_after_it() -> None:
+    written: list[str] = []
+    writer = encoder(written)
+    writer.send(None)
+    with pytest.raises(KeyboardInterrupt):
+        send_whole(writer, "frame 1")
+    assert written == ["frame 1: first half", "frame 1: second half"]
+
+
+def test_the_signal_mask_is_restored_after_the_frame() -> None:
+    written: list[str] = []
+    writer = encoder(written)
+    writer.send(None)
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, set())
+    with pytest.raises(KeyboardInterrupt):
+        send_whole(writer, "frame 1")
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, set()) == before
