@@ -57,14 +57,22 @@ def assert_resumed_after_confident_frames(records: list[dict[str, Any]]) -> None
         assert r["observation"] is None or r["observation"]["confidence"] >= 0.6, r
 
 
+def patient_config(tmp_path: Path) -> Path:
+    """These tests are about resuming, not the watchdogs: the run shares this process with pytest
+    (or a machine with the whole suite), and a loaded CI machine once stalled it 0.201 s, past
+    the default 0.2 s heartbeat timeout, and once 0.15 s between camera frames (FRAME_STALE).
+    The dead-man's and the watchdogs' own tests keep the defaults."""
+    patient = tmp_path / "patient.yaml"
+    patient.write_text("actuation:\n  heartbeat_timeout_s: 1.0\n"
+                       "supervisor:\n  frame_late_s: 0.5\n  frame_stale_s: 1.0\n",
+                       encoding="utf-8")
+    return patient
+
+
 def test_resume_from_the_kobuki_b0_button(gap_clip: Path, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     record = tmp_path / "run"
-    # This test is about resuming, not the dead-man: the run shares this process with pytest, and
-    # a loaded CI machine once stalled it 0.201 s, past the default 0.2 s heartbeat timeout (the
-    # dead-man's own tests keep the default).
-    patient = tmp_path / "patient-deadman.yaml"
-    patient.write_text("actuation:\n  heartbeat_timeout_s: 1.0\n", encoding="utf-8")
+    patient = patient_config(tmp_path)
     with KobukiStandIn() as kobuki:
         def operator() -> None:
             if wait_until(lambda: halted_after_engaging(record), 30.0):
@@ -106,7 +114,8 @@ def test_resume_from_the_live_page(gap_clip: Path, tmp_path: Path,
             _http(port, "POST", "/resume")
 
     code = run_beside(operator, ["--camera", str(gap_clip), "--base", "sim", "--view", str(port),
-                                 "--record", str(record)])
+                                 "--record", str(record),
+                                 "--config", str(patient_config(tmp_path))])
     assert code == 0, capsys.readouterr().err
     assert_resumed_after_confident_frames(steps(record))
     assert "resume requested (page)" in capsys.readouterr().out
@@ -116,7 +125,8 @@ def test_resume_from_the_r_key(gap_clip: Path, tmp_path: Path) -> None:
     """The runner in its own process with a terminal as stdin: keys in cbreak mode."""
     record = tmp_path / "run"
     master, slave = os.openpty()
-    process = start_run(["--camera", str(gap_clip), "--base", "none", "--record", str(record)],
+    process = start_run(["--camera", str(gap_clip), "--base", "none", "--record", str(record),
+                         "--config", str(patient_config(tmp_path))],
                         stdin=slave, stdout=-1, stderr=-1)
     os.close(slave)
     try:
