@@ -12,11 +12,16 @@ single-threaded), so other work on the machine does not count; floor and detecto
 alternation and each keeps its best (minimum) time over the repeats.
 
 Target: detector <= 1.5x the floor at 640x480. Not a test: nothing here asserts a speed.
+
+`--stages` also splits the detector's time per frame at each size into its stages, timed in the
+order the detector runs them (so each stage pays for the caches the one before left cold:
+Python right after HoughLinesP costs about 1.6x what it costs alone in a loop).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 import time
@@ -35,6 +40,8 @@ from lanewarden.config import LanewardenConfig  # noqa: E402
 from lanewarden.perception.calibration import CameraCalibration, Undistorter  # noqa: E402
 from lanewarden.perception.config import PerceptionConfig  # noqa: E402
 from lanewarden.perception.detector import LaneDetector  # noqa: E402
+from lanewarden.perception.edge_choice import choose_edges  # noqa: E402
+from lanewarden.perception.lines import build_line_set  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
 from lanewarden.scenarios.camera import CameraModel  # noqa: E402
 from tests.perception import synthetic as syn  # noqa: E402
@@ -99,10 +106,58 @@ def measure(
     return best
 
 
+STAGES = ("prepare", "contrast", "canny + mask", "hough", "lines", "rows", "edge choice",
+          "observation")
+
+
+def stage_ms(detector: LaneDetector, frames: list[np.ndarray], loops: int) -> dict[str, float]:
+    """CPU ms per frame of each stage of `LaneDetector.detect` (its private steps, in its order;
+    best of five rounds per stage)."""
+    config = detector.config
+    theta = math.radians(config.hough.theta_deg)
+    best = dict.fromkeys(STAGES, math.inf)
+    clock = time.process_time_ns
+    for _ in range(5):
+        spent = dict.fromkeys(STAGES, 0)
+        for _ in range(loops):
+            for frame in frames:
+                t0 = clock()
+                state = detector._prepare(frame)
+                t1 = clock()
+                detector._normalise_contrast(state)
+                t2 = clock()
+                cv2.Canny(state.smooth, config.canny.low_threshold, config.canny.high_threshold,
+                          edges=state.edges, apertureSize=config.canny.aperture_px)
+                cv2.bitwise_and(state.edges, state.mask, dst=state.edges)
+                t3 = clock()
+                found = cv2.HoughLinesP(state.edges, config.hough.rho_px, theta,
+                                        state.hough_votes, minLineLength=state.hough_min_length,
+                                        maxLineGap=state.hough_max_gap)
+                segments = None if found is None else np.asarray(found, dtype=np.int32)
+                t4 = clock()
+                lines = build_line_set(segments, state.smooth, state.y_bottom, state.view,
+                                       config.edges, config.tape)
+                t5 = clock()
+                rows = lines.rows()
+                t6 = clock()
+                left, right = choose_edges(rows, state.smooth, state, config)
+                t7 = clock()
+                detector._observe(rows, left, right, state, 0, 0.0, None)
+                t8 = clock()
+                for name, (a, b) in zip(STAGES, itertools.pairwise((t0, t1, t2, t3, t4, t5, t6,
+                                                                    t7, t8)), strict=True):
+                    spent[name] += b - a
+        for name in STAGES:
+            best[name] = min(best[name], spent[name] / 1e6 / (loops * len(frames)))
+    return best
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=15, help="rounds (best one counts)")
     parser.add_argument("--loops", type=int, default=10, help="passes over the frames per round")
+    parser.add_argument("--stages", action="store_true",
+                        help="also the detector's time per stage at each size")
     args = parser.parse_args()
 
     cv2.setNumThreads(1)
@@ -120,6 +175,9 @@ def main() -> None:
         )
         print(f"{width}x{height:<4}  {best['floor']:9.3f}  {best['detector']:11.3f}  "
               f"{best['detector'] / best['floor']:6.2f}")
+        if args.stages:
+            stages = stage_ms(detector, frames, args.loops * 3)
+            print("          " + ", ".join(f"{name} {ms:.3f}" for name, ms in stages.items()))
 
     # Per scene at 640x480, and the optional extras, for information.
     print("\n640x480 per scene (floor / detector ms, ratio):")
