@@ -6,6 +6,9 @@ truncated frame, and ffmpeg, whose stderr is the terminal's, reported it in six 
 ("Invalid buffer size, packet size ... < expected frame_size ...") beside the command's one
 line. So the stop signals are held back while a frame is written: the process stops, or raises
 KeyboardInterrupt, between frames, and ffmpeg ends the video on a whole frame, silently.
+SIGQUIT (Ctrl-\\) is not held back: should an encoder ever stop reading in the middle of a
+frame, it still ends the process at once. (Only offline commands write videos: `sim`, `demo`,
+`replay`; the robot runner does not.)
 """
 
 from __future__ import annotations
@@ -14,9 +17,9 @@ import signal
 from collections.abc import Generator
 from typing import Any
 
-#: The signals that stop a command (`lanewarden.stop_signals.STOP_SIGNALS`), held back during a
-#: frame's write.
-_HELD = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGQUIT, signal.SIGHUP})
+#: The signals that stop a command (`lanewarden.stop_signals.STOP_SIGNALS`) but SIGQUIT, held
+#: back during a frame's write.
+_HELD = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
 
 
 def send_whole(writer: Generator[Any, Any, None], frame: Any) -> None:
