@@ -23,23 +23,26 @@ def encoder(written: list[str]) -> Generator[None, str, None]:
         written.append(f"{frame}: second half")
 
 
-def test_a_ctrl_c_during_a_frame_takes_effect_after_it() -> None:
+def interrupted_frame() -> list[str]:
+    """What the stand-in wrote of one frame sent through `send_whole` with a Ctrl-C half way
+    (the KeyboardInterrupt must come, and after the send)."""
     written: list[str] = []
     writer = encoder(written)
     writer.send(None)
     with pytest.raises(KeyboardInterrupt):
         send_whole(writer, "frame 1")
-    assert written == ["frame 1: first half", "frame 1: second half"]
+    return written
+
+
+def test_a_ctrl_c_during_a_frame_takes_effect_after_it() -> None:
+    assert interrupted_frame() == ["frame 1: first half", "frame 1: second half"]
 
 
 def test_the_handlers_are_restored_after_the_frame() -> None:
-    written: list[str] = []
-    writer = encoder(written)
-    writer.send(None)
-    before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)]
-    with pytest.raises(KeyboardInterrupt):
-        send_whole(writer, "frame 1")
-    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)] == before
+    deferred = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    before = [signal.getsignal(s) for s in deferred]
+    interrupted_frame()
+    assert [signal.getsignal(s) for s in deferred] == before
 
 
 def test_a_ctrl_c_during_a_frame_takes_effect_after_it_with_another_thread_running() -> None:
@@ -49,12 +52,7 @@ def test_a_ctrl_c_during_a_frame_takes_effect_after_it_with_another_thread_runni
     other = threading.Thread(target=stop.wait, daemon=True)
     other.start()
     try:
-        written: list[str] = []
-        writer = encoder(written)
-        writer.send(None)
-        with pytest.raises(KeyboardInterrupt):
-            send_whole(writer, "frame 1")
-        assert written == ["frame 1: first half", "frame 1: second half"]
+        assert interrupted_frame() == ["frame 1: first half", "frame 1: second half"]
     finally:
         stop.set()
         other.join()
