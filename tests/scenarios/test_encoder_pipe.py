@@ -14,6 +14,19 @@ import pytest
 from lanewarden.scenarios.encoder_pipe import send_whole
 
 
+@pytest.fixture(autouse=True)
+def ctrl_c_raises() -> Generator[None, None, None]:
+    """Ctrl-C raises KeyboardInterrupt during each test, as in a command's process, whatever
+    an earlier test in this pytest process left SIGINT as (a worker's `SIG_IGN`, from
+    `lanewarden.stop_signals.leave_interrupts_to_the_parent`: then the deferred Ctrl-C, sent
+    again after the frame, was ignored and the test failed under the full suite)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def encoder(written: list[str]) -> Generator[None, str, None]:
     """A stand-in for imageio-ffmpeg's writer whose frame write is interrupted half way."""
     while True:
