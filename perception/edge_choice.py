@@ -27,6 +27,11 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    edges the value is the chain's support x that score (x `unpaired_preference` when refuted);
    a line with polarity 0 (same brightness on both sides: grout, a crack) is only chosen when
    there is nothing else. None of these is a verified tape (`SideChoice.verified`).
+   One fallback: where the best single edge's profile does not say tape (or there is none), a
+   signed line and a line of NO sign beyond it, whose width and band say tape as in 1, are the
+   tape (a ceiling light mirrored over a glossy tape's outer edge leaves that edge no sign, and
+   the tape half light, half dark, fails the inner edge's profile there). Never with the sign
+   missing on the inner (reported) edge, whose sign says which side of it is floor.
 4. The reported edge is the tape's INNER edge (the one nearer the lane centre: a left tape's
    right edge, a right tape's left edge), consistently, so the distance between the two reported
    edges is the free lane width.
@@ -178,8 +183,17 @@ def choose_edges(
         return checked[key]
 
     left_tape, right_tape = pick_tapes(tapes["left"], tapes["right"], config, band_ok)
-    left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config)
-    right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config)
+
+    def fallback(side: Side) -> TapeCandidate | None:
+        """A tape whose outer edge has no sign, the best ranked whose band is tape."""
+        unsigned = tape_candidates(cands[side], side, setup.view, config, setup.look_ahead_m,
+                                   unsigned_outer=True)
+        return _best_accepted(unsigned, [t.rank() for t in unsigned], band_ok)
+
+    left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config,
+                        fallback)
+    right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config,
+                         fallback)
     return left, right
 
 
@@ -208,7 +222,7 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
 
 def tape_candidates(
     cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig,
-    look_ahead_m: float,
+    look_ahead_m: float, *, unsigned_outer: bool = False,
 ) -> list[TapeCandidate]:
     """The pairs among one side's candidates whose width on the floor verifies a tape, best first
     (`TapeCandidate.rank`), at most _MAX_TAPE_CHECKS; their bands are not checked yet. A pair is
@@ -216,14 +230,23 @@ def tape_candidates(
     camera is known to resolve tape from seam (checked at start-up); farther on, pixels grow and
     a seam may measure as tape. Pairs whose lines lie less than a third or more than three of
     this side's tape widths apart on the floor (from one's near end) are skipped before being
-    measured (a cheap filter: the measurement decides)."""
+    measured (a cheap filter: the measurement decides).
+
+    `unsigned_outer`: instead of two edges of opposite signs, a signed INNER edge and an outer
+    edge of no sign (polarity 0): a glossy tape whose outer edge a mirrored ceiling light left
+    without a sign (`_side_choice` takes such a tape only as a fallback)."""
     angle_tol = config.tape.pair_angle_tol_deg
     tape_width = config.tape.side_width_m(side)
     look_ahead = look_ahead_m
     found: list[TapeCandidate] = []
     for i, a in enumerate(cand):
         for b in cand[i + 1:]:
-            if a.polarity * b.polarity >= 0 or abs(a.angle_deg - b.angle_deg) > angle_tol:
+            if unsigned_outer:
+                if (a.polarity == 0) == (b.polarity == 0):
+                    continue
+            elif a.polarity * b.polarity >= 0:
+                continue
+            if abs(a.angle_deg - b.angle_deg) > angle_tol:
                 continue
             # Distance from a's near end to b's line on the floor (not yet where they are
             # measured): a third to three tape widths, or no tape.
@@ -235,6 +258,8 @@ def tape_candidates(
             if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
                 continue
             inner, outer, score, width_m, at = pair
+            if inner.polarity == 0:
+                continue  # (unsigned_outer: the sign must be the inner edge's)
             dark = (inner.polarity > 0) == (side == "left")
             rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
             found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
@@ -320,16 +345,24 @@ def _side_choice(
     side: Side,
     setup: SizeSetup,
     config: PerceptionConfig,
+    fallback: Callable[[Side], TapeCandidate | None] = lambda side: None,
 ) -> SideChoice | None:
+    """The side's choice: its verified tape; else its best lone edge, unless that edge's
+    profile does not say tape (or there is none) and `fallback` finds a tape whose outer edge
+    has no sign (`tape_candidates(unsigned_outer=True)`)."""
     height, width = smooth_gray.shape[:2]
     size = (width, height)
     dark: bool | None
+    single = None
+    if tape is None:
+        single = _best_single(rows, cand, smooth_gray, side, setup, config)
+        if single is None or single[1] < config.tape.min_profile_fraction:
+            tape = fallback(side)
     if tape is not None:
         chain = follow_edge(rows, tape.inner.line_id, size, config)
         partner: int | None = tape.outer.line_id
         verified, score, width_m, dark = True, tape.score, tape.width_m, tape.dark
     else:
-        single = _best_single(rows, cand, smooth_gray, side, setup, config)
         if single is None:
             return None
         chain, score = single
