@@ -359,9 +359,12 @@ class LaneDetector:
                 or observation.confidence >= one_side_ceiling(config)):
             return observation  # (a lane from one tape could not score higher)
         # the dashed line out of sight, the other tape seen where the lane was (perception.one_side)
-        seen = other_side(dashed)
-        edge, floor = (right_edge, right_floor) if seen == "right" else (left_edge, left_floor)
-        if edge is not None and floor is not None:
+        seen_sides: tuple[Side, ...] = ("left", "right") if dashed == "both" else (
+            other_side(dashed),)
+        for seen in seen_sides:
+            edge, floor = (right_edge, right_floor) if seen == "right" else (left_edge, left_floor)
+            if edge is None or floor is None:
+                continue
             one_side = lane_from_one_side(seen, edge, floor, state.view, state.size[1], config,
                                           previous, frame_index, time_s)
             if one_side is not None and one_side.confidence > observation.confidence:

@@ -249,11 +249,12 @@ class LaneConfig(DocumentModel):
       are not).
     - `max_heading_deg`: the `heading` component (a full gate) is 0 when the lane runs more than
       this from the robot's heading: a lane seen across the view is not one to steer along.
-    - `dashed_side`: the side whose line is dashed (a road's centre line), or None. While that
-      line's dashes are out of sight (a gap, a corner turning them out of the view) and the
-      other side is a verified tape where a lane seen just before had it, the missing edge is
-      reported where the lane's width puts it (`perception.one_side`): never confident, and the
-      supervisor degrades on it. A solid line out of sight is never bridged (it may have ended).
+    - `dashed_side`: the side whose line is dashed (a road's centre line), `both` (a lane of
+      two dashed lines), or None. While that line's dashes are out of sight (a gap, a corner
+      turning them out of the view) and the other side is a verified tape where a lane seen just
+      before had it, the missing edge is reported where the lane's width puts it
+      (`perception.one_side`): never confident, and the supervisor degrades on it. A solid line
+      out of sight is never bridged (it may have ended).
     """
 
     model_config = _FROZEN
@@ -288,11 +289,12 @@ class LaneConfig(DocumentModel):
             "degrees"
         ),
     )
-    dashed_side: Literal["left", "right"] | None = Field(
+    dashed_side: Literal["left", "right", "both"] | None = Field(
         default=None,
         description=(
-            "the side whose line is dashed (a centre line), or null: while its dashes are out "
-            "of sight and the other tape is verified where the lane just was, the missing edge "
+            "the side whose line is dashed (a centre line), both (two dashed lines), or null: "
+            "while its dashes are out of sight and the other tape is verified where the lane "
+            "just was, the missing edge "
             "is placed the lane's width away (one side seen: never confident, the supervisor "
             "degrades); a solid line out of sight is never bridged"
         ),

@@ -49,7 +49,7 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
         ("tape: {right_width_m: 0.3}", "perception.tape.right_width_m = 0.3"),
         ("lane: {horizon_y_norm: 0.3}", "unknown key 'perception.lane.horizon_y_norm'"),
         ("lane: {dashed_side: centre}",
-         "perception.lane.dashed_side = 'centre': input should be 'left' or 'right'"),
+         "perception.lane.dashed_side = 'centre': input should be 'left', 'right' or 'both'"),
         ("edges: {look_ahead_y_norm: 0.4}", "unknown key 'perception.edges.look_ahead_y_norm'"),
         ("edges: {look_ahead_m: -1}", "perception.edges.look_ahead_m = -1: expected a distance "
          "in metres above 0 and at most 10, or auto"),

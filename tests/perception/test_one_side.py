@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from lanewarden.perception.config import PerceptionConfig
@@ -94,6 +95,26 @@ def test_a_solid_line_out_of_sight_is_never_bridged(size: tuple[int, int],
     seen_before = _lane(detector, size)
     obs = detector.detect(syn.frame(syn.ONE_EDGE, *size), 1, 1 / 30, seen_before)
     assert obs.confidence == 0.0 and obs.sides_seen == 1
+
+
+@pytest.mark.parametrize("size", SIZES)
+def test_with_both_lines_dashed_either_tape_out_of_sight_is_placed(size: tuple[int, int]) -> None:
+    """`dashed_side: both` (the `dashed` scenario's lane): the left tape alone places the right
+    edge, the right tape alone (the same frame mirrored) the left one; half confident either
+    way."""
+    detector = _detector("both")
+    seen_before = _lane(detector, size)
+    left_only = syn.frame(syn.ONE_EDGE, *size)
+    right_only = np.ascontiguousarray(left_only[:, ::-1])
+    for frame, placed in ((left_only, "right"), (right_only, "left")):
+        obs = detector.detect(frame, 1, 1 / 30, seen_before)
+        assert obs.sides_seen == 1
+        assert obs.confidence == pytest.approx(0.5)
+        assert obs.left is not None and obs.right is not None
+        assert obs.left.offset_m == pytest.approx(0.276, abs=0.01)
+        assert obs.right.offset_m == pytest.approx(-0.276, abs=0.01)
+        assert (obs.right if placed == "right" else obs.left).support_px == 0.0
+        assert (obs.left if placed == "right" else obs.right).support_px > 0.0
 
 
 @pytest.mark.parametrize("scene", [syn.TILES_ONLY, syn.NO_LANE], ids=["tiles", "bare"])
