@@ -16,10 +16,11 @@ from lanewarden.scenarios.encoder_pipe import send_whole
 
 @pytest.fixture(autouse=True)
 def ctrl_c_raises() -> Generator[None, None, None]:
-    """Ctrl-C raises KeyboardInterrupt during each test, as in a command's process, whatever
-    an earlier test in this pytest process left SIGINT as (a worker's `SIG_IGN`, from
-    `lanewarden.stop_signals.leave_interrupts_to_the_parent`: then the deferred Ctrl-C, sent
-    again after the frame, was ignored and the test failed under the full suite)."""
+    """Ctrl-C raises KeyboardInterrupt during each test, as in a command started from a
+    terminal, however pytest was started: one started in the background (`cmd &` in a script,
+    as a CI runner may) inherits SIGINT ignored and Python keeps it ignored (tests/processes.py),
+    and then the deferred Ctrl-C, sent again after the frame, was ignored too: the tests failed
+    3 of 3 so started, and passed from a terminal."""
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
