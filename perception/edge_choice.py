@@ -345,7 +345,7 @@ def _side_choice(
     side: Side,
     setup: SizeSetup,
     config: PerceptionConfig,
-    fallback: Callable[[Side], TapeCandidate | None] = lambda side: None,
+    fallback: Callable[[Side], TapeCandidate | None],
 ) -> SideChoice | None:
     """The side's choice: its verified tape; else its best lone edge, unless that edge's
     profile does not say tape (or there is none) and `fallback` finds a tape whose outer edge

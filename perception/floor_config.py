@@ -294,9 +294,8 @@ class LaneConfig(DocumentModel):
         description=(
             "the side whose line is dashed (a centre line), both (two dashed lines), or null: "
             "while its dashes are out of sight and the other tape is verified where the lane "
-            "just was, the missing edge "
-            "is placed the lane's width away (one side seen: never confident, the supervisor "
-            "degrades); a solid line out of sight is never bridged"
+            "just was, the missing edge is placed the lane's width away (one side seen: never "
+            "confident, the supervisor degrades); a solid line out of sight is never bridged"
         ),
     )
 

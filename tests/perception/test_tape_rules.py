@@ -67,13 +67,19 @@ def along(y: float, polarity: float, x0: float = 0.55, x1: float = 1.2, **kw: fl
 
 
 @cache
-def _lateral_m(ground: GroundModel) -> np.ndarray:
-    """The floor's lateral position (robot y, metres) seen at every pixel (NaN above the
-    horizon)."""
+def floor_at_pixels(ground: GroundModel) -> np.ndarray:
+    """(H, W, 2): the floor point (robot x ahead, y left, metres) seen at every pixel (NaN
+    above the horizon)."""
     width, height = ground.image_size
     u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
     pixels = np.column_stack([u.ravel(), v.ravel()])
-    return ground.image_to_floor(pixels)[:, 1].reshape(height, width)
+    return ground.image_to_floor(pixels).reshape(height, width, 2)
+
+
+def _lateral_m(ground: GroundModel) -> np.ndarray:
+    """The floor's lateral position (robot y, metres) seen at every pixel (NaN above the
+    horizon)."""
+    return floor_at_pixels(ground)[:, :, 1]
 
 
 def floor_picture(bands: list[tuple[float, float, int]]) -> np.ndarray:

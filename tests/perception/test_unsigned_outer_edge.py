@@ -11,8 +11,6 @@ Lines and pictures as in test_tape_rules.py (the default camera at 640x480, metr
 
 from __future__ import annotations
 
-from functools import cache
-
 import numpy as np
 
 from lanewarden.perception.detector import LaneDetector
@@ -22,8 +20,8 @@ from tests.perception.test_tape_rules import (
     CONFIG,
     DARK,
     GROUND,
-    _lateral_m,
     along,
+    floor_at_pixels,
     floor_picture,
 )
 
@@ -33,21 +31,14 @@ LIGHT = 250  # a ceiling light mirrored in glossy tape: lighter than the floor (
 TAPE_LO, TAPE_HI = 0.276, 0.324
 
 
-@cache
-def _ahead_m() -> np.ndarray:
-    width, height = GROUND.image_size
-    u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
-    pixels = np.column_stack([u.ravel(), v.ravel()])
-    return GROUND.image_to_floor(pixels)[:, 0].reshape(height, width)
-
-
 def glossy_tape(light_to_m: float) -> np.ndarray:
     """The left tape (dark) on the floor, a light mirrored in it from the image's bottom to
     `light_to_m` ahead."""
     picture = floor_picture([(TAPE_LO, TAPE_HI, DARK)])
-    lateral = _lateral_m(GROUND)
+    floor = floor_at_pixels(GROUND)
+    ahead, lateral = floor[:, :, 0], floor[:, :, 1]
     picture[(lateral > 0.5 * (TAPE_LO + TAPE_HI)) & (lateral < TAPE_HI + 0.03)
-            & (_ahead_m() < light_to_m)] = LIGHT
+            & (ahead < light_to_m)] = LIGHT
     return picture
 
 
