@@ -198,6 +198,11 @@ class CameraFrameSource:
         self._latest: Frame | None = None
         self._error: str | None = None
         self._ended = False
+        #: the newest frame index `read` has returned, and whether it has raised the end of a
+        #: recorded clip: a clip's last frame is delivered before its end is (it was lost to
+        #: the loop when the end came before the loop's next read)
+        self._delivered = -1
+        self._end_seen = False
         self.frames_captured = 0
         self._running = True
         self._playing = threading.Event()
@@ -262,10 +267,13 @@ class CameraFrameSource:
         # A dead camera or the end of a clip is a fault the loop turns into CAMERA_ERROR (HALT in
         # the same step), and `error` says why for the operator.
         with self._lock:
-            frame, error = self._latest, self._error
-        if error is not None:
+            frame, error, ended = self._latest, self._error, self._ended
+        if error is not None and not (ended and frame is not None
+                                      and frame.index > self._delivered):
+            self._end_seen = ended
             raise CameraLost(error)
         if frame is not None and frame.time_s <= now:
+            self._delivered = frame.index
             return frame
         return None
 
@@ -280,6 +288,11 @@ class CameraFrameSource:
         """A recorded source (video file, image sequence) reached its end (not a failure)."""
         with self._lock:
             return self._ended
+
+    @property
+    def end_seen(self) -> bool:
+        """A recorded source ended and `read` has said so (after delivering its last frame)."""
+        return self._end_seen
 
     @property
     def error(self) -> str | None:

@@ -71,8 +71,12 @@ class ScriptedFrames:
     the step recorded the frame's fingerprint, the loop gets its stand-in (and the detector,
     through `ReplayDetection`, the recorded image)."""
 
-    def __init__(self, store: FrameStore) -> None:
+    def __init__(self, store: FrameStore, reuse_missing: bool) -> None:
         self._store = store
+        #: a recorded run's frame missing from its recording (dropped while recording): the
+        #: loop gets the frame before it, as close to the run as the replay can get; a clip's
+        #: frame that does not decode is no frame at all (the loop's camera sees nothing new)
+        self._reuse_missing = reuse_missing
         self.step: StepInput | None = None
         #: (index, the recorded image; None: perception refused the frame on the run)
         self._cache: tuple[int, np.ndarray | None] | None = None
@@ -98,7 +102,8 @@ class ScriptedFrames:
             image = None if refused is not None else self._store.image(index)
             if image is None and refused is None:
                 self.missing.append(index)
-                if self._cache is None or self._cache[1] is None:
+                if (not self._reuse_missing or self._cache is None
+                        or self._cache[1] is None):
                     return None
                 image = self._cache[1]  # not what the run saw: the replay cannot be exact
             self._cache = (index, image)
@@ -279,7 +284,7 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
                         image_size=size)
     tap = stack.tap
     assert tap is not None
-    frames = ScriptedFrames(source.frames)
+    frames = ScriptedFrames(source.frames, reuse_missing=source.kind == "run")
     base = ScriptedBase()
     # the very stack `run` drives (detector, controller, gate), with the recorded images
     loop = ControlLoop(frames, ReplayDetection(tap, frames), stack.gate, base)

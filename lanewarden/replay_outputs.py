@@ -240,6 +240,10 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
         "distance_travelled_m": round(distance_m, 4),
     }
+    if source.kind != "run":
+        # a clip's frames that did not decode: the loop got no frame at those steps
+        wanted = {s.frame[0] for s in source.steps if s.frame is not None}
+        metrics["frames_undecoded"] = sorted(wanted - {r.frame_index for r in records})
     if source.kind == "run":
         exact_input = (missing == 0 and recorded_complete and not source.incomplete
                        and bool(source.meta.get("lossless")))

@@ -237,7 +237,7 @@ def run_robot(
                             assert isinstance(base, KobukiBase)
                             base.rearm(now)  # still latched: only an explicit start/resume moves
                             rearm_after_suspend = False
-                        if frames.error is not None:  # a recorded clip ran out
+                        if frames.end_seen:  # a recorded clip ran out, its last frame seen
                             loop_end = LoopEnd(LoopEndKind.CLIP, "end of the clip")
                             break
                         clock.wait()  # an overrun: the watchdog sees it; no burst follows

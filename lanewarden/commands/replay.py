@@ -8,6 +8,7 @@ A thin shell over `lanewarden.replay_sources`, `lanewarden.replay` and
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -15,6 +16,9 @@ from lanewarden.commands.config_cmd import config_option
 from lanewarden.errors import InputFileError, QualityGateError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 from lanewarden.wording import counted
+
+if TYPE_CHECKING:
+    from lanewarden.replay import ReplaySource
 
 REPLAY_EXAMPLES = """\b
 Examples:
@@ -115,16 +119,19 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                        f"{'' if replay_source.meta.get('lossless') else ', lossy frames'}): the "
                        "replay cannot be exact")
     click.echo(f"  outputs in {out}/ (report: {out / 'report.html'})")
-    if replay_source.kind != "run" and metrics["frames"] < metrics["steps"]:
+    undecoded = metrics.get("frames_undecoded") or []
+    if replay_source.kind != "run" and undecoded:
         # a recorded run can lack frames (the camera failed: the replay shows the halt); a
-        # video, images, a tub or a bag lacking them is damaged
+        # video, images, a tub or a bag lacking them is damaged: the loop saw no frame there
+        # (never the frame before), and the replay is bad input, its outputs written
         if not metrics["frames"]:
             none = ("its only frame could not be decoded" if metrics["steps"] == 1
                     else f"none of its {metrics['steps']} frames could be decoded")
             raise InputFileError(f"SOURCE '{source}': {none} (a damaged or cut file?)")
-        click.echo(f"  {metrics['steps'] - metrics['frames']} of its "
-                   f"{counted(metrics['steps'], 'frame')} could not be decoded (a damaged or cut "
-                   "file?)")
+        raise InputFileError(
+            f"SOURCE '{source}': {len(undecoded)} of its {counted(metrics['steps'], 'frame')} "
+            f"could not be decoded: {_frame_names(replay_source, undecoded)} (a damaged or cut "
+            f"file?); the loop saw no frame there, outputs in {out}/")
     if check and replay_source.kind != "run":
         raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
                                "there is nothing to compare with")
@@ -138,6 +145,16 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and not metrics["reproduced"]:
         raise QualityGateError(f"replay {source}: diverges from the recording at "
                                f"{metrics['first_divergence']['text']}")
+
+
+def _frame_names(replay_source: ReplaySource, indices: list[int], shown: int = 3) -> str:
+    """'frame 4 (name.jpg), ...': the first `shown` of a clip's frames, by index (and file name
+    for a folder of images)."""
+    paths = getattr(replay_source.frames, "paths", None)
+    names = [f"frame {i}" + (f" ({paths[i].name})" if paths and 0 <= i < len(paths) else "")
+             for i in indices[:shown]]
+    more = len(indices) - shown
+    return ", ".join(names) + (f" and {more} more" if more > 0 else "")
 
 
 def commands() -> list[click.Command]:

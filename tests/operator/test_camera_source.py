@@ -1,5 +1,6 @@
 """Frame sources for bench runs: folders and globs of images in natural order, a recorded source
-held at its first frame until the run plays it, and its end raised as a lost camera."""
+held at its first frame until the run plays it, and its end raised as a lost camera once its last
+frame was read."""
 
 from __future__ import annotations
 
@@ -78,8 +79,35 @@ def test_a_clip_waits_for_play_then_ends_as_a_lost_camera(tmp_path: Path) -> Non
         while not frames.ended and time.monotonic() < deadline:
             pause.wait(0.01)
         assert frames.ended and frames.frames_captured == 4
+        # its last frame comes before its end, whenever the reader comes
+        seen = [replayed.index]
         with pytest.raises(CameraLost, match="end of the recorded clip after 4 frames"):
+            for _ in range(3):
+                frame = frames.read(time.monotonic())
+                assert frame is not None and not frames.end_seen
+                seen.append(frame.index)
+        assert seen[-1] == 3 and frames.end_seen
+    finally:
+        frames.close()
+
+
+def test_a_clips_last_frame_is_read_before_its_end(tmp_path: Path) -> None:
+    """Nobody reads until the clip has ended: its last frame, never read, still comes first,
+    then the end (a loop that had not read the last frame when the end came lost it, and `run`
+    ended a clip with or without a CAMERA_ERROR by chance)."""
+    _images(tmp_path / "s", [f"frame_{i}.png" for i in range(3)])
+    frames = CameraFrameSource(open_camera(str(tmp_path / "s")), time.monotonic, replay_fps=200.0)
+    try:
+        frames.play()
+        deadline = time.monotonic() + 10.0
+        while not frames.ended and time.monotonic() < deadline:
+            threading.Event().wait(0.01)
+        assert frames.ended and frames.frames_captured == 3
+        last = frames.read(time.monotonic())
+        assert last is not None and last.index == 2 and not frames.end_seen
+        with pytest.raises(CameraLost, match="end of the recorded clip after 3 frames"):
             frames.read(time.monotonic())
+        assert frames.end_seen
     finally:
         frames.close()
 

@@ -88,6 +88,30 @@ def test_a_video_whose_frames_cannot_be_decoded_is_bad_input(
                                 "could be decoded (a damaged or cut file?)"]
 
 
+def test_an_image_that_does_not_decode_is_no_frame_and_bad_input(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One file of a folder of images is not an image: the loop gets no frame at its step
+    (it had been given the frame before again, and the replay exited 0 without a word), and the
+    replay, its outputs written, is bad input naming the file."""
+    folder = write_images(lane_end_frames(start_m=2.0, end_m=2.4, speed_m_s=0.6), tmp_path / "i")
+    (folder / "frame_5.png").write_bytes(b"not a picture")
+    out = tmp_path / "o"
+    assert main(["replay", str(folder), "--no-video", "--out", str(out)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines()
+           if not line.startswith("replay i: ")]  # (the progress lines)
+    assert len(err) == 1, err
+    assert err[0].startswith(f"lanewarden: error: SOURCE '{folder}': 1 of its "), err
+    assert "frames could not be decoded: frame " in err[0] and "(frame_5.png)" in err[0]
+    assert err[0].endswith(f"the loop saw no frame there, outputs in {out}/")
+    steps = [json.loads(line) for line in (out / "run.jsonl").read_text().splitlines()]
+    unread = int(err[0].split("decoded: frame ")[1].split(" ")[0])
+    assert steps[unread]["frame_index"] is None and steps[unread]["observation"] is None
+    assert [s["frame_index"] for s in steps if s["frame_index"] is not None] == [
+        i for i in range(len(steps)) if i != unread]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["frames_undecoded"] == [unread]
+
+
 def test_a_glob_of_images_is_named_after_its_folder(tmp_path: Path) -> None:
     from lanewarden.replay_sources import open_replay_source
 
