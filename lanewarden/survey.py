@@ -476,14 +476,15 @@ def summary_lines(figures: SurveyFigures) -> list[str]:
 
 
 def survey_notes(figures: SurveyFigures, calibrated: bool) -> list[str]:
-    """What a SAFE verdict does not say: that perception never found the lane either (SAFE then
-    proves little: a wrong tape width or camera also gives no decision anywhere), and that
+    """What a verdict does not say: that perception never found the lane either (a SAFE verdict
+    then proves little: a wrong tape width or camera also gives no decision anywhere), and that
     without a calibration the frames were judged through the simulator's default camera."""
     notes = []
     lane = figures.classes[LANE]
     if lane.frames and not lane.decisions:
+        little = ", so SAFE says little" if figures.verdict.safe else ""
         notes.append(f"note: no decision on any of the {counted(lane.frames, 'lane frame')} "
-                     "either: perception never found your lane, so SAFE says little; check "
+                     f"either: perception never found your lane{little}; check "
                      "perception.tape and perception.lane in --config (the widths of your tape "
                      "and lane) and --calibration (the camera and its pose)")
     if not calibrated:

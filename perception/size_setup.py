@@ -304,5 +304,8 @@ def _unresolvable(hyp: WidthHypotheses, look_ahead: float, near_m: float,
 
 
 def _range_text(near: float, far: float) -> str:
+    if not math.isfinite(near):  # even the bottom row looks at or above the horizon
+        return ("the floor, but this camera sees none: even its bottom row looks at or above "
+                "the horizon (check the calibration's ground_pitch_deg: positive looks down)")
     far_text = "the horizon" if not math.isfinite(far) else f"{far:.2f} m"
     return f"the floor the camera sees, {near:.2f} m to {far_text} ahead of the robot's centre"

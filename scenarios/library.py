@@ -30,22 +30,30 @@ def library_path(name: str) -> Path:
     return _library_dir() / f"{name}.yaml"
 
 
+def written_as_path(text: str) -> bool:
+    """A scenario named by a path (a separator or a YAML suffix), not by a library name."""
+    return "/" in text or "\\" in text or text.endswith((".yaml", ".yml"))
+
+
 def _looks_like_path(text: str) -> bool:
-    return "/" in text or "\\" in text or text.endswith((".yaml", ".yml")) or Path(text).exists()
+    return written_as_path(text) or Path(text).exists()
+
+
+def unknown_scenario(name: str) -> str:
+    """"unknown scenario 'x'; did you mean 'y'? (expected a YAML file or one of: ...)"."""
+    names = library_names()
+    close = difflib.get_close_matches(name, names, n=1)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    return (f"unknown scenario '{name}'{hint} (expected a YAML file or one of: "
+            f"{', '.join(names)})")
 
 
 def resolve_scenario(name_or_file: str) -> ScenarioSpec:
     """A library scenario by name, or a scenario file by path."""
     if _looks_like_path(name_or_file):
         return load_scenario_file(name_or_file)
-    names = library_names()
-    if name_or_file not in names:
-        close = difflib.get_close_matches(name_or_file, names, n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        raise ScenarioError(
-            f"--scenario: unknown scenario '{name_or_file}'{hint} (expected a YAML file or one "
-            f"of: {', '.join(names)})"
-        )
+    if name_or_file not in library_names():
+        raise ScenarioError(f"--scenario: {unknown_scenario(name_or_file)}")
     path = library_path(name_or_file)
     spec = load_scenario_file(path)
     if spec.name != name_or_file:

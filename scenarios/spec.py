@@ -15,12 +15,21 @@ the closed loop. Bad files become ScenarioError with one line per bad key, namin
 
 from __future__ import annotations
 
+import difflib
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
 from lanewarden.perception.ground import (
@@ -570,8 +579,21 @@ class FaultSpec(_Model):
         return self
 
 
+def _known_names(names: list[str], known: list[str], what: str) -> list[str]:
+    """`names`, each of which must be one of `known` (a misspelt event or state otherwise runs
+    the whole simulation before the check fails on it)."""
+    for name in names:
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise ValueError(f"{name!r} is no {what}: {hint}expected one of {', '.join(known)}")
+    return names
+
+
 class Expectation(_Model):
-    """The outcome a controller must reach on this scenario (None / empty: not checked)."""
+    """The outcome a controller must reach on this scenario (None / empty: not checked).
+    Event and state names are checked when the file is read; a halt reason may also be given
+    by its own words (`not engaged`)."""
 
     halted: bool | None = None
     #: the halt reason must contain one of these (e.g. LANE_LOST)
@@ -588,6 +610,32 @@ class Expectation(_Model):
     states_visited_exclude: list[str] = []
     events_include: list[str] = []
     halted_before_s: Annotated[float | None, Field(gt=0.0)] = None
+
+    @field_validator("halt_reason_any_of")
+    @classmethod
+    def _halt_reasons(cls, names: list[str]) -> list[str]:
+        # an event's name (capitals and underscores) must be a supervisor event
+        named = [n for n in names if re.fullmatch(r"[A-Z][A-Z_]*", n)]
+        _known_names(named, _event_names(), "supervisor event")
+        return names
+
+    @field_validator("events_include")
+    @classmethod
+    def _events(cls, names: list[str]) -> list[str]:
+        return _known_names(names, _event_names(), "supervisor event")
+
+    @field_validator("states_visited_include", "states_visited_exclude")
+    @classmethod
+    def _states(cls, names: list[str]) -> list[str]:
+        from lanewarden.supervisor.state_machine import SupervisorState
+
+        return _known_names(names, [s.value for s in SupervisorState], "supervisor state")
+
+
+def _event_names() -> list[str]:
+    from lanewarden.supervisor.events import Event
+
+    return [e.value for e in Event]
 
 
 class ExpectSpec(_Model):

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 from typing import Self
 
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lanewarden.documents import DocumentModel
 
@@ -399,64 +400,45 @@ class SupervisorConfig(DocumentModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
-        problems: list[str] = []
+        """Values that must agree: each disagreement is one error at one key, naming the other
+        (`supervisor.follow_speed_m_s = 0.5: must not exceed limiter_max_linear_m_s (0.3)`)."""
+        problems: list[tuple[str, str]] = []
 
-        def require(ok: bool, text: str) -> None:
+        def require(ok: bool, key: str, text: str) -> None:
             if not ok:
-                problems.append(text)
+                problems.append((key, text))
 
         for kind in ("engage", "recover"):  # a k-of-n window holds at least its k frames
             window = getattr(self, f"{kind}_window_frames")
             needed = getattr(self, f"{kind}_confident_frames")
-            require(
-                window == 0 or window >= needed,
-                f"{kind}_window_frames ({window}) must be at least "
-                f"{kind}_confident_frames ({needed})",
-            )
-        require(
-            self.turn_exit_slope_sum < self.turn_enter_slope_sum,
-            f"turn_exit_slope_sum ({self.turn_exit_slope_sum}) must be below "
-            f"turn_enter_slope_sum ({self.turn_enter_slope_sum})",
-        )
-        require(
-            self.confidence_usable_min
-            <= self.confidence_degrade_below
-            <= self.confidence_confident_min,
-            "expected confidence_usable_min <= confidence_degrade_below <= "
-            f"confidence_confident_min, got {self.confidence_usable_min}, "
-            f"{self.confidence_degrade_below}, {self.confidence_confident_min}",
-        )
-        require(
-            self.frame_late_s < self.frame_stale_s,
-            f"frame_late_s ({self.frame_late_s}) must be below "
-            f"frame_stale_s ({self.frame_stale_s})",
-        )
-        require(
-            self.base_feedback_late_s < self.base_link_timeout_s,
-            f"base_feedback_late_s ({self.base_feedback_late_s}) must be below "
-            f"base_link_timeout_s ({self.base_link_timeout_s})",
-        )
-        require(
-            self.battery_critical_v < self.battery_low_v,
-            f"battery_critical_v ({self.battery_critical_v}) must be below battery_low_v "
-            f"({self.battery_low_v})",
-        )
-        require(
-            self.loop_overrun_s > self.camera_period_s,
-            f"loop_overrun_s ({self.loop_overrun_s}) must be above camera_period_s "
-            f"({self.camera_period_s})",
-        )
+            require(window == 0 or window >= needed, f"{kind}_window_frames",
+                    f"must be 0 or at least {kind}_confident_frames ({needed})")
+        require(self.turn_exit_slope_sum < self.turn_enter_slope_sum, "turn_exit_slope_sum",
+                f"must be below turn_enter_slope_sum ({self.turn_enter_slope_sum})")
+        require(self.confidence_usable_min <= self.confidence_degrade_below,
+                "confidence_usable_min",
+                f"must not exceed confidence_degrade_below ({self.confidence_degrade_below})")
+        require(self.confidence_degrade_below <= self.confidence_confident_min,
+                "confidence_degrade_below",
+                f"must not exceed confidence_confident_min ({self.confidence_confident_min})")
+        require(self.frame_late_s < self.frame_stale_s, "frame_late_s",
+                f"must be below frame_stale_s ({self.frame_stale_s})")
+        require(self.base_feedback_late_s < self.base_link_timeout_s, "base_feedback_late_s",
+                f"must be below base_link_timeout_s ({self.base_link_timeout_s})")
+        require(self.battery_critical_v < self.battery_low_v, "battery_critical_v",
+                f"must be below battery_low_v ({self.battery_low_v})")
+        require(self.loop_overrun_s > self.camera_period_s, "loop_overrun_s",
+                f"must be above camera_period_s ({self.camera_period_s})")
         for name in ("follow_speed_m_s", "turn_speed_m_s"):
-            require(
-                getattr(self, name) <= self.limiter_max_linear_m_s,
-                f"{name} ({getattr(self, name)}) must not exceed limiter_max_linear_m_s "
-                f"({self.limiter_max_linear_m_s})",
-            )
-        require(
-            self.degraded_max_angular_rad_s <= self.limiter_max_angular_rad_s,
-            f"degraded_max_angular_rad_s ({self.degraded_max_angular_rad_s}) must not exceed "
-            f"limiter_max_angular_rad_s ({self.limiter_max_angular_rad_s})",
-        )
+            require(getattr(self, name) <= self.limiter_max_linear_m_s, name,
+                    f"must not exceed limiter_max_linear_m_s ({self.limiter_max_linear_m_s})")
+        require(self.degraded_max_angular_rad_s <= self.limiter_max_angular_rad_s,
+                "degraded_max_angular_rad_s",
+                f"must not exceed limiter_max_angular_rad_s ({self.limiter_max_angular_rad_s})")
         if problems:
-            raise ValueError("; ".join(problems))
+            raise ValidationError.from_exception_data(type(self).__name__, [
+                InitErrorDetails(type=PydanticCustomError("values_disagree", text), loc=(key,),
+                                 input=getattr(self, key))
+                for key, text in problems
+            ])  # fmt: skip
         return self

@@ -28,7 +28,12 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
 from lanewarden.scenarios.errors import ScenarioError
-from lanewarden.scenarios.library import library_names, resolve_scenario
+from lanewarden.scenarios.library import (
+    library_names,
+    resolve_scenario,
+    unknown_scenario,
+    written_as_path,
+)
 from lanewarden.scenarios.spec import (
     FLOOR_FAULT_KINDS,
     FaultKind,
@@ -227,11 +232,13 @@ def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
 def _check_draws(spec: CampaignSpec, path: Path) -> None:
     """Every scenario resolves and every fault's parameter ranges give valid faults."""
     problems = []
+    unread = False  # a scenario that does not resolve: the dressing below reads the first one
     for i, name in enumerate(spec.scenarios):
         try:
             _resolve(name, path)
         except ScenarioError as exc:
             problems.append(f"{path}: scenarios.{i} = {name!r}: {exc}")
+            unread = True
         if all(name in c.exclude_scenarios for c in spec.cameras):
             problems.append(f"{path}: scenarios.{i} = {name!r}: every camera excludes it "
                             "(cameras.*.exclude_scenarios)")
@@ -248,6 +255,8 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                 if name not in spec.scenarios:
                     problems.append(f"{path}: {what}.{i}.exclude_scenarios: {name!r} is not one "
                                     f"of the spec's scenarios {spec.scenarios}")
+            if unread:
+                continue  # (one line per misspelt scenario, not one per floor, tape, effect)
             try:
                 base = _resolve(spec.scenarios[0], path).model_dump(mode="json",
                                                                     exclude_defaults=True)
@@ -322,6 +331,8 @@ def _resolve(name: str, spec_path: Path) -> ScenarioSpec:
     candidate = Path(name)
     if not candidate.is_absolute():
         candidate = spec_path.parent / candidate
+    if not written_as_path(name) and not candidate.exists():  # a misspelt library name
+        raise ScenarioError(unknown_scenario(name))
     return resolve_scenario(str(candidate))
 
 

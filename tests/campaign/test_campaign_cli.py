@@ -116,6 +116,24 @@ def test_bad_spec_is_one_line_per_problem_exit_2(
     assert not (tmp_path / "o").exists()
 
 
+def test_a_misspelt_scenario_in_a_spec_is_one_line_naming_the_closest(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """'straigt' in the default spec's scenarios: it was read as a file beside the spec
+    ('/tmp/straigt: scenario file not found'), and again for each of its 21 floors, tapes and
+    effects: 22 lines, none naming 'straight'."""
+    default = Path(__file__).resolve().parents[2] / "scenarios" / "campaign" / "default.yaml"
+    spec = tmp_path / "typo.yaml"
+    spec.write_text(default.read_text(encoding="utf-8").replace(
+        "scenarios: [straight,", "scenarios: [straigt,", 1), encoding="utf-8")
+    code = main(["campaign", "--spec", str(spec), "--out", str(tmp_path / "o"), "--runs", "2",
+                 "--scheduler", "in-process"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith(
+        f"lanewarden: error: {spec}: scenarios.0 = 'straigt': unknown scenario 'straigt'; did "
+        "you mean 'straight'? (expected a YAML file or one of: "), err
+
+
 def test_the_default_spec_covers_every_fault_kind() -> None:
     from lanewarden.scenarios.spec import FaultKind
 

@@ -494,6 +494,20 @@ def test_a_camera_that_cannot_tell_tape_from_seam_is_refused_at_start_up(
     assert info.value.suggested_look_ahead_m == suggested
 
 
+def test_a_camera_looking_above_the_horizon_is_refused_saying_so() -> None:
+    """A calibration edited to pitch the camera 60 degrees UP: no row sees the floor. The
+    message had read "the floor the camera sees, nan m to the horizon ahead"."""
+    from lanewarden.perception.ground import CameraPose, GroundModel
+
+    up = GroundModel.from_fov(70.0, (640, 480), CameraPose(height_m=0.4, pitch_deg=-60.0))
+    with pytest.raises(PerceptionConfigError) as info:
+        LaneDetector(PerceptionConfig(), ground=up)
+    assert str(info.value).endswith(
+        "this floor is not in the camera's view at 640x480; expected a region overlapping the "
+        "floor, but this camera sees none: even its bottom row looks at or above the horizon "
+        "(check the calibration's ground_pitch_deg: positive looks down)")
+
+
 def test_the_suggested_look_ahead_works() -> None:
     config = PerceptionConfig.model_validate({"edges": {"look_ahead_m": 0.47}})
     setup = LaneDetector(config, ground=default_ground_model((160, 120))).setup_for(160, 120)

@@ -84,3 +84,27 @@ def test_config_overrides_are_validated_with_the_scenario_named() -> None:
     assert tuned.simulation.width_px == 320 and tuned.perception == base.perception
     with pytest.raises(ScenarioError, match=r"x.yaml: unknown key 'config.simulation.nope'"):
         with_overrides(base, {"simulation": {"nope": 1}}, "x.yaml")
+
+
+def test_misspelt_events_and_states_in_an_expectation_are_refused_when_read(
+        tmp_path: Path) -> None:
+    """A misspelt halt reason, event or state in `expect:` ran the whole simulation and then
+    failed the check on it; now the file is refused, one line each, naming the closest name.
+    A halt reason's own words (`not engaged`, single-line.yaml) are still accepted."""
+    path = tmp_path / "typos.yaml"
+    path.write_text(
+        "name: typos\nlane:\n  segments:\n    - straight_m: 2\nexpect:\n  supervised:\n"
+        "    halt_reason_any_of: [LANE_LOTS, not engaged]\n    events_include: [BUMPR]\n"
+        "    states_visited_include: [DEGRADE]\n", encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario_file(path)
+    lines = str(info.value).splitlines()
+    assert [line.split(" expected one of")[0] for line in lines] == [
+        f"{path}: expect.supervised.halt_reason_any_of = ['LANE_LOTS', 'not engaged']: "
+        "'LANE_LOTS' is no supervisor event: did you mean LANE_LOST?",
+        f"{path}: expect.supervised.states_visited_include = ['DEGRADE']: 'DEGRADE' is no "
+        "supervisor state: did you mean DEGRADED?",
+        f"{path}: expect.supervised.events_include = ['BUMPR']: 'BUMPR' is no supervisor "
+        "event: did you mean BUMPER?",
+    ]
+    assert lines[1].endswith("expected one of FOLLOW, TURN_LEFT, TURN_RIGHT, DEGRADED, HALT")

@@ -41,10 +41,10 @@ def test_every_timing_and_threshold_has_its_unit_or_kind_in_its_name() -> None:
         ({"follow_speed_m_s": 0.5}, "follow_speed_m_s"),
         ({"degraded_max_angular_rad_s": 2.0}, "degraded_max_angular_rad_s"),
         ({"loop_overrun_s": 0.01}, "loop_overrun_s"),
-        ({"engage_window_frames": 9}, "engage_window_frames (9) must be at least "
-                                      "engage_confident_frames (10)"),
-        ({"recover_window_frames": 4}, "recover_window_frames (4) must be at least "
-                                       "recover_confident_frames (5)"),
+        ({"engage_window_frames": 9}, "supervisor.engage_window_frames = 9: must be 0 or at "
+                                      "least engage_confident_frames (10)"),
+        ({"recover_window_frames": 4}, "supervisor.recover_window_frames = 4: must be 0 or at "
+                                       "least recover_confident_frames (5)"),
     ],
 )
 def test_inconsistent_values_are_refused_naming_the_keys(
@@ -56,6 +56,21 @@ def test_inconsistent_values_are_refused_naming_the_keys(
     with pytest.raises(ConfigError) as err:
         load_config(path)
     assert message in str(err.value) and str(path) in str(err.value)
+
+
+def test_values_of_one_section_that_disagree_are_one_line_each_at_their_key(
+        tmp_path: Path) -> None:
+    """Three disagreements in `supervisor:` had been one line, `supervisor = a mapping: ...; ...;
+    ...`, a new user found."""
+    path = tmp_path / "bad.yaml"
+    path.write_text("supervisor: {follow_speed_m_s: 0.5, turn_speed_m_s: 0.6, frame_late_s: 0.9}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).splitlines() == [
+        f"{path}: supervisor.frame_late_s = 0.9: must be below frame_stale_s (0.15)",
+        f"{path}: supervisor.follow_speed_m_s = 0.5: must not exceed limiter_max_linear_m_s (0.3)",
+        f"{path}: supervisor.turn_speed_m_s = 0.6: must not exceed limiter_max_linear_m_s (0.3)",
+    ]
 
 
 def test_sections_that_disagree_are_refused_one_line_per_conflict(tmp_path: Path) -> None:

@@ -140,6 +140,24 @@ def test_a_safe_verdict_says_what_it_does_not_prove(
     assert code == 0 and "note:" not in out
 
 
+def test_a_not_safe_verdict_never_says_safe_says_little() -> None:
+    """No decision on a lane frame, and false lanes: the note still says perception never found
+    the lane, but not that "SAFE says little" under a NOT SAFE verdict (a new user read both)."""
+    from dataclasses import replace
+
+    from lanewarden.survey import LANE, ClassFigures, SurveyFigures, Verdict, survey_notes
+
+    lane = ClassFigures(LANE, frames=3, decisions=0, confident=0, false_lanes=(), runs=(),
+                        components=())
+    safe = SurveyFigures({LANE: lane}, Verdict(True, (), 6, None), ())
+    for figures, little in ((safe, ", so SAFE says little"),
+                            (replace(safe, verdict=Verdict(False, (), 6, None)), "")):
+        assert survey_notes(figures, calibrated=True) == [
+            "note: no decision on any of the 3 lane frames either: perception never found your "
+            f"lane{little}; check perception.tape and perception.lane in --config (the widths "
+            "of your tape and lane) and --calibration (the camera and its pose)"]
+
+
 def test_images_a_labels_file_leaves_out_are_named(
         floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A labels file names some of the folder's photos: the others are not surveyed, and a note
