@@ -261,6 +261,8 @@ def tape_candidates(
             if inner.polarity == 0:
                 continue  # (unsigned_outer: the sign must be the inner edge's)
             dark = (inner.polarity > 0) == (side == "left")
+            if config.tape.kind != "any" and dark != (config.tape.kind == "dark"):
+                continue
             rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
             found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
     found.sort(key=TapeCandidate.rank, reverse=True)
@@ -389,7 +391,10 @@ def _best_single(
     if not cand:
         return None
     height, width = smooth_gray.shape[:2]
-    polar = sorted((r for r in cand if r.polarity != 0), key=lambda r: -r.support_px)
+    kind = config.tape.kind
+    polar = sorted((r for r in cand if r.polarity != 0 and (
+        kind == "any" or ((r.polarity > 0) == (side == "left")) == (kind == "dark"))),
+        key=lambda r: -r.support_px)
     singles = polar or [max(cand, key=lambda r: r.support_px)]
     preference = config.tape.unpaired_preference
     best: tuple[float, tuple[int, ...], float] | None = None

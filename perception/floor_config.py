@@ -181,6 +181,14 @@ class TapeConfig(DocumentModel):
             "value factor of a lone line refuted as a tape edge, against a tape (edge choice)"
         ),
     )
+    kind: Literal["any", "dark", "light"] = Field(
+        default="any",
+        description=(
+            "the lane's tapes: dark (darker than the floor, black tape on a light floor), light "
+            "(lighter than the floor), or any: with dark or light, a band of the other kind "
+            "(a light floor strip, a light slat between darker ones) is never a tape"
+        ),
+    )
     unverifiable_score: Fraction = Field(
         default=0.6,
         description=(

@@ -276,7 +276,10 @@ def tape_profile_fraction(
         b3 = float(row[int(x + 0.75 * w + 0.5)])
         seen += 1
         floor = (inner, beyond)
-        step = max(min(floor) - max(b1, b2, b3), min(b1, b2, b3) - max(floor))
+        darker = min(floor) - max(b1, b2, b3)
+        lighter = min(b1, b2, b3) - max(floor)
+        step = (darker if tape.kind == "dark" else lighter if tape.kind == "light"
+                else max(darker, lighter))
         spread = max(b1, b2, b3) - min(b1, b2, b3)
         if step > c and spread < step and abs(inner - beyond) < FLOOR_SHADE * step:
             tape_like += 1
