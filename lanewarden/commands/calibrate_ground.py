@@ -34,6 +34,7 @@ import numpy as np
 
 from lanewarden.commands.calibrate import PATTERN, _emit_json, _positive_length, read_image
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import LanewardenConfig, load_config
 from lanewarden.errors import OutputError, QualityGateError, UsageError
 from lanewarden.perception.calibration import (
@@ -44,7 +45,12 @@ from lanewarden.perception.calibration import (
     save_calibration,
     save_ros_camera_info,
 )
-from lanewarden.perception.chessboard import ChessboardPattern, detect_view, suggest_pattern
+from lanewarden.perception.chessboard import (
+    ChessboardPattern,
+    detect_view,
+    larger_pattern,
+    suggest_pattern,
+)
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.ground import CameraPose, GroundModel
@@ -202,6 +208,13 @@ def _solve_from_board(calibration: CameraCalibration, image: np.ndarray, image_p
                     if found is not None else
                     "; the whole board must be in the photo (count INNER corners)")
         raise QualityGateError(f"--image '{image_path}': {view.rejection}{hint}; nothing written")
+    # OpenCV finds a 9x5 grid inside a 9x6 board: the pose from that part of the board is off by
+    # a row (half a square at the board's centre), so a larger board in the photo is refused
+    larger = larger_pattern(image, pattern)
+    if larger is not None:
+        raise UsageError(f"--pattern {pattern}: '{image_path}' shows a board with {larger} inner "
+                         f"corners; use --pattern {larger} (count ALL inner corners: squares "
+                         "minus one per side); nothing written")
     try:
         corners = np.asarray(view.corners, dtype=np.float64)
         return solve_floor_chessboard(corners, pattern, square_m, centre, calibration)
@@ -276,14 +289,12 @@ def ground_command(
                          "(chessboard) are two different ways: give one")
     if not mount_given and not board_given:
         raise UsageError(f"calibrate ground: say how: {USAGE}")
-    out = Path(out_path)
-    if not out.parent.is_dir():
-        raise UsageError(f"--out '{out}': folder '{out.parent}' does not exist")
+    out = Path(out_path)  # its folder, and the check image's, are created when they are written
+    if out.is_dir():
+        raise UsageError(f"--out '{out}': is a folder, expected a file name")
     check = Path(check_path) if check_path else _default_check_path(out)
     if check.suffix.lower() not in (".png", ".jpg", ".jpeg"):
         raise UsageError(f"--check-image '{check}': expected a .png or .jpg file name")
-    if not check.parent.is_dir():
-        raise UsageError(f"--check-image '{check}': folder '{check.parent}' does not exist")
     config = load_config(config_path)
     calibration = load_calibration(calibration_path)
     k = calibration.camera_matrix
@@ -347,6 +358,8 @@ def ground_command(
             corners_floor=None if solution is None else solution.floor_points,
             lane_width_m=config.perception.lane.width_m)
         # The picture first: if it cannot be written, the calibration is left as it was.
+        create_output_file_folder(check, "--check-image")
+        create_output_file_folder(out)
         encoded, data = cv2.imencode(check.suffix, picture)
         try:
             if not encoded:

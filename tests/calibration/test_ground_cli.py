@@ -18,6 +18,7 @@ from lanewarden.scenarios.camera import CameraModel
 from tests.calibration.floor_board import FloorPhoto, floor_photo
 from tests.calibration.test_calibrate_cli import _one_error_line
 from tests.calibration.test_calibrate_cli import _run as run_calibrate
+from tests.conftest import shared_data
 
 JSON_KEYS = {"height_m", "pitch_deg", "roll_deg", "reprojection_error_m", "horizon_y_px",
              "mm_per_px_at_look_ahead", "bend_slope_sums", "calibration_file", "check_image"}
@@ -63,6 +64,23 @@ def test_from_the_mount_round_trips_through_the_file(
     picture = cv2.imread(str(tmp_path / "grounded.ground-check.png"))
     assert picture is not None and picture.shape == (480, 640, 3)
     assert payload["check_image"] == str(tmp_path / "grounded.ground-check.png")
+
+
+def test_a_missing_output_folder_is_created_as_for_every_out(
+        intrinsics: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--out` in a folder that does not exist yet: created with its parents, as `calibrate`
+    and every other --out does (it had been refused: "folder ... does not exist")."""
+    out = tmp_path / "robot" / "camera" / "grounded.yaml"
+    code, _, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.26",
+                        "--pitch-deg", "40", "--out", str(out))
+    assert code == 0, err
+    assert load_calibration(out).ground is not None
+    assert (out.parent / "grounded.ground-check.png").is_file()
+    # a refused pose still writes nothing, and creates no folder
+    refused = tmp_path / "other" / "grounded.yaml"
+    code, _, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.3",
+                        "--pitch-deg", "-40", "--out", str(refused))
+    assert code == 2 and not refused.parent.exists()
 
 
 def test_a_check_picture_that_cannot_be_written_leaves_the_calibration_as_it_was(
@@ -176,6 +194,26 @@ def test_an_error_above_the_gate_exits_2_and_writes_nothing(
     assert f"nothing written to {out}" in line
     assert json.loads(stdout.strip().splitlines()[-1])["calibration_file"] is None
     assert sorted(p.name for p in tmp_path.iterdir()) == ["camera.yaml", "strict.yaml"]
+
+
+def test_a_pattern_one_column_short_is_refused(
+        intrinsics: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """OpenCV's left05.jpg shows a 9x6 inner-corner board, and OpenCV also finds an 8x6 grid
+    inside it: the pose solved from that part of a board put the camera half a square off
+    (a new user measured 0.164 m for a mount 0.150 m ahead, with no warning). Refused, as
+    `calibrate` refuses it."""
+    image = shared_data("chessboard/opencv-left/left05.jpg")
+    pattern = "8x6"
+    out = tmp_path / "grounded.yaml"
+    code, _, err = _run(
+        capsys, "--calibration", str(intrinsics), "--image", str(image), "--pattern", pattern,
+        "--square", "0.025", "--board-center-m", "0.6,0", "--out", str(out))
+    assert code == 2
+    assert _one_error_line(err) == (
+        f"lanewarden: error: --pattern {pattern}: '{image}' shows a board with 9x6 inner corners; "
+        "use --pattern 9x6 (count ALL inner corners: squares minus one per side); nothing "
+        "written")
+    assert not out.exists()
 
 
 def test_an_upside_down_photo_exits_2(photo: tuple[FloorPhoto, Path], intrinsics: Path,
