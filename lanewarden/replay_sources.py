@@ -541,7 +541,9 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
         raise UsageError(f"--topic {topic}: " + (
             f"is {found.type}, not an image topic" if found is not None and found.type not in
             IMAGE_TYPES else "has no images in " + str(path)) + "; image topics: "
-            + _candidates(topics, stamps))
+            + (", ".join(f"{name} ({t.type.rsplit('/', 1)[-1]})"
+                         for name, t in sorted(topics.items()) if t.type in IMAGE_TYPES)
+               or "none"))  # (only the named topic was read: no counts)
     if topic is None:
         if not stamps:
             raise InputFileError(f"{path}: no sensor_msgs/msg/Image or CompressedImage messages "

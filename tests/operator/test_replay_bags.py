@@ -156,6 +156,14 @@ def test_several_image_topics_need_topic(frames: list[np.ndarray], tmp_path: Pat
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
     assert "--topic /cmd_vel: is geometry_msgs/msg/Twist, not an image topic" in err
+    # a topic the bag does not have: the bag's image topics listed (it had said "none", since
+    # only the named topic had been read)
+    code = main(["replay", str(bag), "--topic", "/nope", "--no-video", "--out",
+                 str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.strip().endswith(f"--topic /nope: has no images in {bag}; image topics: "
+                                "/front/compressed (CompressedImage), /rear/image (Image)"), err
     assert main(["replay", str(bag), "--topic", "/rear/image", "--no-video", "--out",
                  str(tmp_path / "rear")]) == 0
     metrics = json.loads((tmp_path / "rear" / "metrics.json").read_text())
