@@ -28,7 +28,14 @@ from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.overlay import as_bgr, draw_detection
 from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
-from lanewarden.run_outcome import CLIP_END, end_reason_of, recorded_loop_end
+from lanewarden.run_outcome import (
+    CLIP_END,
+    EndReason,
+    LoopEnd,
+    LoopEndKind,
+    end_reason_of,
+    recorded_loop_end,
+)
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.progress import Progress
@@ -122,6 +129,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     distance = 0.0
     last_pose: Pose2D | None = None
     progress = Progress(len(times), f"replay {source.name}", "steps")
+    closing_from = _loop_end(source).steps  # the runner's closing stop comes after these
     try:
         with JsonlRecorder(out / "run.jsonl") as log:
             for step in replay_steps(source, config, request.calibration, request.controller):
@@ -136,8 +144,9 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
                 if last_pose is not None:
                     distance += math.dist((pose.x_m, pose.y_m), (last_pose.x_m, last_pose.y_m))
                 last_pose = pose
-                if not request.video:
-                    continue
+                if not request.video or (closing_from is not None
+                                         and step.index >= closing_from):
+                    continue  # (the runner's closing stop is not the run's end: not shown)
                 detection = None
                 if step.detection is not None:
                     observation, debug = step.detection
@@ -185,7 +194,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
 def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: list[float],
                 config: LanewardenConfig) -> None:
     t0 = times[0] if times else 0.0
-    halt = _first_halt_after_engaging(records)
+    halt = first_halt(source, records, _run_end(source, records))
     states = [r.state for r in records]
     write_plot(
         path, f"replay of {source.name} ({source.kind})",
@@ -210,6 +219,28 @@ def _first_halt_after_engaging(records: list[Any]) -> int | None:
     return None
 
 
+def _loop_end(source: ReplaySource) -> LoopEnd:
+    return recorded_loop_end(source.summary) if source.kind == "run" else CLIP_END
+
+
+def _run_end(source: ReplaySource, records: list[Any]) -> EndReason:
+    return end_reason_of(((r.state, r.halt_reason, r.time_s, r.frame_time_s) for r in records),
+                         _loop_end(source))
+
+
+def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int | None:
+    """The first halt after engaging, as the run's end reason counts halts: not the runner's
+    closing stop (the steps after the loop's end) and not a clip's own end (a run that was
+    engaged when its clip ran out: `end.state` is not HALT), which `replay` had reported as
+    `halted: true` with no reason."""
+    steps = _loop_end(source).steps
+    considered = records if steps is None else records[:steps]
+    if end.kind is LoopEndKind.CLIP and end.state != "HALT":
+        while considered and considered[-1].state == "HALT":
+            considered = considered[:-1]
+    return _first_halt_after_engaging(considered)
+
+
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
                    distance_m: float) -> dict[str, Any]:
     """Numbers for metrics.json (the keys `sim` uses where they apply)."""
@@ -217,9 +248,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
     for record in records:
         if record.state not in states:
             states.append(record.state)
-    halt = _first_halt_after_engaging(records)
-    end = end_reason_of(((r.state, r.halt_reason, r.time_s, r.frame_time_s) for r in records),
-                        recorded_loop_end(source.summary) if source.kind == "run" else CLIP_END)
+    end = _run_end(source, records)
+    halt = first_halt(source, records, end)
     first_time = records[0].time_s if records else 0.0
     engaged_steps = sum(r.state != "HALT" for r in records)
     missing = missing_frames(source)

@@ -289,6 +289,9 @@ def assert_one_end_reason(out: str, err: str, record: Path, replay_out: Path) ->
     assert metrics["reproduced"]
     assert (metrics["end_reason"], metrics["final_state"], metrics["halt_reason"]) == (
         text, end["state"], end["halt_reason"])
+    # halted when the run ended halted: neither a clip's own end nor the runner's closing stop
+    # is a halt (replay had said halted: true, reason null, for a clip that ended in FOLLOW)
+    assert metrics["halted"] is (end["state"] == "HALT"), metrics
     assert f"the run ended: {html.escape(text)}." in (replay_out / "report.html").read_text()
     return str(text)
 
