@@ -371,7 +371,13 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
             recorded_frames.add(refused.frame[0])  # perception refused it: nothing to record
     meta = _check_format(mcap, path)
     if not reader.steps:
-        raise InputFileError(f"{path}: no recorded steps")
+        ended = ""  # a run that ended before its first step says why in its summary
+        if SUMMARY_NAME in mcap.metadata:
+            about = _json_object(mcap.metadata[SUMMARY_NAME].get("summary", "").encode(),
+                                 str(path), "recorded summary").get("end_reason")
+            ended = f": the run ended before its first step ({shorten(str(about), 300)})" if (
+                about) else ""
+        raise InputFileError(f"{path}: no recorded steps{ended}")
     kind = meta.get("image", CAMERA_GRAY_OR_JPEG)
     topic = meta.get("frames", IMAGE_TOPIC)
     known = {k: t for k, (t, _) in IMAGE_KINDS.items()} | {CAMERA_GRAY_OR_JPEG: IMAGE_TOPIC}

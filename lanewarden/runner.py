@@ -247,6 +247,11 @@ def run_robot(
                     loop.operator_stop(now)
                     session.before_step(now)
                     loop.step(clock.now())
+        except Exception as exc:
+            if loop_end.kind is LoopEndKind.ERROR:  # the recording says which error, in one line
+                loop_end = LoopEnd(LoopEndKind.ERROR, f"an error: {' '.join(str(exc).split())}"
+                                   if str(exc).strip() else f"an error ({type(exc).__name__})")
+            raise
         finally:
             end = end_reason(watch, loop_end)
             lines = session.close(end, loop_end, None if loop_end.kind is LoopEndKind.ERROR

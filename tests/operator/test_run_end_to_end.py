@@ -220,6 +220,13 @@ def test_a_missing_robot_leaves_a_closed_recording(
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert (summary["steps"], summary["exit_code"]) == (0, None)
+    # the recording says which error (it had said "an error"), and so does its replay
+    assert summary["end_reason"].startswith(
+        f"an error: {tmp_path / 'no-such-port'}: no such device"), summary["end_reason"]
+    assert main(["replay", str(tmp_path / "run"), "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip().startswith(
+        f"lanewarden: error: {tmp_path / 'run' / 'run.mcap'}: no recorded steps: the run ended "
+        f"before its first step (an error: {tmp_path / 'no-such-port'}")
 
 
 def test_a_camera_perception_cannot_use_is_refused_before_anything_moves(
