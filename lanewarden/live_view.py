@@ -497,6 +497,11 @@ class LiveView:
         self._server.server_close()
         for thread in self._threads:
             thread.join(timeout=2.0)
+        with self._counts_lock:  # refusals counted but not yet reported: said once, at the end
+            more, self._refusals_unreported = self._refusals_unreported, 0
+        if more:
+            self._log(f"live view: {more} more request{'s' if more > 1 else ''} refused after the "
+                      "last one reported")
 
 
 class _RequestTooLarge(Exception):

@@ -401,6 +401,10 @@ def test_refused_requests_are_reported_in_one_line_now_and_then(view: View) -> N
     assert view.server.counts["refused"] == 3
     assert view.lines == [f"live view: refused POST /resume from 127.0.0.1: unexpected Host "
                           f"header 'evil.example:{view.port}'"], "the next two: counted, later"
+    # a burst that ends is still counted on the terminal: at the latest when the page closes
+    # (the count had only come with a refusal 5 s later, so a burst's tail went unsaid)
+    view.server.close()
+    assert view.lines[1:] == ["live view: 2 more requests refused after the last one reported"]
 
 
 def test_a_refusal_prints_no_escape_sequence(view: View) -> None:
