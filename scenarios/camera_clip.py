@@ -157,14 +157,30 @@ class CameraClipWriter:
                 "config": str(self.files.config) if config_overrides else None,
                 "run": run_command(self.files, bool(config_overrides))}
 
-    def abort(self) -> None:
-        """After a failure or an interrupt: stop the encoder (the clip is incomplete)."""
+    def abort(self) -> Path | None:
+        """After a failure or an interrupt: stop the encoder and move the incomplete clip aside,
+        to `<name>.partial<suffix>` (a frames folder: `<name>.partial`), so that it is never
+        played as the clip; an earlier clip's calibration and config beside it go (the clip they
+        described was overwritten). Returns where it went (None: it could not be moved, or that
+        name is taken)."""
         writer, self._writer = self._writer, None
         if writer is not None:
             try:
                 writer.close()
             except (OSError, RuntimeError):
                 pass
+        clip = self.files.clip
+        partial = (clip.with_name(f"{clip.stem}.partial{clip.suffix}") if self.files.is_video
+                   else clip.with_name(f"{clip.name}.partial"))
+        try:
+            if not clip.exists() or partial.exists():
+                return None
+            clip.rename(partial)
+            self.files.calibration.unlink(missing_ok=True)
+            self.files.config.unlink(missing_ok=True)
+        except OSError:
+            return None
+        return partial
 
 
 def run_command(files: ClipFiles, with_config: bool) -> str:

@@ -53,6 +53,14 @@ class OutputFolder:
             raise ScenarioOutputError(
                 f"{self.folder}: cannot prepare the output folder ({exc})") from exc
 
+    def note(self, line: str) -> None:
+        """One more line in the PARTIAL marker (an output written outside the folder)."""
+        try:
+            with self.marker.open("a", encoding="utf-8") as marker:
+                marker.write(f"  {line}\n")
+        except OSError as exc:
+            raise ScenarioOutputError(f"{self.marker}: cannot write ({exc})") from exc
+
     def finish(self) -> None:
         """All outputs are complete: remove the marker."""
         try:

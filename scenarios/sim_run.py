@@ -138,7 +138,10 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     except BaseException:
         bar.close(finished=False)
         if clip is not None:
-            clip.abort()
+            moved = clip.abort()
+            if moved is not None:
+                folder.note(f"{moved} (the camera clip, cut short after {clip.frames} frames; "
+                            "no calibration beside it)")
         raise
     bar.close()
     camera_clip = None if clip is None else clip.close(

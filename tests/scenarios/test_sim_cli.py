@@ -140,6 +140,29 @@ def test_an_interrupted_run_says_which_files_are_partial(tmp_path: Path) -> None
     assert not (out / "metrics.json").exists()
 
 
+def test_an_interrupted_camera_clip_is_moved_aside_and_listed(tmp_path: Path) -> None:
+    """`--camera-out clip.mp4` cut short: the clip had kept its name, without its calibration
+    and unlisted in PARTIAL, and `run --camera clip.mp4` played it as a whole clip. Now it is
+    clip.partial.mp4, named in PARTIAL; an earlier clip's calibration beside it is gone."""
+    scenario = tmp_path / "long.yaml"
+    scenario.write_text(SHORT.replace("max_time_s: 3", "max_time_s: 60")
+                        .replace("straight_m: 3.0", "straight_m: 30.0"), encoding="utf-8")
+    out, clip = tmp_path / "run", tmp_path / "clip.mp4"
+    (tmp_path / "clip.calibration.yaml").write_text("# an earlier clip's\n", encoding="utf-8")
+    log = out / "run.jsonl"
+    code, _ = interrupted(
+        ["sim", "--scenario", str(scenario), "--out", str(out), "--quiet", "--no-video",
+         "--camera-out", str(clip)],
+        lambda: log.exists() and log.stat().st_size > 0, whole_group=False)
+    assert code == 130
+    partial = tmp_path / "clip.partial.mp4"
+    assert partial.is_file() and not clip.exists()
+    assert not (tmp_path / "clip.calibration.yaml").exists()
+    last = (out / "PARTIAL").read_text().splitlines()[-1]
+    assert last.startswith(f"  {partial} (the camera clip, cut short after "), last
+    assert last.endswith(" frames; no calibration beside it)"), last
+
+
 def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> None:
     """A terminal's Ctrl-C reaches the whole process group: the demo's two worker processes
     printed a KeyboardInterrupt traceback each (34-53 lines); they leave it to the demo now."""
