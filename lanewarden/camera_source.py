@@ -109,6 +109,40 @@ class ImageSequence:
         self._next = len(self.paths)
 
 
+_PRINTF_INT = re.compile(r"%0?(\d*)d")
+
+
+def numbered_sequence_gap(camera: str, frames_read: int) -> str | None:
+    """For a printf-numbered image sequence ('dir/left%02d.jpg') that delivered `frames_read`
+    frames: when more numbered files exist, the first missing number that ended it (OpenCV
+    reads such a sequence only up to its first gap), as a clause for the user; else None."""
+    match = _PRINTF_INT.search(camera)
+    if match is None or _URL.match(camera):
+        return None
+    folder, name = os.path.split(camera)
+    head_tail = _PRINTF_INT.split(name, maxsplit=1)
+    if len(head_tail) != 3:
+        return None
+    head, width, tail = head_tail
+    wanted = re.compile(re.escape(head) + r"(\d+)" + re.escape(tail))
+    try:
+        numbers = sorted(int(m.group(1)) for entry in os.scandir(folder or ".")
+                         if (m := wanted.fullmatch(entry.name)))
+    except OSError:
+        return None
+    if len(numbers) <= frames_read:
+        return None
+    present = set(numbers)
+    start = numbers[0]
+    missing = next((n for n in range(start, numbers[-1] + 1) if n not in present), None)
+    if missing is None or missing != start + frames_read:
+        return None  # it did not stop at the gap: another reason (--count, --max-frames)
+    gap = os.path.join(folder, f"{head}{missing:0{width or 1}d}{tail}")
+    return (f"{gap} is missing: a numbered sequence ends at its first gap, so "
+            f"{len(numbers) - frames_read} of its {len(numbers)} files were not read (give the "
+            "folder or a glob instead, which read every image in natural order)")
+
+
 def open_camera(camera: str,
                 max_pixels: int | None = None) -> cv2.VideoCapture | ImageSequence:
     """cv2.VideoCapture on an int index, a file path (also an image sequence like

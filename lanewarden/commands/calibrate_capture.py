@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from lanewarden.camera_source import open_camera, quiet_opencv
+from lanewarden.camera_source import numbered_sequence_gap, open_camera, quiet_opencv
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.output_folders import create_output_folder
@@ -161,10 +161,12 @@ def capture_command(
     outcome = run_capture(camera, pattern, Path(out_dir), count, max_frames, config)
     if outcome["frames"] == 0:
         raise DeviceError(f"--camera '{camera}': delivered no frame, nothing captured")
+    gap = numbered_sequence_gap(camera, outcome["frames"])
+    advice = gap or "show the board in new places, sizes and tilts"
     if outcome["kept"] == 0:
         raise QualityGateError(
             f"kept none of {outcome['frames']} frames in {out_dir} ({_breakdown(outcome)}): "
-            "show the board in new places, sizes and tilts"
+            f"{advice}"
         )
     click.echo(
         f"kept {outcome['kept']} of {count} views from {outcome['frames']} frames in {out_dir} "
@@ -173,6 +175,6 @@ def capture_command(
     if outcome["kept"] < count:
         click.echo(
             f"stopped after {outcome['frames']} frames with fewer than {count} views kept: "
-            "show the board in new places, sizes and tilts and capture again (files are "
-            "numbered on)", err=True
+            + (gap or "show the board in new places, sizes and tilts and capture again (files "
+               "are numbered on)"), err=True
         )

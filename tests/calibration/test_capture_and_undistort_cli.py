@@ -50,6 +50,27 @@ def test_capture_keeps_only_new_whole_boards_then_calibrates(
     assert fx == pytest.approx(synthetic_views.camera.focal_px, rel=0.01)
 
 
+def test_a_numbered_sequence_with_a_gap_says_where_it_stopped(
+    synthetic_views: SyntheticViews, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """frame_003.png missing: OpenCV reads 'frame_%03d.png' only up to the gap, and the capture
+    had advised showing the board in new places (a new user's left10.jpg was missing)."""
+    source = _write_sequence(tmp_path / "stream", list(synthetic_views.images[:6]))
+    (tmp_path / "stream" / "frame_003.png").unlink()
+    assert main(["calibrate", "capture", "--camera", source, "--pattern", "9x6", "--out",
+                 str(tmp_path / "shots")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (
+        f"stopped after 3 frames with fewer than 25 views kept: {tmp_path / 'stream'}"
+        "/frame_003.png is missing: a numbered sequence ends at its first gap, so 2 of its 5 "
+        "files were not read (give the folder or a glob instead, which read every image in "
+        "natural order)")
+    # the folder itself reads all five
+    assert main(["calibrate", "capture", "--camera", str(tmp_path / "stream"), "--pattern",
+                 "9x6", "--out", str(tmp_path / "all")]) == 0
+    assert "from 5 frames" in capsys.readouterr().out
+
+
 def test_capture_stops_at_count_and_a_rerun_adds_only_new_views(
     synthetic_views: SyntheticViews, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
