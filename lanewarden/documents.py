@@ -152,6 +152,9 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
     mark = getattr(exc, "problem_mark", None)
     where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
     problem = getattr(exc, "problem", None) or "invalid YAML"
+    if "opencv-matrix" in str(problem):  # a camera calibration given where YAML is expected
+        return (f"not valid YAML{where}: it holds OpenCV's !!opencv-matrix, as a camera "
+                "calibration does (give that file as --calibration)")
     return f"not valid YAML{where}: {shorten(str(problem))}"
 
 

@@ -6,5 +6,6 @@ class ScenarioError(Exception):
 
 
 class ScenarioOutputError(ScenarioError):
-    """A simulation output (folder, metrics, video) that cannot be written: a runtime failure,
-    not a bad scenario."""
+    """A runtime failure, not a bad scenario (exit code 1): a simulation or campaign output
+    (folder, metrics, video, report) that cannot be written, a scheduler that cannot be
+    reached."""

@@ -29,6 +29,10 @@ def test_config_show_round_trips(capsys: pytest.CaptureFixture[str], tmp_path: P
         ("perceptoin: {}\n", "unknown key 'perceptoin'"),
         ("- 1\n- 2\n", "expected a YAML mapping"),
         ("perception: [\n", "not valid YAML"),
+        # a camera calibration given as --config (a new user did): named as such
+        ("%YAML 1.2\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n",
+         "it holds OpenCV's !!opencv-matrix, as a camera calibration does (give that file as "
+         "--calibration)"),
     ],
 )
 def test_bad_config_is_one_line_naming_the_problem(

@@ -20,7 +20,7 @@ import click
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.config import load_config
-from lanewarden.errors import UsageError
+from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
@@ -34,7 +34,7 @@ from lanewarden.scenarios.campaign.runner import (
     run_campaign,
 )
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 from lanewarden.scenarios.progress import Progress
 from lanewarden.stop_signals import raise_interrupt
 from lanewarden.wording import counted
@@ -86,7 +86,10 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         spec, spec_path = load_campaign_spec(spec_name)
     except ScenarioError as exc:
         raise UsageError(str(exc)) from None
+    named = "--scheduler" if scheduler else f"${SCHEDULER_ENV}"
     scheduler = scheduler or os.environ.get(SCHEDULER_ENV) or LOCAL
+    if scheduler not in (LOCAL, IN_PROCESS):
+        _check_scheduler_address(scheduler, named)
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
     plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
@@ -131,9 +134,9 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     except KeyboardInterrupt:
         if bar is not None:
             bar.close(finished=False)
-        click.echo(f"campaign interrupted: finished runs are stored in {out / 'results.sqlite'}"
-                   "; run the same command again to resume", err=True)
-        raise
+        # one line (it had been this, a blank line and "lanewarden: error: interrupted")
+        raise Interrupted(f"finished runs are stored in {out / 'results.sqlite'}; run the same "
+                          "command again to resume") from None
     finally:
         signal.signal(signal.SIGTERM, previous)
         if bar is not None:
@@ -148,10 +151,24 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
             write_junit(out / "junit.xml", spec.name, store.iter_rows(plan.runs), summary)
             write_report(out / "report.html", spec.name, summary, out, text)
         except OSError as exc:
-            raise ScenarioError(f"{out}: cannot write the report ({exc})") from exc
+            raise ScenarioOutputError(f"{out}: cannot write the report ({exc})") from exc
     click.echo(text)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
+
+
+def _check_scheduler_address(address: str, named: str) -> None:
+    """UsageError (one line naming the flag or variable) for a scheduler address Dask cannot
+    parse ('foo', 'host:port-name'); it had raised a traceback from deep in Dask."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        protocol, location = parse_address(address)
+        if protocol in ("tcp", "tls"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"{named} {address!r}: not a scheduler address ({exc}); expected "
+                         f"tcp://HOST:PORT (a Dask scheduler), {LOCAL} or {IN_PROCESS}") from None
 
 
 def commands() -> list[click.Command]:

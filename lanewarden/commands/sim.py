@@ -135,6 +135,12 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
     """Run one scenario in the simulator; write metrics.json, run.jsonl, video.mp4 (and its
     poster.jpg), plot.png and report.html (and, with --camera-out, a camera clip)."""
     if case_file is not None:
+        ctx = click.get_current_context()
+        changed = [flag for name, flag in (("seed", "--seed"), ("controller", "--controller"))
+                   if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+        if changed:  # they had been ignored without a word: the case holds both
+            raise UsageError(f"--case: the case file holds the seed and the controller; drop "
+                             f"{' and '.join(changed)}")
         request = _case_request(case_file, scenario, config_path, out_dir, no_video, quiet)
         request = replace(request, camera_out=camera_out)
         spec, controller, out = request.spec, request.controller, request.out_dir

@@ -14,6 +14,7 @@ Pure data and seeded draws: never runs a simulation, never reads a clock.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import itertools
 import json
@@ -26,7 +27,12 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
+from lanewarden.documents import (
+    DocumentModel,
+    read_yaml_document,
+    shown_value,
+    validation_error_lines,
+)
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import (
     library_names,
@@ -165,6 +171,11 @@ class CampaignSpec(_Model):
             raise ValueError(f"faults_per_run = {list(self.faults_per_run)}: expected [min, max]")
         if self.fault_start_s[0] > self.fault_start_s[1]:
             raise ValueError(f"fault_start_s = {list(self.fault_start_s)}: expected [from, to]")
+        if self.fault_start_s[0] >= self.max_time_s:
+            # every run would end before its faults start: all errors, nothing tested
+            raise ValueError(
+                f"fault_start_s = {list(self.fault_start_s)}: the runs end at max_time_s "
+                f"{self.max_time_s:g} s, before any fault starts: expected a start below it")
         for what, choices in (("cameras", self.cameras), ("floors", self.floors),
                               ("tapes", self.tapes), ("effects", self.effects)):
             names = [c.name for c in choices]
@@ -213,6 +224,12 @@ def load_campaign_spec(name_or_file: str) -> tuple[CampaignSpec, Path]:
     """The spec (`default` or a file) and the file it came from; ScenarioError (one line per
     problem, naming the file and key) for a bad one."""
     path = default_spec_path() if name_or_file == DEFAULT_SPEC else Path(name_or_file)
+    if not path.exists() and not written_as_path(name_or_file):
+        # a misspelt built-in name ('defualt'), not a file
+        close = difflib.get_close_matches(name_or_file, [DEFAULT_SPEC], n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise ScenarioError(f"--spec {name_or_file}: no such spec file; {hint}expected "
+                            f"'{DEFAULT_SPEC}' (the built-in spec) or a YAML file")
     spec = _read_model(path, "campaign spec", CampaignSpec)
     _check_draws(spec, path)
     return spec, path
@@ -319,9 +336,9 @@ def _placement(kind: str, params: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _one_line(exc: Exception) -> str:
-    if isinstance(exc, ValidationError):
-        return "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
-                         for e in exc.errors())
+    if isinstance(exc, ValidationError):  # each key with the value it was given
+        return "; ".join(f"{'.'.join(str(p) for p in e['loc'])} = {shown_value(e.get('input'))}"
+                         f": {e['msg']}" for e in exc.errors())
     return " ".join(str(exc).split())
 
 
@@ -573,7 +590,14 @@ def case_yaml(case: Case) -> str:
 
 
 def load_case(path: str | Path) -> Case:
-    """A case file (as written by a campaign); ScenarioError (one line per problem)."""
+    """A case file (as written by a campaign); ScenarioError (one line per problem, or one
+    saying it is no case file at all: a scenario or some other YAML gave a dozen lines)."""
+    data = read_yaml_document(Path(path), "case", ScenarioError)
+    if isinstance(data, dict) and not {"id", "scenario"} <= set(data):
+        kind = ("a scenario file (use --scenario)" if {"name", "lane"} <= set(data)
+                else "not a campaign case")
+        raise ScenarioError(f"{path}: {kind}: a case file is DIR/cases/<id>.yaml as a "
+                            "campaign writes it (with id: and scenario:)")
     case = _read_model(Path(path), "case", Case)
     case.scenario_spec(str(path))
     return case

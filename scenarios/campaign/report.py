@@ -202,8 +202,19 @@ def _matrix(title: str, table: Mapping[str, Counter[str]]) -> str:
             cells.append(f"<td{style}>{n or ''}</td>")
         body.append(f"<tr><th>{html.escape(key)}</th>{''.join(cells)}"
                     f"<td>{sum(table[key].values())}</td></tr>")
-    return (f"<h2>{html.escape(title)}</h2><table><tr><th></th>{head}<th>runs</th></tr>"
+    note = MATRIX_NOTES.get(title, "")
+    return (f"<h2>{html.escape(title)}</h2>{note}<table><tr><th></th>{head}<th>runs</th></tr>"
             f"{''.join(body)}</table>")
+
+
+#: What a table's rows do not say by themselves (a new user added up the fault-kind table's runs).
+MATRIX_NOTES = {
+    "Fault kind x outcome": (
+        "<p>A run with two faults counts under each of its kinds, with the run's one outcome "
+        "(so this table's runs add up to more than the campaign's, and a safe halt is listed "
+        "under both kinds even when it answered only one: the worst cases below say which)."
+        "</p>"),
+}
 
 
 def nice_axis(low: float, high: float, count: int = 5) -> tuple[float, float, list[float]]:
@@ -289,7 +300,9 @@ def _time_to_halt(summary: CampaignSummary) -> str:
             f'<td class="plot">{distribution_svg(values, axis)}</td></tr>')
     return ("<h2>Time to halt (safe halts)</h2><p>From the moment the fault the halt answered "
             "took effect (its first frame or packet that changed) to HALT, seconds, under that "
-            "fault's kind; halts at the end of the tape answer no fault and are not here. Every "
+            "fault's kind; halts at the end of the tape answer no fault and are not here. A "
+            "floor fault (a mark, a patch, a shadow) takes effect when it first comes into view, "
+            "which may be before the robot has engaged: its time includes the start. Every "
             "row is drawn on the same axis: a dot per halt (a histogram above "
             f"{DOTS_UP_TO}), the red bar the median.</p><table><tr>"
             "<th>fault kind</th><th>runs</th><th>min</th>"

@@ -38,7 +38,7 @@ from lanewarden.scenarios.campaign.cases import (
 )
 from lanewarden.scenarios.campaign.run_case import case_columns, run_case
 from lanewarden.scenarios.campaign.store import Recovery, ResultStore
-from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 
 if TYPE_CHECKING:
     from lanewarden.assembly import BuildStack
@@ -153,7 +153,8 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
     try:
         plan.out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ScenarioError(f"--out {plan.out_dir}: cannot create the directory ({exc})") from exc
+        raise ScenarioOutputError(f"--out {plan.out_dir}: cannot create the directory "
+                                  f"({exc})") from exc
     with ResultStore(plan.out_dir / "results.sqlite", recover=recover) as store:
         store.claim({"spec": spec_fingerprint(plan.spec, plan.config_overrides),
                      "seed": str(plan.seed)})
@@ -236,7 +237,8 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: 
             try:
                 client = Client(scheduler, timeout="20s")
             except OSError as exc:
-                raise ScenarioError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+                raise ScenarioOutputError(  # a runtime failure (exit 1), not a bad flag
+                    f"--scheduler {scheduler}: cannot connect ({exc})") from None
     try:
         # Runs in flight at once: enough to keep every worker busy, few enough that the queue
         # (and the scheduler's memory) does not grow with the campaign.

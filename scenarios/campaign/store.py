@@ -127,9 +127,12 @@ class ResultStore:
             "SELECT key, value FROM campaign").fetchall()))
         for key, value in identity.items():
             if key in stored and stored[key] != value:
+                what = (f"its spec or --config differ (fingerprint {stored[key]!r}, this one "
+                        f"{value!r})" if key == "spec" else
+                        f"{key} {stored[key]!r}, this one {value!r}")
                 raise CampaignMismatch(
-                    f"{self.path}: holds another campaign ({key} {stored[key]!r}, this one "
-                    f"{value!r}): use another --out directory")
+                    f"{self.path}: holds another campaign ({what}): use another --out "
+                    "directory, or the same spec, --config and --seed to resume it")
         self._write(lambda db: db.executemany("INSERT OR REPLACE INTO campaign VALUES (?, ?)",
                                               list(identity.items())))
 
@@ -252,7 +255,8 @@ def _damage(path: Path) -> str | None:
     try:
         result = db.execute("PRAGMA quick_check(3)").fetchall()
         if [r[0] for r in result] != ["ok"]:
-            return "; ".join(str(r[0]) for r in result)[:200]
+            # quick_check's rows may hold newlines: the problem is one line of the error
+            return " ".join("; ".join(str(r[0]) for r in result).split())[:200]
         return None
     except sqlite3.Error as exc:
         return _problem(exc)

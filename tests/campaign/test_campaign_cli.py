@@ -40,6 +40,8 @@ def test_in_process_campaign_writes_rows_cases_junit_and_report(
     assert len(suite.findall("testcase")) == 3
     report = (out / "report.html").read_text(encoding="utf-8")
     assert "Fault kind x outcome" in report
+    # why that table's runs add up to more than the campaign's (a new user added them up)
+    assert "A run with two faults counts under each of its kinds" in report
     reruns = re.findall(r'data-copy="lanewarden sim --case ([^"]+)"', report)
     halts = [r[0] for r in stored if r[1] == "safe_halt"]
     assert len(reruns) == len({r[2].split(":")[0] for r in stored if r[1] == "safe_halt"})
@@ -71,7 +73,8 @@ def test_a_rerun_resumes_and_runs_only_what_is_missing(
 
 
 def test_interrupted_campaign_leaves_a_resumable_file(
-        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     real = runner_module.run_case
     calls = []
@@ -86,6 +89,10 @@ def test_interrupted_campaign_leaves_a_resumable_file(
     args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7", "--runs",
             "3", "--scheduler", "in-process", "--quiet"]
     assert main(args) == 130
+    # one line (it had been "campaign interrupted: ...", a blank line, then "...: interrupted")
+    assert capsys.readouterr().err.splitlines()[-1:] == [
+        f"lanewarden: error: interrupted: finished runs are stored in {out / 'results.sqlite'}; "
+        "run the same command again to resume"]
     assert len(rows(out)) == 1
     monkeypatch.setattr(runner_module, "run_case", real)
     assert main(args) == 0
@@ -100,6 +107,12 @@ def test_another_campaign_in_the_same_directory_is_refused(
     assert main([*base, "--seed", "1"]) == 0
     assert main([*base, "--seed", "2"]) == 2
     assert "holds another campaign (seed '1', this one '2')" in capsys.readouterr().err
+    # another --config: said as such (it had been two bare hashes, read as another spec)
+    other = tmp_path / "slower.yaml"
+    other.write_text("supervisor: {follow_speed_m_s: 0.15}\n", encoding="utf-8")
+    assert main([*base, "--seed", "1", "--config", str(other)]) == 2
+    assert "holds another campaign (its spec or --config differ (fingerprint " in \
+        capsys.readouterr().err
 
 
 def test_bad_spec_is_one_line_per_problem_exit_2(
@@ -134,6 +147,23 @@ def test_a_misspelt_scenario_in_a_spec_is_one_line_naming_the_closest(
         "you mean 'straight'? (expected a YAML file or one of: "), err
 
 
+def test_a_spec_whose_faults_start_after_its_runs_end_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """fault_start_s [20, 30] with 12 s runs: every run had ended before its faults, each an
+    error, and the campaign exited 0 having tested nothing (a new user's spec)."""
+    default = Path(__file__).resolve().parents[2] / "scenarios" / "campaign" / "default.yaml"
+    spec = tmp_path / "late.yaml"
+    spec.write_text(default.read_text(encoding="utf-8").replace(
+        "fault_start_s: [2.5, 8.0]", "fault_start_s: [20, 30]", 1), encoding="utf-8")
+    assert main(["campaign", "--spec", str(spec), "--out", str(tmp_path / "o"), "--runs", "2",
+                 "--scheduler", "in-process"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].endswith(
+        "fault_start_s = [20.0, 30.0]: the runs end at max_time_s 12 s, before any fault "
+        "starts: expected a start below it"), err
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_default_spec_covers_every_fault_kind() -> None:
     from lanewarden.scenarios.spec import FaultKind
 
@@ -162,6 +192,19 @@ def test_sim_case_reproduces_the_campaign_run(
     for key in ("halt_reason", "stop_pose", "distance_travelled_m", "event_counts"):
         assert metrics[key] == stored[key], key
     assert f"outcome: {outcome}" in capsys.readouterr().out
+    # a scenario given as a case: one line saying so (it had been eleven 'field required')
+    library = Path(__file__).resolve().parents[2] / "scenarios" / "library" / "straight.yaml"
+    assert main(["sim", "--case", str(library), "--out", str(rerun)]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {library}: a scenario file (use --scenario): a case file is "
+        "DIR/cases/<id>.yaml as a campaign writes it (with id: and scenario:)"]
+    # the case holds its seed and controller: another one is refused, not silently ignored
+    for extra, named in ((["--seed", "3"], "--seed"), (["--controller", "lecture"],
+                                                      "--controller")):
+        assert main(["sim", "--case", str(case_file), *extra, "--out", str(rerun)]) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f"lanewarden: error: --case: the case file holds the seed and the controller; "
+            f"drop {named}"]
 
 
 def test_a_fault_drawn_inside_a_loop_stall_starts_after_it() -> None:
