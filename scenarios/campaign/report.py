@@ -422,8 +422,9 @@ td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
 th {{ background: #f4f4f4; }}
 td.why {{ text-align: left; max-width: 32em; }}
 td.plot {{ padding: 0 4px; }}
-td.rerun {{ text-align: left; white-space: nowrap; }}
-code.cmd {{ font-size: 90%; user-select: all; background: #f6f6f6; padding: 1px 4px; }}
+td.rerun {{ text-align: left; min-width: 14em; }}
+code.cmd {{ font-size: 90%; user-select: all; background: #f6f6f6; padding: 1px 4px;
+            word-break: break-all; }}
 button.copy {{ font-size: 80%; }}
 </style></head><body>
 <h1>Campaign {html.escape(name)}</h1>
