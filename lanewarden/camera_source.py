@@ -254,6 +254,7 @@ class CameraFrameSource:
         with self._lock:
             if self._latest is not None:
                 self._latest = Frame(self._latest.image, self._latest.index, self._clock())
+            self._delivered = -1  # read before the run (its first frame): the loop's is new
         self._playing.set()
 
     def _hold_first_frame(self) -> None:

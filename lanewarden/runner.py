@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -249,7 +249,8 @@ def run_robot(
                     loop.step(clock.now())
         except Exception as exc:
             if loop_end.kind is LoopEndKind.ERROR:  # the recording says which error, in one line
-                loop_end = LoopEnd(LoopEndKind.ERROR, f"an error: {' '.join(str(exc).split())}"
+                # (the same steps: the closing stop after them is still not the run's end)
+                loop_end = replace(loop_end, text=f"an error: {' '.join(str(exc).split())}"
                                    if str(exc).strip() else f"an error ({type(exc).__name__})")
             raise
         finally:

@@ -395,7 +395,12 @@ def _best_single(
     polar = sorted((r for r in cand if r.polarity != 0 and (
         kind == "any" or ((r.polarity > 0) == (side == "left")) == (kind == "dark"))),
         key=lambda r: -r.support_px)
-    singles = polar or [max(cand, key=lambda r: r.support_px)]
+    # nothing signed (of the configured kind): the strongest line of no sign, or with no kind
+    # configured the strongest line at all (never a line whose sign says the other kind)
+    plain = cand if kind == "any" else [r for r in cand if r.polarity == 0]
+    if not polar and not plain:
+        return None
+    singles = polar or [max(plain, key=lambda r: r.support_px)]
     preference = config.tape.unpaired_preference
     best: tuple[float, tuple[int, ...], float] | None = None
     for line in singles[:_MAX_SINGLE_CHECKS]:

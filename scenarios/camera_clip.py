@@ -159,10 +159,10 @@ class CameraClipWriter:
 
     def abort(self) -> Path | None:
         """After a failure or an interrupt: stop the encoder and move the incomplete clip aside,
-        to `<name>.partial<suffix>` (a frames folder: `<name>.partial`), so that it is never
-        played as the clip; an earlier clip's calibration and config beside it go (the clip they
-        described was overwritten). Returns where it went (None: it could not be moved, or that
-        name is taken)."""
+        to `<name>.partial<suffix>` (a frames folder: `<name>.partial`; `.partial-2` and on when
+        taken), so that it is never played as the clip; an earlier clip's calibration and config
+        beside it go (the clip they described was overwritten). Returns where it went (None: it
+        could not be moved)."""
         writer, self._writer = self._writer, None
         if writer is not None:
             try:
@@ -170,10 +170,16 @@ class CameraClipWriter:
             except (OSError, RuntimeError):
                 pass
         clip = self.files.clip
-        partial = (clip.with_name(f"{clip.stem}.partial{clip.suffix}") if self.files.is_video
-                   else clip.with_name(f"{clip.name}.partial"))
+
+        def partial_name(n: int) -> Path:  # NAME.partial.mp4, NAME.partial-2.mp4, ...
+            tag = "partial" if n == 1 else f"partial-{n}"
+            return (clip.with_name(f"{clip.stem}.{tag}{clip.suffix}") if self.files.is_video
+                    else clip.with_name(f"{clip.name}.{tag}"))
+
         try:
-            if not clip.exists() or partial.exists():
+            partial = next((partial_name(n) for n in range(1, 1000)
+                            if not partial_name(n).exists()), None)
+            if not clip.exists() or partial is None:
                 return None
             clip.rename(partial)
             self.files.calibration.unlink(missing_ok=True)

@@ -10,6 +10,7 @@ bar on a terminal, a line every few seconds otherwise), measures the wall time f
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from collections.abc import Callable
@@ -140,8 +141,9 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
         if clip is not None:
             moved = clip.abort()
             if moved is not None:
-                folder.note(f"{moved} (the camera clip, cut short after {clip.frames} frames; "
-                            "no calibration beside it)")
+                with contextlib.suppress(ScenarioOutputError):  # the first error is the one said
+                    folder.note(f"{moved} (the camera clip, cut short after {clip.frames} "
+                                "frames; no calibration beside it)")
         raise
     bar.close()
     camera_clip = None if clip is None else clip.close(

@@ -112,6 +112,29 @@ def test_a_clips_last_frame_is_read_before_its_end(tmp_path: Path) -> None:
         frames.close()
 
 
+def test_a_one_frame_clip_read_before_the_run_still_gives_the_loop_its_frame(
+        tmp_path: Path) -> None:
+    """The runner reads the first frame before the run (`_first_frame`); play() restamps it,
+    and the loop must get it once more before the clip's end, even when that end is already
+    there (a one-frame clip: it raised at once)."""
+    _images(tmp_path / "s", ["frame_0.png"])
+    frames = CameraFrameSource(open_camera(str(tmp_path / "s")), time.monotonic, replay_fps=200.0)
+    try:
+        deadline = time.monotonic() + 10.0
+        while frames.read(time.monotonic()) is None and time.monotonic() < deadline:
+            threading.Event().wait(0.01)
+        frames.play()
+        while not frames.ended and time.monotonic() < deadline:
+            threading.Event().wait(0.01)
+        assert frames.ended
+        first = frames.read(time.monotonic())
+        assert first is not None and first.index == 0 and not frames.end_seen
+        with pytest.raises(CameraLost, match="end of the recorded clip after 1 frame"):
+            frames.read(time.monotonic())
+    finally:
+        frames.close()
+
+
 def _failed_live_source(tmp_path: Path, good_frames: int) -> CameraFrameSource:
     """A live source (no replay pace) over `good_frames` images then an unreadable one, returned
     once its capture thread has failed: a camera that dropped out before the run began."""

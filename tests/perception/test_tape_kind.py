@@ -96,3 +96,17 @@ def test_a_lone_edge_whose_sign_says_the_other_kind_is_not_chosen() -> None:
         setup = LaneDetector(config, ground=GROUND).setup_for(640, 480)
         left, _ = choose_edges(rows, picture, setup, config)
         assert left is not None and left.chain[0] == chosen, kind
+
+
+def test_a_side_with_only_lines_of_the_other_kind_has_no_edge() -> None:
+    """The border line alone (its sign says a light tape): without a kind it is the side's edge
+    (unverifiable); with `dark` the side has none. The strongest line of any sign had stood in
+    for a side without signed lines, so a line of the other kind came back through it."""
+    picture = floor_picture([])
+    border = floor_line(VIEW.to_floor(150.0, 470.0), VIEW.to_floor(0.0, 250.0), -1.0,
+                        support=400.0, line_id=0)
+    for kind, expected in (("any", (0,)), ("dark", None)):
+        config = with_kind(kind)
+        setup = LaneDetector(config, ground=GROUND).setup_for(640, 480)
+        left, _ = choose_edges([border], picture, setup, config)
+        assert (None if left is None else left.chain) == expected, kind

@@ -163,6 +163,22 @@ def test_an_interrupted_camera_clip_is_moved_aside_and_listed(tmp_path: Path) ->
     assert last.endswith(" frames; no calibration beside it)"), last
 
 
+def test_a_second_clip_cut_short_takes_the_next_partial_name(tmp_path: Path) -> None:
+    """clip.partial is taken by an earlier cut-short clip: the new one had stayed under the
+    clip's own name (a code review found it); it goes to clip.partial-2."""
+    import numpy as np
+
+    from lanewarden.scenarios.camera_clip import CameraClipWriter, ClipFiles
+
+    (tmp_path / "clip.partial").mkdir()
+    writer = CameraClipWriter(ClipFiles.for_target(tmp_path / "clip"), (32, 24), 30.0,
+                              "veryfast", gray=True)
+    writer.add(np.zeros((24, 32), np.uint8), 0.0)
+    assert writer.abort() == tmp_path / "clip.partial-2"
+    assert not (tmp_path / "clip").exists()
+    assert (tmp_path / "clip.partial-2" / "frame_000000.png").is_file()
+
+
 def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> None:
     """A terminal's Ctrl-C reaches the whole process group: the demo's two worker processes
     printed a KeyboardInterrupt traceback each (34-53 lines); they leave it to the demo now."""
