@@ -261,12 +261,20 @@ def tape_candidates(
             if inner.polarity == 0:
                 continue  # (unsigned_outer: the sign must be the inner edge's)
             dark = (inner.polarity > 0) == (side == "left")
-            if config.tape.kind != "any" and dark != (config.tape.kind == "dark"):
+            if not of_configured_kind(inner, side, config):
                 continue
             rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
             found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
     found.sort(key=TapeCandidate.rank, reverse=True)
     return found[:_MAX_TAPE_CHECKS]
+
+
+def of_configured_kind(inner: LineRow, side: Side, config: PerceptionConfig) -> bool:
+    """Whether a signed line, as this side's INNER tape edge, belongs to a tape of the kind
+    `tape.kind` says (always with `any`): its sign says which side of it is floor, so whether
+    the tape beyond it is darker (a left edge lighter to its right) or lighter than the floor."""
+    kind = config.tape.kind
+    return kind == "any" or ((inner.polarity > 0) == (side == "left")) == (kind == "dark")
 
 
 def verified_tapes(
@@ -391,13 +399,11 @@ def _best_single(
     if not cand:
         return None
     height, width = smooth_gray.shape[:2]
-    kind = config.tape.kind
-    polar = sorted((r for r in cand if r.polarity != 0 and (
-        kind == "any" or ((r.polarity > 0) == (side == "left")) == (kind == "dark"))),
-        key=lambda r: -r.support_px)
+    polar = sorted((r for r in cand if r.polarity != 0 and of_configured_kind(r, side, config)),
+                   key=lambda r: -r.support_px)
     # nothing signed (of the configured kind): the strongest line of no sign, or with no kind
     # configured the strongest line at all (never a line whose sign says the other kind)
-    plain = cand if kind == "any" else [r for r in cand if r.polarity == 0]
+    plain = cand if config.tape.kind == "any" else [r for r in cand if r.polarity == 0]
     if not polar and not plain:
         return None
     singles = polar or [max(plain, key=lambda r: r.support_px)]
