@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from lanewarden.actuation.base import STOP, VelocityCommand
+from lanewarden.actuation.config import ActuationConfig
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.errors import DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_base import KobukiBase
@@ -193,14 +194,19 @@ def test_checksum_errors_are_counted_and_the_stream_survives() -> None:
         assert base.link_health(time.monotonic()).checksum_errors >= 2
 
 
-def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn,
-                                                        kobuki: KobukiBase) -> None:
-    sends = 0
-    for _ in range(10):  # one send every 3 feedback packets (~60 ms): well inside the timeout
-        kobuki.send(MOVE, time.monotonic())
-        sends += 1
-        _wait_packets(kobuki, 3)
-    kobuki.send(STOP, time.monotonic())
+def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn) -> None:
+    # The dead-man's own timeouts at their largest (1 s): this test is about the repetition, and
+    # on a loaded machine (CI's) a send every 3 packets (~60 ms) could otherwise arrive after the
+    # default 0.2 s heartbeat timeout, stopping the base and ramping it up again mid-count (the
+    # timeouts have their own tests below).
+    slow_machine = ActuationConfig(heartbeat_timeout_s=1.0, feedback_timeout_s=1.0)
+    with KobukiBase.open(standin.port, config=slow_machine) as kobuki:
+        sends = 0
+        for _ in range(10):  # one send every 3 feedback packets (~60 ms)
+            kobuki.send(MOVE, time.monotonic())
+            sends += 1
+            _wait_packets(kobuki, 3)
+        kobuki.send(STOP, time.monotonic())
     # every motion packet is on the wire before the stop: wait for the stop, then count
     assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
     speeds = [control[0] for _, control in standin.base_controls() if control != (0, 0)]
