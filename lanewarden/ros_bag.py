@@ -7,6 +7,9 @@ allocate without bound or run for long:
   of the file and against `MAX_RECORD_BYTES` before anything is read; a chunk's uncompressed size
   is checked against `MAX_CHUNK_BYTES` and decompressed with that bound (a zstd or lz4 "bomb"
   stops there). The records themselves are parsed by the `mcap` library's record classes.
+- A chunk's and an attachment's CRC-32, when the writer computed one (0: none), is checked: a
+  byte altered on disk is one line naming the byte offset of the damaged record, never data
+  replayed as if a program had changed.
 - A file that ends before MCAP's footer was cut short (a run killed, a full disk): every whole
   record before the cut is read and `McapFile.cut_short` says where it ended, so a replay can
   use what there is and say the recording is incomplete.
@@ -25,6 +28,7 @@ from __future__ import annotations
 import io
 import sqlite3
 import struct
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +57,7 @@ MAX_MESSAGE_BYTES = 64 * 1024 * 1024
 #: are a few kB; their readers refuse anything larger).
 MAX_ATTACHMENT_BYTES = MAX_DOCUMENT_BYTES
 _RECORD_HEAD = struct.Struct("<BQ")
+_CRC = struct.Struct("<I")
 #: Which topics to read (None: all).
 TopicFilter = Callable[["BagTopic"], bool] | None
 
@@ -98,7 +103,20 @@ def _decompress(chunk: Chunk, path: Path, offset: int) -> bytes:
     if len(data) != size:
         raise _problem(path, offset, f"a chunk of {len(data)} bytes where its header says "
                        f"{size}")
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise _problem(path, offset, "a chunk whose CRC does not match its data (the file is "
+                       "damaged)")
     return bytes(data)
+
+
+def _check_attachment_crc(body: bytes, path: Path, offset: int) -> None:
+    """An attachment record ends with the CRC-32 of the body before it (0: none written)."""
+    if len(body) < _CRC.size:
+        return  # too short to hold one: its reader says it is damaged
+    (crc,) = _CRC.unpack_from(body, len(body) - _CRC.size)
+    if crc and zlib.crc32(body[:-_CRC.size]) != crc:
+        raise _problem(path, offset, "an attachment whose CRC does not match its data (the "
+                       "file is damaged)")
 
 
 def _records(data: bytes, path: Path, base: int) -> Iterator[tuple[int, bytes, int]]:
@@ -192,6 +210,8 @@ class McapFile:
     def _record(self, opcode: int, body: bytes, offset: int, schemas: dict[int, str],
                 channels: dict[int, BagTopic]) -> McapMessage | None:
         """Note a schema, channel, metadata or attachment record; return a message record."""
+        if opcode == Opcode.ATTACHMENT:  # damage is said as such, not as a damaged record
+            _check_attachment_crc(body, self.path, offset)
         stream = ReadDataStream(io.BytesIO(body))
         try:
             if opcode == Opcode.MESSAGE:

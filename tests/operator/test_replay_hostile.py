@@ -216,6 +216,50 @@ def test_hostile_mcap_records(recorded: Path, tmp_path: Path,
     assert_one_line(code, err, "garbage.mcap", "not an MCAP file")
 
 
+def _records(data: bytes) -> list[tuple[int, int, int]]:
+    """(opcode, offset, length of the body) of each top-level record of an MCAP file."""
+    records, offset = [], len(MCAP_MAGIC)
+    while offset + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, offset)
+        records.append((opcode, offset, length))
+        if opcode == 0x02:  # the footer
+            break
+        offset += 9 + length
+    return records
+
+
+def test_a_byte_altered_on_disk_is_a_damaged_file(recorded: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """One byte changed inside a chunk, or inside the config attached to the recording, breaks
+    its CRC: the replay says the file is damaged, where, and replays nothing (it had replayed
+    the altered bytes and reported a divergence, as a change of the software would read)."""
+    data = (recorded / "run.mcap").read_bytes()
+    records = _records(data)
+    chunks = [(offset, length) for opcode, offset, length in records if opcode == 0x06]
+    assert len(chunks) >= 3
+    offset, length = chunks[len(chunks) // 2]
+    altered = bytearray(data)
+    altered[offset + 9 + length // 2] ^= 0x01  # inside the chunk's records (uncompressed)
+    flipped = tmp_path / "chunk.mcap"
+    flipped.write_bytes(bytes(altered))
+    code, _, err = replay(flipped, tmp_path, capsys)
+    assert_one_line(code, err, f"{flipped}: a chunk whose CRC does not match its data (the "
+                    f"file is damaged) at byte {offset}")
+
+    (attachment,) = [(offset, length) for opcode, offset, length in records
+                     if opcode == 0x09 and b"config.yaml" in data[offset:offset + 64]]
+    offset, length = attachment
+    digit = data.index(b"\n", data.index(b"max_image_pixels: ", offset)) - 1
+    assert digit < offset + 9 + length and data[digit:digit + 1].isdigit()
+    altered = bytearray(data)
+    altered[digit] ^= 0x01  # its last digit, one up or down: still a valid config
+    flipped = tmp_path / "attachment.mcap"
+    flipped.write_bytes(bytes(altered))
+    code, _, err = replay(flipped, tmp_path, capsys, "--check")
+    assert_one_line(code, err, f"{flipped}: an attachment whose CRC does not match its data "
+                    f"(the file is damaged) at byte {offset}")
+
+
 def test_bad_cdr_in_a_step_message(recorded: Path, tmp_path: Path,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     from lanewarden.ros_bag import McapFile
