@@ -74,8 +74,9 @@ class ScriptedFrames:
     def __init__(self, store: FrameStore, reuse_missing: bool) -> None:
         self._store = store
         #: a recorded run's frame missing from its recording (dropped while recording): the
-        #: loop gets the frame before it, as close to the run as the replay can get; a clip's
-        #: frame that does not decode is no frame at all (the loop's camera sees nothing new)
+        #: loop gets the frame before it, as close to the run as the replay can get; a frame
+        #: that is there but does not decode (a clip's, or a run's damaged one) is no frame at
+        #: all (the loop's camera sees nothing new)
         self._reuse_missing = reuse_missing
         self.step: StepInput | None = None
         #: (index, the recorded image; None: perception refused the frame on the run)
@@ -102,7 +103,8 @@ class ScriptedFrames:
             image = None if refused is not None else self._store.image(index)
             if image is None and refused is None:
                 self.missing.append(index)
-                if (not self._reuse_missing or self._cache is None
+                if (not self._reuse_missing or index in self._store.undecoded
+                        or self._cache is None
                         or self._cache[1] is None):
                     return None
                 image = self._cache[1]  # not what the run saw: the replay cannot be exact

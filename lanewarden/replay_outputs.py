@@ -270,12 +270,15 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
         "distance_travelled_m": round(distance_m, 4),
     }
+    # frames that are there but did not decode: the loop got no frame at those steps
+    wanted = {s.frame[0] for s in source.steps if s.frame is not None}
     if source.kind != "run":
-        # a clip's frames that did not decode: the loop got no frame at those steps
-        wanted = {s.frame[0] for s in source.steps if s.frame is not None}
         metrics["frames_undecoded"] = sorted(wanted - {r.frame_index for r in records})
+    else:  # (a run's frames dropped while recording are `frames_missing`, not these)
+        metrics["frames_undecoded"] = sorted(wanted & source.frames.undecoded)
     if source.kind == "run":
         exact_input = (missing == 0 and recorded_complete and not source.incomplete
+                       and not metrics["frames_undecoded"]
                        and bool(source.meta.get("lossless")))
         metrics.update(
             compared_steps=len(records),
@@ -307,6 +310,6 @@ def summary_sentence(metrics: dict[str, Any]) -> str:
         if metrics["incomplete"]:
             text += f" The recording is incomplete: {'; '.join(metrics['incomplete'])}."
         elif not metrics["exact_input"]:
-            text += (" The recording is not exact (frames dropped or lossy), so the replay "
-                     "cannot be exact either.")
+            text += (" The recording is not exact (frames dropped, undecodable or lossy), so "
+                     "the replay cannot be exact either.")
     return text

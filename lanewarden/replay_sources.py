@@ -99,7 +99,12 @@ CAMERA_GRAY_OR_JPEG = "camera"
 
 # ---- where the images come from ---------------------------------------------------------------
 class FrameStore:
-    """Images by frame index. Subclasses: files, a video, a run's or a bag's messages."""
+    """Images by frame index. Subclasses: files, a video, a run's or a bag's messages.
+    `undecoded`: the indices of frames a recorded run holds that did not decode (damaged), as
+    against frames it never recorded (dropped while recording)."""
+
+    def __init__(self) -> None:
+        self.undecoded: set[int] = set()
 
     def image(self, index: int) -> np.ndarray | None:
         raise NotImplementedError
@@ -112,6 +117,7 @@ class PathFrames(FrameStore):
     """Frame i is `paths[i]`; a missing, unreadable or too large file is None."""
 
     def __init__(self, paths: list[Path], max_pixels: int) -> None:
+        super().__init__()
         self.paths = paths
         self.max_pixels = max_pixels
 
@@ -134,7 +140,10 @@ class RunFolderFrames(PathFrames):
         return self.folder / f"{index:06d}{self.suffix}"
 
     def image(self, index: int) -> np.ndarray | None:
-        image, _ = read_image(self.path(index), cv2.IMREAD_UNCHANGED, self.max_pixels)
+        path = self.path(index)
+        image, _ = read_image(path, cv2.IMREAD_UNCHANGED, self.max_pixels)
+        if image is None and path.exists():
+            self.undecoded.add(index)
         return image
 
 
@@ -142,6 +151,7 @@ class VideoFrames(FrameStore):
     """Decodes forward only (replay asks for increasing indices)."""
 
     def __init__(self, capture: cv2.VideoCapture) -> None:
+        super().__init__()
         self._capture = capture
         self._index = -1
         self._image: np.ndarray | None = None
@@ -189,6 +199,7 @@ class MessageFrames(FrameStore):
 
     def __init__(self, bag: Bag, topic: str, *, by_sequence: bool, prepared: bool = False
                  ) -> None:
+        super().__init__()
         self._messages: Iterator[BagMessage] = bag.messages(lambda t: t.name == topic)
         self._by_sequence = by_sequence
         self._prepared = prepared
@@ -218,6 +229,8 @@ class MessageFrames(FrameStore):
                 image = _decode_raw(decoded)
             else:
                 image = _decode_encoded(bytes(decoded.data))
+            if image is None:
+                self.undecoded.add(index)
             if self._prepared and image is not None and image.ndim == 2:
                 image = image.view(PreparedImage)
             self._cache = (index, image)

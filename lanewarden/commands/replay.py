@@ -115,23 +115,29 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         for why in metrics["incomplete"]:
             click.echo(f"  the recording is incomplete: {why}")
         if not metrics["exact_input"] and not metrics["incomplete"]:
-            click.echo(f"  the recording is not exact ({metrics['frames_missing']} frames missing"
-                       f"{'' if replay_source.meta.get('lossless') else ', lossy frames'}): the "
-                       "replay cannot be exact")
+            why = [f"{metrics['frames_missing']} frames missing"]
+            if metrics["frames_undecoded"]:
+                why.append(f"{len(metrics['frames_undecoded'])} undecodable")
+            if not replay_source.meta.get("lossless"):
+                why.append("lossy frames")
+            click.echo(f"  the recording is not exact ({', '.join(why)}): the replay cannot "
+                       "be exact")
     click.echo(f"  outputs in {out}/ (report: {out / 'report.html'})")
     undecoded = metrics.get("frames_undecoded") or []
-    if replay_source.kind != "run" and undecoded:
-        # a recorded run can lack frames (the camera failed: the replay shows the halt); a
-        # video, images, a tub or a bag lacking them is damaged: the loop saw no frame there
-        # (never the frame before), and the replay is bad input, its outputs written
+    if undecoded:
+        # a recorded run can lack frames (dropped while recording: the replay gives the loop
+        # the frame before); a frame that is there but does not decode, in a run, video,
+        # images, a tub or a bag, is damage: the loop saw no frame there (never the frame
+        # before), and the replay is bad input, its outputs written
+        total = metrics["frames"] + len(undecoded)
         if not metrics["frames"]:
-            none = ("its only frame could not be decoded" if metrics["steps"] == 1
-                    else f"none of its {metrics['steps']} frames could be decoded")
+            none = ("its only frame could not be decoded" if total == 1
+                    else f"none of its {total} frames could be decoded")
             raise InputFileError(f"SOURCE '{source}': {none} (a damaged or cut file?)")
         raise InputFileError(
-            f"SOURCE '{source}': {len(undecoded)} of its {counted(metrics['steps'], 'frame')} "
-            f"could not be decoded: {_frame_names(replay_source, undecoded)} (a damaged or cut "
-            f"file?); the loop saw no frame there, outputs in {out}/")
+            f"SOURCE '{source}': {len(undecoded)} of its {counted(total, 'frame')} could not be "
+            f"decoded: {_frame_names(replay_source, undecoded)} (a damaged or cut file?); the "
+            f"loop saw no frame there, outputs in {out}/")
     if check and replay_source.kind != "run":
         raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
                                "there is nothing to compare with")

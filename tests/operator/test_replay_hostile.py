@@ -151,6 +151,38 @@ def test_a_huge_config_inside_a_recording_is_refused_at_once(
     assert_one_line(code, err, "forged.mcap:config.yaml", "larger than 1000 kB")
 
 
+def test_a_recorded_frame_that_does_not_decode_is_no_frame_and_bad_input(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A frame in run.mcap whose PNG bytes were zeroed: as for a clip's, the loop gets no frame
+    at its step, metrics.json lists it, and the replay, its outputs written, is bad input
+    naming it (it had been replaced by the frame before, as a frame dropped while recording
+    is, and the replay said only that it diverges, exact_input true)."""
+    damaged = tmp_path / "damaged.mcap"
+
+    def zero_frame_6(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+        if topic == "/camera/image/compressed" and number == 6:
+            message["data"] = bytes(len(message["data"]))
+        return message
+
+    rewrite_mcap(recorded / "run.mcap", damaged, zero_frame_6)
+    out = tmp_path / "out"
+    code, stdout, err = replay(damaged, tmp_path, capsys)
+    assert_one_line(code, err, f"SOURCE '{damaged}': 1 of its 15 frames could not be decoded",
+                    "frame 5", f"the loop saw no frame there, outputs in {out}/")
+    assert "the recording is not exact (0 frames missing, 1 undecodable)" in stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["frames_undecoded"] == [5] and metrics["frames_missing"] == 0
+    assert metrics["exact_input"] is False
+    steps = [json.loads(line) for line in (out / "run.jsonl").read_text().splitlines()]
+    assert 5 not in [s["frame_index"] for s in steps]  # never the frame before again
+    code, _, err = replay(damaged, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "1 of its 15 frames could not be decoded")
+    old = as_format_1(recorded, tmp_path / "old")  # a format-1 folder's frames/*.png alike
+    (old / "frames" / "000005.png").write_bytes(bytes(1000))
+    code, _, err = replay(old, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "1 of its 15 frames could not be decoded", "frame 5")
+
+
 # ---- incomplete recordings: replayed as far as they go, never checked ----------------------
 def test_a_recording_cut_short_replays_but_is_not_checked(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
