@@ -269,6 +269,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "states_visited": states,
         "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
         "distance_travelled_m": round(distance_m, 4),
+        # why the recording (a run, a bag) is not whole: replayed as far as it goes
+        "incomplete": list(source.incomplete),
     }
     # frames that are there but did not decode: the loop got no frame at those steps
     wanted = {s.frame[0] for s in source.steps if s.frame is not None}
@@ -290,7 +292,6 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
             reproduced=not divergences,
             frames_missing=missing,
             exact_input=exact_input,
-            incomplete=list(source.incomplete),
             recorded_exit_code=source.summary.get("exit_code"),
         )
     return metrics
@@ -307,9 +308,9 @@ def summary_sentence(metrics: dict[str, Any]) -> str:
         else:
             text += (f" {metrics['divergent_steps']} of {metrics['compared_steps']} steps diverge "
                      f"from the recording; the first: {metrics['first_divergence']['text']}.")
-        if metrics["incomplete"]:
-            text += f" The recording is incomplete: {'; '.join(metrics['incomplete'])}."
-        elif not metrics["exact_input"]:
+        if not metrics["incomplete"] and not metrics["exact_input"]:
             text += (" The recording is not exact (frames dropped, undecodable or lossy), so "
                      "the replay cannot be exact either.")
+    if metrics["incomplete"]:
+        text += f" The recording is incomplete: {'; '.join(metrics['incomplete'])}."
     return text

@@ -55,7 +55,16 @@ from lanewarden.image_files import (
 from lanewarden.perception.calibration import CameraCalibration, load_calibration
 from lanewarden.perception.detector import PreparedImage
 from lanewarden.perception.errors import PerceptionError
-from lanewarden.ros_bag import Bag, BagMessage, BagTopic, McapFile, decode, is_bag, open_bag
+from lanewarden.ros_bag import (
+    EMPTY,
+    Bag,
+    BagMessage,
+    BagTopic,
+    McapFile,
+    decode,
+    is_bag,
+    open_bag,
+)
 from lanewarden.run_mcap import (
     CALIBRATION_ATTACHMENT,
     COMPRESSED_IMAGE,
@@ -253,8 +262,8 @@ class ReplaySource:
     meta: dict[str, Any] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
     config_origin: str = "defaults"
-    #: Why a recorded run is not whole (cut short, a damaged last line, no summary): it replays
-    #: as far as it goes, and cannot be checked.
+    #: Why a recorded run or a bag is not whole (cut short, a damaged last line, no summary): it
+    #: replays as far as it goes, and cannot be checked.
     incomplete: list[str] = field(default_factory=list)
     #: A recorded run's frame indices that are there (None: every one its steps name).
     frames_recorded: set[int] | None = None
@@ -555,6 +564,13 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
             raise InputFileError(f"{where}: more than {MAX_STEPS} images; longer than replay "
                                  "reads")
     topics = bag.topics
+    cut = [(bag_file.path, bag_file.cut_short) for bag_file in bag.files
+           if isinstance(bag_file, McapFile) and bag_file.cut_short is not None]
+    if cut and not stamps:
+        cut_file, how = cut[0]
+        raise InputFileError(f"{cut_file}: " + ("empty (0 bytes)" if how == EMPTY else
+                             f"cut short before any image (it {how})")
+                             + "; a recording killed at its start, or its disk full?")
     if topic is not None and topic not in stamps:
         found = topics.get(topic)
         raise UsageError(f"--topic {topic}: " + (
@@ -578,11 +594,16 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
     _check_times(times, f"{path}: {topic}", "image")
     start = times[0]
     rel = [t - start for t in times]
+    # a bag cut short (`ros2 bag record` killed, a full disk, half a copy): what it has is
+    # replayed, and said, as for a run cut short
+    incomplete = [f"{cut_file.name} was cut short after {len(rel)} images on {topic} (it "
+                  f"{how})" for cut_file, how in cut]
     return ReplaySource(kind="bag", name=f"{path.stem or path.name}",
                         steps=camera_steps(enumerate(rel)),
                         frames=MessageFrames(bag, topic, by_sequence=False),
                         meta={"topic": topic, "times": note,
-                              "frames_per_s_recorded": len(rel) / max(rel[-1], 1e-9)})
+                              "frames_per_s_recorded": len(rel) / max(rel[-1], 1e-9)},
+                        incomplete=incomplete)
 
 
 def _candidates(topics: dict[str, BagTopic], stamps: dict[str, list[float]]) -> str:

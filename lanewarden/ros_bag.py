@@ -57,6 +57,8 @@ MAX_MESSAGE_BYTES = 64 * 1024 * 1024
 #: are a few kB; their readers refuse anything larger).
 MAX_ATTACHMENT_BYTES = MAX_DOCUMENT_BYTES
 _RECORD_HEAD = struct.Struct("<BQ")
+#: `McapFile.cut_short` of a file of 0 bytes.
+EMPTY = "is empty (0 bytes)"
 _CRC = struct.Struct("<I")
 #: Which topics to read (None: all).
 TopicFilter = Callable[["BagTopic"], bool] | None
@@ -162,6 +164,9 @@ class McapFile:
             size = self.path.stat().st_size
             magic = stream.read(len(MCAP_MAGIC))
             if magic != MCAP_MAGIC:
+                if not magic:
+                    self.cut_short = EMPTY
+                    return
                 if len(magic) < len(MCAP_MAGIC) and MCAP_MAGIC.startswith(magic):
                     self.cut_short = f"ends at byte {len(magic)}, before MCAP's first record"
                     return  # written by nothing yet, or cut before its first bytes

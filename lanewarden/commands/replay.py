@@ -112,8 +112,6 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         else:
             click.echo(f"  DIVERGES at {metrics['first_divergence']['text']} "
                        f"({metrics['divergent_steps']} steps differ)")
-        for why in metrics["incomplete"]:
-            click.echo(f"  the recording is incomplete: {why}")
         if not metrics["exact_input"] and not metrics["incomplete"]:
             why = [f"{metrics['frames_missing']} frames missing"]
             if metrics["frames_undecoded"]:
@@ -122,6 +120,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                 why.append("lossy frames")
             click.echo(f"  the recording is not exact ({', '.join(why)}): the replay cannot "
                        "be exact")
+    for why in metrics["incomplete"]:
+        click.echo(f"  the recording is incomplete: {why}")
     click.echo(f"  outputs in {out}/ (report: {out / 'report.html'})")
     undecoded = metrics.get("frames_undecoded") or []
     if undecoded:
@@ -138,13 +138,13 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
             f"SOURCE '{source}': {len(undecoded)} of its {counted(total, 'frame')} could not be "
             f"decoded: {_frame_names(replay_source, undecoded)} (a damaged or cut file?); the "
             f"loop saw no frame there, outputs in {out}/")
-    if check and replay_source.kind != "run":
-        raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
-                               "there is nothing to compare with")
     # what makes a replay inexact is said before the divergences it causes
     if check and metrics["incomplete"]:
         raise QualityGateError(f"replay {source}: the recording is incomplete "
                                f"({metrics['incomplete'][0]}), so it cannot be checked")
+    if check and replay_source.kind != "run":
+        raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
+                               "there is nothing to compare with")
     if check and not metrics["exact_input"]:
         raise QualityGateError(f"replay {source}: the recording is not exact (frames dropped or "
                                "lossy), so it cannot be checked")

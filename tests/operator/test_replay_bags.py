@@ -203,6 +203,52 @@ def test_no_image_topic_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "no sensor_msgs/msg/Image or CompressedImage messages (topics: /cmd_vel)" in err
 
 
+def test_a_bag_cut_short_replays_what_it_has_and_says_so(
+        frames: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An .mcap bag cut in half (`ros2 bag record` killed, a full disk, half a copy) replays
+    the images before the cut and says the bag is incomplete, in metrics.json too, and
+    `--check` refuses it; one cut before its first image (0, 5 or 100 bytes left) says so. Both
+    had replayed what there was with exit 0 and no word, or called the bag one without images
+    ("topics: none")."""
+    whole = tmp_path / "whole.mcap"
+    with whole.open("wb") as stream:
+        writer = Ros2McapWriter(stream, chunk_size=64 * 1024)  # a chunk every frame or two
+        schema = writer.register_msgdef("sensor_msgs/msg/CompressedImage", COMPRESSED_IMAGE_DEF)
+        for i, frame in enumerate(frames[:20]):
+            stamp = EPOCH_NS + i * PERIOD_NS
+            writer.write_message("/camera", schema, {
+                "header": {"stamp": {"sec": stamp // 10**9, "nanosec": stamp % 10**9}},
+                "format": "png", "data": cv2.imencode(".png", frame)[1].tobytes()},
+                log_time=stamp)
+        writer.finish()
+    data = whole.read_bytes()
+    half = tmp_path / "half.mcap"
+    half.write_bytes(data[: len(data) // 2])
+    out = tmp_path / "out"
+    assert main(["replay", str(half), "--no-video", "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert 0 < metrics["steps"] < 20
+    assert f"the recording is incomplete: half.mcap was cut short after {metrics['steps']} " \
+        f"images on /camera (it ends at byte {len(data) // 2} inside a record" in stdout, stdout
+    assert len(metrics["incomplete"]) == 1 and "cut short" in metrics["incomplete"][0]
+    code = main(["replay", str(half), "--no-video", "--out", str(out), "--check"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"replay {half}: the recording is incomplete (half.mcap was cut short" in err
+    for size, what in ((0, "empty (0 bytes)"),
+                       (5, "cut short before any image (it ends at byte 5, before MCAP's "
+                        "first record)"),
+                       (100, "cut short before any image (it ends at byte 100 inside a record "
+                        "that starts at byte 70)")):
+        stub = tmp_path / f"stub{size}.mcap"
+        stub.write_bytes(data[:size])
+        code = main(["replay", str(stub), "--no-video", "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"{stub}: {what}; a recording killed at its start, or its disk full?" in err, err
+
+
 @pytest.mark.parametrize("count", [1, 3])
 def test_a_bag_of_which_no_image_decodes_is_one_line(tmp_path: Path, count: int) -> None:
     """A CompressedImage whose data is not a picture (a PNG signature, then garbage), the bag's
