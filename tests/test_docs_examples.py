@@ -164,6 +164,30 @@ def test_every_example_is_accounted_for() -> None:
     assert sorted(doc_examples()) == sorted(listed)
 
 
+def test_ros2_bag_play_of_a_recording_is_never_shown_sending_cmd_vel() -> None:
+    """`ros2 bag play` of a whole run.mcap republishes the recorded /cmd_vel, which a live base
+    driver obeys: a doc that names it warns of that, and each `ros2 bag play` example plays
+    the recorded frames' topic only or moves /cmd_vel away (the topics as run_mcap names
+    them, so a renamed topic fails here)."""
+    from lanewarden.run_mcap import CMD_VEL_TOPIC, IMAGE_TOPIC, PERCEPTION_TOPIC
+
+    naming = [doc for doc in DOCS if "ros2 bag play" in doc.read_text(encoding="utf-8")]
+    assert naming
+    for doc in naming:
+        text = " ".join(doc.read_text(encoding="utf-8").split())
+        assert "`ros2 bag play run.mcap` on its own drives the robot" in text, doc
+        assert f"`{CMD_VEL_TOPIC}` included" in text, doc
+    plays = [line for block in _blocks("bash") for line in _joined_lines(block)
+             if line.strip().startswith("ros2 bag play")]
+    assert plays
+    for line in plays:
+        words = line.split("#")[0].split()
+        topics = words[words.index("--topics") + 1:] if "--topics" in words else []
+        safe = (topics and set(topics) <= {PERCEPTION_TOPIC, IMAGE_TOPIC}) or any(
+            w.startswith(f"{CMD_VEL_TOPIC}:=") for w in words)
+        assert safe, line
+
+
 @pytest.mark.parametrize("command", sorted(NEEDS_HARDWARE))
 def test_hardware_examples_parse(command: str) -> None:
     argv, _ = argv_of(command)
