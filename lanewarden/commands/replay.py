@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.errors import InputFileError, QualityGateError
+from lanewarden.errors import InputFileError, QualityGateError, UsageError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 from lanewarden.wording import counted
 
@@ -59,6 +59,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     from lanewarden.replay_outputs import ReplayRequest, run_replay
     from lanewarden.replay_sources import open_replay_source, replay_config
 
+    if out_dir is not None:
+        _refuse_a_recording_folder(Path(out_dir))
     given = load_config(config_path)
     replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
                                        topic=topic,
@@ -151,6 +153,17 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and not metrics["reproduced"]:
         raise QualityGateError(f"replay {source}: diverges from the recording at "
                                f"{metrics['first_divergence']['text']}")
+
+
+def _refuse_a_recording_folder(out: Path) -> None:
+    """UsageError when --out names a run's recording folder: replay would write its run.jsonl,
+    metrics and report there (a format-1 recording's own run.jsonl among them)."""
+    from lanewarden.replay_sources import RUN_MCAP
+
+    held = [name for name in (RUN_MCAP, "meta.json") if (out / name).is_file()]
+    if held:
+        raise UsageError(f"--out '{out}': holds a recording ({', '.join(held)}); recording "
+                         "folders are never written into: expected another folder")
 
 
 def _frame_names(replay_source: ReplaySource, indices: list[int], shown: int = 3) -> str:

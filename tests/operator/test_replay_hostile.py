@@ -183,6 +183,23 @@ def test_a_recorded_frame_that_does_not_decode_is_no_frame_and_bad_input(
     assert_one_line(code, err, "1 of its 15 frames could not be decoded", "frame 5")
 
 
+def test_replay_never_writes_into_a_recording_folder(recorded: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """`--out` naming a run's folder (run.mcap, or a format-1 folder's meta.json and run.jsonl)
+    is refused before anything is written: replay had written its run.jsonl, metrics and report
+    into it, over a format-1 recording's own run.jsonl."""
+    run = tmp_path / "run"
+    shutil.copytree(recorded, run)
+    old = as_format_1(recorded, tmp_path / "old")
+    for folder, held in ((run, "run.mcap, meta.json"), (old, "meta.json")):
+        before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+        code = main(["replay", str(recorded), "--no-video", "--out", str(folder)])
+        err = capsys.readouterr().err
+        assert_one_line(code, err, f"--out '{folder}': holds a recording ({held}); recording "
+                        "folders are never written into")
+        assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
+
+
 # ---- incomplete recordings: replayed as far as they go, never checked ----------------------
 def test_a_recording_cut_short_replays_but_is_not_checked(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
