@@ -209,7 +209,7 @@ class RunSession:
         problem_said, drops_said = self._recording_said
         summary = self.recorder.summary
         if not problem_said and summary.problem is not None:
-            self.printer.message(f"warning: the recording stopped: {summary.problem}; the run "
+            self.printer.warning(f"warning: the recording stopped: {summary.problem}; the run "
                                  "goes on unrecorded")
             problem_said = True
         if not drops_said and summary.frames_dropped:

@@ -4,7 +4,8 @@
 - `StatusPrinter`: on a terminal, rewrites one line in place a few times a second; otherwise
   (a pipe, a log file) prints a plain line when the state or its reason changes and every
   `PLAIN_EVERY_S` seconds. It prints from its own thread (the newest status replaces one not yet
-  printed), so a slow or stalled terminal never holds up the control loop.
+  printed), so a slow or stalled terminal never holds up the control loop. A warning goes to
+  stderr as one line, and to stdout too unless both are the same terminal.
 - `KeyReader`: reads single keys in cbreak mode (no Enter needed, no echo; Ctrl-C still sends
   SIGINT) from its own thread, and restores the terminal's settings on every way out (the context
   manager's exit, which the runner reaches on a normal end, an error, Ctrl-C or SIGTERM).
@@ -75,16 +76,26 @@ def format_status(status: dict[str, Any]) -> str:
     return "  ".join(parts)
 
 
+def _same_terminal(a: TextIO, b: TextIO) -> bool:
+    try:
+        return a.isatty() and b.isatty() and os.path.sameopenfile(a.fileno(), b.fileno())
+    except (OSError, ValueError):  # no file descriptor (a test's capture, a StringIO)
+        return False
+
+
 class StatusPrinter:
     """Prints the status from its own thread; `publish` and `message` only hand over a reference
     (the newest status replaces an unprinted one; messages are all printed, in order)."""
 
-    def __init__(self, stream: TextIO, *, tty_mode: bool | None = None) -> None:
+    def __init__(self, stream: TextIO, *, tty_mode: bool | None = None,
+                 err: TextIO | None = None) -> None:
         self._stream = stream
+        self._err = err if err is not None else sys.stderr
         self.tty_mode = stream.isatty() if tty_mode is None else tty_mode
         self._cond = threading.Condition()
         self._status: dict[str, Any] | None = None
-        self._messages: deque[str] = deque(maxlen=MAX_PENDING_MESSAGES)
+        #: (text, a warning: also on stderr)
+        self._messages: deque[tuple[str, bool]] = deque(maxlen=MAX_PENDING_MESSAGES)
         self._closed = False
         self._last_key: tuple[object, object, object] | None = None
         self._last_plain_s = -float("inf")
@@ -100,7 +111,14 @@ class StatusPrinter:
     def message(self, text: str) -> None:
         """A line of its own (an operator request, say), above the status line."""
         with self._cond:
-            self._messages.append(text)
+            self._messages.append((text, False))
+            self._cond.notify()
+
+    def warning(self, text: str) -> None:
+        """A line of its own on stderr (where a script or a log collects what went wrong), and
+        above the status line on stdout unless that is the same terminal."""
+        with self._cond:
+            self._messages.append((text, True))
             self._cond.notify()
 
     def _run(self) -> None:
@@ -114,8 +132,8 @@ class StatusPrinter:
                 status, self._status = self._status, None
                 closed = self._closed
             try:
-                for text in messages:
-                    self._write_line(text)
+                for text, warning in messages:
+                    self._write_line(text, warning)
                 if status is not None:
                     self._show(status)
             except (OSError, ValueError):
@@ -141,10 +159,16 @@ class StatusPrinter:
             self._stream.write(f"[{status.get('time_s', 0.0):7.2f} s] {line}\n")
             self._stream.flush()
 
-    def _write_line(self, text: str) -> None:
+    def _write_line(self, text: str, warning: bool = False) -> None:
         if self.tty_mode and self._width:
             self._stream.write("\r" + " " * self._width + "\r")
+            self._stream.flush()
             self._width = 0
+        if warning:
+            self._err.write(text + "\n")
+            self._err.flush()
+            if _same_terminal(self._stream, self._err):
+                return
         self._stream.write(text + "\n")
         self._stream.flush()
 

@@ -305,3 +305,22 @@ def test_plain_status_lines_on_state_changes_and_every_message() -> None:
     assert lines[0] == "start requested (key)"
     assert lines[1] == ("[   1.50 s] FOLLOW  30.0 fps  conf -  slope -/-  v - w -  battery ? V  "
                         "link ?")
+
+
+def test_a_warning_is_one_line_on_stderr_and_on_stdout() -> None:
+    """The recording's "stopped" warning is what a script or a log watching stderr must see; on
+    stdout it stays among the status lines (printed once where both are the same terminal)."""
+    import io
+
+    from lanewarden.terminal import StatusPrinter
+
+    out, err = io.StringIO(), io.StringIO()
+    printer = StatusPrinter(out, tty_mode=False, err=err)
+    printer.message("start requested (key)")
+    printer.warning("warning: the recording stopped: disk full; the run goes on unrecorded")
+    printer.close()
+    assert err.getvalue() == ("warning: the recording stopped: disk full; the run goes on "
+                              "unrecorded\n")
+    assert out.getvalue().splitlines() == [
+        "start requested (key)",
+        "warning: the recording stopped: disk full; the run goes on unrecorded"]
