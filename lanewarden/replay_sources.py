@@ -279,12 +279,15 @@ def camera_steps(frames: Iterable[tuple[int, float]],
             for k, (index, t) in enumerate(frames)]
 
 
-def _check_times(times: list[float], where: str, unit: str) -> None:
-    """Strictly increasing, finite, within MAX_RUN_DURATION_S: else one line naming where."""
+def _check_times(times: list[float], where: str) -> None:
+    """Frame times strictly increasing, finite, within MAX_RUN_DURATION_S: else one line naming
+    where and the frame, by its index counted from 0 as every message and metrics.json count
+    frames (frames_undecoded, the loop's frame index)."""
     for i in range(1, len(times)):
         if not times[i] > times[i - 1]:
-            raise InputFileError(f"{where}: {unit} {i + 1} is at {times[i]!r} s, not after "
-                                 f"{unit} {i} ({times[i - 1]!r} s); times must increase")
+            raise InputFileError(f"{where}: frame {i} (counted from 0) is at {times[i]!r} s, "
+                                 f"not after frame {i - 1} ({times[i - 1]!r} s); times must "
+                                 "increase")
     if times and times[-1] - times[0] > MAX_RUN_DURATION_S:
         raise InputFileError(f"{where}: spans {times[-1] - times[0]:.0f} s, more than a "
                              f"recording may ({MAX_RUN_DURATION_S:.0f} s)")
@@ -591,7 +594,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
     note = "header stamps"
     if not any(times):  # a driver that does not stamp its images: the bag's receive times
         times, note = logged[topic], "receive times (the header stamps are all zero)"
-    _check_times(times, f"{path}: {topic}", "image")
+    _check_times(times, f"{path}: {topic}")
     start = times[0]
     rel = [t - start for t in times]
     # a bag cut short (`ros2 bag record` killed, a full disk, half a copy): what it has is
@@ -665,7 +668,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
     times = [t - stamps[0] for t in stamps]
     if any(b <= a for a, b in zip(times, times[1:], strict=False)):
         raise UsageError(f"{folder}: the tub's _timestamp_ms do not increase frame to frame")
-    _check_times(times, str(folder), "record")
+    _check_times(times, str(folder))
     return ReplaySource(kind="tub", name=folder.name, steps=camera_steps(enumerate(times)),
                         frames=PathFrames(paths, max_pixels),
                         meta={"frames_per_s_recorded": len(times) / max(times[-1], 1e-9)})

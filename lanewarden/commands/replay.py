@@ -138,8 +138,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
             raise InputFileError(f"SOURCE '{source}': {none} (a damaged or cut file?)")
         raise InputFileError(
             f"SOURCE '{source}': {len(undecoded)} of its {counted(total, 'frame')} could not be "
-            f"decoded: {_frame_names(replay_source, undecoded)} (a damaged or cut file?); the "
-            f"loop saw no frame there, outputs in {out}/")
+            f"decoded (counted from 0): {_frame_names(replay_source, undecoded)} (a damaged or "
+            f"cut file?); the loop saw no frame there, outputs in {out}/")
     # what makes a replay inexact is said before the divergences it causes
     if check and metrics["incomplete"]:
         raise QualityGateError(f"replay {source}: the recording is incomplete "

@@ -187,7 +187,11 @@ def test_stamps_that_go_back_or_span_days_are_refused(frames: list[np.ndarray], 
         code = main(["replay", str(path), "--no-video", "--out", str(tmp_path / "out")])
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
-        assert {"back": "image 3 is at", "days": "spans 200000 s, more than"}[name] in err
+        # the frame counted from 0, as frames_undecoded and the undecodable frames' line
+        # count them (it had said "image 3", counted from 1)
+        assert {"back": "/camera: frame 2 (counted from 0) is at 1790000001.0 s, not after "
+                "frame 1 (1790000002.0 s); times must increase",
+                "days": "spans 200000 s, more than"}[name] in err
 
 
 def test_no_image_topic_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

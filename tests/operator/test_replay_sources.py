@@ -101,10 +101,11 @@ def test_an_image_that_does_not_decode_is_no_frame_and_bad_input(
            if not line.startswith("replay i: ")]  # (the progress lines)
     assert len(err) == 1, err
     assert err[0].startswith(f"lanewarden: error: SOURCE '{folder}': 1 of its "), err
-    assert "frames could not be decoded: frame " in err[0] and "(frame_5.png)" in err[0]
+    assert "frames could not be decoded (counted from 0): frame " in err[0] and (
+        "(frame_5.png)" in err[0])
     assert err[0].endswith(f"the loop saw no frame there, outputs in {out}/")
     steps = [json.loads(line) for line in (out / "run.jsonl").read_text().splitlines()]
-    unread = int(err[0].split("decoded: frame ")[1].split(" ")[0])
+    unread = int(err[0].split("from 0): frame ")[1].split(" ")[0])
     assert steps[unread]["frame_index"] is None and steps[unread]["observation"] is None
     assert [s["frame_index"] for s in steps if s["frame_index"] is not None] == [
         i for i in range(len(steps)) if i != unread]
