@@ -23,7 +23,13 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    (`perception.tape_rules.tape_profile_fraction`): a tape `width_m` wide on its outer side along
    at least `min_profile_fraction` of it makes it a tape edge scored by that fraction. When that
    side lies outside the image (a tape at the border, the inner tape of a sharp bend) nothing can
-   be checked: `unverifiable_score`. Otherwise it is not a tape edge (score 0). Among single
+   be checked: `unverifiable_score`, but where the other side has a verified tape, only for an
+   edge that steps at least UNVERIFIABLE_MIN_CONTRAST_SHARE as strongly as that tape's inner
+   edge (`LineRow.contrast`): a tape at the border still shows a tape's contrast, a faint floor
+   shading in the image's corner does not (a real no-lane frame, shifted by a third of a pixel,
+   paired one with the lane's one tape at confidence 0.77). Not with `lane.dashed_side` left or
+   right: a road's dashed centre line is often of another paint than its edge line. Otherwise
+   it is not a tape edge (score 0). Among single
    edges the value is the chain's support x that score (x `unpaired_preference` when refuted);
    a line with polarity 0 (same brightness on both sides: grout, a crack) is only chosen when
    there is nothing else. None of these is a verified tape (`SideChoice.verified`).
@@ -72,6 +78,12 @@ _MAX_TAPES_KEPT = 3
 #: middle of the width score's ramp between the two hypotheses).
 MIN_VERIFIED_WIDTH_SCORE = 0.5
 _MAX_SINGLE_CHECKS = 3
+#: Where the other side has a verified tape, an edge whose tape cannot be checked (at the
+#: image's border) stands in for a tape only when it steps at least this share as strongly as
+#: that tape's inner edge. On the JetBot set's lane frames such edges step 0.73-1.8 times as
+#: strongly as the verified tape's (black tape both sides); the floor shading a shifted no-lane
+#: frame paired with its one tape, 0.36 times.
+UNVERIFIABLE_MIN_CONTRAST_SHARE = 0.5
 #: A lone line's chain is assumed at most this many times as long as the line itself when
 #: deciding whether it is worth following and checking (singles come strongest first).
 _CHAIN_BONUS_LIMIT = 4.0
@@ -190,10 +202,14 @@ def choose_edges(
                                    unsigned_outer=True)
         return _best_accepted(unsigned, [t.rank() for t in unsigned], band_ok)
 
+    # A border edge must show the other side's tape's contrast only where the lane's two lines
+    # are one tape: not where one of them is dashed (a road's centre line, often another paint:
+    # yellow dashes step a third as strongly as a white edge line in gray).
+    one_tape = config.lane.dashed_side in (None, "both")
     left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config,
-                        fallback)
+                        fallback, right_tape if one_tape else None)
     right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config,
-                         fallback)
+                         fallback, left_tape if one_tape else None)
     return left, right
 
 
@@ -356,16 +372,18 @@ def _side_choice(
     setup: SizeSetup,
     config: PerceptionConfig,
     fallback: Callable[[Side], TapeCandidate | None],
+    other_tape: TapeCandidate | None = None,
 ) -> SideChoice | None:
     """The side's choice: its verified tape; else its best lone edge, unless that edge's
     profile does not say tape (or there is none) and `fallback` finds a tape whose outer edge
-    has no sign (`tape_candidates(unsigned_outer=True)`)."""
+    has no sign (`tape_candidates(unsigned_outer=True)`). `other_tape`: the other side's
+    verified tape, whose contrast a lone edge that cannot be checked must show (rule 3)."""
     height, width = smooth_gray.shape[:2]
     size = (width, height)
     dark: bool | None
     single = None
     if tape is None:
-        single = _best_single(rows, cand, smooth_gray, side, setup, config)
+        single = _best_single(rows, cand, smooth_gray, side, setup, config, other_tape)
         if single is None or single[1] < config.tape.min_profile_fraction:
             tape = fallback(side)
     if tape is not None:
@@ -394,8 +412,10 @@ def _best_single(
     side: Side,
     setup: SizeSetup,
     config: PerceptionConfig,
+    other_tape: TapeCandidate | None = None,
 ) -> tuple[tuple[int, ...], float] | None:
-    """(chain, tape score) of the best lone edge on a side without a verified tape."""
+    """(chain, tape score) of the best lone edge on a side without a verified tape
+    (`other_tape`: as in `_side_choice`)."""
     if not cand:
         return None
     height, width = smooth_gray.shape[:2]
@@ -418,9 +438,11 @@ def _best_single(
             continue  # cannot win even as a perfect tape edge: skip the profile
         fraction = tape_profile_fraction(smooth_gray, rows, chain, side, setup.view,
                                          config.tape.for_side(side))
-        if fraction is None:
+        if fraction is None and not fainter_than_tape(line, other_tape):
             # The tape's far side would be outside the image: nothing to check it against.
             score, factor = config.tape.unverifiable_score, config.tape.unverifiable_score
+        elif fraction is None:
+            score, factor = 0.0, preference  # too faint for the tape the other side shows
         elif fraction >= config.tape.min_profile_fraction:
             score, factor = fraction, fraction
         else:
@@ -430,6 +452,14 @@ def _best_single(
             best = (value, chain, score)
     assert best is not None
     return best[1], best[2]
+
+
+def fainter_than_tape(line: LineRow, tape: TapeCandidate | None) -> bool:
+    """Whether `line` steps less than UNVERIFIABLE_MIN_CONTRAST_SHARE as strongly as `tape`'s
+    inner edge (never without a tape, or where either contrast was not measured)."""
+    if tape is None:
+        return False
+    return abs(line.contrast) < UNVERIFIABLE_MIN_CONTRAST_SHARE * abs(tape.inner.contrast)
 
 
 def _chain_point_at(rows: list[LineRow], chain: tuple[int, ...], y: float) -> tuple[float, float]:

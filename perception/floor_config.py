@@ -193,7 +193,8 @@ class TapeConfig(DocumentModel):
         default=0.6,
         description=(
             "tape score of an edge whose tape's far side lies outside the image (cannot be "
-            "checked); never enough for a confident lane on its own"
+            "checked) and that steps at least half as strongly as the other side's verified "
+            "tape (else 0); never enough for a confident lane on its own"
         ),
     )
 

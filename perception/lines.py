@@ -59,6 +59,8 @@ class LineSet:
     - `near_x, near_y, far_x, far_y`: the extent of its segments along the line.
     - `support_px`: total length of its segments.
     - `polarity`: +1, -1 or 0 (see module docstring).
+    - `contrast`: the median brightness step across the line (right side minus left side, grey
+      levels, at the polarity samples): how strongly it shows, whatever its polarity says.
     - `x_bottom`: column where the line crosses the ROI's bottom row.
     - `near_fx, near_fy, far_fx, far_fy`: its near and far ends on the floor, robot frame metres.
     - `segment_label`: for each input segment, the line it joined (-1: dropped as flat).
@@ -81,6 +83,7 @@ class LineSet:
     far_fx: FloatArray
     far_fy: FloatArray
     segment_label: IntArray
+    contrast: FloatArray
 
     def __len__(self) -> int:
         return int(self.angle_deg.shape[0])
@@ -97,7 +100,7 @@ class LineSet:
         columns = (
             self.angle_deg, self.cx, self.cy, self.ux, self.uy, self.near_x, self.near_y,
             self.far_x, self.far_y, self.support_px, self.polarity, self.x_bottom,
-            self.near_fx, self.near_fy, self.far_fx, self.far_fy,
+            self.near_fx, self.near_fy, self.far_fx, self.far_fy, self.contrast,
         )
         values = zip(*(c.tolist() for c in columns), strict=True)
         return [LineRow(i, *row) for i, row in enumerate(values)]
@@ -123,6 +126,8 @@ class LineRow(NamedTuple):
     near_fy: float
     far_fx: float
     far_fy: float
+    #: NaN: not measured (a line made by hand); `LineSet.rows` always gives it.
+    contrast: float = math.nan
 
     def x_at(self, row: float) -> float:
         """Column where the line crosses image row `row`."""
@@ -139,7 +144,7 @@ def empty_line_set(segment_count: int = 0) -> LineSet:
     return LineSet(
         angle_deg=e, cx=e, cy=e, ux=e, uy=e, near_x=e, near_y=e, far_x=e, far_y=e,
         support_px=e, polarity=e, x_bottom=e, near_fx=e, near_fy=e, far_fx=e, far_fy=e,
-        segment_label=np.full(segment_count, -1, dtype=np.intp),
+        segment_label=np.full(segment_count, -1, dtype=np.intp), contrast=e,
     )
 
 
@@ -180,8 +185,8 @@ def build_line_set(
     label[kept] = line_of
     fit = _fit_lines(pieces, line_of, lines)
     x_bottom = fit.cx + (y_bottom - fit.cy) * fit.ux / np.minimum(fit.uy, -1e-9)
-    polarity = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y, fit.ux,
-                         fit.uy, tape)
+    polarity, contrast = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y,
+                                   fit.ux, fit.uy, tape)
     count = len(fit.cx)
     ends_x, ends_y = floor.to_floor_many(np.concatenate([fit.near_x, fit.far_x]),
                                          np.concatenate([fit.near_y, fit.far_y]))
@@ -203,6 +208,7 @@ def build_line_set(
         far_fx=ends_x[count:],
         far_fy=ends_y[count:],
         segment_label=label,
+        contrast=contrast,
     )
 
 
@@ -342,9 +348,10 @@ def _polarity(
     ux: FloatArray,
     uy: FloatArray,
     tape: TapeConfig,
-) -> FloatArray:
-    """Sign of the median of (right side - left side) brightness over a few points sampled
-    along each line (0 when it is within `min_contrast_levels`), or the sign of the median over
+) -> tuple[FloatArray, FloatArray]:
+    """(polarity, contrast) of each line. Its contrast: the median of (right side - left side)
+    brightness over a few points sampled along it. Its polarity: the sign of that median (0
+    when it is within `min_contrast_levels`), or the sign of the median over
     the least-lit half of them (the half whose darker side is darkest) when that is a clear
     step of the other sign, or of any sign where the median and the vote said none and the
     steps show a mirrored light along a tape (see below)."""
@@ -370,7 +377,8 @@ def _polarity(
     # The median step, not the mean: a ceiling light mirrored in glossy tape makes a few samples
     # of its edges brighter on the tape's side than the floor by far more than the tape is darker
     # elsewhere, and their mean says "no contrast" (or the wrong sign).
-    whole = _signs(_median(step), threshold)
+    contrast = _median(step)
+    whole = _signs(contrast, threshold)
     # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
@@ -416,7 +424,7 @@ def _polarity(
                     & (4 * unlit_same >= 3 * half)
                     & same[:, :half].any(axis=1) & same[:, half:].any(axis=1))
         whole[rows] = np.where((was * unlit < 0.0) | mirrored, unlit, was)
-    return whole
+    return whole, contrast
 
 
 def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,

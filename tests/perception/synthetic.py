@@ -38,6 +38,7 @@ from lanewarden.scenarios.spec import (
     PoseSpec,
     ScenarioSpec,
     SegmentSpec,
+    TapeLook,
     TapeSpec,
 )
 from lanewarden.scenarios.texture import GroundTexture, paint_ground
@@ -75,7 +76,8 @@ class Scene:
     - `dash_m`: (dash, gap) lengths for dashed tape, None for solid.
     - `lane_start_m` / `lane_end_m`: tape starts / stops this far along the lane (None: never
       stops).
-    - levels are grey levels (0-255) of the floor, the tile grout and the tape.
+    - levels are grey levels (0-255) of the floor, the tile grout and the tape;
+      `left_tape_level`: the left tape's where it differs (None: `tape_level`).
     - `floor_variation` / `floor_grain`: the scenario floor's brightness spread between tiles (or
       blotches on a plain floor) and its fine texture, fractions (`scenarios.spec.FloorSpec`);
       0 by default: the flat floors these scenes have always had.
@@ -93,6 +95,7 @@ class Scene:
     tile_offset_m: tuple[float, float] = (0.10, 0.10)
     tapes: tuple[str, ...] = ("left", "right")
     tape_level: float = 45.0
+    left_tape_level: float | None = None
     dash_m: tuple[float, float] | None = None
     bend: Bend | None = None
     lane_start_m: float = -0.5
@@ -158,7 +161,9 @@ def scenario_spec(scene: Scene) -> ScenarioSpec:
     return ScenarioSpec(
         name="perception-synthetic",
         floor=floor,
-        tape=TapeSpec(width_m=scene.tape_width_m, color=_grey(scene.tape_level)),
+        tape=TapeSpec(width_m=scene.tape_width_m, color=_grey(scene.tape_level),
+                      left=(None if scene.left_tape_level is None
+                            else TapeLook(color=_grey(scene.left_tape_level)))),
         lane=LaneSpec(width_m=scene.lane_width_m, start=PoseSpec(x_m=origin, y_m=0.0),
                       segments=segments, gaps=gaps, dashes=dashes, ends=ends),
     )

@@ -19,7 +19,7 @@ TOP, BOTTOM = 40, 220  # the line runs from (100, 220) up to (100, 40)
 def polarity_of(image: np.ndarray) -> float:
     one = np.array
     return float(_polarity(image, one([100.0]), one([float(BOTTOM)]), one([100.0]),
-                           one([float(TOP)]), one([0.0]), one([-1.0]), TAPE)[0])
+                           one([float(TOP)]), one([0.0]), one([-1.0]), TAPE)[0][0])
 
 
 def tape_on(share: float) -> np.ndarray:
