@@ -27,7 +27,9 @@ Edges on the tapes: for rendered frames from the world (`rendered_set.edges_on_t
 frames, light tapes on a darker floor (an `eval.yaml` beside it may say `tapes: dark`), an edge is
 on a tape when along at least 60% of it the image is brighter (darker) 3 px outwards than 3 px
 inwards by 20 grey levels: the reported edge is a tape's inner boundary. `--sheet DIR` writes
-contact sheets of the decisions to check by eye.
+contact sheets of the decisions to check by eye. `--jitter N` also judges every real `none`
+frame in N versions moved by a random fraction of a pixel (seeded): a false lane one such shift
+brings is one the camera may deliver on the next frame.
 
 Not a test: it asserts nothing; the tests hold the figures that must not regress.
 """
@@ -61,6 +63,7 @@ from lanewarden.perception.ground import GroundModel, default_ground_model  # no
 from lanewarden.perception.observation import LaneEdge, LaneObservation  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
 from lanewarden.survey import parse_labels  # noqa: E402
+from lanewarden.survey_run import shifted_image, shifted_offsets  # noqa: E402
 from tests.perception import rendered_set  # noqa: E402
 
 SUPERVISOR = LanewardenConfig().supervisor
@@ -194,7 +197,30 @@ def tape_under_camera(image: np.ndarray, dark: bool) -> bool:
     return False
 
 
-def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
+def jitter_no_lane(rs: RealSet, detector: LaneDetector, versions: int) -> None:
+    """Each `none` frame judged again `versions` times, each shifted by a random sub-pixel
+    offset (uniform in +-0.5 px on each axis, seeded, drawn frame by frame in the labels'
+    order, as `lanewarden survey --jitter` draws them): a false lane that one shift brings is a
+    false lane the camera may deliver."""
+    offsets = shifted_offsets()
+    frames = [file for file, expect in rs.labels if expect == "none"]
+    found: dict[str, list[float]] = {}
+    for file in frames:
+        image = cv2.imread(str(rs.folder / file))
+        for _ in range(versions):
+            obs = detector.detect(shifted_image(image, *next(offsets)), 0, 0.0)
+            if decide(obs, trust_min_confidence=USABLE, turn_slope_sum=TURN) != "none":
+                found.setdefault(file, []).append(round(obs.confidence, 2))
+    total = sum(len(v) for v in found.values())
+    print(f"none frames shifted by a fraction of a pixel ({versions} versions each): "
+          f"{total} decisions in {len(frames) * versions}, on {len(found)} of {len(frames)} "
+          f"frames")
+    for file, confidences in found.items():
+        print(f"  {file}: {len(confidences)} of {versions}, confidence "
+              f"{', '.join(f'{c:.2f}' for c in confidences)}")
+
+
+def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None, jitter: int = 0) -> None:
     calibration = load_calibration(rs.calibration)
     undistorter = Undistorter(calibration)
     try:
@@ -247,6 +273,8 @@ def evaluate_real(rs: RealSet, narrow: bool, sheet: Path | None) -> None:
             done = under[(flag, True)]
             print(f"lane frames with {text} (`tape_under_camera`): {total}, "
                   f"{done} with a decision ({100 * done / total:.0f}%)")
+    if jitter:
+        jitter_no_lane(rs, detector, jitter)
     if sheet is not None and pictures:
         _write_sheets(pictures, sheet / f"{rs.name}{'-narrow' if narrow else ''}")
 
@@ -301,12 +329,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--narrow", action="store_true",
                         help="also with lane.width_m at the narrowest the config accepts")
     parser.add_argument("--sheet", type=Path, help="write contact sheets of decisions here")
+    parser.add_argument("--jitter", type=int, default=0, metavar="N",
+                        help="also judge each real none frame in N versions shifted by a "
+                        "fraction of a pixel (seeded)")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     for narrow in (False, True) if args.narrow else (False,):
         if not args.no_real and args.footage.is_dir():
             for rs in real_sets(args.footage):
-                evaluate_real(rs, narrow, args.sheet)
+                evaluate_real(rs, narrow, args.sheet, args.jitter)
         if not args.no_rendered:
             for size in ((640, 480), (320, 240)):
                 evaluate_rendered(size, narrow)

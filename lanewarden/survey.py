@@ -168,13 +168,24 @@ class LabelledFrame:
 
 
 @dataclass(frozen=True)
+class Shifted:
+    """A still judged again in `versions` copies moved by a random fraction of a pixel:
+    `decided`, the confidence of each copy that got a decision."""
+
+    versions: int
+    decided: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
 class FrameResult:
     """What perception made of one labelled frame. `decision`: "straight", "left", "right" or
     "none"; `confident`: the supervisor's test; `engaged_after_s`: for a lane still held in view,
     how long the supervisor took to engage (None: it did not, or the frame was not held);
     `engaged`: for a frame of a sequence, whether the supervisor was engaged at it;
     `not_engaged`: for a lane still the supervisor did not engage on, its halt reason at the end
-    of the hold (why it stayed halted)."""
+    of the hold (why it stayed halted); `shifted`: for a no-lane still judged again in versions
+    moved by a fraction of a pixel (`survey --jitter`), how many versions and the confidence of
+    each that got a decision (a false lane the camera may deliver on its next frame)."""
 
     frame: LabelledFrame
     decision: str
@@ -184,6 +195,7 @@ class FrameResult:
     engaged_after_s: float | None = None
     engaged: bool | None = None
     not_engaged: str | None = None
+    shifted: Shifted | None = None
 
     @property
     def has_decision(self) -> bool:
@@ -191,7 +203,9 @@ class FrameResult:
 
     @property
     def false_lane(self) -> bool:
-        return self.frame.expect == NONE and self.has_decision
+        """A decision on a no-lane frame, or on one of its shifted versions."""
+        return self.frame.expect == NONE and (
+            self.has_decision or (self.shifted is not None and bool(self.shifted.decided)))
 
     @property
     def weakest(self) -> tuple[str, float] | None:
@@ -415,6 +429,9 @@ def class_line(figures: ClassFigures) -> str:
             f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
     if figures.expect == NONE:
         text += f", {false_lanes_text(len(figures.false_lanes))}"
+        shifted_only = sum(not r.has_decision for r in figures.false_lanes)
+        if shifted_only:
+            text += f" ({shifted_only} only in a shifted version)"
     if figures.runs:
         run = figures.runs[0]
         span = run.first if run.length == 1 else f"{run.first} .. {run.last}"
@@ -439,9 +456,24 @@ def verdict_line(verdict: Verdict) -> str:
             return "verdict: SAFE: no decision on the only no-lane frame"
         return (f"verdict: SAFE: no decision on any of the {verdict.no_lane_frames} no-lane "
                 "frames")
-    names = [r.frame.name for r in verdict.false_lanes]
-    return (f"verdict: NOT SAFE: {false_lanes_text(len(names))} (a decision on a no-lane frame): "
+    return f"verdict: NOT SAFE: {false_lanes_named(verdict.false_lanes)}"
+
+
+def false_lanes_named(false_lanes: Sequence[FrameResult]) -> str:
+    """"2 false lanes (a decision on a no-lane frame): a.jpg, b.jpg", naming each."""
+    names = [false_lane_name(r) for r in false_lanes]
+    shifted = " or a shifted version of it" if any(not r.has_decision for r in false_lanes) else ""
+    return (f"{false_lanes_text(len(names))} (a decision on a no-lane frame{shifted}): "
             f"{name_frames(names)}")
+
+
+def false_lane_name(result: FrameResult) -> str:
+    """A false lane's name, with how many shifted versions got a decision where any did:
+    "free/a.jpg (shifted: 5 of 16)"."""
+    shifted = result.shifted
+    if shifted is None or not shifted.decided:
+        return result.frame.name
+    return f"{result.frame.name} (shifted: {len(shifted.decided)} of {shifted.versions})"
 
 
 def engage_line(engage: EngageFigures | None) -> str:
@@ -470,8 +502,26 @@ def engage_line(engage: EngageFigures | None) -> str:
     return text
 
 
+def shifted_line(results: Sequence[FrameResult]) -> str | None:
+    """What the shifted versions of the no-lane stills showed (None: none were made)."""
+    judged = [r for r in results if r.shifted is not None]
+    if not judged:
+        return None
+    versions = judged[0].shifted.versions if judged[0].shifted else 0
+    hit = [r for r in judged if r.shifted is not None and r.shifted.decided]
+    decided = sum(len(r.shifted.decided) for r in hit if r.shifted is not None)
+    text = (f"no-lane, each in {counted(versions, 'version')} shifted by a fraction of a pixel: "
+            f"{counted(decided, 'decision')} in {versions * len(judged)}")
+    if hit:
+        text += f", on {len(hit)} of {counted(len(judged), 'frame')}: " + name_frames(
+            [false_lane_name(r) for r in hit])
+    return text
+
+
 def summary_lines(figures: SurveyFigures) -> list[str]:
-    return [*(class_line(figures.classes[e]) for e in EXPECTS), verdict_line(figures.verdict),
+    shifted = shifted_line(figures.results)
+    return [*(class_line(figures.classes[e]) for e in EXPECTS),
+            *([] if shifted is None else [shifted]), verdict_line(figures.verdict),
             engage_line(figures.verdict.engage)]
 
 
@@ -513,6 +563,10 @@ def _result_json(result: FrameResult) -> dict[str, Any]:
         out["engaged_after_s"] = round(result.engaged_after_s, 4)
     if result.not_engaged is not None:
         out["not_engaged_because"] = result.not_engaged
+    if result.shifted is not None:
+        out["shifted"] = {"versions": result.shifted.versions,
+                          "decisions": len(result.shifted.decided),
+                          "confidences": [round(c, 4) for c in result.shifted.decided]}
     if result.frame.note:
         out["note"] = result.frame.note
     return out

@@ -47,9 +47,11 @@ from lanewarden.supervisor.lane_evidence import LaneEvidence
 from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
 from lanewarden.survey import (
     LANE,
+    NONE,
     EngageFigures,
     FrameResult,
     LabelledFrame,
+    Shifted,
     not_engaged_counts,
 )
 from lanewarden.survey_source import StillFrame, SurveySource, problems_line
@@ -62,6 +64,10 @@ WEAK_PICTURES = 8
 #: Pictures of smaller frames are enlarged (nearest neighbour) to at least this many rows.
 PICTURE_MIN_ROWS = 240
 PICTURE_JPEG_QUALITY = 85
+#: `survey --jitter`: each shifted version moves by up to this much along each axis, pixels...
+SHIFT_MAX_PX = 0.5
+#: ...drawn from this seed.
+SHIFT_SEED = 0
 
 Progress = Callable[[int], None]
 
@@ -96,16 +102,19 @@ def is_engaged(state: str) -> bool:
 
 def frame_result(frame: LabelledFrame, observation: LaneObservation, decide: DecisionRule,
                  supervisor: SupervisorConfig, *, engaged_after_s: float | None = None,
-                 engaged: bool | None = None, not_engaged: str | None = None) -> FrameResult:
+                 engaged: bool | None = None, not_engaged: str | None = None,
+                 shifted: Shifted | None = None) -> FrameResult:
     return FrameResult(
         frame=frame, decision=decide(observation), confidence=observation.confidence,
         confident=LaneEvidence(supervisor).assess(observation).confident,
         components=observation.components, engaged_after_s=engaged_after_s, engaged=engaged,
-        not_engaged=not_engaged)
+        not_engaged=not_engaged, shifted=shifted)
 
 
-def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug) -> Picture:
-    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame."""
+def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug,
+            shifted_decision: str | None = None) -> Picture:
+    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame
+    (`shifted_decision`: the frame is a shifted version of the still, which decided this)."""
     canvas = as_bgr(debug.image)
     draw_detection(canvas, observation, debug)
     if canvas.shape[0] < PICTURE_MIN_ROWS:
@@ -113,8 +122,12 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
         canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
     assert ok, "OpenCV could not encode a picture"
-    return Picture(result.frame.name, result.frame.expect, result.confidence,
-                   tuple(perception_text(observation, result.decision)), data.tobytes())
+    if shifted_decision is None:
+        return Picture(result.frame.name, result.frame.expect, result.confidence,
+                       tuple(perception_text(observation, result.decision)), data.tobytes())
+    return Picture(result.frame.name, result.frame.expect, observation.confidence,
+                   ("shifted by a fraction of a pixel:",
+                    *perception_text(observation, shifted_decision)), data.tobytes())
 
 
 class PictureKeeper:
@@ -219,11 +232,49 @@ def held_engage(image: np.ndarray, config: LanewardenConfig,
     return None, why or "no reason given"
 
 
+def shifted_image(image: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """`image` moved by (dx, dy) pixels (bilinear, its border repeated): the same view as a
+    camera's next frame might show it; a fraction of a pixel changes every pixel's value a
+    little and nothing a person would see."""
+    move = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], dtype=np.float32)
+    return np.asarray(cv2.warpAffine(image, move, (image.shape[1], image.shape[0]),
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
+
+
+def shifted_offsets(seed: int = SHIFT_SEED) -> Iterator[tuple[float, float]]:
+    """The shifts, uniform in +-SHIFT_MAX_PX on each axis, seeded: drawn in the stills' order,
+    so a survey's shifted versions are the same every time."""
+    rng = np.random.default_rng(seed)
+    while True:
+        dx, dy = rng.uniform(-SHIFT_MAX_PX, SHIFT_MAX_PX, 2)
+        yield float(dx), float(dy)
+
+
+def _judge_shifted(image: np.ndarray, frame: LabelledFrame, detector: LaneDetector,
+                   decide: DecisionRule, versions: int,
+                   offsets: Iterator[tuple[float, float]],
+                   ) -> tuple[Shifted, tuple[LaneObservation, DetectionDebug] | None]:
+    """A no-lane still judged in `versions` shifted copies: which got a decision, and the first
+    such copy's detection (for its picture)."""
+    decided: list[float] = []
+    first: tuple[LaneObservation, DetectionDebug] | None = None
+    for _ in range(versions):
+        dx, dy = next(offsets)
+        observation, debug = detector.detect_debug(shifted_image(image, dx, dy), frame.order, 0.0)
+        if decide(observation) != "none":
+            decided.append(observation.confidence)
+            first = first or (observation, debug)
+    return Shifted(versions, tuple(decided)), first
+
+
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
                   calibration: CameraCalibration | None, detector: LaneDetector,
-                  progress: Progress) -> SurveyRun:
-    """Every still on its own, and every lane still held in view (see the module docstring).
-    An image that cannot be used is an InputFileError naming each, after all were tried."""
+                  progress: Progress, jitter: int = 0) -> SurveyRun:
+    """Every still on its own, and every lane still held in view (see the module docstring);
+    with `jitter`, every no-lane still also in that many versions shifted by a fraction of a
+    pixel (`shifted_image`), any of which with a decision makes it a false lane. An image that
+    cannot be used is an InputFileError naming each, after all were tried."""
+    offsets = shifted_offsets()
     decide = decision_rule(config)
     hold_s = hold_seconds(config.supervisor)
     keeper = PictureKeeper(s.frame.order for s in stills if s.frame.expect == LANE)
@@ -250,12 +301,18 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
             engaged_after, why_not = held_engage(image, config, calibration, hold_s)
             if engaged_after is not None:
                 times.append(engaged_after)
+        shifted = seen = None
+        if jitter and still.frame.expect == NONE:
+            shifted, seen = _judge_shifted(image, still.frame, detector, decide, jitter, offsets)
         result = frame_result(still.frame, observation, decide, config.supervisor,
                               engaged_after_s=engaged_after,
                               engaged=None if still.frame.expect != LANE else
-                              engaged_after is not None, not_engaged=why_not)
+                              engaged_after is not None, not_engaged=why_not, shifted=shifted)
         results.append(result)
-        keeper.offer(result, partial(picture, result, observation, debug))
+        if seen is not None and not result.has_decision:  # a false lane only when shifted
+            keeper.offer(result, partial(picture, result, *seen, decide(seen[0])))
+        else:
+            keeper.offer(result, partial(picture, result, observation, debug))
     if problems:
         raise InputFileError(problems_line("frames cannot be used", len(stills), problems))
     engage = EngageFigures(how="held", window_s=hold_s, attempts=attempts, engaged=len(times),

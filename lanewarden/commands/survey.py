@@ -1,5 +1,5 @@
 """`lanewarden survey FOLDER [--labels FILE] [--calibration FILE] [--config FILE] [--out DIR]
-[--json]`: judge a camera on a real floor before trusting it with motors.
+[--json] [--jitter N]`: judge a camera on a real floor before trusting it with motors.
 
 FOLDER holds frames sorted by what they show (`lane/`, `no-lane/`), or a `labels.csv`; a video, a
 run folder, an image sequence or a Donkeycar tub works with `--labels FILE` (frame indices or
@@ -32,6 +32,9 @@ if TYPE_CHECKING:
     from lanewarden.perception.calibration import CameraCalibration
     from lanewarden.survey_source import SurveySource
 
+#: Most shifted versions `--jitter` makes of each no-lane still.
+MAX_JITTER = 64
+
 SURVEY_EXAMPLES = """\b
 Examples:
   lanewarden survey floor/ --calibration camera.yaml
@@ -54,8 +57,13 @@ Examples:
               "lanewarden-out/survey-<folder name>).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print survey.json on stdout instead of the text summary.")
+@click.option("--jitter", type=click.IntRange(0, MAX_JITTER), default=0, metavar="N",
+              help="Also judge every no-lane still in N versions shifted by a random fraction "
+              "of a pixel (seeded), as the camera's next frame might show it; a decision on any "
+              "of them is a false lane. Stills only. Default 0.")
 def survey_command(folder: str, labels_path: str | None, calibration_path: str | None,
-                   config_path: str | None, out_dir: str | None, as_json: bool) -> int:
+                   config_path: str | None, out_dir: str | None, as_json: bool,
+                   jitter: int) -> int:
     """Judge this camera on this floor before it drives: perception on frames labelled lane
     (two tapes) or none (bare floor, seams, one tape, a tape's end, clutter, a dark frame), and
     the real supervisor on the lane frames. Prints per class the frames with a decision, the
@@ -74,6 +82,10 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     config_origin = config_path or "defaults"
     source = open_survey_source(folder, labels_path, 1.0 / config.supervisor.camera_period_s,
                                 config.perception.max_image_pixels)
+    if jitter and source.sequence is not None:
+        raise UsageError(f"--jitter {jitter}: shifts stills (class folders or a labels file of "
+                         f"images); '{folder}' is a recording, whose frames already differ from "
+                         "one to the next: survey it without --jitter")
     calibration = None
     if source.sequence is not None:
         config = replay_config(source.sequence, config_path)
@@ -118,7 +130,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     create_output_folder(out)
     try:
         return _survey_into(out, folder, source, config, config_origin, calibration,
-                            calibration_path, size, as_json)
+                            calibration_path, size, as_json, jitter)
     except BaseException:
         if made:  # a survey that fails leaves no empty folder behind (nothing was written)
             with contextlib.suppress(OSError):
@@ -129,14 +141,14 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
 def _survey_into(out: Path, folder: str, source: SurveySource, config: LanewardenConfig,
                  config_origin: str, calibration: CameraCalibration | None,
                  calibration_path: str | None, size: tuple[int, int] | None,
-                 as_json: bool) -> int:
+                 as_json: bool, jitter: int = 0) -> int:
     """The survey proper, once its inputs passed their checks: into the output folder `out`."""
     from tqdm import tqdm
 
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
-    from lanewarden.survey import false_lanes_text, judge, name_frames, summary_lines, survey_notes
+    from lanewarden.survey import false_lanes_named, judge, summary_lines, survey_notes
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
     from lanewarden.wording import counted, first_few
@@ -163,7 +175,8 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
                leave=False)
     try:
         if source.sequence is None:
-            run = survey_stills(source.stills, config, calibration, detector, bar.update)
+            run = survey_stills(source.stills, config, calibration, detector, bar.update,
+                                jitter)
         else:
             run = survey_sequence(source, config, calibration, bar.update)
     finally:
@@ -171,7 +184,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     figures = judge(run.results, run.engage)
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
-             "ground_model": ground}
+             "ground_model": ground, "jitter": jitter}
     document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures)
     if as_json:
         click.echo(json.dumps(document))
@@ -191,9 +204,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)
     verdict = figures.verdict
     if not verdict.safe:
-        names = name_frames([r.frame.name for r in verdict.false_lanes])
-        click.echo(f"lanewarden: not safe: {false_lanes_text(len(verdict.false_lanes))} (a "
-                   f"decision on a no-lane frame): {names}", err=True)
+        click.echo(f"lanewarden: not safe: {false_lanes_named(verdict.false_lanes)}", err=True)
         return EXIT_SAFETY_STOP
     return EXIT_OK
 
