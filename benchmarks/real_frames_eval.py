@@ -63,7 +63,7 @@ from lanewarden.perception.ground import GroundModel, default_ground_model  # no
 from lanewarden.perception.observation import LaneEdge, LaneObservation  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
 from lanewarden.survey import parse_labels  # noqa: E402
-from lanewarden.survey_run import shifted_image, shifted_offsets  # noqa: E402
+from lanewarden.survey_run import judge_shifted  # noqa: E402
 from tests.perception import rendered_set  # noqa: E402
 
 SUPERVISOR = LanewardenConfig().supervisor
@@ -105,6 +105,11 @@ class Tally:
         weak = ", ".join(f"{k} {v}" for k, v in self.weakest.most_common(2))
         return (f"| {label} | {self.frames} | {self.decisions} | {self.confident} | {false} | "
                 f"{good} | {self.longest_run} | {weak} |")
+
+
+def _decision(obs: LaneObservation) -> str:
+    """`detect`'s decision, with the supervisor's thresholds."""
+    return decide(obs, trust_min_confidence=USABLE, turn_slope_sum=TURN)
 
 
 HEADER = ("| class | frames | decisions | confident | false lanes | decision, edges on tapes "
@@ -199,18 +204,16 @@ def tape_under_camera(image: np.ndarray, dark: bool) -> bool:
 
 def jitter_no_lane(rs: RealSet, detector: LaneDetector, versions: int) -> None:
     """Each `none` frame judged again `versions` times, each shifted by a random sub-pixel
-    offset (uniform in +-0.5 px on each axis, seeded, drawn frame by frame in the labels'
-    order, as `lanewarden survey --jitter` draws them): a false lane that one shift brings is a
-    false lane the camera may deliver."""
-    offsets = shifted_offsets()
+    offset (`lanewarden survey --jitter`'s: uniform in +-0.5 px on each axis, seeded by the
+    frame's name): a false lane that one shift brings is a false lane the camera may
+    deliver."""
     frames = [file for file, expect in rs.labels if expect == "none"]
-    found: dict[str, list[float]] = {}
+    found: dict[str, tuple[float, ...]] = {}
     for file in frames:
-        image = cv2.imread(str(rs.folder / file))
-        for _ in range(versions):
-            obs = detector.detect(shifted_image(image, *next(offsets)), 0, 0.0)
-            if decide(obs, trust_min_confidence=USABLE, turn_slope_sum=TURN) != "none":
-                found.setdefault(file, []).append(round(obs.confidence, 2))
+        shifted, _ = judge_shifted(cv2.imread(str(rs.folder / file)), file, detector,
+                                   _decision, versions)
+        if shifted.decided:
+            found[file] = shifted.decided
     total = sum(len(v) for v in found.values())
     print(f"none frames shifted by a fraction of a pixel ({versions} versions each): "
           f"{total} decisions in {len(frames) * versions}, on {len(found)} of {len(frames)} "

@@ -23,7 +23,9 @@ passes a progress callback).
 
 from __future__ import annotations
 
+import itertools
 import math
+import zlib
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import partial
@@ -165,6 +167,7 @@ class HeldImage(FrameStore):
     the observation is unchanged)."""
 
     def __init__(self, image: np.ndarray) -> None:
+        super().__init__()
         self._captures = (image, image.copy())
         self._captures[1][0, 0] ^= 1
 
@@ -180,7 +183,9 @@ class CheckedFrames(FrameStore):
 
     def __init__(self, store: FrameStore, max_pixels: int,
                  calibration: CameraCalibration | None) -> None:
+        super().__init__()
         self._store = store
+        self.undecoded = store.undecoded  # the recording's own: what the loop asks of it
         self._max_pixels = max_pixels
         self._size = None if calibration is None else calibration.image_size
         self.problem: str | None = None
@@ -241,26 +246,25 @@ def shifted_image(image: np.ndarray, dx: float, dy: float) -> np.ndarray:
                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
 
 
-def shifted_offsets(seed: int = SHIFT_SEED) -> Iterator[tuple[float, float]]:
-    """The shifts, uniform in +-SHIFT_MAX_PX on each axis, seeded: drawn in the stills' order,
-    so a survey's shifted versions are the same every time."""
-    rng = np.random.default_rng(seed)
+def shifted_offsets(name: str, seed: int = SHIFT_SEED) -> Iterator[tuple[float, float]]:
+    """The shifts of the still named `name`, uniform in +-SHIFT_MAX_PX on each axis, seeded by
+    the seed and the name: a still's shifted versions are the same in every survey, whatever
+    other stills it is surveyed with."""
+    rng = np.random.default_rng([seed, zlib.crc32(name.encode("utf-8"))])
     while True:
         dx, dy = rng.uniform(-SHIFT_MAX_PX, SHIFT_MAX_PX, 2)
         yield float(dx), float(dy)
 
 
-def _judge_shifted(image: np.ndarray, frame: LabelledFrame, detector: LaneDetector,
-                   decide: DecisionRule, versions: int,
-                   offsets: Iterator[tuple[float, float]],
-                   ) -> tuple[Shifted, tuple[LaneObservation, DetectionDebug] | None]:
-    """A no-lane still judged in `versions` shifted copies: which got a decision, and the first
-    such copy's detection (for its picture)."""
+def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: DecisionRule,
+                  versions: int, order: int = 0,
+                  ) -> tuple[Shifted, tuple[LaneObservation, DetectionDebug] | None]:
+    """A still judged in `versions` copies shifted by `shifted_offsets(name)`: which got a
+    decision, and the first such copy's detection (for its picture)."""
     decided: list[float] = []
     first: tuple[LaneObservation, DetectionDebug] | None = None
-    for _ in range(versions):
-        dx, dy = next(offsets)
-        observation, debug = detector.detect_debug(shifted_image(image, dx, dy), frame.order, 0.0)
+    for dx, dy in itertools.islice(shifted_offsets(name), versions):
+        observation, debug = detector.detect_debug(shifted_image(image, dx, dy), order, 0.0)
         if decide(observation) != "none":
             decided.append(observation.confidence)
             first = first or (observation, debug)
@@ -274,7 +278,6 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
     with `jitter`, every no-lane still also in that many versions shifted by a fraction of a
     pixel (`shifted_image`), any of which with a decision makes it a false lane. An image that
     cannot be used is an InputFileError naming each, after all were tried."""
-    offsets = shifted_offsets()
     decide = decision_rule(config)
     hold_s = hold_seconds(config.supervisor)
     keeper = PictureKeeper(s.frame.order for s in stills if s.frame.expect == LANE)
@@ -303,7 +306,8 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
                 times.append(engaged_after)
         shifted = seen = None
         if jitter and still.frame.expect == NONE:
-            shifted, seen = _judge_shifted(image, still.frame, detector, decide, jitter, offsets)
+            shifted, seen = judge_shifted(image, still.frame.name, detector, decide, jitter,
+                                          still.frame.order)
         result = frame_result(still.frame, observation, decide, config.supervisor,
                               engaged_after_s=engaged_after,
                               engaged=None if still.frame.expect != LANE else

@@ -118,3 +118,30 @@ def _remove_deep(top: Path, depth: int) -> None:
         os.chdir("..")
         Path("d").rmdir()
     os.chdir(top.parent)
+
+
+def test_a_run_frame_dropped_while_recording_is_the_frame_before_in_a_survey(
+        tmp_path: Path) -> None:
+    """A survey plays a run folder through `CheckedFrames`; a frame the run never recorded
+    (dropped while recording) is the frame before, as `replay` gives it, not a camera error
+    (a code review found every step from the gap on halted CAMERA_ERROR: AttributeError, the
+    wrapper lacking the store's `undecoded`)."""
+    import cv2
+
+    from lanewarden.config import LanewardenConfig
+    from lanewarden.replay import replay_steps
+    from lanewarden.survey_run import CheckedFrames
+    from tests.perception import synthetic as syn
+
+    paths = []
+    for i in range(12):
+        paths.append(tmp_path / f"{i:06d}.png")
+        if i != 5:  # frame 5 dropped while recording
+            cv2.imwrite(str(paths[-1]), syn.frame(syn.STRAIGHT, 320, 240))
+    run = ReplaySource(kind="run", name="run-1", frames=CheckedFrames(
+        PathFrames(paths, 10**7), 10**7, None), steps=[
+        StepInput(t=i / 30.0, frame=(i, i / 30.0)) for i in range(12)])
+    config = LanewardenConfig()
+    reasons = [step.record.halt_reason for step in replay_steps(run, config, None, "supervised")]
+    assert len(reasons) == 12
+    assert not any("CAMERA_ERROR" in (r or "") or "Error" in (r or "") for r in reasons), reasons
