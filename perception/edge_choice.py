@@ -28,8 +28,9 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    edge (`LineRow.contrast`): a tape at the border still shows a tape's contrast, a faint floor
    shading in the image's corner does not (a real no-lane frame, shifted by a third of a pixel,
    paired one with the lane's one tape at confidence 0.77). Not with `lane.dashed_side` left or
-   right: a road's dashed centre line is often of another paint than its edge line. Otherwise
-   it is not a tape edge (score 0). Among single
+   right (a road's dashed centre line is often of another paint than its edge line), nor with
+   per-side tape widths that differ (two different tapes). Otherwise it is not a tape edge
+   (score 0). Among single
    edges the value is the chain's support x that score (x `unpaired_preference` when refuted);
    a line with polarity 0 (same brightness on both sides: grout, a crack) is only chosen when
    there is nothing else. None of these is a verified tape (`SideChoice.verified`).
@@ -204,8 +205,11 @@ def choose_edges(
 
     # A border edge must show the other side's tape's contrast only where the lane's two lines
     # are one tape: not where one of them is dashed (a road's centre line, often another paint:
-    # yellow dashes step a third as strongly as a white edge line in gray).
-    one_tape = config.lane.dashed_side in (None, "both")
+    # yellow dashes step a third as strongly as a white edge line in gray), nor where the config
+    # gives the two sides' tapes different widths (two different tapes).
+    tape = config.tape
+    one_tape = (config.lane.dashed_side in (None, "both")
+                and tape.side_width_m("left") == tape.side_width_m("right"))
     left = _side_choice(rows, cands["left"], left_tape, smooth_gray, "left", setup, config,
                         fallback, right_tape if one_tape else None)
     right = _side_choice(rows, cands["right"], right_tape, smooth_gray, "right", setup, config,

@@ -91,3 +91,23 @@ def test_a_lane_with_one_dashed_line_holds_no_edge_to_the_other_lines_contrast(
         lane = config.lane.model_copy(update={"dashed_side": dashed})
         obs = LaneDetector(config.model_copy(update={"lane": lane})).detect(image, 0, 0.0)
         assert obs.components["tape_pair_left"] == pytest.approx(expected), dashed
+
+
+def test_a_faint_right_edge_at_the_border_does_not_stand_in_either() -> None:
+    """The right bend, its inner (right) tape at the border and faint (125 against the left
+    tape's 45): refused as on the left."""
+    for level, expected in ((45.0, 0.6), (125.0, 0.0)):
+        scene = replace(syn.BEND_RIGHT, tape_level=level, left_tape_level=45.0)
+        obs = LaneDetector(PerceptionConfig()).detect(
+            np.ascontiguousarray(syn.frame(scene)), 0, 0.0)
+        assert obs.components["tape_pair_right"] == pytest.approx(expected), level
+
+
+def test_two_tapes_of_different_widths_hold_no_edge_to_the_others_contrast() -> None:
+    """Per-side widths that differ say the two lines are different tapes: the faint left line
+    is not held to the right one's contrast (unverifiable, 0.6)."""
+    image = np.ascontiguousarray(syn.frame(replace(syn.BEND_LEFT, left_tape_level=125.0)))
+    config = PerceptionConfig()
+    tape = config.tape.model_copy(update={"left_width_m": 0.046})
+    obs = LaneDetector(config.model_copy(update={"tape": tape})).detect(image, 0, 0.0)
+    assert obs.components["tape_pair_left"] == pytest.approx(0.6)
