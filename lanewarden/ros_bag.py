@@ -8,8 +8,11 @@ allocate without bound or run for long:
   is checked against `MAX_CHUNK_BYTES` and decompressed with that bound (a zstd or lz4 "bomb"
   stops there). The records themselves are parsed by the `mcap` library's record classes.
 - A chunk's and an attachment's CRC-32, when the writer computed one (0: none), is checked: a
-  byte altered on disk is one line naming the byte offset of the damaged record, never data
-  replayed as if a program had changed.
+  byte altered inside a chunk (every message Lanewarden records, its steps and frames) or an
+  attachment (the config and calibration) is one line naming the byte offset of the damaged
+  record, never data replayed as if a program had changed. MCAP gives metadata records (the
+  run's meta and summary) no CRC of their own, and Lanewarden's recorder writes no CRC of the
+  whole data section, so damage there is found only where it breaks the record.
 - A file that ends before MCAP's footer was cut short (a run killed, a full disk): every whole
   record before the cut is read and `McapFile.cut_short` says where it ended, so a replay can
   use what there is and say the recording is incomplete.

@@ -61,6 +61,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
 
     if out_dir is not None:
         _refuse_a_recording_folder(Path(out_dir))
+        _refuse_the_source_folder(Path(out_dir), source)
     given = load_config(config_path)
     replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
                                        topic=topic,
@@ -164,6 +165,24 @@ def _refuse_a_recording_folder(out: Path) -> None:
     if held:
         raise UsageError(f"--out '{out}': holds a recording ({', '.join(held)}); recording "
                          "folders are never written into: expected another folder")
+
+
+def _refuse_the_source_folder(out: Path, source: str) -> None:
+    """UsageError when --out is SOURCE's own folder (a folder of frames, a tub, a rosbag2
+    folder; a glob's folder) or lies inside it: replay would write its outputs among the
+    frames, and the next replay of SOURCE would be refused as a sim output folder."""
+    given = Path(source)
+    folder = given if given.is_dir() else (given.parent if any(c in source for c in "*?[")
+                                           else None)
+    if folder is None:
+        return
+    try:
+        inside = out.resolve() == folder.resolve() or folder.resolve() in out.resolve().parents
+    except OSError:
+        return  # an --out that cannot be resolved is refused when it is created
+    if inside:
+        raise UsageError(f"--out '{out}': inside SOURCE '{source}'; replay writes its outputs "
+                         "elsewhere: expected a folder outside SOURCE")
 
 
 def _frame_names(replay_source: ReplaySource, indices: list[int], shown: int = 3) -> str:

@@ -200,6 +200,24 @@ def test_replay_never_writes_into_a_recording_folder(recorded: Path, tmp_path: P
         assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
 
 
+def test_replay_never_writes_into_its_source_folder(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """`replay imgs --out imgs` wrote metrics.json, plot.png and run.jsonl among the frames, and
+    the next `replay imgs` was refused as a sim output folder (a code review, 2026-12-05)."""
+    import cv2
+
+    frames = tmp_path / "imgs"
+    frames.mkdir()
+    for i, image in enumerate(lane_end_frames(start_m=2.2, end_m=2.7, speed_m_s=0.6)[:3]):
+        cv2.imwrite(str(frames / f"{i:03d}.png"), image)
+    for source, out in ((frames, frames), (frames, frames / "out"),
+                        (f"{frames}/*.png", frames)):
+        code = main(["replay", str(source), "--no-video", "--out", str(out)])
+        err = capsys.readouterr().err
+        assert_one_line(code, err, f"--out '{out}': inside SOURCE '{source}'")
+        assert sorted(p.name for p in frames.iterdir()) == ["000.png", "001.png", "002.png"]
+
+
 # ---- incomplete recordings: replayed as far as they go, never checked ----------------------
 def test_a_recording_cut_short_replays_but_is_not_checked(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
