@@ -511,7 +511,9 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
             for name, s in shifted.items()} == {SHADING: (16, 2, 2), SLIVER: (16, 9, 9)}
     assert all(0.2 <= c < 0.6 for s in shifted.values() for c in s["confidences"])
     assert all(f["decision"] == "none" for f in document["frames"] if f["expect"] == "none")
-    assert "shifted by a fraction of a pixel:" in (tmp_path / "out" / "report.html").read_text()
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "shifted by a fraction of a pixel:" in page  # the picture of a shifted version
+    assert "<td>none; shifted: 9 of 16 decided</td>" in page  # the frame's row in the table
 
 
 def test_a_stills_shifted_versions_do_not_depend_on_the_others(
