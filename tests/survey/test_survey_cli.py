@@ -79,6 +79,18 @@ def test_the_rendered_set(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert page.index('<div class="verdict safe"><b>SAFE</b>') < page.index("<table>")
 
 
+def test_the_rendered_set_stays_safe_shifted(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's example set with --jitter 16: none of the 160 shifted versions of its 10
+    no-lane stills gets a decision (the JetBot set's do: below)."""
+    code, out, err = _survey([str(RENDERED), "--jitter", "16", "--out", str(tmp_path / "out")],
+                             capsys)
+    assert code == 0, err
+    assert ("no-lane, each in 16 versions shifted by a fraction of a pixel: 0 decisions in 160"
+            in out.splitlines())
+    assert "verdict: SAFE: no decision on any of the 10 no-lane frames" in out
+
+
 @pytest.fixture
 def floor(tmp_path: Path) -> Path:
     """A small floor survey: three lane photos, two no-lane photos, and the camera's calibration
