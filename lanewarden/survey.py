@@ -202,10 +202,14 @@ class FrameResult:
         return self.decision != "none"
 
     @property
+    def shifted_decisions(self) -> int:
+        """How many of its shifted versions got a decision (0: none, or none were made)."""
+        return 0 if self.shifted is None else len(self.shifted.decided)
+
+    @property
     def false_lane(self) -> bool:
         """A decision on a no-lane frame, or on one of its shifted versions."""
-        return self.frame.expect == NONE and (
-            self.has_decision or (self.shifted is not None and bool(self.shifted.decided)))
+        return self.frame.expect == NONE and (self.has_decision or self.shifted_decisions > 0)
 
     @property
     def weakest(self) -> tuple[str, float] | None:
@@ -470,10 +474,10 @@ def false_lanes_named(false_lanes: Sequence[FrameResult]) -> str:
 def false_lane_name(result: FrameResult) -> str:
     """A false lane's name, with how many shifted versions got a decision where any did:
     "free/a.jpg (shifted: 5 of 16)"."""
-    shifted = result.shifted
-    if shifted is None or not shifted.decided:
+    if result.shifted is None or not result.shifted_decisions:
         return result.frame.name
-    return f"{result.frame.name} (shifted: {len(shifted.decided)} of {shifted.versions})"
+    return (f"{result.frame.name} (shifted: {result.shifted_decisions} of "
+            f"{result.shifted.versions})")
 
 
 def engage_line(engage: EngageFigures | None) -> str:
@@ -504,12 +508,12 @@ def engage_line(engage: EngageFigures | None) -> str:
 
 def shifted_line(results: Sequence[FrameResult]) -> str | None:
     """What the shifted versions of the no-lane stills showed (None: none were made)."""
-    judged = [r for r in results if r.shifted is not None]
+    judged = [r.shifted for r in results if r.shifted is not None]
     if not judged:
         return None
-    versions = judged[0].shifted.versions if judged[0].shifted else 0
-    hit = [r for r in judged if r.shifted is not None and r.shifted.decided]
-    decided = sum(len(r.shifted.decided) for r in hit if r.shifted is not None)
+    versions = judged[0].versions
+    hit = [r for r in results if r.shifted_decisions]
+    decided = sum(r.shifted_decisions for r in hit)
     text = (f"no-lane, each in {counted(versions, 'version')} shifted by a fraction of a pixel: "
             f"{counted(decided, 'decision')} in {versions * len(judged)}")
     if hit:

@@ -125,9 +125,9 @@ def _frame_row(result: FrameResult) -> str:
     css = "false" if result.false_lane else ("confident" if result.confident else "")
     decision = result.decision
     if result.shifted is not None:  # `--jitter`: what its shifted versions decided
-        shifted = result.shifted
-        decision += (f"; shifted: {len(shifted.decided)} of {shifted.versions} decided"
-                     if shifted.decided else f"; shifted: none of {shifted.versions}")
+        decision += (f"; shifted: {result.shifted_decisions} of {result.shifted.versions} "
+                     "decided" if result.shifted_decisions
+                     else f"; shifted: none of {result.shifted.versions}")
     return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(decision)}</td>'
             f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
             f"</td><td>{_e(weak)}</td><td>{_e(engaged)}</td><td>{_e(result.frame.note)}</td></tr>")

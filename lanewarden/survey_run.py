@@ -124,12 +124,11 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
         canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
     assert ok, "OpenCV could not encode a picture"
-    if shifted_decision is None:
-        return Picture(result.frame.name, result.frame.expect, result.confidence,
-                       tuple(perception_text(observation, result.decision)), data.tobytes())
-    return Picture(result.frame.name, result.frame.expect, observation.confidence,
-                   ("shifted by a fraction of a pixel:",
-                    *perception_text(observation, shifted_decision)), data.tobytes())
+    caption = tuple(perception_text(observation, shifted_decision or result.decision))
+    if shifted_decision is not None:
+        caption = ("shifted by a fraction of a pixel:", *caption)
+    return Picture(result.frame.name, result.frame.expect, observation.confidence, caption,
+                   data.tobytes())
 
 
 class PictureKeeper:
@@ -262,13 +261,16 @@ def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: 
     """A still judged in `versions` copies shifted by `shifted_offsets(name)`: which got a
     decision, and the first such copy's detection (for its picture)."""
     decided: list[float] = []
-    first: tuple[LaneObservation, DetectionDebug] | None = None
+    first: np.ndarray | None = None
     for dx, dy in itertools.islice(shifted_offsets(name), versions):
-        observation, debug = detector.detect_debug(shifted_image(image, dx, dy), order, 0.0)
+        copy = shifted_image(image, dx, dy)
+        observation = detector.detect(copy, order, 0.0)
         if decide(observation) != "none":
             decided.append(observation.confidence)
-            first = first or (observation, debug)
-    return Shifted(versions, tuple(decided)), first
+            first = copy if first is None else first
+    # the debug data (and its undistorted picture) only for the copy the report shows
+    seen = None if first is None else detector.detect_debug(first, order, 0.0)
+    return Shifted(versions, tuple(decided)), seen
 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,

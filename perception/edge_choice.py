@@ -280,7 +280,7 @@ def tape_candidates(
             inner, outer, score, width_m, at = pair
             if inner.polarity == 0:
                 continue  # (unsigned_outer: the sign must be the inner edge's)
-            dark = (inner.polarity > 0) == (side == "left")
+            dark = darker_beyond(inner, side)
             if not of_configured_kind(inner, side, config):
                 continue
             rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
@@ -289,12 +289,17 @@ def tape_candidates(
     return found[:_MAX_TAPE_CHECKS]
 
 
+def darker_beyond(inner: LineRow, side: Side) -> bool:
+    """Whether the tape beyond a signed line, as this side's INNER tape edge, is darker than the
+    floor: its sign says which side of it is floor (a left edge lighter to its right)."""
+    return (inner.polarity > 0) == (side == "left")
+
+
 def of_configured_kind(inner: LineRow, side: Side, config: PerceptionConfig) -> bool:
     """Whether a signed line, as this side's INNER tape edge, belongs to a tape of the kind
-    `tape.kind` says (always with `any`): its sign says which side of it is floor, so whether
-    the tape beyond it is darker (a left edge lighter to its right) or lighter than the floor."""
+    `tape.kind` says (always with `any`; `darker_beyond`)."""
     kind = config.tape.kind
-    return kind == "any" or ((inner.polarity > 0) == (side == "left")) == (kind == "dark")
+    return kind == "any" or darker_beyond(inner, side) == (kind == "dark")
 
 
 def verified_tapes(
