@@ -109,11 +109,12 @@ def test_clip_with_no_base_reports_what_would_be_sent(
 
 # ---- over the Kobuki stand-in -------------------------------------------------------------------
 def test_kobuki_steady_stream_then_stop_after_halt(
-        clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    record = tmp_path / "run"
+        clip: Path, tmp_path: Path, relaxed: list[str],
+        capsys: pytest.CaptureFixture[str]) -> None:
+    record = tmp_path / "run"  # relaxed: a starved CPU's 0.27 s stall had tripped the dead-man
     with KobukiStandIn() as kobuki:
         code = main(["run", "--camera", str(clip), "--port", kobuki.port, "--record",
-                     str(record)])
+                     str(record), *relaxed])
         controls = kobuki.base_controls()
     assert code == 3, capsys.readouterr().err
     records = steps(record)
