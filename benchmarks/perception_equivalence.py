@@ -5,12 +5,13 @@ Run on demand from the project root:
     python benchmarks/perception_equivalence.py --out /tmp/before.pkl      # on the old code
     python benchmarks/perception_equivalence.py --out /tmp/after.pkl --compare /tmp/before.pkl
 
-Frames: the six scenes of `benchmarks/perception_speed.py` (640x480 and 320x240, each alone and
-in sequence with the previous observation, and distorted through an undistorter), and every
-frame the detector sees in closed-loop simulations of several library scenarios at 320x240 and
-640x480. For each frame it dumps the whole `LaneObservation` (every field and component) and
-the `DetectionDebug` data (Hough segments, ROI, every candidate line's arrays, both side
-choices). Floats are written with `float.hex` and arrays as their raw bytes, so "identical"
+Frames: the six scenes of `benchmarks/perception_speed.py` (640x480 and 320x240, each alone and in
+sequence with the previous observation, and distorted through an undistorter), 30 frames of each of
+the simulator's floors (`realism.FLOOR_SETS`: terrazzo and carpet give 500-odd Hough segments a
+frame), and every frame the detector sees in closed-loop simulations of several library scenarios
+at 320x240 and 640x480. For each frame it dumps the whole `LaneObservation` (every field and
+component) and the `DetectionDebug` data (Hough segments, ROI, every candidate line's arrays, both
+side choices). Floats are written with `float.hex` and arrays as their raw bytes, so "identical"
 means bit for bit. A closed-loop run whose perception changed would also change the robot's path
 and so the frames after it: the simulations check the whole loop.
 
@@ -43,6 +44,7 @@ from lanewarden.perception.detector import DetectionDebug, LaneDetector  # noqa:
 from lanewarden.perception.observation import LaneObservation  # noqa: E402
 from lanewarden.scenarios.camera import CameraModel  # noqa: E402
 from lanewarden.scenarios.library import resolve_scenario  # noqa: E402
+from lanewarden.scenarios.realism import FLOOR_SETS, rendered_straight  # noqa: E402
 from lanewarden.scenarios.simulator import Simulation, effective_config  # noqa: E402
 from tests.perception import synthetic as syn  # noqa: E402
 
@@ -126,6 +128,25 @@ def recording_stack(out: list[Any]) -> Any:
     return build
 
 
+def floor_records() -> list[Any]:
+    """Every floor of `realism.FLOOR_SETS` (a straight lane through the default camera at
+    320x240, its camera effects on): 30 frames each, each detected alone and with the previous
+    observation. Terrazzo and carpet give 500-odd Hough segments, so clustering's and the tape
+    choice's shortcuts for many lines (`lines._compatible_by_angle`,
+    `edge_choice._pairs_worth_checking`) are checked here too."""
+    detector = LaneDetector(PerceptionConfig())
+    records: list[Any] = []
+    for name, changes, effects_on in FLOOR_SETS:
+        frames, _ = rendered_straight(changes, effects_on, 30)
+        previous: LaneObservation | None = None
+        for index, frame in enumerate(frames):
+            alone = detector.detect_debug(frame, index, index / 30.0)
+            chained = detector.detect_debug(frame, index, index / 30.0, previous)
+            previous = chained[0]
+            records.append((f"floor {name} frame {index}", dump(*alone), dump(*chained)))
+    return records
+
+
 def simulation_records(max_time_s: float | None) -> list[Any]:
     records: list[Any] = []
     for width, height in SIZES:
@@ -171,6 +192,8 @@ def main() -> None:
     args = parser.parse_args()
     print("synthetic scenes", flush=True)
     records = synthetic_records()
+    print("floors", flush=True)
+    records += floor_records()
     print("simulations", flush=True)
     records += simulation_records(4.0 if args.quick else None)
     data = pickle.dumps(records, protocol=5)

@@ -11,7 +11,13 @@ scenes: straight, both bends, dashed, tape on tiles, light tape on a dark floor)
 single-threaded), so other work on the machine does not count; floor and detector are timed in
 alternation and each keeps its best (minimum) time over the repeats.
 
-Target: detector <= 1.5x the floor at 640x480. Not a test: nothing here asserts a speed.
+Target: detector <= 1.5x the floor at 640x480 and at 320x240. Not a test: nothing here asserts
+a speed.
+
+Then, for information, 320x240 frames of each of the simulator's floors (`realism.FLOOR_SETS`):
+terrazzo's chips and carpet's texture give 500-odd Hough segments a frame where the six scenes
+give a few dozen, and what follows Hough grows with them (clustering compares segment pairs, the
+choice of tapes line pairs: both sift pairs with numpy beyond a few dozen).
 
 `--stages` also splits the detector's time per frame at each size into its stages, timed in the
 order the detector runs them (so each stage pays for the caches the one before left cold:
@@ -44,6 +50,7 @@ from lanewarden.perception.edge_choice import choose_edges  # noqa: E402
 from lanewarden.perception.lines import build_line_set  # noqa: E402
 from lanewarden.perception.overlay import draw_overlay  # noqa: E402
 from lanewarden.scenarios.camera import CameraModel  # noqa: E402
+from lanewarden.scenarios.realism import FLOOR_SETS, rendered_straight  # noqa: E402
 from tests.perception import synthetic as syn  # noqa: E402
 
 SCENES = {
@@ -209,6 +216,20 @@ def main() -> None:
     print(f"\n640x480 detector with undistortion (remap): {extra['undistort']:.3f} ms/frame")
     print(f"640x480 detect_debug + draw_overlay (debug path, not the hot path): "
           f"{extra['overlay']:.3f} ms/frame")
+
+    # The six scenes are clean: a few dozen Hough segments. A textured floor gives hundreds.
+    print("\n320x240 on the simulator's floors (a straight lane, 10 frames each; floor / "
+          "detector ms, ratio,\nmost Hough segments in a frame):")
+    for name, changes, effects_on in FLOOR_SETS:
+        rendered, _ = rendered_straight(changes, effects_on, 10)
+        frames = [cv2.cvtColor(f, cv2.COLOR_GRAY2BGR) for f in rendered]  # as a camera gives
+        segments = max(len(detector.detect_debug(f, 0, 0.0)[1].segments) for f in frames)
+        best = measure(
+            {"floor": floor, "detector": lambda f: detector.detect(f, 0, 0.0)},
+            frames, max(3, args.repeats // 3), args.loops,
+        )
+        print(f"  {name:28s} {best['floor']:.3f} / {best['detector']:.3f}  "
+              f"{best['detector'] / best['floor']:.2f}  ({segments} segments)")
 
 
 if __name__ == "__main__":

@@ -56,8 +56,9 @@ five elements. Pure function of the lines, the blurred frame, the size setup and
 
 from __future__ import annotations
 
+import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -259,34 +260,72 @@ def tape_candidates(
     tape_width = config.tape.side_width_m(side)
     look_ahead = look_ahead_m
     found: list[TapeCandidate] = []
-    for i, a in enumerate(cand):
-        for b in cand[i + 1:]:
-            if unsigned_outer:
-                if (a.polarity == 0) == (b.polarity == 0):
-                    continue
-            elif a.polarity * b.polarity >= 0:
+    for i, j in _pairs_worth_checking(cand, angle_tol, tape_width, unsigned_outer):
+        a, b = cand[i], cand[j]
+        if unsigned_outer:
+            if (a.polarity == 0) == (b.polarity == 0):
                 continue
-            if abs(a.angle_deg - b.angle_deg) > angle_tol:
-                continue
-            # Distance from a's near end to b's line on the floor (not yet where they are
-            # measured): a third to three tape widths, or no tape.
-            bx, by = b.far_fx - b.near_fx, b.far_fy - b.near_fy
-            rough = abs(bx * (a.near_fy - b.near_fy) - by * (a.near_fx - b.near_fx))
-            if not tape_width / 3.0 <= rough / max(math.hypot(bx, by), 1e-9) <= 3.0 * tape_width:
-                continue
-            pair = measure_pair(a, b, side, view, config)
-            if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
-                continue
-            inner, outer, score, width_m, at = pair
-            if inner.polarity == 0:
-                continue  # (unsigned_outer: the sign must be the inner edge's)
-            dark = darker_beyond(inner, side)
-            if not of_configured_kind(inner, side, config):
-                continue
-            rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
-            found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
+        elif a.polarity * b.polarity >= 0:
+            continue
+        if abs(a.angle_deg - b.angle_deg) > angle_tol:
+            continue
+        # Distance from a's near end to b's line on the floor (not yet where they are
+        # measured): a third to three tape widths, or no tape.
+        bx, by = b.far_fx - b.near_fx, b.far_fy - b.near_fy
+        rough = abs(bx * (a.near_fy - b.near_fy) - by * (a.near_fx - b.near_fx))
+        if not tape_width / 3.0 <= rough / max(math.hypot(bx, by), 1e-9) <= 3.0 * tape_width:
+            continue
+        pair = measure_pair(a, b, side, view, config)
+        if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
+            continue
+        inner, outer, score, width_m, at = pair
+        if inner.polarity == 0:
+            continue  # (unsigned_outer: the sign must be the inner edge's)
+        dark = darker_beyond(inner, side)
+        if not of_configured_kind(inner, side, config):
+            continue
+        rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
+        found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
     found.sort(key=TapeCandidate.rank, reverse=True)
     return found[:_MAX_TAPE_CHECKS]
+
+
+#: From this many candidate lines on a side (a textured floor: terrazzo's chips give a hundred
+#: and more at 320x240), `_pairs_worth_checking` sifts the pairs with numpy first; below it the
+#: plain loop is cheaper than building the arrays.
+_SIFT_FROM_LINES = 16
+#: The sift keeps a pair whose rough distance misses the window by up to this share of it: numpy's
+#: hypot may differ from math's in the last bit, and the loop's own check then decides.
+_SIFT_SLACK = 1e-9
+
+
+def _pairs_worth_checking(cand: list[LineRow], angle_tol: float, tape_width: float,
+                          unsigned_outer: bool) -> Iterable[tuple[int, int]]:
+    """The pairs (i, j), i < j, in that order, that `tape_candidates`' checks (signs, angle,
+    rough distance, rows in common) could pass: all of them for a few lines; with many
+    (`_SIFT_FROM_LINES`), only those the same checks pass in numpy (a superset: the loop checks
+    each again, so the result is the loop's, bit for bit)."""
+    n = len(cand)
+    if n < _SIFT_FROM_LINES:
+        return itertools.combinations(range(n), 2)
+    columns = np.array([(r.polarity, r.angle_deg, r.near_fx, r.near_fy, r.far_fx, r.far_fy,
+                         r.near_y, r.far_y) for r in cand], dtype=np.float64)
+    polarity, angle, near_fx, near_fy, far_fx, far_fy, near_y, far_y = columns.T
+    i, j = np.triu_indices(n, 1)
+    if unsigned_outer:
+        keep = (polarity[i] == 0.0) != (polarity[j] == 0.0)
+    else:
+        keep = polarity[i] * polarity[j] < 0.0
+    keep &= np.abs(angle[i] - angle[j]) <= angle_tol
+    # `measure_pair` measures a pair only on image rows both lines cover.
+    keep &= ~(np.minimum(near_y[i], near_y[j]) <= np.maximum(far_y[i], far_y[j]))
+    i, j = i[keep], j[keep]
+    bx, by = far_fx[j] - near_fx[j], far_fy[j] - near_fy[j]
+    rough = (np.abs(bx * (near_fy[i] - near_fy[j]) - by * (near_fx[i] - near_fx[j]))
+             / np.maximum(np.hypot(bx, by), 1e-9))
+    keep = ((rough >= tape_width / 3.0 * (1.0 - _SIFT_SLACK))
+            & (rough <= 3.0 * tape_width * (1.0 + _SIFT_SLACK)))
+    return zip(i[keep].tolist(), j[keep].tolist(), strict=True)
 
 
 def darker_beyond(inner: LineRow, side: Side) -> bool:
