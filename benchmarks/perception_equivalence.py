@@ -132,7 +132,7 @@ def floor_records() -> list[Any]:
     """Every floor of `realism.FLOOR_SETS` (a straight lane through the default camera at
     320x240, its camera effects on): 30 frames each, each detected alone and with the previous
     observation. Terrazzo and carpet give 500-odd Hough segments, so clustering's and the tape
-    choice's shortcuts for many lines (`lines._compatible_by_angle`,
+    choice's shortcuts for many lines (`lines._compatible_pairs`,
     `edge_choice._pairs_worth_checking`) are checked here too."""
     detector = LaneDetector(PerceptionConfig())
     records: list[Any] = []

@@ -67,7 +67,7 @@ from numpy.typing import NDArray
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
-from lanewarden.perception.lines import LineRow
+from lanewarden.perception.lines import LineRow, pairs_within_angle
 from lanewarden.perception.size_setup import SizeSetup
 from lanewarden.perception.tape_rules import band_is_tape, tape_profile_fraction, tape_width_score
 
@@ -311,7 +311,9 @@ def _pairs_worth_checking(cand: list[LineRow], angle_tol: float, tape_width: flo
     columns = np.array([(r.polarity, r.angle_deg, r.near_fx, r.near_fy, r.far_fx, r.far_fy,
                          r.near_y, r.far_y) for r in cand], dtype=np.float64)
     polarity, angle, near_fx, near_fy, far_fx, far_fy, near_y, far_y = columns.T
-    i, j = np.triu_indices(n, 1)
+    if not np.isfinite(angle).all():
+        return itertools.combinations(range(n), 2)  # (a line made by hand; never from Hough)
+    i, j = pairs_within_angle(angle, angle_tol, unordered=True)
     if unsigned_outer:
         keep = (polarity[i] == 0.0) != (polarity[j] == 0.0)
     else:
@@ -325,7 +327,9 @@ def _pairs_worth_checking(cand: list[LineRow], angle_tol: float, tape_width: flo
              / np.maximum(np.hypot(bx, by), 1e-9))
     keep = ((rough >= tape_width / 3.0 * (1.0 - _SIFT_SLACK))
             & (rough <= 3.0 * tape_width * (1.0 + _SIFT_SLACK)))
-    return zip(i[keep].tolist(), j[keep].tolist(), strict=True)
+    i, j = i[keep], j[keep]
+    in_order = np.lexsort((j, i))  # the loop's order: by i, then j
+    return zip(i[in_order].tolist(), j[in_order].tolist(), strict=True)
 
 
 def darker_beyond(inner: LineRow, side: Side) -> bool:

@@ -253,20 +253,18 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
     for the segments compatible with it, plus the set of segments still free: a few dozen
     segments make a few lines, and this saves the few numpy calls per line the pass needed."""
     count = len(pieces.angle)
-    compatible = (_compatible_dense(pieces, angle_tol_deg, offset_tol_px)
-                  if count <= _DENSE_UP_TO else
-                  _compatible_by_angle(pieces, angle_tol_deg, offset_tol_px))
-    packed = np.packbits(compatible, axis=1, bitorder="little")
     compatible_with: list[int]
-    if count <= 64:  # each row's bits in one 64-bit word: one conversion for all rows
+    if count <= _DENSE_UP_TO:  # each row's bits in one 64-bit word: one conversion for all rows
+        packed = np.packbits(_compatible_dense(pieces, angle_tol_deg, offset_tol_px), axis=1,
+                             bitorder="little")
         words = np.zeros((count, 8), dtype=np.uint8)
         words[:, :packed.shape[1]] = packed
         compatible_with = words.view("<u8").ravel().tolist()
-    else:
-        row_bytes = packed.shape[1]
-        flat = packed.tobytes()
-        compatible_with = [int.from_bytes(flat[i * row_bytes:(i + 1) * row_bytes], "little")
-                           for i in range(count)]
+    else:  # few pairs are compatible: each row's bits set one by one
+        compatible_with = [0] * count
+        rows, columns = _compatible_pairs(pieces, angle_tol_deg, offset_tol_px)
+        for row, column in zip(rows.tolist(), columns.tolist(), strict=True):
+            compatible_with[row] |= 1 << column
     line_of = [-1] * count
     free = (1 << count) - 1
     lines = 0
@@ -287,7 +285,7 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
 
 #: Up to this many segments the compatibility matrix is computed whole; beyond it (a textured
 #: floor: terrazzo's chips give 500 and more at 320x240) only for the pairs whose directions
-#: are within the angle tolerance (`_compatible_by_angle`), a few percent of them.
+#: are within the angle tolerance (`_compatible_pairs`), a few percent of them.
 _DENSE_UP_TO = 64
 
 
@@ -303,30 +301,41 @@ def _compatible_dense(pieces: _Pieces, angle_tol_deg: float,
                       & (off_line <= offset_tol_px))
 
 
-def _compatible_by_angle(pieces: _Pieces, angle_tol_deg: float,
-                         offset_tol_px: float) -> NDArray[np.bool_]:
-    """`_compatible_dense`, element for element, computed only for the pairs whose angles a
-    window over the sorted angles (widened by a hair, then checked exactly) puts together."""
+def _compatible_pairs(pieces: _Pieces, angle_tol_deg: float,
+                      offset_tol_px: float) -> tuple[IntArray, IntArray]:
+    """The (i, j) where `_compatible_dense` is True, exactly those, computed only for the pairs
+    `pairs_within_angle` puts together."""
     angle = pieces.angle
+    i, j = pairs_within_angle(angle, angle_tol_deg, unordered=False)
+    dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
+    off_line = np.abs((pieces.mid_x[j] - pieces.mid_x[i]) * dir_y[i]
+                      - (pieces.mid_y[j] - pieces.mid_y[i]) * dir_x[i])
+    ok = (np.abs(angle[j] - angle[i]) <= angle_tol_deg) & (off_line <= offset_tol_px)
+    return i[ok], j[ok]
+
+
+def pairs_within_angle(angle: FloatArray, tol_deg: float, *,
+                       unordered: bool) -> tuple[IntArray, IntArray]:
+    """The index pairs (i, j) whose `angle`s (finite) differ by at most `tol_deg`, found through
+    a window over the sorted angles, so without looking at the others: every ordered pair, (i, i)
+    included, or with `unordered` each pair of two indices once, as (smaller, larger). The
+    window is a hair wider than `tol_deg` (callers check each pair exactly), so no pair within it
+    is ever missed."""
     count = len(angle)
     order = np.argsort(angle, kind="stable")
     ordered = angle[order]
-    reach = angle_tol_deg * (1.0 + 1e-9) + 1e-9
-    lo = np.searchsorted(ordered, ordered - reach, side="left")
+    reach = tol_deg * (1.0 + 1e-9) + 1e-9
     hi = np.searchsorted(ordered, ordered + reach, side="right")
+    lo = (np.arange(1, count + 1) if unordered
+          else np.searchsorted(ordered, ordered - reach, side="left"))
     width = hi - lo
     first = np.repeat(np.arange(count), width)
     starts = np.cumsum(width) - width
     second = lo[first] + (np.arange(int(width.sum())) - np.repeat(starts, width))
     i, j = order[first], order[second]
-    dir_x = pieces.dx[i] / pieces.length[i]
-    dir_y = pieces.dy[i] / pieces.length[i]
-    off_line = np.abs((pieces.mid_x[j] - pieces.mid_x[i]) * dir_y
-                      - (pieces.mid_y[j] - pieces.mid_y[i]) * dir_x)
-    ok = (np.abs(angle[j] - angle[i]) <= angle_tol_deg) & (off_line <= offset_tol_px)
-    compatible = np.zeros((count, count), dtype=np.bool_)
-    compatible[i[ok], j[ok]] = True
-    return compatible
+    if unordered:
+        return np.minimum(i, j), np.maximum(i, j)
+    return i, j
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """A textured floor's frame (terrazzo's chips: 500-odd Hough segments, 100-odd candidate lines a
 side at 320x240) takes two shortcuts that must not change a result: clustering compares only
-segments whose directions are within the angle tolerance (`lines._compatible_by_angle`, beyond
+segments whose directions are within the angle tolerance (`lines._compatible_pairs`, beyond
 64 segments), and the choice of tapes sifts a side's pairs with numpy before its loop
 (`edge_choice._pairs_worth_checking`, from 16 lines). Each is held here to the plain way, element
 for element, on seeded random input that includes the ties at the tolerance's very edge."""
@@ -12,7 +12,7 @@ import pytest
 
 from lanewarden.perception import edge_choice
 from lanewarden.perception.edge_choice import tape_candidates
-from lanewarden.perception.lines import LineRow, _compatible_by_angle, _compatible_dense, _Pieces
+from lanewarden.perception.lines import LineRow, _compatible_dense, _compatible_pairs, _Pieces
 from tests.perception.test_tape_rules import CONFIG, floor_line
 from tests.perception.test_unsigned_outer_edge import SETUP
 
@@ -35,8 +35,11 @@ def test_clustering_by_angle_window_is_the_whole_matrix(count: int, seed: int,
                                                          offset_tol_px: float) -> None:
     pieces = random_pieces(count, seed)
     dense = _compatible_dense(pieces, 5.0, offset_tol_px)
-    windowed = _compatible_by_angle(pieces, 5.0, offset_tol_px)
+    rows, columns = _compatible_pairs(pieces, 5.0, offset_tol_px)
+    windowed = np.zeros_like(dense)
+    windowed[rows, columns] = True
     assert np.array_equal(windowed, dense)
+    assert len(rows) == dense.sum()  # each pair once
     assert dense.sum() > count  # not vacuous: more than each segment with itself
     if offset_tol_px > 320.0:  # every pair within the angle: those exactly at it are compatible
         at_edge = np.abs(pieces.angle[None, :] - pieces.angle[:, None]) == 5.0
@@ -46,7 +49,8 @@ def test_clustering_by_angle_window_is_the_whole_matrix(count: int, seed: int,
 def random_side(count: int, seed: int) -> list[LineRow]:
     """`count` candidate lines left of the robot: floor lines 0.05-0.6 m out on a grid of half
     the default tape's width (so many pairs are a tape's width apart), slightly turned, of random
-    polarity (a third without), two of them with no floor position."""
+    polarity (a third without), two of them with no floor position (with seed 2, one more
+    without an angle)."""
     rng = np.random.default_rng(seed)
     half_tape = 0.5 * CONFIG.tape.width_m
     rows = []
@@ -59,6 +63,8 @@ def random_side(count: int, seed: int) -> list[LineRow]:
         rows.append(floor_line((x0, y), (x1, y + turn), polarity, line_id=k))
     rows[3] = rows[3]._replace(near_fx=float("nan"), near_fy=float("nan"))
     rows[7] = rows[7]._replace(far_fx=float("nan"))
+    if seed == 2:  # a line made by hand without a direction: its pairs as the loop sees them
+        rows[11] = rows[11]._replace(angle_deg=float("nan"))
     return rows
 
 
