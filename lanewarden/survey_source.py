@@ -24,6 +24,7 @@ prints.
 from __future__ import annotations
 
 import difflib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -130,8 +131,30 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                                    by_folder[sub.name], 0), path))
     order = {"lane": 0, "none": 1}
     stills.sort(key=lambda s: order[s.frame.expect])  # stable: name order within a class
+    seen: dict[tuple[int, int], str] = {}
+    for still in stills:
+        if (same := _same_file(still.path, still.frame.name, seen)) is not None:
+            raise InputFileError(f"{folder}: {still.frame.name} is the same file as {same} (a "
+                                 "link, or a hard link); expected each photo once, in lane/ or "
+                                 "no-lane/")
     return [StillFrame(LabelledFrame(s.frame.name, s.frame.expect, i), s.path)
             for i, s in enumerate(stills)]
+
+
+def _same_file(path: Path, name: str, seen: dict[tuple[int, int], str]) -> str | None:
+    """The name under which the file at `path` was seen before (`seen`: by device and inode, so
+    a link or a hard link to it, or a path through a linked folder, is the same file), else
+    None, remembering it as `name`. A file that cannot be looked at is left to the checks that
+    say why."""
+    try:
+        info = path.stat()
+    except (OSError, ValueError):
+        return None
+    key = (info.st_dev, info.st_ino)
+    if key in seen:
+        return seen[key]
+    seen[key] = name
+    return None
 
 
 #: Files an operating system leaves in a folder of photos (Windows' thumbnail caches and folder
@@ -182,15 +205,20 @@ def _images_under(folder: Path) -> list[Path]:
 
 def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     stills = []
+    seen: dict[tuple[int, int], str] = {}
     for order, row in enumerate(table.rows):
         assert row.file is not None
         path = folder / row.file
+        where = f"{table.source}:{row.line}: {row.file[:60]}"
         if Path(row.file).is_absolute() or not path.resolve().is_relative_to(folder.resolve()):
-            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: outside {folder}; "
-                                 "expected a path relative to it, inside it")
+            raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
+                                 "inside it")
         if why := file_problem(path):
-            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: {why} "
-                                 f"(paths are relative to {folder})")
+            raise InputFileError(f"{where}: {why} (paths are relative to {folder})")
+        # 'a.jpg' and './a.jpg' (or a link to it) are one image: labelled twice
+        if (same := _same_file(path, f"line {row.line}", seen)) is not None:
+            raise InputFileError(f"{where}: the same file as {same}; expected each image "
+                                 "labelled once")
         stills.append(StillFrame(LabelledFrame(row.file, row.expect, order, row.note), path))
     return stills
 
@@ -267,6 +295,9 @@ def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
     problems: list[str] = []
     sizes: dict[tuple[int, int], list[str]] = {}
     for name, path in paths:
+        if why := file_problem(path):  # a FIFO: opening it to read the header waits forever
+            problems.append(f"{name}: {why}")
+            continue
         size, why = header_facts(path, max_pixels)  # one read of each header
         if size is not None:
             sizes.setdefault(size, []).append(name)
@@ -295,7 +326,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         if not path.is_dir():
             raise UsageError(f"FOLDER '{folder}': a file; a video or a run needs --labels FILE "
                              f"(frames,expect[,note]); expected {FOLDER_HELP}")
-        if (path / LABELS_NAME).is_file():
+        if os.path.lexists(path / LABELS_NAME):  # a broken link too: read_labels says why
             if classes := _class_folder_names(path):
                 raise UsageError(f"FOLDER '{folder}': has both {LABELS_NAME} and "
                                  f"{'/ and '.join(classes)}/: keep one way of labelling, or "

@@ -13,7 +13,12 @@ from lanewarden.errors import InputFileError
 from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
-from lanewarden.survey_source import _class_folders, _labelled_files, _labelled_frames
+from lanewarden.survey_source import (
+    _class_folders,
+    _labelled_files,
+    _labelled_frames,
+    open_survey_source,
+)
 
 #: frames 2, 5 and 6 were dropped; frame 3 came with two steps
 RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
@@ -145,3 +150,66 @@ def test_a_run_frame_dropped_while_recording_is_the_frame_before_in_a_survey(
     reasons = [step.record.halt_reason for step in replay_steps(run, config, None, "supervised")]
     assert len(reasons) == 12
     assert not any("CAMERA_ERROR" in (r or "") or "Error" in (r or "") for r in reasons), reasons
+
+
+def _class_set(folder: Path) -> None:
+    for name in ("lane/a.png", "lane/b.png", "no-lane/c.png"):
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_bytes(b"")
+
+
+@pytest.mark.parametrize(("link", "target", "message"), [
+    ("no-lane/a.png", "../lane/a.png", "no-lane/a.png is the same file as lane/a.png"),
+    ("no-lane/lane", "../lane", "no-lane/lane/a.png is the same file as lane/a.png"),
+    # a link back to the survey's folder itself: every lane photo had become a no-lane one too
+    ("no-lane/up", "..", "no-lane/up/lane/a.png is the same file as lane/a.png"),
+    ("no-lane/d.png", "c.png", "no-lane/d.png is the same file as no-lane/c.png"),
+    ("no-lane/hard.png", None, "no-lane/hard.png is the same file as lane/b.png"),
+])
+def test_one_file_reached_twice_under_the_class_folders_is_refused(
+        tmp_path: Path, link: str, target: str | None, message: str) -> None:
+    """A photo linked (or hard-linked) from no-lane/ to lane/ was surveyed as both: a lane photo
+    labelled no-lane is a false lane, NOT SAFE on a frame the user had labelled lane."""
+    _class_set(tmp_path)
+    if target is None:
+        os.link(tmp_path / "lane" / "b.png", tmp_path / link)
+    else:
+        (tmp_path / link).symlink_to(target)
+    with pytest.raises(InputFileError) as caught:
+        _class_folders(tmp_path)
+    assert str(caught.value).startswith(f"{tmp_path}: {message} (a link, or a hard link); "
+                                        "expected each photo once")
+
+
+@pytest.mark.parametrize("row", ["./a.png", "sub/../a.png", "alias.png"])
+def test_one_file_labelled_twice_under_two_names_is_refused(tmp_path: Path, row: str) -> None:
+    """'a.png,lane' and './a.png,none' were two frames, the second a false lane."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.png").write_bytes(b"")
+    (tmp_path / "alias.png").symlink_to("a.png")
+    table = parse_labels(f"file,expect\na.png,lane\n{row},none\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path, table)
+    assert str(caught.value) == (f"labels.csv:3: {row}: the same file as line 2; expected each "
+                                 "image labelled once")
+
+
+def test_a_class_folder_whose_name_has_a_percent_sign_is_read(tmp_path: Path) -> None:
+    """'no-lane/dim 50%/' was taken for a printf pattern ('frame_%03d.png') and its photos left
+    out without a word: a false lane among them, and the survey said SAFE."""
+    _class_set(tmp_path / "50% light")
+    (tmp_path / "50% light" / "no-lane" / "dim 50%").mkdir()
+    (tmp_path / "50% light" / "no-lane" / "dim 50%" / "d.png").write_bytes(b"")
+    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path / "50% light")]
+    assert names == [("lane/a.png", "lane"), ("lane/b.png", "lane"), ("no-lane/c.png", "none"),
+                     ("no-lane/dim 50%/d.png", "none")]
+
+
+@pytest.mark.parametrize("target", ["/dev/null", "missing.csv", "labels.csv"])
+def test_a_labels_csv_that_is_no_file_is_named(tmp_path: Path, target: str) -> None:
+    """FOLDER/labels.csv linked to a device, to nothing or to itself had been passed over: 'no
+    images in lane/ or no-lane/ and no labels.csv'."""
+    (tmp_path / "labels.csv").symlink_to(target)
+    with pytest.raises(InputFileError, match=r"labels\.csv'?: (not a regular file|no such file|"
+                                             r"cannot read \(Too many levels)"):
+        open_survey_source(str(tmp_path), None, 30.0, 10**7)
