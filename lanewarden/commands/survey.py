@@ -176,9 +176,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     try:
         if source.sequence is None:
             run = survey_stills(source.stills, config, calibration, detector, bar.update,
-                                jitter)
+                                jitter, size)
         else:
-            run = survey_sequence(source, config, calibration, bar.update)
+            run = survey_sequence(source, config, calibration, bar.update, size)
     finally:
         bar.close()
     figures = judge(run.results, run.engage)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from lanewarden.errors import InputFileError
@@ -213,3 +214,20 @@ def test_a_labels_csv_that_is_no_file_is_named(tmp_path: Path, target: str) -> N
     with pytest.raises(InputFileError, match=r"labels\.csv'?: (not a regular file|no such file|"
                                              r"cannot read \(Too many levels)"):
         open_survey_source(str(tmp_path), None, 30.0, 10**7)
+
+
+class _TwoSizes(PathFrames):
+    """Frame 1 decodes at another size than frame 0 (a JPEG turned by its EXIF orientation in a
+    folder of frames: its header passed the one-size check)."""
+
+    def image(self, index: int) -> np.ndarray | None:
+        return np.zeros((320, 240, 3) if index == 1 else (240, 320, 3), np.uint8)
+
+
+def test_a_recordings_frame_of_another_size_is_a_problem_without_a_calibration() -> None:
+    from lanewarden.survey_run import CheckedFrames
+
+    checked = CheckedFrames(_TwoSizes([], 10**7), 10**7, None, (320, 240))
+    assert checked.image(0) is not None and checked.problem is None
+    assert checked.image(1) is None
+    assert checked.problem == "frame 1: decoded as 240x320; the first frame is 320x240"
