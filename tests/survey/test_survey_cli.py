@@ -188,9 +188,10 @@ def test_images_a_labels_file_leaves_out_are_named(
 def test_a_folder_named_dot_or_dot_dot_names_its_outputs_after_itself(
         floor: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     """`survey ..` had written to lanewarden-out/survey-../ (one level up, under a folder named
-    '..'); `.` and `..` name the folder they are."""
-    (floor / "lane" / "deeper").mkdir()
-    monkeypatch.chdir(floor / "lane" / "deeper")
+    '..'); `.` and `..` name the folder they are. (Run from a folder beside the class folders: in
+    one, the default output folder would be among the photos, and is refused.)"""
+    (floor / "notes" / "deeper").mkdir(parents=True)
+    monkeypatch.chdir(floor / "notes" / "deeper")
     code, out, _ = _survey(["../..", "--calibration", "../../../camera.yaml"], capsys)
     assert code == 0
     assert out.splitlines()[-1] == ("outputs in lanewarden-out/survey-floor/ (report: "
