@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import difflib
 import enum
+import re
 import reprlib
 import stat
 import types
@@ -82,6 +83,12 @@ class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]
         return super().construct_mapping(node, deep)
 
 
+# YAML 1.1 (PyYAML's) reads a number in exponent form only with a dot and a signed exponent
+# (1.0e+3): `1e308`, `2e-2` and `1.0e9` were text, and a numeric key then said "write the number
+# without quotes" of a number written without any. Read them as numbers, as YAML 1.2 does.
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
 _LOADER: type[Any] = _Loader
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxtuple, _SHORT.maxdict = 2, 4, 4, 4

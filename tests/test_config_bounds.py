@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from lanewarden.cli import main
-from lanewarden.config import LanewardenConfig, config_from_mapping, walk_config
+from lanewarden.config import LanewardenConfig, config_from_mapping, load_config, walk_config
 from lanewarden.errors import ConfigError
 
 NUMERIC_KEYS = [
@@ -158,6 +158,23 @@ def test_yaml_inf_in_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFix
         f"lanewarden: error: {path}: supervisor.degraded_budget_s = nan: expected a finite "
         "number with 0 < value <= 10",
     ]
+
+
+def test_a_number_in_exponent_form_is_a_number(tmp_path: Path) -> None:
+    """YAML 1.1 reads `2e-2` (no dot) and `1.0e9` (no sign) as text: the survey's config said
+    "... = '2e-2': ... not text (write the number without quotes)" of a number without quotes."""
+    path = tmp_path / "exp.yaml"
+    path.write_text("perception: {tape: {width_m: 2e-2}, lane: {width_m: 3E-1}}\n")
+    config = load_config(path)
+    assert (config.perception.tape.width_m, config.perception.lane.width_m) == (0.02, 0.3)
+    path.write_text("supervisor: {camera_period_s: 1.0e9}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (f"{path}: supervisor.camera_period_s = 1000000000.0: expected a "
+                              "finite number with 0 < value <= 1")
+    path.write_text("perception: {lane: {width_m: '3e-1'}}\n")  # quoted: text, as it says
+    with pytest.raises(ConfigError, match="not text"):
+        load_config(path)
 
 
 @pytest.mark.parametrize(
