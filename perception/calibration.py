@@ -100,9 +100,15 @@ class GroundCalibration:
             raise PerceptionError(
                 f"calibration: ground_pitch_deg {pose.pitch_deg:g} must be within -90..90"
             )
-        for key, value in (("ground_roll_deg", pose.roll_deg), ("ground_yaw_deg", pose.yaw_deg)):
-            if not -180.0 <= value <= 180.0:
-                raise PerceptionError(f"calibration: {key} {value:g} must be within -180..180")
+        if not -90.0 <= pose.roll_deg <= 90.0:  # as `calibrate ground --roll-deg` takes it
+            # rolled further, the camera is upside down: its top rows look nearer than its
+            # bottom rows, and the start-up check had blamed the resolution and the tape
+            raise PerceptionError(
+                f"calibration: ground_roll_deg {pose.roll_deg:g} must be within -90..90 (a "
+                "camera rolled further is upside down: turn its frames, or the camera)")
+        if not -180.0 <= pose.yaw_deg <= 180.0:
+            raise PerceptionError(
+                f"calibration: ground_yaw_deg {pose.yaw_deg:g} must be within -180..180")
         for key, value in (("ground_forward_m", pose.forward_m),
                            ("ground_lateral_m", pose.lateral_m)):
             if abs(value) > MAX_MOUNT_DISTANCE_M:
