@@ -162,6 +162,15 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
     if "opencv-matrix" in str(problem):  # a camera calibration given where YAML is expected
         return (f"not valid YAML{where}: it holds OpenCV's !!opencv-matrix, as a camera "
                 "calibration does (give that file as --calibration)")
+    if tag := re.search(r"constructor for the tag '([^']*)'", str(problem)):
+        # cut to 60 characters, PyYAML's words had lost the tag's name: "... tag 'tag:yaml.org…"
+        name = tag.group(1).replace("tag:yaml.org,2002:", "!!")
+        if name == "!!merge":
+            return (f"not valid YAML{where}: '<<' (a YAML merge key) is not read here; "
+                    "expected the keys written out (an alias, *name, may stand for a whole "
+                    "mapping)")
+        return (f"not valid YAML{where}: the tag {shorten(name)} is not read here; expected "
+                "plain numbers, text, true/false, lists and mappings")
     return f"not valid YAML{where}: {shorten(str(problem))}"
 
 
@@ -371,6 +380,12 @@ def describe_validation_error(
         return f"{source}: unknown key '{key}'{hint}"
     shown = shown_value(err.get("input"))
     message = str(err["msg"])
+    if err["type"] == "model_type":  # pydantic names its class: "... instance of TapeConfig"
+        message = "expected a mapping of its keys, indented below it"
+        if err.get("input") is None:  # `perception:` with every line under it commented out
+            shown = "(empty)"
+            message += f", or no '{loc[-1]}:' line at all" if loc and isinstance(loc[-1], str) \
+                else ""
     if message.startswith("Value error, "):
         message = message[len("Value error, "):]
     message = message[:1].lower() + message[1:]

@@ -177,6 +177,27 @@ def test_a_number_in_exponent_form_is_a_number(tmp_path: Path) -> None:
         load_config(path)
 
 
+@pytest.mark.parametrize(("text", "line"), [
+    # every key under the section commented out: pydantic's words named its class
+    ("perception:\n  # tape: {width_m: 0.019}\n", "perception = (empty): expected a mapping of "
+     "its keys, indented below it, or no 'perception:' line at all"),
+    ("perception: {tape: wide}\n", "perception.tape = 'wide': expected a mapping of its keys, "
+     "indented below it"),
+    # PyYAML's words cut to 60 characters had lost the tag: "... for the tag 'tag:yaml.org…"
+    ("t: &t {width_m: 0.019}\nperception: {tape: {<<: *t}}\n", "not valid YAML at line 2, "
+     "column 21: '<<' (a YAML merge key) is not read here; expected the keys written out"),
+    ("!!python/object/apply:os.system ['true']\n", "not valid YAML at line 1, column 1: the tag "
+     "!!python/object/apply:os.system is not read here; expected plain numbers"),
+])
+def test_a_section_or_value_of_the_wrong_shape_says_what_it_wants(tmp_path: Path, text: str,
+                                                                  line: str) -> None:
+    path = tmp_path / "shape.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).startswith(f"{path}: {line}")
+
+
 @pytest.mark.parametrize(
     ("argv", "flag"),
     [
