@@ -72,6 +72,16 @@ class SurveySource:
     skipped: list[int] = field(default_factory=list)
 
 
+def shown_name(name: str) -> str:
+    """`name` with each character a terminal acts on (a newline, ESC, a tab) written as its
+    escape ('\\n', '\\x1b'): a frame is named in one line of text, whatever its file is called
+    (a file name with a newline had split the NOT SAFE line in two)."""
+    if name.isprintable():
+        return name
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in name)
+
+
 def problems_line(what: str, total: int, problems: list[str]) -> str:
     """'2 of 19 frames cannot be used: a: why; b: why' (at most PROBLEMS_SHOWN named)."""
     shown = "; ".join(problems[:PROBLEMS_SHOWN])
@@ -127,8 +137,8 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                  f"no-lane/{hint}")
             continue
         for path in paths:
-            stills.append(StillFrame(LabelledFrame(path.relative_to(folder).as_posix(),
-                                                   by_folder[sub.name], 0), path))
+            name = shown_name(path.relative_to(folder).as_posix())
+            stills.append(StillFrame(LabelledFrame(name, by_folder[sub.name], 0), path))
     order = {"lane": 0, "none": 1}
     stills.sort(key=lambda s: order[s.frame.expect])  # stable: name order within a class
     seen: dict[tuple[int, int], str] = {}
@@ -191,9 +201,10 @@ def _images_under(folder: Path) -> list[Path]:
             # out: the survey would judge fewer frames than the user put there, or none
             more = f" and {counted(len(others) - 1, 'other file')}" if len(others) > 1 else ""
             raise InputFileError(
-                f"{others[0]}{more}: not an image the survey reads (a file under a class folder "
-                f"is a photo of that class); expected {', '.join(sorted(IMAGE_SUFFIXES))}: "
-                "convert them, or move other files out of lane/ and no-lane/")
+                f"{shown_name(str(others[0]))}{more}: not an image the survey reads (a file "
+                "under a class folder is a photo of that class); expected "
+                f"{', '.join(sorted(IMAGE_SUFFIXES))}: convert them, or move other files out of "
+                "lane/ and no-lane/")
         for sub in subs:
             if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
                 raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
@@ -219,7 +230,8 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
         if (same := _same_file(path, f"line {row.line}", seen)) is not None:
             raise InputFileError(f"{where}: the same file as {same}; expected each image "
                                  "labelled once")
-        stills.append(StillFrame(LabelledFrame(row.file, row.expect, order, row.note), path))
+        stills.append(StillFrame(LabelledFrame(shown_name(row.file), row.expect, order, row.note),
+                                 path))
     return stills
 
 

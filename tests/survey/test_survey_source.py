@@ -231,3 +231,15 @@ def test_a_recordings_frame_of_another_size_is_a_problem_without_a_calibration()
     assert checked.image(0) is not None and checked.problem is None
     assert checked.image(1) is None
     assert checked.problem == "frame 1: decoded as 240x320; the first frame is 320x240"
+
+
+def test_a_frame_is_named_in_one_line_whatever_its_file_is_called(tmp_path: Path) -> None:
+    """A photo named 'fake<newline>lane.jpg' split the NOT SAFE line (and the error line naming
+    an unreadable photo) in two; an ESC in a name reached the terminal."""
+    _class_set(tmp_path)
+    (tmp_path / "no-lane" / "fake\nlane.png").write_bytes(b"")
+    (tmp_path / "no-lane" / "red\x1b[31m.png").write_bytes(b"")
+    names = [s.frame.name for s in _class_folders(tmp_path)]
+    assert names[2:] == ["no-lane/c.png", "no-lane/fake\\nlane.png", "no-lane/red\\x1b[31m.png"]
+    table = parse_labels("file,expect\nno-lane/red\x1b[31m.png,none\n", "labels.csv")
+    assert [s.frame.name for s in _labelled_files(tmp_path, table)] == ["no-lane/red\\x1b[31m.png"]
