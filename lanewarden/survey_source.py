@@ -240,16 +240,28 @@ UNLABELLED_SCAN_LIMIT = 100_000
 
 
 def _unlabelled(folder: Path, stills: list[StillFrame]) -> list[str]:
-    """Images under `folder` (hidden folders left out) that no row names, in name order."""
+    """Images under `folder` (hidden folders and linked folders left out) that no row names, in
+    name order. A loop over a stack: Path.rglob recursed once per level, and a folder nested
+    1200 deep was a RecursionError traceback."""
     named = {s.path.resolve() for s in stills}
     found = []
-    for count, path in enumerate(folder.rglob("*")):
-        if count >= UNLABELLED_SCAN_LIMIT:
-            break
-        if (path.suffix.lower() in IMAGE_SUFFIXES
-                and not any(part.startswith(".") for part in path.relative_to(folder).parts)
-                and path.resolve() not in named and path.is_file()):
-            found.append(path.relative_to(folder).as_posix())
+    stack = [folder]
+    looked = 0
+    while stack and looked < UNLABELLED_SCAN_LIMIT:
+        here = stack.pop()
+        try:
+            entries = sorted(here.iterdir())
+        except OSError:  # an unreadable folder: its images cannot be named anyway
+            continue
+        for path in entries[:UNLABELLED_SCAN_LIMIT - looked]:
+            looked += 1
+            if path.name.startswith("."):
+                continue
+            if path.is_dir() and not path.is_symlink():
+                stack.append(path)
+            elif (path.suffix.lower() in IMAGE_SUFFIXES and path.is_file()
+                  and path.resolve() not in named):
+                found.append(shown_name(path.relative_to(folder).as_posix()))
     return sorted(found)
 
 

@@ -172,6 +172,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     """The survey proper, once its inputs passed their checks: into the output folder `out`."""
     from tqdm import tqdm
 
+    from lanewarden.documents import shorten
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
@@ -225,8 +226,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
             click.echo(line)
     notes = survey_notes(figures, calibration is not None)
     if source.unlabelled:
+        some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
-                     f"labels file, not surveyed ({first_few(source.unlabelled)})")
+                     f"labels file, not surveyed ({some})")
     if source.skipped:
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "

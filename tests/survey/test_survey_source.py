@@ -243,3 +243,27 @@ def test_a_frame_is_named_in_one_line_whatever_its_file_is_called(tmp_path: Path
     assert names[2:] == ["no-lane/c.png", "no-lane/fake\\nlane.png", "no-lane/red\\x1b[31m.png"]
     table = parse_labels("file,expect\nno-lane/red\x1b[31m.png,none\n", "labels.csv")
     assert [s.frame.name for s in _labelled_files(tmp_path, table)] == ["no-lane/red\\x1b[31m.png"]
+
+
+def test_a_labels_files_folder_nested_deeper_than_pythons_recursion_limit_is_looked_through(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The images a labels file leaves out were found with Path.rglob, which recursed once per
+    level: a folder 1200 deep beside labels.csv was a RecursionError traceback."""
+    from lanewarden.survey_source import _unlabelled
+
+    (tmp_path / "a.png").write_bytes(b"")
+    (tmp_path / "no-lane").mkdir()
+    (tmp_path / ".git").mkdir()
+    (tmp_path / ".git" / "hidden.png").write_bytes(b"")
+    monkeypatch.chdir(tmp_path / "no-lane")
+    for _ in range(1200):
+        Path("d").mkdir()
+        os.chdir("d")
+    Path("b.png").write_bytes(b"")
+    monkeypatch.chdir(tmp_path)
+    try:
+        table = parse_labels("file,expect\na.png,lane\n", "labels.csv")
+        assert _unlabelled(tmp_path, _labelled_files(tmp_path, table)) == [
+            "no-lane/" + "d/" * 1200 + "b.png"]
+    finally:
+        _remove_deep(tmp_path / "no-lane", 1200)
