@@ -17,6 +17,7 @@ Never prints, never reads a clock (the date is given by the caller), never touch
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 from dataclasses import dataclass
@@ -375,8 +376,22 @@ def _read_optional_string(node: cv2.FileNode) -> str | None:
     return str(node.string())
 
 
+def _unknown_ground_key(root: cv2.FileNode, path: Path) -> None:
+    """PerceptionError for a `ground_...` node that is none of ours: a misspelt pose key
+    (`ground_roll_degs: 5`, `ground_forward: 0.1`) had been passed over, and the pose taken as 0
+    there. Other unknown nodes are fine: OpenCV's and ROS's files carry their own."""
+    known = [key for key, _ in GROUND_POSE_KEYS] + [GROUND_METHOD_KEY, GROUND_ERROR_KEY,
+                                                    GROUND_DATE_KEY]
+    for name in root.keys():
+        if str(name).startswith("ground_") and name not in known:
+            close = difflib.get_close_matches(str(name), known, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else f"expected one of {', '.join(known)}"
+            raise PerceptionError(f"{path}: unknown node '{name}': {hint}")
+
+
 def _read_ground(storage: cv2.FileStorage, path: Path) -> GroundCalibration | None:
     """The ground pose keys, if the file has any (older files have none: None)."""
+    _unknown_ground_key(storage.root(), path)
     values = {key: _read_optional_real(storage.getNode(key), path, key)
               for key, _ in GROUND_POSE_KEYS}
     if all(v is None for v in values.values()):
