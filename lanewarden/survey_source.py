@@ -90,15 +90,17 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
     return f"{len(problems)} of {total} {what}: {shown}{more}"
 
 
-def read_labels(path: Path) -> LabelsTable:
-    """The labels file at `path`, refused unread above MAX_LABELS_BYTES."""
+def read_labels(path: Path, flag: bool = True) -> LabelsTable:
+    """The labels file at `path` (`flag`: named with --labels, else FOLDER's own labels.csv),
+    refused unread above MAX_LABELS_BYTES."""
+    named = f"--labels '{path}'" if flag else str(path)
     if is_special_file(path):
-        raise InputFileError(f"--labels '{path}': {NOT_A_REGULAR_FILE}, expected a labels file")
+        raise InputFileError(f"{named}: {NOT_A_REGULAR_FILE}, expected a labels file")
     try:
         with path.open("rb") as handle:
             data = handle.read(MAX_LABELS_BYTES + 1)
     except FileNotFoundError:
-        raise InputFileError(f"--labels '{path}': no such file") from None
+        raise InputFileError(f"{named}: no such file") from None
     except OSError as exc:
         raise InputFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if len(data) > MAX_LABELS_BYTES:
@@ -357,7 +359,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                                  "name the labels with --labels")
             labels_path = path / LABELS_NAME
     if labels_path is not None:
-        table = read_labels(labels_path)
+        table = read_labels(labels_path, flag=labels is not None)
     if table is None:
         stills = _class_folders(path)
         if not stills:
