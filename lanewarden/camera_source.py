@@ -68,12 +68,12 @@ def image_sequence_paths(source: str) -> list[Path] | None:
     path = Path(source)
     if path.is_dir():  # first: a folder named '50%' is a folder, not a printf pattern
         files = [p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
-    elif _URL.match(source) or "%" in source:
+    elif _URL.match(source):
         return None
-    elif _GLOB_CHARS.search(source) and not path.exists():
+    elif _GLOB_CHARS.search(source) and not path.exists():  # also '50%/*.png'
         files = [Path(p) for p in glob.glob(source)]
         files = [p for p in files if p.is_file()]
-    else:
+    else:  # a video file, a printf pattern ('frame_%03d.png'), a camera
         return None
     return sorted(files, key=_natural_key)
 
