@@ -65,15 +65,15 @@ def _natural_key(path: Path) -> list[object]:
 def image_sequence_paths(source: str) -> list[Path] | None:
     """The images of a folder or a glob pattern, in natural name order; None when `source` is
     neither (a video file, a camera, a URL, a printf pattern)."""
-    if _URL.match(source) or "%" in source:
-        return None
     path = Path(source)
-    if path.is_dir():
+    if path.is_dir():  # first: a folder named '50%' is a folder, not a printf pattern
         files = [p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
-    elif _GLOB_CHARS.search(source) and not path.exists():
+    elif _URL.match(source):
+        return None
+    elif _GLOB_CHARS.search(source) and not path.exists():  # also '50%/*.png'
         files = [Path(p) for p in glob.glob(source)]
         files = [p for p in files if p.is_file()]
-    else:
+    else:  # a video file, a printf pattern ('frame_%03d.png'), a camera
         return None
     return sorted(files, key=_natural_key)
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import difflib
 import enum
+import re
 import reprlib
 import stat
 import types
@@ -82,6 +83,12 @@ class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]
         return super().construct_mapping(node, deep)
 
 
+# YAML 1.1 (PyYAML's) reads a number in exponent form only with a dot and a signed exponent
+# (1.0e+3): `1e308`, `2e-2` and `1.0e9` were text, and a numeric key then said "write the number
+# without quotes" of a number written without any. Read them as numbers, as YAML 1.2 does.
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
 _LOADER: type[Any] = _Loader
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxtuple, _SHORT.maxdict = 2, 4, 4, 4
@@ -155,6 +162,15 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
     if "opencv-matrix" in str(problem):  # a camera calibration given where YAML is expected
         return (f"not valid YAML{where}: it holds OpenCV's !!opencv-matrix, as a camera "
                 "calibration does (give that file as --calibration)")
+    if tag := re.search(r"constructor for the tag '([^']*)'", str(problem)):
+        # cut to 60 characters, PyYAML's words had lost the tag's name: "... tag 'tag:yaml.org…"
+        name = tag.group(1).replace("tag:yaml.org,2002:", "!!")
+        if name == "!!merge":
+            return (f"not valid YAML{where}: '<<' (a YAML merge key) is not read here; "
+                    "expected the keys written out (an alias, *name, may stand for a whole "
+                    "mapping)")
+        return (f"not valid YAML{where}: the tag {shorten(name)} is not read here; expected "
+                "plain numbers, text, true/false, lists and mappings")
     return f"not valid YAML{where}: {shorten(str(problem))}"
 
 
@@ -364,6 +380,12 @@ def describe_validation_error(
         return f"{source}: unknown key '{key}'{hint}"
     shown = shown_value(err.get("input"))
     message = str(err["msg"])
+    if err["type"] == "model_type":  # pydantic names its class: "... instance of TapeConfig"
+        message = "expected a mapping of its keys, indented below it"
+        if err.get("input") is None:  # `perception:` with every line under it commented out
+            shown = "(empty)"
+            message += f", or no '{loc[-1]}:' line at all" if loc and isinstance(loc[-1], str) \
+                else ""
     if message.startswith("Value error, "):
         message = message[len("Value error, "):]
     message = message[:1].lower() + message[1:]

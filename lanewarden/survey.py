@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import statistics
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
@@ -50,6 +51,9 @@ LABEL_HEADERS = {
     ("frames", "expect", "note"): "frames",
 }
 HEADER_HELP = "file,expect[,note] (images) or frames,expect[,note] (a video, run or tub)"
+#: Where a labels file's lines end: as an editor counts them (str.splitlines also ends a line at a
+#: form feed, U+2028 or U+0085 inside a note, and then names the wrong line).
+LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 
 # ---- labels -----------------------------------------------------------------------------------
@@ -106,10 +110,12 @@ def parse_labels(text: str, source: str) -> LabelsTable:
     rows: list[LabelRow] = []
     files: dict[str, int] = {}
     spans: list[tuple[int, int, int]] = []
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(LINE_BREAK.split(text), start=1):
         if not raw.strip() or raw.lstrip().startswith("#"):
             continue
         where = f"{source}:{number}"
+        if "\0" in raw:  # csv passes a NUL on; a path with one was a ValueError traceback
+            raise InputFileError(f"{where}: a NUL character; expected a line of text")
         try:
             fields = next(csv.reader([raw]))
         except csv.Error as exc:  # a field beyond csv's limit (131072 characters), a stray NUL
@@ -140,17 +146,28 @@ def parse_labels(text: str, source: str) -> LabelsTable:
             rows.append(LabelRow(number, expect, note, file=name))
         else:
             first, last = _frame_range(fields[0], where)
-            for a, b, line in spans:
-                if first <= b and a <= last:
-                    raise InputFileError(f"{where}: frames {first}-{last} overlap frames {a}-{b} "
-                                         f"of line {line}")
             spans.append((first, last, number))
             rows.append(LabelRow(number, expect, note, frames=(first, last)))
     if header is None:
         raise InputFileError(f"{source}: no header; expected {HEADER_HELP}")
     if not rows:
         raise InputFileError(f"{source}: no labelled frames after the header")
+    _refuse_overlaps(spans, source)
     return LabelsTable(source, header, tuple(rows))
+
+
+def _refuse_overlaps(spans: list[tuple[int, int, int]], source: str) -> None:
+    """An error naming two (first, last, line) frame ranges that share a frame, at the later
+    line. Sorted once, then swept: comparing each row with every earlier one took minutes for
+    the 100000 rows a labels file may hold."""
+    reach: tuple[int, int, int] | None = None  # of the ranges so far, the one ending last
+    for span in sorted(spans):
+        if reach is not None and span[0] <= reach[1]:
+            early, late = sorted((reach, span), key=lambda s: s[2])
+            raise InputFileError(f"{source}:{late[2]}: frames {late[0]}-{late[1]} overlap "
+                                 f"frames {early[0]}-{early[1]} of line {early[2]}")
+        if reach is None or span[1] > reach[1]:
+            reach = span
 
 
 # ---- per-frame results ------------------------------------------------------------------------

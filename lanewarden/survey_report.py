@@ -11,6 +11,7 @@ building is pure; `write_outputs` is the one place that writes.
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
 import json
 from collections.abc import Mapping, Sequence
@@ -193,11 +194,20 @@ def write_outputs(out: Path, figures: SurveyFigures, about: Mapping[str, Any],
                   weak_pictures: Sequence[Picture]) -> dict[str, Any]:
     """Write OUT/survey.json and OUT/report.html; returns the JSON document."""
     document = survey_json(figures, about)
-    page = report_html(figures, about, false_lane_pictures, weak_pictures)
+    texts = {"survey.json": json.dumps(document, indent=1) + "\n",
+             "report.html": report_html(figures, about, false_lane_pictures, weak_pictures)}
+    # each written whole under a passing name, then renamed: a disk that fills up leaves no
+    # report cut off after its verdict (nor a survey.json beside no report)
+    passing = {name: out / f".{name}.part" for name in texts}
     try:
-        (out / "survey.json").write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
-        (out / "report.html").write_text(page, encoding="utf-8")
+        for name, text in texts.items():
+            passing[name].write_text(text, encoding="utf-8")
+        for name in texts:
+            passing[name].replace(out / name)
     except OSError as exc:
+        for path in passing.values():
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
         raise OutputError(f"{out}: cannot write the survey's outputs ({exc.strerror or exc})"
                           ) from exc
     return document

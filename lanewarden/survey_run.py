@@ -29,6 +29,7 @@ import zlib
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import partial
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -36,7 +37,7 @@ import numpy as np
 from lanewarden.assembly import DecisionRule, decision_rule
 from lanewarden.config import LanewardenConfig
 from lanewarden.errors import ConfigError, InputFileError
-from lanewarden.image_files import read_image, too_many_pixels
+from lanewarden.image_files import header_facts, read_image, too_many_pixels
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.detector import DetectionDebug, LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
@@ -174,19 +175,43 @@ class HeldImage(FrameStore):
         return self._captures[index % 2]
 
 
+def other_size(image: np.ndarray, size: tuple[int, int] | None, first: str,
+               note: str = "") -> str:
+    """'' when `image` is of the survey's `size` (None: any), else how it (`note`: more about it)
+    differs from `first`, what set the size ("the first frame (a.jpg)", "the calibration's
+    size")."""
+    height, width = image.shape[:2]
+    if size is None or (width, height) == size:
+        return ""
+    return f"decoded as {width}x{height}{note}; {first} is {size[0]}x{size[1]}"
+
+
+#: Said of a still whose decoded size is not its header's: OpenCV turns a JPEG as its EXIF
+#: orientation says (a phone's photo held upright), after its header passed the one-size check.
+TURNED = "turned upright by its EXIF orientation"
+
+
+def is_turned(path: Path, image: np.ndarray) -> bool:
+    """Is `image`, decoded from `path`, of another size than the file's header gives?"""
+    header, _ = header_facts(path, image.size + 1)
+    return header not in (None, (image.shape[1], image.shape[0]))
+
+
 class CheckedFrames(FrameStore):
     """A recording's frames, each checked as it is decoded: more pixels than the limit, or a size
-    other than the calibration's, is a `problem` (the frame is not used); a frame that cannot be
-    read is remembered in `missing`. Problems are not raised here: the control loop would turn
-    them into a camera fault."""
+    other than the calibration's (without one: the survey's first frame's, `size`), is a
+    `problem` (the frame is not used); a frame that cannot be read is remembered in `missing`.
+    Problems are not raised here: the control loop would turn them into a camera fault."""
 
     def __init__(self, store: FrameStore, max_pixels: int,
-                 calibration: CameraCalibration | None) -> None:
+                 calibration: CameraCalibration | None,
+                 size: tuple[int, int] | None = None) -> None:
         super().__init__()
         self._store = store
         self.undecoded = store.undecoded  # the recording's own: what the loop asks of it
         self._max_pixels = max_pixels
-        self._size = None if calibration is None else calibration.image_size
+        self._size = size if calibration is None else calibration.image_size
+        self._size_of = "the first frame" if calibration is None else "the calibration's size"
         self.problem: str | None = None
         self.missing: set[int] = set()
 
@@ -199,9 +224,8 @@ class CheckedFrames(FrameStore):
         if why := too_many_pixels(width, height, self._max_pixels):
             self.problem = f"frame {index}: {why}"
             return None
-        if self._size is not None and (width, height) != self._size:
-            self.problem = (f"frame {index} is {width}x{height}, the calibration is for "
-                            f"{self._size[0]}x{self._size[1]} images")
+        if why := other_size(image, self._size, self._size_of):
+            self.problem = f"frame {index}: {why}"
             return None
         return image
 
@@ -275,11 +299,13 @@ def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
                   calibration: CameraCalibration | None, detector: LaneDetector,
-                  progress: Progress, jitter: int = 0) -> SurveyRun:
+                  progress: Progress, jitter: int = 0,
+                  size: tuple[int, int] | None = None) -> SurveyRun:
     """Every still on its own, and every lane still held in view (see the module docstring);
     with `jitter`, every no-lane still also in that many versions shifted by a fraction of a
     pixel (`shifted_image`), any of which with a decision makes it a false lane. An image that
-    cannot be used is an InputFileError naming each, after all were tried."""
+    cannot be used, or one decoded at another size than `size` (the first still's), is an
+    InputFileError naming each, after all were tried."""
     decide = decision_rule(config)
     hold_s = hold_seconds(config.supervisor)
     keeper = PictureKeeper(s.frame.order for s in stills if s.frame.expect == LANE)
@@ -287,10 +313,15 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
     problems: list[str] = []
     times: list[float] = []
     attempts = 0
+    first = ""
     for still in stills:
         progress(1)
         image, why = read_image(still.path, max_pixels=config.perception.max_image_pixels)
-        if image is None:
+        if image is not None:
+            turn = is_turned(still.path, image)
+            first = first or f"the first frame ({still.frame.name}{', ' + TURNED if turn else ''})"
+            why = other_size(image, size, first, f" ({TURNED})" if turn else "")
+        if image is None or why:
             problems.append(f"{still.frame.name}: {why}")
             continue
         try:
@@ -328,8 +359,11 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
 
 
 def survey_sequence(source: SurveySource, config: LanewardenConfig,
-                    calibration: CameraCalibration | None, progress: Progress) -> SurveyRun:
-    """The recording's labelled span through the loop (see the module docstring)."""
+                    calibration: CameraCalibration | None, progress: Progress,
+                    size: tuple[int, int] | None = None) -> SurveyRun:
+    """The recording's labelled span through the loop (see the module docstring); a frame of
+    another size than the calibration's (without one: `size`, the first frame's) is an
+    InputFileError."""
     recording = source.sequence
     assert recording is not None
     labelled = source.labelled
@@ -338,7 +372,8 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
     for recorded in recording.steps:
         if recorded.frame is not None and first <= recorded.frame[0] <= last:
             frames.setdefault(recorded.frame[0], recorded.frame[1])
-    checked = CheckedFrames(recording.frames, config.perception.max_image_pixels, calibration)
+    checked = CheckedFrames(recording.frames, config.perception.max_image_pixels, calibration,
+                            size)
     span = ReplaySource(kind=recording.kind, name=recording.name,
                         steps=camera_steps(frames.items(), later=("resume",)), frames=checked)
     decide = decision_rule(config)

@@ -24,6 +24,7 @@ prints.
 from __future__ import annotations
 
 import difflib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -71,6 +72,16 @@ class SurveySource:
     skipped: list[int] = field(default_factory=list)
 
 
+def shown_name(name: str) -> str:
+    """`name` with each character a terminal acts on (a newline, ESC, a tab) written as its
+    escape ('\\n', '\\x1b'): a frame is named in one line of text, whatever its file is called
+    (a file name with a newline had split the NOT SAFE line in two)."""
+    if name.isprintable():
+        return name
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in name)
+
+
 def problems_line(what: str, total: int, problems: list[str]) -> str:
     """'2 of 19 frames cannot be used: a: why; b: why' (at most PROBLEMS_SHOWN named)."""
     shown = "; ".join(problems[:PROBLEMS_SHOWN])
@@ -79,15 +90,17 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
     return f"{len(problems)} of {total} {what}: {shown}{more}"
 
 
-def read_labels(path: Path) -> LabelsTable:
-    """The labels file at `path`, refused unread above MAX_LABELS_BYTES."""
+def read_labels(path: Path, flag: bool = True) -> LabelsTable:
+    """The labels file at `path` (`flag`: named with --labels, else FOLDER's own labels.csv),
+    refused unread above MAX_LABELS_BYTES."""
+    named = f"--labels '{path}'" if flag else str(path)
     if is_special_file(path):
-        raise InputFileError(f"--labels '{path}': {NOT_A_REGULAR_FILE}, expected a labels file")
+        raise InputFileError(f"{named}: {NOT_A_REGULAR_FILE}, expected a labels file")
     try:
         with path.open("rb") as handle:
             data = handle.read(MAX_LABELS_BYTES + 1)
     except FileNotFoundError:
-        raise InputFileError(f"--labels '{path}': no such file") from None
+        raise InputFileError(f"{named}: no such file") from None
     except OSError as exc:
         raise InputFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if len(data) > MAX_LABELS_BYTES:
@@ -126,12 +139,34 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                  f"no-lane/{hint}")
             continue
         for path in paths:
-            stills.append(StillFrame(LabelledFrame(path.relative_to(folder).as_posix(),
-                                                   by_folder[sub.name], 0), path))
+            name = shown_name(path.relative_to(folder).as_posix())
+            stills.append(StillFrame(LabelledFrame(name, by_folder[sub.name], 0), path))
     order = {"lane": 0, "none": 1}
     stills.sort(key=lambda s: order[s.frame.expect])  # stable: name order within a class
+    seen: dict[tuple[int, int], str] = {}
+    for still in stills:
+        if (same := _same_file(still.path, still.frame.name, seen)) is not None:
+            raise InputFileError(f"{folder}: {still.frame.name} is the same file as {same} (a "
+                                 "link, or a hard link); expected each photo once, in lane/ or "
+                                 "no-lane/")
     return [StillFrame(LabelledFrame(s.frame.name, s.frame.expect, i), s.path)
             for i, s in enumerate(stills)]
+
+
+def _same_file(path: Path, name: str, seen: dict[tuple[int, int], str]) -> str | None:
+    """The name under which the file at `path` was seen before (`seen`: by device and inode, so
+    a link or a hard link to it, or a path through a linked folder, is the same file), else
+    None, remembering it as `name`. A file that cannot be looked at is left to the checks that
+    say why."""
+    try:
+        info = path.stat()
+    except (OSError, ValueError):
+        return None
+    key = (info.st_dev, info.st_ino)
+    if key in seen:
+        return seen[key]
+    seen[key] = name
+    return None
 
 
 #: Files an operating system leaves in a folder of photos (Windows' thumbnail caches and folder
@@ -168,9 +203,10 @@ def _images_under(folder: Path) -> list[Path]:
             # out: the survey would judge fewer frames than the user put there, or none
             more = f" and {counted(len(others) - 1, 'other file')}" if len(others) > 1 else ""
             raise InputFileError(
-                f"{others[0]}{more}: not an image the survey reads (a file under a class folder "
-                f"is a photo of that class); expected {', '.join(sorted(IMAGE_SUFFIXES))}: "
-                "convert them, or move other files out of lane/ and no-lane/")
+                f"{shown_name(str(others[0]))}{more}: not an image the survey reads (a file "
+                "under a class folder is a photo of that class); expected "
+                f"{', '.join(sorted(IMAGE_SUFFIXES))}: convert them, or move other files out of "
+                "lane/ and no-lane/")
         for sub in subs:
             if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
                 raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
@@ -182,16 +218,22 @@ def _images_under(folder: Path) -> list[Path]:
 
 def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     stills = []
+    seen: dict[tuple[int, int], str] = {}
     for order, row in enumerate(table.rows):
         assert row.file is not None
         path = folder / row.file
+        where = f"{table.source}:{row.line}: {row.file[:60]}"
         if Path(row.file).is_absolute() or not path.resolve().is_relative_to(folder.resolve()):
-            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: outside {folder}; "
-                                 "expected a path relative to it, inside it")
+            raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
+                                 "inside it")
         if why := file_problem(path):
-            raise InputFileError(f"{table.source}:{row.line}: {row.file[:60]}: {why} "
-                                 f"(paths are relative to {folder})")
-        stills.append(StillFrame(LabelledFrame(row.file, row.expect, order, row.note), path))
+            raise InputFileError(f"{where}: {why} (paths are relative to {folder})")
+        # 'a.jpg' and './a.jpg' (or a link to it) are one image: labelled twice
+        if (same := _same_file(path, f"line {row.line}", seen)) is not None:
+            raise InputFileError(f"{where}: the same file as {same}; expected each image "
+                                 "labelled once")
+        stills.append(StillFrame(LabelledFrame(shown_name(row.file), row.expect, order, row.note),
+                                 path))
     return stills
 
 
@@ -200,16 +242,28 @@ UNLABELLED_SCAN_LIMIT = 100_000
 
 
 def _unlabelled(folder: Path, stills: list[StillFrame]) -> list[str]:
-    """Images under `folder` (hidden folders left out) that no row names, in name order."""
+    """Images under `folder` (hidden folders and linked folders left out) that no row names, in
+    name order. A loop over a stack: Path.rglob recursed once per level, and a folder nested
+    1200 deep was a RecursionError traceback."""
     named = {s.path.resolve() for s in stills}
     found = []
-    for count, path in enumerate(folder.rglob("*")):
-        if count >= UNLABELLED_SCAN_LIMIT:
-            break
-        if (path.suffix.lower() in IMAGE_SUFFIXES
-                and not any(part.startswith(".") for part in path.relative_to(folder).parts)
-                and path.resolve() not in named and path.is_file()):
-            found.append(path.relative_to(folder).as_posix())
+    stack = [folder]
+    looked = 0
+    while stack and looked < UNLABELLED_SCAN_LIMIT:
+        here = stack.pop()
+        try:
+            entries = sorted(here.iterdir())
+        except OSError:  # an unreadable folder: its images cannot be named anyway
+            continue
+        for path in entries[:UNLABELLED_SCAN_LIMIT - looked]:
+            looked += 1
+            if path.name.startswith("."):
+                continue
+            if path.is_dir() and not path.is_symlink():
+                stack.append(path)
+            elif (path.suffix.lower() in IMAGE_SUFFIXES and path.is_file()
+                  and path.resolve() not in named):
+                found.append(shown_name(path.relative_to(folder).as_posix()))
     return sorted(found)
 
 
@@ -267,6 +321,9 @@ def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
     problems: list[str] = []
     sizes: dict[tuple[int, int], list[str]] = {}
     for name, path in paths:
+        if why := file_problem(path):  # a FIFO: opening it to read the header waits forever
+            problems.append(f"{name}: {why}")
+            continue
         size, why = header_facts(path, max_pixels)  # one read of each header
         if size is not None:
             sizes.setdefault(size, []).append(name)
@@ -295,14 +352,14 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         if not path.is_dir():
             raise UsageError(f"FOLDER '{folder}': a file; a video or a run needs --labels FILE "
                              f"(frames,expect[,note]); expected {FOLDER_HELP}")
-        if (path / LABELS_NAME).is_file():
+        if os.path.lexists(path / LABELS_NAME):  # a broken link too: read_labels says why
             if classes := _class_folder_names(path):
                 raise UsageError(f"FOLDER '{folder}': has both {LABELS_NAME} and "
                                  f"{'/ and '.join(classes)}/: keep one way of labelling, or "
                                  "name the labels with --labels")
             labels_path = path / LABELS_NAME
     if labels_path is not None:
-        table = read_labels(labels_path)
+        table = read_labels(labels_path, flag=labels is not None)
     if table is None:
         stills = _class_folders(path)
         if not stills:

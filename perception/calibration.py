@@ -17,6 +17,7 @@ Never prints, never reads a clock (the date is given by the caller), never touch
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 from dataclasses import dataclass
@@ -100,9 +101,15 @@ class GroundCalibration:
             raise PerceptionError(
                 f"calibration: ground_pitch_deg {pose.pitch_deg:g} must be within -90..90"
             )
-        for key, value in (("ground_roll_deg", pose.roll_deg), ("ground_yaw_deg", pose.yaw_deg)):
-            if not -180.0 <= value <= 180.0:
-                raise PerceptionError(f"calibration: {key} {value:g} must be within -180..180")
+        if not -90.0 <= pose.roll_deg <= 90.0:  # as `calibrate ground --roll-deg` takes it
+            # rolled further, the camera is upside down: its top rows look nearer than its
+            # bottom rows, and the start-up check had blamed the resolution and the tape
+            raise PerceptionError(
+                f"calibration: ground_roll_deg {pose.roll_deg:g} must be within -90..90 (a "
+                "camera rolled further is upside down: turn its frames, or the camera)")
+        if not -180.0 <= pose.yaw_deg <= 180.0:
+            raise PerceptionError(
+                f"calibration: ground_yaw_deg {pose.yaw_deg:g} must be within -180..180")
         for key, value in (("ground_forward_m", pose.forward_m),
                            ("ground_lateral_m", pose.lateral_m)):
             if abs(value) > MAX_MOUNT_DISTANCE_M:
@@ -333,6 +340,20 @@ def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:
     return np.array(values, dtype=np.float64).reshape(rows, cols)
 
 
+def _repeated_node(root: cv2.FileNode) -> str:
+    """The first name that appears twice in `root` or in a mapping under it (a matrix's rows,
+    cols, data), dotted ('camera_matrix.rows'); '' when none does."""
+    names = list(root.keys())
+    for name in names:
+        if names.count(name) > 1:
+            return str(name)
+    for name in names:
+        node = root.getNode(name)
+        if node.isMap() and (inner := _repeated_node(node)):
+            return f"{name}.{inner}"
+    return ""
+
+
 def _read_int(node: cv2.FileNode, path: Path, name: str) -> int:
     if node.isNone():
         raise PerceptionError(f"{path}: missing node '{name}'; {EXPECTED_CALIBRATION}")
@@ -355,8 +376,22 @@ def _read_optional_string(node: cv2.FileNode) -> str | None:
     return str(node.string())
 
 
+def _unknown_ground_key(root: cv2.FileNode, path: Path) -> None:
+    """PerceptionError for a `ground_...` node that is none of ours: a misspelt pose key
+    (`ground_roll_degs: 5`, `ground_forward: 0.1`) had been passed over, and the pose taken as 0
+    there. Other unknown nodes are fine: OpenCV's and ROS's files carry their own."""
+    known = [key for key, _ in GROUND_POSE_KEYS] + [GROUND_METHOD_KEY, GROUND_ERROR_KEY,
+                                                    GROUND_DATE_KEY]
+    for name in root.keys():
+        if str(name).startswith("ground_") and name not in known:
+            close = difflib.get_close_matches(str(name), known, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else f"expected one of {', '.join(known)}"
+            raise PerceptionError(f"{path}: unknown node '{name}': {hint}")
+
+
 def _read_ground(storage: cv2.FileStorage, path: Path) -> GroundCalibration | None:
     """The ground pose keys, if the file has any (older files have none: None)."""
+    _unknown_ground_key(storage.root(), path)
     values = {key: _read_optional_real(storage.getNode(key), path, key)
               for key, _ in GROUND_POSE_KEYS}
     if all(v is None for v in values.values()):
@@ -429,6 +464,11 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         root = storage.root()
         if not root.isMap():
             raise PerceptionError(f"{path}: expected a mapping of calibration nodes")
+        if repeated := _repeated_node(root):
+            # OpenCV reads the first silently: a ground_pitch_deg corrected at the end of the
+            # file was ignored while the reader saw the correction
+            raise PerceptionError(f"{path}: node '{repeated}' appears twice (OpenCV would read "
+                                  "the first and ignore the other); expected each node once")
         sections = [k for k in CONFIG_SECTIONS if not storage.getNode(k).isNone()]
         if sections and storage.getNode("camera_matrix").isNone():
             raise PerceptionError(f"{path}: a lanewarden config (it has '{sections[0]}:'), not "
@@ -547,6 +587,9 @@ class Undistorter:
 #: Larger distortion coefficients describe no lens (OpenCV's rational model's fit the strongest
 #: fisheyes with values in the tens); they only turn undistortion into noise.
 MAX_DISTORTION_COEFFICIENT = 1.0e4
+#: A focal length is at most this many times the image's side, and at least its 1/this: a view
+#: from 0.6 to 178 degrees wide (a pinhole cannot see 180).
+MAX_FOCAL_RATIO = 100.0
 
 
 def check_calibration(
@@ -568,13 +611,23 @@ def check_calibration(
         problems.append(f"dist_coeffs has a value of {float(np.max(np.abs(d))):g}, beyond any "
                         f"lens (at most {MAX_DISTORTION_COEFFICIENT:g} in size)")
     if np.all(np.isfinite(k)):
+        width, height = calibration.image_size
         if k[0, 0] <= 0 or k[1, 1] <= 0:
             problems.append(
                 f"focal length fx={k[0, 0]:g}, fy={k[1, 1]:g} px must be positive"
             )
+        elif not all(side / MAX_FOCAL_RATIO <= f <= side * MAX_FOCAL_RATIO
+                     for f, side in ((k[0, 0], width), (k[1, 1], height))):
+            # 1e-300 or 1e300 px had passed, then overflowed in the ground model (numpy's
+            # RuntimeWarnings on stderr beside the one error line)
+            problems.append(
+                f"focal length fx={k[0, 0]:g}, fy={k[1, 1]:g} px is no camera's for "
+                f"{width}x{height} images (expected {1 / MAX_FOCAL_RATIO:g} to "
+                f"{MAX_FOCAL_RATIO:g} times the image's width and height: a view 0.6 to 178 "
+                "degrees wide)"
+            )
         if abs(k[2, 2] - 1.0) > 1e-9 or k[2, 0] != 0 or k[2, 1] != 0:
             problems.append("camera_matrix last row must be [0, 0, 1]")
-        width, height = calibration.image_size
         if not (0 <= k[0, 2] <= width and 0 <= k[1, 2] <= height):
             problems.append(
                 f"principal point ({k[0, 2]:g}, {k[1, 2]:g}) px lies outside the "

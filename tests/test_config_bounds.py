@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from lanewarden.cli import main
-from lanewarden.config import LanewardenConfig, config_from_mapping, walk_config
+from lanewarden.config import LanewardenConfig, config_from_mapping, load_config, walk_config
 from lanewarden.errors import ConfigError
 
 NUMERIC_KEYS = [
@@ -158,6 +158,44 @@ def test_yaml_inf_in_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFix
         f"lanewarden: error: {path}: supervisor.degraded_budget_s = nan: expected a finite "
         "number with 0 < value <= 10",
     ]
+
+
+def test_a_number_in_exponent_form_is_a_number(tmp_path: Path) -> None:
+    """YAML 1.1 reads `2e-2` (no dot) and `1.0e9` (no sign) as text: the survey's config said
+    "... = '2e-2': ... not text (write the number without quotes)" of a number without quotes."""
+    path = tmp_path / "exp.yaml"
+    path.write_text("perception: {tape: {width_m: 2e-2}, lane: {width_m: 3E-1}}\n")
+    config = load_config(path)
+    assert (config.perception.tape.width_m, config.perception.lane.width_m) == (0.02, 0.3)
+    path.write_text("supervisor: {camera_period_s: 1.0e9}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (f"{path}: supervisor.camera_period_s = 1000000000.0: expected a "
+                              "finite number with 0 < value <= 1")
+    path.write_text("perception: {lane: {width_m: '3e-1'}}\n")  # quoted: text, as it says
+    with pytest.raises(ConfigError, match="not text"):
+        load_config(path)
+
+
+@pytest.mark.parametrize(("text", "line"), [
+    # every key under the section commented out: pydantic's words named its class
+    ("perception:\n  # tape: {width_m: 0.019}\n", "perception = (empty): expected a mapping of "
+     "its keys, indented below it, or no 'perception:' line at all"),
+    ("perception: {tape: wide}\n", "perception.tape = 'wide': expected a mapping of its keys, "
+     "indented below it"),
+    # PyYAML's words cut to 60 characters had lost the tag: "... for the tag 'tag:yaml.org…"
+    ("t: &t {width_m: 0.019}\nperception: {tape: {<<: *t}}\n", "not valid YAML at line 2, "
+     "column 21: '<<' (a YAML merge key) is not read here; expected the keys written out"),
+    ("!!python/object/apply:os.system ['true']\n", "not valid YAML at line 1, column 1: the tag "
+     "!!python/object/apply:os.system is not read here; expected plain numbers"),
+])
+def test_a_section_or_value_of_the_wrong_shape_says_what_it_wants(tmp_path: Path, text: str,
+                                                                  line: str) -> None:
+    path = tmp_path / "shape.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).startswith(f"{path}: {line}")
 
 
 @pytest.mark.parametrize(

@@ -119,6 +119,10 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
     os.mkfifo(folder / "fifo.png")
     os.mkfifo(folder / "fifo-calibration.yaml")
     os.mkfifo(folder / "fifo-labels.csv")
+    (folder / "fifo-survey" / "lane").mkdir(parents=True)
+    (folder / "fifo-survey" / "no-lane").mkdir()
+    (folder / "fifo-survey" / "lane" / "a.png").write_bytes(big_png(640, 480))
+    os.mkfifo(folder / "fifo-survey" / "no-lane" / "b.png")
     cases = {
         "config bomb": ["config", "show", "--config", write("bomb.yaml", yaml_bomb())],
         "scenario bomb": ["sim", "--scenario", write(
@@ -154,6 +158,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
                                        str(folder / "fifo-calibration.yaml")],
         "labels that are a FIFO": ["survey", str(folder / "dup"), "--labels",
                                    str(folder / "fifo-labels.csv")],
+        "photo that is a FIFO": ["survey", str(folder / "fifo-survey"), "--out",
+                                 str(folder / "fifo-survey-out")],
         "3 GB behind a 1x1 PNG header": ["detect", str(folder / "sparse.png")],
         "20000x20000 PNG calibrate": ["calibrate", "--images", str(folder / "views"),
                                       "--pattern", "9x6", "--square", "0.025", "--out",
@@ -229,6 +235,8 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
                                   "device), expected a calibration YAML file",
     "labels that are a FIFO": "fifo-labels.csv': not a regular file (a FIFO, socket or device), "
                               "expected a labels file",
+    # its header was read before it was looked at: the survey waited for a writer forever
+    "photo that is a FIFO": "no-lane/b.png: not a regular file (a FIFO, socket or device)",
     "3 GB behind a 1x1 PNG header": "sparse.png: file is larger than 81048576 bytes, more than "
                                     "any image within perception.max_image_pixels (10000000)",
     # the view is refused from its header, not decoded (2.7 GB)

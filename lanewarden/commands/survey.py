@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import json
 import sys
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -126,6 +127,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
                          f"images, the frames are {size[0]}x{size[1]} ({example}); expected the "
                          "calibration of the camera that took them, at their size")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
+    _refuse_out_among_inputs(out, folder, source, flag=out_dir is not None)
     made = not out.exists()
     create_output_folder(out)
     try:
@@ -138,6 +140,31 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
         raise
 
 
+def _refuse_out_among_inputs(out: Path, folder: str, source: SurveySource, flag: bool) -> None:
+    """UsageError when OUT lies where the survey's outputs would be taken for its input the next
+    time: in a class folder (report.html under no-lane/ is then 'not an image the survey
+    reads'), or in a recording's folder of frames, tub or run (a folder of frames holding a
+    report.html is then refused as a sim output folder), as replay refuses it. `flag`: OUT was
+    given with --out (else it is the default, named so)."""
+    from lanewarden.survey import CLASS_FOLDERS
+
+    given = Path(folder)
+    if source.sequence is None:
+        inputs = [given / name for name in CLASS_FOLDERS.values()]
+    elif given.is_dir():
+        inputs = [given]
+    else:  # a video's folder is no input; a glob's is
+        inputs = [given.parent] if any(c in folder for c in "*?[") else []
+    where = out.resolve()
+    for inside in inputs:
+        if where == inside.resolve() or inside.resolve() in where.parents:
+            named = (f"--out '{out}'" if flag else f"the default output folder '{out}' "
+                     "(give --out, or run the survey from another folder)")
+            raise UsageError(f"{named}: inside {inside}, where the survey's report.html and "
+                             "survey.json would be read as input the next time; expected a "
+                             "folder outside it")
+
+
 def _survey_into(out: Path, folder: str, source: SurveySource, config: LanewardenConfig,
                  config_origin: str, calibration: CameraCalibration | None,
                  calibration_path: str | None, size: tuple[int, int] | None,
@@ -145,6 +172,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     """The survey proper, once its inputs passed their checks: into the output folder `out`."""
     from tqdm import tqdm
 
+    from lanewarden.documents import shorten
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
@@ -159,6 +187,11 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     except OSError as exc:
         raise OutputError(f"--out '{out}': cannot replace old outputs ({exc.strerror or exc})"
                           ) from exc
+    try:  # a folder the outputs cannot be written into is found now, not after all the work
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise OutputError(f"--out '{out}': cannot write there ({exc.strerror or exc})") from exc
     try:
         detector = LaneDetector(config.perception,
                                 Undistorter(calibration) if calibration is not None else None)
@@ -176,9 +209,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     try:
         if source.sequence is None:
             run = survey_stills(source.stills, config, calibration, detector, bar.update,
-                                jitter)
+                                jitter, size)
         else:
-            run = survey_sequence(source, config, calibration, bar.update)
+            run = survey_sequence(source, config, calibration, bar.update, size)
     finally:
         bar.close()
     figures = judge(run.results, run.engage)
@@ -193,8 +226,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
             click.echo(line)
     notes = survey_notes(figures, calibration is not None)
     if source.unlabelled:
+        some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
-                     f"labels file, not surveyed ({first_few(source.unlabelled)})")
+                     f"labels file, not surveyed ({some})")
     if source.skipped:
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "

@@ -101,6 +101,32 @@ def test_load_names_the_bad_node(tmp_path: Path, text: str, expected: str) -> No
     assert str(path) in str(info.value) and "\n" not in str(info.value)
 
 
+GOOD_FILE = ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n"
+             "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n"
+             "image_width: 640\nimage_height: 480\nground_height_m: 0.3\n"
+             "ground_pitch_deg: 30\n")
+
+
+@pytest.mark.parametrize(("added", "node"), [
+    ("ground_pitch_deg: 40\n", "ground_pitch_deg"),  # a correction appended at the end
+    ("image_width: 320\n", "image_width"),
+])
+def test_a_node_given_twice_is_refused(tmp_path: Path, added: str, node: str) -> None:
+    """OpenCV reads the first of two equal keys without a word: a pitch corrected by a line at
+    the end of the file was ignored, and the survey ran with the old pitch."""
+    path = tmp_path / "twice.yaml"
+    path.write_text(GOOD_FILE + added)
+    with pytest.raises(PerceptionError) as info:
+        load_calibration(path)
+    assert str(info.value) == (f"{path}: node '{node}' appears twice (OpenCV would read the "
+                               "first and ignore the other); expected each node once")
+    path.write_text(GOOD_FILE.replace("  rows: 3\n", "  rows: 3\n  rows: 1\n", 1))
+    with pytest.raises(PerceptionError, match="node 'camera_matrix.rows' appears twice"):
+        load_calibration(path)
+    path.write_text(GOOD_FILE)
+    assert load_calibration(path).ground is not None
+
+
 def test_load_missing_and_garbage_files(tmp_path: Path) -> None:
     with pytest.raises(PerceptionError, match="calibration file not found"):
         load_calibration(tmp_path / "nope.yaml")
@@ -149,6 +175,14 @@ def test_check_calibration_flags_each_problem() -> None:
         check_calibration(_calibration(dist_coeffs=[1e300, 0, 0, 0, 0]), (640, 480), gates)
     assert "rms -1 px is negative (a reprojection error is 0 or more)" in \
         check_calibration(_calibration(rms=-1.0), (640, 480), gates)
+    # 1e-300 and 1e300 px had passed, then overflowed in the ground model (numpy warnings)
+    for focal in (1e-300, 1e300, 4.0, 50_000.0):
+        k_far = k.copy()
+        k_far[0, 0] = k_far[1, 1] = focal
+        assert (f"focal length fx={focal:g}, fy={focal:g} px is no camera's for 640x480 images "
+                "(expected 0.01 to 100 times the image's width and height: a view 0.6 to 178 "
+                "degrees wide)") in check_calibration(_calibration(camera_matrix=k_far),
+                                                      (640, 480), gates)
     # Not stored -> not judged.
     assert check_calibration(_calibration(rms=None, views_used=None), (640, 480), gates) == []
 

@@ -79,7 +79,16 @@ def _with_keys(tmp_path: Path, extra: str) -> Path:
      "ground_forward_m -40 must be within 10 m of the robot's centre"),
     ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_yaw_deg: 720.0\n",
      "ground_yaw_deg 720 must be within -180..180"),
+    # upside down: the start-up check had said "no distance in view (3.10 m on) tells the 48 mm
+    # tape from seams ...; expected a higher resolution, a narrower lens, ..."
+    ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_roll_deg: 180.0\n",
+     "ground_roll_deg 180 must be within -90..90 (a camera rolled further is upside down"),
     ("ground_height_m: high\nground_pitch_deg: 30.0\n", "node 'ground_height_m' is not a number"),
+    # a misspelt pose key had been passed over: the camera taken as not rolled, not offset
+    ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_roll_degs: 5.0\n",
+     "unknown node 'ground_roll_degs': did you mean 'ground_roll_deg'?"),
+    ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_forward: 0.12\n",
+     "unknown node 'ground_forward': did you mean 'ground_forward_m'?"),
     ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_reprojection_error_m: -1.0\n",
      "ground_reprojection_error_m -1.0 must be"),
 ])

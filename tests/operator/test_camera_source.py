@@ -41,6 +41,16 @@ def test_folders_and_globs_in_natural_order(tmp_path: Path) -> None:
     assert image_sequence_paths(str(tmp_path / "clip.mp4")) is None
     assert image_sequence_paths("frame_%03d.png") is None
     assert image_sequence_paths("rtsp://camera/stream") is None
+    assert image_sequence_paths("rtsp://camera/stream?channel=1") is None
+
+
+def test_a_folder_or_glob_with_a_percent_sign_is_not_a_printf_pattern(tmp_path: Path) -> None:
+    """'dim 50%/' was taken for 'frame_%03d.png': its images were left out of a survey's class
+    folder without a word, and 'dim 50%/*.png' was 'no such file or folder'."""
+    _images(tmp_path / "dim 50%", ["f_2.png", "f_1.png"])
+    for source in ("dim 50%", "dim 50%/*.png"):
+        names = [p.name for p in image_sequence_paths(str(tmp_path / source)) or []]
+        assert names == ["f_1.png", "f_2.png"], source
 
 
 def test_an_empty_folder_is_named(tmp_path: Path) -> None:

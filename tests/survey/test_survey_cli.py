@@ -19,6 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from PIL import Image
 
 from lanewarden.cli import main
 from lanewarden.perception.calibration import save_calibration
@@ -187,9 +188,10 @@ def test_images_a_labels_file_leaves_out_are_named(
 def test_a_folder_named_dot_or_dot_dot_names_its_outputs_after_itself(
         floor: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     """`survey ..` had written to lanewarden-out/survey-../ (one level up, under a folder named
-    '..'); `.` and `..` name the folder they are."""
-    (floor / "lane" / "deeper").mkdir()
-    monkeypatch.chdir(floor / "lane" / "deeper")
+    '..'); `.` and `..` name the folder they are. (Run from a folder beside the class folders: in
+    one, the default output folder would be among the photos, and is refused.)"""
+    (floor / "notes" / "deeper").mkdir(parents=True)
+    monkeypatch.chdir(floor / "notes" / "deeper")
     code, out, _ = _survey(["../..", "--calibration", "../../../camera.yaml"], capsys)
     assert code == 0
     assert out.splitlines()[-1] == ("outputs in lanewarden-out/survey-floor/ (report: "
@@ -403,6 +405,16 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         (folder / "lane" / "IMG_0001.HEIC").write_bytes(b"\x00\x00\x00\x18ftypheic")
         return [str(folder)], (f"{folder / 'lane' / 'IMG_0001.HEIC'}: not an image the survey "
                                "reads (a file under a class folder is a photo of that class)")
+    if case == "a photo turned by its EXIF orientation":
+        _photos(folder, lane, tiles)
+        # a phone's photo held upright: its header says 640x480, OpenCV turns it to 480x640; it
+        # had been judged at that size among 640x480 frames (its tapes across the view)
+        exif = Image.Exif()
+        exif[0x0112] = 6  # "rotate 90 degrees clockwise to show"
+        Image.open(tiles).save(folder / "no-lane" / "upright.jpg", exif=exif.tobytes())
+        return [str(folder)], ("1 of 3 frames cannot be used: no-lane/upright.jpg: decoded as "
+                               "480x640 (turned upright by its EXIF orientation); the first "
+                               "frame (lane/straight.jpg) is 640x480")
     if case == "frame labels for photos":
         _photos(folder, lane, tiles)
         frames = tmp_path / "frames.csv"
@@ -460,6 +472,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 @pytest.mark.parametrize("case", [
     "missing folder", "no frames", "unknown class folder", "images beside the class folders",
     "no no-lane frame", "no lane frame", "a photo the survey cannot read", "frames of two sizes",
+    "a photo turned by its EXIF orientation",
     "frame labels for photos", "calibration of another size", "not an image",
     "too many pixels", "unknown label", "bad labels line", "labelled file missing",
     "labels too large", "labels and class folders", "labels missing", "a file without labels"])

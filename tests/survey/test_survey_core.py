@@ -4,9 +4,12 @@ written out by hand (no image, no detector). Expected answers are literals."""
 from __future__ import annotations
 
 import math
+import sys
+from types import FrameType
 
 import pytest
 
+import lanewarden.survey as survey_module
 from lanewarden.errors import InputFileError
 from lanewarden.survey import (
     ConfidentRun,
@@ -73,11 +76,55 @@ def test_frame_labels_single_frames_and_ranges() -> None:
      "clip.csv:3: frames 20-25 overlap frames 10-20 of line 2"),
     ("file,expect\na.jpg,lane," + "x" * 200_000 + "\n",  # csv's own field limit: was a traceback
      "clip.csv:2: not a CSV line (field larger than field limit (131072))"),
+    # a NUL in a file name was a ValueError traceback when the path was resolved
+    ("file,expect\na.jpg,lane\nb\0.jpg,none\n", "clip.csv:3: a NUL character; expected a line "
+                                                "of text"),
+    # an overlap named at the later line, whatever the rows' order
+    ("frames,expect\n20-25,none\n0-3,lane\n10-20,lane\n",
+     "clip.csv:4: frames 10-20 overlap frames 20-25 of line 2"),
+    ("frames,expect\n0-100,lane\n40,none\n101-200,none\n",
+     "clip.csv:3: frames 40-40 overlap frames 0-100 of line 2"),
+    # a form feed or U+2028 pasted into a note had ended the line there: a wrong row, wrong line
+    ("file,expect,note\na.jpg,lane,pasted\u2028text\nb.jpg,none,x\x0c\nc.jpg,road\n",
+     "clip.csv:4: label 'road': expected lane or none"),
 ])
 def test_bad_labels_are_one_line_naming_the_line_and_the_value(text: str, message: str) -> None:
     with pytest.raises(InputFileError) as caught:
         parse_labels(text, "clip.csv")
     assert str(caught.value) == message
+
+
+def test_overlapping_ranges_are_found_in_steps_proportional_to_the_rows() -> None:
+    """Each frame range had been compared with every earlier one: 100000 rows (the most a labels
+    file may hold) took minutes. Counted in lines of survey.py executed, not timed: 2000 rows
+    had run about 4 million, now a few dozen per row."""
+    rows = 2000
+    text = "frames,expect\n" + "".join(f"{i * 2},none\n" for i in range(rows)) + "5-6,lane\n"
+    steps = 0
+
+    def count(frame: FrameType, event: str, arg: object) -> object:
+        nonlocal steps
+        if frame.f_code.co_filename == survey_module.__file__:
+            steps += event == "line"
+            return count
+        return None
+
+    previous = sys.gettrace()  # a coverage tool's or a debugger's, put back after
+    sys.settrace(count)
+    try:
+        with pytest.raises(InputFileError) as caught:
+            parse_labels(text, "clip.csv")
+    finally:
+        sys.settrace(previous)
+    assert str(caught.value) == f"clip.csv:{rows + 2}: frames 5-6 overlap frames 6-6 of line 5"
+    assert steps < 50 * rows, steps
+
+
+def test_lines_end_where_an_editor_ends_them() -> None:
+    table = parse_labels("file,expect,note\r\na.jpg,lane,one\u2028two\rb.jpg,none,a\x85b\n",
+                         "clip.csv")
+    assert [(r.line, r.file, r.note) for r in table.rows] == [(2, "a.jpg", "one\u2028two"),
+                                                               (3, "b.jpg", "a\x85b")]
 
 
 # ---- figures ----------------------------------------------------------------------------------

@@ -5,15 +5,22 @@ sequence order, and a label for a frame the recording lacks is one line naming t
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from lanewarden.errors import InputFileError
 from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
-from lanewarden.survey_source import _class_folders, _labelled_files, _labelled_frames
+from lanewarden.survey_source import (
+    _class_folders,
+    _labelled_files,
+    _labelled_frames,
+    open_survey_source,
+)
 
 #: frames 2, 5 and 6 were dropped; frame 3 came with two steps
 RUN = ReplaySource(kind="run", name="run-1", frames=PathFrames([], 1), steps=[
@@ -145,3 +152,121 @@ def test_a_run_frame_dropped_while_recording_is_the_frame_before_in_a_survey(
     reasons = [step.record.halt_reason for step in replay_steps(run, config, None, "supervised")]
     assert len(reasons) == 12
     assert not any("CAMERA_ERROR" in (r or "") or "Error" in (r or "") for r in reasons), reasons
+
+
+def _class_set(folder: Path) -> None:
+    for name in ("lane/a.png", "lane/b.png", "no-lane/c.png"):
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_bytes(b"")
+
+
+@pytest.mark.parametrize(("link", "target", "message"), [
+    ("no-lane/a.png", "../lane/a.png", "no-lane/a.png is the same file as lane/a.png"),
+    ("no-lane/lane", "../lane", "no-lane/lane/a.png is the same file as lane/a.png"),
+    # a link back to the survey's folder itself: every lane photo had become a no-lane one too
+    ("no-lane/up", "..", "no-lane/up/lane/a.png is the same file as lane/a.png"),
+    ("no-lane/d.png", "c.png", "no-lane/d.png is the same file as no-lane/c.png"),
+    ("no-lane/hard.png", None, "no-lane/hard.png is the same file as lane/b.png"),
+])
+def test_one_file_reached_twice_under_the_class_folders_is_refused(
+        tmp_path: Path, link: str, target: str | None, message: str) -> None:
+    """A photo linked (or hard-linked) from no-lane/ to lane/ was surveyed as both: a lane photo
+    labelled no-lane is a false lane, NOT SAFE on a frame the user had labelled lane."""
+    _class_set(tmp_path)
+    if target is None:
+        os.link(tmp_path / "lane" / "b.png", tmp_path / link)
+    else:
+        (tmp_path / link).symlink_to(target)
+    with pytest.raises(InputFileError) as caught:
+        _class_folders(tmp_path)
+    assert str(caught.value).startswith(f"{tmp_path}: {message} (a link, or a hard link); "
+                                        "expected each photo once")
+
+
+@pytest.mark.parametrize("row", ["./a.png", "sub/../a.png", "alias.png"])
+def test_one_file_labelled_twice_under_two_names_is_refused(tmp_path: Path, row: str) -> None:
+    """'a.png,lane' and './a.png,none' were two frames, the second a false lane."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.png").write_bytes(b"")
+    (tmp_path / "alias.png").symlink_to("a.png")
+    table = parse_labels(f"file,expect\na.png,lane\n{row},none\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path, table)
+    assert str(caught.value) == (f"labels.csv:3: {row}: the same file as line 2; expected each "
+                                 "image labelled once")
+
+
+def test_a_class_folder_whose_name_has_a_percent_sign_is_read(tmp_path: Path) -> None:
+    """'no-lane/dim 50%/' was taken for a printf pattern ('frame_%03d.png') and its photos left
+    out without a word: a false lane among them, and the survey said SAFE."""
+    _class_set(tmp_path / "50% light")
+    (tmp_path / "50% light" / "no-lane" / "dim 50%").mkdir()
+    (tmp_path / "50% light" / "no-lane" / "dim 50%" / "d.png").write_bytes(b"")
+    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path / "50% light")]
+    assert names == [("lane/a.png", "lane"), ("lane/b.png", "lane"), ("no-lane/c.png", "none"),
+                     ("no-lane/dim 50%/d.png", "none")]
+
+
+@pytest.mark.parametrize("target", ["/dev/null", "missing.csv", "labels.csv"])
+def test_a_labels_csv_that_is_no_file_is_named(tmp_path: Path, target: str) -> None:
+    """FOLDER/labels.csv linked to a device, to nothing or to itself had been passed over: 'no
+    images in lane/ or no-lane/ and no labels.csv'."""
+    (tmp_path / "labels.csv").symlink_to(target)
+    with pytest.raises(InputFileError) as caught:
+        open_survey_source(str(tmp_path), None, 30.0, 10**7)
+    # named as the folder's own file: no --labels was given
+    assert re.fullmatch(rf"{tmp_path}/labels\.csv: (not a regular file .*|no such file|cannot "
+                        r"read \(Too many levels of symbolic links\))", str(caught.value))
+
+
+class _TwoSizes(PathFrames):
+    """Frame 1 decodes at another size than frame 0 (a JPEG turned by its EXIF orientation in a
+    folder of frames: its header passed the one-size check)."""
+
+    def image(self, index: int) -> np.ndarray | None:
+        return np.zeros((320, 240, 3) if index == 1 else (240, 320, 3), np.uint8)
+
+
+def test_a_recordings_frame_of_another_size_is_a_problem_without_a_calibration() -> None:
+    from lanewarden.survey_run import CheckedFrames
+
+    checked = CheckedFrames(_TwoSizes([], 10**7), 10**7, None, (320, 240))
+    assert checked.image(0) is not None and checked.problem is None
+    assert checked.image(1) is None
+    assert checked.problem == "frame 1: decoded as 240x320; the first frame is 320x240"
+
+
+def test_a_frame_is_named_in_one_line_whatever_its_file_is_called(tmp_path: Path) -> None:
+    """A photo named 'fake<newline>lane.jpg' split the NOT SAFE line (and the error line naming
+    an unreadable photo) in two; an ESC in a name reached the terminal."""
+    _class_set(tmp_path)
+    (tmp_path / "no-lane" / "fake\nlane.png").write_bytes(b"")
+    (tmp_path / "no-lane" / "red\x1b[31m.png").write_bytes(b"")
+    names = [s.frame.name for s in _class_folders(tmp_path)]
+    assert names[2:] == ["no-lane/c.png", "no-lane/fake\\nlane.png", "no-lane/red\\x1b[31m.png"]
+    table = parse_labels("file,expect\nno-lane/red\x1b[31m.png,none\n", "labels.csv")
+    assert [s.frame.name for s in _labelled_files(tmp_path, table)] == ["no-lane/red\\x1b[31m.png"]
+
+
+def test_a_labels_files_folder_nested_deeper_than_pythons_recursion_limit_is_looked_through(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The images a labels file leaves out were found with Path.rglob, which recursed once per
+    level: a folder 1200 deep beside labels.csv was a RecursionError traceback."""
+    from lanewarden.survey_source import _unlabelled
+
+    (tmp_path / "a.png").write_bytes(b"")
+    (tmp_path / "no-lane").mkdir()
+    (tmp_path / ".git").mkdir()
+    (tmp_path / ".git" / "hidden.png").write_bytes(b"")
+    monkeypatch.chdir(tmp_path / "no-lane")
+    for _ in range(1200):
+        Path("d").mkdir()
+        os.chdir("d")
+    Path("b.png").write_bytes(b"")
+    monkeypatch.chdir(tmp_path)
+    try:
+        table = parse_labels("file,expect\na.png,lane\n", "labels.csv")
+        assert _unlabelled(tmp_path, _labelled_files(tmp_path, table)) == [
+            "no-lane/" + "d/" * 1200 + "b.png"]
+    finally:
+        _remove_deep(tmp_path / "no-lane", 1200)
