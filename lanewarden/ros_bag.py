@@ -114,6 +114,15 @@ def _decompress(chunk: Chunk, path: Path, offset: int) -> bytes:
     return bytes(data)
 
 
+def _read_chunk(body: bytes, path: Path, offset: int) -> Chunk:
+    """A chunk record's fields; its header damaged (a length past its end, a compression name
+    that is not UTF-8) is one line."""
+    try:
+        return Chunk.read(ReadDataStream(io.BytesIO(body)))
+    except Exception as exc:  # EndOfFile, struct.error, UnicodeDecodeError, OverflowError
+        raise _problem(path, offset, f"a damaged chunk record ({type(exc).__name__})") from None
+
+
 def _check_attachment_crc(body: bytes, path: Path, offset: int) -> None:
     """An attachment record ends with the CRC-32 of the body before it (0: none written)."""
     if len(body) < _CRC.size:
@@ -193,7 +202,7 @@ class McapFile:
                 if opcode == Opcode.FOOTER:
                     return  # complete: the summary section and the footer were read
                 if opcode == Opcode.CHUNK:
-                    chunk = Chunk.read(ReadDataStream(io.BytesIO(body)))
+                    chunk = _read_chunk(body, self.path, offset)
                     inner = _records(_decompress(chunk, self.path, offset), self.path, offset)
                 else:
                     inner = iter([(opcode, body, offset)])

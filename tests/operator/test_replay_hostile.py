@@ -283,6 +283,27 @@ def test_hostile_mcap_records(recorded: Path, tmp_path: Path,
     assert_one_line(code, err, "garbage.mcap", "not an MCAP file")
 
 
+_CHUNK_TIMES = struct.pack("<QQQI", 0, 0, 0, 0)  # start, end, uncompressed size, CRC
+
+
+@pytest.mark.parametrize("body, exception", [
+    (_CHUNK_TIMES + struct.pack("<IQ", 0, 2**63), "OverflowError"),  # records: 2**63 bytes
+    (struct.pack("<QQ", 0, 0), "EndOfFile"),  # cut after its times
+    (_CHUNK_TIMES + struct.pack("<I", 2) + b"\xff\xfe" + struct.pack("<Q", 0),
+     "UnicodeDecodeError"),  # a compression name that is not UTF-8
+], ids=["records-2**63-bytes", "cut-after-its-times", "compression-not-utf8"])
+def test_a_damaged_chunk_header_is_one_line(recorded: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str], body: bytes,
+                                            exception: str) -> None:
+    """Each was a traceback: the chunk's own fields were parsed outside the reader's checks."""
+    prefix = _prefix(recorded)
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(prefix + struct.pack("<BQ", 0x06, len(body)) + body)
+    code, _, err = replay(damaged, tmp_path, capsys)
+    assert_one_line(code, err, f"{damaged}: a damaged chunk record ({exception}) at byte "
+                    f"{len(prefix)}; not a readable MCAP recording")
+
+
 def _records(data: bytes) -> list[tuple[int, int, int]]:
     """(opcode, offset, length of the body) of each top-level record of an MCAP file."""
     records, offset = [], len(MCAP_MAGIC)
