@@ -6,7 +6,9 @@ allocate without bound or run for long:
 - MCAP records are walked one by one (opcode, length), each length checked against what is left
   of the file and against `MAX_RECORD_BYTES` before anything is read; a chunk's uncompressed size
   is checked against `MAX_CHUNK_BYTES` and decompressed with that bound (a zstd or lz4 "bomb"
-  stops there). The records themselves are parsed by the `mcap` library's record classes.
+  stops there); all chunks of a file decompress to at most `MAX_EXPANSION` times its size and
+  hold at most one record per byte of it, so a pass costs about what an uncompressed file of
+  its size would. The records themselves are parsed by the `mcap` library's record classes.
 - A chunk's and an attachment's CRC-32, when the writer computed one (0: none), is checked: a
   byte altered inside a chunk (every message Lanewarden records, its steps and frames) or an
   attachment (the config and calibration) is one line naming the byte offset of the damaged
@@ -54,6 +56,11 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 MAX_RECORD_BYTES = 128 * 1024 * 1024
 #: Largest chunk once decompressed.
 MAX_CHUNK_BYTES = 128 * 1024 * 1024
+#: A file's chunks may decompress to this many times its size in all (and to MAX_CHUNK_BYTES
+#: whatever its size); it may hold at most one record per byte. So reading a file costs about
+#: what reading an uncompressed file of its size costs: without these bounds a few kB of zstd or
+#: lz4 per chunk made seconds of work each (128 MiB of zeros, or 15 million empty records).
+MAX_EXPANSION = 1000
 #: Largest single message (a raw 4K colour image is 25 MB).
 MAX_MESSAGE_BYTES = 64 * 1024 * 1024
 #: Attachments are kept up to this size, plus one byte (the config and calibration a run used
@@ -87,11 +94,37 @@ def _problem(path: Path, offset: int, what: str) -> InputFileError:
     return InputFileError(f"{path}: {what} at byte {offset}; not a readable MCAP recording")
 
 
-def _decompress(chunk: Chunk, path: Path, offset: int) -> bytes:
+@dataclass
+class _Cost:
+    """What one pass over an MCAP file of `size` bytes has cost so far: the bytes its chunks
+    decompressed to and the records they held, each refused past its bound (MAX_EXPANSION)."""
+
+    path: Path
+    size: int
+    expanded: int = 0
+    records: int = 0
+
+    def expand(self, chunk_bytes: int, offset: int) -> None:
+        self.expanded += chunk_bytes
+        budget = max(MAX_CHUNK_BYTES, MAX_EXPANSION * self.size)
+        if self.expanded > budget:
+            raise _problem(self.path, offset, f"chunks decompressing to more than {budget} "
+                           f"bytes in all ({MAX_EXPANSION} times the file's {self.size} bytes, "
+                           f"or {MAX_CHUNK_BYTES}: a decompression bomb?)")
+
+    def record(self, offset: int) -> None:
+        self.records += 1
+        if self.records > self.size:
+            raise _problem(self.path, offset, f"chunks holding more than {self.size} records "
+                           "in all (one per byte of the file: a decompression bomb?)")
+
+
+def _decompress(chunk: Chunk, path: Path, offset: int, cost: _Cost) -> bytes:
     size = chunk.uncompressed_size
     if size > MAX_CHUNK_BYTES:
         raise _problem(path, offset, f"a chunk of {size} bytes uncompressed (more than "
                        f"{MAX_CHUNK_BYTES})")
+    cost.expand(size, offset)
     try:
         if chunk.compression == "":
             data = chunk.data
@@ -133,11 +166,12 @@ def _check_attachment_crc(body: bytes, path: Path, offset: int) -> None:
                        "file is damaged)")
 
 
-def _records(data: bytes, path: Path, base: int) -> Iterator[tuple[int, bytes, int]]:
+def _records(data: bytes, path: Path, base: int, cost: _Cost) -> Iterator[tuple[int, bytes, int]]:
     """(opcode, body, offset) of every record in `data` (a chunk's content); a record running
     past the end is a damaged chunk."""
     position = 0
     while position < len(data):
+        cost.record(base)
         if position + _RECORD_HEAD.size > len(data):
             raise _problem(path, base, "a damaged chunk (a record header cut short)")
         opcode, length = _RECORD_HEAD.unpack_from(data, position)
@@ -185,6 +219,7 @@ class McapFile:
                 raise InputFileError(f"{self.path}: not an MCAP file (no MCAP magic at its "
                                      "start)")
             offset = len(MCAP_MAGIC)
+            cost = _Cost(self.path, size)
             while True:
                 head = stream.read(_RECORD_HEAD.size)
                 if len(head) < _RECORD_HEAD.size:
@@ -203,7 +238,8 @@ class McapFile:
                     return  # complete: the summary section and the footer were read
                 if opcode == Opcode.CHUNK:
                     chunk = _read_chunk(body, self.path, offset)
-                    inner = _records(_decompress(chunk, self.path, offset), self.path, offset)
+                    inner = _records(_decompress(chunk, self.path, offset, cost), self.path,
+                                     offset, cost)
                 else:
                     inner = iter([(opcode, body, offset)])
                 for code, record, where in inner:
