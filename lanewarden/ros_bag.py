@@ -8,7 +8,11 @@ allocate without bound or run for long:
   is checked against `MAX_CHUNK_BYTES` and decompressed with that bound (a zstd or lz4 "bomb"
   stops there); all chunks of a file decompress to at most `MAX_EXPANSION` times its size and
   hold at most one record per byte of it, so a pass costs about what an uncompressed file of
-  its size would. The records themselves are parsed by the `mcap` library's record classes.
+  its size would. Of the records, only what is used is read and kept: a chunk's schema, channel
+  and message records (MCAP puts nothing else in one), names within `MAX_NAME_BYTES`, at most
+  `MAX_TOPICS` topics, and of the metadata and attachments those of a Lanewarden recording
+  (`KEPT_NAMES`); messages, metadata and attachments are parsed by the `mcap` library's record
+  classes.
 - A chunk's and an attachment's CRC-32, when the writer computed one (0: none), is checked: a
   byte altered inside a chunk (every message Lanewarden records, its steps and frames) or an
   attachment (the config and calibration) is one line naming the byte offset of the damaged
@@ -43,13 +47,19 @@ import lz4.frame
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
-from mcap.records import Attachment, Channel, Chunk, Metadata, Schema
+from mcap.records import Attachment, Chunk, Metadata, Schema
 from mcap.records import Message as McapMessage
 from mcap_ros2.decoder import DecoderFactory
 
 from lanewarden.documents import MAX_DOCUMENT_BYTES, read_yaml_document, shorten
 from lanewarden.errors import InputFileError
-from lanewarden.run_mcap import DEFINITIONS
+from lanewarden.run_mcap import (
+    CALIBRATION_ATTACHMENT,
+    CONFIG_ATTACHMENT,
+    DEFINITIONS,
+    META_NAME,
+    SUMMARY_NAME,
+)
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: Largest MCAP record read into memory (a chunk, an attachment, a message outside chunks).
@@ -66,6 +76,18 @@ MAX_MESSAGE_BYTES = 64 * 1024 * 1024
 #: Attachments are kept up to this size, plus one byte (the config and calibration a run used
 #: are a few kB; their readers refuse anything larger).
 MAX_ATTACHMENT_BYTES = MAX_DOCUMENT_BYTES
+#: Longest schema (message type), topic, encoding, metadata or attachment name read: a ROS 2
+#: name is far shorter. Each schema and channel record of a file is noted (a few kB of zstd
+#: can repeat them by the million), so these bound the memory a file can make the reader keep.
+MAX_NAME_BYTES = 1000
+#: Most topics a file may have.
+MAX_TOPICS = 10_000
+#: The metadata and attachments kept: what replay reads of a Lanewarden recording (its meta,
+#: summary, config and calibration); others are skipped unread.
+KEPT_NAMES = frozenset({META_NAME, SUMMARY_NAME, CONFIG_ATTACHMENT, CALIBRATION_ATTACHMENT})
+#: What a chunk may hold (MCAP: a batch of schema, channel and message records); anything else
+#: in one is skipped unread.
+_IN_CHUNKS = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE)
 _RECORD_HEAD = struct.Struct("<BQ")
 #: `McapFile.cut_short` of a file of 0 bytes.
 EMPTY = "is empty (0 bytes)"
@@ -167,8 +189,8 @@ def _check_attachment_crc(body: bytes, path: Path, offset: int) -> None:
 
 
 def _records(data: bytes, path: Path, base: int, cost: _Cost) -> Iterator[tuple[int, bytes, int]]:
-    """(opcode, body, offset) of every record in `data` (a chunk's content); a record running
-    past the end is a damaged chunk."""
+    """(opcode, body, offset) of every schema, channel and message record in `data` (a chunk's
+    content); a record running past the end is a damaged chunk."""
     position = 0
     while position < len(data):
         cost.record(base)
@@ -179,16 +201,17 @@ def _records(data: bytes, path: Path, base: int, cost: _Cost) -> Iterator[tuple[
         if length > len(data) - start:
             raise _problem(path, base, f"a damaged chunk (a record of {length} bytes with "
                            f"{len(data) - start} left)")
-        yield opcode, data[start:start + length], base
+        if opcode in _IN_CHUNKS:
+            yield opcode, data[start:start + length], base
         position = start + length
 
 
 @dataclass
 class McapFile:
     """One MCAP file, read front to back by `messages()` (call it again for another pass).
-    After a complete pass: `topics`, `metadata` (name -> key/values), `attachments` (name ->
-    bytes, cut one byte past MAX_ATTACHMENT_BYTES), and `cut_short` (None when the file ended with
-    MCAP's footer, else where and how it ended)."""
+    After a complete pass: `topics`, `metadata` (name -> key/values) and `attachments` (name ->
+    bytes, cut one byte past MAX_ATTACHMENT_BYTES) of the names in KEPT_NAMES, and `cut_short`
+    (None when the file ended with MCAP's footer, else where and how it ended)."""
 
     path: Path
     topics: dict[str, BagTopic] = field(default_factory=dict)
@@ -262,7 +285,9 @@ class McapFile:
 
     def _record(self, opcode: int, body: bytes, offset: int, schemas: dict[int, str],
                 channels: dict[int, BagTopic]) -> McapMessage | None:
-        """Note a schema, channel, metadata or attachment record; return a message record."""
+        """Note a schema, channel, metadata or attachment record; return a message record.
+        Only what is used is read and kept (see `_name`, MAX_TOPICS, KEPT_NAMES): a schema's
+        text and a channel's metadata are skipped unread."""
         if opcode == Opcode.ATTACHMENT:  # damage is said as such, not as a damaged record
             _check_attachment_crc(body, self.path, offset)
         stream = ReadDataStream(io.BytesIO(body))
@@ -270,24 +295,45 @@ class McapFile:
             if opcode == Opcode.MESSAGE:
                 return McapMessage.read(stream, len(body))
             if opcode == Opcode.SCHEMA:
-                schema = Schema.read(stream)
-                schemas[schema.id] = schema.name
+                schema_id = stream.read2()
+                schemas[schema_id] = self._name(stream, "schema name", offset)
             elif opcode == Opcode.CHANNEL:
-                channel = Channel.read(stream)
-                topic = BagTopic(channel.topic, schemas.get(channel.schema_id, ""),
-                                 channel.message_encoding)
-                channels[channel.id] = self.topics.setdefault(channel.topic, topic)
+                channel_id, schema_id = stream.read2(), stream.read2()
+                name = self._name(stream, "topic name", offset)
+                topic = BagTopic(name, schemas.get(schema_id, ""),
+                                 self._name(stream, "message encoding", offset))
+                if name not in self.topics and len(self.topics) >= MAX_TOPICS:
+                    raise _problem(self.path, offset, f"more than {MAX_TOPICS} topics")
+                channels[channel_id] = self.topics.setdefault(name, topic)
             elif opcode == Opcode.METADATA:
-                metadata = Metadata.read(stream)
-                self.metadata[metadata.name] = dict(metadata.metadata)
+                if self._name(stream, "metadata name", offset) in KEPT_NAMES:
+                    if len(body) > MAX_DOCUMENT_BYTES:  # Lanewarden's are a few kB
+                        raise _problem(self.path, offset, f"a metadata record of {len(body)} "
+                                       f"bytes (more than {MAX_DOCUMENT_BYTES})")
+                    metadata = Metadata.read(ReadDataStream(io.BytesIO(body)))
+                    self.metadata[metadata.name] = dict(metadata.metadata)
             elif opcode == Opcode.ATTACHMENT:
-                attachment = Attachment.read(stream)
-                # kept up to one byte past the limit: enough for its reader to refuse it
-                self.attachments[attachment.name] = attachment.data[:MAX_ATTACHMENT_BYTES + 1]
+                stream.read(16)  # its log and create times
+                if self._name(stream, "attachment name", offset) in KEPT_NAMES:
+                    attachment = Attachment.read(ReadDataStream(io.BytesIO(body)))
+                    # kept up to one byte past the limit: enough for its reader to refuse it
+                    self.attachments[attachment.name] = \
+                        attachment.data[:MAX_ATTACHMENT_BYTES + 1]
+        except InputFileError:
+            raise
         except Exception as exc:  # struct.error, EndOfFile, UnicodeDecodeError, ...: damaged
             raise _problem(self.path, offset, f"a damaged {_opcode_name(opcode)} record "
                            f"({type(exc).__name__})") from None
         return None
+
+
+    def _name(self, stream: ReadDataStream, what: str, offset: int) -> str:
+        """The next string of a record, refused past MAX_NAME_BYTES before it is read."""
+        length = stream.read4()
+        if length > MAX_NAME_BYTES:
+            raise _problem(self.path, offset, f"a {what} of {length} bytes (at most "
+                           f"{MAX_NAME_BYTES})")
+        return str(stream.read(length), "utf-8")
 
 
 def _opcode_name(opcode: int) -> str:

@@ -2,45 +2,28 @@
 to their size, or that the reader did not expect: each is one line naming the file and what is
 wrong, exit code 2, before the work is done (asserted by outcome, never by timing).
 
-The MCAP files are written byte by byte here (the `mcap` library's writer would not write them),
-the bags with SQLite itself."""
+The MCAP files are written byte by byte (tests/operator/mcap_bytes.py: the `mcap` library's
+writer would not write them), the bags with SQLite itself."""
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 import pytest
-import zstandard
 
 from lanewarden import ros_bag
 from lanewarden.cli import main
 from lanewarden.errors import InputFileError
 from lanewarden.ros_bag import McapFile
-
-MAGIC = b"\x89MCAP0\r\n"
-
-
-def _text(value: bytes) -> bytes:
-    return struct.pack("<I", len(value)) + value
-
-
-def record(opcode: int, body: bytes) -> bytes:
-    return struct.pack("<BQ", opcode, len(body)) + body
-
-
-def zstd_chunk(records: bytes) -> bytes:
-    """A chunk record of these records, zstd-compressed, without a CRC (as MCAP allows)."""
-    data = zstandard.ZstdCompressor().compress(records)
-    return record(0x06, struct.pack("<QQQI", 0, 0, len(records), 0) + _text(b"zstd")
-                  + struct.pack("<Q", len(data)) + data)
-
-
-def mcap_file(path: Path, *records: bytes) -> Path:
-    """Magic, a header and these records: no footer (a file cut short is read as far as it
-    goes, so what is refused is refused for what it holds)."""
-    path.write_bytes(MAGIC + record(0x01, _text(b"ros2") + _text(b"test")) + b"".join(records))
-    return path
+from tests.operator.mcap_bytes import (
+    channel,
+    mcap_file,
+    metadata,
+    record,
+    schema,
+    text,
+    zstd_chunk,
+)
 
 
 def replay(source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
@@ -85,3 +68,52 @@ def test_chunks_that_decompress_to_much_more_than_the_file(
     assert str(refused.value).startswith(
         f"{bomb}: chunks decompressing to more than {budget} bytes in all (1000 times the "
         f"file's {size} bytes, or {1 << 20}: a decompression bomb?) at byte ")
+
+
+# ---- what a file can make the reader keep -----------------------------------------------------
+@pytest.mark.parametrize("records, what", [
+    (schema(1, b"x" * 1001), "a schema name of 1001 bytes"),
+    (channel(1, b"/" + b"x" * 1000), "a topic name of 1001 bytes"),
+    (channel(1, b"/camera", encoding=b"c" * 5000), "a message encoding of 5000 bytes"),
+], ids=["schema", "topic", "encoding"])
+def test_a_name_longer_than_any_is_refused_before_it_is_read(
+        tmp_path: Path, records: bytes, what: str) -> None:
+    """Every schema and channel record is noted, and a chunk can repeat them: 12 chunks of 4 kB
+    (zstd), each a schema whose name is 120 MB, took 2 GB."""
+    bomb = mcap_file(tmp_path / "names.mcap", zstd_chunk(records))
+    with pytest.raises(InputFileError) as refused:
+        read_all(bomb)
+    assert str(refused.value) == (f"{bomb}: {what} (at most 1000) at byte 33; not a readable "
+                                  "MCAP recording")
+
+
+def test_more_topics_than_any_bag_has(tmp_path: Path) -> None:
+    bomb = mcap_file(tmp_path / "topics.mcap", zstd_chunk(b"".join(
+        channel(i % 60000 + 1, b"/t%d" % i) for i in range(10_001))))
+    with pytest.raises(InputFileError) as refused:
+        read_all(bomb)
+    assert str(refused.value) == (f"{bomb}: more than 10000 topics at byte 33; not a readable "
+                                  "MCAP recording")
+
+
+def test_only_a_recordings_own_metadata_is_kept_and_only_outside_chunks(tmp_path: Path) -> None:
+    """Metadata and attachments belong outside chunks (MCAP): one inside a chunk is skipped, so a
+    few kB of zstd can no longer make a dict of millions of entries (1.2 MB of them took 3.6 GB
+    and 90 s); outside, only the names a replay reads are kept, each within 1 MB."""
+    entries = b"".join(text(b"%06d" % i) + text(b"") for i in range(1000))
+    path = mcap_file(tmp_path / "meta.mcap", zstd_chunk(metadata(b"lanewarden", entries)),
+                     metadata(b"rosbag2", entries), metadata(b"lanewarden.summary", entries),
+                     record(0x02, bytes(20)))
+    mcap = McapFile(path)
+    for _ in mcap.messages():
+        pass
+    assert list(mcap.metadata) == ["lanewarden.summary"]
+    assert len(mcap.metadata["lanewarden.summary"]) == 1000
+    big = b"".join(text(b"%07d" % i) + text(b"") for i in range(70_000))  # 1.05 MB
+    mcap_file(path, metadata(b"rosbag2", big))
+    read_all(path)  # not kept: not read
+    mcap_file(path, metadata(b"lanewarden", big))
+    with pytest.raises(InputFileError) as refused:
+        read_all(path)
+    assert str(refused.value) == (f"{path}: a metadata record of {len(big) + 18} bytes (more "
+                                  "than 1000000) at byte 33; not a readable MCAP recording")
