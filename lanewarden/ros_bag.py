@@ -26,8 +26,10 @@ allocate without bound or run for long:
   (lanewarden.run_mcap.DEFINITIONS: the two image types and Lanewarden's own), whatever text a
   file embeds for them (a .db3 of ROS 2 Humble embeds none); a message that does not decode is
   one line (`InputFileError`) naming the file, topic and message number.
-- .db3 files are SQLite databases, read through Python's own sqlite3 module, read-only; a
-  message larger than `MAX_MESSAGE_BYTES` is refused before it is fetched.
+- .db3 files are SQLite databases, read through Python's own sqlite3 module, read-only; their
+  `topics` and `messages` must be stored tables (a view, a virtual table or a generated column
+  makes work the file does not hold: a recursive view never ends), no value larger than
+  `MAX_MESSAGE_BYTES` is fetched, and every value is checked for its type.
 
 Never prints, never reads a clock. Errors are `InputFileError` (exit code 2), one line each.
 """
@@ -51,7 +53,7 @@ from mcap.records import Attachment, Chunk, Metadata, Schema
 from mcap.records import Message as McapMessage
 from mcap_ros2.decoder import DecoderFactory
 
-from lanewarden.documents import MAX_DOCUMENT_BYTES, read_yaml_document, shorten
+from lanewarden.documents import MAX_DOCUMENT_BYTES, read_yaml_document, shorten, shown_value
 from lanewarden.errors import InputFileError
 from lanewarden.run_mcap import (
     CALIBRATION_ATTACHMENT,
@@ -345,7 +347,11 @@ def _opcode_name(opcode: int) -> str:
 
 @dataclass
 class Db3File:
-    """One rosbag2 SQLite (.db3) file, read-only."""
+    """One rosbag2 SQLite (.db3) file, read-only. Its `topics` and `messages` must be tables,
+    without computed columns: a view or a virtual table (a recursive one never ends) or a
+    generated column (computed on every read) would make work without bound that the file does
+    not hold; no value read may be larger than MAX_MESSAGE_BYTES; every value read is checked
+    for its type."""
 
     path: Path
     topics: dict[str, BagTopic] = field(default_factory=dict)
@@ -353,21 +359,52 @@ class Db3File:
 
     def _connect(self) -> sqlite3.Connection:
         try:
-            return sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro&immutable=1",
-                                   uri=True)
+            connection = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro&immutable=1",
+                                         uri=True)
         except sqlite3.Error as exc:
             raise InputFileError(f"{self.path}: cannot open the SQLite bag ({exc})") from None
+        connection.setlimit(sqlite3.SQLITE_LIMIT_LENGTH, MAX_MESSAGE_BYTES)
+        return connection
+
+    def _refuse(self, what: str) -> InputFileError:
+        return InputFileError(f"{self.path}: {what}; not a rosbag2 SQLite file lanewarden reads")
+
+    def _check_tables(self, connection: sqlite3.Connection) -> None:
+        for table in ("topics", "messages"):
+            row = connection.execute("SELECT type, sql FROM sqlite_master WHERE name = ? "
+                                     "COLLATE NOCASE", (table,)).fetchone()
+            if row is None:
+                raise self._refuse(f"no '{table}' table")
+            kind, sql = row
+            if kind != "table" or str(sql).lstrip().upper().startswith("CREATE VIRTUAL"):
+                raise self._refuse(f"'{table}' is a {'virtual table' if kind == 'table' else kind}"
+                                   ", not a table")
+            computed = [str(column[1]) for column in
+                        connection.execute(f"PRAGMA table_xinfo({table})") if column[6]]
+            if computed:
+                raise self._refuse(f"'{table}' has computed columns ({shorten(', '.join(computed))}"
+                                   ")")
+
+    def _topics(self, connection: sqlite3.Connection) -> dict[object, BagTopic]:
+        rows = connection.execute("SELECT id, name, type, serialization_format FROM topics "
+                                  "LIMIT ?", (MAX_TOPICS + 1,)).fetchall()
+        if len(rows) > MAX_TOPICS:
+            raise self._refuse(f"more than {MAX_TOPICS} topics")
+        by_id = {}
+        for topic_id, *texts in rows:
+            if not all(isinstance(t, str) and len(t.encode()) <= MAX_NAME_BYTES for t in texts):
+                raise self._refuse(f"topic {shown_value(topic_id)}: name, type and "
+                                   f"serialization_format = {shown_value(texts)}: expected texts "
+                                   f"of at most {MAX_NAME_BYTES} bytes")
+            name, kind, encoding = texts
+            by_id[topic_id] = self.topics.setdefault(name, BagTopic(name, kind, encoding))
+        return by_id
 
     def messages(self, keep: TopicFilter = None) -> Iterator[BagMessage]:
         connection = self._connect()
         try:
-            rows = connection.execute(
-                "SELECT id, name, type, serialization_format FROM topics").fetchall()
-            by_id = {}
-            for topic_id, name, kind, encoding in rows:
-                by_id[topic_id] = self.topics.setdefault(
-                    str(name), BagTopic(str(name), str(kind), str(encoding)))
-            for topic_id, topic in by_id.items():
+            self._check_tables(connection)
+            for topic_id, topic in self._topics(connection).items():
                 if keep is not None and not keep(topic):
                     continue
                 cursor = connection.execute(
@@ -375,12 +412,18 @@ class Db3File:
                     "FROM messages WHERE topic_id = ? ORDER BY timestamp, id",
                     (MAX_MESSAGE_BYTES, topic_id))
                 for number, (stamp, length, data) in enumerate(cursor, start=1):
-                    if data is None:
+                    where = f"{self.path}: {topic.name} message {number}"
+                    if data is None and isinstance(length, int):
                         raise InputFileError(
-                            f"{self.path}: {topic.name} message {number} is {length} bytes "
-                            f"(more than {MAX_MESSAGE_BYTES}); not a recording lanewarden "
-                            "can read")
-                    yield BagMessage(topic, number, 0, int(stamp), bytes(data))
+                            f"{where} is {length} bytes (more than {MAX_MESSAGE_BYTES}); not a "
+                            "recording lanewarden can read")
+                    if not isinstance(data, bytes):
+                        raise InputFileError(f"{where}: data is {type(data).__name__}, "
+                                             "expected a BLOB")
+                    if isinstance(stamp, bool) or not isinstance(stamp, int):
+                        raise InputFileError(f"{where}: timestamp = {shown_value(stamp)}: "
+                                             "expected an integer (nanoseconds)")
+                    yield BagMessage(topic, number, 0, stamp, data)
         except sqlite3.Error as exc:
             raise InputFileError(f"{self.path}: not a readable rosbag2 SQLite file "
                                  f"({shorten(str(exc))})") from None

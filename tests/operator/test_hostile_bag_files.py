@@ -7,6 +7,7 @@ writer would not write them), the bags with SQLite itself."""
 
 from __future__ import annotations
 
+import sqlite3
 from pathlib import Path
 
 import pytest
@@ -117,3 +118,74 @@ def test_only_a_recordings_own_metadata_is_kept_and_only_outside_chunks(tmp_path
         read_all(path)
     assert str(refused.value) == (f"{path}: a metadata record of {len(big) + 18} bytes (more "
                                   "than 1000000) at byte 33; not a readable MCAP recording")
+
+
+# ---- SQLite bags: what the file is made of, and each value's type ------------------------------
+def db3(path: Path, *statements: str) -> Path:
+    """A rosbag2 SQLite file of one CompressedImage topic and one message (not a valid image:
+    what is checked comes before), changed by `statements`."""
+    connection = sqlite3.connect(path)
+    connection.executescript("""
+        CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT,
+                            serialization_format TEXT, offered_qos_profiles TEXT);
+        CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER,
+                              data BLOB);
+        INSERT INTO topics VALUES (1, '/camera/image_raw/compressed',
+                                   'sensor_msgs/msg/CompressedImage', 'cdr', '');
+        INSERT INTO messages VALUES (1, 1, 1790000000000000000, x'00010000');""")
+    for statement in statements:
+        connection.execute(statement)
+    connection.commit()
+    connection.close()
+    return path
+
+
+@pytest.mark.parametrize("statement, problem", [
+    ("UPDATE messages SET timestamp = 'abc'", "/camera/image_raw/compressed message 1: "
+     "timestamp = 'abc': expected an integer (nanoseconds)"),
+    ("UPDATE messages SET timestamp = NULL", "/camera/image_raw/compressed message 1: "
+     "timestamp = None: expected an integer (nanoseconds)"),
+    ("UPDATE messages SET timestamp = 1e999", "/camera/image_raw/compressed message 1: "
+     "timestamp = inf: expected an integer (nanoseconds)"),
+    ("UPDATE messages SET data = 'text'", "/camera/image_raw/compressed message 1: data is str, "
+     "expected a BLOB"),
+    ("UPDATE topics SET name = x'ff00'", "topic 1: name, type and serialization_format = "
+     "[b'\\xff\\x00', 'sensor_msgs/msg/CompressedImage', 'cdr']: expected texts of at most "
+     "1000 bytes; not a rosbag2 SQLite file lanewarden reads"),
+], ids=["timestamp-text", "timestamp-null", "timestamp-inf", "data-text", "name-blob"])
+def test_a_value_of_the_wrong_type_in_a_sqlite_bag(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str],
+                                                   statement: str, problem: str) -> None:
+    """Each but the last was a traceback (ValueError, TypeError, OverflowError); the topic's
+    name had been read as the text "b'\\xff\\x00'"."""
+    bag = db3(tmp_path / "bag.db3", statement)
+    code, err = replay(bag, tmp_path, capsys)
+    assert code == 2, err
+    assert err == f"lanewarden: error: {bag}: {problem}\n"
+
+
+@pytest.mark.parametrize("statements, problem", [
+    (["ALTER TABLE messages RENAME TO stored",
+      "CREATE VIEW messages AS SELECT * FROM stored"], "'messages' is a view, not a table"),
+    (["ALTER TABLE topics RENAME TO stored",
+      "CREATE VIRTUAL TABLE topics USING fts5(id, name, type, serialization_format)",
+      "INSERT INTO topics SELECT id, name, type, serialization_format FROM stored"],
+     "'topics' is a virtual table, not a table"),
+    (["ALTER TABLE messages RENAME TO stored",
+      "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, "
+      "raw BLOB, data BLOB GENERATED ALWAYS AS (zeroblob(1000)) VIRTUAL)",
+      "INSERT INTO messages(id, topic_id, timestamp, raw) SELECT * FROM stored"],
+     "'messages' has computed columns (data)"),
+], ids=["view", "virtual-table", "generated-column"])
+def test_a_sqlite_bag_whose_tables_are_computed_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], statements: list[str],
+        problem: str) -> None:
+    """Read as they were, a recursive view never ended (or took 5 GB before a MemoryError) and a
+    generated column of zeroblob(10**9) made a gigabyte per row: the work a view or a computed
+    column makes is not bounded by the file. These are small and harmless, and refused all the
+    same."""
+    bag = db3(tmp_path / "bag.db3", *statements)
+    code, err = replay(bag, tmp_path, capsys)
+    assert code == 2, err
+    assert err == (f"lanewarden: error: {bag}: {problem}; not a rosbag2 SQLite file lanewarden "
+                   "reads\n")
