@@ -473,11 +473,21 @@ def _folder_files(folder: Path) -> list[BagFile]:
         raise InputFileError(f"{folder / 'metadata.yaml'}: relative_file_paths: expected a "
                              "list of the bag's files")
     files: list[BagFile] = []
+    seen: dict[tuple[int, int], str] = {}
     for name in names:
         path = folder / Path(name).name  # the bag's own folder only
         if not path.is_file():
             raise InputFileError(f"{folder / 'metadata.yaml'}: lists {name!r}, which is not in "
                                  f"{folder}")
+        # each file once: a list naming one file again and again (or links to it) would read
+        # it again and again
+        facts = path.stat()
+        key = (facts.st_dev, facts.st_ino)
+        if key in seen:
+            again = "twice" if seen[key] == name else f"and {seen[key]!r}, the same file"
+            raise InputFileError(f"{folder / 'metadata.yaml'}: lists {name!r} {again}; expected "
+                                 "each of the bag's files once")
+        seen[key] = name
         files.append(_bag_file(path))
     return files
 
