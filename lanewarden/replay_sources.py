@@ -536,6 +536,9 @@ def _check_image_message(message: BagMessage, decoded: Any, where: str,
                 raise InputFileError(
                     f"{where}: a {width}x{height} {decoded.encoding} image with step "
                     f"{decoded.step} and {len(decoded.data)} bytes of data does not add up")
+            if channels == 2 and width % 2:  # YUV 4:2:2: two pixels share their U and V
+                raise InputFileError(f"{where}: a {width}x{height} {decoded.encoding} image: "
+                                     "expected an even width (two pixels share one U and V)")
             problem = too_many_pixels(width, height, max_pixels)
         else:
             problem = header_problem(io.BytesIO(bytes(decoded.data)), max_pixels)

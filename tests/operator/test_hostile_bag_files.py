@@ -16,6 +16,7 @@ from lanewarden import ros_bag
 from lanewarden.cli import main
 from lanewarden.errors import InputFileError
 from lanewarden.ros_bag import McapFile
+from lanewarden.run_mcap import IMAGE, IMAGE_DEF
 from tests.operator.mcap_bytes import (
     channel,
     mcap_file,
@@ -212,3 +213,22 @@ def test_a_rosbag2_folder_listing_one_file_twice(tmp_path: Path,
     assert code == 2, err
     assert err == (f"lanewarden: error: {bag / 'metadata.yaml'}: {problem}; expected each of the "
                    "bag's files once\n")
+
+
+# ---- image messages ----------------------------------------------------------------------------
+def test_a_yuv422_image_of_an_odd_width(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Two pixels of YUV 4:2:2 share their U and V: OpenCV's conversion of an odd width was a
+    traceback (cv2.error, an assertion) when the frame was decoded."""
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    encode = serialize_dynamic(IMAGE, IMAGE_DEF)[IMAGE]
+    data = encode({"header": {"stamp": {"sec": 1_790_000_000, "nanosec": 0}, "frame_id": "c"},
+                   "height": 2, "width": 161, "encoding": "yuv422_yuy2", "is_bigendian": 0,
+                   "step": 322, "data": bytes(644)})
+    bag = db3(tmp_path / "bag.db3", f"UPDATE messages SET data = x'{data.hex()}'",
+              f"UPDATE topics SET type = '{IMAGE}', name = '/camera/image_raw'")
+    code, err = replay(bag, tmp_path, capsys)
+    assert code == 2, err
+    assert err == (f"lanewarden: error: {bag}: /camera/image_raw message 1: a 161x2 yuv422_yuy2 "
+                   "image: expected an even width (two pixels share one U and V)\n")
