@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from lanewarden.documents import NOT_A_REGULAR_FILE
+from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.perception.config import PerceptionConfig
 
 #: File name endings read as images (a folder or glob of frames, a survey's class folders).
@@ -55,7 +55,10 @@ def _opened_size(path: Path | IO[bytes]) -> tuple[int, int] | None:
 def header_facts(path: Path | IO[bytes], max_pixels: int) -> tuple[tuple[int, int] | None, str]:
     """From one read of the image file's header, without decoding it: its (width, height) or
     None when Pillow cannot tell, and why it is too large ('' when within the limit or unknown:
-    it is then checked once decoded)."""
+    it is then checked once decoded) or, never opened, a FIFO or device (opening a FIFO waits
+    for a writer)."""
+    if isinstance(path, Path) and is_special_file(path):
+        return None, NOT_A_REGULAR_FILE
     try:
         size = _opened_size(path)
     except Image.DecompressionBombError as exc:

@@ -42,7 +42,13 @@ import numpy as np
 from lanewarden.actuation.base import BaseFeedback
 from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require_camera_view
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
-from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
+from lanewarden.documents import (
+    MAX_DOCUMENT_BYTES,
+    NOT_A_REGULAR_FILE,
+    is_special_file,
+    parse_yaml_text,
+    shorten,
+)
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import (
     file_problem,
@@ -294,6 +300,8 @@ def _check_times(times: list[float], where: str) -> None:
 
 
 def _read_small(path: Path, what: str) -> bytes:
+    if is_special_file(path):  # reading a FIFO waits for a writer, a device may never end
+        raise InputFileError(f"{path}: the {what} is {NOT_A_REGULAR_FILE}")
     try:
         with path.open("rb") as stream:
             data = stream.read(MAX_DOCUMENT_BYTES + 1)
@@ -772,6 +780,8 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
                        ) -> ReplaySource:
     """Recognise SOURCE (see the module docstring); one line naming it when it is none."""
     path = Path(source)
+    if is_special_file(path):
+        raise UsageError(f"SOURCE '{source}': {NOT_A_REGULAR_FILE}; expected {SOURCE_HELP}")
     if topic is not None and not is_bag(path):
         raise UsageError(f"--topic {topic}: only for a ROS 2 bag; SOURCE '{source}' is not one")
     if path.is_dir():
