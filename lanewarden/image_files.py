@@ -2,9 +2,10 @@
 before decoding: a small file can decode to gigabytes (a 1 MB PNG of 20000x20000 pixels does).
 
 The size is read from the file's header with Pillow (it parses only the header on open; PNG, JPEG,
-BMP, TIFF, WebP, PNM, ...); OpenCV then decodes. For a format Pillow does not know, the decoded
-image is checked instead. Returns the reason an image cannot be used rather than raising, so a
-command can report every bad file in one line. Never prints.
+BMP, TIFF, WebP, PNM, ...); OpenCV then decodes. A format Pillow does not know is not decoded
+(OpenCV would decode Radiance HDR, whose size only its decoder reads). Returns the reason an
+image cannot be used rather than raising, so a command can report every bad file in one line.
+Never prints.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from lanewarden.documents import NOT_A_REGULAR_FILE
+from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.perception.config import PerceptionConfig
 
 #: File name endings read as images (a folder or glob of frames, a survey's class folders).
@@ -55,7 +56,10 @@ def _opened_size(path: Path | IO[bytes]) -> tuple[int, int] | None:
 def header_facts(path: Path | IO[bytes], max_pixels: int) -> tuple[tuple[int, int] | None, str]:
     """From one read of the image file's header, without decoding it: its (width, height) or
     None when Pillow cannot tell, and why it is too large ('' when within the limit or unknown:
-    it is then checked once decoded)."""
+    `decode_image` then refuses it) or, never opened, a FIFO or device (opening a FIFO waits
+    for a writer)."""
+    if isinstance(path, Path) and is_special_file(path):
+        return None, NOT_A_REGULAR_FILE
     try:
         size = _opened_size(path)
     except Image.DecompressionBombError as exc:
@@ -70,7 +74,7 @@ def header_facts(path: Path | IO[bytes], max_pixels: int) -> tuple[tuple[int, in
 def header_problem(path: Path | IO[bytes], max_pixels: int) -> str:
     """Why the image file (a path, or an open binary file such as `io.BytesIO(data)`) is too
     large, judged from its header without decoding it; '' when it is within the limit or its
-    format is not one Pillow reads (it is then checked once decoded)."""
+    format is not one Pillow reads (`decode_image` then refuses it)."""
     return header_facts(path, max_pixels)[1]
 
 
@@ -121,9 +125,9 @@ def read_image(
     path: Path, flags: int = cv2.IMREAD_COLOR, max_pixels: int = DEFAULT_MAX_PIXELS
 ) -> tuple[np.ndarray | None, str]:
     """Decode an image file: (image, "") or (None, why it cannot be used). An image with more
-    than `max_pixels` pixels is refused, from its header before decoding where the format
-    allows; so is a file larger than any image within the limit, before it is read, and
-    anything but a regular file."""
+    than `max_pixels` pixels is refused, from its header before decoding (`decode_image`); so
+    is a file larger than any image within the limit, before it is read, and anything but a
+    regular file."""
     if why := file_problem(path):
         return None, why
     if why := header_problem(path, max_pixels):
@@ -131,18 +135,31 @@ def read_image(
     limit = MAX_BYTES_PER_PIXEL * max_pixels + (1 << 20)
     try:
         with path.open("rb") as stream:
-            data = np.frombuffer(stream.read(limit + 1), dtype=np.uint8)
+            data = stream.read(limit + 1)
     except OSError as exc:
         return None, f"cannot read file ({exc.strerror or exc})"
-    if data.size > limit:
+    if len(data) > limit:
         return None, (f"file is larger than {limit} bytes, more than any image within "
                       f"{LIMIT_KEY} ({max_pixels}) holds")
-    if data.size == 0:
+    return decode_image(data, flags, max_pixels)
+
+
+def decode_image(data: bytes, flags: int, max_pixels: int) -> tuple[np.ndarray | None, str]:
+    """Decode an encoded image (a file's bytes): (image, "") or (None, why not). Its size is
+    read from its header first (Pillow), and what Pillow cannot size is not decoded, garbage or
+    a format it does not know: OpenCV decodes a few of those, and a Radiance HDR file of 9 MB
+    had decoded to 1.7 GB of floats before its size could be checked."""
+    if not data:
         return None, "empty file, not an image"
     if png_damage(data):
         return None, "not a readable image"
+    size, why = header_facts(io.BytesIO(data), max_pixels)
+    if why:
+        return None, why
+    if size is None:
+        return None, "not a readable image"
     try:
-        image = cv2.imdecode(data, flags)
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error:
         image = None
     if image is None or image.size == 0:

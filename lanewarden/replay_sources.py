@@ -42,13 +42,19 @@ import numpy as np
 from lanewarden.actuation.base import BaseFeedback
 from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require_camera_view
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
-from lanewarden.documents import MAX_DOCUMENT_BYTES, parse_yaml_text, shorten
+from lanewarden.documents import (
+    MAX_DOCUMENT_BYTES,
+    NOT_A_REGULAR_FILE,
+    is_special_file,
+    parse_yaml_text,
+    shorten,
+)
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import (
+    decode_image,
     file_problem,
     header_facts,
     header_problem,
-    png_damage,
     read_image,
     too_many_pixels,
 )
@@ -178,17 +184,12 @@ class VideoFrames(FrameStore):
         self._capture.release()
 
 
-def _decode_encoded(data: bytes) -> np.ndarray | None:
+def _decode_encoded(data: bytes, max_pixels: int) -> np.ndarray | None:
     """A compressed frame, or None when it does not decode (counted and reported by replay, so
     OpenCV's own message for each is silenced)."""
-    if png_damage(data):  # libpng's own message for it is not silenced by OpenCV's log level
-        return None
-    try:
-        with quiet_opencv():
-            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    except cv2.error:
-        return None
-    return image if image is not None and image.dtype == np.uint8 and image.size else None
+    with quiet_opencv():
+        image, _ = decode_image(data, cv2.IMREAD_UNCHANGED, max_pixels)
+    return image if image is not None and image.dtype == np.uint8 else None
 
 
 def _decode_raw(message: Any) -> np.ndarray | None:
@@ -206,9 +207,10 @@ class MessageFrames(FrameStore):
     message whose key is i: its `sequence` (a Lanewarden run.mcap: the frame index) or its
     position on the topic (a bag)."""
 
-    def __init__(self, bag: Bag, topic: str, *, by_sequence: bool, prepared: bool = False
-                 ) -> None:
+    def __init__(self, bag: Bag, topic: str, max_pixels: int, *, by_sequence: bool,
+                 prepared: bool = False) -> None:
         super().__init__()
+        self._max_pixels = max_pixels
         self._messages: Iterator[BagMessage] = bag.messages(lambda t: t.name == topic)
         self._by_sequence = by_sequence
         self._prepared = prepared
@@ -237,7 +239,7 @@ class MessageFrames(FrameStore):
             if message.topic.type == IMAGE:
                 image = _decode_raw(decoded)
             else:
-                image = _decode_encoded(bytes(decoded.data))
+                image = _decode_encoded(bytes(decoded.data), self._max_pixels)
             if image is None:
                 self.undecoded.add(index)
             if self._prepared and image is not None and image.ndim == 2:
@@ -294,6 +296,8 @@ def _check_times(times: list[float], where: str) -> None:
 
 
 def _read_small(path: Path, what: str) -> bytes:
+    if is_special_file(path):  # reading a FIFO waits for a writer, a device may never end
+        raise InputFileError(f"{path}: the {what} is {NOT_A_REGULAR_FILE}")
     try:
         with path.open("rb") as stream:
             data = stream.read(MAX_DOCUMENT_BYTES + 1)
@@ -433,7 +437,8 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                             f"{path}:{CALIBRATION_ATTACHMENT}")
     return ReplaySource(
         kind="run", name=name, steps=reader.steps,
-        frames=MessageFrames(bag, topic, by_sequence=True, prepared=kind == PERCEPTION_INPUT),
+        frames=MessageFrames(bag, topic, max_pixels, by_sequence=True,
+                             prepared=kind == PERCEPTION_INPUT),
         recorded=reader.recorded,
         config=config, calibration=calibration, controller=meta.get("controller"), meta=meta,
         summary=summary, incomplete=incomplete, frames_recorded=recorded_frames,
@@ -536,6 +541,9 @@ def _check_image_message(message: BagMessage, decoded: Any, where: str,
                 raise InputFileError(
                     f"{where}: a {width}x{height} {decoded.encoding} image with step "
                     f"{decoded.step} and {len(decoded.data)} bytes of data does not add up")
+            if channels == 2 and width % 2:  # YUV 4:2:2: two pixels share their U and V
+                raise InputFileError(f"{where}: a {width}x{height} {decoded.encoding} image: "
+                                     "expected an even width (two pixels share one U and V)")
             problem = too_many_pixels(width, height, max_pixels)
         else:
             problem = header_problem(io.BytesIO(bytes(decoded.data)), max_pixels)
@@ -603,7 +611,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
                   f"{how})" for cut_file, how in cut]
     return ReplaySource(kind="bag", name=f"{path.stem or path.name}",
                         steps=camera_steps(enumerate(rel)),
-                        frames=MessageFrames(bag, topic, by_sequence=False),
+                        frames=MessageFrames(bag, topic, max_pixels, by_sequence=False),
                         meta={"topic": topic, "times": note,
                               "frames_per_s_recorded": len(rel) / max(rel[-1], 1e-9)},
                         incomplete=incomplete)
@@ -682,7 +690,7 @@ def _one_size(paths: list[Path], source: str, max_pixels: int) -> None:
         if problem:
             raise InputFileError(f"{path}: {problem}")
         if size is None:
-            continue  # a format Pillow does not know: judged when decoded
+            continue  # a format Pillow does not know: refused when decoded
         sizes.setdefault(size, path)
         if len(sizes) > 1:
             (a, path_a), (b, path_b) = list(sizes.items())[:2]
@@ -769,6 +777,8 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
                        ) -> ReplaySource:
     """Recognise SOURCE (see the module docstring); one line naming it when it is none."""
     path = Path(source)
+    if is_special_file(path):
+        raise UsageError(f"SOURCE '{source}': {NOT_A_REGULAR_FILE}; expected {SOURCE_HELP}")
     if topic is not None and not is_bag(path):
         raise UsageError(f"--topic {topic}: only for a ROS 2 bag; SOURCE '{source}' is not one")
     if path.is_dir():

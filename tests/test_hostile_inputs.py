@@ -25,6 +25,7 @@ import pytest
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.scenarios.campaign.cases import case_yaml, draw_case, load_campaign_spec
 from tests.conftest import PROJECT_ROOT
+from tests.operator.mcap_bytes import channel, mcap_file, metadata, record, schema, zstd_chunk
 
 #: Address space the child may use above its baseline after the imports, bytes.
 HEADROOM_BYTES = 400 * 1024 * 1024
@@ -64,6 +65,16 @@ def yaml_bomb(indent: str = "") -> str:
 
 
 SCENARIO_HEAD = "name: hostile\nlane:\n  segments:\n"
+
+
+def many_entries(count: int) -> bytes:
+    """An MCAP string map of `count` distinct 7-digit keys with empty values (15 bytes each)."""
+    entries = np.zeros((count, 15), np.uint8)
+    entries[:, 0] = 7
+    numbers = np.arange(count)
+    for digit in range(7):
+        entries[:, 4 + digit] = 48 + numbers // 10 ** (6 - digit) % 10
+    return entries.tobytes()
 
 
 def big_png(width: int, height: int) -> bytes:
@@ -123,6 +134,16 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
     (folder / "fifo-survey" / "no-lane").mkdir()
     (folder / "fifo-survey" / "lane" / "a.png").write_bytes(big_png(640, 480))
     os.mkfifo(folder / "fifo-survey" / "no-lane" / "b.png")
+    # MCAP chunks of a few kB (zstd) that the reader had kept or parsed whole: 480 MB of schema
+    # names, a dict of 6 million channel metadata entries, one of a metadata record's
+    mcap_file(folder / "names.mcap", *[zstd_chunk(schema(i, b"x" * 120_000_000))
+                                       for i in range(1, 5)])
+    entries = many_entries(6_000_000)
+    mcap_file(folder / "channel-map.mcap", zstd_chunk(channel(1, b"/t", metadata=entries)),
+              record(0x02, bytes(20)))
+    mcap_file(folder / "metadata-map.mcap", zstd_chunk(metadata(b"lanewarden", entries)),
+              record(0x02, bytes(20)))
+    replay = ["--no-video", "--out", str(folder / "replay-out")]
     cases = {
         "config bomb": ["config", "show", "--config", write("bomb.yaml", yaml_bomb())],
         "scenario bomb": ["sim", "--scenario", write(
@@ -193,6 +214,11 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
             str(folder / "clash" / "report.html"), "--no-video", "--quiet"],
         "lane_lost_halt_s inf": ["sim", "--scenario", "lane-ends", "--check", "--config", write(
             "inf.yaml", "supervisor:\n  lane_lost_halt_s: .inf\n"), *sim],
+        "MCAP chunks of 120 MB schema names": ["replay", str(folder / "names.mcap"), *replay],
+        "MCAP channel of 6 million metadata entries": [
+            "replay", str(folder / "channel-map.mcap"), *replay],
+        "MCAP metadata of 6 million entries in a chunk": [
+            "replay", str(folder / "metadata-map.mcap"), *replay],
     }
     child = subprocess.run(
         [sys.executable, "-c", CHILD, str(HEADROOM_BYTES), json.dumps(cases)],
@@ -264,6 +290,13 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "camera clip over the run's report": "report.html is one of the run's own outputs in --out",
     "lane_lost_halt_s inf": "inf.yaml: supervisor.lane_lost_halt_s = inf: expected a finite "
                             "number with 0 < value <= 1",
+    # each was a MemoryError: what the reader kept or parsed of a chunk had no bound
+    "MCAP chunks of 120 MB schema names": "names.mcap: a schema name of 120000000 bytes (at "
+                                          "most 1000) at byte 33",
+    "MCAP channel of 6 million metadata entries": "channel-map.mcap: no sensor_msgs/msg/Image "
+                                                  "or CompressedImage messages (topics: /t)",
+    "MCAP metadata of 6 million entries in a chunk": "metadata-map.mcap: no sensor_msgs/msg/"
+                                                     "Image or CompressedImage messages",
 }
 
 

@@ -44,6 +44,31 @@ def test_images_within_the_limit_decode(tmp_path: Path) -> None:
         None, "image is 64x48 = 3072 pixels, more than perception.max_image_pixels (3071)")
 
 
+def radiance_hdr(width: int, height: int) -> bytes:
+    """A valid Radiance HDR image (a format OpenCV decodes and Pillow cannot open), run-length
+    encoded: about 400 bytes a row of 1000 pixels, decoded to 12 kB of floats."""
+    row = bytearray(b"\x02\x02" + struct.pack(">H", width))
+    for component in range(4):  # R, G, B, then the shared exponent
+        left = width
+        while left:
+            run = min(127, left)
+            row += bytes([128 + run, 128 if component == 3 else 100])
+            left -= run
+    return (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {height} +X {width}\n".encode()
+            + bytes(row) * height)
+
+
+def test_an_image_whose_size_its_header_does_not_tell_is_not_decoded(tmp_path: Path) -> None:
+    """OpenCV decodes Radiance HDR, which Pillow cannot open, so its size was only checked
+    once decoded: 9 MB of run-length encoded rows (12000x12000) took 1.7 GB in `detect` and in
+    `replay` of a folder, a format-1 run or a run.mcap holding it."""
+    path = tmp_path / "small.hdr"
+    path.write_bytes(cv2.imencode(".hdr", np.zeros((8, 8, 3), np.float32))[1].tobytes())
+    assert read_image(path, cv2.IMREAD_UNCHANGED) == (None, "not a readable image")
+    path.write_bytes(radiance_hdr(120, 90))
+    assert read_image(path) == (None, "not a readable image")
+
+
 @pytest.fixture
 def sequence(tmp_path: Path) -> str:
     for index in range(3):

@@ -10,9 +10,12 @@ its raw bytes) and a format-1 folder's run.jsonl."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import struct
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -283,6 +286,27 @@ def test_hostile_mcap_records(recorded: Path, tmp_path: Path,
     assert_one_line(code, err, "garbage.mcap", "not an MCAP file")
 
 
+_CHUNK_TIMES = struct.pack("<QQQI", 0, 0, 0, 0)  # start, end, uncompressed size, CRC
+
+
+@pytest.mark.parametrize("body, exception", [
+    (_CHUNK_TIMES + struct.pack("<IQ", 0, 2**63), "OverflowError"),  # records: 2**63 bytes
+    (struct.pack("<QQ", 0, 0), "EndOfFile"),  # cut after its times
+    (_CHUNK_TIMES + struct.pack("<I", 2) + b"\xff\xfe" + struct.pack("<Q", 0),
+     "UnicodeDecodeError"),  # a compression name that is not UTF-8
+], ids=["records-2**63-bytes", "cut-after-its-times", "compression-not-utf8"])
+def test_a_damaged_chunk_header_is_one_line(recorded: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str], body: bytes,
+                                            exception: str) -> None:
+    """Each was a traceback: the chunk's own fields were parsed outside the reader's checks."""
+    prefix = _prefix(recorded)
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(prefix + struct.pack("<BQ", 0x06, len(body)) + body)
+    code, _, err = replay(damaged, tmp_path, capsys)
+    assert_one_line(code, err, f"{damaged}: a damaged chunk record ({exception}) at byte "
+                    f"{len(prefix)}; not a readable MCAP recording")
+
+
 def _records(data: bytes) -> list[tuple[int, int, int]]:
     """(opcode, offset, length of the body) of each top-level record of an MCAP file."""
     records, offset = [], len(MCAP_MAGIC)
@@ -424,3 +448,59 @@ def test_a_tub_frame_of_another_size_is_refused(tmp_path: Path,
     cv2.imwrite(str(tub / "images" / "1_cam_image_array_.jpg"), np.zeros((480, 640, 3), np.uint8))
     assert main(["replay", str(tub), "--no-video", "--out", str(tmp_path / "out")]) == 2
     assert "images of different sizes" in capsys.readouterr().err
+
+
+# ---- a FIFO where a file is expected -----------------------------------------------------------
+@contextmanager
+def fifo_with_a_writer(path: Path, data: bytes) -> Iterator[Path]:
+    """A FIFO at `path` whose writer (a thread) hands `data` to the first reader: code that opens
+    it reads `data` instead of waiting for ever, so the test fails rather than hangs where the
+    FIFO is still opened. Afterwards the writer is released by a reader of its own."""
+    os.mkfifo(path)
+    writer = threading.Thread(target=path.write_bytes, args=(data,), daemon=True)
+    writer.start()
+    try:
+        yield path
+    finally:
+        release = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        writer.join()
+        os.close(release)
+
+
+def _fifo_case(case: str, recorded: Path, folder: Path) -> tuple[Path, Path, str]:
+    """(SOURCE, the file made a FIFO, the start of the one line) of each case."""
+    import cv2
+
+    if case == "format-1 summary.json":
+        run = as_format_1(recorded, folder / "run")
+        return run, run / "summary.json", "the recording's summary is "
+    if case in ("tub catalog", "tub manifest"):
+        tub = _tub(folder / "tub", [])
+        if case == "tub catalog":
+            return tub, tub / "catalog_0.catalog", "the tub catalog is "
+        (tub / "manifest.json").write_text("{}\n")
+        return tub, tub / "manifest.json", "the tub manifest is "
+    if case == "a frame in a folder of frames":
+        frames = folder / "frames"
+        frames.mkdir()
+        for i in range(4):
+            cv2.imwrite(str(frames / f"{i}.png"), np.full((120, 160), 90 + i, np.uint8))
+        return frames, frames / "3.png", ""
+    (folder / "src.mcap").write_bytes(MCAP_MAGIC)
+    return folder / "src.mcap", folder / "src.mcap", ""  # SOURCE itself
+
+
+@pytest.mark.parametrize("case", ["format-1 summary.json", "tub catalog", "tub manifest",
+                                  "a frame in a folder of frames", "SOURCE itself"])
+def test_a_fifo_where_a_file_is_expected_is_refused_unopened(
+        case: str, recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Opening a FIFO waits for a writer: `replay` hung on each of the first four (a format-1
+    run's summary.json, a tub's catalog or manifest: read whole; a folder's frame: its header,
+    before the replay); the fifth was 'no such file or folder'."""
+    source, target, start = _fifo_case(case, recorded, tmp_path)
+    data = target.read_bytes()
+    target.unlink()
+    with fifo_with_a_writer(target, data):
+        code, _, err = replay(source, tmp_path, capsys)
+    where = f"SOURCE '{source}': " if target == source else f"{target}: "
+    assert_one_line(code, err, f"{where}{start}not a regular file (a FIFO, socket or device)")
