@@ -406,6 +406,9 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                  str(path), "recorded summary").get("end_reason")
             ended = f": the run ended before its first step ({shorten(str(about), 300)})" if (
                 about) else ""
+        elif mcap.cut_short is not None:  # as for a bag cut before its first image
+            ended = (f": cut short before its first step (it {mcap.cut_short}); a run killed at "
+                     "its start, or its disk full?")
         raise InputFileError(f"{path}: no recorded steps{ended}")
     kind = meta.get("image", CAMERA_GRAY_OR_JPEG)
     topic = meta.get("frames", IMAGE_TOPIC)

@@ -239,6 +239,20 @@ def test_a_recording_cut_short_replays_but_is_not_checked(
     assert_one_line(code, err, "the recording is incomplete", "cut short")
 
 
+def test_a_recording_cut_before_its_first_step_says_so(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Cut after its meta, config and calibration, before its first chunk: it was 'no recorded
+    steps', as for a run that recorded none, without a word of the cut."""
+    data = (recorded / "run.mcap").read_bytes()
+    (chunk, *_) = [offset for opcode, offset, _ in _records(data) if opcode == 0x06]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:chunk + 20])
+    code, _, err = replay(cut, tmp_path, capsys)
+    assert_one_line(code, err, f"{cut}: no recorded steps: cut short before its first step (it "
+                    f"ends at byte {chunk + 20} inside a record that starts at byte {chunk}); a "
+                    "run killed at its start, or its disk full?")
+
+
 def test_a_damaged_last_line_and_a_missing_summary_are_said(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     old = as_format_1(recorded, tmp_path / "old")
