@@ -309,11 +309,17 @@ def _read_small(path: Path, what: str) -> bytes:
     return data
 
 
+def _json_problem(exc: Exception) -> str:
+    """Why a text is not JSON, in a few words (Python's parser recurses: a few kB of '[' are
+    more than it nests)."""
+    return "nested too deeply" if isinstance(exc, RecursionError) else shorten(str(exc))
+
+
 def _json_object(data: bytes, where: str, what: str) -> dict[str, Any]:
     try:
         value = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise InputFileError(f"{where}: the {what} is not JSON ({shorten(str(exc))})") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputFileError(f"{where}: the {what} is not JSON ({_json_problem(exc)})") from None
     if not isinstance(value, dict):
         raise InputFileError(f"{where}: the {what} is not a JSON object")
     return value
@@ -392,8 +398,8 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                 f"{MAX_STEP_BYTES})")
         try:
             line = json.loads(text)
-        except ValueError as exc:
-            raise _step_problem(where, f"record is not JSON ({shorten(str(exc))})") from None
+        except (ValueError, RecursionError) as exc:
+            raise _step_problem(where, f"record is not JSON ({_json_problem(exc)})") from None
         reader.add(line, where)
         refused = reader.steps[-1]
         if refused.frame_refused is not None and refused.frame is not None:
@@ -443,10 +449,17 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
         frames=MessageFrames(bag, topic, max_pixels, by_sequence=True,
                              prepared=kind == PERCEPTION_INPUT),
         recorded=reader.recorded,
-        config=config, calibration=calibration, controller=meta.get("controller"), meta=meta,
+        config=config, calibration=calibration, controller=_recorded_controller(meta), meta=meta,
         summary=summary, incomplete=incomplete, frames_recorded=recorded_frames,
         config_origin=(f"recorded ({path}:{CONFIG_ATTACHMENT})" if config is not None
                        else "defaults"))
+
+
+def _recorded_controller(meta: dict[str, Any]) -> str | None:
+    """The controller a run's meta names (None: none, or not a name: a list had been a
+    TypeError where `replay` looked it up)."""
+    controller = meta.get("controller")
+    return controller if isinstance(controller, str) else None
 
 
 def _check_format(mcap: McapFile, path: Path) -> dict[str, Any]:
@@ -495,12 +508,12 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
                 continue
             try:
                 line = json.loads(raw)
-            except ValueError as exc:
+            except (ValueError, RecursionError) as exc:
                 if not raw.endswith(b"\n") and not stream.read(1):
                     incomplete.append(f"the last line of run.jsonl ({number}) is cut short: "
                                       "the run was killed or its disk filled")
                     break
-                raise _step_problem(where, f"not JSON ({shorten(str(exc))})") from None
+                raise _step_problem(where, f"not JSON ({_json_problem(exc)})") from None
             reader.add(line, where)
     if not reader.steps:
         raise InputFileError(f"{run_log}: no recorded steps")
@@ -522,7 +535,7 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
         kind="run", name=folder.name, steps=reader.steps,
         frames=RunFolderFrames(folder / "frames", suffix, max_pixels),
         recorded=reader.recorded, config=config, calibration=calibration,
-        controller=meta.get("controller"), meta=meta, summary=summary, incomplete=incomplete,
+        controller=_recorded_controller(meta), meta=meta, summary=summary, incomplete=incomplete,
         config_origin=f"recorded ({config_path})" if config is not None else "defaults")
 
 
@@ -639,7 +652,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                     record = json.loads(raw)
                 except (ValueError, RecursionError) as exc:
                     raise InputFileError(f"{catalog}:{number}: not a JSON record "
-                                         f"({shorten(str(exc))})") from None
+                                         f"({_json_problem(exc)})") from None
                 if not isinstance(record, dict):
                     raise InputFileError(f"{catalog}:{number}: a {type(record).__name__}, "
                                          "expected a JSON object (a tub record)")

@@ -132,6 +132,62 @@ def test_frames_of_a_kind_replay_does_not_know(recorded: Path, tmp_path: Path,
                     "/lanewarden/perception_input/compressed")
 
 
+DEEP = "[" * 5000  # 5 kB: within every size limit, deeper than Python's JSON parser recurses
+
+
+def _deep_step(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+    if topic == "/lanewarden/step" and number == 4:
+        message["record"] = DEEP
+    return message
+
+
+@pytest.mark.parametrize("where", ["run.jsonl", "run.mcap step", "summary.json",
+                                   "run.mcap summary", "meta.json"])
+def test_json_nested_too_deeply_is_one_line(where: str, recorded: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Each was a traceback (RecursionError): only the tub's catalog caught it."""
+    old = as_format_1(recorded, tmp_path / "old")
+    source, expected = old, ""
+    if where == "run.jsonl":
+        lines = (old / "run.jsonl").read_text().splitlines()
+        lines[3] = DEEP
+        (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+        expected = f"{old / 'run.jsonl'}:4: not JSON (nested too deeply)"
+    elif where == "summary.json":
+        (old / "summary.json").write_text(DEEP)
+        expected = (f"{old / 'summary.json'}: the recording's summary is not JSON (nested too "
+                    "deeply)")
+    elif where == "meta.json":
+        (old / "meta.json").write_text('{"format": 1, "x": ' + DEEP)
+        expected = (f"{old / 'meta.json'}: the recording's meta.json is not JSON (nested too "
+                    "deeply)")
+    else:
+        source = tmp_path / "forged.mcap"
+        if where == "run.mcap step":
+            rewrite_mcap(recorded / "run.mcap", source, _deep_step)
+            expected = (f"{source}: /lanewarden/step message 4: record is not JSON (nested too "
+                        "deeply)")
+        else:
+            rewrite_mcap(recorded / "run.mcap", source, lambda topic, n, message: message,
+                         metadata={"lanewarden.summary": {"summary": DEEP}})
+            expected = f"{source}: the recorded summary is not JSON (nested too deeply)"
+    code, _, err = replay(source, tmp_path, capsys)
+    assert_one_line(code, err, expected)
+
+
+def test_a_controller_that_is_not_a_name_is_not_looked_up(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A meta whose controller is a list was a traceback (TypeError: unhashable type) where
+    `replay` looked it up; it is now no controller at all, as an unknown name was: the replay
+    uses the default (supervised, which this run had)."""
+    old = as_format_1(recorded, tmp_path / "old")
+    meta = json.loads((old / "meta.json").read_text())
+    (old / "meta.json").write_text(json.dumps(dict(meta, controller=["supervised"])))
+    code, out, err = replay(old, tmp_path, capsys, "--check")
+    assert code == 0, err
+    assert "reproduced: all" in out
+
+
 def _step_count(run: Path) -> int:
     return int(json.loads((run / "summary.json").read_text())["steps"])
 
