@@ -163,11 +163,13 @@ class RunFolderFrames(PathFrames):
 
 
 class VideoFrames(FrameStore):
-    """Decodes forward only (replay asks for increasing indices)."""
+    """Decodes forward only (replay asks for increasing indices). A frame larger than
+    `max_pixels` (a stream whose size changes past its header's) is no frame."""
 
-    def __init__(self, capture: cv2.VideoCapture) -> None:
+    def __init__(self, capture: cv2.VideoCapture, max_pixels: int) -> None:
         super().__init__()
         self._capture = capture
+        self._max_pixels = max_pixels
         self._index = -1
         self._image: np.ndarray | None = None
 
@@ -177,7 +179,8 @@ class VideoFrames(FrameStore):
             if not ok:
                 return None
             self._index += 1
-            self._image = image
+            too_large = too_many_pixels(image.shape[1], image.shape[0], self._max_pixels)
+            self._image = None if too_large else image
         return self._image if self._index == index else None
 
     def close(self) -> None:
@@ -732,7 +735,7 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                         frames=PathFrames(paths, max_pixels))
 
 
-def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
+def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> ReplaySource:
     # FFmpeg logs each frame it cannot decode itself; the replay says what it could not read.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     with quiet_opencv():
@@ -743,6 +746,19 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
         capture.release()
         raise UsageError(f"SOURCE '{source}': not a video OpenCV can read; expected "
                          f"{SOURCE_HELP}")
+    # the container's header says both, before a frame is decoded: a 12 kB AVI claiming 2**31
+    # frames had made a list of as many times (a MemoryError at 5 GB), and claiming a million,
+    # a replay of a million steps (1.2 GB); a 2 MB MPEG-4 of 8000x8000 frames took 1.7 GB.
+    # No codec stores a frame in less than a byte.
+    width, height = (int(capture.get(prop) or 0)
+                     for prop in (cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT))
+    size = path.stat().st_size
+    problem = (f"{count} frames, more than replay reads ({MAX_STEPS})" if count > MAX_STEPS
+               else f"its header claims {count} frames in {size} bytes" if count > size
+               else too_many_pixels(width, height, max_pixels))
+    if problem:
+        capture.release()
+        raise InputFileError(f"SOURCE '{source}': {problem}")
     fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
     fps = fps if 1.0 <= fps <= 240.0 else camera_rate_hz
     # a run's own video (captions and a map around the camera view) is not a camera's view,
@@ -760,7 +776,7 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
         capture = cv2.VideoCapture(str(path))
     times = [i / fps for i in range(count)]
     return ReplaySource(kind="video", name=path.stem, steps=camera_steps(enumerate(times)),
-                        frames=VideoFrames(capture), meta={"fps": fps})
+                        frames=VideoFrames(capture, max_pixels), meta={"fps": fps})
 
 
 def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
@@ -808,7 +824,7 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
     if paths is not None:
         return _frame_sequence(source, paths, max_pixels, camera_rate_hz)
     if path.is_file():
-        return _video(path, source, camera_rate_hz)
+        return _video(path, source, camera_rate_hz, max_pixels)
     raise UsageError(f"SOURCE '{source}': no such file or folder; expected {SOURCE_HELP}")
 
 

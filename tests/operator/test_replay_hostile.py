@@ -574,3 +574,54 @@ def test_a_fifo_where_a_file_is_expected_is_refused_unopened(
         code, _, err = replay(source, tmp_path, capsys)
     where = f"SOURCE '{source}': " if target == source else f"{target}: "
     assert_one_line(code, err, f"{where}{start}not a regular file (a FIFO, socket or device)")
+
+
+# ---- a video's header ---------------------------------------------------------------------------
+def _avi(path: Path, frames: int = 3, claimed: int | None = None) -> Path:
+    """An MJPEG AVI of 160x120 frames; `claimed`: the frame count its headers say instead."""
+    import cv2
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (160, 120))
+    for i in range(frames):
+        writer.write(np.full((120, 160, 3), 60 + 10 * i, np.uint8))
+    writer.release()
+    if claimed is not None:
+        data = bytearray(path.read_bytes())
+        struct.pack_into("<I", data, data.index(b"avih") + 8 + 16, claimed)  # dwTotalFrames
+        struct.pack_into("<I", data, data.index(b"strh") + 8 + 32, claimed)  # dwLength
+        path.write_bytes(bytes(data))
+    return path
+
+
+def test_a_video_claiming_more_frames_than_replay_reads(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A 12 kB AVI whose headers claim 2**31 - 1 frames made a list of as many frame times
+    (a MemoryError at 5 GB); the count in the header is now held to MAX_STEPS (here 10) and to
+    the file's size."""
+    from lanewarden import replay_sources
+
+    monkeypatch.setattr(replay_sources, "MAX_STEPS", 10)
+    video = _avi(tmp_path / "lying.avi", claimed=11)
+    code, _, err = replay(video, tmp_path, capsys)
+    assert_one_line(code, err, f"SOURCE '{video}': 11 frames, more than replay reads (10)")
+    # within MAX_STEPS, more frames than the file has bytes: a header that lies (claiming a
+    # million, it had replayed a million steps of no frame: 64 s, 1.2 GB)
+    monkeypatch.setattr(replay_sources, "MAX_STEPS", 10**9)
+    claimed = video.stat().st_size + 1
+    video = _avi(tmp_path / "lying.avi", claimed=claimed)
+    code, _, err = replay(video, tmp_path, capsys)
+    assert_one_line(code, err, f"SOURCE '{video}': its header claims {claimed} frames in "
+                    f"{claimed - 1} bytes")
+
+
+def test_a_video_of_frames_larger_than_the_pixel_limit(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 2 MB MPEG-4 of 8000x8000 frames was replayed in 1.7 GB: a video's frames were never
+    held to perception.max_image_pixels (images' are, from their header)."""
+    video = _avi(tmp_path / "big.avi")
+    config = tmp_path / "small.yaml"
+    config.write_text("perception:\n  max_image_pixels: 4096\n")
+    code, _, err = replay(video, tmp_path, capsys, "--config", str(config))
+    assert_one_line(code, err, f"SOURCE '{video}': image is 160x120 = 19200 pixels, more than "
+                    "perception.max_image_pixels (4096)")
