@@ -188,10 +188,9 @@ class VideoFrames(FrameStore):
 
 
 def _decode_encoded(data: bytes, max_pixels: int) -> np.ndarray | None:
-    """A compressed frame, or None when it does not decode (counted and reported by replay, so
-    OpenCV's own message for each is silenced)."""
-    with quiet_opencv():
-        image, _ = decode_image(data, cv2.IMREAD_UNCHANGED, max_pixels)
+    """A compressed frame, or None when it does not decode (counted and reported by replay;
+    `decode_image` silences OpenCV's own message for each)."""
+    image, _ = decode_image(data, cv2.IMREAD_UNCHANGED, max_pixels)
     return image if image is not None and image.dtype == np.uint8 else None
 
 
