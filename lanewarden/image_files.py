@@ -158,10 +158,16 @@ def decode_image(data: bytes, flags: int, max_pixels: int) -> tuple[np.ndarray |
         return None, why
     if size is None:
         return None, "not a readable image"
+    # OpenCV's own log line for what it cannot decode (a PPM cut short: "[ERROR:0@...]
+    # imdecode_ ... Unexpected end of input stream") would stand beside the caller's one line
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     try:
         image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error:
         image = None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if image is None or image.size == 0:
         return None, "not a readable image"
     if why := too_many_pixels(image.shape[1], image.shape[0], max_pixels):

@@ -221,8 +221,15 @@ def default_run_folder(root: Path, now_utc: dt.datetime) -> Path:
 
 
 def create_run_folder(folder: Path, flag: str = "--record") -> Path:
-    """Make `folder`; UsageError when it already holds anything (never overwrite)."""
-    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+    """Make `folder`; UsageError when it already holds anything (never overwrite), or is
+    something else than a folder (a FIFO, a device, a link to nowhere)."""
+    if folder.is_symlink() and not folder.exists():
+        raise UsageError(f"{flag} {folder}: a link to {os.readlink(folder)!r}, which does not "
+                         "exist; choose a new folder")
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} {folder}: already exists and is not a folder; choose a new "
+                         "folder")
+    if folder.exists() and any(folder.iterdir()):
         raise UsageError(f"{flag} {folder}: already exists and is not empty (a recording is never "
                          "overwritten; choose a new folder)")
     try:

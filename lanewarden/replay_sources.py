@@ -163,11 +163,13 @@ class RunFolderFrames(PathFrames):
 
 
 class VideoFrames(FrameStore):
-    """Decodes forward only (replay asks for increasing indices)."""
+    """Decodes forward only (replay asks for increasing indices). A frame larger than
+    `max_pixels` (a stream whose size changes past its header's) is no frame."""
 
-    def __init__(self, capture: cv2.VideoCapture) -> None:
+    def __init__(self, capture: cv2.VideoCapture, max_pixels: int) -> None:
         super().__init__()
         self._capture = capture
+        self._max_pixels = max_pixels
         self._index = -1
         self._image: np.ndarray | None = None
 
@@ -177,7 +179,8 @@ class VideoFrames(FrameStore):
             if not ok:
                 return None
             self._index += 1
-            self._image = image
+            too_large = too_many_pixels(image.shape[1], image.shape[0], self._max_pixels)
+            self._image = None if too_large else image
         return self._image if self._index == index else None
 
     def close(self) -> None:
@@ -185,10 +188,9 @@ class VideoFrames(FrameStore):
 
 
 def _decode_encoded(data: bytes, max_pixels: int) -> np.ndarray | None:
-    """A compressed frame, or None when it does not decode (counted and reported by replay, so
-    OpenCV's own message for each is silenced)."""
-    with quiet_opencv():
-        image, _ = decode_image(data, cv2.IMREAD_UNCHANGED, max_pixels)
+    """A compressed frame, or None when it does not decode (counted and reported by replay;
+    `decode_image` silences OpenCV's own message for each)."""
+    image, _ = decode_image(data, cv2.IMREAD_UNCHANGED, max_pixels)
     return image if image is not None and image.dtype == np.uint8 else None
 
 
@@ -309,11 +311,17 @@ def _read_small(path: Path, what: str) -> bytes:
     return data
 
 
+def _json_problem(exc: Exception) -> str:
+    """Why a text is not JSON, in a few words (Python's parser recurses: a few kB of '[' are
+    more than it nests)."""
+    return "nested too deeply" if isinstance(exc, RecursionError) else shorten(str(exc))
+
+
 def _json_object(data: bytes, where: str, what: str) -> dict[str, Any]:
     try:
         value = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise InputFileError(f"{where}: the {what} is not JSON ({shorten(str(exc))})") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputFileError(f"{where}: the {what} is not JSON ({_json_problem(exc)})") from None
     if not isinstance(value, dict):
         raise InputFileError(f"{where}: the {what} is not a JSON object")
     return value
@@ -392,8 +400,8 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                 f"{MAX_STEP_BYTES})")
         try:
             line = json.loads(text)
-        except ValueError as exc:
-            raise _step_problem(where, f"record is not JSON ({shorten(str(exc))})") from None
+        except (ValueError, RecursionError) as exc:
+            raise _step_problem(where, f"record is not JSON ({_json_problem(exc)})") from None
         reader.add(line, where)
         refused = reader.steps[-1]
         if refused.frame_refused is not None and refused.frame is not None:
@@ -406,6 +414,9 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                                  str(path), "recorded summary").get("end_reason")
             ended = f": the run ended before its first step ({shorten(str(about), 300)})" if (
                 about) else ""
+        elif mcap.cut_short is not None:  # as for a bag cut before its first image
+            ended = (f": cut short before its first step (it {mcap.cut_short}); a run killed at "
+                     "its start, or its disk full?")
         raise InputFileError(f"{path}: no recorded steps{ended}")
     kind = meta.get("image", CAMERA_GRAY_OR_JPEG)
     topic = meta.get("frames", IMAGE_TOPIC)
@@ -440,10 +451,17 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
         frames=MessageFrames(bag, topic, max_pixels, by_sequence=True,
                              prepared=kind == PERCEPTION_INPUT),
         recorded=reader.recorded,
-        config=config, calibration=calibration, controller=meta.get("controller"), meta=meta,
+        config=config, calibration=calibration, controller=_recorded_controller(meta), meta=meta,
         summary=summary, incomplete=incomplete, frames_recorded=recorded_frames,
         config_origin=(f"recorded ({path}:{CONFIG_ATTACHMENT})" if config is not None
                        else "defaults"))
+
+
+def _recorded_controller(meta: dict[str, Any]) -> str | None:
+    """The controller a run's meta names (None: none, or not a name: a list had been a
+    TypeError where `replay` looked it up)."""
+    controller = meta.get("controller")
+    return controller if isinstance(controller, str) else None
 
 
 def _check_format(mcap: McapFile, path: Path) -> dict[str, Any]:
@@ -492,12 +510,12 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
                 continue
             try:
                 line = json.loads(raw)
-            except ValueError as exc:
+            except (ValueError, RecursionError) as exc:
                 if not raw.endswith(b"\n") and not stream.read(1):
                     incomplete.append(f"the last line of run.jsonl ({number}) is cut short: "
                                       "the run was killed or its disk filled")
                     break
-                raise _step_problem(where, f"not JSON ({shorten(str(exc))})") from None
+                raise _step_problem(where, f"not JSON ({_json_problem(exc)})") from None
             reader.add(line, where)
     if not reader.steps:
         raise InputFileError(f"{run_log}: no recorded steps")
@@ -519,7 +537,7 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
         kind="run", name=folder.name, steps=reader.steps,
         frames=RunFolderFrames(folder / "frames", suffix, max_pixels),
         recorded=reader.recorded, config=config, calibration=calibration,
-        controller=meta.get("controller"), meta=meta, summary=summary, incomplete=incomplete,
+        controller=_recorded_controller(meta), meta=meta, summary=summary, incomplete=incomplete,
         config_origin=f"recorded ({config_path})" if config is not None else "defaults")
 
 
@@ -636,7 +654,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                     record = json.loads(raw)
                 except (ValueError, RecursionError) as exc:
                     raise InputFileError(f"{catalog}:{number}: not a JSON record "
-                                         f"({shorten(str(exc))})") from None
+                                         f"({_json_problem(exc)})") from None
                 if not isinstance(record, dict):
                     raise InputFileError(f"{catalog}:{number}: a {type(record).__name__}, "
                                          "expected a JSON object (a tub record)")
@@ -716,7 +734,7 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                         frames=PathFrames(paths, max_pixels))
 
 
-def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
+def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> ReplaySource:
     # FFmpeg logs each frame it cannot decode itself; the replay says what it could not read.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     with quiet_opencv():
@@ -727,6 +745,19 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
         capture.release()
         raise UsageError(f"SOURCE '{source}': not a video OpenCV can read; expected "
                          f"{SOURCE_HELP}")
+    # the container's header says both, before a frame is decoded: a 12 kB AVI claiming 2**31
+    # frames had made a list of as many times (a MemoryError at 5 GB), and claiming a million,
+    # a replay of a million steps (1.2 GB); a 2 MB MPEG-4 of 8000x8000 frames took 1.7 GB.
+    # No codec stores a frame in less than a byte.
+    width, height = (int(capture.get(prop) or 0)
+                     for prop in (cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT))
+    size = path.stat().st_size
+    problem = (f"{count} frames, more than replay reads ({MAX_STEPS})" if count > MAX_STEPS
+               else f"its header claims {count} frames in {size} bytes" if count > size
+               else too_many_pixels(width, height, max_pixels))
+    if problem:
+        capture.release()
+        raise InputFileError(f"SOURCE '{source}': {problem}")
     fps = float(capture.get(cv2.CAP_PROP_FPS) or 0.0)
     fps = fps if 1.0 <= fps <= 240.0 else camera_rate_hz
     # a run's own video (captions and a map around the camera view) is not a camera's view,
@@ -744,7 +775,7 @@ def _video(path: Path, source: str, camera_rate_hz: float) -> ReplaySource:
         capture = cv2.VideoCapture(str(path))
     times = [i / fps for i in range(count)]
     return ReplaySource(kind="video", name=path.stem, steps=camera_steps(enumerate(times)),
-                        frames=VideoFrames(capture), meta={"fps": fps})
+                        frames=VideoFrames(capture, max_pixels), meta={"fps": fps})
 
 
 def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
@@ -792,7 +823,7 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
     if paths is not None:
         return _frame_sequence(source, paths, max_pixels, camera_rate_hz)
     if path.is_file():
-        return _video(path, source, camera_rate_hz)
+        return _video(path, source, camera_rate_hz, max_pixels)
     raise UsageError(f"SOURCE '{source}': no such file or folder; expected {SOURCE_HELP}")
 
 

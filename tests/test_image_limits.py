@@ -130,3 +130,16 @@ def test_a_truncated_png_gets_one_line_not_opencvs_warning_too(
         err = capfd.readouterr().err.strip().splitlines()
         assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable "
                        "image"]
+
+
+def test_a_truncated_ppm_gets_one_line_not_opencvs_error_too(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """OpenCV logged its own error ("[ERROR:0@...] ... imdecode_('') ... Unexpected end of
+    input stream") and a blank line before the command's one line (a PPM cut short: `detect`,
+    and a replay of a folder of frames or a format-1 run)."""
+    cut = tmp_path / "cut.ppm"
+    cut.write_bytes(b"P3 30 30 255\n" + b"0 " * 100)
+    assert main(["detect", str(cut)]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable image"]

@@ -263,6 +263,26 @@ def test_run_folders_are_never_overwritten(tmp_path: Path) -> None:
         create_run_folder(first)
 
 
+def test_a_run_folder_that_is_not_a_folder_is_said_as_such(tmp_path: Path) -> None:
+    """A FIFO or a device was 'already exists and is not empty', a link to a missing place
+    'cannot create the folder (File exists)' (exit 1)."""
+    import os
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for path in (fifo, Path("/dev/null")):
+        with pytest.raises(UsageError) as refused:
+            create_run_folder(path)
+        assert str(refused.value) == (f"--record {path}: already exists and is not a folder; "
+                                      "choose a new folder")
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "missing" / "run")
+    with pytest.raises(UsageError) as refused:
+        create_run_folder(link)
+    assert str(refused.value) == (f"--record {link}: a link to '{tmp_path}/missing/run', which "
+                                  "does not exist; choose a new folder")
+
+
 # ---- perception's prepared input: what the recording keeps by default ------------------------
 def _without_fingerprints(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
     if topic == "/lanewarden/step":

@@ -132,6 +132,62 @@ def test_frames_of_a_kind_replay_does_not_know(recorded: Path, tmp_path: Path,
                     "/lanewarden/perception_input/compressed")
 
 
+DEEP = "[" * 5000  # 5 kB: within every size limit, deeper than Python's JSON parser recurses
+
+
+def _deep_step(topic: str, number: int, message: dict[str, Any]) -> dict[str, Any]:
+    if topic == "/lanewarden/step" and number == 4:
+        message["record"] = DEEP
+    return message
+
+
+@pytest.mark.parametrize("where", ["run.jsonl", "run.mcap step", "summary.json",
+                                   "run.mcap summary", "meta.json"])
+def test_json_nested_too_deeply_is_one_line(where: str, recorded: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Each was a traceback (RecursionError): only the tub's catalog caught it."""
+    old = as_format_1(recorded, tmp_path / "old")
+    source, expected = old, ""
+    if where == "run.jsonl":
+        lines = (old / "run.jsonl").read_text().splitlines()
+        lines[3] = DEEP
+        (old / "run.jsonl").write_text("\n".join(lines) + "\n")
+        expected = f"{old / 'run.jsonl'}:4: not JSON (nested too deeply)"
+    elif where == "summary.json":
+        (old / "summary.json").write_text(DEEP)
+        expected = (f"{old / 'summary.json'}: the recording's summary is not JSON (nested too "
+                    "deeply)")
+    elif where == "meta.json":
+        (old / "meta.json").write_text('{"format": 1, "x": ' + DEEP)
+        expected = (f"{old / 'meta.json'}: the recording's meta.json is not JSON (nested too "
+                    "deeply)")
+    else:
+        source = tmp_path / "forged.mcap"
+        if where == "run.mcap step":
+            rewrite_mcap(recorded / "run.mcap", source, _deep_step)
+            expected = (f"{source}: /lanewarden/step message 4: record is not JSON (nested too "
+                        "deeply)")
+        else:
+            rewrite_mcap(recorded / "run.mcap", source, lambda topic, n, message: message,
+                         metadata={"lanewarden.summary": {"summary": DEEP}})
+            expected = f"{source}: the recorded summary is not JSON (nested too deeply)"
+    code, _, err = replay(source, tmp_path, capsys)
+    assert_one_line(code, err, expected)
+
+
+def test_a_controller_that_is_not_a_name_is_not_looked_up(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A meta whose controller is a list was a traceback (TypeError: unhashable type) where
+    `replay` looked it up; it is now no controller at all, as an unknown name was: the replay
+    uses the default (supervised, which this run had)."""
+    old = as_format_1(recorded, tmp_path / "old")
+    meta = json.loads((old / "meta.json").read_text())
+    (old / "meta.json").write_text(json.dumps(dict(meta, controller=["supervised"])))
+    code, out, err = replay(old, tmp_path, capsys, "--check")
+    assert code == 0, err
+    assert "reproduced: all" in out
+
+
 def _step_count(run: Path) -> int:
     return int(json.loads((run / "summary.json").read_text())["steps"])
 
@@ -237,6 +293,20 @@ def test_a_recording_cut_short_replays_but_is_not_checked(
     assert metrics["exact_input"] is False and "cut short" in metrics["incomplete"][0]
     code, out, err = replay(cut, tmp_path, capsys, "--check")
     assert_one_line(code, err, "the recording is incomplete", "cut short")
+
+
+def test_a_recording_cut_before_its_first_step_says_so(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Cut after its meta, config and calibration, before its first chunk: it was 'no recorded
+    steps', as for a run that recorded none, without a word of the cut."""
+    data = (recorded / "run.mcap").read_bytes()
+    (chunk, *_) = [offset for opcode, offset, _ in _records(data) if opcode == 0x06]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:chunk + 20])
+    code, _, err = replay(cut, tmp_path, capsys)
+    assert_one_line(code, err, f"{cut}: no recorded steps: cut short before its first step (it "
+                    f"ends at byte {chunk + 20} inside a record that starts at byte {chunk}); a "
+                    "run killed at its start, or its disk full?")
 
 
 def test_a_damaged_last_line_and_a_missing_summary_are_said(
@@ -504,3 +574,54 @@ def test_a_fifo_where_a_file_is_expected_is_refused_unopened(
         code, _, err = replay(source, tmp_path, capsys)
     where = f"SOURCE '{source}': " if target == source else f"{target}: "
     assert_one_line(code, err, f"{where}{start}not a regular file (a FIFO, socket or device)")
+
+
+# ---- a video's header ---------------------------------------------------------------------------
+def _avi(path: Path, frames: int = 3, claimed: int | None = None) -> Path:
+    """An MJPEG AVI of 160x120 frames; `claimed`: the frame count its headers say instead."""
+    import cv2
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (160, 120))
+    for i in range(frames):
+        writer.write(np.full((120, 160, 3), 60 + 10 * i, np.uint8))
+    writer.release()
+    if claimed is not None:
+        data = bytearray(path.read_bytes())
+        struct.pack_into("<I", data, data.index(b"avih") + 8 + 16, claimed)  # dwTotalFrames
+        struct.pack_into("<I", data, data.index(b"strh") + 8 + 32, claimed)  # dwLength
+        path.write_bytes(bytes(data))
+    return path
+
+
+def test_a_video_claiming_more_frames_than_replay_reads(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A 12 kB AVI whose headers claim 2**31 - 1 frames made a list of as many frame times
+    (a MemoryError at 5 GB); the count in the header is now held to MAX_STEPS (here 10) and to
+    the file's size."""
+    from lanewarden import replay_sources
+
+    monkeypatch.setattr(replay_sources, "MAX_STEPS", 10)
+    video = _avi(tmp_path / "lying.avi", claimed=11)
+    code, _, err = replay(video, tmp_path, capsys)
+    assert_one_line(code, err, f"SOURCE '{video}': 11 frames, more than replay reads (10)")
+    # within MAX_STEPS, more frames than the file has bytes: a header that lies (claiming a
+    # million, it had replayed a million steps of no frame: 64 s, 1.2 GB)
+    monkeypatch.setattr(replay_sources, "MAX_STEPS", 10**9)
+    claimed = video.stat().st_size + 1
+    video = _avi(tmp_path / "lying.avi", claimed=claimed)
+    code, _, err = replay(video, tmp_path, capsys)
+    assert_one_line(code, err, f"SOURCE '{video}': its header claims {claimed} frames in "
+                    f"{claimed - 1} bytes")
+
+
+def test_a_video_of_frames_larger_than_the_pixel_limit(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 2 MB MPEG-4 of 8000x8000 frames was replayed in 1.7 GB: a video's frames were never
+    held to perception.max_image_pixels (images' are, from their header)."""
+    video = _avi(tmp_path / "big.avi")
+    config = tmp_path / "small.yaml"
+    config.write_text("perception:\n  max_image_pixels: 4096\n")
+    code, _, err = replay(video, tmp_path, capsys, "--config", str(config))
+    assert_one_line(code, err, f"SOURCE '{video}': image is 160x120 = 19200 pixels, more than "
+                    "perception.max_image_pixels (4096)")
