@@ -53,6 +53,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png, metrics.json, run.jsonl,
     report.html}, as `sim` writes them. A recorded run replays with its own recorded config and
     calibration unless --config/--calibration say otherwise, and every step is compared."""
+    from lanewarden.commands.output_folders import create_output_folder
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
     from lanewarden.replay import check_preparation
@@ -75,6 +76,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"replay-{replay_source.name}"
+    create_output_folder(out)  # a FIFO or a file there is refused before the work, as by `sim`
     # which ground model perception sees the frames through, as `run` and `detect` say it (a
     # tub replayed without its camera's description is seen through the default camera)
     first = replay_source.frames.image(0)

@@ -277,6 +277,28 @@ def test_replay_never_writes_into_its_source_folder(tmp_path: Path,
         assert sorted(p.name for p in frames.iterdir()) == ["000.png", "001.png", "002.png"]
 
 
+@pytest.mark.parametrize("kind", ["fifo", "link to nothing", "file"])
+def test_an_out_that_is_no_folder_is_refused_before_the_work(
+        kind: str, recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`replay --out` naming a FIFO or a link to nothing said "cannot prepare the output folder
+    ([Errno 17] File exists)", exit 1, after opening the recording (a fuzzing helper,
+    2026-12-05); now refused as `sim` refuses it, naming what it is."""
+    out = tmp_path / "out"
+    if kind == "fifo":
+        os.mkfifo(out)
+        expected = f"--out '{out}': exists and is not a folder"
+    elif kind == "link to nothing":
+        out.symlink_to(tmp_path / "nowhere")
+        expected = f"--out '{out}': a link to '{tmp_path / 'nowhere'}', which does not exist"
+    else:  # (refused by the flag's own type already)
+        out.write_text("mine", encoding="utf-8")
+        expected = f"Invalid value for '--out': Directory '{out}' is a file"
+    code = main(["replay", str(recorded), "--no-video", "--out", str(out)])
+    assert_one_line(code, capsys.readouterr().err, expected)
+    assert code == 2
+    assert not (tmp_path / "nowhere").exists()
+
+
 # ---- incomplete recordings: replayed as far as they go, never checked ----------------------
 def test_a_recording_cut_short_replays_but_is_not_checked(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
