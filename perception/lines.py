@@ -291,27 +291,30 @@ _DENSE_UP_TO = 64
 
 def _compatible_dense(pieces: _Pieces, angle_tol_deg: float,
                       offset_tol_px: float) -> NDArray[np.bool_]:
-    """[i, j]: segment j's direction lies within `angle_tol_deg` of segment i's and its midpoint
-    within `offset_tol_px` of segment i's line."""
-    dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
-    mid_x, mid_y, angle = pieces.mid_x, pieces.mid_y, pieces.angle
-    off_line = np.abs((mid_x[None, :] - mid_x[:, None]) * dir_y[:, None]
-                      - (mid_y[None, :] - mid_y[:, None]) * dir_x[:, None])
-    return np.asarray((np.abs(angle[None, :] - angle[:, None]) <= angle_tol_deg)
-                      & (off_line <= offset_tol_px))
+    """[i, j]: `_compatible` for every pair of segments."""
+    index = np.arange(len(pieces.angle))
+    return _compatible(pieces, index[:, None], index[None, :], angle_tol_deg, offset_tol_px)
 
 
 def _compatible_pairs(pieces: _Pieces, angle_tol_deg: float,
                       offset_tol_px: float) -> tuple[IntArray, IntArray]:
     """The (i, j) where `_compatible_dense` is True, exactly those, computed only for the pairs
     `pairs_within_angle` puts together."""
-    angle = pieces.angle
-    i, j = pairs_within_angle(angle, angle_tol_deg, unordered=False)
+    i, j = pairs_within_angle(pieces.angle, angle_tol_deg, unordered=False)
+    ok = _compatible(pieces, i, j, angle_tol_deg, offset_tol_px)
+    return i[ok], j[ok]
+
+
+def _compatible(pieces: _Pieces, i: IntArray, j: IntArray, angle_tol_deg: float,
+                offset_tol_px: float) -> NDArray[np.bool_]:
+    """For segments `i` and `j` (index arrays, broadcast together): whether segment j's
+    direction lies within `angle_tol_deg` of segment i's and its midpoint within `offset_tol_px`
+    of segment i's line."""
     dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
     off_line = np.abs((pieces.mid_x[j] - pieces.mid_x[i]) * dir_y[i]
                       - (pieces.mid_y[j] - pieces.mid_y[i]) * dir_x[i])
-    ok = (np.abs(angle[j] - angle[i]) <= angle_tol_deg) & (off_line <= offset_tol_px)
-    return i[ok], j[ok]
+    return np.asarray((np.abs(pieces.angle[j] - pieces.angle[i]) <= angle_tol_deg)
+                      & (off_line <= offset_tol_px))
 
 
 def pairs_within_angle(angle: FloatArray, tol_deg: float, *,
