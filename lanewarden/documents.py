@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import difflib
 import enum
+import os
 import re
 import reprlib
 import stat
@@ -60,6 +61,14 @@ def is_special_file(path: Path) -> bool:
     except OSError:
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def dangling_link(path: Path) -> str:
+    """"a link to 'TARGET', which does not exist" when `path` is a symbolic link to nothing,
+    else ''."""
+    if path.is_symlink() and not path.exists():
+        return f"a link to '{os.readlink(path)}', which does not exist"
+    return ""
 
 
 class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]

@@ -59,6 +59,7 @@ import yaml
 from lanewarden import __version__
 from lanewarden.actuation.base import Base, BaseFeedback, VelocityCommand
 from lanewarden.actuation.errors import ActuationError
+from lanewarden.documents import dangling_link
 from lanewarden.errors import UsageError
 from lanewarden.frame_png import FILTER_SUB, FILTER_UP, gray_png
 from lanewarden.perception.config import PerceptionConfig
@@ -223,9 +224,8 @@ def default_run_folder(root: Path, now_utc: dt.datetime) -> Path:
 def create_run_folder(folder: Path, flag: str = "--record") -> Path:
     """Make `folder`; UsageError when it already holds anything (never overwrite), or is
     something else than a folder (a FIFO, a device, a link to nowhere)."""
-    if folder.is_symlink() and not folder.exists():
-        raise UsageError(f"{flag} {folder}: a link to {os.readlink(folder)!r}, which does not "
-                         "exist; choose a new folder")
+    if link := dangling_link(folder):
+        raise UsageError(f"{flag} {folder}: {link}; choose a new folder")
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{flag} {folder}: already exists and is not a folder; choose a new "
                          "folder")

@@ -8,18 +8,17 @@ system, reported as a one-line error, exit 1).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
+from lanewarden.documents import dangling_link
 from lanewarden.errors import OutputError, UsageError
 
 
 def create_output_folder(folder: Path, flag: str = "--out") -> Path:
     """`folder`, created with its missing parents; UsageError if it exists and is not a folder
     (a file, a FIFO, a device) or is a link to nothing."""
-    if folder.is_symlink() and not folder.exists():
-        raise UsageError(f"{flag} '{folder}': a link to '{os.readlink(folder)}', which does not "
-                         "exist; expected a folder")
+    if link := dangling_link(folder):
+        raise UsageError(f"{flag} '{folder}': {link}; expected a folder")
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{flag} '{folder}': exists and is not a folder")
     try:
