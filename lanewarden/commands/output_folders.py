@@ -38,3 +38,22 @@ def create_output_file_folder(file: Path, flag: str = "--out") -> Path:
         raise UsageError(f"{flag} '{file}': is a folder, expected a file name")
     create_output_folder(file.parent, flag)
     return file
+
+
+def source_folder(source: str) -> Path | None:
+    """The folder a SOURCE argument reads from: SOURCE itself when it is a folder, a glob's
+    folder, None for a file (a video)."""
+    given = Path(source)
+    if given.is_dir():
+        return given
+    return given.parent if any(c in source for c in "*?[") else None
+
+
+def lies_within(path: Path, folder: Path) -> bool:
+    """Is `path` `folder` itself or inside it (both resolved)? False when either cannot be
+    resolved (creating the output folder then says why)."""
+    try:
+        where, inside = path.resolve(), folder.resolve()
+    except OSError:
+        return False
+    return where == inside or inside in where.parents

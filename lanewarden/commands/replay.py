@@ -173,16 +173,10 @@ def _refuse_the_source_folder(out: Path, source: str) -> None:
     """UsageError when --out is SOURCE's own folder (a folder of frames, a tub, a rosbag2
     folder; a glob's folder) or lies inside it: replay would write its outputs among the
     frames, and the next replay of SOURCE would be refused as a sim output folder."""
-    given = Path(source)
-    folder = given if given.is_dir() else (given.parent if any(c in source for c in "*?[")
-                                           else None)
-    if folder is None:
-        return
-    try:
-        inside = out.resolve() == folder.resolve() or folder.resolve() in out.resolve().parents
-    except OSError:
-        return  # an --out that cannot be resolved is refused when it is created
-    if inside:
+    from lanewarden.commands.output_folders import lies_within, source_folder
+
+    folder = source_folder(source)
+    if folder is not None and lies_within(out, folder):
         raise UsageError(f"--out '{out}': inside SOURCE '{source}'; replay writes its outputs "
                          "elsewhere: expected a folder outside SOURCE")
 

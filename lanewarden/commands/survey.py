@@ -146,18 +146,16 @@ def _refuse_out_among_inputs(out: Path, folder: str, source: SurveySource, flag:
     reads'), or in a recording's folder of frames, tub or run (a folder of frames holding a
     report.html is then refused as a sim output folder), as replay refuses it. `flag`: OUT was
     given with --out (else it is the default, named so)."""
+    from lanewarden.commands.output_folders import lies_within, source_folder
     from lanewarden.survey import CLASS_FOLDERS
 
-    given = Path(folder)
     if source.sequence is None:
-        inputs = [given / name for name in CLASS_FOLDERS.values()]
-    elif given.is_dir():
-        inputs = [given]
-    else:  # a video's folder is no input; a glob's is
-        inputs = [given.parent] if any(c in folder for c in "*?[") else []
-    where = out.resolve()
+        inputs = [Path(folder) / name for name in CLASS_FOLDERS.values()]
+    else:  # a recording's folder of frames, tub or run, a glob's folder; a video's is no input
+        read_from = source_folder(folder)
+        inputs = [] if read_from is None else [read_from]
     for inside in inputs:
-        if where == inside.resolve() or inside.resolve() in where.parents:
+        if lies_within(out, inside):
             named = (f"--out '{out}'" if flag else f"the default output folder '{out}' "
                      "(give --out, or run the survey from another folder)")
             raise UsageError(f"{named}: inside {inside}, where the survey's report.html and "
