@@ -462,7 +462,7 @@ def class_line(figures: ClassFigures) -> str:
     weak = [c for c in figures.components if c.weakest_in][:3]
     if weak:
         first, *others = weak
-        text += (f"; weakest: {first.name} in {first.weakest_in} frames (median there "
+        text += (f"; weakest: {first.name} in {counted(first.weakest_in, 'frame')} (median there "
                  f"{first.median_where_weakest:.2f})" + "".join(
                      f", {c.name} in {c.weakest_in} ({c.median_where_weakest:.2f})"
                      for c in others))

@@ -32,7 +32,13 @@ from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
 from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_facts
-from lanewarden.replay_sources import SOURCE_HELP, PathFrames, ReplaySource, open_replay_source
+from lanewarden.replay_sources import (
+    RUN_MCAP,
+    SOURCE_HELP,
+    PathFrames,
+    ReplaySource,
+    open_replay_source,
+)
 from lanewarden.survey import (
     CLASS_FOLDERS,
     MAX_LABELS_BYTES,
@@ -372,6 +378,10 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         if not path.is_dir():
             raise UsageError(f"FOLDER '{folder}': {table.source} names image files, so FOLDER "
                              "must be the folder they are in")
+        if (path / RUN_MCAP).is_file():  # its frames are in run.mcap, not files beside it
+            raise UsageError(f"FOLDER '{folder}': a recorded run, but {table.source} labels "
+                             "image files (file,expect); expected its frames by number: "
+                             "frames,expect[,note] (e.g. 0-120,lane)")
         stills = _labelled_files(path, table)
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",

@@ -11,7 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from lanewarden.documents import dangling_link
-from lanewarden.errors import OutputError, UsageError
+from lanewarden.errors import Interrupted, OutputError, UsageError
+from lanewarden.scenarios.output_folder import PARTIAL
 
 
 def create_output_folder(folder: Path, flag: str = "--out") -> Path:
@@ -30,6 +31,12 @@ def create_output_folder(folder: Path, flag: str = "--out") -> Path:
         raise OutputError(
             f"{flag} '{folder}': cannot create the folder ({exc.strerror or exc})") from exc
     return folder
+
+
+def interrupted_in(out: Path) -> Interrupted:
+    """Ctrl-C while `out` (an `OutputFolder`'s, with its PARTIAL marker) was being written: the
+    one line names the marker, as `sim`, `demo` and `replay` say it."""
+    return Interrupted(f"{out / PARTIAL} lists the outputs left incomplete")
 
 
 def create_output_file_folder(file: Path, flag: str = "--out") -> Path:

@@ -53,7 +53,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png, metrics.json, run.jsonl,
     report.html}, as `sim` writes them. A recorded run replays with its own recorded config and
     calibration unless --config/--calibration say otherwise, and every step is compared."""
-    from lanewarden.commands.output_folders import create_output_folder
+    from lanewarden.commands.output_folders import create_output_folder, interrupted_in
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
     from lanewarden.replay import check_preparation
@@ -88,8 +88,11 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                                image_size=size).detector
         named = calibration_path or ("the recording's calibration" if calibration else None)
         click.echo(detector.describe_ground(named, size))
-    metrics = run_replay(ReplayRequest(replay_source, config, calibration, chosen, out,
-                                       video=not no_video))
+    try:
+        metrics = run_replay(ReplayRequest(replay_source, config, calibration, chosen, out,
+                                           video=not no_video))
+    except KeyboardInterrupt:
+        raise interrupted_in(out) from None
     click.echo(f"{replay_source.name} ({replay_source.kind}, config: "
                f"{replay_source.config_origin}): {counted(metrics['steps'], 'step')}, "
                f"{counted(metrics['frames'], 'frame')}, {metrics['sim_time_s']} s replayed in "

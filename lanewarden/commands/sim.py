@@ -20,9 +20,9 @@ import click
 
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.output_folders import create_output_folder
+from lanewarden.commands.output_folders import create_output_folder, interrupted_in
 from lanewarden.config import load_config
-from lanewarden.errors import Interrupted, QualityGateError, UsageError
+from lanewarden.errors import QualityGateError, UsageError
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
@@ -100,10 +100,6 @@ Examples:
 """
 
 
-def _interrupted(out: Path) -> Interrupted:
-    return Interrupted(f"{out / PARTIAL} lists the outputs left incomplete")
-
-
 @click.command("sim", epilog=_scenario_list() + "\n\n" + SIM_EXAMPLES)
 @click.option("--scenario", "scenario", default=None, metavar="NAME|FILE",
               help="A library scenario (names below) or a scenario YAML file.")
@@ -160,7 +156,7 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
     try:
         metrics = run_to_directory(request)
     except KeyboardInterrupt:
-        raise _interrupted(out) from None
+        raise interrupted_in(out) from None
     for line in _summary_lines(metrics):
         click.echo(line)
     if case_file is not None:
@@ -219,7 +215,7 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     try:
         results = _run_in_parallel(requests)
     except KeyboardInterrupt:
-        raise _interrupted(out) from None
+        raise interrupted_in(out) from None
     runs = {r.controller: m for r, m in zip(requests, results, strict=True)}
     summary = demo_summary(runs["lecture"], runs["supervised"])
     write_report(out / "report.html", runs, summary,
@@ -242,7 +238,7 @@ def _check_clip_beside_outputs(camera_out: Path, out: Path) -> None:
     from lanewarden.scenarios.camera_clip import ClipFiles
     from lanewarden.scenarios.sim_run import RUN_OUTPUTS
 
-    taken = {out.resolve()} | {(out / name).resolve() for name in (*RUN_OUTPUTS, "PARTIAL")}
+    taken = {out.resolve()} | {(out / name).resolve() for name in (*RUN_OUTPUTS, PARTIAL)}
     files = ClipFiles.for_target(camera_out)
     for path in (files.clip, files.calibration, files.config):
         if path.resolve() in taken:

@@ -195,8 +195,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
                                 Undistorter(calibration) if calibration is not None else None)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
+    named = calibration_path or ("the recording's calibration" if calibration else None)
     try:
-        ground = detector.describe_ground(calibration_path, size)
+        ground = detector.describe_ground(named, size)
     except PerceptionConfigError as exc:
         raise ConfigError(str(exc)) from None
     click.echo(f"lanewarden: {ground}" if as_json else ground, err=as_json)

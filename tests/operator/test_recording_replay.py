@@ -392,6 +392,46 @@ def test_survey_refuses_what_replay_refuses_for_prepared_frames(
         assert not out.exists(), "refused before any output"
 
 
+def test_survey_of_a_run_names_the_recordings_calibration_in_its_ground_model_line(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run recorded with a calibration is surveyed through it: the first line says whose
+    ground model that is, as `replay` says it. It had read "ground model: ground calibration:
+    h 0.400 m, ..." (no source named) in the survey and "... from the recording's calibration"
+    in the replay of the same run."""
+    lens = tmp_path / "lens.yaml"
+    calibration = CameraModel(width_px=320, height_px=240).calibration()  # the clip's size
+    save_calibration(calibration, lens)
+    run = tmp_path / "calibrated"
+    record_run(run, clip[:12], LanewardenConfig(), calibration=lens,
+               loaded_calibration=calibration)
+    labels = tmp_path / "labels.csv"
+    labels.write_text("frames,expect\n0-5,lane\n6-11,none\n")
+    code = main(["survey", str(run), "--labels", str(labels), "--out", str(tmp_path / "out")])
+    captured = capsys.readouterr()
+    first = captured.out.splitlines()[0]
+    assert code in (0, 3), captured.err
+    assert first.startswith("ground model: ground calibration from the recording's calibration: "
+                            "h 0.400 m, pitch 35.0°, "), first
+
+
+def test_a_run_labelled_by_file_is_told_to_label_its_frames_by_number(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's photo labels (file,expect,note) given for a recorded run, whose frames are
+    inside run.mcap: one line saying the run wants frame numbers. It had read "0-11: no such
+    file (paths are relative to ...)", as if the run folder were a folder of photos."""
+    run = tmp_path / "run"
+    record_run(run, clip[:12], LanewardenConfig())
+    labels = tmp_path / "labels.csv"
+    labels.write_text("file,expect,note\n0-5,lane,\n6-11,none,\n")
+    code = main(["survey", str(run), "--labels", str(labels), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err == (f"lanewarden: error: FOLDER '{run}': a recorded run, but {labels} labels "
+                   "image files (file,expect); expected its frames by number: "
+                   "frames,expect[,note] (e.g. 0-120,lane)\n")
+    assert not (tmp_path / "out").exists()
+
+
 def test_record_gray_and_record_lossy_are_one_choice(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["run", "--camera", str(tmp_path / "clip.mp4"), "--base", "none",

@@ -5,6 +5,7 @@ that `sim` gives; a source that is none of these is one line and exit 2."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -111,6 +112,35 @@ def test_an_image_that_does_not_decode_is_no_frame_and_bad_input(
         i for i in range(len(steps)) if i != unread]
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["frames_undecoded"] == [unread]
+
+
+def test_ctrl_c_during_a_replay_names_its_partial_marker(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C while the outputs are written (here: the KeyboardInterrupt a Ctrl-C raises, after
+    the first step): exit 130 and one line naming the PARTIAL marker that lists the incomplete
+    outputs, as `sim` and `demo` say it. It had read "interrupted" alone, the old outputs gone
+    and the marker unmentioned."""
+    import lanewarden.replay_outputs as replay_outputs
+
+    real_steps = replay_outputs.replay_steps
+
+    def ctrl_c_after_the_first(*args: object, **kwargs: object) -> Iterator[object]:
+        for step in real_steps(*args, **kwargs):  # type: ignore[arg-type]
+            yield step
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(replay_outputs, "replay_steps", ctrl_c_after_the_first)
+    folder = write_images(lane_end_frames(start_m=2.0, end_m=2.2, speed_m_s=0.6)[:3],
+                          tmp_path / "lane")
+    out = tmp_path / "o"
+    assert main(["replay", str(folder), "--no-video", "--out", str(out)]) == 130
+    err = [line for line in capsys.readouterr().err.splitlines()
+           if not line.startswith("replay lane: ")]  # (the progress lines)
+    assert err == [
+        f"lanewarden: error: interrupted: {out / 'PARTIAL'} lists the outputs left incomplete"]
+    assert "metrics.json" in (out / "PARTIAL").read_text()
+    assert not (out / "metrics.json").exists()
 
 
 def test_a_glob_of_images_is_named_after_its_folder(tmp_path: Path) -> None:

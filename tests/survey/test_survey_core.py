@@ -155,7 +155,8 @@ def test_weakest_components_count_only_components_below_one() -> None:
     assert math.isnan(figures[2].median_where_weakest)
     # the class line names where each is weakest and how weak it is there
     line = class_line(class_figures("lane", results))
-    assert line.endswith("; weakest: tape_pair_left in 1 frames (median there 0.00), "
+    # (one frame is "1 frame": it had read "in 1 frames")
+    assert line.endswith("; weakest: tape_pair_left in 1 frame (median there 0.00), "
                          "parallel in 1 (0.10)")
 
 

@@ -6,7 +6,7 @@ shared data is absent; the labels file itself is checked everywhere.
 
 What must hold whatever perception becomes: no decision on any of the 58 frames that show the
 yellow centre line alone (SAFE, exit 0). How useful perception is on the 892 lane frames is a
-floor: today's detector decides on 37 of them (confident on 20, in runs of at most 2, so the
+floor: today's detector decides on 35 of them (confident on 22, in runs of at most 2, so the
 supervisor never engages on this track: docs/perception.md).
 """
 
@@ -32,6 +32,16 @@ DOCS_EXAMPLE = ("lanewarden survey ../shared/data/donkeycar-tub --labels "
                 "--calibration tests/perception/donkeycar_calibration.yaml")
 
 
+#: docs/perception.md, whose survey figures these tests check against the survey's own output
+#: (they had drifted: "134 ... and 65" for the JetBot set's 131 and 68, 34 for 35 on the tub).
+PERCEPTION_DOC = PROJECT_ROOT / "docs" / "perception.md"
+
+
+def _documented(text: str) -> bool:
+    """`text` is in docs/perception.md, whatever line breaks the prose has there."""
+    return text in " ".join(PERCEPTION_DOC.read_text(encoding="utf-8").split())
+
+
 def test_the_tub_labels() -> None:
     table = parse_labels(LABELS.read_text(encoding="utf-8"), str(LABELS))
     assert table.kind == "frames"
@@ -43,16 +53,54 @@ def test_the_tub_labels() -> None:
     assert counts == {"lane": 892, "none": 58}
 
 
-def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def _survey_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                config: Path = CONFIG) -> tuple[int, str]:
+    """docs/perception.md's example on the shared tub (with `config` instead of its own)."""
     tub = shared_data("donkeycar-tub")
     argv = DOCS_EXAMPLE.split()[2:]
     argv[0] = str(tub)
     argv = [str(PROJECT_ROOT / a) if a.startswith(("data/", "tests/")) else a for a in argv]
+    argv[argv.index("--config") + 1] = str(config)
     code = main(["survey", *argv, "--out", str(tmp_path / "out")])
-    out = capsys.readouterr().out
+    return code, capsys.readouterr().out
+
+
+def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out = _survey_tub(tmp_path, capsys)
     decided, confident = _safe_with_lane_figures(code, out, lanes=892, no_lanes=58)
     assert decided >= 30 and confident >= 15
     assert (tmp_path / "out" / "report.html").exists()
+    longest = re.search(r"longest confident run (\d+)", out)
+    assert longest is not None, out
+    assert _documented(f"| Donkeycar tub | lane | 892 | {decided} | {confident} | - | "
+                       f"{longest.group(1)} | SAFE; never engages |"), out
+
+
+def test_the_donkeycar_tub_with_the_description_that_engages(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/perception.md's engage rows: the same survey with donkeycar_engage.yaml is NOT SAFE
+    (exit 3; the yellow line alone, with a sliver of the white one at the border, paired as a
+    lane) and engages; its figures are the table's and the false lanes the prose names."""
+    code, out = _survey_tub(tmp_path, capsys, CONFIG.parent / "donkeycar_engage.yaml")
+    assert code == 3, out
+    lane = re.search(r"\nlane: 892 frames, (\d+) with a decision \(\d+%\), (\d+) confident; "
+                     r"longest confident run (\d+)", out)
+    no_lane = re.search(r"\nno-lane: 58 frames, (\d+) with a decision \(\d+%\), 0 confident, "
+                        r"(\d+) false lanes", out)
+    named = re.search(r"verdict: NOT SAFE: \d+ false lanes \(a decision on a no-lane frame\): "
+                      r"frame (\d+), (.*)$", out, re.M)
+    engages = re.search(r"supervisor: engages at frame (\d+) ", out)
+    assert lane and no_lane and named and engages, out
+    decided, confident, longest = lane.groups()
+    false_lanes = no_lane.group(2)
+    assert _documented(f"| tub, `donkeycar_engage.yaml` | lane | 892 | {decided} | {confident} "
+                       f"| - | {longest} | NOT SAFE ({false_lanes} false lanes); engages at "
+                       f"frame {engages.group(1)} |"), out
+    assert _documented(f"| tub, `donkeycar_engage.yaml` | no-lane | 58 | {no_lane.group(1)} | 0 "
+                       f"| {false_lanes} | 0 | |"), out
+    frames = [named.group(1), *named.group(2).replace("frame ", "").split(", ")]
+    assert _documented(f"the same survey is **NOT SAFE**: frames {', '.join(frames[:-1])} and "
+                       f"{frames[-1]}, labelled `none`"), out
 
 
 def _safe_with_lane_figures(code: int, out: str, lanes: int, no_lanes: int) -> tuple[int, int]:
@@ -130,6 +178,9 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     frames = json.loads((tmp_path / "out" / "survey.json").read_text())["frames"]
     held = [f for f in frames if f["expect"] == "lane" and f["confident"] and not f["engaged"]]
     assert len(held) == departure
+    assert _documented(f"On the JetBot set: {engaged.group(1)} of the 338 lane stills engage; "
+                       f"of the other {missed}, {unconfident} have no confident lane long enough "
+                       f"and {departure} are confident but held by LANE_DEPARTURE."), out
     assert all(f["not_engaged_because"].startswith("LANE_DEPARTURE: a lane edge inside the "
                                                    "robot's footprint") for f in held)
     page = (tmp_path / "out" / "report.html").read_text()
