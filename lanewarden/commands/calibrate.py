@@ -28,6 +28,7 @@ from lanewarden.commands.calibrate_capture import capture_command
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.command_group import CommandGroup, unknown_command_message
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import load_config
 from lanewarden.errors import OutputError, QualityGateError, UsageError
@@ -228,11 +229,12 @@ def run_calibration(
 
 @click.group("calibrate", cls=CalibrateGroup, invoke_without_command=True)
 @click.option("--images", metavar="GLOB",
+              type=PathFlag("a glob or a folder of images", readable=False),
               help="Chessboard images: a quoted glob ('shots/*.jpg') or a folder.")
 @click.option("--pattern", type=PATTERN, help="Inner corners of the board, e.g. 9x6.")
 @click.option("--square", "square_m", type=float, callback=_positive_length, metavar="METERS",
               help="Side of one chessboard square in metres (scales the poses, not K).")
-@click.option("--out", "out_path", type=click.Path(dir_okay=True), metavar="FILE",
+@click.option("--out", "out_path", type=PathFlag("a file name", dir_okay=True), metavar="FILE",
               help="Where to write the OpenCV FileStorage YAML.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (the result) as the last stdout line.")

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from lanewarden.camera_source import numbered_sequence_gap, open_camera, quiet_opencv
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import CAMERA_EXPECTED, PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import DeviceError, OutputError, QualityGateError, UsageError
@@ -131,9 +132,11 @@ def _breakdown(outcome: dict[str, int]) -> str:
 
 @click.command("capture")
 @click.option("--camera", required=True, metavar="INDEX|PATH|URL",
+              type=PathFlag(CAMERA_EXPECTED, readable=False),
               help="Camera index (0), video file, image sequence ('dir/f_%03d.png') or URL.")
 @click.option("--pattern", required=True, type=PATTERN, help="Inner corners, e.g. 9x6.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=True), metavar="DIR",
+@click.option("--out", "out_dir", required=True, type=PathFlag("a folder", file_okay=True),
+              metavar="DIR",
               help="Folder for the kept views (view_000.jpg, ...); created if missing. Views "
               "already there count as kept: a rerun adds only new placements.")
 @click.option("--count", default=25, show_default=True, type=click.IntRange(1, 1000),

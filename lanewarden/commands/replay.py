@@ -13,12 +13,16 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.errors import InputFileError, QualityGateError, UsageError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 from lanewarden.wording import counted
 
 if TYPE_CHECKING:
     from lanewarden.replay import ReplaySource
+
+#: What SOURCE is, for an empty one.
+SOURCE_EXPECTED = "a run folder, a ROS 2 bag, a video file, a folder or glob of frames or a tub"
 
 REPLAY_EXAMPLES = """\b
 Examples:
@@ -30,11 +34,12 @@ Examples:
 
 
 @click.command("replay", epilog=REPLAY_EXAMPLES)
-@click.argument("source")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output directory (default: lanewarden-out/replay-<source name>).")
+@click.argument("source", type=PathFlag(SOURCE_EXPECTED, readable=False))
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False),
+              default=None, help="Output directory (default: lanewarden-out/replay-<source name>).")
 @config_option
-@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--calibration", "calibration_path",
+              type=PathFlag("a calibration file", dir_okay=False), default=None,
               help="Camera calibration (default: the run folder's own, else none).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=None,
               help=f"Who drives (default: the recorded run's, else {DEFAULT_CONTROLLER}).")

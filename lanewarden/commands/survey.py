@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP, ConfigError, OutputError, UsageError
 
@@ -44,16 +45,20 @@ Examples:
 
 
 @click.command("survey", epilog=SURVEY_EXAMPLES)
-@click.argument("folder", metavar="FOLDER")
-@click.option("--labels", "labels_path", type=click.Path(dir_okay=False), default=None,
+@click.argument("folder", metavar="FOLDER",
+                type=PathFlag("a folder, a video, a run or a tub", readable=False))
+@click.option("--labels", "labels_path", type=PathFlag("a labels file", dir_okay=False),
+              default=None,
               metavar="FILE", help="Labels for FOLDER's frames: file,expect[,note] (paths "
               "relative to FOLDER) or frames,expect[,note] (frame indices or ranges of a video, "
               "run folder, image sequence or Donkeycar tub). Default: FOLDER/labels.csv, else "
               "the lane/ and no-lane/ sub-folders.")
-@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--calibration", "calibration_path",
+              type=PathFlag("a calibration file", dir_okay=False), default=None,
               metavar="FILE", help="Camera calibration (default: a run folder's own, else none).")
 @config_option
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,
+              metavar="DIR",
               help="Output directory for report.html and survey.json (default: "
               "lanewarden-out/survey-<folder name>).")
 @click.option("--json", "as_json", is_flag=True,

@@ -19,6 +19,7 @@ import click
 import cv2
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import InputFileError, OutputError, UsageError
@@ -37,10 +38,12 @@ def _write(path: Path, image: object) -> None:
 
 
 @click.command("undistort")
-@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--calibration", "calibration_path", required=True, type=click.Path(),
+@click.argument("images", nargs=-1, required=True,
+                type=PathFlag("an image file", dir_okay=False))
+@click.option("--calibration", "calibration_path", required=True,
+              type=PathFlag("a calibration file"),
               metavar="FILE", help="Calibration YAML written by `lanewarden calibrate`.")
-@click.option("--out", "out_dir", required=True, type=click.Path(), metavar="DIR",
+@click.option("--out", "out_dir", required=True, type=PathFlag("a folder"), metavar="DIR",
               help="Folder for the undistorted images and before/after pictures (created).")
 @config_option
 def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str,
