@@ -56,6 +56,7 @@ from lanewarden.perception.chessboard_calibration import (
     calibrate_views,
     gate_failures,
 )
+from lanewarden.perception.detector import too_small
 from lanewarden.perception.errors import PerceptionError
 
 #: Largest chessboard square `--square` accepts, metres.
@@ -110,7 +111,7 @@ def _pattern_hint(paths: list[Path], views: list[ViewDetection],
                   pattern: ChessboardPattern) -> str:
     """When no view has the board, look for a nearby inner-corner count in one image."""
     for path, view in zip(paths, views, strict=True):
-        if view.image_size is None:
+        if view.image_size is None or too_small(*view.image_size):
             continue
         image, _ = read_image(path, cv2.IMREAD_GRAYSCALE)
         if image is None:

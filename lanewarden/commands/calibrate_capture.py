@@ -32,6 +32,7 @@ from lanewarden.image_files import read_image
 from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.chessboard import ChessboardPattern, larger_pattern, suggest_pattern
+from lanewarden.perception.detector import too_small
 
 _VIEW_NAME = re.compile(r"view_(\d+)\.jpg")
 
@@ -86,6 +87,9 @@ def run_capture(
             if not ok or frame is None:
                 break
             outcome["frames"] += 1
+            if outcome["frames"] == 1 and (why := too_small(frame.shape[1], frame.shape[0],
+                                                              use="a chessboard")):
+                raise UsageError(f"--camera {camera}: its first frame: {why}")
             last_frame = frame
             decision = judge_frame(frame, pattern, kept, config, name=f"frame {outcome['frames']}")
             if not decision.keep or decision.placement is None:

@@ -61,6 +61,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     from lanewarden.commands.output_folders import create_output_folder
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
+    from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
     from lanewarden.replay_sources import open_replay_source, replay_config
@@ -80,15 +81,17 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER
+    first = replay_source.frames.image(0)
+    size = None if first is None else (first.shape[1], first.shape[0])
+    if size is not None and (small := too_small(*size)):  # before any output is written
+        raise InputFileError(f"SOURCE '{source}': {_frame_names(replay_source, [0])}: {small}")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"replay-{replay_source.name}"
     create_output_folder(out)  # a FIFO or a file there is refused before the work, as by `sim`
     # which ground model perception sees the frames through, as `run` and `detect` say it (a
     # tub replayed without its camera's description is seen through the default camera)
-    first = replay_source.frames.image(0)
-    if first is not None:
+    if size is not None:
         from lanewarden.assembly import build_stack
 
-        size = (first.shape[1], first.shape[0])
         detector = build_stack(config, controller=chosen, calibration=calibration,
                                image_size=size).detector
         named = calibration_path or ("the recording's calibration" if calibration else None)

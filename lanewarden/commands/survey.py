@@ -27,7 +27,14 @@ import click
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
-from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP, ConfigError, OutputError, UsageError
+from lanewarden.errors import (
+    EXIT_OK,
+    EXIT_SAFETY_STOP,
+    ConfigError,
+    InputFileError,
+    OutputError,
+    UsageError,
+)
 
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig
@@ -79,6 +86,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.config import load_config
     from lanewarden.image_files import read_image
     from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+    from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config
     from lanewarden.survey import NONE
@@ -124,10 +132,12 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
              else read_image(source.stills[0].path, max_pixels=config.perception.max_image_pixels
                              )[0])
     size = None if first is None else (first.shape[1], first.shape[0])
+    example = source.stills[0].frame.name if source.sequence is None else "frame 0"
+    if size is not None and (why := too_small(*size)):
+        raise InputFileError(f"FOLDER '{folder}': {example}: {why}")
     if calibration is not None and size is not None and size != calibration.image_size:
         named = (f"--calibration '{calibration_path}'" if calibration_path
                  else "the recording's calibration")
-        example = source.stills[0].frame.name if source.sequence is None else "frame 0"
         raise UsageError(f"{named}: for {calibration.image_size[0]}x{calibration.image_size[1]} "
                          f"images, the frames are {size[0]}x{size[1]} ({example}); expected the "
                          "calibration of the camera that took them, at their size")
