@@ -835,11 +835,17 @@ def replay_config(source: ReplaySource, config_path: str | None) -> LanewardenCo
     return source.config if source.config is not None else LanewardenConfig()
 
 
+def frame_indices(source: ReplaySource) -> set[int]:
+    """The frames the source's steps name: every frame of it, whether it decodes or not, and for
+    a run also those it did not record (dropped while recording)."""
+    return {s.frame[0] for s in source.steps if s.frame is not None}
+
+
 def missing_frames(source: ReplaySource) -> int:
     """Frames a run's steps name that it did not record (dropped while recording)."""
     if source.kind != "run":
         return 0
-    wanted = {s.frame[0] for s in source.steps if s.frame is not None}
+    wanted = frame_indices(source)
     if source.frames_recorded is not None:
         return len(wanted - source.frames_recorded)
     frames = source.frames

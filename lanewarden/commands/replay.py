@@ -64,7 +64,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
-    from lanewarden.replay_sources import open_replay_source, replay_config
+    from lanewarden.replay_sources import frame_indices, open_replay_source, replay_config
 
     if out_dir is not None:
         _refuse_a_recording_folder(Path(out_dir))
@@ -141,8 +141,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         # a recorded run can lack frames (dropped while recording: the replay gives the loop
         # the frame before); a frame that is there but does not decode, in a run, video,
         # images, a tub or a bag, is damage: the loop saw no frame there (never the frame
-        # before), and the replay is bad input, its outputs written
-        total = metrics["frames"] + len(undecoded)
+        # before), and the replay is bad input, its outputs written. Its frames: every one its
+        # steps name (not those the loop got plus these: that left out a run's first frame when
+        # it was dropped while recording, the loop having no frame before to get instead)
+        total = len(frame_indices(replay_source))
         if not metrics["frames"]:
             none = ("its only frame could not be decoded" if total == 1
                     else f"none of its {total} frames could be decoded")

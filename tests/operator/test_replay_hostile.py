@@ -242,6 +242,31 @@ def test_a_recorded_frame_that_does_not_decode_is_no_frame_and_bad_input(
     assert_one_line(code, err, "1 of its 15 frames could not be decoded", "frame 5")
 
 
+def test_a_first_frame_dropped_while_recording_is_one_of_the_frames_counted(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run whose frame 0 was dropped while recording (not in run.mcap) and whose frame 5 does
+    not decode: the line counted "1 of its 14 frames", leaving out frame 0 (the loop, with no
+    frame before it to get instead, got none, so it was neither a frame the loop saw nor an
+    undecodable one), where a frame dropped later is counted (15)."""
+    for dropped in (1, 0):
+        damaged = tmp_path / f"dropped-{dropped}.mcap"
+
+        def drop_and_zero(topic: str, number: int, message: dict[str, Any],
+                          dropped: int = dropped) -> dict[str, Any] | None:
+            if topic == "/camera/image/compressed":
+                if number == dropped + 1:  # (numbered from 1 on the topic)
+                    return None
+                if number == 6:
+                    message["data"] = bytes(len(message["data"]))
+            return message
+
+        rewrite_mcap(recorded / "run.mcap", damaged, drop_and_zero)
+        code, stdout, err = replay(damaged, tmp_path, capsys)
+        assert_one_line(code, err, f"SOURCE '{damaged}': 1 of its 15 frames could not be "
+                        "decoded (counted from 0): frame 5 ")
+        assert "the recording is not exact (1 frames missing, 1 undecodable)" in stdout
+
+
 def test_replay_never_writes_into_a_recording_folder(recorded: Path, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     """`--out` naming a run's folder (run.mcap, or a format-1 folder's meta.json and run.jsonl)
