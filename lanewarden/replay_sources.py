@@ -69,6 +69,7 @@ from lanewarden.ros_bag import (
     McapFile,
     decode,
     is_bag,
+    message_name,
     open_bag,
 )
 from lanewarden.run_mcap import (
@@ -221,7 +222,7 @@ class MessageFrames(FrameStore):
         self._where = str(bag.path)
 
     def _key(self, message: BagMessage) -> int:
-        return message.sequence if self._by_sequence else message.number - 1
+        return message.sequence if self._by_sequence else message.number
 
     def image(self, index: int) -> np.ndarray | None:
         if self._cache is not None and self._cache[0] == index:
@@ -386,7 +387,7 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
     image_topics = {topic for topic, _ in IMAGE_KINDS.values()}
     seen_topics: set[str] = set()
     for message in bag.messages(lambda t: t.name == STEP_TOPIC or t.name in image_topics):
-        where = f"{path}: {message.topic.name} message {message.number}"
+        where = f"{path}: {message_name(message.topic.name, message.number)}"
         if message.topic.name != STEP_TOPIC:
             _check_image_message(message, decode(message, str(path)), where, max_pixels)
             recorded_frames.add(message.sequence)
@@ -585,7 +586,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
         return bag_topic.type in IMAGE_TYPES and (topic is None or bag_topic.name == topic)
 
     for message in bag.messages(is_image):
-        where = f"{path}: {message.topic.name} message {message.number}"
+        where = f"{path}: {message_name(message.topic.name, message.number)}"
         stamp = _check_image_message(message, decode(message, str(path)), where, max_pixels)
         stamps.setdefault(message.topic.name, []).append(stamp)
         logged.setdefault(message.topic.name, []).append(message.log_time_ns * 1e-9)

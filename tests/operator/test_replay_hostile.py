@@ -106,7 +106,9 @@ def test_a_forged_step_in_run_mcap(name: str, recorded: Path, tmp_path: Path,
     forged = tmp_path / "forged.mcap"
     rewrite_mcap(recorded / "run.mcap", forged, change_step(number, edit))
     code, _, err = replay(forged, tmp_path, capsys, "--check")
-    assert_one_line(code, err, f"{forged}: /lanewarden/step message {number}: ", *phrases)
+    # (rewrite_mcap numbers from 1; the line counts from 0, as replay counts steps and frames)
+    assert_one_line(code, err, f"{forged}: /lanewarden/step message {number - 1} (counted from "
+                    "0): ", *phrases)
 
 
 @pytest.mark.parametrize("name", FORGED_STEPS)
@@ -165,8 +167,8 @@ def test_json_nested_too_deeply_is_one_line(where: str, recorded: Path, tmp_path
         source = tmp_path / "forged.mcap"
         if where == "run.mcap step":
             rewrite_mcap(recorded / "run.mcap", source, _deep_step)
-            expected = (f"{source}: /lanewarden/step message 4: record is not JSON (nested too "
-                        "deeply)")
+            expected = (f"{source}: /lanewarden/step message 3 (counted from 0): record is not "
+                        "JSON (nested too deeply)")
         else:
             rewrite_mcap(recorded / "run.mcap", source, lambda topic, n, message: message,
                          metadata={"lanewarden.summary": {"summary": DEEP}})
@@ -487,8 +489,8 @@ def test_bad_cdr_in_a_step_message(recorded: Path, tmp_path: Path,
         writer.add_message(channel, 1, rng.integers(0, 256, 64, np.uint8).tobytes(), 1)
         writer.finish()
     code, _, err = replay(bad, tmp_path, capsys)
-    assert_one_line(code, err, "bad.mcap", "/lanewarden/step message 1 is not a valid CDR "
-                    "lanewarden_msgs/msg/Step")
+    assert_one_line(code, err, "bad.mcap", "/lanewarden/step message 0 (counted from 0) is not "
+                    "a valid CDR lanewarden_msgs/msg/Step")
 
 
 def test_a_sim_output_folder_is_not_a_recording(tmp_path: Path,
