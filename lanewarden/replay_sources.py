@@ -606,9 +606,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
         raise UsageError(f"--topic {topic}: " + (
             f"is {found.type}, not an image topic" if found is not None and found.type not in
             IMAGE_TYPES else "has no images in " + str(path)) + "; image topics: "
-            + (", ".join(f"{name} ({t.type.rsplit('/', 1)[-1]})"
-                         for name, t in sorted(topics.items()) if t.type in IMAGE_TYPES)
-               or "none"))  # (only the named topic was read: no counts)
+            + _candidates(topics))  # (only the named topic was read: no counts)
     if topic is None:
         if not stamps:
             raise InputFileError(f"{path}: no sensor_msgs/msg/Image or CompressedImage messages "
@@ -636,9 +634,18 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
                         incomplete=incomplete)
 
 
-def _candidates(topics: dict[str, BagTopic], stamps: dict[str, list[float]]) -> str:
-    return ", ".join(f"{name} ({topics[name].type.rsplit('/', 1)[-1]}, {len(times)} images)"
-                     for name, times in sorted(stamps.items())) or "none"
+def _candidates(topics: dict[str, BagTopic],
+                stamps: dict[str, list[float]] | None = None) -> str:
+    """The image topics to choose from, 'none' without one: those with images (`stamps`: each
+    one's image stamps), with their type and count ('/front (CompressedImage, 10 images)');
+    without `stamps` (only a named topic was read), every topic of an image type, with its type
+    ('/front (CompressedImage)')."""
+    names = (sorted(stamps) if stamps is not None
+             else sorted(name for name, t in topics.items() if t.type in IMAGE_TYPES))
+    return ", ".join(
+        f"{name} ({topics[name].type.rsplit('/', 1)[-1]}"
+        + ("" if stamps is None else f", {len(stamps[name])} images") + ")"
+        for name in names) or "none"
 
 
 def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySource:

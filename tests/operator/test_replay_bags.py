@@ -312,3 +312,21 @@ def test_a_message_and_its_frame_have_one_number(frames: list[np.ndarray], tmp_p
     assert lines["stamp"] == (f"lanewarden: error: {tmp_path / 'stamp.mcap'}: /camera message 3 "
                               "(counted from 0): header.stamp.nanosec = 2000000000: expected 0 "
                               "to 999999999\n")
+
+
+def test_one_listing_of_image_topics_serves_both_lines() -> None:
+    """`_candidates` lists the image topics for both one-line errors: with their image counts
+    when there are several, with their types only when --topic names another (only that topic
+    was read); it had been written out twice."""
+    from lanewarden.replay_sources import _candidates
+    from lanewarden.ros_bag import BagTopic
+
+    topics = {name: BagTopic(name, kind, "cdr") for name, kind in (
+        ("/rear/image", "sensor_msgs/msg/Image"),
+        ("/front/compressed", "sensor_msgs/msg/CompressedImage"),
+        ("/cmd_vel", "geometry_msgs/msg/Twist"))}
+    assert _candidates(topics, {"/rear/image": [0.0, 0.1], "/front/compressed": [0.0]}) == (
+        "/front/compressed (CompressedImage, 1 images), /rear/image (Image, 2 images)")
+    assert _candidates(topics) == "/front/compressed (CompressedImage), /rear/image (Image)"
+    assert _candidates({"/cmd_vel": topics["/cmd_vel"]}) == "none"
+    assert _candidates(topics, {}) == "none"
