@@ -175,6 +175,22 @@ def decode_image(data: bytes, flags: int, max_pixels: int) -> tuple[np.ndarray |
     return image, ""
 
 
+#: How a photo is decoded to be shown or undistorted as it is (`undistort`): upright as its EXIF
+#: orientation says, as `detect`, `calibrate` and `survey` decode it (so a calibration made from
+#: phone photos is for the size they are undistorted at), a gray one gray, 16 bits kept.
+#: (IMREAD_UNCHANGED would keep an alpha channel but ignores the EXIF orientation.)
+AS_SHOWN = cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH
+#: Said of a photo whose decoded size is not its header's: OpenCV turns a JPEG as its EXIF
+#: orientation says (a phone's photo held upright); its header gives the size as stored.
+TURNED = "turned upright by its EXIF orientation"
+
+
+def is_turned(path: Path, image: np.ndarray) -> bool:
+    """Is `image`, decoded from `path`, of another size than the file's header gives?"""
+    header, _ = header_facts(path, image.size + 1)
+    return header not in (None, (image.shape[1], image.shape[0]))
+
+
 def expand_images(pattern: str) -> list[Path]:
     """Files matching a glob (or every file in a folder), sorted; folders are skipped."""
     base = Path(pattern).expanduser()

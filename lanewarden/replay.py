@@ -31,6 +31,7 @@ from lanewarden.perception.observation import LaneObservation, LaneReference
 from lanewarden.replay_sources import (
     FrameStore,
     ReplaySource,
+    frame_indices,
     missing_frames,
     open_replay_source,
     replay_config,
@@ -41,7 +42,8 @@ from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import FINGERPRINT_STRIDE
 
 __all__ = ["Divergence", "ReplaySource", "ReplayedStep", "check_preparation", "compare_step",
-           "missing_frames", "open_replay_source", "replay_config", "replay_steps"]
+           "frame_indices", "missing_frames", "open_replay_source", "replay_config",
+           "replay_steps"]
 
 
 # ---- the scripted parts of the loop -----------------------------------------------------------

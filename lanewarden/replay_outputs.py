@@ -27,7 +27,13 @@ from lanewarden.config import LanewardenConfig
 from lanewarden.errors import OutputError
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.overlay import as_bgr, draw_detection
-from lanewarden.replay import Divergence, ReplaySource, missing_frames, replay_steps
+from lanewarden.replay import (
+    Divergence,
+    ReplaySource,
+    frame_indices,
+    missing_frames,
+    replay_steps,
+)
 from lanewarden.run_outcome import (
     CLIP_END,
     EndReason,
@@ -273,7 +279,7 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "incomplete": list(source.incomplete),
     }
     # frames that are there but did not decode: the loop got no frame at those steps
-    wanted = {s.frame[0] for s in source.steps if s.frame is not None}
+    wanted = frame_indices(source)
     if source.kind != "run":
         metrics["frames_undecoded"] = sorted(wanted - {r.frame_index for r in records})
     else:  # (a run's frames dropped while recording are `frames_missing`, not these)

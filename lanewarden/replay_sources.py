@@ -69,6 +69,7 @@ from lanewarden.ros_bag import (
     McapFile,
     decode,
     is_bag,
+    message_name,
     open_bag,
 )
 from lanewarden.run_mcap import (
@@ -221,7 +222,7 @@ class MessageFrames(FrameStore):
         self._where = str(bag.path)
 
     def _key(self, message: BagMessage) -> int:
-        return message.sequence if self._by_sequence else message.number - 1
+        return message.sequence if self._by_sequence else message.number
 
     def image(self, index: int) -> np.ndarray | None:
         if self._cache is not None and self._cache[0] == index:
@@ -386,7 +387,7 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
     image_topics = {topic for topic, _ in IMAGE_KINDS.values()}
     seen_topics: set[str] = set()
     for message in bag.messages(lambda t: t.name == STEP_TOPIC or t.name in image_topics):
-        where = f"{path}: {message.topic.name} message {message.number}"
+        where = f"{path}: {message_name(message.topic.name, message.number)}"
         if message.topic.name != STEP_TOPIC:
             _check_image_message(message, decode(message, str(path)), where, max_pixels)
             recorded_frames.add(message.sequence)
@@ -585,7 +586,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
         return bag_topic.type in IMAGE_TYPES and (topic is None or bag_topic.name == topic)
 
     for message in bag.messages(is_image):
-        where = f"{path}: {message.topic.name} message {message.number}"
+        where = f"{path}: {message_name(message.topic.name, message.number)}"
         stamp = _check_image_message(message, decode(message, str(path)), where, max_pixels)
         stamps.setdefault(message.topic.name, []).append(stamp)
         logged.setdefault(message.topic.name, []).append(message.log_time_ns * 1e-9)
@@ -605,9 +606,7 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
         raise UsageError(f"--topic {topic}: " + (
             f"is {found.type}, not an image topic" if found is not None and found.type not in
             IMAGE_TYPES else "has no images in " + str(path)) + "; image topics: "
-            + (", ".join(f"{name} ({t.type.rsplit('/', 1)[-1]})"
-                         for name, t in sorted(topics.items()) if t.type in IMAGE_TYPES)
-               or "none"))  # (only the named topic was read: no counts)
+            + _candidates(topics))  # (only the named topic was read: no counts)
     if topic is None:
         if not stamps:
             raise InputFileError(f"{path}: no sensor_msgs/msg/Image or CompressedImage messages "
@@ -635,9 +634,18 @@ def _load_bag(path: Path, topic: str | None, max_pixels: int) -> ReplaySource:
                         incomplete=incomplete)
 
 
-def _candidates(topics: dict[str, BagTopic], stamps: dict[str, list[float]]) -> str:
-    return ", ".join(f"{name} ({topics[name].type.rsplit('/', 1)[-1]}, {len(times)} images)"
-                     for name, times in sorted(stamps.items())) or "none"
+def _candidates(topics: dict[str, BagTopic],
+                stamps: dict[str, list[float]] | None = None) -> str:
+    """The image topics to choose from, 'none' without one: those with images (`stamps`: each
+    one's image stamps), with their type and count ('/front (CompressedImage, 10 images)');
+    without `stamps` (only a named topic was read), every topic of an image type, with its type
+    ('/front (CompressedImage)')."""
+    names = (sorted(stamps) if stamps is not None
+             else sorted(name for name, t in topics.items() if t.type in IMAGE_TYPES))
+    return ", ".join(
+        f"{name} ({topics[name].type.rsplit('/', 1)[-1]}"
+        + ("" if stamps is None else f", {len(stamps[name])} images") + ")"
+        for name in names) or "none"
 
 
 def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySource:
@@ -835,11 +843,17 @@ def replay_config(source: ReplaySource, config_path: str | None) -> LanewardenCo
     return source.config if source.config is not None else LanewardenConfig()
 
 
+def frame_indices(source: ReplaySource) -> set[int]:
+    """The frames the source's steps name: every frame of it, whether it decodes or not, and for
+    a run also those it did not record (dropped while recording)."""
+    return {s.frame[0] for s in source.steps if s.frame is not None}
+
+
 def missing_frames(source: ReplaySource) -> int:
     """Frames a run's steps name that it did not record (dropped while recording)."""
     if source.kind != "run":
         return 0
-    wanted = {s.frame[0] for s in source.steps if s.frame is not None}
+    wanted = frame_indices(source)
     if source.frames_recorded is not None:
         return len(wanted - source.frames_recorded)
     frames = source.frames

@@ -25,7 +25,8 @@ allocate without bound or run for long:
 - Messages are CDR-decoded by `mcap-ros2-support` with the definitions this project knows
   (lanewarden.run_mcap.DEFINITIONS: the two image types and Lanewarden's own), whatever text a
   file embeds for them (a .db3 of ROS 2 Humble embeds none); a message that does not decode is
-  one line (`InputFileError`) naming the file, topic and message number.
+  one line (`InputFileError`) naming the file, topic and message number (`message_name`:
+  counted from 0 on its topic, as replay counts frames and steps).
 - .db3 files are SQLite databases, read through Python's own sqlite3 module, read-only; their
   `topics` and `messages` must be stored tables (a view, a virtual table or a generated column
   makes work the file does not hold: a recursive view never ends), no value larger than
@@ -108,10 +109,17 @@ class BagTopic:
 @dataclass(frozen=True)
 class BagMessage:
     topic: BagTopic
-    number: int  # 1-based, per topic, in file order: for error messages
+    number: int  # per topic, in file order, counted from 0 (as frames): for error messages
     sequence: int  # MCAP's sequence field (0 where the file has none)
     log_time_ns: int
     data: bytes
+
+
+def message_name(topic: str, number: int) -> str:
+    """'/camera message 4 (counted from 0)': a message by its number on its topic, counted from 0
+    as replay counts frames and steps (an image topic's message 4 is frame 4); they had been
+    counted from 1 here alone."""
+    return f"{topic} message {number} (counted from 0)"
 
 
 def _problem(path: Path, offset: int, what: str) -> InputFileError:
@@ -280,9 +288,10 @@ class McapFile:
                     if len(message.data) > MAX_MESSAGE_BYTES:
                         raise _problem(self.path, where, f"a message of {len(message.data)} "
                                        f"bytes on {topic.name} (more than {MAX_MESSAGE_BYTES})")
-                    counts[topic.name] = counts.get(topic.name, 0) + 1
-                    yield BagMessage(topic, counts[topic.name], message.sequence,
-                                     message.log_time, message.data)
+                    number = counts.get(topic.name, 0)
+                    counts[topic.name] = number + 1
+                    yield BagMessage(topic, number, message.sequence, message.log_time,
+                                     message.data)
                 offset += _RECORD_HEAD.size + length
 
     def _record(self, opcode: int, body: bytes, offset: int, schemas: dict[int, str],
@@ -411,8 +420,8 @@ class Db3File:
                     "SELECT timestamp, length(data), CASE WHEN length(data) <= ? THEN data END "
                     "FROM messages WHERE topic_id = ? ORDER BY timestamp, id",
                     (MAX_MESSAGE_BYTES, topic_id))
-                for number, (stamp, length, data) in enumerate(cursor, start=1):
-                    where = f"{self.path}: {topic.name} message {number}"
+                for number, (stamp, length, data) in enumerate(cursor):
+                    where = f"{self.path}: {message_name(topic.name, number)}"
                     if data is None and isinstance(length, int):
                         raise InputFileError(
                             f"{where} is {length} bytes (more than {MAX_MESSAGE_BYTES}); not a "
@@ -453,9 +462,10 @@ class Bag:
         numbers: dict[str, int] = {}
         for bag_file in self.files:
             for message in bag_file.messages(keep):
-                numbers[message.topic.name] = numbers.get(message.topic.name, 0) + 1
-                yield BagMessage(message.topic, numbers[message.topic.name], message.sequence,
-                                 message.log_time_ns, message.data)
+                number = numbers.get(message.topic.name, 0)
+                numbers[message.topic.name] = number + 1
+                yield BagMessage(message.topic, number, message.sequence, message.log_time_ns,
+                                 message.data)
 
 
 def _folder_files(folder: Path) -> list[BagFile]:
@@ -531,5 +541,6 @@ def decode(message: BagMessage, where: str) -> Any:
     try:
         return decoder(message.data)
     except Exception as exc:  # a hostile payload can fail anywhere in a generic decoder
-        raise InputFileError(f"{where}: {message.topic.name} message {message.number} is not a "
-                             f"valid CDR {kind} ({type(exc).__name__})") from None
+        named = message_name(message.topic.name, message.number)
+        raise InputFileError(f"{where}: {named} is not a valid CDR {kind} "
+                             f"({type(exc).__name__})") from None

@@ -43,7 +43,9 @@ from lanewarden.camera_source import (
     require_camera_view,
 )
 from lanewarden.config import LanewardenConfig
+from lanewarden.errors import UsageError
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+from lanewarden.perception.detector import too_small
 from lanewarden.recording import RUN_MCAP
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
@@ -166,6 +168,8 @@ def run_robot(
     try:
         first = _first_frame(frames, clock, camera)
         height, width = first.shape[:2]
+        if why := too_small(width, height):  # before the detector is set up for that size
+            raise UsageError(f"--camera {camera}: its first frame: {why}")
         if replay_fps is not None:  # a file: a run's own video is not a camera's view
             require_camera_view(first, f"--camera {camera}")
         if calibration is not None:

@@ -29,7 +29,6 @@ import zlib
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -37,7 +36,7 @@ import numpy as np
 from lanewarden.assembly import DecisionRule, decision_rule
 from lanewarden.config import LanewardenConfig
 from lanewarden.errors import ConfigError, InputFileError
-from lanewarden.image_files import header_facts, read_image, too_many_pixels
+from lanewarden.image_files import TURNED, is_turned, read_image, too_many_pixels
 from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.detector import DetectionDebug, LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
@@ -184,17 +183,6 @@ def other_size(image: np.ndarray, size: tuple[int, int] | None, first: str,
     if size is None or (width, height) == size:
         return ""
     return f"decoded as {width}x{height}{note}; {first} is {size[0]}x{size[1]}"
-
-
-#: Said of a still whose decoded size is not its header's: OpenCV turns a JPEG as its EXIF
-#: orientation says (a phone's photo held upright), after its header passed the one-size check.
-TURNED = "turned upright by its EXIF orientation"
-
-
-def is_turned(path: Path, image: np.ndarray) -> bool:
-    """Is `image`, decoded from `path`, of another size than the file's header gives?"""
-    header, _ = header_facts(path, image.size + 1)
-    return header not in (None, (image.shape[1], image.shape[0]))
 
 
 class CheckedFrames(FrameStore):

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.calibration_config import CalibrationConfig
+from lanewarden.perception.detector import too_small
 from lanewarden.perception.errors import PerceptionError
 
 FloatArray = NDArray[np.float64]
@@ -143,6 +144,8 @@ def find_corners(
 ) -> NDArray[np.float32] | None:
     """The board's inner corners (N, 1, 2) float32 at pixel accuracy, or None if the WHOLE board
     was not found. `fast_check` gives up quickly on frames without a board (capture)."""
+    if too_small(gray.shape[1], gray.shape[0]):
+        return None  # OpenCV fails an assertion (a traceback) under 15 px a side
     flags = _DETECT_FLAGS | (cv2.CALIB_CB_FAST_CHECK if fast_check else 0)
     found, corners = cv2.findChessboardCorners(gray, pattern.size, flags=flags)
     if not found or corners is None:
@@ -175,6 +178,8 @@ def detect_view(
     """Find, refine and judge the board in one image (gray or BGR)."""
     gray = _as_gray(image)
     size = (int(gray.shape[1]), int(gray.shape[0]))
+    if why := too_small(*size, use="a chessboard"):
+        return ViewDetection(name=name, image_size=size, rejection=f"image {why}")
     corners = find_corners(gray, pattern, fast_check=fast_check)
     if corners is None:
         return ViewDetection(

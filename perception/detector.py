@@ -73,6 +73,20 @@ from lanewarden.perception.one_side import lane_from_one_side, one_side_ceiling
 from lanewarden.perception.size_setup import SizeSetup
 
 MIN_IMAGE_SIDE_PX = 16
+
+
+def too_small(width: int, height: int, use: str = "perception") -> str:
+    """'' when a `width` x `height` image is large enough for `use`, else why not, with the
+    minimum: '1x1 is too small for perception (at least 16x16 px)'. The one size check of a frame
+    (`detect`), of a size the detector is set up for (`setup_for`: a 1x1 frame had been refused
+    as a floor region out of view, naming the config key perception.roi) and of a photo a
+    command reads before it gets there."""
+    if min(width, height) >= MIN_IMAGE_SIDE_PX:
+        return ""
+    return (f"{width}x{height} is too small for {use} (at least {MIN_IMAGE_SIDE_PX}x"
+            f"{MIN_IMAGE_SIDE_PX} px)")
+
+
 #: Perception's gray of a colour frame (`perception_gray`: OpenCV's BGR2GRAY) as weights of
 #: (blue, green, red), for whoever paints it from colours (the simulator's gray texture and
 #: camera, `scenarios.texture`, `scenarios.camera_effects`). In it a yellow line (#e3b21c, 176)
@@ -149,9 +163,12 @@ class LaneDetector:
 
     def setup_for(self, width: int, height: int) -> SizeSetup:
         """The per-size setup (ROI, look-ahead row, buffers, scaled pixel parameters), made on
-        first use; raises PerceptionConfigError when the config does not work at this size."""
+        first use; raises PerceptionError for a size smaller than perception works on
+        (`too_small`), PerceptionConfigError when the config does not work at this size."""
         setup = self._states.get((width, height))
         if setup is None:
+            if why := too_small(width, height):
+                raise PerceptionError(f"frame: {why}")
             ground = self.ground
             if ground.image_size != (width, height):
                 ground = ground.scaled_to((width, height))
@@ -453,8 +470,5 @@ def _check_image(image: object) -> None:
         raise PerceptionError(
             f"frame: expected an HxW gray or HxWx3 BGR image, got shape {image.shape}"
         )
-    if min(image.shape[:2]) < MIN_IMAGE_SIDE_PX:
-        raise PerceptionError(
-            f"frame: {image.shape[1]}x{image.shape[0]} is too small "
-            f"(at least {MIN_IMAGE_SIDE_PX}x{MIN_IMAGE_SIDE_PX} px)"
-        )
+    if why := too_small(image.shape[1], image.shape[0]):
+        raise PerceptionError(f"frame: {why}")

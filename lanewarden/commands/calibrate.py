@@ -28,6 +28,7 @@ from lanewarden.commands.calibrate_capture import capture_command
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.command_group import CommandGroup, unknown_command_message
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import load_config
 from lanewarden.errors import OutputError, QualityGateError, UsageError
@@ -55,6 +56,7 @@ from lanewarden.perception.chessboard_calibration import (
     calibrate_views,
     gate_failures,
 )
+from lanewarden.perception.detector import too_small
 from lanewarden.perception.errors import PerceptionError
 
 #: Largest chessboard square `--square` accepts, metres.
@@ -109,7 +111,7 @@ def _pattern_hint(paths: list[Path], views: list[ViewDetection],
                   pattern: ChessboardPattern) -> str:
     """When no view has the board, look for a nearby inner-corner count in one image."""
     for path, view in zip(paths, views, strict=True):
-        if view.image_size is None:
+        if view.image_size is None or too_small(*view.image_size):
             continue
         image, _ = read_image(path, cv2.IMREAD_GRAYSCALE)
         if image is None:
@@ -228,11 +230,12 @@ def run_calibration(
 
 @click.group("calibrate", cls=CalibrateGroup, invoke_without_command=True)
 @click.option("--images", metavar="GLOB",
+              type=PathFlag("a glob or a folder of images", readable=False),
               help="Chessboard images: a quoted glob ('shots/*.jpg') or a folder.")
 @click.option("--pattern", type=PATTERN, help="Inner corners of the board, e.g. 9x6.")
 @click.option("--square", "square_m", type=float, callback=_positive_length, metavar="METERS",
               help="Side of one chessboard square in metres (scales the poses, not K).")
-@click.option("--out", "out_path", type=click.Path(dir_okay=True), metavar="FILE",
+@click.option("--out", "out_path", type=PathFlag("a file name", dir_okay=True), metavar="FILE",
               help="Where to write the OpenCV FileStorage YAML.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (the result) as the last stdout line.")

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from lanewarden.camera_source import numbered_sequence_gap, open_camera, quiet_opencv
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import CAMERA_EXPECTED, PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import DeviceError, OutputError, QualityGateError, UsageError
@@ -31,6 +32,7 @@ from lanewarden.image_files import read_image
 from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.chessboard import ChessboardPattern, larger_pattern, suggest_pattern
+from lanewarden.perception.detector import too_small
 
 _VIEW_NAME = re.compile(r"view_(\d+)\.jpg")
 
@@ -85,6 +87,9 @@ def run_capture(
             if not ok or frame is None:
                 break
             outcome["frames"] += 1
+            if outcome["frames"] == 1 and (why := too_small(frame.shape[1], frame.shape[0],
+                                                              use="a chessboard")):
+                raise UsageError(f"--camera {camera}: its first frame: {why}")
             last_frame = frame
             decision = judge_frame(frame, pattern, kept, config, name=f"frame {outcome['frames']}")
             if not decision.keep or decision.placement is None:
@@ -131,9 +136,11 @@ def _breakdown(outcome: dict[str, int]) -> str:
 
 @click.command("capture")
 @click.option("--camera", required=True, metavar="INDEX|PATH|URL",
+              type=PathFlag(CAMERA_EXPECTED, readable=False),
               help="Camera index (0), video file, image sequence ('dir/f_%03d.png') or URL.")
 @click.option("--pattern", required=True, type=PATTERN, help="Inner corners, e.g. 9x6.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=True), metavar="DIR",
+@click.option("--out", "out_dir", required=True, type=PathFlag("a folder", file_okay=True),
+              metavar="DIR",
               help="Folder for the kept views (view_000.jpg, ...); created if missing. Views "
               "already there count as kept: a rerun adds only new placements.")
 @click.option("--count", default=25, show_default=True, type=click.IntRange(1, 1000),

@@ -34,6 +34,7 @@ import numpy as np
 
 from lanewarden.commands.calibrate import PATTERN, _emit_json, _positive_length, read_image
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import LanewardenConfig, load_config
 from lanewarden.errors import OutputError, QualityGateError, UsageError
@@ -228,9 +229,10 @@ def _default_check_path(out: Path) -> Path:
 
 @click.command("ground")
 @click.option("--calibration", "calibration_path", required=True,
-              type=click.Path(dir_okay=False), metavar="FILE",
+              type=PathFlag("a calibration file", dir_okay=False), metavar="FILE",
               help="The camera's calibration (from `lanewarden calibrate`).")
-@click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False),
+@click.option("--out", "out_path", required=True,
+              type=PathFlag("a file name", dir_okay=False),
               metavar="FILE", help="Where to write the calibration with the ground pose (may be "
               "the --calibration file itself).")
 @click.option("--height-m", type=float, callback=_finite_number, metavar="H",
@@ -246,7 +248,8 @@ def _default_check_path(out: Path) -> Path:
 @click.option("--lateral-m", type=float, callback=_finite_number, metavar="L",
               help="Mount: the lens's distance to the left of the robot's centre, metres "
               "(default 0).")
-@click.option("--image", "image_path", type=click.Path(dir_okay=False), metavar="IMG",
+@click.option("--image", "image_path", type=PathFlag("an image file", dir_okay=False),
+              metavar="IMG",
               help="Chessboard: a photo of the board lying flat on the floor (with a mount: "
               "the check picture's background).")
 @click.option("--pattern", type=PATTERN, help="Chessboard: inner corners, e.g. 9x6.")
@@ -255,7 +258,8 @@ def _default_check_path(out: Path) -> Path:
 @click.option("--board-center-m", "board_centre", type=PointType(),
               help="Chessboard: the centre of its inner corners in the robot frame (x forward, "
               "y left), metres, e.g. 0.6,0. Its columns run across the robot.")
-@click.option("--check-image", "check_path", type=click.Path(dir_okay=False), metavar="PNG",
+@click.option("--check-image", "check_path", type=PathFlag("a file name", dir_okay=False),
+              metavar="PNG",
               help="Check picture (default: FILE's stem + .ground-check.png).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (the result) as the last stdout line.")

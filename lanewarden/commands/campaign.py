@@ -19,6 +19,7 @@ import click
 
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
@@ -55,7 +56,8 @@ def _counts(progress: CampaignProgress) -> str:
 @click.option("--spec", "spec_name", required=True, metavar="FILE|default",
               help="The campaign spec: a YAML file, or 'default' (every fault kind across the "
               "library scenarios and several cameras).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", required=True,
+              type=PathFlag("a folder", file_okay=False),
               help="Output directory: results.sqlite, cases/, junit.xml, report.html. Running "
               "again with the same spec and seed resumes.")
 @click.option("--runs", type=click.IntRange(1, MAX_RUNS), default=None,

@@ -5,13 +5,14 @@ from __future__ import annotations
 import click
 
 from lanewarden.commands.command_group import CommandGroup
+from lanewarden.commands.flags import PathFlag
 from lanewarden.config import config_as_yaml, load_config
 
 
 def config_option(func: click.decorators.FC) -> click.decorators.FC:
     """The shared `--config FILE` option (not checked for existence here: load_config names it)."""
     return click.option(
-        "--config", "config_path", type=click.Path(dir_okay=True), default=None,
+        "--config", "config_path", type=PathFlag("a config file", dir_okay=True), default=None,
         help="YAML config file (default: built-in defaults; see `lanewarden config show`).",
     )(func)
 

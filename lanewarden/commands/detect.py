@@ -45,6 +45,7 @@ import cv2
 
 from lanewarden.assembly import decision_rule
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import ConfigError, InputFileError, OutputError, UsageError
@@ -97,11 +98,13 @@ def _emit(line: str) -> None:
 
 
 @click.command("detect")
-@click.argument("images", nargs=-1, required=True, type=click.Path(), metavar="IMAGE...")
+@click.argument("images", nargs=-1, required=True, type=PathFlag("an image file"),
+                metavar="IMAGE...")
 @config_option
-@click.option("--calibration", "calibration_path", type=click.Path(), default=None,
+@click.option("--calibration", "calibration_path", type=PathFlag("a calibration file"),
+              default=None,
               metavar="FILE", help="Undistort with this calibration (OpenCV FileStorage YAML).")
-@click.option("--out", "out_dir", type=click.Path(), default=None, metavar="DIR",
+@click.option("--out", "out_dir", type=PathFlag("a folder"), default=None, metavar="DIR",
               help="Write an annotated <name>_detect.png per image into DIR (created).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per image per line.")
 def detect_command(

@@ -1,7 +1,14 @@
-"""Command-line number types shared by the commands: finite and bounded, like every config key.
+"""Command-line types shared by the commands.
 
 click's FloatRange lets `nan` through (every comparison with it is false) and, without a maximum,
 `inf` too; `FiniteRange` refuses both with one line naming the flag and the allowed range.
+
+`PathFlag` is every path a command takes (a flag or an argument): an empty one is refused with one
+line naming it. `Path("")` is `.`, the current folder, and `value or default` takes `""` for no
+value: `--out ""` had written into the current folder (detect, undistort, demo), fallen back to
+the default folder (sim, replay, survey; `--check-image` to its default name, replay's
+`--calibration` to the recording's), been taken for `.` (`run --record`: "already exists") or
+been a traceback (`sim --camera-out`).
 """
 
 from __future__ import annotations
@@ -33,3 +40,23 @@ class FiniteRange(click.ParamType):
             self.fail(f"{str(value)[:60]} {self.unit}: expected a finite number with "
                       f"{low}value <= {self.high:g} {self.unit}", param, ctx)
         return number
+
+
+#: What a `--camera` is, for its empty value.
+CAMERA_EXPECTED = "a camera index, device, video file, image sequence or stream URL"
+
+
+class PathFlag(click.Path):
+    """click.Path, and an empty value refused: "Invalid value for '--out': '' is empty; expected
+    a folder" (`expected`: what the flag names). `readable=False` for a value that is not always
+    a file (a camera index or URL, a glob): then it is checked for nothing else, as a string."""
+
+    def __init__(self, expected: str, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.expected = expected
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value:
+            self.fail(f"'' is empty; expected {self.expected}", param, ctx)
+        return super().convert(value, param, ctx)

@@ -13,12 +13,16 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.errors import InputFileError, QualityGateError, UsageError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 from lanewarden.wording import counted
 
 if TYPE_CHECKING:
     from lanewarden.replay import ReplaySource
+
+#: What SOURCE is, for an empty one.
+SOURCE_EXPECTED = "a run folder, a ROS 2 bag, a video file, a folder or glob of frames or a tub"
 
 REPLAY_EXAMPLES = """\b
 Examples:
@@ -30,11 +34,12 @@ Examples:
 
 
 @click.command("replay", epilog=REPLAY_EXAMPLES)
-@click.argument("source")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output directory (default: lanewarden-out/replay-<source name>).")
+@click.argument("source", type=PathFlag(SOURCE_EXPECTED, readable=False))
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False),
+              default=None, help="Output directory (default: lanewarden-out/replay-<source name>).")
 @config_option
-@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--calibration", "calibration_path",
+              type=PathFlag("a calibration file", dir_okay=False), default=None,
               help="Camera calibration (default: the run folder's own, else none).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=None,
               help=f"Who drives (default: the recorded run's, else {DEFAULT_CONTROLLER}).")
@@ -56,9 +61,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     from lanewarden.commands.output_folders import create_output_folder, interrupted_in
     from lanewarden.config import load_config
     from lanewarden.perception.calibration import load_calibration
+    from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
-    from lanewarden.replay_sources import open_replay_source, replay_config
+    from lanewarden.replay_sources import frame_indices, open_replay_source, replay_config
 
     if out_dir is not None:
         _refuse_a_recording_folder(Path(out_dir))
@@ -75,15 +81,17 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER
+    first = replay_source.frames.image(0)
+    size = None if first is None else (first.shape[1], first.shape[0])
+    if size is not None and (small := too_small(*size)):  # before any output is written
+        raise InputFileError(f"SOURCE '{source}': {_frame_names(replay_source, [0])}: {small}")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"replay-{replay_source.name}"
     create_output_folder(out)  # a FIFO or a file there is refused before the work, as by `sim`
     # which ground model perception sees the frames through, as `run` and `detect` say it (a
     # tub replayed without its camera's description is seen through the default camera)
-    first = replay_source.frames.image(0)
-    if first is not None:
+    if size is not None:
         from lanewarden.assembly import build_stack
 
-        size = (first.shape[1], first.shape[0])
         detector = build_stack(config, controller=chosen, calibration=calibration,
                                image_size=size).detector
         named = calibration_path or ("the recording's calibration" if calibration else None)
@@ -136,8 +144,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         # a recorded run can lack frames (dropped while recording: the replay gives the loop
         # the frame before); a frame that is there but does not decode, in a run, video,
         # images, a tub or a bag, is damage: the loop saw no frame there (never the frame
-        # before), and the replay is bad input, its outputs written
-        total = metrics["frames"] + len(undecoded)
+        # before), and the replay is bad input, its outputs written. Its frames: every one its
+        # steps name (not those the loop got plus these: that left out a run's first frame when
+        # it was dropped while recording, the loop having no frame before to get instead)
+        total = len(frame_indices(replay_source))
         if not metrics["frames"]:
             none = ("its only frame could not be decoded" if total == 1
                     else f"none of its {total} frames could be decoded")

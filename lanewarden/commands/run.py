@@ -9,7 +9,7 @@ import click
 
 from lanewarden.bases import BASE_KINDS, DEFAULT_BASE
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.flags import FiniteRange
+from lanewarden.commands.flags import CAMERA_EXPECTED, FiniteRange, PathFlag
 from lanewarden.config import load_config
 from lanewarden.errors import UsageError
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
@@ -31,7 +31,8 @@ MAX_RUN_DURATION_S = 86_400.0
 
 
 @click.command("run", epilog=RUN_EXAMPLES)
-@click.option("--camera", default="0", show_default=True,
+@click.option("--camera", default="0", show_default=True, metavar="TEXT",
+              type=PathFlag(CAMERA_EXPECTED, readable=False),
               help="Camera index, device path, stream URL, video file, or image sequence (a "
               "folder, a glob like 'shots/*.png', or 'dir/frame_%03d.png'). A file or sequence is "
               "played at its frame rate; its end ends the run.")
@@ -40,12 +41,13 @@ MAX_RUN_DURATION_S = 86_400.0
               "very commands the wheels would get; none: send nothing, show what would be sent.")
 @click.option("--port", default=None,
               help="Kobuki serial port (default: actuation.port, then /dev/kobuki, /dev/ttyUSB0).")
-@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--calibration", "calibration_path",
+              type=PathFlag("a calibration file", dir_okay=False), default=None,
               help="Camera calibration (OpenCV YAML from `lanewarden calibrate`).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="supervised, or the lecture's baseline (never halts on lane "
               "loss: for comparison on a safe track only).")
-@click.option("--record", "record_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--record", "record_dir", type=PathFlag("a folder", file_okay=False, path_type=Path),
               default=None, help="Record the run into this new folder (default: runs/<UTC "
               "time>/; never overwritten).")
 @click.option("--record-gray", is_flag=True,

@@ -20,6 +20,7 @@ import click
 
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder, interrupted_in
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
@@ -104,14 +105,14 @@ Examples:
 @click.option("--scenario", "scenario", default=None, metavar="NAME|FILE",
               help="A library scenario (names below) or a scenario YAML file.")
 @click.option("--case", "case_file", default=None, metavar="FILE",
-              type=click.Path(dir_okay=False),
+              type=PathFlag("a case file", dir_okay=False),
               help="Rerun one campaign case (DIR/cases/<id>.yaml) exactly: its scenario, faults, "
               "seed, controller and config; prints its outcome class.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,
               help="Output directory (default: lanewarden-out/<scenario>-<controller>); its "
               "old outputs are replaced.")
 @config_option
@@ -119,8 +120,8 @@ Examples:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--check", is_flag=True,
               help="Exit with code 2 if the scenario's expected outcome is not met.")
-@click.option("--camera-out", "camera_out", type=click.Path(path_type=Path), default=None,
-              metavar="FILE",
+@click.option("--camera-out", "camera_out",
+              type=PathFlag("a file or folder name", path_type=Path), default=None, metavar="FILE",
               help="Also write the robot camera's raw view (no overlay, no map) at the camera's "
               "size and rate: a video when FILE ends in .mp4/.mkv/.avi/.mov, else a folder of "
               "PNG frames; with FILE.calibration.yaml (and FILE.config.yaml when the config is "
@@ -188,7 +189,8 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
 Example:
   lanewarden demo && xdg-open lanewarden-out/report.html
 """)
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=DEFAULT_DEMO_OUT,
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False),
+              default=DEFAULT_DEMO_OUT,
               show_default=True, help="Output directory; its old outputs are replaced.")
 @config_option
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,

@@ -25,8 +25,16 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
-from lanewarden.errors import EXIT_OK, EXIT_SAFETY_STOP, ConfigError, OutputError, UsageError
+from lanewarden.errors import (
+    EXIT_OK,
+    EXIT_SAFETY_STOP,
+    ConfigError,
+    InputFileError,
+    OutputError,
+    UsageError,
+)
 
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig
@@ -44,16 +52,20 @@ Examples:
 
 
 @click.command("survey", epilog=SURVEY_EXAMPLES)
-@click.argument("folder", metavar="FOLDER")
-@click.option("--labels", "labels_path", type=click.Path(dir_okay=False), default=None,
+@click.argument("folder", metavar="FOLDER",
+                type=PathFlag("a folder, a video, a run or a tub", readable=False))
+@click.option("--labels", "labels_path", type=PathFlag("a labels file", dir_okay=False),
+              default=None,
               metavar="FILE", help="Labels for FOLDER's frames: file,expect[,note] (paths "
               "relative to FOLDER) or frames,expect[,note] (frame indices or ranges of a video, "
               "run folder, image sequence or Donkeycar tub). Default: FOLDER/labels.csv, else "
               "the lane/ and no-lane/ sub-folders.")
-@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--calibration", "calibration_path",
+              type=PathFlag("a calibration file", dir_okay=False), default=None,
               metavar="FILE", help="Camera calibration (default: a run folder's own, else none).")
 @config_option
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+@click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,
+              metavar="DIR",
               help="Output directory for report.html and survey.json (default: "
               "lanewarden-out/survey-<folder name>).")
 @click.option("--json", "as_json", is_flag=True,
@@ -74,6 +86,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.config import load_config
     from lanewarden.image_files import read_image
     from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+    from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config
     from lanewarden.survey import NONE
@@ -119,10 +132,12 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
              else read_image(source.stills[0].path, max_pixels=config.perception.max_image_pixels
                              )[0])
     size = None if first is None else (first.shape[1], first.shape[0])
+    example = source.stills[0].frame.name if source.sequence is None else "frame 0"
+    if size is not None and (why := too_small(*size)):
+        raise InputFileError(f"FOLDER '{folder}': {example}: {why}")
     if calibration is not None and size is not None and size != calibration.image_size:
         named = (f"--calibration '{calibration_path}'" if calibration_path
                  else "the recording's calibration")
-        example = source.stills[0].frame.name if source.sequence is None else "frame 0"
         raise UsageError(f"{named}: for {calibration.image_size[0]}x{calibration.image_size[1]} "
                          f"images, the frames are {size[0]}x{size[1]} ({example}); expected the "
                          "calibration of the camera that took them, at their size")

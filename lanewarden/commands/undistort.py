@@ -4,8 +4,10 @@ calibration does.
 For each image writes `<name>_undistorted.<ext>` and `<name>_compare.png` (before | after, with
 the same straight reference lines over both). The remap tables are built once per run. The
 calibration is checked as `run` checks it (`require_usable_calibration`); images with more pixels
-than `perception.max_image_pixels` are refused from their header. Bad images are reported in one
-line at the end (exit 2); an output that cannot be written stops the command (exit 1).
+than `perception.max_image_pixels` are refused from their header. A photo is undistorted upright
+as its EXIF orientation says, at the size `calibrate` and `detect` see it (`AS_SHOWN`). Bad
+images are reported in one line at the end (exit 2); an output that cannot be written stops the
+command (exit 1).
 
 Only file I/O and printing live here; the work is `perception.calibration.Undistorter` and the
 drawing is `perception.undistort_preview.side_by_side`.
@@ -19,10 +21,18 @@ import click
 import cv2
 
 from lanewarden.commands.config_cmd import config_option
+from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import InputFileError, OutputError, UsageError
-from lanewarden.image_files import IMAGE_SUFFIXES, read_image, same_output_name
+from lanewarden.image_files import (
+    AS_SHOWN,
+    IMAGE_SUFFIXES,
+    TURNED,
+    is_turned,
+    read_image,
+    same_output_name,
+)
 from lanewarden.perception.calibration import (
     Undistorter,
     load_calibration,
@@ -37,10 +47,12 @@ def _write(path: Path, image: object) -> None:
 
 
 @click.command("undistort")
-@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--calibration", "calibration_path", required=True, type=click.Path(),
+@click.argument("images", nargs=-1, required=True,
+                type=PathFlag("an image file", dir_okay=False))
+@click.option("--calibration", "calibration_path", required=True,
+              type=PathFlag("a calibration file"),
               metavar="FILE", help="Calibration YAML written by `lanewarden calibrate`.")
-@click.option("--out", "out_dir", required=True, type=click.Path(), metavar="DIR",
+@click.option("--out", "out_dir", required=True, type=PathFlag("a folder"), metavar="DIR",
               help="Folder for the undistorted images and before/after pictures (created).")
 @config_option
 def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: str,
@@ -63,13 +75,14 @@ def undistort_command(images: tuple[str, ...], calibration_path: str, out_dir: s
     width, height = calibration.image_size
     for name in images:
         path = Path(name)
-        image, why = read_image(path, cv2.IMREAD_UNCHANGED, config.perception.max_image_pixels)
+        image, why = read_image(path, AS_SHOWN, config.perception.max_image_pixels)
         if image is None:
             failures.append(f"{path}: {why}")
             continue
         if (image.shape[1], image.shape[0]) != (width, height):
+            turned = f" ({TURNED})" if is_turned(path, image) else ""
             failures.append(
-                f"{path}: image is {image.shape[1]}x{image.shape[0]}, the calibration "
+                f"{path}: image is {image.shape[1]}x{image.shape[0]}{turned}, the calibration "
                 f"{calibration_path} is for {width}x{height}"
             )
             continue

@@ -142,14 +142,14 @@ def db3(path: Path, *statements: str) -> Path:
 
 
 @pytest.mark.parametrize("statement, problem", [
-    ("UPDATE messages SET timestamp = 'abc'", "/camera/image_raw/compressed message 1: "
-     "timestamp = 'abc': expected an integer (nanoseconds)"),
-    ("UPDATE messages SET timestamp = NULL", "/camera/image_raw/compressed message 1: "
-     "timestamp = None: expected an integer (nanoseconds)"),
-    ("UPDATE messages SET timestamp = 1e999", "/camera/image_raw/compressed message 1: "
-     "timestamp = inf: expected an integer (nanoseconds)"),
-    ("UPDATE messages SET data = 'text'", "/camera/image_raw/compressed message 1: data is str, "
-     "expected a BLOB"),
+    ("UPDATE messages SET timestamp = 'abc'", "/camera/image_raw/compressed message 0 (counted "
+     "from 0): timestamp = 'abc': expected an integer (nanoseconds)"),
+    ("UPDATE messages SET timestamp = NULL", "/camera/image_raw/compressed message 0 (counted "
+     "from 0): timestamp = None: expected an integer (nanoseconds)"),
+    ("UPDATE messages SET timestamp = 1e999", "/camera/image_raw/compressed message 0 (counted "
+     "from 0): timestamp = inf: expected an integer (nanoseconds)"),
+    ("UPDATE messages SET data = 'text'", "/camera/image_raw/compressed message 0 (counted from "
+     "0): data is str, expected a BLOB"),
     ("UPDATE topics SET name = x'ff00'", "topic 1: name, type and serialization_format = "
      "[b'\\xff\\x00', 'sensor_msgs/msg/CompressedImage', 'cdr']: expected texts of at most "
      "1000 bytes; not a rosbag2 SQLite file lanewarden reads"),
@@ -230,5 +230,6 @@ def test_a_yuv422_image_of_an_odd_width(tmp_path: Path,
               f"UPDATE topics SET type = '{IMAGE}', name = '/camera/image_raw'")
     code, err = replay(bag, tmp_path, capsys)
     assert code == 2, err
-    assert err == (f"lanewarden: error: {bag}: /camera/image_raw message 1: a 161x2 yuv422_yuy2 "
-                   "image: expected an even width (two pixels share one U and V)\n")
+    assert err == (f"lanewarden: error: {bag}: /camera/image_raw message 0 (counted from 0): a "
+                   "161x2 yuv422_yuy2 image: expected an even width (two pixels share one U and "
+                   "V)\n")

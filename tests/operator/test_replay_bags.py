@@ -281,3 +281,52 @@ def test_a_bag_of_which_no_image_decodes_is_one_line(tmp_path: Path, count: int)
         f"lanewarden: error: SOURCE '{bag}': {what} (a damaged or cut file?)"]
     assert f"bag (bag, config: defaults): {count} step{'s' if count > 1 else ''}, 0 frames" in (
         done.stdout)
+
+
+def test_a_message_and_its_frame_have_one_number(frames: list[np.ndarray], tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """The bag's fourth image is frame 3 in every line, counted from 0 as docs/operator.md says
+    (`frame 3` when it does not decode); a problem with its message had named it "/camera
+    message 4", counted from 1."""
+    lines = {}
+    for damage in ("data", "stamp"):
+        path = tmp_path / f"{damage}.mcap"
+        with path.open("wb") as stream:
+            writer = Ros2McapWriter(stream)
+            schema = writer.register_msgdef("sensor_msgs/msg/CompressedImage",
+                                            COMPRESSED_IMAGE_DEF)
+            for i in range(6):
+                stamp = EPOCH_NS + i * PERIOD_NS
+                nanosec = 2_000_000_000 if (damage, i) == ("stamp", 3) else stamp % 10**9
+                data = (b"\x89PNG\r\n\x1a\n" + b"garbage" * 10 if (damage, i) == ("data", 3)
+                        else cv2.imencode(".png", frames[i])[1].tobytes())
+                writer.write_message("/camera", schema, {
+                    "header": {"stamp": {"sec": stamp // 10**9, "nanosec": nanosec}},
+                    "format": "png", "data": data}, log_time=stamp)
+            writer.finish()
+        code = main(["replay", str(path), "--no-video", "--out", str(tmp_path / damage)])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+        lines[damage] = err
+    assert "1 of its 6 frames could not be decoded (counted from 0): frame 3 " in lines["data"]
+    assert lines["stamp"] == (f"lanewarden: error: {tmp_path / 'stamp.mcap'}: /camera message 3 "
+                              "(counted from 0): header.stamp.nanosec = 2000000000: expected 0 "
+                              "to 999999999\n")
+
+
+def test_one_listing_of_image_topics_serves_both_lines() -> None:
+    """`_candidates` lists the image topics for both one-line errors: with their image counts
+    when there are several, with their types only when --topic names another (only that topic
+    was read); it had been written out twice."""
+    from lanewarden.replay_sources import _candidates
+    from lanewarden.ros_bag import BagTopic
+
+    topics = {name: BagTopic(name, kind, "cdr") for name, kind in (
+        ("/rear/image", "sensor_msgs/msg/Image"),
+        ("/front/compressed", "sensor_msgs/msg/CompressedImage"),
+        ("/cmd_vel", "geometry_msgs/msg/Twist"))}
+    assert _candidates(topics, {"/rear/image": [0.0, 0.1], "/front/compressed": [0.0]}) == (
+        "/front/compressed (CompressedImage, 1 images), /rear/image (Image, 2 images)")
+    assert _candidates(topics) == "/front/compressed (CompressedImage), /rear/image (Image)"
+    assert _candidates({"/cmd_vel": topics["/cmd_vel"]}) == "none"
+    assert _candidates(topics, {}) == "none"

@@ -106,7 +106,9 @@ def test_a_forged_step_in_run_mcap(name: str, recorded: Path, tmp_path: Path,
     forged = tmp_path / "forged.mcap"
     rewrite_mcap(recorded / "run.mcap", forged, change_step(number, edit))
     code, _, err = replay(forged, tmp_path, capsys, "--check")
-    assert_one_line(code, err, f"{forged}: /lanewarden/step message {number}: ", *phrases)
+    # (rewrite_mcap numbers from 1; the line counts from 0, as replay counts steps and frames)
+    assert_one_line(code, err, f"{forged}: /lanewarden/step message {number - 1} (counted from "
+                    "0): ", *phrases)
 
 
 @pytest.mark.parametrize("name", FORGED_STEPS)
@@ -165,8 +167,8 @@ def test_json_nested_too_deeply_is_one_line(where: str, recorded: Path, tmp_path
         source = tmp_path / "forged.mcap"
         if where == "run.mcap step":
             rewrite_mcap(recorded / "run.mcap", source, _deep_step)
-            expected = (f"{source}: /lanewarden/step message 4: record is not JSON (nested too "
-                        "deeply)")
+            expected = (f"{source}: /lanewarden/step message 3 (counted from 0): record is not "
+                        "JSON (nested too deeply)")
         else:
             rewrite_mcap(recorded / "run.mcap", source, lambda topic, n, message: message,
                          metadata={"lanewarden.summary": {"summary": DEEP}})
@@ -240,6 +242,31 @@ def test_a_recorded_frame_that_does_not_decode_is_no_frame_and_bad_input(
     (old / "frames" / "000005.png").write_bytes(bytes(1000))
     code, _, err = replay(old, tmp_path, capsys, "--check")
     assert_one_line(code, err, "1 of its 15 frames could not be decoded", "frame 5")
+
+
+def test_a_first_frame_dropped_while_recording_is_one_of_the_frames_counted(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run whose frame 0 was dropped while recording (not in run.mcap) and whose frame 5 does
+    not decode: the line counted "1 of its 14 frames", leaving out frame 0 (the loop, with no
+    frame before it to get instead, got none, so it was neither a frame the loop saw nor an
+    undecodable one), where a frame dropped later is counted (15)."""
+    for dropped in (1, 0):
+        damaged = tmp_path / f"dropped-{dropped}.mcap"
+
+        def drop_and_zero(topic: str, number: int, message: dict[str, Any],
+                          dropped: int = dropped) -> dict[str, Any] | None:
+            if topic == "/camera/image/compressed":
+                if number == dropped + 1:  # (numbered from 1 on the topic)
+                    return None
+                if number == 6:
+                    message["data"] = bytes(len(message["data"]))
+            return message
+
+        rewrite_mcap(recorded / "run.mcap", damaged, drop_and_zero)
+        code, stdout, err = replay(damaged, tmp_path, capsys)
+        assert_one_line(code, err, f"SOURCE '{damaged}': 1 of its 15 frames could not be "
+                        "decoded (counted from 0): frame 5 ")
+        assert "the recording is not exact (1 frames missing, 1 undecodable)" in stdout
 
 
 def test_replay_never_writes_into_a_recording_folder(recorded: Path, tmp_path: Path,
@@ -462,8 +489,8 @@ def test_bad_cdr_in_a_step_message(recorded: Path, tmp_path: Path,
         writer.add_message(channel, 1, rng.integers(0, 256, 64, np.uint8).tobytes(), 1)
         writer.finish()
     code, _, err = replay(bad, tmp_path, capsys)
-    assert_one_line(code, err, "bad.mcap", "/lanewarden/step message 1 is not a valid CDR "
-                    "lanewarden_msgs/msg/Step")
+    assert_one_line(code, err, "bad.mcap", "/lanewarden/step message 0 (counted from 0) is not "
+                    "a valid CDR lanewarden_msgs/msg/Step")
 
 
 def test_a_sim_output_folder_is_not_a_recording(tmp_path: Path,
