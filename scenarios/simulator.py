@@ -29,13 +29,20 @@ from numpy.typing import NDArray
 from lanewarden.actuation.base import Pose2D, VelocityCommand
 from lanewarden.actuation.sim_base import SimBase, SimBaseParams
 from lanewarden.perception.overlay import draw_detection
+from lanewarden.scenarios.before_halt import before_halt
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.camera_effects import CameraEffects
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.fault_link import FaultyLink
 from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.highlights import Highlights
-from lanewarden.scenarios.metrics import LaneContrast, RunTrace, TapeVisibility, compute_metrics
+from lanewarden.scenarios.metrics import (
+    LaneContrast,
+    RunTrace,
+    TapeVisibility,
+    compute_metrics,
+    first_halt_index,
+)
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
 from lanewarden.scenarios.spec import CameraSpec, RunSpec, ScenarioSpec, with_overrides
@@ -310,6 +317,9 @@ class Simulation:
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
         metrics["end_reason"] = end_reason
+        halt = first_halt_index(trace.states)
+        metrics["before_halt"] = None if not halt else before_halt(
+            records, halt, self.config.supervisor, self.config.perception.edges.max_abs_slope)
         if self._video is not None and self._video.poster_shows is not None:
             metrics["video_poster"] = {"shows": self._video.poster_shows,
                                        "time_s": self._video.poster_time_s}

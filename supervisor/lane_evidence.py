@@ -139,6 +139,15 @@ def reachable(offsets: tuple[float | None, float | None],
                for now, old in zip(offsets, before, strict=True))
 
 
+def frame_grade(obs: LaneObservation, cfg: SupervisorConfig) -> tuple[bool, bool]:
+    """(usable, confident) of one well-formed observation (module docstring): what
+    `LaneEvidence.assess` judges it, and what a run's summary counts (scenarios.before_halt)."""
+    edges = (obs.left is not None) + (obs.right is not None)
+    usable = edges > 0 and obs.confidence >= cfg.confidence_usable_min
+    confident = obs.sides_seen == 2 and obs.confidence >= cfg.confidence_confident_min
+    return usable, confident
+
+
 class LaneEvidence:
     def __init__(self, config: SupervisorConfig) -> None:
         self._config = config
@@ -166,8 +175,7 @@ class LaneEvidence:
             self._low_confidence_frames = 0
         if self._low_confidence_frames >= cfg.low_confidence_degrade_frames:
             events.add(Event.LANE_LOW_CONFIDENCE)
-        usable = edges > 0 and trusted
-        confident = seen == 2 and obs.confidence >= cfg.confidence_confident_min
+        usable, confident = frame_grade(obs, cfg)
         departure = None
         offsets = _edge_offsets(obs)
         # only confident frames count towards a departure, or reset it, and only those the

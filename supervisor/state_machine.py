@@ -21,6 +21,7 @@ from __future__ import annotations
 import enum
 from collections import deque
 from collections.abc import Mapping
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -62,6 +63,17 @@ FRAME_JUDGEMENT_EVENTS: frozenset[Event] = frozenset({
     Event.BOTH_EDGES_LOST, Event.LANE_UNTRUSTED, Event.ONE_EDGE_LOST, Event.LANE_LOW_CONFIDENCE})
 _BELOW_DEGRADE: frozenset[Event] = frozenset(
     e for e in Event if response_of(e) < Response.DEGRADE)
+
+
+
+def forgets_confident_frames(events: AbstractSet[Event]) -> bool:
+    """Whether a step with these events wipes the confident frames counted towards engaging and
+    recovering: any DEGRADE or HALT event but those that only judge the step's frame
+    (FRAME_JUDGEMENT_EVENTS)."""
+    worst = worst_response(events)
+    return (worst is not None and worst >= Response.DEGRADE
+            and not events <= FRAME_JUDGEMENT_EVENTS | _BELOW_DEGRADE)
+
 
 #: The explicit transition table. Order matters within a source state (first match wins).
 TRANSITIONS: tuple[dict[str, Any], ...] = (
@@ -211,9 +223,7 @@ class SupervisorStateMachine:
             self.engage_armed = True
         events = facts.events | raised if raised else facts.events
         tick = Tick(facts, events, worst_response(events))
-        worst = tick.worst
-        if (worst is not None and worst >= Response.DEGRADE
-                and not events <= FRAME_JUDGEMENT_EVENTS | _BELOW_DEGRADE):
+        if forgets_confident_frames(events):
             self._forget_confident_frames()
         elif facts.frame_confident is not None:
             self.engage_frames.add(facts.frame_confident)

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, TextIO
 from xml.sax.saxutils import quoteattr
 
+from lanewarden.scenarios.before_halt import describe as describe_before_halt
 from lanewarden.scenarios.campaign.outcome import (
     FAILURES,
     OUTCOMES,
@@ -155,7 +156,8 @@ def _slim(row: Row) -> dict[str, Any]:
     keep = ("id", "idx", "outcome", "scenario", "camera", "fault_kinds", "reason",
             "time_to_halt_s")
     return {**{k: row.get(k) for k in keep},
-            "max_cross_track_error_m": metrics.get("max_cross_track_error_m")}
+            "max_cross_track_error_m": metrics.get("max_cross_track_error_m"),
+            "before_halt": metrics.get("before_halt")}
 
 
 # ---- junit.xml --------------------------------------------------------------------------------
@@ -330,10 +332,19 @@ def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
             f"<td class=\"why\">{html.escape(str(row.get('reason') or ''))}</td>"
             f"<td>{'' if to_halt is None else f'{to_halt:.3f}'}</td>"
             f"<td>{'' if cross is None else cross}</td>"
+            f"<td class=\"why\">{html.escape(_before_halt_text(row))}</td>"
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
     return ("<table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
             "<th>faults</th><th>why</th><th>time to halt s</th><th>max cross-track m</th>"
+            "<th>perception before the halt</th>"
             f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table>")
+
+
+def _before_halt_text(row: Row) -> str:
+    """The run's `before_halt` summary in one line (empty for a run that never halted, or
+    stored before the summary existed)."""
+    summary = row.get("before_halt")
+    return describe_before_halt(summary) if isinstance(summary, dict) else ""
 
 
 def _more(kept: _Kept, what: str) -> str:

@@ -156,3 +156,24 @@ def test_blind_halts_are_listed_apart_from_the_failures(tmp_path: Path) -> None:
     assert "r00010" not in _section(page, "Worst cases")
     assert "Halts while the camera showed no lane" not in report_html(
         "spec", summarize(ROWS), tmp_path, "text")
+
+
+def test_a_false_halt_shows_what_perception_gave_the_supervisor_before_it(
+        tmp_path: Path) -> None:
+    """A listed run's `before_halt` summary (scenarios/before_halt.py) is one line in its row;
+    a row stored before the summary existed shows an empty cell, not an error."""
+    summary = {"window_s": 2.0, "frames": 60, "confident": 40, "usable": 5, "unusable": 15,
+               "weakest": {"lane_width": 9, "parallel": 4}, "longest_confident_run": 4,
+               "at_slope_cap": 5, "outliers": 13, "no_frame": 0}
+    halted = row(6, "false_halt", "DEGRADED_BUDGET_EXHAUSTED at 8.100 s with no fault acting "
+                 "and the tape in place", kinds="glare_sweep")
+    halted["metrics_json"] = json.dumps({"max_cross_track_error_m": 0.02,
+                                         "before_halt": summary})
+    rows = [halted if r["id"] == "r00006" else r for r in ROWS]
+    worst = _section(report_html("spec", summarize(rows), tmp_path, "text"), "Worst cases")
+    assert "<th>perception before the halt</th>" in worst
+    line = ("last 2 s: 60 frames, 40 confident (at most 4 in a row), 5 usable, 15 unusable "
+            "(lane_width 9, parallel 4); 5 at the slope cap; 13 outliers")
+    assert f'<td class="why">{line}</td>' in worst
+    old = _section(report_html("spec", summarize(ROWS), tmp_path, "text"), "Worst cases")
+    assert old.count('<td class="why"></td>') == len(_run_ids(old))

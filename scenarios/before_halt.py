@@ -1,0 +1,109 @@
+"""What perception gave the supervisor just before a run halted: the summary a false halt is read
+from (docs/campaigns.md, "Known gaps", was written by hand from such windows).
+
+Over the last `window_s` seconds of steps up to and including the halting one, counted per new
+frame judged (a step whose record carries an observation):
+
+- `frames`: frames judged; `confident`, `usable` (usable but not confident) and `unusable`, as
+  the supervisor grades them (`supervisor.lane_evidence.frame_grade`);
+- `weakest`: among the unusable frames, how often each confidence component was the weakest one
+  (a component at 1 never counts; ties: the first in the observation's order), most frequent
+  first, at most three;
+- `longest_confident_run`: the most confident frames in a row as the supervisor counts them
+  towards recovering (DEGRADED recovers on `recover_confident_frames`, 5 by default): a
+  confident frame whose slope sum the filter rejected (INNOVATION_OUTLIER) does not count, and a
+  step whose events wipe the count (`state_machine.forgets_confident_frames`: REPEATED_OUTLIERS,
+  say) ends a run as an unconfident frame does;
+- `at_slope_cap`: confident frames with an edge's slope at the cap (`edges.max_abs_slope`): an
+  edge reported upright in the image, whose slope the lecture's rule cannot read (the slope sum
+  then jumps, and the filter rejects it);
+- `outliers`: steps with INNOVATION_OUTLIER (the slope filter rejected the measurement);
+- `no_frame`: steps without a judged frame (no new frame, or perception failed on it).
+
+Pure function of the step records and the thresholds.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from typing import Any
+
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.events import Event
+from lanewarden.supervisor.lane_evidence import frame_grade
+from lanewarden.supervisor.loop import StepRecord
+from lanewarden.supervisor.state_machine import forgets_confident_frames
+from lanewarden.wording import counted
+
+#: The window summarised, seconds before the halt (the supervisor's DEGRADED budget is 2 s).
+WINDOW_S = 2.0
+#: Weakest components listed, most frequent first.
+WEAKEST_LISTED = 3
+#: An edge's slope this close to the cap counts as at it (slopes are capped exactly; rounding in
+#: a recording leaves them a hair off).
+_AT_CAP = 1e-6
+
+
+def before_halt(records: Sequence[StepRecord], halt_index: int, config: SupervisorConfig,
+                max_abs_slope: float, window_s: float = WINDOW_S) -> dict[str, Any]:
+    """The summary (module docstring) of the steps in (records[halt_index].time_s - window_s,
+    records[halt_index].time_s]."""
+    end = records[halt_index].time_s
+    window = [r for r in records[:halt_index + 1] if r.time_s > end - window_s]
+    grades = {"confident": 0, "usable": 0, "unusable": 0}
+    weakest: Counter[str] = Counter()
+    run = longest = at_cap = outliers = no_frame = 0
+    for record in window:
+        events = frozenset(Event(name) for name in record.events)
+        if Event.INNOVATION_OUTLIER in events:
+            outliers += 1
+        if forgets_confident_frames(events):
+            run = 0
+        obs = record.observation
+        if obs is None:
+            no_frame += 1
+            continue
+        usable, confident = frame_grade(obs, config)
+        grade = "confident" if confident else "usable" if usable else "unusable"
+        grades[grade] += 1
+        counts = (confident and Event.INNOVATION_OUTLIER not in events
+                  and not forgets_confident_frames(events))
+        run = run + 1 if counts else 0
+        longest = max(longest, run)
+        if confident and any(edge is not None and abs(edge.slope) >= max_abs_slope - _AT_CAP
+                             for edge in (obs.left, obs.right)):
+            at_cap += 1
+        if grade == "unusable":
+            below = [(value, name) for name, value in obs.components.items() if value < 1.0]
+            if below:
+                weakest[min(below, key=lambda item: item[0])[1]] += 1
+    return {
+        "window_s": window_s,
+        "frames": sum(grades.values()),
+        **grades,
+        "weakest": dict(weakest.most_common(WEAKEST_LISTED)),
+        "longest_confident_run": longest,
+        "at_slope_cap": at_cap,
+        "outliers": outliers,
+        "no_frame": no_frame,
+    }
+
+
+def describe(summary: dict[str, Any]) -> str:
+    """One line for a report: 'last 2 s: 61 frames, 40 confident (at most 4 in a row), 5 usable,
+    16 unusable (lane_width 9, parallel 4); 5 at the slope cap; 13 outliers'."""
+    weakest = summary.get("weakest") or {}
+    unusable = f"{summary['unusable']} unusable"
+    if weakest:
+        unusable += " (" + ", ".join(f"{name} {count}" for name, count in weakest.items()) + ")"
+    parts = [f"last {summary['window_s']:g} s: {counted(summary['frames'], 'frame')}, "
+             f"{summary['confident']} confident (at most {summary['longest_confident_run']} in "
+             f"a row), {summary['usable']} usable, {unusable}"]
+    if summary.get("at_slope_cap"):
+        parts.append(f"{summary['at_slope_cap']} at the slope cap")
+    if summary.get("outliers"):
+        parts.append(counted(summary["outliers"], "outlier"))
+    if summary.get("no_frame"):
+        parts.append(counted(summary["no_frame"], "step") + " without a frame")
+    return "; ".join(parts)

@@ -1,0 +1,86 @@
+"""The summary of what perception gave the supervisor before a halt (scenarios/before_halt.py):
+hand-built step records at 30 Hz, every count written out."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import MappingProxyType
+
+from lanewarden.actuation.base import STOP
+from lanewarden.perception.observation import LaneObservation
+from lanewarden.scenarios.before_halt import before_halt, describe
+from lanewarden.supervisor.config import SupervisorConfig
+from lanewarden.supervisor.loop import StepRecord
+from tests.supervisor.rig import DT, LEFT_EDGE, observation
+
+CONFIG = SupervisorConfig()  # confident from 0.6, usable from 0.2 (the defaults)
+CAP = 12.0
+
+
+def step(index: int, obs: LaneObservation | None, *events: str,
+         state: str = "DEGRADED") -> StepRecord:
+    return StepRecord(frame_index=index, time_s=index * DT, observation=obs,
+                      filtered_slope_sum=0.0, slope_sum_variance=0.1, state=state,
+                      events=tuple(events), command=STOP, halt_reason=None)
+
+
+def seen(index: int, confidence: float, **components: float) -> LaneObservation:
+    obs = observation(index, index * DT, confidence=confidence)
+    return replace(obs, components=MappingProxyType({"both_sides": 1.0, **components}))
+
+
+def upright(index: int) -> LaneObservation:
+    """A confident frame whose left edge stands upright in the image: slope at the cap."""
+    obs = seen(index, 0.9)
+    return replace(obs, left=replace(LEFT_EDGE, slope=CAP), slope_sum=CAP - 1.6)
+
+
+def test_counts_grades_runs_and_the_weakest_components_of_the_last_two_seconds() -> None:
+    assert CONFIG.confidence_confident_min == 0.6 and CONFIG.confidence_usable_min == 0.2
+    records = [step(i, seen(i, 0.9)) for i in range(10)]  # 0.000-0.300 s: outside the window
+    records += [
+        step(10, seen(10, 0.9)), step(11, seen(11, 0.9)), step(12, seen(12, 0.9)),
+        step(13, seen(13, 0.0, lane_width=0.0, parallel=0.4)),
+        step(14, seen(14, 0.9)), step(15, upright(15), "INNOVATION_OUTLIER"),
+        step(16, seen(16, 0.9)), step(17, seen(17, 0.9)),
+        step(18, seen(18, 0.9), "REPEATED_OUTLIERS"),
+        step(19, seen(19, 0.4, consistency=0.4)),
+        step(20, None),
+        step(21, seen(21, 0.1, lane_width=0.1, consistency=0.5)),
+        step(22, seen(22, 0.0, parallel=0.0, lane_width=0.0)),
+        step(23, seen(23, 0.9)),
+    ]
+    records += [step(24, seen(24, 0.9), "DEGRADED_BUDGET_EXHAUSTED", state="HALT")]
+    # a window of 0.49 s ending at step 24 (0.8 s) holds steps 10-24 (from 0.333 s)
+    summary = before_halt(records, 24, CONFIG, CAP, window_s=0.49)
+    assert summary == {
+        "window_s": 0.49, "frames": 14,
+        # confident: 10-12, 14-18, 23, 24; usable: 19; unusable: 13, 21, 22
+        "confident": 10, "usable": 1, "unusable": 3,
+        # lane_width the weakest in 13 and 21; in 22 parallel, the first of two at 0
+        "weakest": {"lane_width": 2, "parallel": 1},
+        # 10-12: 3 in a row; then 14 (the outlier 15 does not count), 16-17 (18's
+        # REPEATED_OUTLIERS wipes them), 23 (24's halt wipes it)
+        "longest_confident_run": 3,
+        "at_slope_cap": 1, "outliers": 1, "no_frame": 1,
+    }
+    assert describe(summary) == (
+        "last 0.49 s: 14 frames, 10 confident (at most 3 in a row), 1 usable, 3 unusable "
+        "(lane_width 2, parallel 1); 1 at the slope cap; 1 outlier; 1 step without a frame")
+
+
+def test_a_clean_window_says_only_the_counts() -> None:
+    records = [step(i, seen(i, 0.9)) for i in range(70)]
+    summary = before_halt(records, 69, CONFIG, CAP, window_s=1.99)  # steps 10-69
+    assert summary["frames"] == 60 and summary["confident"] == 60
+    assert summary["longest_confident_run"] == 60
+    assert describe(summary) == ("last 1.99 s: 60 frames, 60 confident (at most 60 in a row), "
+                                 "0 usable, 0 unusable")
+
+
+def test_a_lane_placed_from_one_tape_is_usable_never_confident() -> None:
+    """`sides_seen` 1 (perception.one_side: both edges, both_sides 0.5), as the supervisor
+    grades it (supervisor.lane_evidence.frame_grade)."""
+    placed = replace(seen(0, 0.5), components=MappingProxyType({"both_sides": 0.5}))
+    summary = before_halt([step(0, placed)], 0, CONFIG, CAP)
+    assert (summary["confident"], summary["usable"], summary["unusable"]) == (0, 1, 0)
