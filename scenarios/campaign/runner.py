@@ -39,6 +39,7 @@ from lanewarden.scenarios.campaign.cases import (
 from lanewarden.scenarios.campaign.run_case import case_columns, run_case
 from lanewarden.scenarios.campaign.store import Recovery, ResultStore
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
+from lanewarden.wording import counted
 
 if TYPE_CHECKING:
     from lanewarden.assembly import BuildStack
@@ -55,6 +56,23 @@ MAX_RUNS = 100_000
 DRAW_BATCH = 256
 #: Runs submitted to the cluster per worker thread at a time.
 IN_FLIGHT_PER_WORKER = 2
+
+
+class FewerRunsThanStored(ScenarioError):
+    """--runs below what the output directory already holds (a bad flag: exit 2; nothing is
+    changed): `stored` runs, the highest of index `covers` - 1."""
+
+    def __init__(self, path: Path, runs: int, stored: int, covers: int,
+                 named: str | None = None) -> None:
+        self.path, self.runs, self.stored, self.covers = path, runs, stored, covers
+        super().__init__(
+            f"{named or f'--runs {runs}'}: {path} already holds {counted(stored, 'run')} of "
+            f"this campaign, up to {case_id(covers - 1)}; expected --runs {covers} or more (the "
+            "report covers every stored run), or another --out for a smaller campaign")
+
+    def named(self, named: str) -> FewerRunsThanStored:
+        """The same refusal, naming the flag as `named` says (e.g. a default value)."""
+        return FewerRunsThanStored(self.path, self.runs, self.stored, self.covers, named)
 
 
 @dataclass(frozen=True)
@@ -148,8 +166,9 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
 
     `scheduler`: LOCAL, IN_PROCESS or a Dask scheduler address; `recover`: carry a damaged
     results.sqlite's readable rows over (store.py). `on_start` is called before the first case
-    is drawn. KeyboardInterrupt propagates after the cluster is shut down; every finished row is
-    already stored."""
+    is drawn. A directory holding runs beyond `plan.runs` is refused (FewerRunsThanStored)
+    before anything is drawn, run or reported. KeyboardInterrupt propagates after the cluster is
+    shut down; every finished row is already stored."""
     try:
         plan.out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -158,6 +177,7 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
     with ResultStore(plan.out_dir / "results.sqlite", recover=recover) as store:
         store.claim({"spec": spec_fingerprint(plan.spec, plan.config_overrides),
                      "seed": str(plan.seed)})
+        _refuse_fewer_runs(store, plan.runs)
         done = store.done_ids(below_index=plan.runs)
         progress = CampaignProgress(total=plan.runs, done=len(done),
                                     counts=store.outcome_counts(plan.runs),
@@ -173,6 +193,14 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
             if on_row is not None:
                 on_row(row, progress)
     return progress
+
+
+def _refuse_fewer_runs(store: ResultStore, runs: int) -> None:
+    """FewerRunsThanStored when `store` holds runs beyond the first `runs` (an earlier, larger
+    --runs): the report would leave them out while results.sqlite keeps them."""
+    stored, covers = store.extent()
+    if covers > runs:
+        raise FewerRunsThanStored(store.path, runs, stored, covers)
 
 
 def describe_scheduler(scheduler: str, workers: int | None) -> str:
