@@ -32,6 +32,7 @@ from lanewarden.scenarios.campaign.runner import (
     CampaignPlan,
     CampaignProgress,
     FewerRunsThanStored,
+    SchedulerUnreachable,
     run_campaign,
 )
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
@@ -136,9 +137,12 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         if runs is None:  # the default: said so, the user typed no --runs
             raise exc.named(f"--runs {plan.runs} (the default)") from None
         raise
+    except SchedulerUnreachable as exc:  # named as the user gave it (flag or variable)
+        raise exc.named(named) from None
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close(finished=False)
+        if bar is None:  # still connecting to the scheduler or opening results.sqlite
+            raise Interrupted("before any run started") from None
+        bar.close(finished=False)
         # one line (it had been this, a blank line and "lanewarden: error: interrupted")
         raise Interrupted(f"finished runs are stored in {out / 'results.sqlite'}; run the same "
                           "command again to resume") from None
