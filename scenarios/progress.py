@@ -1,4 +1,5 @@
-"""Progress of the long commands (`demo`, `sim`, `campaign`, `replay`) on stderr, one way for all.
+"""Progress of the long commands (`demo`, `sim`, `campaign`, `replay`, `survey`) on stderr, one
+way for all.
 
 On a terminal: tqdm's bar, redrawn in place. Without one (a pipe, a CI log, `| tee`): a plain
 line every `PLAIN_EVERY_S` seconds (the first after `FIRST_LINE_S`), each complete in itself:
@@ -52,15 +53,17 @@ class Progress:
     `fmt`: how a count is written; `total_is_bound`: the work may end before `total` (a
     simulation's time limit), so the ETA is an upper bound. `terminal` (default: the stream is
     one) picks the bar or the lines; `enabled=False` shows nothing; `bar_format`: tqdm's, for
-    the bar; `heartbeat`: without a terminal, a thread prints the line when it is due even while
-    nothing advances (a campaign waiting for its first runs)."""
+    the bar; `leave`: the bar stays on the terminal when the work ends (else it is wiped, for a
+    command whose last lines are its result); `heartbeat`: without a terminal, a thread prints
+    the line when it is due even while nothing advances (a campaign waiting for its first
+    runs)."""
 
     def __init__(self, total: float, desc: str, unit: str, *, initial: float = 0.0,
                  enabled: bool = True, stream: TextIO | None = None,
                  terminal: bool | None = None, clock: Callable[[], float] = time.monotonic,
                  every_s: float | None = None, position: int = 0, fmt: str = "{:.0f}",
                  total_is_bound: bool = False, bar_format: str | None = None,
-                 heartbeat: bool = False) -> None:
+                 leave: bool = True, heartbeat: bool = False) -> None:
         self.total = total
         self.desc = desc
         self.unit = unit
@@ -94,7 +97,7 @@ class Progress:
             from tqdm import tqdm
 
             self._bar = tqdm(total=_count(total), initial=_count(initial), desc=desc, unit=unit,
-                             file=self._stream, position=position, leave=True,
+                             file=self._stream, position=position, leave=leave,
                              dynamic_ncols=True, bar_format=bar_format)
 
     def __enter__(self) -> Progress:

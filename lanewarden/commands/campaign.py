@@ -32,6 +32,8 @@ from lanewarden.scenarios.campaign.runner import (
     SCHEDULER_ENV,
     CampaignPlan,
     CampaignProgress,
+    FewerRunsThanStored,
+    SchedulerUnreachable,
     run_campaign,
 )
 from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
@@ -62,7 +64,7 @@ def _counts(progress: CampaignProgress) -> str:
               "again with the same spec and seed resumes.")
 @click.option("--runs", type=click.IntRange(1, MAX_RUNS), default=None,
               help=f"Number of runs to draw (default: 100; at most {MAX_RUNS:,}: more is "
-              "another --seed in another --out).")
+              "another --seed in another --out). Resuming, at least the runs --out holds.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Campaign seed: the same seed draws the same cases.")
 @click.option("--scheduler", default=None, metavar="ADDRESS|local|in-process",
@@ -133,9 +135,16 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         finished = True
     except CampaignMismatch as exc:
         raise UsageError(f"--out {out}: {exc}") from None
+    except FewerRunsThanStored as exc:
+        if runs is None:  # the default: said so, the user typed no --runs
+            raise exc.named(f"--runs {plan.runs} (the default)") from None
+        raise
+    except SchedulerUnreachable as exc:  # named as the user gave it (flag or variable)
+        raise exc.named(named) from None
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close(finished=False)
+        if bar is None:  # still connecting to the scheduler or opening results.sqlite
+            raise Interrupted("before any run started") from None
+        bar.close(finished=False)
         # one line (it had been this, a blank line and "lanewarden: error: interrupted")
         raise Interrupted(f"finished runs are stored in {out / 'results.sqlite'}; run the same "
                           "command again to resume") from None

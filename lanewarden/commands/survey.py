@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import sys
 import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -183,12 +182,11 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
                  calibration_path: str | None, size: tuple[int, int] | None,
                  as_json: bool, jitter: int = 0) -> int:
     """The survey proper, once its inputs passed their checks: into the output folder `out`."""
-    from tqdm import tqdm
-
     from lanewarden.documents import shorten
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.scenarios.progress import Progress
     from lanewarden.survey import false_lanes_named, judge, summary_lines, survey_notes
     from lanewarden.survey_report import OUTPUTS, write_outputs
     from lanewarden.survey_run import survey_sequence, survey_stills
@@ -218,16 +216,14 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     click.echo(f"lanewarden: {ground}" if as_json else ground, err=as_json)
     total = len(source.stills) if source.sequence is None else (
         max(source.labelled) - min(source.labelled) + 1)
-    bar = tqdm(total=total, desc="survey", unit="frame", file=sys.stderr, disable=None,
-               leave=False)
-    try:
+    # on stderr as the other long commands: a bar on a terminal (wiped at the end: the figures
+    # follow), else a line every few seconds
+    with Progress(total, "survey", "frames", leave=False) as bar:
         if source.sequence is None:
             run = survey_stills(source.stills, config, calibration, detector, bar.update,
                                 jitter, size)
         else:
             run = survey_sequence(source, config, calibration, bar.update, size)
-    finally:
-        bar.close()
     figures = judge(run.results, run.engage)
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),

@@ -1,6 +1,9 @@
 """Running a campaign's cases: in this process, or on Dask distributed (a LocalCluster sized to the
 machine, or an existing cluster by its scheduler address).
 
+An existing scheduler is connected to before anything else (the output directory, the results
+file): one that does not answer is `SchedulerUnreachable`, with nothing created.
+
 The shell around `run_case`: draws the cases a batch at a time as the runs need them (so a
 campaign of any allowed size starts within seconds and its memory does not grow with its size),
 writes each case file, keeps a bounded number of runs in flight on the workers, and stores each
@@ -39,8 +42,11 @@ from lanewarden.scenarios.campaign.cases import (
 from lanewarden.scenarios.campaign.run_case import case_columns, run_case
 from lanewarden.scenarios.campaign.store import Recovery, ResultStore
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
+from lanewarden.wording import counted
 
 if TYPE_CHECKING:
+    from distributed import Client
+
     from lanewarden.assembly import BuildStack
 
 #: `--scheduler` value that runs every case in this process, one after the other (no Dask).
@@ -55,6 +61,43 @@ MAX_RUNS = 100_000
 DRAW_BATCH = 256
 #: Runs submitted to the cluster per worker thread at a time.
 IN_FLIGHT_PER_WORKER = 2
+#: How long a campaign tries to reach an existing scheduler (`--scheduler ADDRESS`) before it
+#: starts, s: Dask's own connect timeout (`Client(timeout=...)`, which retries a refused
+#: connection until then). A scheduler that is up answers in milliseconds; Dask's default (30 s,
+#: and 20 s here before) kept a campaign aimed at nothing waiting.
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
+
+
+class SchedulerUnreachable(ScenarioOutputError):
+    """No Dask scheduler answers at `address` (a runtime failure, exit 1, as a camera or a base
+    that cannot be reached): `problem` is Dask's reason."""
+
+    def __init__(self, address: str, problem: str, named: str = "--scheduler") -> None:
+        self.address, self.problem = address, problem
+        super().__init__(f"{named} {address}: cannot connect ({problem}); expected a running "
+                         f"Dask scheduler there, or --scheduler {LOCAL}")
+
+    def named(self, named: str) -> SchedulerUnreachable:
+        """The same failure, the address named as `named` says (e.g. the variable it came
+        from)."""
+        return SchedulerUnreachable(self.address, self.problem, named)
+
+
+class FewerRunsThanStored(ScenarioError):
+    """--runs below what the output directory already holds (a bad flag: exit 2; nothing is
+    changed): `stored` runs, the highest of index `covers` - 1."""
+
+    def __init__(self, path: Path, runs: int, stored: int, covers: int,
+                 named: str | None = None) -> None:
+        self.path, self.runs, self.stored, self.covers = path, runs, stored, covers
+        super().__init__(
+            f"{named or f'--runs {runs}'}: {path} already holds {counted(stored, 'run')} of "
+            f"this campaign, up to {case_id(covers - 1)}; expected --runs {covers} or more (the "
+            "report covers every stored run), or another --out for a smaller campaign")
+
+    def named(self, named: str) -> FewerRunsThanStored:
+        """The same refusal, naming the flag as `named` says (e.g. a default value)."""
+        return FewerRunsThanStored(self.path, self.runs, self.stored, self.covers, named)
 
 
 @dataclass(frozen=True)
@@ -143,13 +186,26 @@ def error_row(case: Case, reason: str) -> dict[str, Any]:
 def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None = None,
                  on_start: Callable[[CampaignProgress, str], None] | None = None,
                  on_row: Callable[[dict[str, Any], CampaignProgress], None] | None = None,
-                 *, recover: bool = False) -> CampaignProgress:
+                 *, recover: bool = False,
+                 connect_timeout_s: float | None = None) -> CampaignProgress:
     """Run every case of `plan` that has no stored result yet (or an error), storing each row.
 
     `scheduler`: LOCAL, IN_PROCESS or a Dask scheduler address; `recover`: carry a damaged
-    results.sqlite's readable rows over (store.py). `on_start` is called before the first case
-    is drawn. KeyboardInterrupt propagates after the cluster is shut down; every finished row is
-    already stored."""
+    results.sqlite's readable rows over (store.py). A scheduler address is connected to first
+    (within `connect_timeout_s`, default SCHEDULER_CONNECT_TIMEOUT_S): SchedulerUnreachable
+    before anything is created in `plan.out_dir`. `on_start` is called before the first case
+    is drawn. A directory holding runs beyond `plan.runs` is refused (FewerRunsThanStored)
+    before anything is drawn, run or reported. KeyboardInterrupt propagates after the cluster is
+    shut down; every finished row is already stored."""
+    timeout_s = SCHEDULER_CONNECT_TIMEOUT_S if connect_timeout_s is None else connect_timeout_s
+    with _connected(scheduler, timeout_s) as client:
+        return _run_stored(plan, scheduler, workers, client, on_start, on_row, recover)
+
+
+def _run_stored(plan: CampaignPlan, scheduler: str, workers: int | None, client: Client | None,
+                on_start: Callable[[CampaignProgress, str], None] | None,
+                on_row: Callable[[dict[str, Any], CampaignProgress], None] | None,
+                recover: bool) -> CampaignProgress:
     try:
         plan.out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -158,6 +214,7 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
     with ResultStore(plan.out_dir / "results.sqlite", recover=recover) as store:
         store.claim({"spec": spec_fingerprint(plan.spec, plan.config_overrides),
                      "seed": str(plan.seed)})
+        _refuse_fewer_runs(store, plan.runs)
         done = store.done_ids(below_index=plan.runs)
         progress = CampaignProgress(total=plan.runs, done=len(done),
                                     counts=store.outcome_counts(plan.runs),
@@ -165,14 +222,22 @@ def run_campaign(plan: CampaignPlan, scheduler: str = LOCAL, workers: int | None
                                     unstored_carried=store.unstored_carried)
         if on_start is not None:
             on_start(progress, describe_scheduler(scheduler, workers))
-        for row in _execute(pending_cases(plan, done), plan.build_stack, scheduler, workers,
-                            plan.worker_memory_limit_mb):
+        for row in _execute(pending_cases(plan, done), plan.build_stack, scheduler, client,
+                            workers, plan.worker_memory_limit_mb):
             store.put(row)
             progress.done += 1
             progress.counts[str(row["outcome"])] += 1
             if on_row is not None:
                 on_row(row, progress)
     return progress
+
+
+def _refuse_fewer_runs(store: ResultStore, runs: int) -> None:
+    """FewerRunsThanStored when `store` holds runs beyond the first `runs` (an earlier, larger
+    --runs): the report would leave them out while results.sqlite keeps them."""
+    stored, covers = store.extent()
+    if covers > runs:
+        raise FewerRunsThanStored(store.path, runs, stored, covers)
 
 
 def describe_scheduler(scheduler: str, workers: int | None) -> str:
@@ -183,8 +248,28 @@ def describe_scheduler(scheduler: str, workers: int | None) -> str:
     return f"Dask scheduler {scheduler}"
 
 
+@contextmanager
+def _connected(scheduler: str, timeout_s: float) -> Iterator[Client | None]:
+    """A client of the existing scheduler at address `scheduler`, closed afterwards (None for
+    LOCAL and IN_PROCESS: a local cluster starts only when there is a run for it)."""
+    if scheduler in (LOCAL, IN_PROCESS):
+        yield None
+        return
+    from distributed import Client
+
+    try:
+        client = Client(scheduler, timeout=timeout_s)
+    except OSError as exc:  # refused, timed out, no such host
+        raise SchedulerUnreachable(scheduler, " ".join(str(exc).split())) from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
 def _execute(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
-             workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
+             client: Client | None, workers: int | None,
+             memory_limit_mb: int) -> Iterator[dict[str, Any]]:
     if scheduler == IN_PROCESS:
         for case in cases:
             yield run_case(case.model_dump_json(), build_stack)
@@ -192,8 +277,8 @@ def _execute(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
     first = next(cases, None)
     if first is None:
         return  # nothing to run: no cluster to start
-    yield from _execute_on_dask(itertools.chain([first], cases), build_stack, scheduler,
-                                workers, memory_limit_mb)
+    yield from _execute_on_dask(itertools.chain([first], cases), build_stack, client, workers,
+                                memory_limit_mb)
 
 
 @contextmanager
@@ -209,8 +294,10 @@ def _interrupts_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: str,
+def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, client: Client | None,
                      workers: int | None, memory_limit_mb: int) -> Iterator[dict[str, Any]]:
+    """The runs on `client`'s cluster (an existing scheduler's, already connected), or, without
+    one, on a LocalCluster started here and closed afterwards."""
     import dask
     from distributed import Client, LocalCluster, as_completed
 
@@ -218,7 +305,7 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: 
 
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        if scheduler == LOCAL:
+        if client is None:
             # A terminal's Ctrl-C reaches the worker processes too (one process group): they
             # leave it to this process, which closes the cluster. Ignored while they start (a
             # process started with SIGINT ignored keeps ignoring it), and by the plugin in any
@@ -233,12 +320,6 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: 
                     silence_logs=logging.ERROR)
             client = Client(cluster)
             client.register_plugin(LeaveInterruptsToTheParent(), name="lanewarden-sigint")
-        else:
-            try:
-                client = Client(scheduler, timeout="20s")
-            except OSError as exc:
-                raise ScenarioOutputError(  # a runtime failure (exit 1), not a bad flag
-                    f"--scheduler {scheduler}: cannot connect ({exc})") from None
     try:
         # Runs in flight at once: enough to keep every worker busy, few enough that the queue
         # (and the scheduler's memory) does not grow with the campaign.
@@ -268,6 +349,6 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, scheduler: 
                 submit(following)
             yield row
     finally:
-        client.close()
-        if cluster is not None:
+        if cluster is not None:  # an existing scheduler's client is closed by `_connected`
+            client.close()
             cluster.close()

@@ -168,6 +168,13 @@ class ResultStore:
             query, args = query + " AND idx < ?", (below_index,)
         return self._read(lambda db: {r[0] for r in db.execute(query, args)})
 
+    def extent(self) -> tuple[int, int]:
+        """How many runs are stored (in error or not), and the --runs that covers them all (the
+        highest stored index + 1; 0 when none is stored)."""
+        count, last = self._read(lambda db: db.execute(
+            "SELECT count(*), max(idx) FROM runs").fetchone())
+        return int(count), 0 if last is None else int(last) + 1
+
     def outcome_counts(self, below_index: int) -> Counter[str]:
         """How many stored runs (not in error) of the first `below_index` have each outcome."""
         return self._read(lambda db: Counter(dict(db.execute(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+import socket
 import sqlite3
 from pathlib import Path
 from xml.etree import ElementTree
@@ -113,6 +114,33 @@ def test_another_campaign_in_the_same_directory_is_refused(
     assert main([*base, "--seed", "1", "--config", str(other)]) == 2
     assert "holds another campaign (its spec or --config differ (fingerprint " in \
         capsys.readouterr().err
+
+
+def test_an_unreachable_scheduler_is_one_line_before_anything_is_said_or_created(
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`--scheduler tcp://127.0.0.1:9` (nothing listening) announced 'running Dask scheduler',
+    printed '0/2 runs' lines for 20 s and created --out's cases/ and results.sqlite before
+    'cannot connect'. Now it connects first (Dask's connect timeout, short here): one line
+    naming the address as given (flag or variable), exit 1 as any unreachable device, nothing
+    in --out."""
+    monkeypatch.setattr(runner_module, "SCHEDULER_CONNECT_TIMEOUT_S", 0.2)
+    out = tmp_path / "out"
+    with socket.socket() as bound:  # bound, never listening: every connection is refused
+        bound.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{bound.getsockname()[1]}"
+        for extra, named in ((["--scheduler", address], "--scheduler"),
+                             ([], "$DASK_SCHEDULER_ADDRESS")):
+            monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", address)
+            code = main(["campaign", "--spec", str(tiny_spec), "--out", str(out), "--runs", "2",
+                         *extra])
+            err = capsys.readouterr().err.splitlines()
+            assert code == 1
+            assert len(err) == 1, err
+            assert err[0].startswith(f"lanewarden: error: {named} {address}: cannot connect ("), err
+            assert err[0].endswith("); expected a running Dask scheduler there, or --scheduler "
+                                   "local"), err
+            assert not out.exists()
 
 
 def test_bad_spec_is_one_line_per_problem_exit_2(

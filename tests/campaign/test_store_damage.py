@@ -5,7 +5,8 @@
   only what was lost;
 - a row that cannot be stored (the file goes bad during the campaign) is kept beside it and
   stored by the next campaign, never run again;
-- `--runs` above the documented maximum is one line before anything is drawn.
+- `--runs` above the documented maximum, or below the runs the directory holds, is one line
+  before anything is drawn.
 
 Time and memory of these refusals are measured by benchmarks/campaign_limits.py (not asserted)."""
 
@@ -172,6 +173,39 @@ def test_a_row_that_cannot_be_stored_is_kept_and_never_run_again(
     with sqlite3.connect(out / "results.sqlite") as db:
         assert sorted(r[0] for r in db.execute("SELECT id FROM runs")) == [
             "r00000", "r00001", "r00002"]
+
+
+def test_fewer_runs_than_the_directory_holds_is_refused_and_nothing_changes(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--runs 4`, then `--runs 2` into the same --out: report.html and junit.xml were rewritten
+    with 2 runs while results.sqlite kept 4 (a new user's trial). --runs is the campaign's size:
+    a smaller one than the directory holds is one line, exit 2, before anything is written."""
+    out = campaign_dir(tmp_path, tiny_spec)
+
+    def stored() -> list[tuple[object, ...]]:
+        with sqlite3.connect(out / "results.sqlite") as db:
+            return db.execute("SELECT * FROM runs ORDER BY idx").fetchall()
+
+    before = stored()
+    small = args(tiny_spec, out)
+    small[small.index("--runs") + 1] = "2"
+    assert main(small) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: --runs 2: {out / 'results.sqlite'} already holds 40 runs of this "
+        "campaign, up to r00039; expected --runs 40 or more (the report covers every stored "
+        "run), or another --out for a smaller campaign"]
+    assert stored() == before
+    assert sorted(p.name for p in out.iterdir()) == ["results.sqlite"], "nothing drawn or written"
+    # no --runs: its default (100) is refused the same way, and said to be the default
+    with ResultStore(out / "results.sqlite") as store:
+        store.put(stored_row(150))
+    at = small.index("--runs")
+    assert main(small[:at] + small[at + 2:]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: --runs 100 (the default): {out / 'results.sqlite'} already holds 41 "
+        "runs of this campaign, up to r00150; expected --runs 151 or more (the report covers "
+        "every stored run), or another --out for a smaller campaign"]
+    assert sorted(p.name for p in out.iterdir()) == ["results.sqlite"]
 
 
 @pytest.mark.parametrize("runs", ["100001", "1000000", "1000000000000"])

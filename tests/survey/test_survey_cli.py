@@ -23,6 +23,7 @@ from PIL import Image
 
 from lanewarden.cli import main
 from lanewarden.perception.calibration import save_calibration
+from lanewarden.scenarios import progress as progress_module
 from lanewarden.scenarios.camera import CameraModel
 from tests.conftest import PROJECT_ROOT
 from tests.operator.clips import lane_end_frames, write_video
@@ -230,6 +231,31 @@ def test_json_prints_survey_json(floor: Path, tmp_path: Path,
     page = (tmp_path / "o" / "report.html").read_text()
     assert "<li>ground model: ground model" not in page and "ground_model:" not in page
     assert "<li>ground model: no ground calibration: assuming the simulator&#x27;s default" in page
+
+
+def test_without_a_terminal_progress_lines_on_stderr_as_campaign_prints_them(
+        floor: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Piped or into a file, a long survey (the JetBot set: 15 s, about 40 s with --jitter 16)
+    printed nothing until its figures: its tqdm bar was for terminals only, while campaign
+    prints a plain line every few seconds. The same lines now (here one per frame: the wall
+    clock of a short survey moves too little), on stderr; the figures and survey.json as
+    without them."""
+    monkeypatch.setattr(progress_module, "FIRST_LINE_S", 0.0)
+    monkeypatch.setattr(progress_module, "PLAIN_EVERY_S", 0.0)
+    code, out, err = _survey([str(floor), "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    lines = err.splitlines()
+    assert [line.split(" (")[0] for line in lines[:-1]] == [
+        f"survey: {n}/5 frames" for n in range(1, 6)], lines
+    assert lines[-1].startswith("survey: done, 5/5 frames in ")
+    assert "survey:" not in out
+    document = (tmp_path / "o" / "survey.json").read_text()
+    # no line due: what the survey prints and writes is the same
+    monkeypatch.setattr(progress_module, "FIRST_LINE_S", float("inf"))
+    monkeypatch.setattr(progress_module, "PLAIN_EVERY_S", float("inf"))
+    assert _survey([str(floor), "--out", str(tmp_path / "o")], capsys) == (0, out, "")
+    assert (tmp_path / "o" / "survey.json").read_text() == document
 
 
 def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
