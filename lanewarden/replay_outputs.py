@@ -42,6 +42,7 @@ from lanewarden.run_outcome import (
     end_reason_of,
     recorded_loop_end,
 )
+from lanewarden.scenarios.before_halt import before_halt
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.progress import Progress
@@ -178,6 +179,9 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
         if video is not None:
             video.close()
     metrics = replay_metrics(source, records, divergences, distance)
+    halt = first_halt(source, records, _run_end(source, records))
+    metrics["before_halt"] = None if halt is None else before_halt(
+        records, halt, config.supervisor, config.perception.edges.max_abs_slope)
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
     _write_plot(out / "plot.png", source, records, times, config)

@@ -24,6 +24,7 @@ from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder, interrupted_in
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.scenarios.before_halt import describe as describe_before_halt
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
@@ -68,6 +69,9 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
     ]
     if metrics.get("halted"):
         lines.append(f"  halt position: {fmt('halt_position')}")
+    summary = metrics.get("before_halt")
+    if isinstance(summary, dict):
+        lines.append(f"  before the halt: {describe_before_halt(summary)}")
     lines += [
         f"  states visited: {fmt('states_visited')}",
         f"  turns completed: {fmt('turns_completed')}  max cross-track error: "

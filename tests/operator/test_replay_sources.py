@@ -55,17 +55,29 @@ def test_the_donkeycar_tub(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     # on a few scattered frames (docs/perception.md), never on the run the supervisor needs to
     # engage: it stays halted on this track, as it should.
     assert metrics["states_visited"] == ["HALT"]
+    # never engaged, so no halt to summarise
+    assert metrics["before_halt"] is None and "before the halt" not in out
 
 
 def test_a_video_and_a_folder_of_images(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     frames = lane_end_frames(start_m=2.0, end_m=3.5, speed_m_s=0.6)
     video = write_video(frames, tmp_path / "clip.mp4")
+    capsys.readouterr()
     assert main(["replay", str(video), "--out", str(tmp_path / "v")]) == 0
     metrics = _outputs_written(tmp_path / "v")
     assert (metrics["source_kind"], metrics["frames"]) == ("video", len(frames))
     assert metrics["halted"] is True
     assert str(metrics["first_halt_reason"]).startswith(("LANE_LOST", "DEGRADED_BUDGET"))
+    # what perception gave the supervisor before that halt (scenarios/before_halt.py): the
+    # tape ended, so the last frames had no usable lane
+    before = metrics["before_halt"]
+    assert isinstance(before, dict) and before["window_s"] == 2.0
+    assert before["unusable"] > 0 and before["frames"] == (
+        before["confident"] + before["usable"] + before["unusable"])
+    said = [line for line in capsys.readouterr().out.splitlines()
+            if line.startswith("  before the halt: last 2 s: ")]
+    assert len(said) == 1, said
     folder = write_images(frames[:30], tmp_path / "images")
     assert main(["replay", str(folder), "--no-video", "--out", str(tmp_path / "i")]) == 0
     metrics = json.loads((tmp_path / "i" / "metrics.json").read_text())

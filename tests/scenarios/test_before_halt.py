@@ -7,6 +7,7 @@ from dataclasses import replace
 from types import MappingProxyType
 
 from lanewarden.actuation.base import STOP
+from lanewarden.commands.sim import _summary_lines
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.scenarios.before_halt import before_halt, describe
 from lanewarden.supervisor.config import SupervisorConfig
@@ -84,3 +85,19 @@ def test_a_lane_placed_from_one_tape_is_usable_never_confident() -> None:
     placed = replace(seen(0, 0.5), components=MappingProxyType({"both_sides": 0.5}))
     summary = before_halt([step(0, placed)], 0, CONFIG, CAP)
     assert (summary["confident"], summary["usable"], summary["unusable"]) == (0, 1, 0)
+
+
+def test_sim_prints_the_summary_under_the_halt_and_only_for_a_halt() -> None:
+    summary = {"window_s": 2.0, "frames": 60, "confident": 0, "usable": 0, "unusable": 60,
+               "weakest": {"both_sides": 60}, "longest_confident_run": 0, "at_slope_cap": 0,
+               "outliers": 0, "no_frame": 0}
+    metrics = {"scenario": "lane-ends", "controller": "supervised", "seed": 0, "frames": 300,
+               "sim_time_s": 10.0, "wall_time_s": 4.0, "halted": True,
+               "halt_reason": "LANE_LOST", "halt_position": {"x_m": 1.0, "y_m": 0.0},
+               "states_visited": ["HALT", "FOLLOW"], "turns_completed": [],
+               "max_cross_track_error_m": 0.01, "crossed_tape": False, "before_halt": summary}
+    lines = _summary_lines(metrics)
+    assert lines[3] == ("  before the halt: last 2 s: 60 frames, 0 confident (at most 0 in a "
+                        "row), 0 usable, 60 unusable (both_sides 60)")
+    never = {**metrics, "halted": False, "halt_reason": None, "before_halt": None}
+    assert not any("before the halt" in line for line in _summary_lines(never))
