@@ -42,6 +42,8 @@ from lanewarden.recording import (
 )
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd
+from lanewarden.scenarios.before_halt import RecentSteps, before_halt
+from lanewarden.scenarios.before_halt import describe as describe_before_halt
 from lanewarden.supervisor.loop import Detector, FrameSource, Gate, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 
@@ -78,6 +80,8 @@ class RunSession:
         self._out = out if out is not None else sys.stdout
         self.tap = InputTap()
         self.stats = RunStats()
+        #: the steps before each halt, for the summary's "before the halt" line
+        self.recent = RecentSteps()
         self._buttons = ButtonEdges()
         self._detections: DetectionTap | None = None
         self._stack: ControlStack | None = None
@@ -172,6 +176,7 @@ class RunSession:
         step_input, new_frame = self.tap.take(record.time_s)
         feedback = self.tap.latest_feedback
         self.stats.add(record, feedback, self._loop_time_s)
+        self.recent.observe(record)
         self.recorder.record(record, step_input, new_frame)
         self._say_recording_trouble()
         if self.panel is not None:
@@ -286,6 +291,12 @@ class RunSession:
         lines = summary_lines(self.stats, stopped=end.stop_line, recording=str(self.folder),
                               frames_dropped_recording=len(self.recording.frames_dropped),
                               view_dropped=view_dropped)
+        window = self.recent.before_halt(loop_end.steps) if end.safety_stop else None
+        if window:  # the run's own halt (not the runner's closing stop after the loop's end)
+            sup = self.config.supervisor
+            summary = before_halt(window, len(window) - 1, sup,
+                                  self.config.perception.edges.max_abs_slope)
+            lines.insert(1, f"  before the halt: {describe_before_halt(summary)}")
         if self.recording.problem is not None:
             lines.append(f"  the recording stopped early: {self.recording.problem}")
         lines += [f"  not written: {error}" for error in self.recording.write_errors

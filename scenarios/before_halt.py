@@ -25,7 +25,7 @@ Pure function of the step records and the thresholds.
 
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Sequence
 from typing import Any
 
@@ -107,3 +107,35 @@ def describe(summary: dict[str, Any]) -> str:
     if summary.get("no_frame"):
         parts.append(counted(summary["no_frame"], "step") + " without a frame")
     return "; ".join(parts)
+
+
+class RecentSteps:
+    """The step records of the last `window_s` seconds (by their step times), and a copy of them
+    at each halt after engaging (a step in HALT after one that was not), with the number of the
+    step it came at: what `before_halt` summarises for a run that keeps no list of its records
+    (the robot runner). Only the last two halts are kept (a run's own halt, then the runner's
+    closing stop)."""
+
+    def __init__(self, window_s: float = WINDOW_S) -> None:
+        self.window_s = window_s
+        self._recent: deque[StepRecord] = deque()
+        self._steps = 0
+        self._state = "HALT"  # the supervisor starts halted: that is no halt
+        self._halts: list[tuple[int, list[StepRecord]]] = []
+
+    def observe(self, record: StepRecord) -> None:
+        self._recent.append(record)
+        while self._recent[0].time_s <= record.time_s - self.window_s:
+            self._recent.popleft()
+        if record.state == "HALT" and self._state != "HALT":
+            self._halts = [*self._halts[-1:], (self._steps, list(self._recent))]
+        self._state = record.state
+        self._steps += 1
+
+    def before_halt(self, steps: int | None) -> list[StepRecord] | None:
+        """The records of the window before the latest halt that came within the first `steps`
+        steps (None: any step), the halting one last; None without such a halt."""
+        for index, window in reversed(self._halts):
+            if steps is None or index < steps:
+                return window
+        return None

@@ -60,6 +60,8 @@ def test_the_readme_block_works_as_written_from_an_empty_folder(
             summary = json.loads(Path("runs/first/summary.json").read_text())
             assert summary["end"]["engaged"] and "FOLLOW" in summary["states_visited"]
             assert summary["end_reason"].startswith("safety stop: ")
+            # what perception gave the supervisor before that stop, as replay and sim say it
+            assert "\n  before the halt: last 2 s: " in out, out[-2000:]
             assert err == f"lanewarden: {summary['end_reason']}\n"
         else:
             metrics = json.loads(Path("lanewarden-out/replay-first/metrics.json").read_text())

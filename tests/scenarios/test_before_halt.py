@@ -9,7 +9,7 @@ from types import MappingProxyType
 from lanewarden.actuation.base import STOP
 from lanewarden.commands.sim import _summary_lines
 from lanewarden.perception.observation import LaneObservation
-from lanewarden.scenarios.before_halt import before_halt, describe
+from lanewarden.scenarios.before_halt import RecentSteps, before_halt, describe
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.loop import StepRecord
 from tests.supervisor.rig import DT, LEFT_EDGE, observation
@@ -101,3 +101,21 @@ def test_sim_prints_the_summary_under_the_halt_and_only_for_a_halt() -> None:
                         "row), 0 usable, 60 unusable (both_sides 60)")
     never = {**metrics, "halted": False, "halt_reason": None, "before_halt": None}
     assert not any("before the halt" in line for line in _summary_lines(never))
+
+
+def test_recent_steps_keep_the_window_before_each_halt_after_engaging() -> None:
+    """The robot runner keeps no list of its records: RecentSteps keeps the last window_s of
+    them, and a copy at each halt after engaging (the run's own; then the closing stop's)."""
+    recent = RecentSteps(window_s=0.49)
+    states = ["HALT"] * 3 + ["FOLLOW"] * 20 + ["HALT"] * 5 + ["FOLLOW"] * 2 + ["HALT"]
+    for i, state in enumerate(states):
+        recent.observe(step(i, seen(i, 0.9), state=state))
+    # halts at steps 23 (the run's) and 30 (say, the closing stop after a loop of 30 steps)
+    window = recent.before_halt(30)
+    assert window is not None and [r.frame_index for r in window] == list(range(9, 24))
+    latest = recent.before_halt(None)
+    assert latest is not None and latest[-1].frame_index == 30
+    assert recent.before_halt(23) is None  # no halt within the first 23 steps
+    never = RecentSteps()
+    never.observe(step(0, seen(0, 0.9), state="HALT"))  # halted from the start: no halt
+    assert never.before_halt(None) is None
