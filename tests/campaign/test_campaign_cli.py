@@ -217,8 +217,13 @@ def test_sim_case_reproduces_the_campaign_run(
     assert metrics["outcome"] == outcome
     assert metrics["halt_time_s"] == halt_time
     stored = json.loads(metrics_json)
-    for key in ("halt_reason", "stop_pose", "distance_travelled_m", "event_counts"):
+    for key in ("halt_reason", "stop_pose", "distance_travelled_m", "event_counts",
+                "before_halt"):
         assert metrics[key] == stored[key], key
+    # what perception gave the supervisor before a halt is stored with the run (a summary
+    # after a halt that followed engaging, else null) and read back by the report
+    assert "before_halt" in stored and (stored["before_halt"] is None) == (
+        not (stored["engaged"] and stored["halted"])), stored
     assert f"outcome: {outcome}" in capsys.readouterr().out
     # a scenario given as a case: one line saying so (it had been eleven 'field required')
     library = Path(__file__).resolve().parents[2] / "scenarios" / "library" / "straight.yaml"
