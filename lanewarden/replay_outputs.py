@@ -178,10 +178,7 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
         progress.close(finished=sys.exc_info()[0] is None)
         if video is not None:
             video.close()
-    metrics = replay_metrics(source, records, divergences, distance)
-    halt = first_halt(source, records, _run_end(source, records))
-    metrics["before_halt"] = None if halt is None else before_halt(
-        records, halt, config.supervisor, config.perception.edges.max_abs_slope)
+    metrics = replay_metrics(source, records, divergences, distance, config)
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
     _write_plot(out / "plot.png", source, records, times, config)
@@ -252,8 +249,10 @@ def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int 
 
 
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
-                   distance_m: float) -> dict[str, Any]:
-    """Numbers for metrics.json (the keys `sim` uses where they apply)."""
+                   distance_m: float, config: LanewardenConfig | None = None) -> dict[str, Any]:
+    """Numbers for metrics.json (the keys `sim` uses where they apply); with the `config` the
+    steps ran under, `before_halt` too (what perception gave the supervisor before its first
+    halt after engaging)."""
     states: list[str] = []
     for record in records:
         if record.state not in states:
@@ -282,6 +281,9 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         # why the recording (a run, a bag) is not whole: replayed as far as it goes
         "incomplete": list(source.incomplete),
     }
+    if config is not None:
+        metrics["before_halt"] = None if halt is None else before_halt(
+            records, halt, config.supervisor, config.perception.edges.max_abs_slope)
     # frames that are there but did not decode: the loop got no frame at those steps
     wanted = frame_indices(source)
     if source.kind != "run":

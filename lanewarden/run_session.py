@@ -42,8 +42,7 @@ from lanewarden.recording import (
 )
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd
-from lanewarden.scenarios.before_halt import RecentSteps, before_halt
-from lanewarden.scenarios.before_halt import describe as describe_before_halt
+from lanewarden.scenarios.before_halt import RecentSteps, before_halt, halt_line
 from lanewarden.supervisor.loop import Detector, FrameSource, Gate, StepRecord
 from lanewarden.terminal import KEY_HELP, KeyReader, StatusPrinter, key_action
 
@@ -292,11 +291,11 @@ class RunSession:
                               frames_dropped_recording=len(self.recording.frames_dropped),
                               view_dropped=view_dropped)
         window = self.recent.before_halt(loop_end.steps) if end.safety_stop else None
-        if window:  # the run's own halt (not the runner's closing stop after the loop's end)
-            sup = self.config.supervisor
-            summary = before_halt(window, len(window) - 1, sup,
-                                  self.config.perception.edges.max_abs_slope)
-            lines.insert(1, f"  before the halt: {describe_before_halt(summary)}")
+        # the run's own halt (not the runner's closing stop after the loop's end)
+        if window and (line := halt_line(before_halt(
+                window, len(window) - 1, self.config.supervisor,
+                self.config.perception.edges.max_abs_slope))):
+            lines.insert(1, line)
         if self.recording.problem is not None:
             lines.append(f"  the recording stopped early: {self.recording.problem}")
         lines += [f"  not written: {error}" for error in self.recording.write_errors

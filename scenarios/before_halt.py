@@ -56,9 +56,10 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
     run = longest = at_cap = outliers = no_frame = 0
     for record in window:
         events = frozenset(Event(name) for name in record.events)
-        if Event.INNOVATION_OUTLIER in events:
-            outliers += 1
-        if forgets_confident_frames(events):
+        outlier = Event.INNOVATION_OUTLIER in events
+        outliers += outlier
+        wiped = forgets_confident_frames(events)
+        if wiped:
             run = 0
         obs = record.observation
         if obs is None:
@@ -67,9 +68,7 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
         usable, confident = frame_grade(obs, config)
         grade = "confident" if confident else "usable" if usable else "unusable"
         grades[grade] += 1
-        counts = (confident and Event.INNOVATION_OUTLIER not in events
-                  and not forgets_confident_frames(events))
-        run = run + 1 if counts else 0
+        run = run + 1 if confident and not outlier and not wiped else 0
         longest = max(longest, run)
         if confident and any(edge is not None and abs(edge.slope) >= max_abs_slope - _AT_CAP
                              for edge in (obs.left, obs.right)):
@@ -88,6 +87,12 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
         "outliers": outliers,
         "no_frame": no_frame,
     }
+
+
+def halt_line(summary: object) -> str | None:
+    """The terminal's line under a halt (`sim`, `replay`, `run`'s summary): '  before the halt:
+    last 2 s: ...'; None without a summary (a run that never halted after engaging)."""
+    return f"  before the halt: {describe(summary)}" if isinstance(summary, dict) else None
 
 
 def describe(summary: dict[str, Any]) -> str:

@@ -65,7 +65,6 @@ _BELOW_DEGRADE: frozenset[Event] = frozenset(
     e for e in Event if response_of(e) < Response.DEGRADE)
 
 
-
 def forgets_confident_frames(events: AbstractSet[Event]) -> bool:
     """Whether a step with these events wipes the confident frames counted towards engaging and
     recovering: any DEGRADE or HALT event but those that only judge the step's frame

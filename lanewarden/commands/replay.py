@@ -15,7 +15,7 @@ import click
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag
 from lanewarden.errors import InputFileError, QualityGateError, UsageError
-from lanewarden.scenarios.before_halt import describe as describe_before_halt
+from lanewarden.scenarios.before_halt import halt_line
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
 from lanewarden.wording import counted
 
@@ -119,8 +119,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                    f"{metrics['final_state']}" + (f" ({reason})" if reason else ""))
     # what ended the replay, as metrics.json, the plot and the report say it
     click.echo(f"  ended: {metrics['end_reason']}{' (never engaged)' if never else ''}")
-    if isinstance(metrics.get("before_halt"), dict):
-        click.echo(f"  before the halt: {describe_before_halt(metrics['before_halt'])}")
+    if line := halt_line(metrics.get("before_halt")):
+        click.echo(line)
     if replay_source.kind == "bag":
         click.echo(f"  topic {replay_source.meta['topic']}, timed by its "
                    f"{replay_source.meta['times']}")

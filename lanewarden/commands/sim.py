@@ -24,7 +24,7 @@ from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder, interrupted_in
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
-from lanewarden.scenarios.before_halt import describe as describe_before_halt
+from lanewarden.scenarios.before_halt import halt_line
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
@@ -69,9 +69,8 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
     ]
     if metrics.get("halted"):
         lines.append(f"  halt position: {fmt('halt_position')}")
-    summary = metrics.get("before_halt")
-    if isinstance(summary, dict):
-        lines.append(f"  before the halt: {describe_before_halt(summary)}")
+    if line := halt_line(metrics.get("before_halt")):
+        lines.append(line)
     lines += [
         f"  states visited: {fmt('states_visited')}",
         f"  turns completed: {fmt('turns_completed')}  max cross-track error: "
