@@ -332,7 +332,7 @@ def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
             f"<td class=\"why\">{html.escape(str(row.get('reason') or ''))}</td>"
             f"<td>{'' if to_halt is None else f'{to_halt:.3f}'}</td>"
             f"<td>{'' if cross is None else cross}</td>"
-            f"<td class=\"why\">{html.escape(_before_halt_text(row))}</td>"
+            f"<td class=\"before\">{html.escape(_before_halt_text(row))}</td>"
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
     return ("<table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
             "<th>faults</th><th>why</th><th>time to halt s</th><th>max cross-track m</th>"
@@ -432,6 +432,7 @@ table {{ border-collapse: collapse; margin-bottom: 1em; }}
 td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
 th {{ background: #f4f4f4; }}
 td.why {{ text-align: left; max-width: 32em; }}
+td.before {{ text-align: left; min-width: 13em; max-width: 22em; font-size: .85em; }}
 td.plot {{ padding: 0 4px; }}
 td.rerun {{ text-align: left; min-width: 14em; }}
 code.cmd {{ font-size: 90%; user-select: all; background: #f6f6f6; padding: 1px 4px;
