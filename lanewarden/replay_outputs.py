@@ -43,6 +43,7 @@ from lanewarden.run_outcome import (
     recorded_loop_end,
 )
 from lanewarden.scenarios.before_halt import before_halt
+from lanewarden.scenarios.metrics import first_halt_index
 from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.progress import Progress
@@ -216,16 +217,6 @@ def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: lis
     )
 
 
-def _first_halt_after_engaging(records: list[Any]) -> int | None:
-    engaged = False
-    for i, record in enumerate(records):
-        if record.state != "HALT":
-            engaged = True
-        elif engaged:
-            return i
-    return None
-
-
 def _loop_end(source: ReplaySource) -> LoopEnd:
     return recorded_loop_end(source.summary) if source.kind == "run" else CLIP_END
 
@@ -245,7 +236,8 @@ def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int 
     if end.kind is LoopEndKind.CLIP and end.state != "HALT":
         while considered and considered[-1].state == "HALT":
             considered = considered[:-1]
-    return _first_halt_after_engaging(considered)
+    # (`first_halt_index` says 0 for steps that never engaged: no halt after engaging)
+    return first_halt_index([r.state for r in considered]) or None
 
 
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
