@@ -7,25 +7,30 @@ Per new frame:
 - confidence below `confidence_usable_min`: LANE_UNTRUSTED (no usable lane);
 - confidence below `confidence_degrade_below` for `low_confidence_degrade_frames` frames in a row:
   LANE_LOW_CONFIDENCE;
-- a confident frame (below) whose left edge passes the robot less than
-  `lane_departure_clearance_m` left of its centre line (or right of it), or whose right edge less
+- a usable frame (below) whose left edge passes the robot's centre less than
+  `lane_departure_clearance_m` to its left (or passes right of it), or whose right edge less
   than that to its right (or left of it), shows the robot leaving the lane:
-  `lane_departure_frames` such frames in a row give LANE_DEPARTURE (HALT). Confident frames
-  only: a merely usable one is too often a wrong edge (a floor feature beside a dash) that puts
-  a "tape" under a centred robot; a robot leaving a lane perception is unsure of is LANE_LOST's
-  and DEGRADED's to stop. Where an edge passes the robot comes from its near part on the
-  floor (`LaneEdge`: a line through its nearest point seen, `near_m` ahead, at its measured
-  direction), read half-way back from that point towards the robot (`near_m / 2` ahead): for a
-  straight tape any point of the line is exact, and for a bend's arc the tangent read back at
-  the robot puts the inner tape too near by about near_m^2 / 2R and the nearest point itself too
-  far by as much, so half-way cancels to second order (and an error in the measured direction
-  counts half). Only an edge seen beginning within `lane_departure_view_m` ahead counts.
-  Frames that are not confident neither count nor reset the streak.
+  `lane_departure_frames` such frames in a row give LANE_DEPARTURE (HALT). The clearance is the
+  footprint's radius and a margin to stop in: the rule must fire before the tape is under the
+  robot, not at contact (the twentieth campaign's r00665 and r00910 halted 2 mm and 66 mm over
+  the tape). Usable frames, not only confident ones: a robot drifting onto a tape is exactly
+  when the lane's shape stops matching (r00665 had no confident frame in its last 0.5 s); a
+  lane placed from one tape counts with its placed edge. Where an edge passes the robot comes
+  from its near part on the floor (`LaneEdge`: a line through its nearest point seen, `near_m`
+  ahead, at its measured direction), read half-way back from that point (`near_m / 2` ahead on
+  the robot's axis) and measured square to the edge (`edge_passing_m`: a round footprint
+  touches a tape at that distance; measured along the robot's y axis, a tape crossing its path
+  at 25 degrees reads 10% too far). For a straight tape any point of the line gives the same
+  distance, and for a bend's arc the tangent read back at the robot puts the inner tape too
+  near by about near_m^2 / 2R and the nearest point itself too far by as much, so half-way
+  cancels to second order (an error in the measured direction counts with half the distance,
+  which is why only an edge seen beginning within `lane_departure_view_m` ahead counts).
+  Frames that are not usable neither count nor reset the streak.
 - A departure must be reachable: the robot moves its centre at most `limiter_max_linear_m_s`
   (the gate's cap), so an edge line's distance from its centre (`LaneEdge.offset_m`, which
   turning in place does not change) can change by at most that speed times the time since the
-  last confident frame that counted, plus `lane_departure_jump_m` of measurement noise. A
-  confident frame whose edges moved further (perception jumped to a light slat or a seam beside
+  last usable frame that counted, plus `lane_departure_jump_m` of measurement noise. A
+  usable frame whose edges moved further (perception jumped to a light slat or a seam beside
   the tape, a whole lane 0.10-0.16 m to one side, and back: the 1000-run campaigns' parquet
   LANE_DEPARTURE false halts) neither counts nor resets the streak, and is not the reference
   for the next frame. The bound grows with the time since the reference, so a reading that
@@ -39,7 +44,7 @@ sight (`perception.one_side`: both edges, `sides_seen` 1) raises ONE_EDGE_LOST l
 run of confident frames, to engage or to recover, like any unconfident frame), and feeds the
 slope filter.
 Pure; the only memory is the low-confidence and departure streaks and the reference for the
-departure's reachability (the last confident frame that counted: its time and edge offsets).
+departure's reachability (the last usable frame that counted: its time and edge offsets).
 """
 
 from __future__ import annotations
@@ -48,7 +53,7 @@ import math
 from dataclasses import dataclass
 
 from lanewarden.perception.observation import LaneEdge, LaneObservation
-from lanewarden.supervisor.center_offset import lateral_offset_at
+from lanewarden.supervisor.center_offset import MAX_PREVIEW_HEADING_RAD, lateral_offset_at
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import FrameInfo
 from lanewarden.supervisor.events import Event
@@ -102,6 +107,19 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
     return None
 
 
+def edge_passing_m(offset_m: float, heading_rad: float, near_m: float) -> float:
+    """How far from the robot's centre an edge passes, signed (left +), as the departure rule
+    reads it: the edge line's distance, square to the edge, from the point of the robot's
+    axis half-way to where the edge is seen nearest (`near_m / 2` ahead). A round footprint
+    touches a tape when its distance square to the tape reaches its radius (read along the
+    robot's y axis instead, a tape crossing its path at 25 degrees reads 10% too far: the
+    twentieth campaign's r00665 stopped over the tape). For a straight edge this is
+    `offset_m + near_m / 2 * sin(heading)`, and half-way ahead a bend's curvature cancels to
+    second order (module docstring)."""
+    return lateral_offset_at(offset_m, heading_rad, near_m / 2) * math.cos(
+        max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad)))
+
+
 def departure_of(observation: LaneObservation, clearance_m: float,
                  view_m: float) -> str | None:
     """The edge of `observation` that passes the robot nearer its centre line than
@@ -111,10 +129,10 @@ def departure_of(observation: LaneObservation, clearance_m: float,
         if (edge is None or edge.offset_m is None or edge.heading_rad is None
                 or edge.near_m is None or not edge.near_m <= view_m):
             continue
-        lateral = lateral_offset_at(edge.offset_m, edge.heading_rad, edge.near_m / 2)
-        if sign * lateral < clearance_m:
-            return (f"{name} edge {abs(lateral):.3f} m {'left' if lateral > 0 else 'right'} of "
-                    f"the robot's centre line, {clearance_m:g} m at the least")
+        passing = edge_passing_m(edge.offset_m, edge.heading_rad, edge.near_m)
+        if sign * passing < clearance_m:
+            return (f"{name} edge {abs(passing):.3f} m {'left' if passing > 0 else 'right'} of "
+                    f"the robot's centre, {clearance_m:g} m at the least")
     return None
 
 
@@ -178,9 +196,9 @@ class LaneEvidence:
         usable, confident = frame_grade(obs, cfg)
         departure = None
         offsets = _edge_offsets(obs)
-        # only confident frames count towards a departure, or reset it, and only those the
+        # only usable frames count towards a departure, or reset it, and only those the
         # robot's own motion could have brought there (module docstring)
-        if confident and reachable(offsets, self._reference, obs.time_s,
+        if usable and reachable(offsets, self._reference, obs.time_s,
                                    cfg.limiter_max_linear_m_s, cfg.lane_departure_jump_m):
             self._reference = (obs.time_s, offsets)
             departure = departure_of(obs, cfg.lane_departure_clearance_m,

@@ -63,6 +63,25 @@ def test_the_edge_is_read_half_way_back_from_where_it_is_seen() -> None:
                         VIEW) is not None  # 0.13 + 0.04 = 0.17 < 0.175
 
 
+def test_an_edge_crossing_the_path_is_measured_square_to_it() -> None:
+    # r00665 (twentieth campaign): the outer tape of a corner crossing the robot's path at 25
+    # degrees, seen from the robot's centre on (near 0): its line 0.17 m from the centre,
+    # square to it, is inside the footprint; along the robot's y axis it is 0.17 / cos(25) =
+    # 0.1876 m away, which read that way would not be a departure
+    heading = math.radians(-25.0)
+    edge = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2, LEFT_EDGE.slope,
+                    LEFT_EDGE.support_px, offset_m=0.17, heading_rad=heading, near_m=0.0)
+    text = departure_of(_obs(left=edge), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("left edge 0.170 m left")
+    # seen from 0.2 m ahead, the same line read square to it from 0.1 m ahead on the robot's
+    # axis: 0.17 + 0.1 * sin(-25 degrees) = 0.1277 m
+    seen_ahead = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2,
+                          LEFT_EDGE.slope, LEFT_EDGE.support_px, offset_m=0.17,
+                          heading_rad=heading, near_m=0.2)
+    text = departure_of(_obs(left=seen_ahead), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("left edge 0.128 m left")
+
+
 def test_an_edge_seen_only_far_ahead_or_not_on_the_floor_does_not_count() -> None:
     assert departure_of(_obs(left=_edge(LEFT_EDGE, 0.05, near=0.6)), CLEARANCE, VIEW) is None
     assert departure_of(_obs(left=LEFT_EDGE), CLEARANCE, VIEW) is None
@@ -85,14 +104,24 @@ def test_departure_frames_in_a_row_halt_and_fewer_do_not() -> None:
     assert out.state == "HALT" and out.command.is_stop
     assert rig.controller.halt_reason is not None
     assert rig.controller.halt_reason.startswith("LANE_DEPARTURE")
-    assert "left edge 0.120 m left of the robot's centre line" in rig.controller.halt_reason
+    assert "left edge 0.120 m left of the robot's centre," in rig.controller.halt_reason
 
 
 def test_a_clear_frame_resets_the_departure_streak() -> None:
-    # each step within reach of the last (0.3 m/s x 1/30 s + 0.03 m = 0.04 m)
+    # each step within reach of the last (0.3 m/s x 1/30 s + 0.03 m = 0.04 m); the default
+    # clearance is 0.195 m (footprint 0.175 m and 0.02 m to stop in): 0.20 m is clear
     rig = _engaged()
-    for edge in (0.16, 0.16, 0.18, 0.16, 0.16):
+    assert rig.config.lane_departure_clearance_m == 0.195
+    for edge in (0.18, 0.18, 0.20, 0.18, 0.18):
         assert rig.step(left_edge_m=edge).state == "FOLLOW"
+
+
+def test_the_margin_halts_before_the_tape_reaches_the_footprint() -> None:
+    # 0.19 m: still 15 mm clear of the 0.175 m footprint, inside the 0.02 m margin
+    rig = _engaged()
+    assert rig.step(left_edge_m=0.19).state == "FOLLOW"
+    assert rig.step(left_edge_m=0.19).state == "FOLLOW"
+    assert rig.step(left_edge_m=0.19).state == "HALT"
 
 
 def test_a_jump_of_the_edge_counts_only_once_the_robot_could_have_moved_there() -> None:
@@ -125,24 +154,27 @@ def test_a_lane_flickering_to_a_slat_beside_it_is_no_departure() -> None:
         assert rig.step(left_edge_m=0.275, confidence=0.0).state != "HALT"
 
 
-def test_a_frame_that_is_not_confident_neither_counts_nor_resets_the_streak() -> None:
+def test_a_frame_that_is_not_usable_neither_counts_nor_resets_the_streak() -> None:
     rig = _engaged()
     assert rig.step(left_edge_m=0.12).state == "FOLLOW"
     assert rig.step(left_edge_m=0.12).state == "FOLLOW"
-    assert rig.step(left_edge_m=0.05, confidence=0.1).state == "DEGRADED"  # untrusted
-    assert rig.step(left_edge_m=0.25, confidence=0.5).state == "DEGRADED"  # usable, unsure
+    assert rig.step(left_edge_m=0.25, confidence=0.1).state == "DEGRADED"  # untrusted, clear
     out = rig.step(left_edge_m=0.12)
     assert out.state == "HALT"
     assert "LANE_DEPARTURE" in {e.value for e in out.events}
 
 
-def test_usable_but_unconfident_frames_never_halt_for_departure() -> None:
-    # a wrong edge under a centred robot, reported with a usable but not confident lane
+def test_usable_but_unconfident_frames_count_towards_a_departure() -> None:
+    # r00665 (twentieth campaign): a robot drifting onto the outer tape of a corner, the lane's
+    # shape no longer matching (confidence 0.2-0.5, both edges seen), never had three confident
+    # frames in a row before it was over the tape
     rig = _engaged()
-    for _ in range(6):
-        out = rig.step(left_edge_m=0.12, confidence=0.5)
-        assert "LANE_DEPARTURE" not in {e.value for e in out.events}
-    assert rig.state != "HALT"
+    assert rig.config.confidence_usable_min == 0.2
+    assert rig.step(left_edge_m=0.12, confidence=0.5).state != "HALT"
+    assert rig.step(left_edge_m=0.12, confidence=0.3).state != "HALT"
+    out = rig.step(left_edge_m=0.12, confidence=0.25)
+    assert out.state == "HALT"
+    assert "LANE_DEPARTURE" in {e.value for e in out.events}
 
 
 CONFIG = SupervisorConfig()
