@@ -150,7 +150,7 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     48.6 degrees paired with a sliver of the other line at the border gave "straight" at 0.39
     (docs/perception.md). How useful: floors under today's figures (216 of the 338 lane frames
     with a decision, 207 confident, with `tape.kind: dark` as camera.yaml says; the supervisor
-    engages on 139 of them; 213 and 204 without the kind; before one floor could be shaded,
+    engages on 134 of them, 139 before usable frames counted towards a departure; 213 and 204 without the kind; before one floor could be shaded,
     `tape_rules.FLOOR_SHADE`, 139, 136 and 101)."""
     code, out = _survey_jetbot(tmp_path, capsys, JETBOT / "camera.yaml")
     assert code == 0, out
@@ -174,13 +174,18 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert why is not None, out
     missed, unconfident, departure = (int(why.group(k)) for k in (1, 2, 3))
     assert missed == 338 - int(engaged.group(1)) == unconfident + departure
-    assert departure == int(found.group(2)) - int(engaged.group(1))
     frames = json.loads((tmp_path / "out" / "survey.json").read_text())["frames"]
-    held = [f for f in frames if f["expect"] == "lane" and f["confident"] and not f["engaged"]]
+    held = [f for f in frames if f["expect"] == "lane" and not f["engaged"]
+            and f["not_engaged_because"].startswith("LANE_DEPARTURE")]
     assert len(held) == departure
+    # every confident still not engaged is among them (usable stills count towards a
+    # departure too, so a few unconfident ones are held by it as well)
+    assert all(f in held for f in frames
+               if f["expect"] == "lane" and f["confident"] and not f["engaged"])
+    assert departure >= int(found.group(2)) - int(engaged.group(1))
     assert _documented(f"On the JetBot set: {engaged.group(1)} of the 338 lane stills engage; "
                        f"of the other {missed}, {unconfident} have no confident lane long enough "
-                       f"and {departure} are confident but held by LANE_DEPARTURE."), out
+                       f"and {departure} are held by LANE_DEPARTURE"), out
     assert all(f["not_engaged_because"].startswith("LANE_DEPARTURE: a lane edge inside the "
                                                    "robot's footprint") for f in held)
     page = (tmp_path / "out" / "report.html").read_text()
