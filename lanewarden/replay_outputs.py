@@ -179,10 +179,12 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
         progress.close(finished=sys.exc_info()[0] is None)
         if video is not None:
             video.close()
-    metrics = replay_metrics(source, records, divergences, distance, config)
+    end = _run_end(source, records)
+    halt = first_halt(source, records, end)
+    metrics = replay_metrics(source, records, divergences, distance, config, found=(end, halt))
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
-    _write_plot(out / "plot.png", source, records, times, config)
+    _write_plot(out / "plot.png", source, records, times, config, halt)
     outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
     if video is not None:
         outputs += ["video.mp4"] + (["poster.jpg"] if (out / "poster.jpg").exists() else [])
@@ -200,9 +202,9 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
 
 
 def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: list[float],
-                config: LanewardenConfig) -> None:
+                config: LanewardenConfig, halt: int | None) -> None:
+    """plot.png; `halt`: the index of the first halt after engaging (`first_halt`), marked."""
     t0 = times[0] if times else 0.0
-    halt = first_halt(source, records, _run_end(source, records))
     states = [r.state for r in records]
     write_plot(
         path, f"replay of {source.name} ({source.kind})",
@@ -241,16 +243,20 @@ def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int 
 
 
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
-                   distance_m: float, config: LanewardenConfig | None = None) -> dict[str, Any]:
+                   distance_m: float, config: LanewardenConfig | None = None, *,
+                   found: tuple[EndReason, int | None] | None = None) -> dict[str, Any]:
     """Numbers for metrics.json (the keys `sim` uses where they apply); with the `config` the
     steps ran under, `before_halt` too (what perception gave the supervisor before its first
-    halt after engaging)."""
+    halt after engaging). `found`: the run's end reason and first halt when the caller has them
+    already (`_run_end`, `first_halt`)."""
     states: list[str] = []
     for record in records:
         if record.state not in states:
             states.append(record.state)
-    end = _run_end(source, records)
-    halt = first_halt(source, records, end)
+    if found is None:
+        end = _run_end(source, records)
+        found = end, first_halt(source, records, end)
+    end, halt = found
     first_time = records[0].time_s if records else 0.0
     engaged_steps = sum(r.state != "HALT" for r in records)
     missing = missing_frames(source)
