@@ -159,6 +159,15 @@ class SupervisorConfig(DocumentModel):
         "plus this, of where that frame had them: the robot cannot have moved further, so the "
         "rest is a jump of perception (a slat or seam beside the tape), m",
     )
+    lane_departure_turn_deg: float = Field(
+        default=15.0,
+        ge=0.0,
+        le=180.0,
+        description="A usable frame counts towards (or against) a departure only when its "
+        "edges' directions lie within limiter_max_angular_rad_s x the time since the last frame "
+        "that counted, plus this, of that frame's: the robot cannot have turned further, so the "
+        "rest is a wrong line (a texture edge at 40 degrees read 0.18 m from the robot), deg",
+    )
     lane_departure_frames: int = Field(
         default=3,
         ge=1,

@@ -36,6 +36,10 @@ Per new frame:
   for the next frame. The bound grows with the time since the reference, so a reading that
   stays where it jumped to counts after at most (jump - lane_departure_jump_m) /
   limiter_max_linear_m_s seconds: it delays a departure that follows a jump, never hides one.
+  Likewise an edge's direction turns at most `limiter_max_angular_rad_s` times that time, plus
+  `lane_departure_turn_deg`: a frame whose edge turned further is a wrong line (seed 1's r00089:
+  the right edge flickering between -7 and +-40 degrees on terrazzo, read square to it 0.18 m
+  from a robot 7 cm clear of the tape).
 "Usable" (resets the lane-lost timer): at least one edge and confidence >= the usable minimum.
 "Confident" (counts towards engage/recover): both edges seen and confidence >=
 `confidence_confident_min`. A lane perception placed from one tape while the other was out of
@@ -136,25 +140,38 @@ def departure_of(observation: LaneObservation, clearance_m: float,
     return None
 
 
-def _edge_offsets(observation: LaneObservation) -> tuple[float | None, float | None]:
-    """The left and right edge lines' signed distances from the robot's centre (None: no
-    edge, or not measured on the floor)."""
-    return (None if observation.left is None else observation.left.offset_m,
-            None if observation.right is None else observation.right.offset_m)
+EdgeLine = tuple[float | None, float | None]
+"""One edge's line on the floor: its signed distance from the robot's centre and its direction
+(`LaneEdge.offset_m`, `LaneEdge.heading_rad`; None: no edge, or not measured on the floor)."""
 
 
-def reachable(offsets: tuple[float | None, float | None],
-              reference: tuple[float, tuple[float | None, float | None]] | None,
-              time_s: float, max_speed_m_s: float, jump_m: float) -> bool:
+def _edge_lines(observation: LaneObservation) -> tuple[EdgeLine, EdgeLine]:
+    """The left and right edge lines (`EdgeLine`)."""
+    left, right = observation.left, observation.right
+    return ((None, None) if left is None else (left.offset_m, left.heading_rad),
+            (None, None) if right is None else (right.offset_m, right.heading_rad))
+
+
+def reachable(lines: tuple[EdgeLine, EdgeLine],
+              reference: tuple[float, tuple[EdgeLine, EdgeLine]] | None,
+              time_s: float, cfg: SupervisorConfig) -> bool:
     """Could the robot's own motion have carried the edges from `reference` (its time and
-    edge offsets) to `offsets` at `time_s`? Each side measured in both may have moved by at
-    most `max_speed_m_s` times the time between them, plus `jump_m`. No reference: yes."""
+    edge lines) to `lines` at `time_s`? Each side measured in both may have moved by at most
+    `limiter_max_linear_m_s` times the time between them, plus `lane_departure_jump_m`, and
+    turned by at most `limiter_max_angular_rad_s` times that time, plus
+    `lane_departure_turn_deg`. No reference: yes."""
     if reference is None:
         return True
     then, before = reference
-    allowed = max_speed_m_s * max(0.0, time_s - then) + jump_m
-    return all(now is None or old is None or abs(now - old) <= allowed
-               for now, old in zip(offsets, before, strict=True))
+    elapsed = max(0.0, time_s - then)
+    moved = cfg.limiter_max_linear_m_s * elapsed + cfg.lane_departure_jump_m
+    turned = cfg.limiter_max_angular_rad_s * elapsed + math.radians(cfg.lane_departure_turn_deg)
+    return all(_within(now[0], old[0], moved) and _within(now[1], old[1], turned)
+               for now, old in zip(lines, before, strict=True))
+
+
+def _within(now: float | None, old: float | None, allowed: float) -> bool:
+    return now is None or old is None or abs(now - old) <= allowed
 
 
 def frame_grade(obs: LaneObservation, cfg: SupervisorConfig) -> tuple[bool, bool]:
@@ -171,7 +188,7 @@ class LaneEvidence:
         self._config = config
         self._low_confidence_frames = 0
         self._departure_frames = 0
-        self._reference: tuple[float, tuple[float | None, float | None]] | None = None
+        self._reference: tuple[float, tuple[EdgeLine, EdgeLine]] | None = None
 
     def assess(self, observation: LaneObservation) -> LaneAssessment:
         """Events and flags for one well-formed observation of a new frame."""
@@ -195,12 +212,11 @@ class LaneEvidence:
             events.add(Event.LANE_LOW_CONFIDENCE)
         usable, confident = frame_grade(obs, cfg)
         departure = None
-        offsets = _edge_offsets(obs)
+        lines = _edge_lines(obs)
         # only usable frames count towards a departure, or reset it, and only those the
         # robot's own motion could have brought there (module docstring)
-        if usable and reachable(offsets, self._reference, obs.time_s,
-                                   cfg.limiter_max_linear_m_s, cfg.lane_departure_jump_m):
-            self._reference = (obs.time_s, offsets)
+        if usable and reachable(lines, self._reference, obs.time_s, cfg):
+            self._reference = (obs.time_s, lines)
             departure = departure_of(obs, cfg.lane_departure_clearance_m,
                                      cfg.lane_departure_view_m)
             self._departure_frames = self._departure_frames + 1 if departure else 0

@@ -24,7 +24,7 @@ def test_defaults_are_valid_and_match_the_requirements() -> None:
 def test_every_timing_and_threshold_has_its_unit_or_kind_in_its_name() -> None:
     suffixes = ("_s", "_m", "_m_s", "_rad_s", "_m_s2", "_rad_s2", "_frames", "_count", "_per_s",
                 "_per_s2", "_std", "_sigma", "_fraction", "_slope_sum", "_min", "_below", "_floor",
-                "_threshold", "_v")  # fmt: skip
+                "_threshold", "_v", "_deg")  # fmt: skip
     for name, field in SupervisorConfig.model_fields.items():
         if field.annotation is bool:
             continue

@@ -8,6 +8,7 @@ from the robot's centre and heading `h` passes x metres ahead at offset / cos(h)
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -16,7 +17,7 @@ from lanewarden.supervisor.commands import command_for, turn_extra_rad_s
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import departure_of
 from lanewarden.supervisor.state_machine import SupervisorState
-from tests.supervisor.rig import LEFT_EDGE, RIGHT_EDGE, Rig
+from tests.supervisor.rig import LEFT_EDGE, RIGHT_EDGE, Rig, observation
 
 CLEARANCE = 0.175
 VIEW = 0.55
@@ -152,6 +153,40 @@ def test_a_lane_flickering_to_a_slat_beside_it_is_no_departure() -> None:
         assert rig.step(left_edge_m=0.12).state != "HALT"
         assert rig.step(left_edge_m=0.12).state != "HALT"
         assert rig.step(left_edge_m=0.275, confidence=0.0).state != "HALT"
+
+
+def _left_line(rig: Rig, offset: float, heading_deg: float, near: float = 0.0) -> object:
+    """The next frame's observation, its left edge's line at `offset` and `heading_deg`."""
+    base = observation(rig.index + 1, rig.clock.now() + 1 / 30)
+    assert base.left is not None
+    left = replace(base.left, offset_m=offset, heading_rad=math.radians(heading_deg),
+                   near_m=near)
+    return replace(base, left=left)
+
+
+def test_an_edge_flickering_to_a_steep_wrong_line_is_no_departure() -> None:
+    # seed 1's r00089 (terrazzo): the right edge flickered between the tape (-7 degrees) and
+    # texture lines at +-40 degrees, which read square to them 0.17-0.18 m from a robot 7 cm
+    # clear of the tape; a direction the robot cannot have turned to (1 rad/s x 1/30 s + 15
+    # degrees) is a wrong line: it neither counts nor resets the streak
+    rig = _engaged()
+    assert rig.config.lane_departure_turn_deg == 15.0
+    assert rig.step(obs=_left_line(rig, 0.20, 0.0)).state == "FOLLOW"  # clear: 0.20 m
+    for _ in range(10):  # 0.175 m square to a line at 40 degrees: within reach, turned too far
+        out = rig.step(obs=_left_line(rig, 0.175, 40.0))
+        assert "LANE_DEPARTURE" not in {e.value for e in out.events}
+
+
+def test_an_edge_turning_as_the_robot_can_still_counts() -> None:
+    # r00665: the outer tape's direction drifting from -17 to -28 degrees as the robot ran
+    # onto it, 4-7 degrees a frame: within the bound, so those frames count
+    rig = _engaged()
+    assert rig.step(obs=_left_line(rig, 0.20, -17.0)).state == "FOLLOW"
+    assert rig.step(obs=_left_line(rig, 0.19, -23.0)).state == "FOLLOW"
+    assert rig.step(obs=_left_line(rig, 0.185, -28.0)).state == "FOLLOW"
+    out = rig.step(obs=_left_line(rig, 0.18, -24.0))
+    assert out.state == "HALT"
+    assert "LANE_DEPARTURE" in {e.value for e in out.events}
 
 
 def test_a_frame_that_is_not_usable_neither_counts_nor_resets_the_streak() -> None:
