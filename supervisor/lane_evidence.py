@@ -18,9 +18,10 @@ Per new frame:
   lane placed from one tape counts with its placed edge. Where an edge passes the robot comes
   from its near part on the floor (`LaneEdge`: a line through its nearest point seen, `near_m`
   ahead, at its measured direction), read half-way back from that point (`near_m / 2` ahead on
-  the robot's axis) and measured square to the edge (`edge_passing_m`: a round footprint
-  touches a tape at that distance; measured along the robot's y axis, a tape crossing its path
-  at 25 degrees reads 10% too far). For a straight tape any point of the line gives the same
+  the robot's axis) and, where the edge closes in on the robot, measured square to it
+  (`edge_passing_m`: a round footprint touches a tape at that distance; measured along the
+  robot's y axis, a tape crossing its path at 25 degrees reads 10% too far; an edge opening
+  away is read along the y axis, its line read back cutting the corner of a tight bend). For a straight tape any point of the line gives the same
   distance, and for a bend's arc the tangent read back at the robot puts the inner tape too
   near by about near_m^2 / 2R and the nearest point itself too far by as much, so half-way
   cancels to second order (an error in the measured direction counts with half the distance,
@@ -111,17 +112,23 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
     return None
 
 
-def edge_passing_m(offset_m: float, heading_rad: float, near_m: float) -> float:
+def edge_passing_m(offset_m: float, heading_rad: float, near_m: float, side: float) -> float:
     """How far from the robot's centre an edge passes, signed (left +), as the departure rule
-    reads it: the edge line's distance, square to the edge, from the point of the robot's
-    axis half-way to where the edge is seen nearest (`near_m / 2` ahead). A round footprint
-    touches a tape when its distance square to the tape reaches its radius (read along the
-    robot's y axis instead, a tape crossing its path at 25 degrees reads 10% too far: the
-    twentieth campaign's r00665 stopped over the tape). For a straight edge this is
-    `offset_m + near_m / 2 * sin(heading)`, and half-way ahead a bend's curvature cancels to
-    second order (module docstring)."""
-    return lateral_offset_at(offset_m, heading_rad, near_m / 2) * math.cos(
-        max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad)))
+    reads it: the edge line's lateral position at the point of the robot's axis half-way to
+    where the edge is seen nearest (`near_m / 2` ahead), and, where the edge closes in on the
+    robot ahead (`side` +1 for the left edge, -1 for the right: heading towards the robot's
+    centre line), its distance square to the edge from that point. A round footprint touches
+    a tape at its distance square to it: along the robot's y axis, a tape crossing its path at
+    25 degrees reads 10% too far (the twentieth campaign's r00665 stopped over the tape). An
+    edge opening away from the robot is read along the y axis: its line read back behind where
+    it is seen cuts the corner of a bend (the inner tape of the lecture's tight corners, its
+    chord at 40-48 degrees, read square 0.17 m from a robot 7 cm clear of it: seed 1's r00623,
+    r00932). Half-way ahead a bend's curvature cancels to second order (module docstring)."""
+    lateral = lateral_offset_at(offset_m, heading_rad, near_m / 2)
+    if side * heading_rad < 0.0:
+        heading = max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad))
+        lateral *= math.cos(heading)
+    return lateral
 
 
 def departure_of(observation: LaneObservation, clearance_m: float,
@@ -133,7 +140,7 @@ def departure_of(observation: LaneObservation, clearance_m: float,
         if (edge is None or edge.offset_m is None or edge.heading_rad is None
                 or edge.near_m is None or not edge.near_m <= view_m):
             continue
-        passing = edge_passing_m(edge.offset_m, edge.heading_rad, edge.near_m)
+        passing = edge_passing_m(edge.offset_m, edge.heading_rad, edge.near_m, sign)
         if sign * passing < clearance_m:
             return (f"{name} edge {abs(passing):.3f} m {'left' if passing > 0 else 'right'} of "
                     f"the robot's centre, {clearance_m:g} m at the least")

@@ -83,6 +83,26 @@ def test_an_edge_crossing_the_path_is_measured_square_to_it() -> None:
     assert text is not None and text.startswith("left edge 0.128 m left")
 
 
+def test_an_edge_opening_away_is_read_along_the_robots_y_axis() -> None:
+    # seed 1's r00932 and r00623: the inner tape of the lecture's tight corner, its chord at
+    # 40-48 degrees opening away from the robot; its line read back behind where it is seen
+    # cuts the corner of the bend: 0.16 m square to it, 0.16 / cos(45) = 0.226 m along y
+    heading = math.radians(45.0)
+    edge = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2, LEFT_EDGE.slope,
+                    LEFT_EDGE.support_px, offset_m=0.16, heading_rad=heading, near_m=0.0)
+    assert departure_of(_obs(left=edge), CLEARANCE, VIEW) is None
+    right = LaneEdge(RIGHT_EDGE.x1, RIGHT_EDGE.y1, RIGHT_EDGE.x2, RIGHT_EDGE.y2,
+                     RIGHT_EDGE.slope, RIGHT_EDGE.support_px, offset_m=-0.16,
+                     heading_rad=-heading, near_m=0.0)
+    assert departure_of(_obs(right=right), CLEARANCE, VIEW) is None
+    # the same line closing in (the right edge at +45 degrees) is read square to it
+    closing = LaneEdge(RIGHT_EDGE.x1, RIGHT_EDGE.y1, RIGHT_EDGE.x2, RIGHT_EDGE.y2,
+                       RIGHT_EDGE.slope, RIGHT_EDGE.support_px, offset_m=-0.16,
+                       heading_rad=heading, near_m=0.0)
+    text = departure_of(_obs(right=closing), CLEARANCE, VIEW)
+    assert text is not None and text.startswith("right edge 0.160 m right")
+
+
 def test_an_edge_seen_only_far_ahead_or_not_on_the_floor_does_not_count() -> None:
     assert departure_of(_obs(left=_edge(LEFT_EDGE, 0.05, near=0.6)), CLEARANCE, VIEW) is None
     assert departure_of(_obs(left=LEFT_EDGE), CLEARANCE, VIEW) is None
