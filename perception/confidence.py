@@ -85,8 +85,7 @@ COMPONENT_NAMES = (
 @dataclass(frozen=True)
 class EdgeEvidence:
     """What confidence needs of one chosen edge: its near line on the floor (`point`, unit
-    `direction` away from the robot, robot frame metres; `span_m`: the length of the near part whose
-    chord gives that direction), its Hough support in pixels, its tape
+    `direction` away from the robot, robot frame metres), its Hough support in pixels, its tape
     score, whether it is a verified tape and of which kind (`dark`: darker than the floor; None
     when not verified), the reported edge's `polarity` (+1 lighter to its right in the image,
     -1 darker, 0 unclear) and the candidate lines it is made of (`line_ids`: its chain and its
@@ -100,7 +99,6 @@ class EdgeEvidence:
     dark: bool | None = None
     polarity: float = 0.0
     line_ids: frozenset[int] = frozenset()
-    span_m: float = 0.0
 
 
 def _ramp(deviation: float, tolerance: float) -> float:

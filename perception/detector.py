@@ -392,12 +392,11 @@ class LaneDetector:
               floor: EdgeEvidence | None) -> LaneEdge | None:
         if choice is None:
             return None
-        offset = heading = near = span = None
+        offset = heading = near = None
         if floor is not None:
             offset = signed_offset(floor.point, floor.direction)
             heading = math.atan2(floor.direction[1], floor.direction[0])
             near = floor.point[0]
-            span = floor.span_m
         return LaneEdge(
             x1=choice.x1,
             y1=choice.y1,
@@ -410,7 +409,6 @@ class LaneDetector:
             offset_m=offset,
             heading_rad=heading,
             near_m=near,
-            span_m=span,
         )
 
 
@@ -447,8 +445,7 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
     return EdgeEvidence(point=near, direction=d, support_px=choice.support_px,
                         tape_score=choice.tape_score, verified=choice.verified,
                         dark=choice.tape_dark, polarity=choice.polarity,
-                        line_ids=choice.line_ids,
-                        span_m=math.hypot(far[0] - near[0], far[1] - near[1]))
+                        line_ids=choice.line_ids)
 
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:

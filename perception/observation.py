@@ -27,9 +27,7 @@ class LaneEdge:
     On the floor (robot frame), the edge's near part is a line `offset_m` from the robot's
     centre (signed: positive when it passes left of it) running at `heading_rad` from the robot's
     heading (counter-clockwise, i.e. to the left, positive); `near_m` is how far ahead of the
-    robot's centre that near part begins (its nearest point on the floor, metres, robot x), and
-    `span_m` how long that near part is on the floor: `heading_rad` is its chord's direction,
-    which on a bend is the tape's direction half-way along it, not at its nearest point.
+    robot's centre that near part begins (its nearest point on the floor, metres, robot x).
     None when not measured.
     """
 
@@ -42,7 +40,6 @@ class LaneEdge:
     offset_m: float | None = None
     heading_rad: float | None = None
     near_m: float | None = None
-    span_m: float | None = None
 
     def as_json(self) -> dict[str, float | None]:
         return {
@@ -54,7 +51,6 @@ class LaneEdge:
             "offset_m": _rounded(self.offset_m, 4),
             "heading_rad": _rounded(self.heading_rad, 4),
             "near_m": _rounded(self.near_m, 4),
-            "span_m": _rounded(self.span_m, 4),
         }
 
 

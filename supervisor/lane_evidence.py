@@ -21,11 +21,12 @@ Per new frame:
   the robot's axis) and, where the edge closes in on the robot, measured square to it
   (`edge_passing_m`: a round footprint touches a tape at that distance; measured along the
   robot's y axis, a tape crossing its path at 25 degrees reads 10% too far; an edge opening
-  away is read along the y axis, its line read back cutting the corner of a tight bend). For a straight tape any point of the line gives the same
-  distance, and for a bend's arc the tangent read back at the robot puts the inner tape too
-  near by about near_m^2 / 2R and the nearest point itself too far by as much, so half-way
-  cancels to second order (an error in the measured direction counts with half the distance,
-  which is why only an edge seen beginning within `lane_departure_view_m` ahead counts).
+  away is read along the y axis, its line read back cutting the corner of a tight bend). For a
+  straight tape any point of the line gives the same distance, and for a bend's arc the
+  tangent read back at the robot puts the inner tape too near by about near_m^2 / 2R and the
+  nearest point itself too far by as much, so half-way cancels to second order (an error in
+  the measured direction counts with half the distance, which is why only an edge seen
+  beginning within `lane_departure_view_m` ahead counts).
   Frames that are not usable neither count nor reset the streak.
 - A departure must be reachable: the robot moves its centre at most `limiter_max_linear_m_s`
   (the gate's cap), so an edge line's distance from its centre (`LaneEdge.offset_m`, which

@@ -8,11 +8,9 @@ each line is one JSON object:
     {"image", "left", "right", "slope_sum", "lane_offset_m", "lane_heading_rad", "confidence",
      "components", "decision"}
 
-`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad", "near_m",
-"span_m"}
+`left` / `right`: null or {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad", "near_m"}
 (pixels of the analysed, i.e. undistorted, image; slope in the lecture's y-up convention; the
-edge's line on the floor in the robot frame, how far ahead it begins and the length of the near
-part its direction is measured along). `lane_offset_m` /
+edge's line on the floor in the robot frame, and how far ahead it begins). `lane_offset_m` /
 `lane_heading_rad`: the lane centre line's signed distance from the robot's centre (left +) and
 direction (left +), null without both edges.
 `decision`: "straight", "left", "right" or "none" (confidence below
