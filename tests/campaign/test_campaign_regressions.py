@@ -46,3 +46,25 @@ def test_a_tape_patch_at_the_lectures_corner_does_not_take_the_robot_over_a_tape
     assert [f["kind"] for f in case.scenario["faults"]] == ["tape_patch"]
     row = run_case(case.model_dump_json(), build_stack)
     assert row["outcome"] != "unsafe", row["reason"]
+
+
+@pytest.mark.parametrize(("index", "drawn"), [
+    # terrazzo: the right edge flickering between the tape (-7 degrees) and texture lines at
+    # +-40 degrees, read square to them 0.18 m from a robot 7 cm clear of the tape
+    (89, ("lecture", "320x240", "black-matte", "terrazzo")),
+    # the inner tape of the lecture's tight corner, its chord at 40-48 degrees opening away
+    # from the robot: its line read back behind where it is seen cuts the corner of the bend
+    (623, ("lecture", "320x240", "black-glossy", "terrazzo")),
+    (932, ("lecture", "320x240", "black-matte", "wood-planks")),
+])
+def test_a_steep_edge_near_the_robot_is_no_false_departure(
+        index: int, drawn: tuple[str, str, str, str]) -> None:
+    """Seed 1 runs the first version of today's departure rule (usable frames, the distance
+    read square to every edge) halted LANE_DEPARTURE 52-88 mm from the tape
+    (docs/campaigns.md, "Twenty-first run")."""
+    spec, path = load_campaign_spec("default")
+    case = draw_case(spec, path, 1, index, {}, 0.2)
+    assert (case.scenario["name"], case.camera, case.tape, case.floor) == drawn
+    row = run_case(case.model_dump_json(), build_stack)
+    assert row["outcome"] != "false_halt", row["reason"]
+    assert row["outcome"] != "unsafe", row["reason"]
