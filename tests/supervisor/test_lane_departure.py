@@ -192,8 +192,8 @@ def test_an_edge_flickering_to_a_steep_wrong_line_is_no_departure() -> None:
     rig = _engaged()
     assert rig.config.lane_departure_turn_deg == 15.0
     assert rig.step(obs=_left_line(rig, 0.20, 0.0)).state == "FOLLOW"  # clear: 0.20 m
-    for _ in range(10):  # 0.175 m square to a line at 40 degrees: within reach, turned too far
-        out = rig.step(obs=_left_line(rig, 0.175, 40.0))
+    for _ in range(10):  # 0.175 m square to a line closing in at 40 degrees: within reach,
+        out = rig.step(obs=_left_line(rig, 0.175, -40.0))  # turned too far
         assert "LANE_DEPARTURE" not in {e.value for e in out.events}
 
 
