@@ -317,7 +317,10 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, client: Cli
                     dashboard_address=None,
                     # no dashboard; its health/metrics HTTP server on any free local port
                     scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                    silence_logs=logging.ERROR)
+                    # every run's failure is its own row; Dask's ERROR lines (a worker's
+                    # heartbeat failing as the cluster closes after Ctrl-C, with a traceback)
+                    # are noise on the user's terminal
+                    silence_logs=logging.CRITICAL)
             client = Client(cluster)
             client.register_plugin(LeaveInterruptsToTheParent(), name="lanewarden-sigint")
     try:
