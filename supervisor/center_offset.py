@@ -21,10 +21,16 @@ from lanewarden.supervisor.config import SupervisorConfig
 MAX_PREVIEW_HEADING_RAD = math.radians(60.0)
 
 
+def preview_heading(heading_rad: float) -> float:
+    """`heading_rad` within +-MAX_PREVIEW_HEADING_RAD, as lines are read ahead of the robot."""
+    return max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad))
+
+
 def lateral_offset_at(offset_m: float, heading_rad: float, distance_m: float) -> float:
     """The lateral position (metres, left +) where the line at signed distance `offset_m` from
-    the robot's centre, running at `heading_rad`, crosses x = `distance_m` (robot frame)."""
-    heading = max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad))
+    the robot's centre, running at `heading_rad` (`preview_heading`), crosses x = `distance_m`
+    (robot frame)."""
+    heading = preview_heading(heading_rad)
     return offset_m / math.cos(heading) + distance_m * math.tan(heading)
 
 

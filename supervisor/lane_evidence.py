@@ -50,7 +50,7 @@ sight (`perception.one_side`: both edges, `sides_seen` 1) raises ONE_EDGE_LOST l
 run of confident frames, to engage or to recover, like any unconfident frame), and feeds the
 slope filter.
 Pure; the only memory is the low-confidence and departure streaks and the reference for the
-departure's reachability (the last usable frame that counted: its time and edge offsets).
+departure's reachability (the last usable frame that counted: its time and edge lines).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ import math
 from dataclasses import dataclass
 
 from lanewarden.perception.observation import LaneEdge, LaneObservation
-from lanewarden.supervisor.center_offset import MAX_PREVIEW_HEADING_RAD, lateral_offset_at
+from lanewarden.supervisor.center_offset import lateral_offset_at, preview_heading
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import FrameInfo
 from lanewarden.supervisor.events import Event
@@ -127,15 +127,14 @@ def edge_passing_m(offset_m: float, heading_rad: float, near_m: float, side: flo
     r00932). Half-way ahead a bend's curvature cancels to second order (module docstring)."""
     lateral = lateral_offset_at(offset_m, heading_rad, near_m / 2)
     if side * heading_rad < 0.0:
-        heading = max(-MAX_PREVIEW_HEADING_RAD, min(MAX_PREVIEW_HEADING_RAD, heading_rad))
-        lateral *= math.cos(heading)
+        lateral *= math.cos(preview_heading(heading_rad))
     return lateral
 
 
 def departure_of(observation: LaneObservation, clearance_m: float,
                  view_m: float) -> str | None:
-    """The edge of `observation` that passes the robot nearer its centre line than
-    `clearance_m` on its own side (or on the other side), as text; None when neither does.
+    """The edge of `observation` that passes the robot nearer its centre than `clearance_m`
+    on its own side (or on the other side; `edge_passing_m`), as text; None when neither does.
     Only edges measured on the floor and seen beginning within `view_m` ahead count."""
     for name, edge, sign in (("left", observation.left, 1.0), ("right", observation.right, -1.0)):
         if (edge is None or edge.offset_m is None or edge.heading_rad is None

@@ -31,6 +31,12 @@ def _edge(base: LaneEdge, lateral_at_robot: float, heading: float = 0.0,
                     near_m=near)
 
 
+def _line(base: LaneEdge, offset: float, heading_deg: float, near: float = 0.0) -> LaneEdge:
+    """`base` with its line on the floor at signed distance `offset` from the robot's centre,
+    running at `heading_deg`, seen from `near` metres ahead."""
+    return replace(base, offset_m=offset, heading_rad=math.radians(heading_deg), near_m=near)
+
+
 def _obs(left: LaneEdge | None = None, right: LaneEdge | None = None) -> LaneObservation:
     return LaneObservation(0, 0.0, left, right, None if not (left and right) else 0.0, 0.9)
 
@@ -69,17 +75,11 @@ def test_an_edge_crossing_the_path_is_measured_square_to_it() -> None:
     # degrees, seen from the robot's centre on (near 0): its line 0.17 m from the centre,
     # square to it, is inside the footprint; along the robot's y axis it is 0.17 / cos(25) =
     # 0.1876 m away, which read that way would not be a departure
-    heading = math.radians(-25.0)
-    edge = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2, LEFT_EDGE.slope,
-                    LEFT_EDGE.support_px, offset_m=0.17, heading_rad=heading, near_m=0.0)
-    text = departure_of(_obs(left=edge), CLEARANCE, VIEW)
+    text = departure_of(_obs(left=_line(LEFT_EDGE, 0.17, -25.0)), CLEARANCE, VIEW)
     assert text is not None and text.startswith("left edge 0.170 m left")
     # seen from 0.2 m ahead, the same line read square to it from 0.1 m ahead on the robot's
     # axis: 0.17 + 0.1 * sin(-25 degrees) = 0.1277 m
-    seen_ahead = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2,
-                          LEFT_EDGE.slope, LEFT_EDGE.support_px, offset_m=0.17,
-                          heading_rad=heading, near_m=0.2)
-    text = departure_of(_obs(left=seen_ahead), CLEARANCE, VIEW)
+    text = departure_of(_obs(left=_line(LEFT_EDGE, 0.17, -25.0, near=0.2)), CLEARANCE, VIEW)
     assert text is not None and text.startswith("left edge 0.128 m left")
 
 
@@ -87,19 +87,10 @@ def test_an_edge_opening_away_is_read_along_the_robots_y_axis() -> None:
     # seed 1's r00932 and r00623: the inner tape of the lecture's tight corner, its chord at
     # 40-48 degrees opening away from the robot; its line read back behind where it is seen
     # cuts the corner of the bend: 0.16 m square to it, 0.16 / cos(45) = 0.226 m along y
-    heading = math.radians(45.0)
-    edge = LaneEdge(LEFT_EDGE.x1, LEFT_EDGE.y1, LEFT_EDGE.x2, LEFT_EDGE.y2, LEFT_EDGE.slope,
-                    LEFT_EDGE.support_px, offset_m=0.16, heading_rad=heading, near_m=0.0)
-    assert departure_of(_obs(left=edge), CLEARANCE, VIEW) is None
-    right = LaneEdge(RIGHT_EDGE.x1, RIGHT_EDGE.y1, RIGHT_EDGE.x2, RIGHT_EDGE.y2,
-                     RIGHT_EDGE.slope, RIGHT_EDGE.support_px, offset_m=-0.16,
-                     heading_rad=-heading, near_m=0.0)
-    assert departure_of(_obs(right=right), CLEARANCE, VIEW) is None
+    assert departure_of(_obs(left=_line(LEFT_EDGE, 0.16, 45.0)), CLEARANCE, VIEW) is None
+    assert departure_of(_obs(right=_line(RIGHT_EDGE, -0.16, -45.0)), CLEARANCE, VIEW) is None
     # the same line closing in (the right edge at +45 degrees) is read square to it
-    closing = LaneEdge(RIGHT_EDGE.x1, RIGHT_EDGE.y1, RIGHT_EDGE.x2, RIGHT_EDGE.y2,
-                       RIGHT_EDGE.slope, RIGHT_EDGE.support_px, offset_m=-0.16,
-                       heading_rad=heading, near_m=0.0)
-    text = departure_of(_obs(right=closing), CLEARANCE, VIEW)
+    text = departure_of(_obs(right=_line(RIGHT_EDGE, -0.16, 45.0)), CLEARANCE, VIEW)
     assert text is not None and text.startswith("right edge 0.160 m right")
 
 
@@ -175,13 +166,11 @@ def test_a_lane_flickering_to_a_slat_beside_it_is_no_departure() -> None:
         assert rig.step(left_edge_m=0.275, confidence=0.0).state != "HALT"
 
 
-def _left_line(rig: Rig, offset: float, heading_deg: float, near: float = 0.0) -> object:
-    """The next frame's observation, its left edge's line at `offset` and `heading_deg`."""
+def _left_line(rig: Rig, offset: float, heading_deg: float) -> LaneObservation:
+    """The next frame's observation, its left edge's line at `offset` and `heading_deg`, seen
+    from the robot's centre on."""
     base = observation(rig.index + 1, rig.clock.now() + 1 / 30)
-    assert base.left is not None
-    left = replace(base.left, offset_m=offset, heading_rad=math.radians(heading_deg),
-                   near_m=near)
-    return replace(base, left=left)
+    return replace(base, left=_line(LEFT_EDGE, offset, heading_deg))
 
 
 def test_an_edge_flickering_to_a_steep_wrong_line_is_no_departure() -> None:
