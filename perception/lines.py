@@ -392,6 +392,15 @@ def _sample_fractions(k: int) -> FloatArray:
     return fractions
 
 
+@functools.cache
+def _image_limits(width: int, height: int) -> FloatArray:
+    """The largest column and row of a `width` x `height` image, shaped (2, 1, 1) to clip
+    stacked (x, y) sample points."""
+    limits = np.array((width - 1.0, height - 1.0)).reshape(2, 1, 1)
+    limits.flags.writeable = False
+    return limits
+
+
 def _polarity(
     gray: NDArray[np.uint8],
     near_x: FloatArray,
@@ -410,19 +419,23 @@ def _polarity(
     steps show a mirrored light along a tape (see below)."""
     height, width = gray.shape[:2]
     k = POLARITY_SAMPLE_FACTOR * tape.polarity_samples
-    frac = _sample_fractions(k)
-    px = near_x[:, None] + (far_x - near_x)[:, None] * frac
-    py = near_y[:, None] + (far_y - near_y)[:, None] * frac
     offset = max(tape.polarity_offset_frac_of_width * width, 1.5)
-    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0.
-    nx = (-uy * offset)[:, None]
-    ny = (ux * offset)[:, None]
-    # One gather for both sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
-    xs = np.concatenate([px + nx, px - nx]) + 0.5
-    ys = np.concatenate([py + ny, py - ny]) + 0.5
-    cols = np.minimum(np.maximum(xs, 0.0), width - 1.0).astype(np.intp)
-    rows = np.minimum(np.maximum(ys, 0.0), height - 1.0).astype(np.intp)
-    values = gray[rows, cols].astype(np.int16)
+    # The sample points, x and y stacked (2, n, k): near + (far - near) * fraction (stacked, the
+    # dozen numpy calls of the two coordinates are half as many: this runs on every frame).
+    start = np.array((near_x, near_y))
+    run = np.array((far_x, far_y))
+    run -= start
+    points = run[:, :, None] * _sample_fractions(k)
+    points += start[:, :, None]
+    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0. One gather for both
+    # sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
+    normal = np.array((-uy * offset, ux * offset))[:, :, None]
+    sides = np.concatenate((points + normal, points - normal), axis=1)
+    sides += 0.5
+    np.maximum(sides, 0.0, out=sides)
+    np.minimum(sides, _image_limits(width, height), out=sides)
+    pixel = sides.astype(np.intp)
+    values = gray[pixel[1], pixel[0]].astype(np.int16)
     n = len(near_x)
     right, left = values[:n], values[n:]
     step = right - left
