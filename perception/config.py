@@ -277,6 +277,32 @@ class ContrastConfig(DocumentModel):
     )
 
 
+class GrayConfig(DocumentModel):
+    """How a colour frame becomes the one gray image perception works on.
+
+    OpenCV's luma (BGR2GRAY: 0.114 B + 0.587 G + 0.299 R) by default. In it a yellow line
+    (#e3b21c: luma 176) is about as light as the light slats of parquet or a wooden floor, and
+    perception loses it (docs/perception.md, "Gray"). `yellow_boost` b lifts yellow out:
+    gray = luma + b x (luma - blue). A yellow paint's blue is far below its luma (#e3b21c: 148
+    levels), a wooden floor's much less (parquet's light slat #a5763f: 63), and a neutral grey's
+    not at all, so white, grey and black tape and grey floors keep their gray levels. Set it when
+    the lane has a yellow line and survey with and without it (the default campaign's yellow
+    line sets 0.8: docs/perception.md, "A yellow line"); it applies to colour frames only (a
+    gray camera has no blue to take), and in the simulator it makes perception's frames colour
+    (`simulation.perception_color`).
+    """
+
+    model_config = _FROZEN
+
+    yellow_boost: Annotated[float, Field(ge=0.0, le=2.0)] = Field(
+        default=0.0,
+        description=(
+            "b in gray = luma + b x (luma - blue): lifts a yellow line above a wooden floor; "
+            "0 is OpenCV's BGR2GRAY"
+        ),
+    )
+
+
 class ConfidenceWeights(DocumentModel):
     """Exponents of the confidence components: confidence = product of component ** weight.
 
@@ -354,6 +380,7 @@ class PerceptionConfig(DocumentModel):
     canny: CannyConfig = CannyConfig()
     hough: HoughConfig = HoughConfig()
     edges: EdgesConfig = EdgesConfig()
+    gray: GrayConfig = GrayConfig()
     contrast: ContrastConfig = ContrastConfig()
     tape: TapeConfig = TapeConfig()
     lane: LaneConfig = LaneConfig()

@@ -90,8 +90,8 @@ def too_small(width: int, height: int, use: str = "perception") -> str:
 #: Perception's gray of a colour frame (`perception_gray`: OpenCV's BGR2GRAY) as weights of
 #: (blue, green, red), for whoever paints it from colours (the simulator's gray texture and
 #: camera, `scenarios.texture`, `scenarios.camera_effects`). In it a yellow line (#e3b21c, 176)
-#: is about as light as parquet's light slats; a colour frame's green would keep it apart but
-#: costs glossy black tape on wood its pair (docs/perception.md, "Gray").
+#: is about as light as parquet's light slats; `perception.gray.yellow_boost` lifts it out of a
+#: colour frame (the simulator then gives perception colour frames; docs/perception.md, "Gray").
 GRAY_WEIGHTS_BGR: tuple[float, float, float] = (0.114, 0.587, 0.299)
 #: The floor length over which a reported edge's direction is taken for the lane's width,
 #: parallelism, offset and heading (`_evidence`), metres.
@@ -279,13 +279,14 @@ class LaneDetector:
             state = self.setup_for(image.shape[1], image.shape[0])
             np.copyto(state.smooth, image)
             return state
+        boost = self.config.gray.yellow_boost
         if self.undistorter is not None:
             # Gray first, then undistort: one channel to remap instead of three.
-            gray = self.undistorter.apply(perception_gray(image))
+            gray = self.undistorter.apply(perception_gray(image, yellow_boost=boost))
             state = self.setup_for(gray.shape[1], gray.shape[0])
         else:
             state = self.setup_for(image.shape[1], image.shape[0])
-            gray = perception_gray(image, dst=state.gray)
+            gray = perception_gray(image, dst=state.gray, yellow_boost=boost)
         if state.blur_kernel[0] > 1:
             cv2.GaussianBlur(
                 gray, state.blur_kernel, self.config.blur.sigma_px, dst=state.smooth
@@ -448,17 +449,24 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
                         line_ids=choice.line_ids)
 
 
-def perception_gray(image: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
+def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,
+                    yellow_boost: float = 0.0) -> np.ndarray:
     """The 8-bit gray image perception works on, from an HxW gray, HxWx1, HxWx3 BGR or HxWx4
     BGRA uint8 frame (OpenCV's BGR2GRAY, `GRAY_WEIGHTS_BGR`; `dst`: a preallocated HxW buffer,
-    used for a colour frame). Everything perception computes from a frame depends on it only
-    through this image, so a recording that keeps it keeps all perception needs."""
+    used for a colour frame). With `yellow_boost` b > 0 a colour frame's gray is
+    luma + b x (luma - blue), saturated to 0..255 (`perception.config.GrayConfig`). Everything
+    perception computes from a frame depends on it only through this image, so a recording that
+    keeps it keeps all perception needs."""
     if image.ndim == 2:
         return image
     if image.shape[2] == 1:
         return image[:, :, 0]
     code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-    return cv2.cvtColor(image, code, dst=dst)
+    luma = cv2.cvtColor(image, code, dst=dst)
+    if yellow_boost > 0.0:
+        cv2.addWeighted(luma, 1.0 + yellow_boost, cv2.extractChannel(image, 0), -yellow_boost,
+                        0.0, dst=luma)
+    return luma
 
 
 def _check_image(image: object) -> None:

@@ -78,7 +78,7 @@ class SimulationConfig(DocumentModel):
     perception_color: bool = Field(
         default=False,
         description="give perception colour frames (default: gray, which it computes first "
-        "anyway; gray rendering is about 2x faster)",
+        "anyway; gray rendering is about 2x faster); always on with perception.gray.yellow_boost",
     )
     progress: bool = Field(
         default=True, description="show progress on stderr (a bar on a terminal, else a line "

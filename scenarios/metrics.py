@@ -313,11 +313,13 @@ def _median(levels: list[int]) -> float:
 
 
 def _gray_values(frame: NDArray[np.uint8], rows: NDArray[np.intp],
-                 cols: NDArray[np.intp]) -> NDArray[np.int16]:
-    """Perception's gray levels (`perception_gray`: OpenCV's BGR->gray) at a few pixels."""
+                 cols: NDArray[np.intp], yellow_boost: float = 0.0) -> NDArray[np.int16]:
+    """Perception's gray levels (`perception_gray`: OpenCV's BGR->gray, and its
+    `yellow_boost`) at a few pixels."""
     picked = frame[rows, cols]
     if picked.ndim == 2:  # colour: convert only the picked pixels, as perception would
-        picked = perception_gray(np.ascontiguousarray(picked.reshape(1, -1, picked.shape[1])))
+        picked = perception_gray(np.ascontiguousarray(picked.reshape(1, -1, picked.shape[1])),
+                                 yellow_boost=yellow_boost)
     return np.asarray(picked, dtype=np.int16).reshape(-1)
 
 
@@ -346,8 +348,10 @@ class LaneContrast:
     """
 
     def __init__(self, world: World, camera: CameraModel, roi_polygon_px: FloatArray,
-                 needed_levels: float) -> None:
+                 needed_levels: float, yellow_boost: float = 0.0) -> None:
         self.needed_levels = needed_levels
+        #: perception's `gray.yellow_boost`: the contrast is measured in its gray
+        self.yellow_boost = yellow_boost
         self._camera = camera
         self._roi = GroundRoi(camera, roi_polygon_px)
         self._size = (camera.width_px, camera.height_px)
@@ -400,7 +404,7 @@ class LaneContrast:
         # A point not projected is read anywhere (its difference is 0 below).
         px[~valid] = 0.0
         pixel = np.clip(px + 0.5, 0, (w - 1, h - 1)).astype(np.intp)
-        values = _gray_values(frame, pixel[:, 1], pixel[:, 0])
+        values = _gray_values(frame, pixel[:, 1], pixel[:, 0], self.yellow_boost)
         k = len(picked)
         da = values[:k] - values[k:2 * k]
         db = values[:k] - values[2 * k:]

@@ -135,7 +135,7 @@ def sequence_stats(detector: LaneDetector, frames: Iterable[U8], times_s: Sequen
     for index, (frame, time_s) in enumerate(zip(frames, times_s, strict=False)):
         observation = detector.detect(frame, index, time_s, previous)
         previous = None if stills else observation
-        gray = perception_gray(frame)
+        gray = perception_gray(frame, yellow_boost=detector.config.gray.yellow_boost)
         if detector.undistorter is not None:
             gray = detector.undistorter.apply(gray)
         per_frame.append(frame_stats(detector, np.asarray(gray, np.uint8)))

@@ -94,13 +94,16 @@ def effective_config(config: LanewardenConfig, spec: ScenarioSpec,
                      source: str | None = None) -> LanewardenConfig:
     """The config a scenario runs with: `config` plus the scenario's own `config:` overrides;
     a camera block's size becomes `simulation.width_px`/`height_px` (the render size's one home
-    during the run)."""
+    during the run); a perception that takes colour apart (`perception.gray.yellow_boost`) gets
+    colour frames (`simulation.perception_color`), as from a robot's colour camera."""
     where = source or f"scenario {spec.name}"
     config = with_overrides(config, spec.config, where)
     camera = spec.camera
     if camera is not None and camera.width_px is not None:
         config = with_overrides(config, {"simulation": {
             "width_px": camera.width_px, "height_px": camera.height_px}}, where)
+    if config.perception.gray.yellow_boost > 0.0 and not config.simulation.perception_color:
+        config = with_overrides(config, {"simulation": {"perception_color": True}}, where)
     return config
 
 
@@ -197,7 +200,8 @@ class Simulation:
         perception = config.perception
         self.lane_contrast = LaneContrast(
             self.world, self.camera, self.roi_polygon_px,
-            perception.tape.min_contrast_levels / perception.contrast.max_gain)
+            perception.tape.min_contrast_levels / perception.contrast.max_gain,
+            perception.gray.yellow_boost)
         self._contrast = np.full(self.lane_contrast.tapes, np.nan)
         self._video: VideoRecorder | None = None
         self._video_path = video_path

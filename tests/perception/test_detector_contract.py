@@ -59,6 +59,35 @@ def test_gray_bgr_and_bgra_inputs_agree(detector: LaneDetector) -> None:
     assert max(sums) - min(sums) < 1e-9  # type: ignore[operator]
 
 
+def test_the_yellow_boost_lifts_yellow_and_leaves_greys_alone() -> None:
+    """gray = luma + b x (luma - blue), saturated; luma values by hand (BGR2GRAY, rounded):
+    yellow #e3b21c 176, parquet's light slat #a5763f 126, white #eeeeea 238, a neutral grey 90,
+    black tape #1c1c1e 28."""
+    bgr = np.array([[(28, 178, 227), (63, 118, 165), (234, 238, 238), (90, 90, 90),
+                     (30, 28, 28)]], dtype=np.uint8)
+    assert perception_gray(bgr).tolist() == [[176, 126, 238, 90, 28]]
+    # 176 + 0.5 x (176 - 28) = 250; 126 + 0.5 x 63 = 157.5 -> 158; 238 + 2 = 240; greys stay
+    assert perception_gray(bgr, yellow_boost=0.5).tolist() == [[250, 158, 240, 90, 27]]
+    assert perception_gray(bgr, yellow_boost=1.0)[0, 0] == 255  # 324, saturated
+    bgra = cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)
+    out = np.empty((1, 5), np.uint8)
+    assert perception_gray(bgra, dst=out, yellow_boost=0.5) is out
+    assert out.tolist() == [[250, 158, 240, 90, 27]]
+    gray = perception_gray(bgr)  # a gray camera has no blue: the boost leaves it as it is
+    assert perception_gray(gray, yellow_boost=0.5) is gray
+
+
+def test_the_detector_reads_a_yellow_line_through_its_configured_gray() -> None:
+    """The same colour frame: with the boost the detector sees exactly the boosted gray."""
+    bgr = np.array(syn.frame(syn.STRAIGHT))
+    bgr[:, :, 0] //= 2  # yellowed: less blue
+    boosted = LaneDetector(PerceptionConfig.model_validate({"gray": {"yellow_boost": 0.5}}))
+    plain = LaneDetector(CONFIG)
+    seen = boosted.prepare(bgr)
+    assert np.array_equal(seen, plain.prepare(perception_gray(bgr, yellow_boost=0.5)))
+    assert not np.array_equal(seen, plain.prepare(bgr))
+
+
 def test_observation_is_frozen_with_immutable_components(detector: LaneDetector) -> None:
     obs = detector.detect(syn.frame(syn.STRAIGHT), 7, 1.25)
     assert (obs.frame_index, obs.time_s) == (7, 1.25)

@@ -77,6 +77,21 @@ def test_a_block_size_is_the_one_render_size() -> None:
         sim_camera_model(other, spec.camera)
 
 
+def test_a_perception_that_takes_colour_apart_gets_colour_frames() -> None:
+    """`perception.gray.yellow_boost` reads a colour frame's blue: the simulator hands
+    perception colour frames then (a gray frame would leave the boost nothing to act on)."""
+    spec = spec_from({"lane": LANE})
+    assert not effective_config(LanewardenConfig(), spec).simulation.perception_color
+    boosted = with_overrides(LanewardenConfig(), {"perception": {"gray": {"yellow_boost": 0.5}}},
+                             "test")
+    assert effective_config(boosted, spec).simulation.perception_color
+    fast = {"simulation": {"progress": False}}
+    sim = Simulation(spec, effective_config(with_overrides(boosted, fast, "test"), spec),
+                     build_stack)
+    assert sim.sim_camera.buffer().shape == (sim.camera.height_px, sim.camera.width_px, 3)
+    assert sim.lane_contrast.yellow_boost == 0.5
+
+
 @pytest.mark.parametrize(("camera", "extra", "message"), [
     ({"width_px": 320}, {}, "give width_px and height_px together"),
     ({"width_px": 320, "height_px": 240}, {"config": {"simulation": {"width_px": 640}}},

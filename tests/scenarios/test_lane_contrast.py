@@ -26,7 +26,8 @@ START = Pose2D(0.0, 0.0, 0.0)
 NEEDED = PerceptionConfig().tape.min_contrast_levels / PerceptionConfig().contrast.max_gain
 
 
-def scene(tape: str, floor: str, color: bool = False) -> tuple[LaneContrast, np.ndarray]:
+def scene(tape: str, floor: str, color: bool = False,
+          yellow_boost: float = 0.0) -> tuple[LaneContrast, np.ndarray]:
     """A straight lane of `tape` on a plain `floor`, its frame at the start (seeded noise)."""
     spec = spec_from({"floor": {"kind": "plain", "color": floor, "variation": 0.0,
                                 "grain": 0.0},
@@ -37,7 +38,7 @@ def scene(tape: str, floor: str, color: bool = False) -> tuple[LaneContrast, np.
     h, w = CAMERA.height_px, CAMERA.width_px
     frame = (renderer.render_bgr(START, np.empty((h, w, 3), np.uint8)) if color
              else renderer.render_gray(START, np.empty((h, w), np.uint8)))
-    return LaneContrast(world, CAMERA, ROI, NEEDED), frame
+    return LaneContrast(world, CAMERA, ROI, NEEDED, yellow_boost), frame
 
 
 def over_exposed(frame: np.ndarray, factor: float) -> np.ndarray:
@@ -86,6 +87,15 @@ def test_a_colour_frame_measures_as_its_gray_version() -> None:
     colour = meter.measure(frame, START)
     gray = meter.measure(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), START)
     assert colour.tolist() == gray.tolist()
+
+
+def test_a_yellow_tape_measures_in_perceptions_boosted_gray() -> None:
+    """Yellow #e3b21c on parquet's light slat colour #a5763f: luma 176 against 126; with
+    `perception.gray.yellow_boost` 0.5 (what the detector then sees) 250 against 158."""
+    meter, frame = scene("#e3b21c", "#a5763f", color=True)
+    assert meter.measure(frame, START) == pytest.approx([50.0, 50.0], abs=6.0)
+    meter, frame = scene("#e3b21c", "#a5763f", color=True, yellow_boost=0.5)
+    assert meter.measure(frame, START) == pytest.approx([92.0, 92.0], abs=8.0)
 
 
 def test_no_tape_in_the_roi_is_no_lane() -> None:
