@@ -36,7 +36,7 @@ from lanewarden.replay_sources import (
     open_replay_source,
     replay_config,
 )
-from lanewarden.run_mcap import PERCEPTION_INPUT
+from lanewarden.run_mcap import CAMERA_GRAY, PERCEPTION_INPUT
 from lanewarden.run_record import RecordedStep, StepInput
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import FINGERPRINT_STRIDE
@@ -221,18 +221,29 @@ class ReplayedStep:
 
 def preparation_changed(source: ReplaySource, config: LanewardenConfig,
                         calibration: CameraCalibration | None, *, config_named: str,
-                        calibration_named: str) -> tuple[str, str] | None:
-    """(why, what was expected) when a recording of perception's prepared input cannot be
-    replayed with this config and calibration (its frames are already undistorted and blurred
-    as the run's were); `why` begins with what was given (`config_named`, `calibration_named`:
-    e.g. "--config 'blur7.yaml'"). None: it can (or it holds the camera's own frames)."""
-    if source.meta.get("image") != PERCEPTION_INPUT:
-        return None
+                        calibration_named: str) -> tuple[str, str, str] | None:
+    """(why, what was expected, how to record to try others) when a recording of perception's
+    prepared input cannot be replayed with this config and calibration (its frames are already
+    gray, undistorted and blurred as the run's were), or one of the camera's gray with another
+    `perception.gray` (its frames made gray as the run's were); `why` begins with what was
+    given (`config_named`, `calibration_named`: e.g. "--config 'blur7.yaml'"). None: it can
+    (or it holds the camera's own colour frames)."""
     recorded = source.config if source.config is not None else LanewardenConfig()
+    image = source.meta.get("image")
+    if (image in (PERCEPTION_INPUT, CAMERA_GRAY)
+            and config.perception.gray != recorded.perception.gray):
+        kept = "perception's input" if image == PERCEPTION_INPUT else "the camera's gray"
+        return (f"{config_named}: perception.gray {config.perception.gray.model_dump()}, but "
+                f"{source.name} was recorded as {kept}, its colour frames made gray on the run "
+                f"with {recorded.perception.gray.model_dump()}", "the recorded perception.gray",
+                "--record-lossy, colour JPEG,")
+    if image != PERCEPTION_INPUT:
+        return None
     if config.perception.blur != recorded.perception.blur:
         return (f"{config_named}: perception.blur {config.perception.blur.model_dump()}, but "
                 f"{source.name} was recorded as perception's input, its frames blurred on the "
-                f"run with {recorded.perception.blur.model_dump()}", "the recorded blur")
+                f"run with {recorded.perception.blur.model_dump()}", "the recorded blur",
+                "--record-gray")
     if not same_calibration(calibration, source.calibration):
         if calibration is None:
             given = "no calibration"
@@ -241,11 +252,12 @@ def preparation_changed(source: ReplaySource, config: LanewardenConfig,
             given = f"{calibration_named} (for {w}x{h} images)"
         if source.calibration is None:
             return (f"{given}: {source.name} was recorded as perception's input without a "
-                    "calibration (its frames were not undistorted)", "no --calibration")
+                    "calibration (its frames were not undistorted)", "no --calibration",
+                    "--record-gray")
         w, h = source.calibration.image_size
         return (f"{given}: {source.name} was recorded as perception's input, its frames "
                 f"undistorted on the run with another calibration (for {w}x{h} images)",
-                "no --calibration (the recording's own)")
+                "no --calibration (the recording's own)", "--record-gray")
     return None
 
 
@@ -262,9 +274,9 @@ def check_preparation(source: ReplaySource, config: LanewardenConfig,
         calibration_named=(f"--calibration '{calibration_path}'" if calibration_path
                            else "the calibration given"))
     if why:
-        text, expected = why
+        text, expected, record_with = why
         raise UsageError(f"{text}; expected {expected}, to {command} it as recorded (record with "
-                         "--record-gray to try others)")
+                         f"{record_with} to try others)")
 
 
 def same_calibration(a: CameraCalibration | None, b: CameraCalibration | None) -> bool:

@@ -297,8 +297,9 @@ class GrayConfig(DocumentModel):
     yellow_boost: Annotated[float, Field(ge=0.0, le=2.0)] = Field(
         default=0.0,
         description=(
-            "b in gray = luma + b x (luma - blue): lifts a yellow line above a wooden floor; "
-            "0 is OpenCV's BGR2GRAY"
+            "b in gray = luma + b x (luma - blue): lifts a yellow line above a wooden floor "
+            "(colour cameras only; try 0.8 and survey with and without it: docs/perception.md, "
+            "'A yellow line'); 0 is OpenCV's BGR2GRAY"
         ),
     )
 

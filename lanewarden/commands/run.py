@@ -53,7 +53,8 @@ MAX_RUN_DURATION_S = 86_400.0
 @click.option("--record-gray", is_flag=True,
               help="Record the camera's own frames (their gray version, lossless PNG) instead of "
               "what perception consumed (gray, undistorted, blurred): about 1.7x the disk; "
-              "replay can then try another blur or calibration.")
+              "replay can then try another blur or calibration (not another perception.gray: "
+              "that needs --record-lossy's colour).")
 @click.option("--record-lossy", is_flag=True,
               help="Record the camera's frames as colour JPEG instead of lossless PNG (about half "
               "the default's disk, for long runs; the replay is then not exact).")

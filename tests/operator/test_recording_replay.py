@@ -359,6 +359,60 @@ def test_another_blur_is_refused_for_prepared_frames_not_for_camera_frames(
                  str(tmp_path / "out2")]) == 0
 
 
+def _yellowed(frames: list[np.ndarray]) -> list[np.ndarray]:
+    """The frames with half their blue taken out: colours the yellow boost reads apart."""
+    out = []
+    for frame in frames:
+        tinted = frame.copy()
+        tinted[:, :, 0] //= 2
+        out.append(tinted)
+    return out
+
+
+def test_a_run_with_the_yellow_boost_recorded_gray_replays_exactly(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--record-gray` keeps perception's gray, the boost's included: the replay reproduces every
+    step. (It kept BGR2GRAY, and the replay of a boosted run diverged at its third step.)"""
+    boosted = config_from_mapping({"perception": {"gray": {"yellow_boost": 0.8}}})
+    folder = tmp_path / "gray"
+    records = record_run(folder, _yellowed(clip[:20]), boosted, image_kind=CAMERA_GRAY)
+    code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert f"reproduced: all {len(records)} steps" in out
+
+
+@pytest.mark.parametrize(("image_kind", "kept"), [(PERCEPTION_INPUT, "perception's input"),
+                                                  (CAMERA_GRAY, "the camera's gray")])
+def test_another_yellow_boost_is_refused_for_gray_frames_not_for_colour_frames(
+        clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        image_kind: str, kept: str) -> None:
+    """Frames recorded gray were made gray with the run's `perception.gray`: another one cannot
+    be applied to them, and replaying or surveying them with it would show the run's gray under
+    the other's name (it did, silently). Colour (JPEG) frames take any."""
+    boost = tmp_path / "boost.yaml"
+    boost.write_text("perception:\n  gray: {yellow_boost: 0.8}\n")
+    gray, colour = tmp_path / "gray", tmp_path / "colour"
+    frames = _yellowed(clip[:12])
+    record_run(gray, frames, LanewardenConfig(), image_kind=image_kind)
+    record_run(colour, frames, LanewardenConfig(), image_kind=CAMERA_JPEG)
+    why = (f"--config '{boost}': perception.gray {{'yellow_boost': 0.8}}, but gray was recorded "
+           f"as {kept}, its colour frames made gray on the run with {{'yellow_boost': 0.0}}; "
+           "expected the recorded perception.gray")
+    hint = "(record with --record-lossy, colour JPEG, to try others)"
+    labels = tmp_path / "labels.csv"
+    labels.write_text("frames,expect\n0-11,lane\n")
+    for command, extra in (("replay", ["--no-video"]), ("survey", ["--labels", str(labels)])):
+        out = tmp_path / f"out-{command}"
+        code = main([command, str(gray), "--config", str(boost), *extra, "--out", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert err == f"lanewarden: error: {why}, to {command} it as recorded {hint}\n"
+        assert not out.exists(), "refused before any output"
+    assert main(["replay", str(colour), "--config", str(boost), "--no-video", "--out",
+                 str(tmp_path / "out-colour")]) == 0
+
+
 def test_survey_refuses_what_replay_refuses_for_prepared_frames(
         clip: list[np.ndarray], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A run folder holds perception's prepared input: surveyed with another blur or another
