@@ -306,22 +306,31 @@ def with_marks(texture: GroundTexture, marks: list[FloorMark],
                          fill_bgr=texture.fill_bgr, gloss=texture.gloss)
 
 
-#: Painted floors kept per process (a campaign worker runs the same world and seed many times).
+#: Painted floors kept per process (a campaign worker runs the same world and seed many times),
+#: counted in gray floors: a colour floor (about four times the bytes, and a transposed copy of
+#: each: 270 MB for `wide-bends` at 2.5 mm) counts as this many, so it is kept alone. Room is
+#: made before a floor is painted, not after: the floors kept while a colour floor was painted
+#: took a campaign worker past its 1 GB limit (seed 4's r00569, r00626 of the twenty-second run).
 TEXTURE_CACHE_SIZE = 2
-_cache: dict[tuple[object, ...], GroundTexture] = {}
+#: (world key, resolution, seed, colour) -> (the painted floor, the gray floors it counts as)
+_cache: dict[tuple[object, ...], tuple[GroundTexture, int]] = {}
 
 
 def paint_ground_cached(world: World, key: object, m_per_px: float, seed: int,
                         color: bool = False) -> GroundTexture:
-    """`paint_ground`, remembered for the last TEXTURE_CACHE_SIZE (world, resolution, seed)
-    combinations. `key` must identify everything of the world that is painted (the caller's
-    scenario floor, tape, lane, lighting and margin). The texture is shared: never modify it
-    (`with_marks` copies)."""
+    """`paint_ground`, remembered for the last (world, resolution, seed) combinations, up to
+    TEXTURE_CACHE_SIZE gray floors (a colour floor fills the cache alone). `key` must identify
+    everything of the world that is painted (the caller's scenario floor, tape, lane, lighting
+    and margin). The texture is shared: never modify it (`with_marks` copies)."""
     full = (key, m_per_px, seed, color)
-    texture = _cache.pop(full, None)
-    if texture is None:
-        texture = paint_ground(world, m_per_px, seed, color=color)
-        while len(_cache) >= TEXTURE_CACHE_SIZE:
+    slots = TEXTURE_CACHE_SIZE if color else 1
+    kept = _cache.pop(full, None)
+    if kept is None:
+        # room first: the floors kept and the one being painted are never more than it holds
+        while _cache and sum(n for _, n in _cache.values()) + slots > TEXTURE_CACHE_SIZE:
             _cache.pop(next(iter(_cache)))
-    _cache[full] = texture
+        texture = paint_ground(world, m_per_px, seed, color=color)
+    else:
+        texture = kept[0]
+    _cache[full] = (texture, slots)
     return texture
