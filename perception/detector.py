@@ -180,16 +180,23 @@ class LaneDetector:
                         size: tuple[int, int] | None = None) -> str:
         """One line saying which ground model this detector uses (`perception.ground.
         ground_model_for`'s words) and what a pixel covers at the look-ahead, for images of
-        `size` (width, height; default: the ground model's own); `detect` and `run` print it once
-        per image size. `source` names the calibration file. Raises PerceptionConfigError as
-        `setup_for` does for a size the config does not work at."""
+        `size` (width, height; default: the ground model's own), and the gray it reads when that
+        is not OpenCV's luma (`perception.gray.yellow_boost`: two surveys with and without it
+        say which is which); `detect` and `run` print it once per image size. `source` names the
+        calibration file. Raises PerceptionConfigError as `setup_for` does for a size the config
+        does not work at."""
         calibration = None if self.undistorter is None else self.undistorter.calibration
         size = self.ground.image_size if size is None else size
         if self._ground_given:
             which = f"the ground model given to the detector ({self.ground.pose.describe()})"
         else:
             _, which = ground_model_for(calibration, size, source)
-        return f"ground model: {which}; {self.setup_for(*size).describe()}"
+        line = f"ground model: {which}; {self.setup_for(*size).describe()}"
+        boost = self.config.gray.yellow_boost
+        if boost > 0.0:
+            line += (f"; gray of colour frames: luma + {boost:g} x (luma - blue) "
+                     "(perception.gray.yellow_boost; a gray frame is read as it is)")
+        return line
 
     def detect(
         self,

@@ -88,6 +88,16 @@ def test_the_detector_reads_a_yellow_line_through_its_configured_gray() -> None:
     assert not np.array_equal(seen, plain.prepare(bgr))
 
 
+def test_the_ground_line_names_a_boosted_gray_and_only_then() -> None:
+    """Two surveys of one floor, with and without the boost, say which is which."""
+    plain = LaneDetector(CONFIG).describe_ground(size=(320, 240))
+    boosted = LaneDetector(PerceptionConfig.model_validate(
+        {"gray": {"yellow_boost": 0.8}})).describe_ground(size=(320, 240))
+    assert "gray" not in plain
+    assert boosted == (plain + "; gray of colour frames: luma + 0.8 x (luma - blue) "
+                       "(perception.gray.yellow_boost; a gray frame is read as it is)")
+
+
 def test_observation_is_frozen_with_immutable_components(detector: LaneDetector) -> None:
     obs = detector.detect(syn.frame(syn.STRAIGHT), 7, 1.25)
     assert (obs.frame_index, obs.time_s) == (7, 1.25)
