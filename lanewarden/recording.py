@@ -338,8 +338,6 @@ class RunRecorder:
         self._lock = threading.Lock()
         self._frames_waiting = 0
         self._preparer: LaneDetector | None = None
-        #: the gray CAMERA_GRAY keeps is perception's (`perception.gray.yellow_boost`)
-        self._yellow_boost = 0.0
         path = folder / RUN_MCAP
         try:
             self._file = path.open("xb")
@@ -356,7 +354,6 @@ class RunRecorder:
         the first frame."""
         self._preparer = LaneDetector(detector.config, detector.undistorter,
                                       ground=detector.ground)
-        self._yellow_boost = detector.config.gray.yellow_boost
 
     @property
     def problem(self) -> str | None:
@@ -496,8 +493,9 @@ class RunRecorder:
             ok, encoded = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             return (encoded.tobytes() if ok else b""), JPEG_FORMAT
         if self.image_kind == CAMERA_GRAY:
-            return (gray_png(perception_gray(image, yellow_boost=self._yellow_boost), FILTER_SUB),
-                    PNG_FORMAT)
+            # perception's gray: the run's `perception.gray`, from the detector it prepares with
+            boost = 0.0 if self._preparer is None else self._preparer.config.gray.yellow_boost
+            return gray_png(perception_gray(image, yellow_boost=boost), FILTER_SUB), PNG_FORMAT
         return gray_png(image, FILTER_UP), PNG_FORMAT
 
     def _write_frame(self, frame: Frame, logged_at: float) -> dict[str, Any]:
