@@ -151,15 +151,21 @@ def real_sets(footage: Path) -> Iterator[RealSet]:
                       judged.get("tapes", "light"), folder / "calibration.yaml")
 
 
+#: Perception alone is judged here: no robot has to fit in the lane (a lane narrower than twice
+#: the departure clearance is refused otherwise, and the narrowest lanes below are meant).
+_NO_ROBOT = {"supervisor": {"lane_departure_clearance_m": 0.0}}
+
+
 def _perception(overrides: dict[str, Any], narrow: bool, source: str) -> PerceptionConfig:
-    config = config_from_mapping({"perception": overrides}, source).perception
+    config = config_from_mapping({"perception": overrides, **_NO_ROBOT}, source).perception
     if not narrow:
         return config
     # the narrowest the tape allows, or, for a thin tape, just above the field's own bound
     above = next(m.gt for m in LaneConfig.model_fields["width_m"].metadata if hasattr(m, "gt"))
     lane = {**overrides.get("lane", {}), "width_m": max(narrowest_lane_width_m(
         config.tape, config.lane.width_tolerance_fraction), round(above + 0.001, 3))}
-    return config_from_mapping({"perception": {**overrides, "lane": lane}}, source).perception
+    return config_from_mapping({"perception": {**overrides, "lane": lane}, **_NO_ROBOT},
+                               source).perception
 
 
 def edge_on_light_tape(gray: np.ndarray, edge: LaneEdge, side: str, light: bool) -> bool:

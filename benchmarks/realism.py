@@ -112,8 +112,8 @@ def jetbot(real: list[np.ndarray], frames: int,
     from lanewarden.scenarios.realism import JETBOT_SETS, rendered_jetbot_like, sequence_stats
 
     described = yaml.safe_load((JETBOT / "camera.yaml").read_text())
-    perception = config_from_mapping({"perception": described["perception"]},
-                                     str(JETBOT / "camera.yaml")).perception
+    # (the whole description: its supervisor section says the robot fits in this lane)
+    perception = config_from_mapping(described, str(JETBOT / "camera.yaml")).perception
     confident_min = LanewardenConfig().supervisor.confidence_confident_min
     detector = LaneDetector(perception, Undistorter(load_calibration(JETBOT / "calibration.yaml")))
     stats = sequence_stats(detector, real, [i / 20.0 for i in range(len(real))], confident_min,

@@ -26,6 +26,7 @@ from lanewarden.documents import (
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.edge_choice import free_width_m
 from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
 from lanewarden.supervisor.config import SupervisorConfig
@@ -48,7 +49,7 @@ class LanewardenConfig(DocumentModel):
         """A quantity that two sections both need lives in one of them, or is checked here: each
         conflict is one error, located at one key and naming the other."""
         sup, act = self.supervisor, self.actuation
-        conflicts: list[tuple[tuple[str, str], object, str]] = []
+        conflicts: list[tuple[tuple[str, ...], object, str]] = []
         for sup_key, act_key, unit, what in (
             ("limiter_max_linear_m_s", "max_linear_m_s", "m/s", "the base's own limit"),
             ("limiter_max_angular_rad_s", "max_angular_rad_s", "rad/s", "the base's own limit"),
@@ -67,6 +68,16 @@ class LanewardenConfig(DocumentModel):
                               f"must be 1 / simulation.camera_rate_hz ({rate_hz:g} Hz, "
                               f"{1.0 / rate_hz:.6g} s): the simulated camera is the "
                               "robot's"))  # fmt: skip
+        free, clearance = free_width_m(self.perception), sup.lane_departure_clearance_m
+        if free < 2.0 * clearance:
+            conflicts.append((("perception", "lane", "width_m"), self.perception.lane.width_m,
+                              f"leaves {free:.3g} m between the tapes' inner edges, less than "
+                              f"twice supervisor.lane_departure_clearance_m ({clearance:g} m: "
+                              "the robot's half-width and a margin): centred in this lane the "
+                              "robot would already be leaving it, and every frame would halt "
+                              "it; expected the lane's true width (a Kobuki needs its tapes' "
+                              "inner edges 0.39 m apart or more), or a smaller clearance for a "
+                              "narrower robot"))  # fmt: skip
         clamp = self.perception.edges.max_abs_slope
         if 2.0 * clamp <= sup.turn_enter_slope_sum:
             conflicts.append((("supervisor", "turn_enter_slope_sum"), sup.turn_enter_slope_sum,

@@ -296,6 +296,10 @@ def _not_a_number(value: Any, options: Sequence[Any]) -> str:
     if isinstance(value, bool):
         return "true/false"
     if isinstance(value, str) and not any(_takes_text(o) for o in options):
+        try:
+            float(value)
+        except ValueError:  # not a number in quotes: a typo (`0.0l9`), say no more than text
+            return "text"
         return "text (write the number without quotes)"
     return ""
 
@@ -402,6 +406,10 @@ def describe_validation_error(
         kind, allowed = _number_kind(field), allowed_range(field)
         if kind is not None and allowed:
             message = f"expected {kind} with {allowed}"
+    if err["type"] == "value_error" and isinstance(err.get("input"), Mapping):
+        # a section's own check of several of its keys: the message names them ("perception:
+        # edges.look_ahead_m (5) must lie within ..."), "= a mapping" would say nothing
+        return f"{source}: {key}: {message}"
     return f"{source}: {key} = {shown}: {message}"
 
 

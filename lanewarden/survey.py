@@ -583,7 +583,7 @@ def _result_json(result: FrameResult) -> dict[str, Any]:
     if result.engaged_after_s is not None:
         out["engaged_after_s"] = round(result.engaged_after_s, 4)
     if result.not_engaged is not None:
-        out["not_engaged_because"] = result.not_engaged
+        out["not_engaged_because"] = not_engaged_words(result.not_engaged)  # as printed
     if result.shifted is not None:
         out["shifted"] = {"versions": result.shifted.versions,
                           "decisions": len(result.shifted.decided),
@@ -621,7 +621,7 @@ def _engage_json(engage: EngageFigures | None) -> dict[str, Any] | None:
         "times_s": [round(t, 4) for t in engage.times_s],
     }
     if engage.how == "held":
-        figures["not_engaged"] = {key: n for key, n in engage.not_engaged}
+        figures["not_engaged"] = {not_engaged_words(key): n for key, n in engage.not_engaged}
     if engage.how == "sequence":  # a sequence's own figures (stills had shown 0s and null)
         figures.update(first_engaged=engage.first_engaged,
                        engaged_lane_frames=engage.engaged_lane_frames,

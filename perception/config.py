@@ -233,13 +233,19 @@ class EdgesConfig(DocumentModel):
     @field_validator("look_ahead_m", mode="wrap")
     @classmethod
     def _distance_or_auto(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
-        """One message for both kinds of value (not one per branch of the union)."""
+        """One message for both kinds of value (not one per branch of the union); a number in
+        quotes is text, refused as every other number in quotes is (the union took "0.40")."""
+        expected = "expected a distance in metres above 0 and at most 10, or auto"
+        if isinstance(value, str) and value != "auto":
+            try:
+                float(value)
+            except ValueError:
+                raise ValueError(expected) from None
+            raise ValueError(f"{expected}; not text (write the number without quotes)")
         try:
             return handler(value)
         except ValidationError:
-            raise ValueError(
-                "expected a distance in metres above 0 and at most 10, or auto"
-            ) from None
+            raise ValueError(expected) from None
 
     max_abs_slope: Annotated[float, Field(gt=1.0, le=1000.0)] = Field(
         default=12.0,

@@ -252,9 +252,8 @@ def _look_ahead(view: FloorView, near: float, far: float, config: PerceptionConf
                       " (the camera sees no floor there)")
             raise PerceptionConfigError(
                 f"perception.edges.look_ahead_m = auto: at {width}x{height} no distance in view "
-                f"({near:.2f} m on) tells the {_tapes_text(config)} from seams up to "
-                f"{1000 * config.tape.seam_width_m:g} mm{covers}; expected a higher "
-                "resolution, a narrower lens, a lower camera or a wider tape")
+                f"({_from_text(near)}) tells the {_tapes_text(config)} from seams up to "
+                f"{1000 * config.tape.seam_width_m:g} mm{covers}; expected {_REMEDIES}")
         return best, True
     if not _in_view(view, chosen, height):
         raise PerceptionConfigError(
@@ -293,14 +292,28 @@ def _unresolvable(hyp: WidthHypotheses, look_ahead: float, near_m: float,
         f"tell the {_tapes_text(config)} from seams up to {1000 * config.tape.seam_width_m:g} mm "
         f"(with a pixel of measuring error either way a tape may measure as little as "
         f"{1000 * hyp.tape_min_m:.1f} mm there and a seam as much as "
-        f"{1000 * hyp.seam_max_m:.1f} mm)"
+        f"{1000 * hyp.seam_max_m:.1f} mm: to be told apart they must differ by more than that "
+        f"error, {1000 * hyp.error_m:.1f} mm)"
     )
     if best is None:
-        return (f"{why}; no distance in view ({near_m:.2f} m on) resolves them: expected a "
-                "higher resolution, a narrower lens, a lower camera or a wider tape")
+        return (f"{why}; no distance in view ({_from_text(near_m)}) resolves them: expected "
+                f"{_REMEDIES}")
     return (f"{why}; expected a look-ahead of {best:.2f} m or less for this camera (set "
             f"perception.edges.look_ahead_m: {best:.2f} or auto in a --config file, or use a "
             "higher resolution)")
+
+
+#: What makes a camera tell tape from seam where the lane's tapes run: finer pixels there (the
+#: first three), a wider tape, or tapes nearer the middle of the view (a narrower lane).
+_REMEDIES = ("a higher resolution, a narrower lens, a lower camera, a wider tape or, if the lane "
+             "is in fact narrower, its true width (perception.lane.width_m: the tapes nearer the "
+             "middle of the view)")
+
+
+def _from_text(near_m: float) -> str:
+    """Where the floor in view begins, for a refusal ("0.36 m on"; from the robot's centre when
+    the camera sees the floor under it)."""
+    return f"{near_m:.2f} m on" if near_m > 0.0 else "from the robot's centre on"
 
 
 def _range_text(near: float, far: float) -> str:

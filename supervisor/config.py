@@ -140,7 +140,8 @@ class SupervisorConfig(DocumentModel):
         description="A usable frame whose lane edge passes the robot's centre nearer than this "
         "(read square to the edge, half-way to where it is seen nearest), or beyond it, shows "
         "the robot leaving the lane, m. 0.195: the Kobuki's footprint radius 0.175 and 0.02 "
-        "to stop in (3 frames and the brakes, closing on a tape at 25 degrees)",
+        "to stop in (3 frames and the brakes, closing on a tape at 25 degrees). A lane whose "
+        "tapes' inner edges lie less than twice this apart is refused (the robot does not fit)",
     )
     lane_departure_view_m: float = Field(
         default=0.4,

@@ -60,7 +60,9 @@ def test_every_numeric_key_refuses_true_false_and_quoted_numbers(path: tuple[str
     """YAML's `true`/`yes`/`on` and a quoted "0.5" are not numbers: pydantic would read them as
     1 and 0.5 (`engage_confident_frames: yes` engaging on one frame), the tool refuses them."""
     for value, why in ((True, "true/false"), (False, "true/false"),
-                       ("1", "text (write the number without quotes)")):
+                       ("1", "text (write the number without quotes)"),
+                       # a typo is text, but no number in quotes: no advice about quotes
+                       ("0.0l9", "text")):
         lines = refusal(path, value).splitlines()
         assert len(lines) == 1, (value, lines)
         assert lines[0].startswith(f"cfg.yaml: {'.'.join(path)} = "), lines[0]
@@ -164,9 +166,9 @@ def test_a_number_in_exponent_form_is_a_number(tmp_path: Path) -> None:
     """YAML 1.1 reads `2e-2` (no dot) and `1.0e9` (no sign) as text: the survey's config said
     "... = '2e-2': ... not text (write the number without quotes)" of a number without quotes."""
     path = tmp_path / "exp.yaml"
-    path.write_text("perception: {tape: {width_m: 2e-2}, lane: {width_m: 3E-1}}\n")
+    path.write_text("perception: {tape: {width_m: 2e-2}, lane: {width_m: 5E-1}}\n")
     config = load_config(path)
-    assert (config.perception.tape.width_m, config.perception.lane.width_m) == (0.02, 0.3)
+    assert (config.perception.tape.width_m, config.perception.lane.width_m) == (0.02, 0.5)
     path.write_text("supervisor: {camera_period_s: 1.0e9}\n")
     with pytest.raises(ConfigError) as err:
         load_config(path)
@@ -221,3 +223,33 @@ def test_cli_numbers_are_finite_and_bounded(argv: list[str], flag: str,
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"'{flag}'" in err[0], err
+
+
+def test_a_quoted_look_ahead_is_text_as_every_quoted_number_is(tmp_path: Path) -> None:
+    """`look_ahead_m: "0.40"` was accepted (the union of a distance and `auto` took the text
+    for a number) where `width_m: "0.048"` is refused; a misspelt auto is not called a number."""
+    path = tmp_path / "quoted.yaml"
+    path.write_text('perception: {edges: {look_ahead_m: "0.40"}}\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (f"{path}: perception.edges.look_ahead_m = '0.40': expected a "
+                              "distance in metres above 0 and at most 10, or auto; not text "
+                              "(write the number without quotes)")
+    path.write_text("perception: {edges: {look_ahead_m: aut}}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (f"{path}: perception.edges.look_ahead_m = 'aut': expected a "
+                              "distance in metres above 0 and at most 10, or auto")
+    path.write_text("perception: {edges: {look_ahead_m: 0.40}}\n")
+    assert load_config(path).perception.edges.look_ahead_m == 0.4
+
+
+def test_a_sections_own_check_names_the_section_and_its_keys(tmp_path: Path) -> None:
+    """A check across a section's keys had read "perception = a mapping: edges.look_ahead_m
+    ..." (the section's whole value shown as "a mapping")."""
+    path = tmp_path / "far.yaml"
+    path.write_text("perception: {edges: {look_ahead_m: 5}}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (f"{path}: perception: edges.look_ahead_m (5) must lie within the "
+                              "region of interest, roi.near_m (0) to roi.far_m (1.6)")

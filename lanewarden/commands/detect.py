@@ -153,21 +153,34 @@ def detect_command(
 
     failures: list[str] = []
     unwritten: list[str] = []
+    # A config this camera cannot work with at an image size is said once for that size, with
+    # how many images it kept from being analysed (not once per image).
+    refused: dict[tuple[int, int], tuple[str, list[Path]]] = {}
     for index, name in enumerate(images):
         path = Path(name)
         image, why = read_image(path, max_pixels=config.max_image_pixels)
         if image is None:
             failures.append(f"{path}: {why}")
             continue
+        size = (image.shape[1], image.shape[0])
+        if undistorter is not None and size != undistorter.calibration.image_size:
+            failures.append(f"{path}: image is {size[0]}x{size[1]}, but --calibration "
+                            f"{calibration_path} is for "
+                            f"{'x'.join(map(str, undistorter.calibration.image_size))} images")
+            continue
+        if size in refused:
+            refused[size][1].append(path)
+            continue
         try:
-            # with a calibration every image must have its size (else the error says so)
-            describe(undistorter.calibration.image_size if undistorter is not None
-                     else (image.shape[1], image.shape[0]))
+            describe(size)
             observation, debug = (
                 (detector.detect(image, index, 0.0), None)
                 if out is None
                 else detector.detect_debug(image, index, 0.0)
             )
+        except PerceptionConfigError as exc:
+            refused[size] = (str(exc), [path])
+            continue
         except PerceptionError as exc:
             failures.append(f"{path}: {exc}")
             continue
@@ -181,11 +194,15 @@ def detect_command(
             overlay = draw_overlay(debug.image, observation, debug, decision)
             if not cv2.imwrite(str(target), overlay):
                 unwritten.append(f"{target}: cannot write image")
+    failed = len(failures) + sum(len(paths) for _, paths in refused.values())
+    failures += [f"{paths[0]}" + (f" and {len(paths) - 1} more {w}x{h} image"
+                                  f"{'s' if len(paths) > 2 else ''}" if len(paths) > 1 else "")
+                 + f": {why}" for (w, h), (why, paths) in refused.items()]
     if unwritten:  # a runtime failure (exit 1) outranks bad input files
         raise OutputError("; ".join([*unwritten, *failures]))
     if failures:
         raise InputFileError(
-            f"{len(failures)} of {len(images)} images not analysed: {'; '.join(failures)}"
+            f"{failed} of {len(images)} images not analysed: {'; '.join(failures)}"
         )
 
 

@@ -147,7 +147,11 @@ def test_one_line_is_never_a_lane_however_narrow_the_lane_configured(
     tape = config_from_mapping({"perception": described}, "tub").perception.tape
     narrow = {**described, "lane": {"width_m": narrowest_lane_width_m(tape, 0.15)}}
     assert narrow["lane"]["width_m"] == 0.154
-    config = config_from_mapping({"perception": narrow}, "narrow").perception
+    # (with a robot that fits in it: a lane narrower than twice the departure clearance is
+    # refused)
+    config = config_from_mapping({"perception": narrow,
+                                  "supervisor": {"lane_departure_clearance_m": 0.05}},
+                                 "narrow").perception
     calibration = load_calibration(HERE / "donkeycar_calibration.yaml")
     ground, _ = ground_model_for(calibration, (160, 120))
     detector = LaneDetector(config, ground=ground)

@@ -457,7 +457,8 @@ def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
          "at 160x120 one pixel covers 8.5 mm of floor across the tape there, too coarse to tell "
          "the 48 mm tape (tape.width_m) from seams up to 24 mm (with a pixel of measuring error "
          "either way a tape may measure as little as 32.3 mm there and a seam as much as 50.9 "
-         "mm); expected a look-ahead of 0.47 m or less for this camera (set "
+         "mm: to be told apart they must differ by more than that error, 8.5 mm); expected a "
+         "look-ahead of 0.47 m or less for this camera (set "
          "perception.edges.look_ahead_m: 0.47 or auto in a --config file, or use a higher "
          "resolution)", 0.47),
         # the same with no look-ahead set (auto) at 160x120 works (0.47 m, see below); a 19 mm
@@ -466,11 +467,13 @@ def test_the_default_camera_resolves_the_tape_at_the_look_ahead() -> None:
          "perception.edges.look_ahead_m = auto: at 160x120 no distance in view (0.36 m on) "
          "tells the 19 mm tape (tape.width_m) from seams up to 9.5 mm (one pixel covers at least "
          "4.1 mm of floor across the tape); expected a higher resolution, a narrower lens, a "
-         "lower camera or a wider tape", None),
+         "lower camera, a wider tape or, if the lane is in fact narrower, its true width "
+         "(perception.lane.width_m: the tapes nearer the middle of the view)", None),
         # a 19 mm tape at 160x120: nowhere in view
         ((160, 120), {"tape": {"width_m": 0.019}, "edges": {"look_ahead_m": 0.45}},
          "no distance in view (0.36 m on) resolves them: expected a higher resolution, a "
-         "narrower lens, a lower camera or a wider tape", None),
+         "narrower lens, a lower camera, a wider tape or, if the lane is in fact narrower, its "
+         "true width (perception.lane.width_m: the tapes nearer the middle of the view)", None),
         # closer than the image's bottom row (0.36 m ahead): the advice is what auto would pick
         ((640, 480), {"edges": {"look_ahead_m": 0.2}}, "perception.edges.look_ahead_m = 0.2: "
          "outside the camera's view at 640x480; expected a distance within the floor the "

@@ -95,6 +95,28 @@ def test_sections_that_disagree_are_refused_one_line_per_conflict(tmp_path: Path
     ]
 
 
+def test_a_lane_the_robot_does_not_fit_in_is_refused(tmp_path: Path) -> None:
+    """19 mm tapes 0.3 m apart (the README's survey example once): 0.281 m between the tapes'
+    inner edges, where a Kobuki centred in the lane is 0.195 m from each (its footprint and a
+    margin, the departure clearance): every frame would halt it. A narrower robot's clearance
+    fits it; 0.5 m apart fits a Kobuki."""
+    path = tmp_path / "robot.yaml"
+    path.write_text("perception:\n  tape: {width_m: 0.019}\n  lane: {width_m: 0.3}\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value) == (
+        f"{path}: perception.lane.width_m = 0.3: leaves 0.281 m between the tapes' inner edges, "
+        "less than twice supervisor.lane_departure_clearance_m (0.195 m: the robot's half-width "
+        "and a margin): centred in this lane the robot would already be leaving it, and every "
+        "frame would halt it; expected the lane's true width (a Kobuki needs its tapes' inner "
+        "edges 0.39 m apart or more), or a smaller clearance for a narrower robot")
+    path.write_text("perception:\n  tape: {width_m: 0.019}\n  lane: {width_m: 0.3}\n"
+                    "supervisor: {lane_departure_clearance_m: 0.14}\n")
+    assert load_config(path).perception.lane.width_m == 0.3
+    path.write_text("perception:\n  tape: {width_m: 0.019}\n  lane: {width_m: 0.5}\n")
+    assert load_config(path).perception.lane.width_m == 0.5
+
+
 def test_agreeing_sections_load_and_the_shared_quantities_have_one_home(tmp_path: Path) -> None:
     path = tmp_path / "ok.yaml"
     path.write_text("supervisor:\n  camera_period_s: 0.05\nsimulation:\n  camera_rate_hz: 20\n")

@@ -3,6 +3,7 @@ written out by hand (no image, no detector). Expected answers are literals."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from types import FrameType
@@ -16,6 +17,8 @@ from lanewarden.survey import (
     EngageFigures,
     FrameResult,
     LabelledFrame,
+    _engage_json,
+    _result_json,
     class_figures,
     class_line,
     component_figures,
@@ -173,6 +176,12 @@ def test_stills_not_engaged_are_counted_by_the_supervisors_reason() -> None:
     assert engage_line(engage) == (
         "supervisor: engages on 1 of 6 lane stills held in view for 1.0 s after a start (after "
         "0.30 s at the most); not on 5 (3: no confident lane long enough; 2: LANE_DEPARTURE)")
+    # survey.json says it in the same words (it said "not engaged yet", the supervisor's)
+    assert _engage_json(engage)["not_engaged"] == {"no confident lane long enough": 3,
+                                                   "LANE_DEPARTURE": 2}
+    held = dataclasses.replace(result("frame 1", "lane", 1, "straight", 0.9, True),
+                               engaged=False, not_engaged=reasons[1])
+    assert _result_json(held)["not_engaged_because"] == "no confident lane long enough"
 
 
 def test_a_decision_on_a_no_lane_frame_makes_it_not_safe_and_names_the_frames() -> None:

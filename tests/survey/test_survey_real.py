@@ -202,8 +202,12 @@ def test_the_narrowest_lane_on_the_jetbot_frames(
     usable decision: its one tape, at 59.6 degrees, paired with a 15-pixel edge at the image's
     left border (docs/perception.md)."""
     narrow = tmp_path / "narrow.yaml"
+    # (and a robot that fits in it: the config refuses a lane narrower than twice the departure
+    # clearance, here 0.082 m between the tapes' inner edges)
     narrow.write_text((JETBOT / "camera.yaml").read_text(encoding="utf-8").replace(
-        "lane: {width_m: 0.19}", "lane: {width_m: 0.101}"), encoding="utf-8")
+        "lane: {width_m: 0.19}", "lane: {width_m: 0.101}").replace(
+        "lane_departure_clearance_m: 0.05", "lane_departure_clearance_m: 0.04"),
+        encoding="utf-8")
     code, out = _survey_jetbot(tmp_path, capsys, narrow)
     assert code == 0, out
     assert "no-lane: 17 frames, 0 with a decision (0%), 0 confident, 0 false lanes" in out
