@@ -543,3 +543,12 @@ def test_an_advised_look_ahead_is_never_refused(height_m: float, tape_m: float) 
         config = PerceptionConfig.model_validate(
             {"tape": {"width_m": tape_m}, "edges": {"look_ahead_m": advised}})
         assert LaneDetector(config, ground=ground).setup_for(320, 240).look_ahead_m == advised
+
+
+def test_a_floor_in_view_from_behind_the_robots_centre_is_not_a_negative_distance() -> None:
+    """A low camera steeply down sees the floor from just behind the robot's centre: the
+    refusal had read 'no distance in view (-0.01 m on)'."""
+    from lanewarden.perception.size_setup import _from_text
+
+    assert _from_text(0.36) == "0.36 m on"
+    assert _from_text(-0.01) == _from_text(0.0) == "from the robot's centre on"
