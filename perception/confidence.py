@@ -101,7 +101,7 @@ class EdgeEvidence:
     line_ids: frozenset[int] = frozenset()
 
 
-def _ramp(deviation: float, tolerance: float) -> float:
+def ramp(deviation: float, tolerance: float) -> float:
     """1 for |deviation| <= tolerance, linear down to 0 at twice the tolerance."""
     if not math.isfinite(deviation):
         return 0.0
@@ -149,8 +149,8 @@ def lane_components(
         left_of = (right.direction[0] * (left.point[1] - right.point[1])
                    - right.direction[1] * (left.point[0] - right.point[0]))
         if left_of > 0.0:
-            comps["lane_width"] = _ramp(gap - expected, config.lane.width_tolerance_m)
-        comps["parallel"] = _ramp(floor_angle_deg(left.direction, right.direction),
+            comps["lane_width"] = ramp(gap - expected, config.lane.width_tolerance_m)
+        comps["parallel"] = ramp(floor_angle_deg(left.direction, right.direction),
                                   config.lane.parallel_tolerance_deg)
     return comps
 
@@ -216,7 +216,7 @@ def _agreement(left: LaneEdge | None, right: LaneEdge | None, previous: LaneObse
         turn = floor_angle_deg(da, db)
         score = min(
             score,
-            _ramp(shift, cc.consistency_offset_tol_m) * _ramp(turn, cc.consistency_angle_tol_deg),
+            ramp(shift, cc.consistency_offset_tol_m) * ramp(turn, cc.consistency_angle_tol_deg),
         )
     return score
 

@@ -15,7 +15,8 @@ line does, leaning "/" or at most `max_past_vertical_deg` past vertical; right: 
    line per edge, see `perception.lines`).
 2. Which tapes: by closeness to the tape's width and to the lane's position, not by length. With
    tapes on both sides, the pair of tapes of the same kind (both dark or both light) whose inner
-   edges lie `lane.width_m - tape.width_m` apart on the floor wins (`lane_fit`), then the best
+   edges lie `lane.width_m - tape.width_m` apart on the floor and run parallel wins
+   (`lane_fit`), then the best
    width scores (1 within the tape's tolerance), then the nearest measurement (best resolved,
    and where a bending tape's chain starts), then the widths closest to the tape's.
 3. Single edges, on a side without a verified tape. A line without a verified partner (Hough
@@ -64,6 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.perception.confidence import floor_angle_deg, ramp
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
@@ -361,14 +363,20 @@ def verified_tapes(
 
 
 def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig) -> float:
-    """How well two tapes' inner edges match the lane's width on the floor: 1 within
-    `lane.width_tolerance_m` of the free width (`free_width_m`), 0 at twice it."""
+    """How well two tapes' inner edges make a lane on the floor: their distance (from where the
+    left one was measured to the right one's line) against the free width (`free_width_m`): 1
+    within `lane.width_tolerance_m` of it, 0 at twice; times how parallel they run, as the
+    `parallel` confidence component scores it (1 within `lane.parallel_tolerance_deg`, 0 at
+    twice). A lane's two tapes run parallel: a slat or strip across the lane can lie the
+    lane's width from the other tape where it is measured, never along it."""
     r_near = (right.inner.near_fx, right.inner.near_fy)
     r_dir = direction(r_near, (right.inner.far_fx, right.inner.far_fy))
+    l_dir = direction((left.inner.near_fx, left.inner.near_fy),
+                      (left.inner.far_fx, left.inner.far_fy))
     gap = distance_to_line(left.at, r_near, r_dir)
-    expected = free_width_m(config)
-    tol = config.lane.width_tolerance_m
-    return min(1.0, max(0.0, 2.0 - abs(gap - expected) / tol))
+    lane = config.lane
+    return (ramp(gap - free_width_m(config), lane.width_tolerance_m)
+            * ramp(floor_angle_deg(l_dir, r_dir), lane.parallel_tolerance_deg))
 
 
 def free_width_m(config: PerceptionConfig) -> float:
@@ -386,7 +394,8 @@ def pick_tapes(
 ) -> tuple[TapeCandidate | None, TapeCandidate | None]:
     """One tape per side among those `accept` takes (the band check, asked only of the tapes
     that would be chosen): with tapes on both sides, the pair of the same kind (dark or light)
-    that best fits the lane's width, then the best width scores, then the nearest; otherwise
+    that best fits the lane (`lane_fit`: its width, parallel edges), then the best width scores,
+    then the nearest; otherwise
     each side's best (`TapeCandidate.rank`)."""
     left_ranks = [t.rank() for t in left]
     right_ranks = [t.rank() for t in right]

@@ -412,6 +412,43 @@ def test_tapes_are_paired_by_the_lane_width() -> None:
     assert pick_tapes([too_far, lane], [right], wide)[0] is too_far
 
 
+def _slanted_tape(near: tuple[float, float], angle_deg: float, length_m: float = 0.5,
+                  width_m: float = 0.048) -> TapeCandidate:
+    """A dark left tape whose inner edge starts at `near` on the floor and runs `angle_deg`
+    towards the lane's centre (to the right), `width_m` wide across its own direction."""
+    a = math.radians(angle_deg)
+    d, n = (math.cos(a), -math.sin(a)), (math.sin(a), math.cos(a))  # along, and out (left)
+    far = (near[0] + length_m * d[0], near[1] + length_m * d[1])
+    out = (width_m * n[0], width_m * n[1])
+    measured = measure_pair(floor_line(near, far, 1.0),
+                            floor_line((near[0] + out[0], near[1] + out[1]),
+                                       (far[0] + out[0], far[1] + out[1]), -1.0),
+                            "left", VIEW, CONFIG)
+    assert measured is not None
+    inner, outer, score, width_m, at = measured
+    return TapeCandidate(inner, outer, score, width_m, True, at, tape_width_m=CONFIG.tape.width_m)
+
+
+def test_the_lanes_tapes_run_parallel() -> None:
+    """Light tape on parquet (campaign runs r00377 and r00671 of seed 4, s-curve at 320x240):
+    on the left a strip between slats verifies as a tape 25 degrees across the lane, and where
+    it is measured, nearer than the lane's own left tape, it lies exactly the lane's width from
+    the right tape. Two tapes of one lane run parallel: the lane's own left tape is taken (the
+    strip gave every other frame a lane refused as not parallel, and the robot halted
+    LANE_LOST on a good lane)."""
+    lane, strip = _tape(0.276, 0.324), _slanted_tape((0.45, 0.276), 25.0)
+    right = _tape(-0.276, -0.324)
+    assert strip.score == lane.score == 1.0
+    assert strip.at[0] < lane.at[0]  # measured nearer: the tie-break would take it
+    # ...and lies the lane's free width (0.60 - 0.048 m) from the right tape's inner edge there,
+    # well within the tolerance (0.09 m)
+    assert strip.at[1] - right.at[1] == pytest.approx(0.552, abs=0.025)
+    assert pick_tapes([strip, lane], [right], CONFIG) == (lane, right)
+    # Within the parallel tolerance (12 degrees) a bending tape is still a lane's tape.
+    bending = _slanted_tape((0.45, 0.276), 8.0)
+    assert pick_tapes([bending, lane], [right], CONFIG) == (bending, right)
+
+
 def test_both_tapes_are_the_same_kind() -> None:
     """A light 'tape' (a floor strip between two dark lines) 48 mm wide where the lane's tape
     belongs, and a dark band 34 mm wide 5 cm off (width score 0.63); the right tape is dark: the

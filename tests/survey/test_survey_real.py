@@ -148,9 +148,10 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     short sliver at the frame's edge, through the real CLI (CI runs it): SAFE (exit 0), no
     decision on any no-lane frame. Until the `heading` gate it was NOT SAFE: a tape in front at
     48.6 degrees paired with a sliver of the other line at the border gave "straight" at 0.39
-    (docs/perception.md). How useful: floors under today's figures (216 of the 338 lane frames
-    with a decision, 207 confident, with `tape.kind: dark` as camera.yaml says; the supervisor
-    engages on 137 of them, 139 before usable frames counted towards a departure; 213 and 204
+    (docs/perception.md). How useful: floors under today's figures (215 of the 338 lane frames
+    with a decision, 206 confident, with `tape.kind: dark` as camera.yaml says; the supervisor
+    engages on 136 of them; 216, 207 and 137 before the joint choice wanted parallel tapes,
+    139 engaged before usable frames counted towards a departure; 213 and 204
     without the kind; before one floor could be shaded, `tape_rules.FLOOR_SHADE`, 139, 136 and
     101)."""
     code, out = _survey_jetbot(tmp_path, capsys, JETBOT / "camera.yaml")
