@@ -26,7 +26,6 @@ from lanewarden.documents import (
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.edge_choice import free_width_m
 from lanewarden.scenarios.campaign.config import CampaignConfig
 from lanewarden.scenarios.config import SimulationConfig
 from lanewarden.supervisor.config import SupervisorConfig
@@ -68,7 +67,7 @@ class LanewardenConfig(DocumentModel):
                               f"must be 1 / simulation.camera_rate_hz ({rate_hz:g} Hz, "
                               f"{1.0 / rate_hz:.6g} s): the simulated camera is the "
                               "robot's"))  # fmt: skip
-        free, clearance = free_width_m(self.perception), sup.lane_departure_clearance_m
+        free, clearance = self.perception.free_width_m, sup.lane_departure_clearance_m
         if free < 2.0 * clearance:
             conflicts.append((("perception", "lane", "width_m"), self.perception.lane.width_m,
                               f"leaves {free:.3g} m between the tapes' inner edges, less than "

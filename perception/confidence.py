@@ -142,9 +142,7 @@ def lane_components(
         comps["heading"] = 1.0 if heading_deg <= config.lane.max_heading_deg else 0.0
         gap = 0.5 * (distance_to_line(left.point, right.point, right.direction)
                      + distance_to_line(right.point, left.point, left.direction))
-        tape = config.tape
-        expected = config.lane.width_m - 0.5 * (tape.side_width_m("left")
-                                                + tape.side_width_m("right"))
+        expected = config.free_width_m
         # The left edge must lie left of the right one (a crossed pair is no lane).
         left_of = (right.direction[0] * (left.point[1] - right.point[1])
                    - right.direction[1] * (left.point[0] - right.point[0]))

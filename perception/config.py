@@ -407,6 +407,12 @@ class PerceptionConfig(DocumentModel):
         ),
     )
 
+    @property
+    def free_width_m(self) -> float:
+        """The floor between the two tapes' inner edges the lane should show: `lane.width_m`
+        (centre to centre) less half of each side's tape."""
+        return self.lane.width_m - self.tape.mean_width_m
+
     @model_validator(mode="after")
     def _look_ahead_inside_roi(self) -> Self:
         roi = self.roi
@@ -429,9 +435,8 @@ class PerceptionConfig(DocumentModel):
         lane, tape = self.lane, self.tape
         minimum = narrowest_lane_width_m(tape, lane.width_tolerance_fraction)
         if lane.width_m < minimum:
-            mean_tape = 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
             tape_max = tape.widest_width_m * (1.0 + tape.width_tolerance_fraction)
-            narrowest_gap = lane.width_m - mean_tape - 2.0 * lane.width_tolerance_m
+            narrowest_gap = self.free_width_m - 2.0 * lane.width_tolerance_m
             raise ValueError(
                 f"lane.width_m ({lane.width_m:g}) is too narrow for "
                 f"{1000 * tape.widest_width_m:g} mm tape: with lane.width_tolerance_fraction "
@@ -448,7 +453,6 @@ def narrowest_lane_width_m(tape: TapeConfig, width_tolerance_fraction: float) ->
     next whole millimetre above the width at which the narrowest gap `lane_width` still scores
     (the free width less twice the tolerance) equals the widest tape as it may measure (its
     width plus its tolerance). Narrower, one tape's own two edges could score as the lane."""
-    mean_tape = 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
     tape_max = tape.widest_width_m * (1.0 + tape.width_tolerance_fraction)
-    minimum = (mean_tape + tape_max) / (1.0 - 2.0 * width_tolerance_fraction)
+    minimum = (tape.mean_width_m + tape_max) / (1.0 - 2.0 * width_tolerance_fraction)
     return (math.floor(minimum * 1000.0) + 1) / 1000.0

@@ -364,26 +364,20 @@ def verified_tapes(
 
 def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig) -> float:
     """How well two tapes' inner edges make a lane on the floor: their distance (from where the
-    left one was measured to the right one's line) against the free width (`free_width_m`): 1
-    within `lane.width_tolerance_m` of it, 0 at twice; times how parallel they run, as the
-    `parallel` confidence component scores it (1 within `lane.parallel_tolerance_deg`, 0 at
-    twice). A lane's two tapes run parallel: a slat or strip across the lane can lie the
-    lane's width from the other tape where it is measured, never along it."""
+    left one was measured to the right one's line) against the free width
+    (`PerceptionConfig.free_width_m`): 1 within `lane.width_tolerance_m` of it, 0 at twice;
+    times how parallel they run, as the `parallel` confidence component scores it (1 within
+    `lane.parallel_tolerance_deg`, 0 at twice). A lane's two tapes run parallel: a slat or
+    strip across the lane can lie the lane's width from the other tape where it is measured,
+    never along it."""
     r_near = (right.inner.near_fx, right.inner.near_fy)
     r_dir = direction(r_near, (right.inner.far_fx, right.inner.far_fy))
     l_dir = direction((left.inner.near_fx, left.inner.near_fy),
                       (left.inner.far_fx, left.inner.far_fy))
     gap = distance_to_line(left.at, r_near, r_dir)
     lane = config.lane
-    return (ramp(gap - free_width_m(config), lane.width_tolerance_m)
+    return (ramp(gap - config.free_width_m, lane.width_tolerance_m)
             * ramp(floor_angle_deg(l_dir, r_dir), lane.parallel_tolerance_deg))
-
-
-def free_width_m(config: PerceptionConfig) -> float:
-    """The floor between the two tapes' inner edges the lane should show: `lane.width_m` (centre
-    to centre) less half of each side's tape."""
-    tape = config.tape
-    return config.lane.width_m - 0.5 * (tape.side_width_m("left") + tape.side_width_m("right"))
 
 
 def pick_tapes(

@@ -214,6 +214,12 @@ class TapeConfig(DocumentModel):
         return max(self.side_width_m("left"), self.side_width_m("right"))
 
     @property
+    def mean_width_m(self) -> float:
+        """The mean of the two tapes' widths, metres: what a lane's width, centre to centre,
+        loses between the tapes' inner edges."""
+        return 0.5 * (self.side_width_m("left") + self.side_width_m("right"))
+
+    @property
     def seam_width_m(self) -> float:
         """The widest seam to reject, metres (`max_seam_width_m`, default half the narrower
         tape)."""

@@ -10,8 +10,8 @@ the other side is a verified tape (`SideChoice.verified`: two edges a tape width
 floor with a tape's band between them) and the lane it gives agrees with a lane seen just before
 (`confidence.consistency_component`, against the references that have both edges: seen, or one
 of them placed, since a gap lasts several frames; the DEGRADED budget bounds such a chain), the
-missing edge is reported where the lane's free width (`edge_choice.free_width_m`) puts it, on
-the floor, beside the seen edge's reported chord, and projected back into the image. Its slope
+missing edge is reported where the lane's free width (`PerceptionConfig.free_width_m`) puts it,
+on the floor, beside the seen edge's reported chord, and projected back into the image. Its slope
 makes the slope sum, its floor line the lane centre, as for a seen edge.
 
 Such an observation says so: `components["both_sides"]` is 0.5 (one side seen) with both edges
@@ -39,7 +39,6 @@ from lanewarden.perception.confidence import (
     lane_components,
 )
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.edge_choice import free_width_m
 from lanewarden.perception.floor_view import FloorView, Point, direction, signed_offset
 from lanewarden.perception.geometry import Side, edge_slope, other_side
 from lanewarden.perception.observation import (
@@ -77,7 +76,7 @@ def lane_from_one_side(
     if not references or not floor.verified:
         return None
     other = other_side(seen)
-    free = free_width_m(config)
+    free = config.free_width_m
     # The reported chord, near end to the look-ahead, moved across the lane on the floor.
     a0, a1 = view.to_floor(edge.x1, edge.y1), view.to_floor(edge.x2, edge.y2)
     chord = direction(a0, a1)
