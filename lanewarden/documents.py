@@ -286,6 +286,21 @@ def _takes_text(option: Any) -> bool:
         isinstance(option, type) and issubclass(option, (str, enum.Enum, Path)))
 
 
+#: What a number written in quotes is told (YAML reads it as text).
+QUOTED_NUMBER = "text (write the number without quotes)"
+
+
+def text_kind(value: str) -> str:
+    """What a text value is, for a key that wanted a number: a number in quotes
+    (`QUOTED_NUMBER`), or just text (a typo such as `0.0l9`: no advice about quotes it does not
+    have)."""
+    try:
+        float(value)
+    except ValueError:
+        return "text"
+    return QUOTED_NUMBER
+
+
 def _not_a_number(value: Any, options: Sequence[Any]) -> str:
     """Why `value` may not stand for a number of a key whose annotation has these `options`
     (its alternatives), or '' when it may: true/false is never a number (YAML's `yes` and `on`
@@ -296,11 +311,7 @@ def _not_a_number(value: Any, options: Sequence[Any]) -> str:
     if isinstance(value, bool):
         return "true/false"
     if isinstance(value, str) and not any(_takes_text(o) for o in options):
-        try:
-            float(value)
-        except ValueError:  # not a number in quotes: a typo (`0.0l9`), say no more than text
-            return "text"
-        return "text (write the number without quotes)"
+        return text_kind(value)
     return ""
 
 

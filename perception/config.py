@@ -27,7 +27,7 @@ from pydantic import (
     model_validator,
 )
 
-from lanewarden.documents import DocumentModel
+from lanewarden.documents import QUOTED_NUMBER, DocumentModel, text_kind
 from lanewarden.perception.floor_config import LaneConfig, RoiConfig, TapeConfig
 
 _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -236,12 +236,8 @@ class EdgesConfig(DocumentModel):
         """One message for both kinds of value (not one per branch of the union); a number in
         quotes is text, refused as every other number in quotes is (the union took "0.40")."""
         expected = "expected a distance in metres above 0 and at most 10, or auto"
-        if isinstance(value, str) and value != "auto":
-            try:
-                float(value)
-            except ValueError:
-                raise ValueError(expected) from None
-            raise ValueError(f"{expected}; not text (write the number without quotes)")
+        if isinstance(value, str) and value != "auto" and text_kind(value) == QUOTED_NUMBER:
+            raise ValueError(f"{expected}; not {QUOTED_NUMBER}")
         try:
             return handler(value)
         except ValidationError:
