@@ -18,6 +18,9 @@ plus the world and the camera; outputs are numbers for `metrics.json`. Definitio
   (`lane_loss_estimated: true`). None when the lane never ends, the robot never halted, or it
   halted farther back (for another reason than the lane end).
 - `halted`: the controller entered HALT after it had engaged (or never engaged at all).
+- `halt_reason`: that HALT's reason; for a run that never engaged, the reason that still held it
+  at its last frame (a lane edge inside the robot's footprint, say), as `lanewarden survey` says
+  of a still that does not engage, not the "not engaged yet" every run starts with.
 - `halt_position`: the true pose where that HALT began (x_m, y_m) and, like
   `distance_past_lane_end_m`, how far past the end of the markings it was; None if not halted.
 - `turns_completed`: marks (A, B, ...) whose gate (the segment across the lane, tape to tape, at
@@ -499,7 +502,9 @@ def compute_metrics(
     halted_idx = first_halt_index(trace.states)
     out["engaged"] = any(st != HALT_STATE for st in trace.states)
     out["halted"] = halted_idx is not None
-    out["halt_reason"] = None if halted_idx is None else trace.halt_reasons[halted_idx]
+    # A run that never engaged: what still held it at the end (module docstring).
+    reason_idx = -1 if halted_idx == 0 and not out["engaged"] else halted_idx
+    out["halt_reason"] = None if reason_idx is None else trace.halt_reasons[reason_idx]
     out["halt_time_s"] = None if halted_idx is None else round(float(times[halted_idx]), 4)
     out["final_state"] = trace.states[-1] if n else None
     visited: list[str] = []

@@ -91,6 +91,25 @@ def test_no_lane_end_means_nulls() -> None:
     assert m["halted"] is False and m["halt_reason"] is None
 
 
+def test_a_run_that_never_engaged_gives_what_still_held_it() -> None:
+    """A robot started over a tape never engages: every frame from the second on says
+    LANE_DEPARTURE. Its halt reason is that (what the survey says of such a still), not the
+    "not engaged yet" of its first frame; it halted at its start."""
+    world = build_world(straight_spec(4.0))
+    n = 30
+    waiting = "not engaged yet: waiting for start and a confident lane"
+    departing = "LANE_DEPARTURE: a lane edge inside the robot's footprint (left edge 0.124 m)"
+    m = compute_metrics(world, trace_along(np.zeros(n), np.full(n, 0.15), ["HALT"] * n,
+                                           reasons=[waiting, waiting] + [departing] * (n - 2)),
+                        None, None)
+    assert m["engaged"] is False and m["halted"] is True
+    assert m["halt_reason"] == departing
+    assert m["halt_time_s"] == 0.0
+    quiet = compute_metrics(world, trace_along(np.zeros(n), np.zeros(n), ["HALT"] * n,
+                                               reasons=[waiting] * n), None, None)
+    assert quiet["halt_reason"] == waiting
+
+
 def test_footprint_crossing_a_tape() -> None:
     world = build_world(straight_spec(4.0))
     xs = np.linspace(0, 3, 50)
