@@ -24,7 +24,7 @@ from tqdm import tqdm
 from lanewarden.camera_source import numbered_sequence_gap, open_camera, quiet_opencv
 from lanewarden.commands.chessboard_pattern import PATTERN
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.flags import CAMERA_EXPECTED, PathFlag
+from lanewarden.commands.flags import CAMERA_EXPECTED, PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import DeviceError, OutputError, QualityGateError, UsageError
@@ -143,9 +143,9 @@ def _breakdown(outcome: dict[str, int]) -> str:
               metavar="DIR",
               help="Folder for the kept views (view_000.jpg, ...); created if missing. Views "
               "already there count as kept: a rerun adds only new placements.")
-@click.option("--count", default=25, show_default=True, type=click.IntRange(1, 1000),
+@click.option("--count", default=25, show_default=True, type=WholeRange(1, 1000),
               help="Stop after keeping this many new views.")
-@click.option("--max-frames", type=click.IntRange(1, 10_000_000), default=None,
+@click.option("--max-frames", type=WholeRange(1, 10_000_000), default=None,
               help="Stop after reading this many frames (default: until the source ends).")
 @config_option
 def capture_command(

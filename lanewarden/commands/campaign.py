@@ -19,7 +19,7 @@ import click
 
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.flags import PathFlag
+from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
@@ -62,16 +62,16 @@ def _counts(progress: CampaignProgress) -> str:
               type=PathFlag("a folder", file_okay=False),
               help="Output directory: results.sqlite, cases/, junit.xml, report.html. Running "
               "again with the same spec and seed resumes.")
-@click.option("--runs", type=click.IntRange(1, MAX_RUNS), default=None,
+@click.option("--runs", type=WholeRange(1, MAX_RUNS), default=None,
               help=f"Number of runs to draw (default: 100; at most {MAX_RUNS:,}: more is "
               "another --seed in another --out). Resuming, at least the runs --out holds.")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
               help="Campaign seed: the same seed draws the same cases.")
 @click.option("--scheduler", default=None, metavar="ADDRESS|local|in-process",
               help=f"A Dask scheduler address (default: ${SCHEDULER_ENV} if set, else a "
               "local cluster with one single-threaded worker process per core); 'in-process' "
               "runs without Dask.")
-@click.option("--workers", type=click.IntRange(1, 512), default=None,
+@click.option("--workers", type=WholeRange(1, 512), default=None,
               help="Worker processes of the local cluster (default: one per core).")
 @config_option
 @click.option("--quiet", is_flag=True, help="No progress (a bar on a terminal, else a line every "

@@ -2,6 +2,9 @@
 
 click's FloatRange lets `nan` through (every comparison with it is false) and, without a maximum,
 `inf` too; `FiniteRange` refuses both with one line naming the flag and the allowed range.
+`WholeRange` is click's IntRange in the same words ("--jitter: abc: expected an integer with
+0 <= value <= 64", as the config says it of an integer key), where click said "'abc' is not a
+valid integer range".
 
 `PathFlag` is every path a command takes (a flag or an argument): an empty one is refused with one
 line naming it. `Path("")` is `.`, the current folder, and `value or default` takes `""` for no
@@ -40,6 +43,23 @@ class FiniteRange(click.ParamType):
             self.fail(f"{str(value)[:60]} {self.unit}: expected a finite number with "
                       f"{low}value <= {self.high:g} {self.unit}", param, ctx)
         return number
+
+
+class WholeRange(click.IntRange):
+    """click.IntRange (its help shows the range), refusing a value that is no integer or lies
+    outside `low`..`high` in one line: "Invalid value for '--jitter': abc: expected an integer
+    with 0 <= value <= 64"."""
+
+    def __init__(self, low: int, high: int) -> None:
+        super().__init__(low, high)
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            self.fail(f"{str(value)[:60]}: expected an integer with {self.min} <= value <= "
+                      f"{self.max}", param, ctx)
 
 
 #: What a `--camera` is, for its empty value.

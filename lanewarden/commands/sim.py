@@ -20,7 +20,7 @@ import click
 
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.flags import PathFlag
+from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder, interrupted_in
 from lanewarden.config import load_config
 from lanewarden.errors import QualityGateError, UsageError
@@ -113,7 +113,7 @@ Examples:
               "seed, controller and config; prints its outcome class.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,
               help="Output directory (default: lanewarden-out/<scenario>-<controller>); its "
@@ -196,7 +196,7 @@ Example:
               default=DEFAULT_DEMO_OUT,
               show_default=True, help="Output directory; its old outputs are replaced.")
 @config_option
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--no-video", is_flag=True, help="Skip the videos (faster).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import click
 
 from lanewarden.commands.config_cmd import config_option
-from lanewarden.commands.flags import PathFlag
+from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.errors import (
     EXIT_OK,
@@ -69,7 +69,7 @@ Examples:
               "lanewarden-out/survey-<folder name>).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print survey.json on stdout instead of the text summary.")
-@click.option("--jitter", type=click.IntRange(0, MAX_JITTER), default=0, metavar="N",
+@click.option("--jitter", type=WholeRange(0, MAX_JITTER), default=0, metavar="N",
               help="Also judge every no-lane still in N versions shifted by a random fraction "
               "of a pixel (seeded), as the camera's next frame might show it; a decision on any "
               "of them is a false lane. Stills only. Default 0.")
