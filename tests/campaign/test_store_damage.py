@@ -215,8 +215,8 @@ def test_a_hostile_campaign_size_is_one_line_before_anything_is_drawn(
     assert main(["campaign", "--spec", str(tiny_spec), "--out", str(out), "--runs", runs,
                  "--scheduler", "in-process"]) == 2
     assert capsys.readouterr().err == (
-        f"lanewarden: error: lanewarden campaign: Invalid value for '--runs': {runs} is not in "
-        "the range 1<=x<=100000.\n")
+        f"lanewarden: error: lanewarden campaign: Invalid value for '--runs': {runs}: expected "
+        "an integer with 1 <= value <= 100000\n")
     assert not out.exists()
 
 
