@@ -206,7 +206,8 @@ class SupervisorConfig(DocumentModel):
         "camera frames judged since it was entered were confident, the newest among them (k of "
         "n, as engage_window_frames); 0 (the default): all recover_confident_frames in a row. "
         "8 turned 7 false halts of a 1000-run campaign into recoveries but drove one robot "
-        "into a tape (docs/campaigns.md, the sixth run)",
+        "into a tape (docs/campaigns.md, the sixth run); tried again in the twenty-fourth, it "
+        "stopped one robot 1.9 mm from a tape",
     )
 
     # --- Turn hysteresis on the filtered slope sum (the lecture's +-6) ---
