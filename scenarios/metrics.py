@@ -502,8 +502,9 @@ def compute_metrics(
     halted_idx = first_halt_index(trace.states)
     out["engaged"] = any(st != HALT_STATE for st in trace.states)
     out["halted"] = halted_idx is not None
-    # A run that never engaged: what still held it at the end (module docstring).
-    reason_idx = -1 if halted_idx == 0 and not out["engaged"] else halted_idx
+    # A run that never engaged (`first_halt_index` 0): what still held it at the end (module
+    # docstring).
+    reason_idx = -1 if halted_idx == 0 else halted_idx
     out["halt_reason"] = None if reason_idx is None else trace.halt_reasons[reason_idx]
     out["halt_time_s"] = None if halted_idx is None else round(float(times[halted_idx]), 4)
     out["final_state"] = trace.states[-1] if n else None
