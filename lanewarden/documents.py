@@ -117,6 +117,9 @@ def shown_value(value: object) -> str:
     """A bad value as it appears in an error line: short, whatever its size."""
     if isinstance(value, Mapping):
         return "a mapping"
+    if isinstance(value, bool):  # the file may say yes or on: YAML reads them as true
+        return ("true (YAML's reading of true, yes or on)" if value
+                else "false (YAML's reading of false, no or off)")
     if isinstance(value, list | tuple) and len(value) > 4:
         return f"a list of {len(value)} items"
     return shorten(_SHORT.repr(value))
@@ -164,11 +167,13 @@ def check_event_stream(text: str) -> None:
             add(anchor_sizes.get(event.anchor or "", 1))
 
 
-def _yaml_problem(exc: yaml.YAMLError) -> str:
+def _yaml_problem(exc: yaml.YAMLError, text: str) -> str:
     mark = getattr(exc, "problem_mark", None)
     where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
     problem = getattr(exc, "problem", None) or "invalid YAML"
-    if "opencv-matrix" in str(problem):  # a camera calibration given where YAML is expected
+    # A camera calibration given where YAML is expected: PyYAML stops at the first thing it
+    # cannot read, the tag or an escape OpenCV writes and YAML has not (\' in a string).
+    if "opencv-matrix" in str(problem) or "!!opencv-matrix" in text:
         return (f"not valid YAML{where}: it holds OpenCV's !!opencv-matrix, as a camera "
                 "calibration does (give that file as --calibration)")
     if tag := re.search(r"constructor for the tag '([^']*)'", str(problem)):
@@ -193,7 +198,7 @@ def parse_yaml_text(text: str, source: str, error: type[Exception]) -> Any:
     except DocumentTooLarge as exc:
         raise error(f"{source}: {exc}, refusing to read it") from None
     except yaml.YAMLError as exc:
-        raise error(f"{source}: {_yaml_problem(exc)}") from None
+        raise error(f"{source}: {_yaml_problem(exc, text)}") from None
     except ValueError as exc:  # e.g. an integer of more digits than Python converts
         raise error(f"{source}: a value YAML cannot read ({shorten(str(exc))})") from None
 
@@ -402,6 +407,8 @@ def describe_validation_error(
         close = _did_you_mean(holder, key)
         hint = f": did you mean '{close}'?" if close else unknown_key_hint
         return f"{source}: unknown key '{key}'{hint}"
+    if err["type"] == "missing":  # pydantic's input is then the mapping that lacks the key
+        return f"{source}: {key}: missing (a required key)"
     shown = shown_value(err.get("input"))
     message = str(err["msg"])
     if err["type"] == "model_type":  # pydantic names its class: "... instance of TapeConfig"

@@ -443,16 +443,20 @@ def _percent(part: int, whole: int) -> str:
     return f"{100.0 * part / whole:.0f}%" if whole else "-"
 
 
+def shifted_only_text(figures: ClassFigures) -> str:
+    """' (2 only in a shifted version)': the false lanes no frame as given showed ('' if none),
+    beside a count of decisions that leaves them out (the terminal's line, the report's table)."""
+    shifted_only = sum(not r.has_decision for r in figures.false_lanes)
+    return f" ({shifted_only} only in a shifted version)" if shifted_only else ""
+
+
 def class_line(figures: ClassFigures) -> str:
     """One line per class for the terminal."""
     title = CLASS_FOLDERS[figures.expect]
     text = (f"{title}: {counted(figures.frames, 'frame')}, {figures.decisions} with a decision "
             f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
     if figures.expect == NONE:
-        text += f", {false_lanes_text(len(figures.false_lanes))}"
-        shifted_only = sum(not r.has_decision for r in figures.false_lanes)
-        if shifted_only:
-            text += f" ({shifted_only} only in a shifted version)"
+        text += f", {false_lanes_text(len(figures.false_lanes))}{shifted_only_text(figures)}"
     if figures.runs:
         run = figures.runs[0]
         span = run.first if run.length == 1 else f"{run.first} .. {run.last}"
@@ -552,12 +556,18 @@ def survey_notes(figures: SurveyFigures, calibrated: bool) -> list[str]:
     without a calibration the frames were judged through the simulator's default camera."""
     notes = []
     lane = figures.classes[LANE]
+    little = ", so SAFE says little" if figures.verdict.safe else ""
+    check = ("check perception.tape and perception.lane in --config (the widths of your tape "
+             "and lane) and --calibration (the camera and its pose)")
+    engage = figures.verdict.engage
     if lane.frames and not lane.decisions:
-        little = ", so SAFE says little" if figures.verdict.safe else ""
         notes.append(f"note: no decision on any of the {counted(lane.frames, 'lane frame')} "
-                     f"either: perception never found your lane{little}; check "
-                     "perception.tape and perception.lane in --config (the widths of your tape "
-                     "and lane) and --calibration (the camera and its pose)")
+                     f"either: perception never found your lane{little}; {check}")
+    elif lane.frames and engage is not None and engage.attempts and not engage.engaged:
+        # a few decisions, never enough to engage: a student read that SAFE as "good to go"
+        notes.append(f"note: the supervisor engages on none of the "
+                     f"{counted(lane.frames, 'lane frame')} ({lane.decisions} with a decision): "
+                     f"this robot would never drive here{little}; {check}")
     if not calibrated:
         notes.append("note: no --calibration: the frames were judged as if from the simulator's "
                      "default camera (its lens, height and pitch); with your camera's "

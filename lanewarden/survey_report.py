@@ -29,6 +29,7 @@ from lanewarden.survey import (
     SurveyFigures,
     engage_line,
     not_engaged_words,
+    shifted_only_text,
     survey_json,
     verdict_line,
 )
@@ -81,7 +82,7 @@ def _summary_table(classes: Mapping[str, ClassFigures]) -> str:
                                                            else "")) for r in f.runs) or "-"
         weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median_where_weakest:.2f}")
                            for c in f.components if c.weakest_in) or "-"
-        false = str(len(f.false_lanes)) if expect == NONE else "-"
+        false = f"{len(f.false_lanes)}{shifted_only_text(f)}" if expect == NONE else "-"
         rows.append(f"<tr><th>{_e(CLASS_FOLDERS[expect])}</th><td class=num>{f.frames}</td>"
                     f"<td class=num>{f.decisions}</td><td class=num>{f.confident}</td>"
                     f"<td class=num>{false}</td><td>{runs}</td><td>{weak}</td></tr>")

@@ -59,7 +59,7 @@ from lanewarden.perception.confidence import (
 )
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.edge_choice import SideChoice, choose_edges
-from lanewarden.perception.errors import PerceptionError
+from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.floor_view import direction, signed_offset
 from lanewarden.perception.geometry import Side, edge_slope, other_side
 from lanewarden.perception.ground import (
@@ -172,9 +172,27 @@ class LaneDetector:
             ground = self.ground
             if ground.image_size != (width, height):
                 ground = ground.scaled_to((width, height))
-            setup = SizeSetup(width, height, self.config, ground)
+            try:
+                setup = SizeSetup(width, height, self.config, ground)
+            except PerceptionConfigError as exc:
+                raise PerceptionConfigError(f"{exc}{self._assumed_camera((width, height))}",
+                                            exc.suggested_look_ahead_m) from None
             self._states[(width, height)] = setup
         return setup
+
+    def _assumed_camera(self, size: tuple[int, int]) -> str:
+        """What a refusal adds when the camera was assumed, not described (a new user who left
+        out --calibration was told to change the camera, when the tool had judged another
+        one): '' with a ground model given or calibrated."""
+        if self._ground_given:
+            return ""
+        if self.undistorter is None:
+            return (" (no camera calibration was given: judged as the simulator's default "
+                    "camera; give yours, e.g. --calibration)")
+        if self.undistorter.calibration.ground is None:
+            _, which = ground_model_for(self.undistorter.calibration, size)
+            return f" ({which})"
+        return ""
 
     def describe_ground(self, source: str | None = None,
                         size: tuple[int, int] | None = None) -> str:

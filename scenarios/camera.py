@@ -81,7 +81,8 @@ class CameraModel:
         return CameraCalibration(
             camera_matrix=self.camera_matrix(), dist_coeffs=self.distortion(),
             image_size=(self.width_px, self.height_px),
-            ground=GroundCalibration(pose=self.pose, method="the simulated camera's true pose"))
+            ground=GroundCalibration(pose=self.pose,
+                                     method="the simulated camera, at its true pose"))
 
     def rotation_robot_to_camera(self) -> FloatArray:
         """R such that p_cam = R @ (p_robot - camera_position)."""

@@ -72,14 +72,18 @@ def test_every_numeric_key_refuses_true_false_and_quoted_numbers(path: tuple[str
 
 def test_a_true_safety_setting_is_refused_not_read_as_one() -> None:
     assert refusal(("supervisor", "engage_confident_frames"), True) == (
-        "cfg.yaml: supervisor.engage_confident_frames = True: expected an integer with "
-        "1 <= value <= 300, not true/false")
+        "cfg.yaml: supervisor.engage_confident_frames = true (YAML's reading of true, yes or "
+        "on): expected an integer with 1 <= value <= 300, not true/false")
+    assert refusal(("supervisor", "lane_lost_halt_s"), False) == (
+        "cfg.yaml: supervisor.lane_lost_halt_s = false (YAML's reading of false, no or off): "
+        "expected a finite number with 0 < value <= 1, not true/false")
 
 
 def test_a_key_that_also_takes_a_word_still_takes_it() -> None:
     config = config_from_mapping({"perception": {"edges": {"look_ahead_m": "auto"}}}, "cfg.yaml")
     assert config.perception.edges.look_ahead_m == "auto"
-    assert "look_ahead_m = True" in refusal(("perception", "edges", "look_ahead_m"), True)
+    assert "look_ahead_m = true (YAML's reading of true, yes or on)" in refusal(
+        ("perception", "edges", "look_ahead_m"), True)
 
 
 def _is_int(path: tuple[str, ...]) -> bool:

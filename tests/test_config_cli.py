@@ -33,6 +33,10 @@ def test_config_show_round_trips(capsys: pytest.CaptureFixture[str], tmp_path: P
         ("%YAML 1.2\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n",
          "it holds OpenCV's !!opencv-matrix, as a camera calibration does (give that file as "
          "--calibration)"),
+        # ...even where PyYAML stops first at an escape OpenCV writes and YAML has not (\')
+        ("%YAML 1.2\n---\nground_method: \"the mount\\'s\"\ncamera_matrix: !!opencv-matrix\n",
+         "it holds OpenCV's !!opencv-matrix, as a camera calibration does (give that file as "
+         "--calibration)"),
     ],
 )
 def test_bad_config_is_one_line_naming_the_problem(
@@ -58,3 +62,17 @@ def test_missing_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str])
 def test_unknown_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["no-such-command"]) == 2
     assert "No such command" in capsys.readouterr().err
+
+
+def test_the_simulators_calibration_file_is_yaml(tmp_path: Path) -> None:
+    """What `sim --camera-out` writes beside its clip (the simulated camera's calibration) reads
+    as YAML too: OpenCV writes an apostrophe as \\' in a quoted string, which YAML refuses
+    (a new user gave that file as --config and got 'unknown escape character')."""
+    from lanewarden.perception.calibration import save_calibration
+    from lanewarden.scenarios.camera import CameraModel
+
+    path = tmp_path / "clip.calibration.yaml"
+    save_calibration(CameraModel().calibration(), path)
+    text = path.read_text()
+    document = yaml.safe_load(text.replace("!!opencv-matrix", ""))
+    assert document["ground_method"] == "the simulated camera, at its true pose"

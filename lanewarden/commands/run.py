@@ -101,7 +101,9 @@ def summary_line(summary: RunSummary) -> str:
     end = summary.end
     why = (f"run ended by a {end.text}" if end.safety_stop is not None
            else f"run ended: {end.text}")
-    return (f"{why}; after {summary.duration_s:.1f} s and {summary.steps} steps; state before "
+    # the steps before the runner's closing stop: summary.json's and replay's counts include it
+    return (f"{why}; after {summary.duration_s:.1f} s and {summary.steps} steps before the "
+            f"closing stop; state before "
             f"the final stop: {end.state_text}; log: {summary.log_path}")
 
 

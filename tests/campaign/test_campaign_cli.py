@@ -157,6 +157,23 @@ def test_bad_spec_is_one_line_per_problem_exit_2(
     assert not (tmp_path / "o").exists()
 
 
+def test_a_spec_missing_its_keys_says_they_are_missing(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each required key left out is named as missing (it had read "name = a mapping: field
+    required", as if the user had given name a mapping)."""
+    spec = tmp_path / "sp2.yaml"
+    spec.write_text("runs: 3\nfautls: []\n", encoding="utf-8")
+    code = main(["campaign", "--spec", str(spec), "--out", str(tmp_path / "o"),
+                 "--scheduler", "in-process"])
+    assert code == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {spec}: name: missing (a required key)",
+        f"lanewarden: error: {spec}: scenarios: missing (a required key)",
+        f"lanewarden: error: {spec}: faults: missing (a required key)",
+        f"lanewarden: error: {spec}: unknown key 'runs'",
+        f"lanewarden: error: {spec}: unknown key 'fautls': did you mean 'faults'?"]
+
+
 def test_a_misspelt_scenario_in_a_spec_is_one_line_naming_the_closest(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """'straigt' in the default spec's scenarios: it was read as a file beside the spec

@@ -78,6 +78,11 @@ def test_clip_on_the_simulated_base_then_replay_reproduces_it(
     assert "OPERATOR_STOP" in records[-1]["events"], "the runner's own last stop is recorded"
     summary = json.loads((record / "summary.json").read_text())
     assert summary["complete"] is True and summary["exit_code"] == 3
+    # the terminal's count is the steps before the closing stop, and says so (a new user saw
+    # 528 there and 529 in summary.json and in replay)
+    assert (f"and {summary['ended_by']['steps']} steps before the closing stop;"
+            in captured.out.strip().splitlines()[-1])
+    assert summary["steps"] == summary["ended_by"]["steps"] + 1 == len(records)
     assert summary["distance_m"] > 0.05, "the simulated base moved"
     meta = json.loads((record / "meta.json").read_text())
     assert meta["base"] == "sim" and meta["camera"] == str(clip)

@@ -199,7 +199,8 @@ def test_ctrl_c_on_a_terminal_stops_the_demo_with_one_line(tmp_path: Path) -> No
 @pytest.mark.parametrize(("given", "expected"), [
     ("-3", "-3: expected a finite number with 0 < value <= 600"),
     # `max_time_s: yes` would run for 1 s
-    ("yes", "True: expected a finite number with 0 < value <= 600, not true/false"),
+    ("yes", "true (YAML's reading of true, yes or on): expected a finite number with "
+     "0 < value <= 600, not true/false"),
 ])
 def test_bad_scenario_file_names_file_and_key(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                               given: str, expected: str) -> None:

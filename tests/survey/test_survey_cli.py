@@ -172,6 +172,55 @@ def test_a_not_safe_verdict_never_says_safe_says_little() -> None:
             "of your tape and lane) and --calibration (the camera and its pose)"]
 
 
+def test_a_safe_verdict_on_which_the_supervisor_never_engages_says_so() -> None:
+    """Some lane frames with a decision but the supervisor engaging on none (the JetBot set
+    surveyed without its calibration: 3 decisions in 338, SAFE, exit 0): a note says this robot
+    would never drive there (a new user read the bare SAFE as good to go); none when it engages
+    on one."""
+    from lanewarden.survey import (
+        LANE,
+        ClassFigures,
+        EngageFigures,
+        SurveyFigures,
+        Verdict,
+        survey_notes,
+    )
+
+    lane = ClassFigures(LANE, frames=338, decisions=3, confident=1, false_lanes=(), runs=(),
+                        components=())
+
+    def notes(engaged: int) -> list[str]:
+        engage = EngageFigures("held", 1.0, attempts=338, engaged=engaged)
+        return survey_notes(SurveyFigures({LANE: lane}, Verdict(True, (), 17, engage), ()),
+                            calibrated=True)
+
+    assert notes(0) == [
+        "note: the supervisor engages on none of the 338 lane frames (3 with a decision): this "
+        "robot would never drive here, so SAFE says little; check perception.tape and "
+        "perception.lane in --config (the widths of your tape and lane) and --calibration (the "
+        "camera and its pose)"]
+    assert notes(1) == []
+
+
+def test_a_camera_refused_without_a_calibration_says_it_was_assumed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The JetBot's 224x224 stills without --calibration: the look-ahead refusal (which advises
+    another camera) says the camera judged was the simulator's default, not the user's; with
+    the calibration the survey runs."""
+    labels = tmp_path / "few.csv"
+    labels.write_text(f"file,expect\n{LANE_STILL},lane\n{SLIVER},none\n")
+    args = [str(JETBOT), "--labels", str(labels), "--config", str(JETBOT / "camera.yaml"),
+            "--out", str(tmp_path / "out")]
+    code, _, err = _survey(args, capsys)
+    assert code == 2
+    assert err.strip().endswith(
+        "(no camera calibration was given: judged as the simulator's default camera; give "
+        "yours, e.g. --calibration)")
+    assert len(err.strip().splitlines()) == 1
+    code, _, err = _survey([*args, "--calibration", str(JETBOT / "calibration.yaml")], capsys)
+    assert code == 0, err
+
+
 def test_images_a_labels_file_leaves_out_are_named(
         floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A labels file names some of the folder's photos: the others are not surveyed, and a note
@@ -565,6 +614,8 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
     page = (tmp_path / "out" / "report.html").read_text()
     assert "shifted by a fraction of a pixel:" in page  # the picture of a shifted version
     assert "<td>none; shifted: 9 of 16 decided</td>" in page  # the frame's row in the table
+    # the summary table's false lanes say where they came from: its decisions column has none
+    assert "<td class=num>2 (2 only in a shifted version)</td>" in page
 
 
 def test_a_stills_shifted_versions_do_not_depend_on_the_others(
