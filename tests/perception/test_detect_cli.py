@@ -213,7 +213,9 @@ def test_a_config_the_camera_cannot_resolve_is_refused_before_any_image(
                           "one pixel covers 2.1 mm of floor across the tape there")
     assert err.strip().endswith("expected a look-ahead of 0.82 m or less for this camera (set "
                                 "perception.edges.look_ahead_m: 0.82 or auto in a --config file, "
-                                "or use a higher resolution)")
+                                "or use a higher resolution) (no camera calibration was "
+                                "given: judged as the simulator's default camera; give yours, "
+                                "e.g. --calibration)")
     narrow.write_text("perception:\n  tape: {width_m: 0.019}\n  edges: {look_ahead_m: 0.82}\n")
     code, out, err = run(["detect", str(frames / "straight.png"), "--config", str(narrow)],
                          capsys)
