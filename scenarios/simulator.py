@@ -33,6 +33,7 @@ from lanewarden.scenarios.before_halt import before_halt
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.camera_effects import CameraEffects
 from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.scenarios.false_lane import false_lane_metrics, frame_edge_errors
 from lanewarden.scenarios.fault_link import FaultyLink
 from lanewarden.scenarios.faults import FaultEffect, FaultSchedule, camera_pool_size, floor_marks
 from lanewarden.scenarios.highlights import Highlights
@@ -320,6 +321,8 @@ class Simulation:
         metrics = compute_metrics(
             self.world, trace, np.asarray(visible, dtype=bool) if lane_ends else None,
             self.visibility.loss_arc_length(self.world) if lane_ends else None)
+        metrics.update(false_lane_metrics(
+            trace.time_s, frame_edge_errors(self.world, trace.time_s, trace.poses, records)))
         metrics["end_reason"] = end_reason
         halt = first_halt_index(trace.states)
         metrics["before_halt"] = None if not halt else before_halt(

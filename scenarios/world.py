@@ -245,7 +245,7 @@ class World:
         best = np.full(len(pts), np.inf)
         for tape in self.tapes:
             for piece in tape.pieces:
-                best = np.minimum(best, _distance_to_polyline(pts, piece))
+                best = np.minimum(best, distance_to_polyline(pts, piece))
         return best
 
     def clearance_to_edges(self, points: FloatArray) -> FloatArray:
@@ -257,11 +257,11 @@ class World:
         for tape in self.tapes:
             if tape.is_edge:
                 for piece in tape.pieces:
-                    best = np.minimum(best, _distance_to_polyline(pts, piece) - tape.width_m / 2)
+                    best = np.minimum(best, distance_to_polyline(pts, piece) - tape.width_m / 2)
         if not any(tape.is_edge for tape in self.tapes) and self.tapes:
             c = self.centreline
             for offset in (self.lane_width_m / 2.0, -self.lane_width_m / 2.0):
-                best = np.minimum(best, _distance_to_polyline(
+                best = np.minimum(best, distance_to_polyline(
                     pts, c.offset(0.0, c.length_m, offset)))
         return best
 
@@ -290,7 +290,7 @@ def _vertex_distances_sq(points: FloatArray,
         yield start, block, sq
 
 
-def _distance_to_polyline(points: FloatArray, line: FloatArray) -> FloatArray:
+def distance_to_polyline(points: FloatArray, line: FloatArray) -> FloatArray:
     """Exact distance from each point (M, 2) to the polyline (N, 2). Only the segments that can
     be nearest are measured: the nearest vertex bounds the distance from above, and a segment
     is no nearer than its start vertex's distance minus its length."""

@@ -38,6 +38,7 @@ from lanewarden.scenarios.campaign.outcome import (
     answered_kind,
     blind_halt,
 )
+from lanewarden.scenarios.false_lane import FALSE_LANE_TOLERANCE_M
 from lanewarden.wording import counted
 
 #: How many unsafe runs, false halts and errors the report lists (each; the rest are counted).
@@ -113,6 +114,10 @@ class CampaignSummary:
         self.listed = {outcome: _Kept(LISTED_PER_OUTCOME) for outcome in (*FAILURES, "error")}
         #: safe halts while the camera showed no lane (`outcome.blind_halt`), in run order
         self.blind = _Kept(LISTED_PER_OUTCOME)
+        #: runs that trusted a lane off the tapes while engaged (`scenarios.false_lane`), the
+        #: longest stretch first, and every such run's frames on it
+        self.false_lane = _Kept(LISTED_PER_OUTCOME)
+        self.false_lane_frames = 0
         self.cpu_s = 0.0
         self.sim_s = 0.0
         self.timed = 0
@@ -137,6 +142,10 @@ class CampaignSummary:
                                        _slim(row))
         if outcome == "safe_halt" and blind_halt(str(row.get("reason") or "")):
             self.blind.offer((0.0, index), _slim(row))
+        slim = _slim(row)
+        if slim["false_lane_frames"]:
+            self.false_lane_frames += int(slim["false_lane_frames"])
+            self.false_lane.offer((-float(slim["false_lane_longest_s"] or 0.0), index), slim)
         kind = answered_kind(str(row.get("reason") or ""))
         if outcome == "safe_halt" and kind is not None and to_halt is not None:
             self.time_to_halt[kind].append(to_halt)
@@ -157,7 +166,9 @@ def _slim(row: Row) -> dict[str, Any]:
             "time_to_halt_s")
     return {**{k: row.get(k) for k in keep},
             "max_cross_track_error_m": metrics.get("max_cross_track_error_m"),
-            "before_halt": metrics.get("before_halt")}
+            "before_halt": metrics.get("before_halt"),
+            **{k: metrics.get(k) for k in ("false_lane_frames", "false_lane_longest_s",
+                                           "max_edge_error_m", "min_tape_clearance_m")}}
 
 
 # ---- junit.xml --------------------------------------------------------------------------------
@@ -383,6 +394,36 @@ def _blind(summary: CampaignSummary, out_dir: Path) -> str:
             + _case_rows(blind.rows(), out_dir) + _more(blind, "blind halt"))
 
 
+def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
+    """Runs that drove on a lane that was not there, whatever their outcome (a safe halt can
+    be luck: docs/campaigns.md, r00322)."""
+    kept = summary.false_lane
+    head = ("<h2>Driving on a false lane</h2><p>Runs in which the supervisor, engaged, trusted a "
+            f"lane with a reported edge more than {FALSE_LANE_TOLERANCE_M * 100:.0f} cm from "
+            "every tape (ground truth, scenarios/false_lane.py), whatever their outcome: a "
+            "floor pattern taken for the lane. A safe halt after one may be luck.</p>")
+    if not kept.count:
+        return head + "<p>None.</p>"
+    lines = []
+    for row in kept.rows():
+        clear = row.get("min_tape_clearance_m")
+        lines.append(
+            f"<tr><td>{html.escape(str(row['id']))}</td>"
+            f"<td style=\"color:{_COLORS.get(str(row['outcome']), '')}\">{row['outcome']}</td>"
+            f"<td>{html.escape(str(row['scenario']))}</td>"
+            f"<td>{html.escape(str(row['camera']))}</td>"
+            f"<td>{row['false_lane_longest_s']:.2f}</td><td>{row['false_lane_frames']}</td>"
+            f"<td>{row['max_edge_error_m']:.3f}</td>"
+            f"<td>{'' if clear is None else f'{1000 * clear:.1f}'}</td>"
+            f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
+    return (head + f"<p>{counted(kept.count, 'run')} of {summary.runs}, "
+            f"{counted(summary.false_lane_frames, 'frame')} in all; the longest stretch "
+            "first.</p><table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
+            "<th>longest stretch s</th><th>frames</th><th>largest edge error m</th>"
+            "<th>closest approach to a tape mm</th><th>rerun (with video and plot)</th></tr>"
+            f"{''.join(lines)}</table>" + _more(kept, "run on a false lane"))
+
+
 def _errors(summary: CampaignSummary, out_dir: Path) -> str:
     errors = summary.listed["error"]
     if not errors.count:
@@ -452,6 +493,7 @@ never took effect, it never engaged, a worker was lost). See docs/campaigns.md.<
 {matrices}
 {_time_to_halt(summary)}
 {_worst(summary, out_dir)}
+{_false_lanes(summary, out_dir)}
 {_blind(summary, out_dir)}
 {_errors(summary, out_dir)}
 <script>{_COPY_SCRIPT}</script>

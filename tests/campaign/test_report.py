@@ -177,3 +177,27 @@ def test_a_false_halt_shows_what_perception_gave_the_supervisor_before_it(
     assert f'<td class="before">{line}</td>' in worst
     old = _section(report_html("spec", summarize(ROWS), tmp_path, "text"), "Worst cases")
     assert old.count('<td class="before"></td>') == len(_run_ids(old))
+
+
+def _on_a_false_lane(index: int, outcome: str, longest_s: float, frames: int) -> dict[str, Any]:
+    driven = row(index, outcome, "LANE_DEPARTURE answering (no fault)", 0.1, scenario="lecture")
+    return {**driven, "metrics_json": json.dumps({
+        "max_cross_track_error_m": 0.05, "false_lane_frames": frames,
+        "false_lane_longest_s": longest_s, "max_edge_error_m": 0.2795,
+        "min_tape_clearance_m": 0.0429})}
+
+
+def test_runs_on_a_false_lane_are_listed_whatever_their_outcome(tmp_path: Path) -> None:
+    """A safe halt after 1.17 s on a lane of parquet slats (r00322's numbers) is listed, the
+    longest stretch first, beside a recovered one; runs that never trusted a false lane (the
+    other rows: no such metric, or 0 frames) are not."""
+    rows = [*ROWS, _on_a_false_lane(10, "recovered", 0.0667, 2),
+            _on_a_false_lane(11, "safe_halt", 1.1667, 72), _on_a_false_lane(12, "nominal", 0.0, 0)]
+    part = _section(report_html("spec", summarize(rows), tmp_path, "text"),
+                    "Driving on a false lane")
+    assert _run_ids(part) == ["r00011", "r00010"]
+    assert "2 runs of 13, 74 frames in all" in part
+    assert ("<td>1.17</td><td>72</td><td>0.280</td><td>42.9</td>") in part
+    assert "more than 8 cm from every tape" in part
+    assert "<p>None.</p>" in _section(report_html("spec", summarize(ROWS), tmp_path, "text"),
+                                      "Driving on a false lane")

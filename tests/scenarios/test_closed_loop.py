@@ -64,6 +64,8 @@ def test_lane_scenario_meets_its_expected_outcome(name: str, seed: int) -> None:
     assert expect is not None
     assert check_expectation(result.metrics, expect) == []
     assert_safe(result)
+    # it followed the lane itself: no trusted lane off the tapes (scenarios.false_lane)
+    assert result.metrics["false_lane_frames"] == 0, result.metrics["max_edge_error_m"]
 
 
 @pytest.mark.parametrize("name", FAULT_SCENARIOS)
@@ -73,6 +75,7 @@ def test_fault_scenario_provokes_its_response(name: str) -> None:
     assert expect is not None
     assert check_expectation(result.metrics, expect) == []
     assert_safe(result)
+    assert result.metrics["false_lane_frames"] == 0, result.metrics["max_edge_error_m"]
     # The fault, not something else, is what the supervisor reacted to first (a fault on the
     # floor is there from the start: the robot drives up to it).
     timed = [f.at_s for f in result.spec.faults if f.at_m is None]
