@@ -13,7 +13,8 @@ Per step that judged a new frame while the supervisor was engaged and trusted th
 - each reported edge's point in the middle of its near part (`LaneEdge.offset_m`, `heading_rad`,
   `near_m`: the line `offset_m` from the robot's centre at `heading_rad`, where it is `near_m`
   plus half of `perception.detector.EVIDENCE_MIN_M` ahead), moved to the world at the robot's
-  true pose when the frame was taken;
+  true pose at the frame's time stamp (a frame whose stamp lies, frozen or from the future, is
+  judged against the moment it claims to show, as the supervisor takes it);
 - its error: the distance from that point to the nearest lane-edge tape, taken whole from its
   first piece to its last (a dashed line's gaps count as tape), less half the tape's width, 0
   on the tape; the frame's error is the larger of its two edges' (an edge without a floor
