@@ -43,6 +43,7 @@ _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1180px; }
 .verdict { padding: .8em 1.2em; border-radius: 6px; margin: 1em 0; font-size: 1.15em; }
 .verdict b { font-size: 1.4em; margin-right: .4em; }
+.note { background: #fff8e1; border-left: 4px solid #f9a825; padding: .4em .8em; }
 .safe { background: #e3f4e1; border: 2px solid #3c8d3c; }
 .unsafe { background: #fbe3e1; border: 2px solid #c0392b; }
 .engage { margin: .4em 0 0; font-size: .9em; }
@@ -154,7 +155,8 @@ def _about_row(key: str, value: Any) -> str:
 
 
 def report_html(figures: SurveyFigures, about: Mapping[str, Any],
-                false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture]) -> str:
+                false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture],
+                notes: Sequence[str] = ()) -> str:
     verdict = figures.verdict
     css = "safe" if verdict.safe else "unsafe"
     text = verdict_line(verdict).removeprefix("verdict: ").removeprefix(verdict.headline)
@@ -172,6 +174,7 @@ def report_html(figures: SurveyFigures, about: Mapping[str, Any],
 <h1>Lanewarden survey: {_e(about.get("source", ""))}</h1>
 <div class="verdict {css}"><b>{_e(verdict.headline)}</b>{_e(text.lstrip(": "))}
 <p class="engage">{_e(engage_line(verdict.engage))}</p></div>
+{"".join(f'<p class="note">{_e(note)}</p>' for note in notes)}
 <ul class="about">{about_rows}</ul>
 {_summary_table(figures.classes)}
 <p class="about">A decision: perception's straight / left / right (confidence at least the
@@ -192,11 +195,14 @@ order.</p>
 
 def write_outputs(out: Path, figures: SurveyFigures, about: Mapping[str, Any],
                   false_lane_pictures: Sequence[Picture],
-                  weak_pictures: Sequence[Picture]) -> dict[str, Any]:
-    """Write OUT/survey.json and OUT/report.html; returns the JSON document."""
-    document = survey_json(figures, about)
+                  weak_pictures: Sequence[Picture], notes: Sequence[str] = ()) -> dict[str, Any]:
+    """Write OUT/survey.json and OUT/report.html; returns the JSON document. `notes`: the
+    terminal's `note:` lines, which both carry too (a SAFE that says little is said there)."""
+    document = {**survey_json(figures, about),
+                "notes": [note.removeprefix("note: ") for note in notes]}
     texts = {"survey.json": json.dumps(document, indent=1) + "\n",
-             "report.html": report_html(figures, about, false_lane_pictures, weak_pictures)}
+             "report.html": report_html(figures, about, false_lane_pictures, weak_pictures,
+                                        notes)}
     # each written whole under a passing name, then renamed: a disk that fills up leaves no
     # report cut off after its verdict (nor a survey.json beside no report)
     passing = {name: out / f".{name}.part" for name in texts}

@@ -228,12 +228,6 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground, "jitter": jitter}
-    document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures)
-    if as_json:
-        click.echo(json.dumps(document))
-    else:
-        for line in summary_lines(figures):
-            click.echo(line)
     notes = survey_notes(figures, calibration is not None)
     if source.unlabelled:
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
@@ -243,6 +237,13 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "
                      f"{source.skipped[0]}{', ...' if len(source.skipped) > 1 else ''})")
+    document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures,
+                             notes)
+    if as_json:
+        click.echo(json.dumps(document))
+    else:
+        for line in summary_lines(figures):
+            click.echo(line)
     for note in notes:
         click.echo(note, err=as_json)
     click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)

@@ -10,6 +10,7 @@ supervisor's engage rule) is asserted exactly.
 
 from __future__ import annotations
 
+import html
 import json
 import re
 import shutil
@@ -148,6 +149,12 @@ def test_a_safe_verdict_says_what_it_does_not_prove(
                          "--calibration (the camera and its pose)")
     assert lines[-2].startswith("note: no --calibration: the frames were judged as if from the "
                                 "simulator's default camera")
+    # ...and so do the report and survey.json (a newcomer opens the page, not the terminal)
+    document = json.loads((tmp_path / "o" / "survey.json").read_text())
+    assert document["notes"] == [lines[-3].removeprefix("note: "),
+                                 lines[-2].removeprefix("note: ")]
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert f'<p class="note">{html.escape(lines[-3])}</p>' in page
     # with the calibration and the right widths: neither note
     code, out, _ = _survey([str(floor), "--calibration", str(floor.parent / "camera.yaml"),
                             "--out", str(tmp_path / "o")], capsys)
