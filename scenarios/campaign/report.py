@@ -118,6 +118,8 @@ class CampaignSummary:
         #: longest stretch first, and every such run's frames on it
         self.false_lane = _Kept(LISTED_PER_OUTCOME)
         self.false_lane_frames = 0
+        #: runs whose metrics hold the false-lane figures (not those stored before they existed)
+        self.false_lane_measured = 0
         self.cpu_s = 0.0
         self.sim_s = 0.0
         self.timed = 0
@@ -135,14 +137,15 @@ class CampaignSummary:
                 table[key][outcome] += 1
         index = int(row.get("idx") or 0)
         to_halt = _time_to_halt_s(row)
+        slim = _slim(row)
         if outcome in self.listed:
             # unsafe and false halts: the slowest to halt first (never halting: slowest of all)
             slow = to_halt if to_halt is not None else math.inf
-            self.listed[outcome].offer((-slow if outcome != "error" else 0.0, index),
-                                       _slim(row))
+            self.listed[outcome].offer((-slow if outcome != "error" else 0.0, index), slim)
         if outcome == "safe_halt" and blind_halt(str(row.get("reason") or "")):
-            self.blind.offer((0.0, index), _slim(row))
-        slim = _slim(row)
+            self.blind.offer((0.0, index), slim)
+        if slim["false_lane_frames"] is not None:
+            self.false_lane_measured += 1
         if slim["false_lane_frames"]:
             self.false_lane_frames += int(slim["false_lane_frames"])
             self.false_lane.offer((-float(slim["false_lane_longest_s"] or 0.0), index), slim)
@@ -402,8 +405,11 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
             f"lane with a reported edge more than {FALSE_LANE_TOLERANCE_M * 100:.0f} cm from "
             "every tape (ground truth, scenarios/false_lane.py), whatever their outcome: a "
             "floor pattern taken for the lane. A safe halt after one may be luck.</p>")
+    if not summary.false_lane_measured:
+        return head + ("<p>Not measured: these runs were stored before the false-lane figures "
+                       "existed (run them again in a new folder to measure them).</p>")
     if not kept.count:
-        return head + "<p>None.</p>"
+        return head + f"<p>None in {counted(summary.false_lane_measured, 'run')}.</p>"
     lines = []
     for row in kept.rows():
         clear = row.get("min_tape_clearance_m")
@@ -416,7 +422,7 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
             f"<td>{row['max_edge_error_m']:.3f}</td>"
             f"<td>{'' if clear is None else f'{1000 * clear:.1f}'}</td>"
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
-    return (head + f"<p>{counted(kept.count, 'run')} of {summary.runs}, "
+    return (head + f"<p>{counted(kept.count, 'run')} of {summary.false_lane_measured}, "
             f"{counted(summary.false_lane_frames, 'frame')} in all; the longest stretch "
             "first.</p><table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
             "<th>longest stretch s</th><th>frames</th><th>largest edge error m</th>"

@@ -196,8 +196,13 @@ def test_runs_on_a_false_lane_are_listed_whatever_their_outcome(tmp_path: Path) 
     part = _section(report_html("spec", summarize(rows), tmp_path, "text"),
                     "Driving on a false lane")
     assert _run_ids(part) == ["r00011", "r00010"]
-    assert "2 runs of 13, 74 frames in all" in part
+    assert "2 runs of 3, 74 frames in all" in part  # of the 3 runs that measured it
     assert ("<td>1.17</td><td>72</td><td>0.280</td><td>42.9</td>") in part
     assert "more than 8 cm from every tape" in part
-    assert "<p>None.</p>" in _section(report_html("spec", summarize(ROWS), tmp_path, "text"),
-                                      "Driving on a false lane")
+    measured_none = _on_a_false_lane(12, "nominal", 0.0, 0)
+    assert "<p>None in 1 run.</p>" in _section(
+        report_html("spec", summarize([*ROWS, measured_none]), tmp_path, "text"),
+        "Driving on a false lane")
+    # rows stored before the figures existed: not measured, not "none"
+    assert "<p>Not measured: these runs were stored before" in _section(
+        report_html("spec", summarize(ROWS), tmp_path, "text"), "Driving on a false lane")
