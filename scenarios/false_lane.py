@@ -1,6 +1,6 @@
 """Ground truth for the lane the supervisor drove on: how far the edges perception reported lay
 from the tapes really there, and how long the supervisor kept trusting a lane that was not the
-lane (a floor pattern taken for two tapes).
+lane (a floor pattern, a stray piece of tape or a shadow's edge taken for a tape).
 
 Why: a run can end well by luck. In the twenty-fourth campaign run's r00322 (docs/campaigns.md)
 the robot followed a "lane" of parquet slats at full confidence for 1.5 s while the real lane

@@ -404,7 +404,8 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
     head = ("<h2>Driving on a false lane</h2><p>Runs in which the supervisor, engaged, trusted a "
             f"lane with a reported edge more than {FALSE_LANE_TOLERANCE_M * 100:.0f} cm from "
             "every tape (ground truth, scenarios/false_lane.py), whatever their outcome: a "
-            "floor pattern taken for the lane. A safe halt after one may be luck.</p>")
+            "floor pattern, a stray piece of tape or a shadow's edge taken for the lane. A safe "
+            "halt after one may be luck.</p>")
     if not summary.false_lane_measured:
         return head + ("<p>Not measured: these runs were stored before the false-lane figures "
                        "existed (run them again in a new folder to measure them).</p>")
