@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from lanewarden.perception.detector import EVIDENCE_MIN_M
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.scenarios.world import World, distance_to_polyline
+from lanewarden.supervisor.state_machine import ENGAGED_STATES
 
 FloatArray = NDArray[np.float64]
 
@@ -50,7 +51,8 @@ FloatArray = NDArray[np.float64]
 #: degrees along the 10 cm its near part is drawn straight over; the parquet slats taken for the
 #: lane in r00322 and r00910 of seed 4 lay up to 28 and 37 cm off.
 FALSE_LANE_TOLERANCE_M = 0.08
-_ENGAGED = frozenset({"FOLLOW", "TURN_LEFT", "TURN_RIGHT", "DEGRADED"})
+#: The supervisor's engaged states, by the names step records carry.
+_ENGAGED = frozenset(state.value for state in ENGAGED_STATES)
 
 
 class JudgedStep(Protocol):

@@ -332,16 +332,21 @@ def _rerun_cell(out_dir: Path, case_id: str) -> str:
             f'class="copy" data-copy="{command}" title="copy the command">copy</button></td>')
 
 
+def _run_cells(row: Row) -> str:
+    """A listed run's first cells: its id, outcome (in its colour), scenario and camera."""
+    return (f"<td>{html.escape(str(row['id']))}</td>"
+            f"<td style=\"color:{_COLORS.get(str(row['outcome']), '')}\">{row['outcome']}</td>"
+            f"<td>{html.escape(str(row['scenario']))}</td>"
+            f"<td>{html.escape(str(row['camera']))}</td>")
+
+
 def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
     lines = []
     for row in rows:
         to_halt = _time_to_halt_s(row)
         cross = row.get("max_cross_track_error_m")
         lines.append(
-            f"<tr><td>{html.escape(str(row['id']))}</td>"
-            f"<td style=\"color:{_COLORS.get(str(row['outcome']), '')}\">{row['outcome']}</td>"
-            f"<td>{html.escape(str(row['scenario']))}</td>"
-            f"<td>{html.escape(str(row['camera']))}</td>"
+            f"<tr>{_run_cells(row)}"
             f"<td>{html.escape(', '.join(_kinds(row)))}</td>"
             f"<td class=\"why\">{html.escape(str(row.get('reason') or ''))}</td>"
             f"<td>{'' if to_halt is None else f'{to_halt:.3f}'}</td>"
@@ -415,10 +420,7 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
     for row in kept.rows():
         clear = row.get("min_tape_clearance_m")
         lines.append(
-            f"<tr><td>{html.escape(str(row['id']))}</td>"
-            f"<td style=\"color:{_COLORS.get(str(row['outcome']), '')}\">{row['outcome']}</td>"
-            f"<td>{html.escape(str(row['scenario']))}</td>"
-            f"<td>{html.escape(str(row['camera']))}</td>"
+            f"<tr>{_run_cells(row)}"
             f"<td>{row['false_lane_longest_s']:.2f}</td><td>{row['false_lane_frames']}</td>"
             f"<td>{row['max_edge_error_m']:.3f}</td>"
             f"<td>{'' if clear is None else f'{1000 * clear:.1f}'}</td>"
