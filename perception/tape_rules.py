@@ -166,6 +166,7 @@ def band_is_tape(
     c = tape.min_contrast_levels
     a_cx, a_cy, a_ux, a_uy = a.cx, a.cy, a.ux, a.uy
     b_cx, b_cy, b_ux, b_uy = b.cx, b.cy, b.ux, b.uy
+    needed = tape.min_band_fraction
     seen = 0
     tape_like = 0
     # (Comparisons written out rather than min() and max(): the check runs on a few candidate
@@ -205,13 +206,19 @@ def band_is_tape(
         # Beside a dark band the lighter floor point of each side counts, beside a light band
         # the darker one; the floor on both sides must be one floor, shaded at most FLOOR_SHADE.
         step = (left_light if left_light < right_light else right_light) - band_max
+        dark_step = band_min - (left_dark if left_dark > right_dark else right_dark)
         if step > c and spread < step and abs(left_light - right_light) < FLOOR_SHADE * step:
             tape_like += 1
-            continue
-        step = band_min - (left_dark if left_dark > right_dark else right_dark)
-        if step > c and spread < step and abs(left_dark - right_dark) < FLOOR_SHADE * step:
+        elif (dark_step > c and spread < dark_step
+              and abs(left_dark - right_dark) < FLOOR_SHADE * dark_step):
             tape_like += 1
-    return seen > 0 and tape_like >= tape.min_band_fraction * seen
+        else:
+            continue
+        # Settled once the samples left could not bring the share below the minimum even if
+        # all of them were seen and none looked like tape (the answer is the same as at the end).
+        if tape_like >= needed * (seen + n - k):
+            return True
+    return seen > 0 and tape_like >= needed * seen
 
 
 def _floor_beside(pixel: Callable[[int, int], int], r: int, x_near: float, x_far: float,
