@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -291,9 +291,9 @@ _DENSE_UP_TO = 64
 
 def _compatible_dense(pieces: _Pieces, angle_tol_deg: float,
                       offset_tol_px: float) -> NDArray[np.bool_]:
-    """[i, j]: `_compatible` for every pair of segments."""
-    index = np.arange(len(pieces.angle))
-    return _compatible(pieces, index[:, None], index[None, :], angle_tol_deg, offset_tol_px)
+    """[i, j]: `_compatible` for every pair of segments (the whole arrays broadcast against
+    each other: no gathers)."""
+    return _compatible(pieces, np.s_[:, None], np.s_[None, :], angle_tol_deg, offset_tol_px)
 
 
 def _compatible_pairs(pieces: _Pieces, angle_tol_deg: float,
@@ -305,11 +305,16 @@ def _compatible_pairs(pieces: _Pieces, angle_tol_deg: float,
     return i[ok], j[ok]
 
 
-def _compatible(pieces: _Pieces, i: IntArray, j: IntArray, angle_tol_deg: float,
+#: Which segments `_compatible` compares: an index array, or an index expression such as
+#: `np.s_[:, None]` (numpy's stubs type the two through different overloads).
+_Which = Any
+
+
+def _compatible(pieces: _Pieces, i: _Which, j: _Which, angle_tol_deg: float,
                 offset_tol_px: float) -> NDArray[np.bool_]:
-    """For segments `i` and `j` (index arrays, broadcast together): whether segment j's
-    direction lies within `angle_tol_deg` of segment i's and its midpoint within `offset_tol_px`
-    of segment i's line."""
+    """For segments `i` and `j` (index arrays, or index expressions such as `np.s_[:, None]`,
+    broadcast together): whether segment j's direction lies within `angle_tol_deg` of segment
+    i's and its midpoint within `offset_tol_px` of segment i's line."""
     dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
     off_line = np.abs((pieces.mid_x[j] - pieces.mid_x[i]) * dir_y[i]
                       - (pieces.mid_y[j] - pieces.mid_y[i]) * dir_x[i])
@@ -427,10 +432,11 @@ def _polarity(
     run -= start
     points = run[:, :, None] * _sample_fractions(k)
     points += start[:, :, None]
-    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0. One gather for both
-    # sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
-    normal = np.array((-uy * offset, ux * offset))[:, :, None]
-    sides = np.concatenate((points + normal, points - normal), axis=1)
+    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0, and its opposite.
+    # One gather for both sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
+    right_x, right_y = -uy * offset, ux * offset
+    normals = np.array(((right_x, right_y), (-right_x, -right_y)))  # (side, x|y, n)
+    sides = (points[:, None] + normals.transpose(1, 0, 2)[:, :, :, None]).reshape(2, -1, k)
     sides += 0.5
     np.maximum(sides, 0.0, out=sides)
     np.minimum(sides, _image_limits(width, height), out=sides)
@@ -440,6 +446,9 @@ def _polarity(
     right, left = values[:n], values[n:]
     step = right - left
     threshold = tape.min_contrast_levels
+    # (For whole-number steps, step > t exactly when step > floor(t): compared as ints, twice
+    # as fast as against a float.)
+    whole_threshold = math.floor(threshold)
     # The median step, not the mean: a ceiling light mirrored in glossy tape makes a few samples
     # of its edges brighter on the tape's side than the floor by far more than the tape is darker
     # elsewhere, and their mean says "no contrast" (or the wrong sign).
@@ -449,7 +458,7 @@ def _polarity(
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
-    up, down = step > threshold, step < -threshold
+    up, down = step > whole_threshold, step < -whole_threshold
     n_up, n_down = up.sum(axis=1), down.sum(axis=1)
     unclear = np.nonzero(whole == 0.0)[0]
     if unclear.size:
