@@ -54,6 +54,12 @@ def test_an_empty_path_is_one_line_exit_2(words: tuple[str, ...], param: click.P
                                           capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(tmp_path)
     given = [param.opts[0], ""] if isinstance(param, click.Option) else [""]
+    if isinstance(param, click.Argument):  # the arguments before it (compare's BEFORE): "."
+        command: click.Command = cli
+        for word in words:
+            command = command.commands[word] if isinstance(command, click.Group) else command
+        arguments = [p for p in command.params if isinstance(p, click.Argument)]
+        given = ["."] * arguments.index(param) + given
     code = main([*words, *given])
     err = capsys.readouterr().err
     assert code == 2, err

@@ -10,6 +10,7 @@ def register_commands(cli: click.Group) -> None:
         base,
         calibrate,
         campaign,
+        compare,
         config_cmd,
         detect,
         replay,
@@ -20,6 +21,6 @@ def register_commands(cli: click.Group) -> None:
     )
 
     for module in (config_cmd, detect, calibrate, undistort, base, sim, run, replay, survey,
-                   campaign):
+                   campaign, compare):
         for command in module.commands():
             cli.add_command(command)

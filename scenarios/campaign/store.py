@@ -75,11 +75,23 @@ class ResultStore:
     """DIR/results.sqlite. Use as a context manager. `recover`: see the module docstring."""
 
     def __init__(self, path: Path, *, recover: bool = False,
-                 lock_wait_s: float = LOCK_WAIT_S) -> None:
+                 lock_wait_s: float = LOCK_WAIT_S, read_only: bool = False) -> None:
         self.path = path
         self._lock_wait_s = lock_wait_s
         self.recovered: Recovery | None = None
         self.unstored_path = path.with_name(path.name + UNSTORED_SUFFIX)
+        self.unstored_carried = 0
+        self._select = _SELECT
+        if read_only:
+            self._db = _open_read_only(path)
+            have = self._read(lambda db: {row[1] for row in db.execute("PRAGMA table_info(runs)")})
+            if "id" not in have or "outcome" not in have:
+                self._db.close()
+                raise ScenarioError(f"{path}: not a campaign's results (no table of runs)")
+            # a file from before a column existed: that column reads as empty
+            self._select = (f"SELECT {', '.join(n if n in have else 'NULL' for n in COLUMN_NAMES)}"
+                            " FROM runs")
+            return
         problem = _damage(path) if path.exists() else None
         if problem is not None:
             if not recover:
@@ -183,10 +195,10 @@ class ResultStore:
 
     def iter_rows(self, below_index: int | None = None) -> Iterator[dict[str, Any]]:
         """Every row (of the runs with an index below `below_index`), by index, one at a time."""
-        query: str = f"{_SELECT} ORDER BY idx"
+        query: str = f"{self._select} ORDER BY idx"
         args: tuple[int, ...] = ()
         if below_index is not None:
-            query, args = f"{_SELECT} WHERE idx < ? ORDER BY idx", (below_index,)
+            query, args = f"{self._select} WHERE idx < ? ORDER BY idx", (below_index,)
         try:
             for values in self._db.execute(query, args):
                 yield dict(zip(COLUMN_NAMES, values, strict=True))
@@ -253,10 +265,32 @@ class Recovery:
         self.lost_ids = lost_ids
 
 
+def _read_only_uri(path: Path) -> str:
+    """SQLite's URI of `path` for reading only (a '?' or '#' in a folder's name is quoted)."""
+    return f"{path.resolve().as_uri()}?mode=ro"
+
+
+def _open_read_only(path: Path) -> sqlite3.Connection:
+    """The results file opened for reading only (nothing is created or changed): a missing or
+    damaged file is refused in one line."""
+    if not path.is_file():
+        raise ScenarioError(f"{path}: no campaign results here (expected the results.sqlite a "
+                            "`lanewarden campaign --out` folder holds)")
+    problem = _damage(path)
+    if problem is not None:
+        raise DamagedResults(f"{path}: the results database is damaged ({problem}); run the "
+                             "campaign that wrote it again with --recover first")
+    try:
+        return sqlite3.connect(_read_only_uri(path), uri=True)
+    except sqlite3.Error as exc:
+        raise ScenarioError(f"{path}: cannot open the results database "
+                            f"({_problem(exc)})") from None
+
+
 def _damage(path: Path) -> str | None:
     """Why the file at `path` is not a sound results database, or None."""
     try:
-        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        db = sqlite3.connect(_read_only_uri(path), uri=True)
     except sqlite3.Error as exc:
         return _problem(exc)
     try:

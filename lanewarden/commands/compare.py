@@ -1,0 +1,65 @@
+"""`lanewarden compare`: two campaigns of the same draws, run by run (what a change did).
+
+Thin shell: open both results databases for reading only (nothing in either folder is written),
+compare them (`scenarios.campaign.compare`), print the table and the runs that changed, worse
+first. `--fail-if-worse` makes it a gate: exit 2 when a run became unsafe or a false halt.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from lanewarden.commands.flags import PathFlag
+from lanewarden.errors import QualityGateError
+from lanewarden.scenarios.campaign.compare import as_json, compare_campaigns, describe
+from lanewarden.scenarios.campaign.store import ResultStore
+from lanewarden.wording import counted
+
+EXAMPLES = """\b
+Examples:
+  lanewarden campaign --spec default --runs 300 --seed 4 --out before
+  lanewarden campaign --spec default --runs 300 --seed 4 --out after --config mine.yaml
+  lanewarden compare before after
+  lanewarden compare before after --fail-if-worse
+"""
+
+
+def _results(folder: str) -> Path:
+    """A campaign folder's results.sqlite (the file itself may be given too)."""
+    path = Path(folder)
+    return path if path.is_file() else path / "results.sqlite"
+
+
+@click.command("compare", epilog=EXAMPLES)
+@click.argument("before", type=PathFlag("a campaign's --out folder"))
+@click.argument("after", type=PathFlag("a campaign's --out folder"))
+@click.option("--json", "as_json_flag", is_flag=True,
+              help="Print one JSON object (the comparison, every changed run) instead of the "
+              "table.")
+@click.option("--fail-if-worse", is_flag=True,
+              help="Exit 2 when a run became unsafe or a false halt in AFTER.")
+def compare_command(before: str, after: str, as_json_flag: bool, fail_if_worse: bool) -> None:
+    """Compare two campaigns of the same spec and seed run by run (AFTER: with a changed
+    --config, say): outcomes, closest approaches to a tape, false lanes, and every run whose
+    outcome changed, worse first. Reads both folders, writes nothing."""
+    with (ResultStore(_results(before), read_only=True) as old,
+          ResultStore(_results(after), read_only=True) as new):
+        comparison = compare_campaigns(old.iter_rows(), new.iter_rows())
+    if as_json_flag:
+        click.echo(json.dumps(as_json(comparison)))
+    else:
+        for line in describe(comparison, before, after):
+            click.echo(line)
+    worse = comparison.of("worse")
+    if fail_if_worse and worse:
+        named = ", ".join(f"{r.run_id} ({r.before} -> {r.after})" for r in worse[:5])
+        more = f" and {len(worse) - 5} more" if len(worse) > 5 else ""
+        raise QualityGateError(f"--fail-if-worse: {counted(len(worse), 'run')} got worse in "
+                               f"{after}: {named}{more}")
+
+
+def commands() -> list[click.Command]:
+    return [compare_command]
