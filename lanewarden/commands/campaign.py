@@ -23,6 +23,7 @@ from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import load_campaign_spec
+from lanewarden.scenarios.campaign.compare import NEAR_TAPE_M, notable_ids
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
 from lanewarden.scenarios.campaign.runner import (
@@ -36,7 +37,7 @@ from lanewarden.scenarios.campaign.runner import (
     SchedulerUnreachable,
     run_campaign,
 )
-from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore
+from lanewarden.scenarios.campaign.store import CampaignMismatch, ResultStore, results_in
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 from lanewarden.scenarios.progress import Progress
 from lanewarden.stop_signals import raise_interrupt
@@ -47,6 +48,7 @@ Examples:
   lanewarden campaign --spec default --out campaign-out --runs 200
   lanewarden campaign --spec my-spec.yaml --out big --runs 5000 --scheduler tcp://10.0.0.5:8786
   lanewarden sim --case campaign-out/cases/r00042.yaml
+  lanewarden campaign --spec default --out screen --config mine.yaml --only-notable campaign-out
 """
 
 
@@ -79,9 +81,14 @@ def _counts(progress: CampaignProgress) -> str:
 @click.option("--recover", is_flag=True,
               help="results.sqlite is damaged: keep it as results.sqlite.damaged, carry over "
               "every run that can still be read, and rerun the rest.")
+@click.option("--only-notable", "notable_dir", default=None,
+              type=PathFlag("a campaign's --out folder"), metavar="DIR",
+              help="A screen: run only the runs that DIR (a campaign of the same spec and seed) "
+              "found unsafe, false halts, on a false lane or within 30 mm of a tape; then "
+              "`lanewarden compare DIR` this --out.")
 def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                      scheduler: str | None, workers: int | None, config_path: str | None,
-                     quiet: bool, recover: bool) -> None:
+                     quiet: bool, recover: bool, notable_dir: str | None) -> None:
     """Draw randomized fault-injection runs from a spec, run them on Dask, classify each
     (safe_halt, recovered, nominal, false_halt, unsafe, error), write results and a report."""
     started = time.perf_counter()
@@ -96,10 +103,14 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         _check_scheduler_address(scheduler, named)
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
+    only = None if notable_dir is None else _notable(Path(notable_dir), out, runs)
+    if only is not None and runs is None:
+        runs = max(int(run_id[1:]) for run_id in only) + 1
     plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
                         runs=runs or 100, out_dir=out, config_overrides=overrides,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
-                        worker_memory_limit_mb=config.campaign.worker_memory_limit_mb)
+                        worker_memory_limit_mb=config.campaign.worker_memory_limit_mb,
+                        only=only)
     bar: Progress | None = None
     stored_at_start = 0
 
@@ -116,6 +127,9 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
             carried = progress.unstored_carried
             click.echo(f"campaign {spec.name}: stored now what an earlier campaign could not "
                        f"store ({counted(carried, 'run')})", err=True)
+        if only is not None:
+            click.echo(f"campaign {spec.name}: only the notable runs of {notable_dir} (unsafe, "
+                       "false halts, on a false lane or within 30 mm of a tape)", err=True)
         click.echo(f"campaign {spec.name}: {counted(progress.total, 'run')} (seed {seed}), "
                    f"{progress.done} already stored; running {where}", err=True)
         bar = Progress(progress.total, f"campaign {spec.name}", "runs", initial=progress.done,
@@ -166,6 +180,25 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     click.echo(text)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
+
+
+def _notable(source: Path, out: Path, runs: int | None) -> frozenset[str]:
+    """The ids `--only-notable SOURCE` names (`compare.notable_ids`), refused in one line when
+    SOURCE is --out itself, holds none, or names runs beyond --runs."""
+    if results_in(source).resolve() == (out / "results.sqlite").resolve():
+        raise UsageError(f"--only-notable {source}: the same folder as --out; expected another "
+                         "--out for the screen (then lanewarden compare the two)")
+    with ResultStore(results_in(source), read_only=True) as store:
+        ids = notable_ids(store.iter_rows())
+    if not ids:
+        raise UsageError(f"--only-notable {source}: no run there is unsafe, a false halt, on a "
+                         f"false lane or within {NEAR_TAPE_M * 1000:.0f} mm of a tape: nothing to "
+                         "screen")
+    covers = max(int(run_id[1:]) for run_id in ids) + 1
+    if runs is not None and runs < covers:
+        raise UsageError(f"--runs {runs}: --only-notable {source} names runs up to {ids[-1]}; "
+                         f"expected --runs {covers} or more (or no --runs)")
+    return frozenset(ids)
 
 
 def _check_scheduler_address(address: str, named: str) -> None:

@@ -15,7 +15,7 @@ import click
 from lanewarden.commands.flags import PathFlag
 from lanewarden.errors import QualityGateError
 from lanewarden.scenarios.campaign.compare import as_json, compare_campaigns, describe
-from lanewarden.scenarios.campaign.store import ResultStore
+from lanewarden.scenarios.campaign.store import ResultStore, results_in
 from lanewarden.wording import counted
 
 EXAMPLES = """\b
@@ -25,12 +25,6 @@ Examples:
   lanewarden compare before after
   lanewarden compare before after --fail-if-worse
 """
-
-
-def _results(folder: str) -> Path:
-    """A campaign folder's results.sqlite (the file itself may be given too)."""
-    path = Path(folder)
-    return path if path.is_file() else path / "results.sqlite"
 
 
 @click.command("compare", epilog=EXAMPLES)
@@ -45,8 +39,8 @@ def compare_command(before: str, after: str, as_json_flag: bool, fail_if_worse: 
     """Compare two campaigns of the same spec and seed run by run (AFTER: with a changed
     --config, say): outcomes, closest approaches to a tape, false lanes, and every run whose
     outcome changed, worse first. Reads both folders, writes nothing."""
-    with (ResultStore(_results(before), read_only=True) as old,
-          ResultStore(_results(after), read_only=True) as new):
+    with (ResultStore(results_in(Path(before)), read_only=True) as old,
+          ResultStore(results_in(Path(after)), read_only=True) as new):
         comparison = compare_campaigns(old.iter_rows(), new.iter_rows())
     if as_json_flag:
         click.echo(json.dumps(as_json(comparison)))

@@ -114,6 +114,19 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row]) -> CampaignCo
         changes=tuple(changes))
 
 
+def notable_ids(rows: Iterable[Row]) -> list[str]:
+    """The runs worth rerunning first when trying a change (a screen): unsafe, false halts, and
+    any run that trusted a false lane or came within NEAR_TAPE_M of a tape whatever its
+    outcome; by id."""
+    found = []
+    for row in rows:
+        clear = clearance_m(row)
+        if (row.get("outcome") in _SEVERITY or (_metric(row, "false_lane_frames") or 0) > 0
+                or (clear is not None and clear < NEAR_TAPE_M)):
+            found.append(str(row["id"]))
+    return sorted(found)
+
+
 def _change(run_id: str, old: Row, new: Row) -> RunChange:
     was, now = str(old.get("outcome")), str(new.get("outcome"))
     kind: Change
@@ -175,7 +188,7 @@ def describe(comparison: CampaignComparison, before_name: str, after_name: str,
     """The comparison as lines of text: the outcome table, the closest approaches, the false
     lanes, then the runs that changed, worse first (at most `listed` of each class)."""
     c = comparison
-    lines = [f"{c.shared} runs in both (before: {before_name}; after: {after_name})"
+    lines = [f"{counted(c.shared, 'run')} in both (before: {before_name}; after: {after_name})"
              + (f"; left out: {c.only_before} only before, {c.only_after} only after"
                 if c.only_before or c.only_after else "")]
     width = max(len(o) for o in OUTCOMES)

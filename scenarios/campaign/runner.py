@@ -114,6 +114,8 @@ class CampaignPlan:
     config_overrides: Mapping[str, Any]
     follow_speed_m_s: float
     worker_memory_limit_mb: int = 1024
+    #: Run only these runs (ids, all below `runs`): a screen (`--only-notable`); None: all.
+    only: frozenset[str] | None = None
 
 
 @dataclass
@@ -167,7 +169,7 @@ def pending_cases(plan: CampaignPlan, done: set[str], first_batch: int = 4,
     size = first_batch
     while index < plan.runs:
         indices = [i for i in range(index, min(plan.runs, index + size))
-                   if case_id(i) not in done]
+                   if case_id(i) not in done and (plan.only is None or case_id(i) in plan.only)]
         index += size
         size = batch
         cases = [_draw(plan, i) for i in indices]
@@ -216,7 +218,10 @@ def _run_stored(plan: CampaignPlan, scheduler: str, workers: int | None, client:
                      "seed": str(plan.seed)})
         _refuse_fewer_runs(store, plan.runs)
         done = store.done_ids(below_index=plan.runs)
-        progress = CampaignProgress(total=plan.runs, done=len(done),
+        total = plan.runs
+        if plan.only is not None:
+            total, done = len(plan.only), done & plan.only
+        progress = CampaignProgress(total=total, done=len(done),
                                     counts=store.outcome_counts(plan.runs),
                                     recovered=store.recovered,
                                     unstored_carried=store.unstored_carried)

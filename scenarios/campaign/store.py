@@ -265,6 +265,11 @@ class Recovery:
         self.lost_ids = lost_ids
 
 
+def results_in(folder: Path) -> Path:
+    """A campaign folder's results.sqlite (the file itself may be given instead)."""
+    return folder if folder.is_file() else folder / "results.sqlite"
+
+
 def _read_only_uri(path: Path) -> str:
     """SQLite's URI of `path` for reading only (a '?' or '#' in a folder's name is quoted)."""
     return f"{path.resolve().as_uri()}?mode=ro"

@@ -15,6 +15,7 @@ Rows are literal, as results.sqlite holds them; expected figures are written out
 from __future__ import annotations
 
 import json
+import sqlite3
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,7 @@ from lanewarden.scenarios.campaign.compare import (
     CampaignsDiffer,
     compare_campaigns,
     describe,
+    notable_ids,
 )
 from lanewarden.scenarios.campaign.store import ResultStore
 
@@ -202,3 +204,51 @@ def test_cli_bad_folders_are_one_line_and_left_alone(tmp_path: Path,
     assert main(["compare", str(before), str(other)]) == 2
     assert "r00000 is not the same run in both (seed: 100 before, 7 after)" in (
         capsys.readouterr().err)
+
+
+def test_the_notable_runs_are_those_worth_screening_a_change_on() -> None:
+    rows = [row(0, "nominal"), row(1, "false_halt"), row(2, "unsafe", -0.002),
+            row(3, "safe_halt", 0.0299), row(4, "safe_halt", 0.03), row(5, "recovered", 0.2, 1),
+            row(6, "error", None, None), row(7, "nominal", None, None)]
+    assert notable_ids(rows) == ["r00001", "r00002", "r00003", "r00005"]
+
+
+def test_a_screen_runs_only_the_notable_runs_and_compares_with_them(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    before = tmp_path / "before"
+    common = ["--spec", str(tiny_spec), "--seed", "7", "--scheduler", "in-process", "--quiet"]
+    assert main(["campaign", *common, "--out", str(before), "--runs", "3"]) == 0
+    with sqlite3.connect(before / "results.sqlite") as db:  # say r00001 had halted falsely
+        db.execute("UPDATE runs SET outcome = 'false_halt' WHERE id = 'r00001'")
+        db.execute("UPDATE runs SET metrics_json = '{}' WHERE id != 'r00001'")
+    capsys.readouterr()
+    screen = tmp_path / "screen"
+    assert main(["campaign", *common, "--out", str(screen), "--only-notable", str(before)]) == 0
+    err = capsys.readouterr().err
+    assert f"campaign tiny: only the notable runs of {before} (unsafe, false halts" in err
+    assert "campaign tiny: 1 run (seed 7), 0 already stored" in err
+    with sqlite3.connect(screen / "results.sqlite") as db:
+        assert db.execute("SELECT id FROM runs").fetchall() == [("r00001",)]
+    assert main(["compare", str(before), str(screen)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"1 run in both (before: {before}; after: {screen}); left out: 2 only "
+                          "before, 0 only after")
+
+
+def test_a_screen_is_refused_in_one_line_where_it_cannot_be_one(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    nothing = store(tmp_path / "nothing", [row(0, "nominal"), row(1, "recovered")])
+    common = ["campaign", "--spec", str(tiny_spec), "--scheduler", "in-process", "--quiet"]
+    assert main([*common, "--out", str(tmp_path / "s1"), "--only-notable", str(nothing)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: --only-notable {nothing}: no run there is unsafe, a false halt, on "
+        "a false lane or within 30 mm of a tape: nothing to screen")
+    late = store(tmp_path / "late", [row(0, "nominal"), row(7, "false_halt")])
+    assert main([*common, "--out", str(tmp_path / "s2"), "--runs", "5",
+                 "--only-notable", str(late)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: --runs 5: --only-notable {late} names runs up to r00007; expected "
+        "--runs 8 or more (or no --runs)")
+    assert main([*common, "--out", str(late), "--only-notable", str(late)]) == 2
+    assert "the same folder as --out" in capsys.readouterr().err
+    assert not (tmp_path / "s1").exists() and not (tmp_path / "s2").exists()
