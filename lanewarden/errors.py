@@ -7,7 +7,7 @@ exit-code rule every `lanewarden` command follows (README, "Exit codes"):
 - 2: bad input: a flag value, a config/scenario/calibration file or an input file that cannot be
   used as given (missing, unreadable, not an image, too large); a failed quality gate or check;
 - 3: `run` (and `replay`) ended by a safety stop; `survey`: NOT SAFE (a decision on a no-lane
-  frame);
+  frame); `compare --fail-if-worse`: a run became unsafe or a false halt;
 - 130: interrupted by Ctrl-C (commands other than `run`).
 
 Errors are classified by type (`EXIT_CODE_BY_ERROR`, first match wins), so a layer's own error

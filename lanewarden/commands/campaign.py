@@ -22,10 +22,11 @@ from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
-from lanewarden.scenarios.campaign.cases import load_campaign_spec
-from lanewarden.scenarios.campaign.compare import NEAR_TAPE_M, notable_ids
+from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
+from lanewarden.scenarios.campaign.compare import DRAWN, NEAR_TAPE_M, notable_ids
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
+from lanewarden.scenarios.campaign.run_case import case_columns
 from lanewarden.scenarios.campaign.runner import (
     IN_PROCESS,
     LOCAL,
@@ -103,7 +104,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         _check_scheduler_address(scheduler, named)
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
-    only = None if notable_dir is None else _notable(Path(notable_dir), out, runs)
+    only = None if notable_dir is None else _notable(Path(notable_dir), out, runs, seed)
     if only is not None and runs is None:
         runs = max(int(run_id[1:]) for run_id in only) + 1
     plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
@@ -111,6 +112,8 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
                         worker_memory_limit_mb=config.campaign.worker_memory_limit_mb,
                         only=only)
+    if only is not None:
+        _same_draws(plan, Path(str(notable_dir)), only)
     bar: Progress | None = None
     stored_at_start = 0
 
@@ -170,8 +173,10 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         summary = summarize(store.iter_rows(plan.runs))
         ran = (f"{summary.runs - stored_at_start} run now" if stored_at_start
                else "all run now")
-        text = (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}; {ran}, "
-                f"{time.perf_counter() - started:.0f} s): {_counts(progress)}")
+        screen = ("" if only is None else
+                  f"; a screen: only the notable runs of {notable_dir}, not a sample")
+        text = (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}{screen}; "
+                f"{ran}, {time.perf_counter() - started:.0f} s): {_counts(progress)}")
         try:
             write_junit(out / "junit.xml", spec.name, store.iter_rows(plan.runs), summary)
             write_report(out / "report.html", spec.name, summary, out, text)
@@ -182,14 +187,23 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                f"Report: {out / 'report.html'}")
 
 
-def _notable(source: Path, out: Path, runs: int | None) -> frozenset[str]:
+def _notable(source: Path, out: Path, runs: int | None, seed: int) -> frozenset[str]:
     """The ids `--only-notable SOURCE` names (`compare.notable_ids`), refused in one line when
-    SOURCE is --out itself, holds none, or names runs beyond --runs."""
+    SOURCE is --out itself, cannot be read, is a campaign of another seed, holds none, or names
+    runs beyond --runs."""
     if results_in(source).resolve() == (out / "results.sqlite").resolve():
         raise UsageError(f"--only-notable {source}: the same folder as --out; expected another "
                          "--out for the screen (then lanewarden compare the two)")
-    with ResultStore(results_in(source), read_only=True) as store:
-        ids = notable_ids(store.iter_rows())
+    try:
+        with ResultStore(results_in(source), read_only=True) as store:
+            stored_seed = store.identity().get("seed")
+            if stored_seed is not None and stored_seed != str(seed):
+                raise UsageError(f"--only-notable {source}: a campaign of seed {stored_seed}, "
+                                 f"this one --seed {seed}; expected --seed {stored_seed} (the "
+                                 "same spec and seed draw the same runs)")
+            ids = notable_ids(store.iter_rows())
+    except ScenarioError as exc:
+        raise UsageError(f"--only-notable {source}: {exc}") from None
     if not ids:
         raise UsageError(f"--only-notable {source}: no run there is unsafe, a false halt, on a "
                          f"false lane or within {NEAR_TAPE_M * 1000:.0f} mm of a tape: nothing to "
@@ -199,6 +213,22 @@ def _notable(source: Path, out: Path, runs: int | None) -> frozenset[str]:
         raise UsageError(f"--runs {runs}: --only-notable {source} names runs up to {ids[-1]}; "
                          f"expected --runs {covers} or more (or no --runs)")
     return frozenset(ids)
+
+
+def _same_draws(plan: CampaignPlan, source: Path, only: frozenset[str]) -> None:
+    """UsageError when a run `--only-notable` names is not drawn here as SOURCE holds it (another
+    spec): the screen would run other runs under the same ids."""
+    with ResultStore(results_in(source), read_only=True) as store:
+        stored = {row["id"]: row for row in store.rows(only)}
+    for run_id in sorted(only):
+        drawn = case_columns(draw_case(plan.spec, plan.spec_path, plan.seed, int(run_id[1:]),
+                                       plan.config_overrides, plan.follow_speed_m_s))
+        differs = [k for k in DRAWN if drawn.get(k) != stored[run_id].get(k)]
+        if differs:
+            k = differs[0]
+            raise UsageError(f"--only-notable {source}: {run_id} there is not the run this spec "
+                             f"draws ({k}: {stored[run_id].get(k)!r} there, {drawn.get(k)!r} "
+                             "here); expected a campaign of the same spec and seed")
 
 
 def _check_scheduler_address(address: str, named: str) -> None:

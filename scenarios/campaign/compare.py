@@ -11,7 +11,7 @@ Each run that changed outcome is put in one class, from the safety side:
 - `worse`: it became unsafe, or became a false halt (a halt the run did not call for);
 - `better`: it stopped being unsafe, or stopped being a false halt (and did not become unsafe);
 - `error`: it could not be judged in one of the two (`error`), so it says nothing either way;
-- `changed`: any other change (say a safe halt that now recovers).
+- `other`: any other change (say a safe halt that now recovers).
 Beside the outcomes: each campaign's closest approach to a tape, the runs that came within
 `NEAR_TAPE_M` of one, and how many runs trusted a false lane (`scenarios.false_lane`), over the
 runs both hold.
@@ -39,12 +39,35 @@ NEAR_TAPE_M = 0.03
 #: Outcomes ranked from the safety side: a run that moves up this list got worse.
 _SEVERITY = {"unsafe": 2, "false_halt": 1}
 
-Change = Literal["worse", "better", "error", "changed"]
+Change = Literal["worse", "better", "error", "other"]
 Row = Mapping[str, Any]
 
 
 class CampaignsDiffer(ScenarioError):
     """Two result folders whose runs were not drawn alike (bad input: exit 2)."""
+
+
+class UnreadableRow(ScenarioError):
+    """A stored row that no campaign writes (bad input: exit 2)."""
+
+
+def _checked(row: Row, name: str) -> Row:
+    """`row` as a campaign stores it, or UnreadableRow naming the run and the column (after
+    `name`, the folder it came from, when given)."""
+    where = f"{name}: run {row.get('id')}" if name else f"run {row.get('id')}"
+    outcome = row.get("outcome")
+    if outcome not in OUTCOMES:
+        raise UnreadableRow(f"{where}: outcome {str(outcome)[:60]!r} is not "
+                            f"one a campaign stores (expected one of {', '.join(OUTCOMES)})")
+    text = row.get("metrics_json")
+    try:
+        metrics = json.loads(text) if text else {}
+    except (TypeError, ValueError):
+        metrics = None
+    if not isinstance(metrics, dict):
+        raise UnreadableRow(f"{where}: metrics_json {str(text)[:60]!r} is "
+                            "not readable (expected the JSON object a campaign stores)")
+    return row
 
 
 @dataclass(frozen=True)
@@ -81,17 +104,20 @@ class CampaignComparison:
     only_after: int
     before: Side
     after: Side
-    changes: tuple[RunChange, ...]  # worse first, then better, error, changed; by id within
+    changes: tuple[RunChange, ...]  # worse first, then better, error, other; by id within
 
     def of(self, change: Change) -> tuple[RunChange, ...]:
         return tuple(c for c in self.changes if c.change == change)
 
 
-def compare_campaigns(before: Iterable[Row], after: Iterable[Row]) -> CampaignComparison:
-    """The comparison of two campaigns' rows (see the module docstring). Raises CampaignsDiffer
-    when a run both hold was drawn differently, or when they share no run."""
-    old = {str(r["id"]): r for r in before}
-    new = {str(r["id"]): r for r in after}
+def compare_campaigns(before: Iterable[Row], after: Iterable[Row],
+                      names: tuple[str, str] = ("before", "after")) -> CampaignComparison:
+    """The comparison of two campaigns' rows (see the module docstring; `names` say which is
+    which in a refusal). Raises CampaignsDiffer when a run both hold was drawn differently, when
+    they share no run, and UnreadableRow for a row no campaign writes (an unknown outcome,
+    metrics that are not a JSON object): a damaged row must not make a campaign look safer."""
+    old = {str(r["id"]): _checked(r, names[0]) for r in before}
+    new = {str(r["id"]): _checked(r, names[1]) for r in after}
     ids = sorted(old.keys() & new.keys())
     if not ids:
         raise CampaignsDiffer("the two campaigns share no run: compare two result folders of "
@@ -106,7 +132,7 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row]) -> CampaignCo
                 "(only --config may differ)")
     changes = [_change(run_id, old[run_id], new[run_id]) for run_id in ids
                if old[run_id].get("outcome") != new[run_id].get("outcome")]
-    order = {"worse": 0, "better": 1, "error": 2, "changed": 3}
+    order = {"worse": 0, "better": 1, "error": 2, "other": 3}
     changes.sort(key=lambda c: (order[c.change], c.run_id))
     return CampaignComparison(
         shared=len(ids), only_before=len(old) - len(ids), only_after=len(new) - len(ids),
@@ -117,9 +143,11 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row]) -> CampaignCo
 def notable_ids(rows: Iterable[Row]) -> list[str]:
     """The runs worth rerunning first when trying a change (a screen): unsafe, false halts, and
     any run that trusted a false lane or came within NEAR_TAPE_M of a tape whatever its
-    outcome; by id."""
+    outcome; by id. UnreadableRow as `compare_campaigns` (a damaged notable run must not drop
+    out of a screen unseen)."""
     found = []
     for row in rows:
+        _checked(row, "")
         clear = clearance_m(row)
         if (row.get("outcome") in _SEVERITY or (_metric(row, "false_lane_frames") or 0) > 0
                 or (clear is not None and clear < NEAR_TAPE_M)):
@@ -137,7 +165,7 @@ def _change(run_id: str, old: Row, new: Row) -> RunChange:
     elif _SEVERITY.get(now, 0) < _SEVERITY.get(was, 0):
         kind = "better"
     else:
-        kind = "changed"
+        kind = "other"
     what = " / ".join(str(old.get(k)) for k in ("scenario", "camera", "floor", "tape"))
     return RunChange(run_id, kind, what, was, now, clearance_m(old), clearance_m(new))
 
@@ -171,8 +199,8 @@ def clearance_m(row: Row) -> float | None:
 
 
 def _metric(row: Row, name: str) -> float | None:
-    """A number from a row's metrics; None where missing, not a number or the metrics are not
-    readable (a results file edited by hand says nothing rather than stopping the comparison)."""
+    """A number from a row's metrics (a row `_checked` already); None where missing or not a
+    finite number."""
     try:
         metrics = json.loads(row.get("metrics_json") or "{}")
     except (TypeError, ValueError):
@@ -210,9 +238,10 @@ def describe(comparison: CampaignComparison, before_name: str, after_name: str,
                      f"{c.after.false_lane_measured} after, of {c.shared} (the others were "
                      "stored before the metric existed): not compared")
     titles: dict[Change, str] = {"worse": "worse (became unsafe or a false halt)",
-                                 "better": "better (no longer unsafe or a false halt)",
+                                 "better": "better (was unsafe and no longer is, or was a false "
+                                           "halt and now ends well)",
                                  "error": "not judged in one of the two (error)",
-                                 "changed": "other changes"}
+                                 "other": "other changes"}
     for kind, title in titles.items():
         runs = c.of(kind)
         if not runs:
@@ -229,7 +258,8 @@ def describe(comparison: CampaignComparison, before_name: str, after_name: str,
     return lines
 
 
-def as_json(comparison: CampaignComparison) -> dict[str, Any]:
+def as_json(comparison: CampaignComparison, before_name: str,
+            after_name: str) -> dict[str, Any]:
     """The comparison as plain JSON data (every changed run listed)."""
     def side(s: Side) -> dict[str, Any]:
         return {"counts": dict(s.counts), "closest_m": s.closest_m, "closest_id": s.closest_id,
@@ -237,7 +267,8 @@ def as_json(comparison: CampaignComparison) -> dict[str, Any]:
                 "false_lane_runs": s.false_lane_runs,
                 "false_lane_frames": s.false_lane_frames}
     c = comparison
-    return {"shared": c.shared, "only_before": c.only_before, "only_after": c.only_after,
+    return {"before_name": before_name, "after_name": after_name,
+            "shared": c.shared, "only_before": c.only_before, "only_after": c.only_after,
             "near_tape_m": NEAR_TAPE_M, "before": side(c.before), "after": side(c.after),
             "changes": [{"id": r.run_id, "change": r.change, "what": r.what,
                          "before": r.before, "after": r.after,

@@ -133,6 +133,16 @@ class ResultStore:
     def close(self) -> None:
         self._db.close()
 
+    def identity(self) -> dict[str, str]:
+        """What the directory holds (`claim`: the spec's fingerprint, the seed); {} for a file
+        from before it was kept."""
+        have = self._read(lambda db: db.execute(
+            "SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'campaign'").fetchall())
+        if not have:
+            return {}
+        return {str(k): str(v) for k, v in self._read(lambda db: db.execute(
+            "SELECT key, value FROM campaign").fetchall())}
+
     def claim(self, identity: Mapping[str, str]) -> None:
         """Mark the directory as holding this campaign, or refuse another one."""
         stored = dict(self._read(lambda db: db.execute(
@@ -265,6 +275,10 @@ class Recovery:
         self.lost_ids = lost_ids
 
 
+#: The first bytes of every SQLite database file.
+_SQLITE_HEADER = b"SQLite format 3\x00"
+
+
 def results_in(folder: Path) -> Path:
     """A campaign folder's results.sqlite (the file itself may be given instead)."""
     return folder if folder.is_file() else folder / "results.sqlite"
@@ -280,6 +294,14 @@ def _open_read_only(path: Path) -> sqlite3.Connection:
     damaged file is refused in one line."""
     if not path.is_file():
         raise ScenarioError(f"{path}: no campaign results here (expected the results.sqlite a "
+                            "`lanewarden campaign --out` folder holds)")
+    try:
+        with path.open("rb") as file:
+            header = file.read(len(_SQLITE_HEADER))
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+    if header != _SQLITE_HEADER and header:
+        raise ScenarioError(f"{path}: not a results database (expected the results.sqlite a "
                             "`lanewarden campaign --out` folder holds)")
     problem = _damage(path)
     if problem is not None:

@@ -9,12 +9,18 @@
   where both campaigns measured them;
 - both folders are only read: nothing is created or changed in either, a folder without results
   or with a damaged file is one line, exit 2;
-- `--fail-if-worse` is a gate: exit 2 naming the runs that got worse.
+- a row no campaign writes (an unknown outcome, unreadable metrics) is refused, never read as
+  "not measured" (a damaged row must not make a campaign look safer);
+- `--fail-if-worse` is a gate: exit 3 naming the runs that got worse (2: not comparable);
+- a screen (`campaign --only-notable DIR`) runs exactly DIR's notable runs, and is refused in one
+  line naming the flag where DIR is of another seed or spec, unreadable, has none, or names runs
+  beyond --runs.
 Rows are literal, as results.sqlite holds them; expected figures are written out."""
 
 from __future__ import annotations
 
 import json
+import re
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -24,6 +30,7 @@ import pytest
 from lanewarden.cli import main
 from lanewarden.scenarios.campaign.compare import (
     CampaignsDiffer,
+    UnreadableRow,
     compare_campaigns,
     describe,
     notable_ids,
@@ -78,7 +85,7 @@ def test_each_changed_run_is_classed_from_the_safety_side_worse_first() -> None:
         ("r00001", "better", "false_halt", "recovered"),
         ("r00003", "better", "unsafe", "false_halt"),
         ("r00005", "error", "error", "safe_halt"),
-        ("r00004", "changed", "safe_halt", "recovered"),
+        ("r00004", "other", "safe_halt", "recovered"),
     ]
     first = comparison.changes[0]
     assert (first.before_clearance_m, first.after_clearance_m) == (0.0107, -0.0001)
@@ -120,7 +127,8 @@ def test_the_printed_table_marks_what_moved() -> None:
     worse = lines.index("worse (became unsafe or a false halt): 3")
     assert lines[worse + 1] == ("  r00000  safe_halt -> unsafe  (closest 10.7 mm -> -0.1 mm)  "
                                 "lecture / 320x240 / parquet / white")
-    assert lines.index("better (no longer unsafe or a false halt): 2") > worse
+    assert lines.index("better (was unsafe and no longer is, or was a false halt and now ends "
+                       "well): 2") > worse
 
 
 def test_a_run_drawn_differently_is_refused_naming_it() -> None:
@@ -133,18 +141,26 @@ def test_a_run_drawn_differently_is_refused_naming_it() -> None:
         compare_campaigns(BEFORE[:2], [row(9, "nominal")])
 
 
-def test_unreadable_metrics_say_nothing_rather_than_stop_the_comparison() -> None:
-    broken = dict(row(0, "nominal"), metrics_json="{not json")
-    listed = dict(row(1, "nominal"), metrics_json="[1, 2]")
-    comparison = compare_campaigns([broken, listed], [row(0, "nominal"), row(1, "nominal")])
+def test_a_row_no_campaign_writes_is_refused_naming_it() -> None:
+    good = [row(0, "nominal"), row(1, "nominal")]
+    for bad, said in ((dict(good[1], metrics_json="{not json"), "metrics_json '{not json'"),
+                      (dict(good[1], metrics_json="[1, 2]"), "metrics_json '[1, 2]'"),
+                      (dict(good[1], outcome="exploded"), "outcome 'exploded'")):
+        with pytest.raises(UnreadableRow, match=f"^after: run r00001: {re.escape(said)} is "):
+            compare_campaigns(good, [good[0], bad])
+        with pytest.raises(UnreadableRow, match=f"^run r00001: {re.escape(said)} is "):
+            notable_ids([good[0], bad])
+    # a run in error stores no metrics ('{}' or nothing): not measured, not refused
+    quiet = [dict(good[0], outcome="error", metrics_json=None), dict(good[1], metrics_json="")]
+    comparison = compare_campaigns(quiet, good)
     assert comparison.before.closest_id is None and comparison.before.false_lane_measured == 0
     assert comparison.after.closest_m == 0.1
 
 
-def store(folder: Path, rows: list[dict[str, Any]]) -> Path:
+def store(folder: Path, rows: list[dict[str, Any]], seed: int = 4) -> Path:
     folder.mkdir()
     with ResultStore(folder / "results.sqlite") as results:
-        results.claim({"spec": "x", "seed": "4"})
+        results.claim({"spec": "x", "seed": str(seed)})
         for r in rows:
             results.put(r)
     return folder
@@ -165,16 +181,19 @@ def test_cli_reads_both_folders_and_writes_nothing(tmp_path: Path,
     assert [c["id"] for c in document["changes"] if c["change"] == "worse"] == [
         "r00000", "r00002", "r00007"]
     assert document["after"]["counts"]["unsafe"] == 2
+    assert (document["before_name"], document["after_name"]) == (
+        str(before), str(after / "results.sqlite"))
 
 
 def test_cli_fail_if_worse_is_a_gate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     before = store(tmp_path / "before", BEFORE)
     after = store(tmp_path / "after", AFTER)
-    assert main(["compare", str(before), str(after), "--fail-if-worse"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"lanewarden: error: --fail-if-worse: 3 runs got worse in {after}: r00000 "
-                   "(safe_halt -> unsafe), r00002 (recovered -> false_halt), r00007 "
-                   "(false_halt -> unsafe)"]
+    assert main(["compare", str(before), str(after), "--fail-if-worse"]) == 3
+    captured = capsys.readouterr()
+    assert "worse (became unsafe or a false halt): 3" in captured.out  # the table still printed
+    assert captured.err.strip().splitlines() == [
+        f"lanewarden: worse: 3 runs got worse in {after}: r00000 (safe_halt -> unsafe), r00002 "
+        "(recovered -> false_halt), r00007 (false_halt -> unsafe)"]
     same = store(tmp_path / "same", BEFORE)
     assert main(["compare", str(before), str(same), "--fail-if-worse"]) == 0
     assert "no run changed outcome" in capsys.readouterr().out
@@ -195,15 +214,37 @@ def test_cli_bad_folders_are_one_line_and_left_alone(tmp_path: Path,
     garbage.mkdir()
     (garbage / "results.sqlite").write_bytes(b"not a database at all" * 100)
     assert main(["compare", str(before), str(garbage)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "the results database is damaged" in err[0]
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: {garbage / 'results.sqlite'}: not a results database (expected the "
+        "results.sqlite a `lanewarden campaign --out` folder holds)")
     assert (garbage / "results.sqlite").read_bytes() == b"not a database at all" * 100
     assert sorted(p.name for p in garbage.iterdir()) == ["results.sqlite"]
+
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    data = bytearray((before / "results.sqlite").read_bytes())
+    data[-4096:] = b"\xff" * 4096  # the last page overwritten, the header intact
+    (damaged / "results.sqlite").write_bytes(bytes(data))
+    assert main(["compare", str(before), str(damaged)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the results database is damaged" in err[0], err
+    assert (damaged / "results.sqlite").read_bytes() == bytes(data)
 
     other = store(tmp_path / "other", [dict(r, seed=7) for r in AFTER])
     assert main(["compare", str(before), str(other)]) == 2
     assert "r00000 is not the same run in both (seed: 100 before, 7 after)" in (
         capsys.readouterr().err)
+    seed5 = store(tmp_path / "seed5", AFTER, seed=5)
+    assert main(["compare", str(before), str(seed5)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: {before} holds a campaign of seed 4, {seed5} one of seed 5: runs "
+        "are compared by id, so both must come from the same spec and seed (only --config may "
+        "differ)")
+    (before / "junit.xml").write_text("<testsuite/>", encoding="utf-8")
+    assert main(["compare", str(before / "junit.xml"), str(seed5)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: {before / 'junit.xml'}: not a results database (expected the "
+        "results.sqlite a `lanewarden campaign --out` folder holds)")
 
 
 def test_the_notable_runs_are_those_worth_screening_a_change_on() -> None:
@@ -229,6 +270,8 @@ def test_a_screen_runs_only_the_notable_runs_and_compares_with_them(
     assert "campaign tiny: 1 run (seed 7), 0 already stored" in err
     with sqlite3.connect(screen / "results.sqlite") as db:
         assert db.execute("SELECT id FROM runs").fetchall() == [("r00001",)]
+    said = f"a screen: only the notable runs of {before}, not a sample"
+    assert said in (screen / "report.html").read_text(encoding="utf-8")
     assert main(["compare", str(before), str(screen)]) == 0
     out = capsys.readouterr().out
     assert out.startswith(f"1 run in both (before: {before}; after: {screen}); left out: 2 only "
@@ -238,7 +281,8 @@ def test_a_screen_runs_only_the_notable_runs_and_compares_with_them(
 def test_a_screen_is_refused_in_one_line_where_it_cannot_be_one(
         tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     nothing = store(tmp_path / "nothing", [row(0, "nominal"), row(1, "recovered")])
-    common = ["campaign", "--spec", str(tiny_spec), "--scheduler", "in-process", "--quiet"]
+    common = ["campaign", "--spec", str(tiny_spec), "--scheduler", "in-process", "--quiet",
+              "--seed", "4"]
     assert main([*common, "--out", str(tmp_path / "s1"), "--only-notable", str(nothing)]) == 2
     assert capsys.readouterr().err.strip() == (
         f"lanewarden: error: --only-notable {nothing}: no run there is unsafe, a false halt, on "
@@ -251,4 +295,20 @@ def test_a_screen_is_refused_in_one_line_where_it_cannot_be_one(
         "--runs 8 or more (or no --runs)")
     assert main([*common, "--out", str(late), "--only-notable", str(late)]) == 2
     assert "the same folder as --out" in capsys.readouterr().err
-    assert not (tmp_path / "s1").exists() and not (tmp_path / "s2").exists()
+    # the rows say 'lecture': not what the tiny spec draws under these ids
+    assert main([*common, "--out", str(tmp_path / "s3"), "--only-notable", str(late)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: --only-notable {late}: r00007 there is not the run this spec draws "
+        "(scenario: 'lecture' there, 'short-straight' here); expected a campaign of the same "
+        "spec and seed")
+    assert main([*common[:-1], "5", "--out", str(tmp_path / "s4"),
+                 "--only-notable", str(late)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: --only-notable {late}: a campaign of seed 4, this one --seed 5; "
+        "expected --seed 4 (the same spec and seed draw the same runs)")
+    damaged = store(tmp_path / "damaged", [dict(row(3, "unsafe"), metrics_json="{oops")])
+    assert main([*common, "--out", str(tmp_path / "s5"), "--only-notable", str(damaged)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"lanewarden: error: --only-notable {damaged}: run r00003: metrics_json '{{oops' is not "
+        "readable (expected the JSON object a campaign stores)")
+    assert not any((tmp_path / f"s{i}").exists() for i in range(1, 6))
