@@ -10,7 +10,8 @@ frame judged (a step whose record carries an observation):
   (a component at 1 never counts; ties: the first in the observation's order), most frequent
   first, at most three;
 - `longest_confident_run`: the most confident frames in a row as the supervisor counts them
-  towards recovering (DEGRADED recovers on `recover_confident_frames`, 5 by default): a
+  towards recovering (DEGRADED recovers on `recover_confident_frames`, 5 by default, of the
+  last `recover_window_frames`, 8): a
   confident frame whose slope sum the filter rejected (INNOVATION_OUTLIER) does not count, and a
   step whose events wipe the count (`state_machine.forgets_confident_frames`: REPEATED_OUTLIERS,
   say) ends a run as an unconfident frame does;

@@ -102,6 +102,14 @@ class SupervisorConfig(DocumentModel):
         description="The centring steers towards the lane centre this far ahead of the robot's "
         "centre (combines the lane's offset and heading), m",
     )
+    center_max_edge_angle_deg: float = Field(
+        default=30.0,
+        gt=0.0,
+        le=180.0,
+        description="A lane whose two reported edges run more than this far apart on the floor "
+        "does not steer: the centring relaxes towards straight ahead instead (a stray tape or a "
+        "shadow taken for one edge; a lane placed from one tape never steers), degrees",
+    )
 
     # --- Confidence thresholds and debounce (frames are new camera frames) ---
     confidence_usable_min: float = Field(
@@ -199,15 +207,14 @@ class SupervisorConfig(DocumentModel):
         "among the last recover_window_frames), camera frames",
     )
     recover_window_frames: int = Field(
-        default=0,
+        default=8,
         ge=0,
         le=300,
         description="M: DEGRADED recovers to FOLLOW once recover_confident_frames of the last M "
         "camera frames judged since it was entered were confident, the newest among them (k of "
-        "n, as engage_window_frames); 0 (the default): all recover_confident_frames in a row. "
-        "8 turned 7 false halts of a 1000-run campaign into recoveries but drove one robot "
-        "into a tape (docs/campaigns.md, the sixth run); tried again in the twenty-fourth, it "
-        "stopped one robot 1.9 mm from a tape",
+        "n, as engage_window_frames; 8: 5 of the last 8, confident frames on a speckled floor "
+        "come in bursts); 0: all recover_confident_frames in a row (docs/campaigns.md, the "
+        "twenty-sixth run)",
     )
 
     # --- Turn hysteresis on the filtered slope sum (the lecture's +-6) ---
@@ -422,7 +429,11 @@ class SupervisorConfig(DocumentModel):
         for kind in ("engage", "recover"):  # a k-of-n window holds at least its k frames
             window = getattr(self, f"{kind}_window_frames")
             needed = getattr(self, f"{kind}_confident_frames")
-            require(window == 0 or window >= needed, f"{kind}_window_frames",
+            # (Only a window the config sets: the default window of 8 with more frames asked
+            # is all of them in a row, `ConfidentFrames`.)
+            require(window == 0 or window >= needed
+                    or f"{kind}_window_frames" not in self.model_fields_set,
+                    f"{kind}_window_frames",
                     f"must be 0 or at least {kind}_confident_frames ({needed})")
         require(self.turn_exit_slope_sum < self.turn_enter_slope_sum, "turn_exit_slope_sum",
                 f"must be below turn_enter_slope_sum ({self.turn_enter_slope_sum})")

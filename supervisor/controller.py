@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 
 from lanewarden.perception.observation import LaneObservation
-from lanewarden.supervisor.center_offset import CenterOffsetFilter
+from lanewarden.supervisor.center_offset import CenterOffsetFilter, lane_steers
 from lanewarden.supervisor.commands import command_for
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
@@ -129,7 +129,10 @@ class SupervisedController:
         self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
         events |= self._estimate.events
         if lane.slope_sum is not None:
-            self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
+            if lane_steers(obs, self.config.center_max_edge_angle_deg):
+                self._center.step(obs.time_s, obs.lane_offset_m, obs.lane_heading_rad)
+            else:
+                self._center.relax(obs.time_s)
         if lane.usable:
             self._lane_seen_at_s = obs.time_s
         return FrameVerdict(

@@ -7,8 +7,8 @@ of the current state can match does not fire the trigger at all). HALT is the in
 and is latched: entering it disarms any engage request, and only a NEW start/resume request plus
 `engage_confident_frames` confident frames in a row (with no DEGRADE or HALT event) engage again
 (or, with `engage_window_frames` M set, that many among the last M judged frames, the newest
-confident: k of n). DEGRADED recovers to FOLLOW on `recover_confident_frames` likewise (in a row
-by default, or with `recover_window_frames` set among the last that many).
+confident: k of n). DEGRADED recovers to FOLLOW on `recover_confident_frames` likewise, among
+the last `recover_window_frames` (8 by default: k of n; 0: in a row).
 A fresh HALT event while halted re-enters HALT (new reason, request disarmed again).
 
 Timers count injected time (`StepFacts.now`) and frames, never wall clock: no transitions `Timeout`
@@ -264,9 +264,8 @@ class SupervisorStateMachine:
         )
 
     def may_recover(self, tick: Tick) -> bool:
-        """`recover_confident_frames` confident frames in a row (or, with
-        `recover_window_frames` set, among the last that many, the newest confident) and nothing
-        worse than WARN."""
+        """`recover_confident_frames` confident frames among the last `recover_window_frames`
+        (8 by default; 0: in a row), the newest confident, and nothing worse than WARN."""
         return self.recover_frames.enough and (
             tick.worst is None or tick.worst < Response.DEGRADE
         )

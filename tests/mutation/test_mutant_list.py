@@ -18,7 +18,7 @@ SAFETY_FILES = {
     "perception/tape_rules.py", "lanewarden/live_view.py", "lanewarden/operator.py",
     "supervisor/lane_evidence.py", "supervisor/commands.py", "supervisor/loop.py",
     "perception/confidence.py", "perception/lines.py", "perception/one_side.py",
-    "perception/edge_choice.py", "lanewarden/survey.py",
+    "perception/edge_choice.py", "lanewarden/survey.py", "supervisor/center_offset.py",
 }  # fmt: skip
 
 

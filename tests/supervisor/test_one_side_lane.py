@@ -81,11 +81,19 @@ def test_one_tape_never_engages() -> None:
     assert set(states) == {"HALT"}
 
 
-def test_one_side_frames_break_a_recovery_like_any_unconfident_frame() -> None:
-    """Recovery needs 5 confident frames in a row: with a lane from one tape between confident
-    frames it never comes (a k-of-n recovery drove a robot into a tape on parquet, the sixth
-    campaign's r00278: docs/supervisor.md); 5 in a row after the gap recover."""
-    rig = Rig()
+@pytest.mark.parametrize(("window", "after"), [
+    (0, ["DEGRADED"] * 4 + ["FOLLOW"]),
+    # (the last 8 frames, confident and one-side by turns, held 4 confident: the second
+    # confident frame after them makes 5 of 8)
+    (8, ["DEGRADED"] + ["FOLLOW"] * 4),
+])
+def test_one_side_frames_break_a_recovery_like_any_unconfident_frame(
+        window: int, after: list[str]) -> None:
+    """Recovery needs 5 confident frames in a row, or 5 of the last 8 (the default): with a
+    lane from one tape after every confident frame it never comes (counting them as neither
+    recovered seed 1's r00278 onto a parquet slat: docs/supervisor.md); then
+    confident frames recover."""
+    rig = Rig(SupervisorConfig(recover_window_frames=window))
     rig.engage()
     for _ in range(5):
         _step_one_side(rig)
@@ -96,4 +104,4 @@ def test_one_side_frames_break_a_recovery_like_any_unconfident_frame() -> None:
         states.append(_step_one_side(rig).state)
     assert "FOLLOW" not in states
     states = [rig.step().state for _ in range(5)]
-    assert states == ["DEGRADED"] * 4 + ["FOLLOW"]
+    assert states == after

@@ -470,8 +470,8 @@ def test_transition_table_has_one_trigger_and_no_automatic_transitions() -> None
 def test_degraded_recovers_after_m_confident_frames() -> None:
     """Only frames judged since DEGRADED was entered count: the confident ones seen while
     following (which, with the 8-frame window, would make 7 of the last 8) do not. In a row
-    (the default) the same."""
-    for config in (K_OF_N, CONFIG):
+    the same."""
+    for config in (K_OF_N, SupervisorConfig(recover_window_frames=0)):
         rig, _ = _degraded(config)
         m = config.recover_confident_frames
         states = [rig.step().state for _ in range(m)]
@@ -481,10 +481,10 @@ def test_degraded_recovers_after_m_confident_frames() -> None:
 def test_k_of_n_recovers_on_confident_frames_in_bursts() -> None:
     """Campaign run r00562: in DEGRADED, confident frames came in runs of at most 4, and 5 in a
     row never came, so it halted DEGRADED_BUDGET_EXHAUSTED on a lane it was following. With
-    recover_window_frames 8, 5 of the last 8 judged frames since DEGRADED was entered recover
-    (the newest confident): 4 on, 1 off, 1 on recovers at the sixth frame. With 0, the default
-    (in a row), the same frames never recover."""
-    assert (CONFIG.recover_confident_frames, CONFIG.recover_window_frames) == (5, 0)
+    recover_window_frames 8 (the default since the twenty-sixth campaign), 5 of the last 8
+    judged frames since DEGRADED was entered recover (the newest confident): 4 on, 1 off, 1 on
+    recovers at the sixth frame. With 0 (in a row), the same frames never recover."""
+    assert (CONFIG.recover_confident_frames, CONFIG.recover_window_frames) == (5, 8)
     burst = [True, True, True, True, False, True]
     k_of_n, _ = _degraded(K_OF_N)
     states = [k_of_n.step(confidence=0.9 if c else 0.3).state for c in burst]
@@ -496,6 +496,18 @@ def test_k_of_n_recovers_on_confident_frames_in_bursts() -> None:
     for _ in range(3):
         for c in burst[:5]:
             assert in_a_row.step(confidence=0.9 if c else 0.3).state == "DEGRADED"
+
+
+def test_more_frames_asked_than_the_default_window_holds_are_all_in_a_row() -> None:
+    """A config asking 10 confident frames to recover, the window left at its default 8, is
+    accepted (it did not set the window) and recovers on 10 in a row: 9, one not confident, 9
+    more never recover; the tenth in a row does."""
+    config = SupervisorConfig(recover_confident_frames=10)
+    assert config.recover_window_frames == 8
+    rig, _ = _degraded(config)
+    states = [rig.step(confidence=0.9 if k != 9 else 0.3).state for k in range(19)]
+    assert states == ["DEGRADED"] * 19
+    assert rig.step().state == "FOLLOW"
 
 
 def test_degraded_needs_the_higher_confidence_to_recover() -> None:
