@@ -23,7 +23,7 @@ from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
-from lanewarden.scenarios.campaign.compare import DRAWN, NEAR_TAPE_M, notable_ids
+from lanewarden.scenarios.campaign.compare import NEAR_TAPE_M, drawn_difference, is_notable
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
 from lanewarden.scenarios.campaign.run_case import case_columns
@@ -104,16 +104,17 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         _check_scheduler_address(scheduler, named)
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
-    only = None if notable_dir is None else _notable(Path(notable_dir), out, runs, seed)
-    if only is not None and runs is None:
-        runs = max(int(run_id[1:]) for run_id in only) + 1
+    notable: dict[str, dict[str, Any]] | None = None
+    if notable_dir is not None:
+        notable, runs = _notable(Path(notable_dir), out, runs, seed)
+    only = None if notable is None else frozenset(notable)
     plan = CampaignPlan(build_stack=build_stack, spec=spec, spec_path=spec_path, seed=seed,
                         runs=runs or 100, out_dir=out, config_overrides=overrides,
                         follow_speed_m_s=config.supervisor.follow_speed_m_s,
                         worker_memory_limit_mb=config.campaign.worker_memory_limit_mb,
                         only=only)
-    if only is not None:
-        _same_draws(plan, Path(str(notable_dir)), only)
+    if notable is not None:
+        _same_draws(plan, Path(str(notable_dir)), notable)
     bar: Progress | None = None
     stored_at_start = 0
 
@@ -187,10 +188,12 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
                f"Report: {out / 'report.html'}")
 
 
-def _notable(source: Path, out: Path, runs: int | None, seed: int) -> frozenset[str]:
-    """The ids `--only-notable SOURCE` names (`compare.notable_ids`), refused in one line when
-    SOURCE is --out itself, cannot be read, is a campaign of another seed, holds none, or names
-    runs beyond --runs."""
+def _notable(source: Path, out: Path, runs: int | None,
+             seed: int) -> tuple[dict[str, dict[str, Any]], int]:
+    """The runs `--only-notable SOURCE` names (`compare.is_notable`), by id, and the --runs that
+    covers them (`runs`, or by default the least that does); refused in one line when SOURCE is
+    --out itself, cannot be read, is a campaign of another seed, holds none, or names runs
+    beyond --runs."""
     if results_in(source).resolve() == (out / "results.sqlite").resolve():
         raise UsageError(f"--only-notable {source}: the same folder as --out; expected another "
                          "--out for the screen (then lanewarden compare the two)")
@@ -201,33 +204,31 @@ def _notable(source: Path, out: Path, runs: int | None, seed: int) -> frozenset[
                 raise UsageError(f"--only-notable {source}: a campaign of seed {stored_seed}, "
                                  f"this one --seed {seed}; expected --seed {stored_seed} (the "
                                  "same spec and seed draw the same runs)")
-            ids = notable_ids(store.iter_rows())
+            notable = {str(row["id"]): row for row in store.iter_rows() if is_notable(row)}
     except ScenarioError as exc:
         raise UsageError(f"--only-notable {source}: {exc}") from None
-    if not ids:
+    if not notable:
         raise UsageError(f"--only-notable {source}: no run there is unsafe, a false halt, on a "
                          f"false lane or within {NEAR_TAPE_M * 1000:.0f} mm of a tape: nothing to "
                          "screen")
-    covers = max(int(run_id[1:]) for run_id in ids) + 1
+    last = max(notable, key=lambda run_id: int(run_id[1:]))
+    covers = int(last[1:]) + 1
     if runs is not None and runs < covers:
-        raise UsageError(f"--runs {runs}: --only-notable {source} names runs up to {ids[-1]}; "
+        raise UsageError(f"--runs {runs}: --only-notable {source} names runs up to {last}; "
                          f"expected --runs {covers} or more (or no --runs)")
-    return frozenset(ids)
+    return notable, covers if runs is None else runs
 
 
-def _same_draws(plan: CampaignPlan, source: Path, only: frozenset[str]) -> None:
+def _same_draws(plan: CampaignPlan, source: Path, notable: dict[str, dict[str, Any]]) -> None:
     """UsageError when a run `--only-notable` names is not drawn here as SOURCE holds it (another
     spec): the screen would run other runs under the same ids."""
-    with ResultStore(results_in(source), read_only=True) as store:
-        stored = {row["id"]: row for row in store.rows(only)}
-    for run_id in sorted(only):
+    for run_id in sorted(notable):
         drawn = case_columns(draw_case(plan.spec, plan.spec_path, plan.seed, int(run_id[1:]),
                                        plan.config_overrides, plan.follow_speed_m_s))
-        differs = [k for k in DRAWN if drawn.get(k) != stored[run_id].get(k)]
-        if differs:
-            k = differs[0]
+        k = drawn_difference(notable[run_id], drawn)
+        if k is not None:
             raise UsageError(f"--only-notable {source}: {run_id} there is not the run this spec "
-                             f"draws ({k}: {stored[run_id].get(k)!r} there, {drawn.get(k)!r} "
+                             f"draws ({k}: {notable[run_id].get(k)!r} there, {drawn.get(k)!r} "
                              "here); expected a campaign of the same spec and seed")
 
 

@@ -51,9 +51,14 @@ class UnreadableRow(ScenarioError):
     """A stored row that no campaign writes (bad input: exit 2)."""
 
 
+#: Where a checked row (`_checked`) keeps its metrics, parsed once.
+_METRICS = "_metrics"
+
+
 def _checked(row: Row, name: str) -> Row:
-    """`row` as a campaign stores it, or UnreadableRow naming the run and the column (after
-    `name`, the folder it came from, when given)."""
+    """`row` as a campaign stores it, with its metrics parsed once (under _METRICS), or
+    UnreadableRow naming the run and the column (after `name`, the folder it came from, when
+    given)."""
     where = f"{name}: run {row.get('id')}" if name else f"run {row.get('id')}"
     outcome = row.get("outcome")
     if outcome not in OUTCOMES:
@@ -67,7 +72,12 @@ def _checked(row: Row, name: str) -> Row:
     if not isinstance(metrics, dict):
         raise UnreadableRow(f"{where}: metrics_json {str(text)[:60]!r} is "
                             "not readable (expected the JSON object a campaign stores)")
-    return row
+    return {**row, _METRICS: metrics}
+
+
+def drawn_difference(a: Row, b: Row) -> str | None:
+    """The first of DRAWN in which two rows of the same id differ (None: the same run)."""
+    return next((k for k in DRAWN if a.get(k) != b.get(k)), None)
 
 
 @dataclass(frozen=True)
@@ -123,9 +133,8 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row],
         raise CampaignsDiffer("the two campaigns share no run: compare two result folders of "
                               "the same spec and seed")
     for run_id in ids:
-        differs = [k for k in DRAWN if old[run_id].get(k) != new[run_id].get(k)]
-        if differs:
-            k = differs[0]
+        k = drawn_difference(old[run_id], new[run_id])
+        if k is not None:
             raise CampaignsDiffer(
                 f"{run_id} is not the same run in both ({k}: {old[run_id].get(k)!r} before, "
                 f"{new[run_id].get(k)!r} after): compare campaigns of the same spec and seed "
@@ -140,19 +149,20 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row],
         changes=tuple(changes))
 
 
+def is_notable(row: Row) -> bool:
+    """Whether a run is worth rerunning first when trying a change (a screen): unsafe, a false
+    halt, or, whatever its outcome, it trusted a false lane or came within NEAR_TAPE_M of a
+    tape. UnreadableRow as `compare_campaigns` (a damaged notable run must not drop out of a
+    screen unseen)."""
+    row = _checked(row, "")
+    clear = clearance_m(row)
+    return bool(row.get("outcome") in _SEVERITY or (_metric(row, "false_lane_frames") or 0) > 0
+                or (clear is not None and clear < NEAR_TAPE_M))
+
+
 def notable_ids(rows: Iterable[Row]) -> list[str]:
-    """The runs worth rerunning first when trying a change (a screen): unsafe, false halts, and
-    any run that trusted a false lane or came within NEAR_TAPE_M of a tape whatever its
-    outcome; by id. UnreadableRow as `compare_campaigns` (a damaged notable run must not drop
-    out of a screen unseen)."""
-    found = []
-    for row in rows:
-        _checked(row, "")
-        clear = clearance_m(row)
-        if (row.get("outcome") in _SEVERITY or (_metric(row, "false_lane_frames") or 0) > 0
-                or (clear is not None and clear < NEAR_TAPE_M)):
-            found.append(str(row["id"]))
-    return sorted(found)
+    """The ids of the notable runs (`is_notable`), by id."""
+    return sorted(str(row["id"]) for row in rows if is_notable(row))
 
 
 def _change(run_id: str, old: Row, new: Row) -> RunChange:
@@ -193,19 +203,15 @@ def _side(rows: list[Row]) -> Side:
 
 
 def clearance_m(row: Row) -> float | None:
-    """A run's closest approach to a tape (negative: it crossed one), metres; None where not
-    measured."""
+    """A checked row's closest approach to a tape (negative: it crossed one), metres; None
+    where not measured."""
     return _metric(row, "min_tape_clearance_m")
 
 
 def _metric(row: Row, name: str) -> float | None:
-    """A number from a row's metrics (a row `_checked` already); None where missing or not a
-    finite number."""
-    try:
-        metrics = json.loads(row.get("metrics_json") or "{}")
-    except (TypeError, ValueError):
-        return None
-    value = metrics.get(name) if isinstance(metrics, dict) else None
+    """A number from a checked row's metrics (`_checked`); None where missing or not a finite
+    number."""
+    value = row[_METRICS].get(name)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         return None
     return float(value)
