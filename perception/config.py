@@ -287,7 +287,9 @@ class GrayConfig(DocumentModel):
     perception loses it (docs/perception.md, "Gray"). `yellow_boost` b lifts yellow out:
     gray = luma + b x (luma - blue). A yellow paint's blue is far below its luma (#e3b21c: 148
     levels), a wooden floor's much less (parquet's light slat #a5763f: 63), and a neutral grey's
-    not at all, so white, grey and black tape and grey floors keep their gray levels. Set it when
+    not at all, so white, grey and black tape and grey floors keep their gray levels; but a
+    tape bluer than its luma (a white tape that a camera's white balance tints blue) is darkened
+    by b x (blue - luma) (docs/perception.md, "A yellow line"). Set it when
     the lane has a yellow line and survey with and without it (the default campaign's yellow
     line sets 0.8: docs/perception.md, "A yellow line"); it applies to colour frames only (a
     gray camera has no blue to take), and in the simulator it makes perception's frames colour
