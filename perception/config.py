@@ -285,11 +285,11 @@ class GrayConfig(DocumentModel):
     OpenCV's luma (BGR2GRAY: 0.114 B + 0.587 G + 0.299 R) by default. In it a yellow line
     (#e3b21c: luma 176) is about as light as the light slats of parquet or a wooden floor, and
     perception loses it (docs/perception.md, "Gray"). `yellow_boost` b lifts yellow out:
-    gray = luma + b x (luma - blue). A yellow paint's blue is far below its luma (#e3b21c: 148
-    levels), a wooden floor's much less (parquet's light slat #a5763f: 63), and a neutral grey's
-    not at all, so white, grey and black tape and grey floors keep their gray levels; but a
-    tape bluer than its luma (a white tape that a camera's white balance tints blue) is darkened
-    by b x (blue - luma) (docs/perception.md, "A yellow line"). Set it when
+    gray = luma + b x max(0, luma - blue). A yellow paint's blue is far below its luma (#e3b21c:
+    148 levels), a wooden floor's much less (parquet's light slat #a5763f: 63), and a neutral
+    grey's not at all, so white, grey and black tape and grey floors keep their gray levels; so
+    does a pixel bluer than its luma (a white tape that a camera's white balance tints blue: with
+    luma - blue unclipped, the boost darkened it into a wooden floor). Set it when
     the lane has a yellow line and survey with and without it (the default campaign's yellow
     line sets 0.8: docs/perception.md, "A yellow line"); it applies to colour frames only (a
     gray camera has no blue to take), and in the simulator it makes perception's frames colour
@@ -301,9 +301,10 @@ class GrayConfig(DocumentModel):
     yellow_boost: Annotated[float, Field(ge=0.0, le=2.0)] = Field(
         default=0.0,
         description=(
-            "b in gray = luma + b x (luma - blue): lifts a yellow line above a wooden floor "
-            "(colour cameras only; try 0.8 and survey with and without it: docs/perception.md, "
-            "'A yellow line'); 0 is OpenCV's BGR2GRAY"
+            "b in gray = luma + b x max(0, luma - blue): lifts a yellow line above a wooden "
+            "floor and never darkens a bluish white tape (colour cameras only; try 0.8 and "
+            "survey with and without it: docs/perception.md, 'A yellow line'); 0 is OpenCV's "
+            "BGR2GRAY"
         ),
     )
 

@@ -212,7 +212,7 @@ class LaneDetector:
         line = f"ground model: {which}; {self.setup_for(*size).describe()}"
         boost = self.config.gray.yellow_boost
         if boost > 0.0:
-            line += (f"; gray of colour frames: luma + {boost:g} x (luma - blue) "
+            line += (f"; gray of colour frames: luma + {boost:g} x max(0, luma - blue) "
                      "(perception.gray.yellow_boost; a gray frame is read as it is)")
         return line
 
@@ -479,7 +479,8 @@ def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,
     """The 8-bit gray image perception works on, from an HxW gray, HxWx1, HxWx3 BGR or HxWx4
     BGRA uint8 frame (OpenCV's BGR2GRAY, `GRAY_WEIGHTS_BGR`; `dst`: a preallocated HxW buffer,
     used for a colour frame). With `yellow_boost` b > 0 a colour frame's gray is
-    luma + b x (luma - blue), saturated to 0..255 (`perception.config.GrayConfig`). Everything
+    luma + b x max(0, luma - blue), saturated to 0..255 (`perception.config.GrayConfig`): yellow
+    is lifted, and a pixel bluer than its luma keeps its luma. Everything
     perception computes from a frame depends on it only through this image, so a recording that
     keeps it keeps all perception needs."""
     if image.ndim == 2:
@@ -489,8 +490,10 @@ def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,
     code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
     luma = cv2.cvtColor(image, code, dst=dst)
     if yellow_boost > 0.0:
-        cv2.addWeighted(luma, 1.0 + yellow_boost, cv2.extractChannel(image, 0), -yellow_boost,
-                        0.0, dst=luma)
+        # luma - blue, saturated at 0 (OpenCV's uint8 subtract): a pixel bluer than its own luma
+        # (a white tape under a camera's white balance) is not darkened
+        yellowness = cv2.subtract(luma, cv2.extractChannel(image, 0))
+        cv2.addWeighted(luma, 1.0, yellowness, yellow_boost, 0.0, dst=luma)
     return luma
 
 

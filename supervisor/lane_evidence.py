@@ -48,7 +48,16 @@ Per new frame:
 sight (`perception.one_side`: both edges, `sides_seen` 1) raises ONE_EDGE_LOST like a lone edge
 (DEGRADED and its budget), is usable when its confidence is, is never confident (so it breaks a
 run of confident frames, to engage or to recover, like any unconfident frame), and feeds the
-slope filter.
+slope filter; but not when its edges lie where the robot could not have brought them from the
+departure's reference (`reachable`, above): such a placed lane is a slat or a seam taken for
+the one tape it was placed from, jumping between two places from frame to frame, and it is
+not usable (LANE_UNTRUSTED: it feeds no filter and does not reset the lane-lost timer). A lane
+placed from the right tape, for the few frames a dash is missing or a tape is out of view,
+stays where the last one was. (The twenty-seventh campaign's seed 1 r00278: at the lecture's
+corner A on parquet, the white line out of view, the lane placed from a slat read its right
+edge 0.11 and 0.21 m right of the robot by turns, the tape 0.30-0.39 m, and steering on it for
+2 s the robot crossed the yellow tape; it now halts 16 mm before it.) Two-sided lanes that
+jump stay usable: they are judged by their shape, and the departure rule alone sets them aside.
 Pure; the only memory is the low-confidence and departure streaks and the reference for the
 departure's reachability (the last usable frame that counted: its time and edge lines).
 """
@@ -220,9 +229,14 @@ class LaneEvidence:
         usable, confident = frame_grade(obs, cfg)
         departure = None
         lines = _edge_lines(obs)
+        jumped = not reachable(lines, self._reference, obs.time_s, cfg)
+        if usable and jumped and seen == 1 and edges == 2:
+            # a lane placed from one tape that jumped: placed from a slat (module docstring)
+            usable = trusted = False
+            events.add(Event.LANE_UNTRUSTED)
         # only usable frames count towards a departure, or reset it, and only those the
         # robot's own motion could have brought there (module docstring)
-        if usable and reachable(lines, self._reference, obs.time_s, cfg):
+        if usable and not jumped:
             self._reference = (obs.time_s, lines)
             departure = departure_of(obs, cfg.lane_departure_clearance_m,
                                      cfg.lane_departure_view_m)

@@ -60,19 +60,22 @@ def test_gray_bgr_and_bgra_inputs_agree(detector: LaneDetector) -> None:
 
 
 def test_the_yellow_boost_lifts_yellow_and_leaves_greys_alone() -> None:
-    """gray = luma + b x (luma - blue), saturated; luma values by hand (BGR2GRAY, rounded):
+    """gray = luma + b x max(0, luma - blue), saturated; luma values by hand (BGR2GRAY, rounded):
     yellow #e3b21c 176, parquet's light slat #a5763f 126, white #eeeeea 238, a neutral grey 90,
-    black tape #1c1c1e 28."""
+    black tape #1c1c1e 28, and a white tape tinted blue by a camera's white balance (BGR 200,
+    176, 168; the simulator's white tape on parquet looks so) 176."""
     bgr = np.array([[(28, 178, 227), (63, 118, 165), (234, 238, 238), (90, 90, 90),
-                     (30, 28, 28)]], dtype=np.uint8)
-    assert perception_gray(bgr).tolist() == [[176, 126, 238, 90, 28]]
-    # 176 + 0.5 x (176 - 28) = 250; 126 + 0.5 x 63 = 157.5 -> 158; 238 + 2 = 240; greys stay
-    assert perception_gray(bgr, yellow_boost=0.5).tolist() == [[250, 158, 240, 90, 27]]
+                     (30, 28, 28), (200, 176, 168)]], dtype=np.uint8)
+    assert perception_gray(bgr).tolist() == [[176, 126, 238, 90, 28, 176]]
+    # 176 + 0.5 x (176 - 28) = 250; 126 + 0.5 x 63 = 157.5 -> 158; 238 + 2 = 240; greys stay;
+    # blue above luma (black tape: 30 > 28, the tinted white: 200 > 176) is not subtracted
+    # (unclipped, the tinted white would read 176 - 0.5 x 24 = 164, darkened towards the floor)
+    assert perception_gray(bgr, yellow_boost=0.5).tolist() == [[250, 158, 240, 90, 28, 176]]
     assert perception_gray(bgr, yellow_boost=1.0)[0, 0] == 255  # 324, saturated
     bgra = cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)
-    out = np.empty((1, 5), np.uint8)
+    out = np.empty((1, 6), np.uint8)
     assert perception_gray(bgra, dst=out, yellow_boost=0.5) is out
-    assert out.tolist() == [[250, 158, 240, 90, 27]]
+    assert out.tolist() == [[250, 158, 240, 90, 28, 176]]
     gray = perception_gray(bgr)  # a gray camera has no blue: the boost leaves it as it is
     assert perception_gray(gray, yellow_boost=0.5) is gray
 
@@ -94,7 +97,7 @@ def test_the_ground_line_names_a_boosted_gray_and_only_then() -> None:
     boosted = LaneDetector(PerceptionConfig.model_validate(
         {"gray": {"yellow_boost": 0.8}})).describe_ground(size=(320, 240))
     assert "gray" not in plain
-    assert boosted == (plain + "; gray of colour frames: luma + 0.8 x (luma - blue) "
+    assert boosted == (plain + "; gray of colour frames: luma + 0.8 x max(0, luma - blue) "
                        "(perception.gray.yellow_boost; a gray frame is read as it is)")
 
 

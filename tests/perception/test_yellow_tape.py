@@ -3,8 +3,8 @@ yellow #e3b21c dashed line on the left, a white #eeeeea line on the right, 48 mm
 0.3 m on and 0.3 m off): in OpenCV's BGR2GRAY, perception's gray, the yellow (luma 176) is
 about as light as parquet's light slats, and the detector loses it (29 false halts in 92 runs of
 the 1000-run campaign, seed 0). On parquet it fails in luma, and passes with
-`perception.gray.yellow_boost` b (gray = luma + b x (luma - blue): the yellow lifted above the
-slats, a neutral grey left as it is; docs/perception.md, "A yellow line"), 0.5 and the default
+`perception.gray.yellow_boost` b (gray = luma + b x max(0, luma - blue): the yellow lifted above
+the slats, a neutral grey left as it is; docs/perception.md, "A yellow line"), 0.5 and the default
 campaign's 0.8. Rendered in colour with the
 simulator's own
 world, camera and effects (a Pi-class camera, 640x480, the run's seed 1) at poses along the
