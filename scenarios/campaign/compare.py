@@ -160,11 +160,6 @@ def is_notable(row: Row) -> bool:
                 or (clear is not None and clear < NEAR_TAPE_M))
 
 
-def notable_ids(rows: Iterable[Row]) -> list[str]:
-    """The ids of the notable runs (`is_notable`), by id."""
-    return sorted(str(row["id"]) for row in rows if is_notable(row))
-
-
 def _change(run_id: str, old: Row, new: Row) -> RunChange:
     was, now = str(old.get("outcome")), str(new.get("outcome"))
     kind: Change

@@ -33,7 +33,7 @@ from lanewarden.scenarios.campaign.compare import (
     UnreadableRow,
     compare_campaigns,
     describe,
-    notable_ids,
+    is_notable,
 )
 from lanewarden.scenarios.campaign.store import ResultStore
 
@@ -149,7 +149,7 @@ def test_a_row_no_campaign_writes_is_refused_naming_it() -> None:
         with pytest.raises(UnreadableRow, match=f"^after: run r00001: {re.escape(said)} is "):
             compare_campaigns(good, [good[0], bad])
         with pytest.raises(UnreadableRow, match=f"^run r00001: {re.escape(said)} is "):
-            notable_ids([good[0], bad])
+            is_notable(bad)
     # a run in error stores no metrics ('{}' or nothing): not measured, not refused
     quiet = [dict(good[0], outcome="error", metrics_json=None), dict(good[1], metrics_json="")]
     comparison = compare_campaigns(quiet, good)
@@ -251,7 +251,8 @@ def test_the_notable_runs_are_those_worth_screening_a_change_on() -> None:
     rows = [row(0, "nominal"), row(1, "false_halt"), row(2, "unsafe", -0.002),
             row(3, "safe_halt", 0.0299), row(4, "safe_halt", 0.03), row(5, "recovered", 0.2, 1),
             row(6, "error", None, None), row(7, "nominal", None, None)]
-    assert notable_ids(rows) == ["r00001", "r00002", "r00003", "r00005"]
+    assert [str(r["id"]) for r in rows if is_notable(r)] == ["r00001", "r00002", "r00003",
+                                                             "r00005"]
 
 
 def test_a_screen_runs_only_the_notable_runs_and_compares_with_them(
