@@ -492,7 +492,8 @@ def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,
     if yellow_boost > 0.0:
         # luma - blue, saturated at 0 (OpenCV's uint8 subtract): a pixel bluer than its own luma
         # (a white tape under a camera's white balance) is not darkened
-        yellowness = cv2.subtract(luma, cv2.extractChannel(image, 0))
+        yellowness = cv2.extractChannel(image, 0)
+        cv2.subtract(luma, yellowness, dst=yellowness)
         cv2.addWeighted(luma, 1.0, yellowness, yellow_boost, 0.0, dst=luma)
     return luma
 

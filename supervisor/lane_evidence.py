@@ -229,8 +229,8 @@ class LaneEvidence:
         usable, confident = frame_grade(obs, cfg)
         departure = None
         lines = _edge_lines(obs)
-        jumped = not reachable(lines, self._reference, obs.time_s, cfg)
-        if usable and jumped and seen == 1 and edges == 2:
+        jumped = usable and not reachable(lines, self._reference, obs.time_s, cfg)
+        if jumped and seen == 1 and edges == 2:
             # a lane placed from one tape that jumped: placed from a slat (module docstring)
             usable = trusted = False
             events.add(Event.LANE_UNTRUSTED)
