@@ -5,7 +5,11 @@ Over the last `window_s` seconds of steps up to and including the halting one, c
 frame judged (a step whose record carries an observation):
 
 - `frames`: frames judged; `confident`, `usable` (usable but not confident) and `unusable`, as
-  the supervisor grades them (`supervisor.lane_evidence.frame_grade`);
+  the supervisor graded them: `supervisor.lane_evidence.frame_grade`, except that a frame whose
+  step raised LANE_UNTRUSTED is unusable whatever its confidence (the supervisor's verdict on a
+  lane placed from one tape that jumped where the robot could not have moved it);
+- `jumped`: of the unusable frames, those lanes placed from one tape that jumped (LANE_UNTRUSTED
+  on a frame `frame_grade` alone would call usable);
 - `weakest`: among the unusable frames, how often each confidence component was the weakest one
   (a component at 1 never counts; ties: the first in the observation's order), most frequent
   first, at most three;
@@ -54,7 +58,7 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
     window = [r for r in records[:halt_index + 1] if r.time_s > end - window_s]
     grades = {"confident": 0, "usable": 0, "unusable": 0}
     weakest: Counter[str] = Counter()
-    run = longest = at_cap = outliers = no_frame = 0
+    run = longest = at_cap = outliers = no_frame = jumped = 0
     for record in window:
         events = frozenset(Event(name) for name in record.events)
         outlier = Event.INNOVATION_OUTLIER in events
@@ -67,6 +71,11 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
             no_frame += 1
             continue
         usable, confident = frame_grade(obs, config)
+        if usable and Event.LANE_UNTRUSTED in events:  # a placed lane that jumped: unusable
+            jumped += 1
+            grades["unusable"] += 1
+            run = 0
+            continue
         grade = "confident" if confident else "usable" if usable else "unusable"
         grades[grade] += 1
         run = run + 1 if confident and not outlier and not wiped else 0
@@ -82,6 +91,7 @@ def before_halt(records: Sequence[StepRecord], halt_index: int, config: Supervis
         "window_s": window_s,
         "frames": sum(grades.values()),
         **grades,
+        "jumped": jumped,
         "weakest": dict(weakest.most_common(WEAKEST_LISTED)),
         "longest_confident_run": longest,
         "at_slope_cap": at_cap,
@@ -101,8 +111,11 @@ def describe(summary: dict[str, Any]) -> str:
     16 unusable (lane_width 9, parallel 4); 5 at the slope cap; 13 outliers'."""
     weakest = summary.get("weakest") or {}
     unusable = f"{summary['unusable']} unusable"
-    if weakest:
-        unusable += " (" + ", ".join(f"{name} {count}" for name, count in weakest.items()) + ")"
+    reasons = [f"{name} {count}" for name, count in weakest.items()]
+    if summary.get("jumped"):
+        reasons.append(f"placed lane jumped {summary['jumped']}")
+    if reasons:
+        unusable += " (" + ", ".join(reasons) + ")"
     parts = [f"last {summary['window_s']:g} s: {counted(summary['frames'], 'frame')}, "
              f"{summary['confident']} confident (at most {summary['longest_confident_run']} in "
              f"a row), {summary['usable']} usable, {unusable}"]

@@ -57,7 +57,7 @@ def test_counts_grades_runs_and_the_weakest_components_of_the_last_two_seconds()
     assert summary == {
         "window_s": 0.49, "frames": 14,
         # confident: 10-12, 14-18, 23, 24; usable: 19; unusable: 13, 21, 22
-        "confident": 10, "usable": 1, "unusable": 3,
+        "confident": 10, "usable": 1, "unusable": 3, "jumped": 0,
         # lane_width the weakest in 13 and 21; in 22 parallel, the first of two at 0
         "weakest": {"lane_width": 2, "parallel": 1},
         # 10-12: 3 in a row; then 14 (the outlier 15 does not count), 16-17 (18's
@@ -85,6 +85,25 @@ def test_a_lane_placed_from_one_tape_is_usable_never_confident() -> None:
     placed = replace(seen(0, 0.5), components=MappingProxyType({"both_sides": 0.5}))
     summary = before_halt([step(0, placed)], 0, CONFIG, CAP)
     assert (summary["confident"], summary["usable"], summary["unusable"]) == (0, 1, 0)
+
+
+def test_a_placed_lane_the_supervisor_called_untrusted_is_unusable_and_said_so() -> None:
+    """A lane placed from one tape that jumped where the robot could not have moved it: usable
+    by its confidence (0.45), but the supervisor raised LANE_UNTRUSTED on it and took it as no
+    lane (supervisor.lane_evidence); the summary counts it as the supervisor did, apart from the
+    weakest components."""
+    placed = replace(seen(0, 0.45), components=MappingProxyType({"both_sides": 0.5}))
+    records = [step(0, placed, "ONE_EDGE_LOST"),
+               step(1, replace(placed, frame_index=1, time_s=DT), "ONE_EDGE_LOST",
+                    "LANE_UNTRUSTED"),
+               step(2, replace(placed, frame_index=2, time_s=2 * DT), "ONE_EDGE_LOST",
+                    "LANE_UNTRUSTED"),
+               step(3, seen(3, 0.1, lane_width=0.1), "LANE_UNTRUSTED", state="HALT")]
+    summary = before_halt(records, 3, CONFIG, CAP)
+    assert (summary["confident"], summary["usable"], summary["unusable"]) == (0, 1, 3)
+    assert summary["jumped"] == 2 and summary["weakest"] == {"lane_width": 1}
+    assert describe(summary) == ("last 2 s: 4 frames, 0 confident (at most 0 in a row), "
+                                 "1 usable, 3 unusable (lane_width 1, placed lane jumped 2)")
 
 
 def test_sim_prints_the_summary_under_the_halt_and_only_for_a_halt() -> None:
