@@ -317,10 +317,12 @@ class SupervisorConfig(DocumentModel):
         description="DEGRADED clips its steering to +- this, rad/s",
     )
     degraded_budget_s: float = Field(
-        default=2.0,
+        default=3.0,
         gt=0.0,
         le=10.0,
-        description="Staying DEGRADED longer than this halts (DEGRADED_BUDGET_EXHAUSTED), s",
+        description="Staying DEGRADED longer than this halts (DEGRADED_BUDGET_EXHAUSTED), s. "
+        "The default is the distance budget at DEGRADED's own speed (0.3 m at 0.1 m/s): a robot "
+        "driving is bounded by the distance, this bounds one that barely moves",
     )
     degraded_budget_m: float = Field(
         default=0.3,

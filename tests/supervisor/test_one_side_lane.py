@@ -69,9 +69,9 @@ def test_one_tape_for_ever_halts_when_the_degraded_budget_runs_out() -> None:
     assert entered is not None
     assert out.state == "HALT"
     assert "DEGRADED_BUDGET_EXHAUSTED" in (out.halt_reason or "")
-    # the first step past 2 s after DEGRADED began: 60 frames on (the fake clock's sum of 60
-    # steps of 1/30 s lies a hair past 2.0)
-    assert rig.clock.now() - entered == pytest.approx(2.0, abs=DT / 2)
+    # the first step past 3 s (`degraded_budget_s`) after DEGRADED began: 91 frames on (the
+    # fake clock's sum of 90 steps of 1/30 s lies a hair short of 3.0)
+    assert rig.clock.now() - entered == pytest.approx(3.0 + DT, abs=DT / 2)
 
 
 def test_one_tape_never_engages() -> None:

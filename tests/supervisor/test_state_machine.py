@@ -528,6 +528,27 @@ def test_degraded_time_budget_halts() -> None:
     assert CONFIG.degraded_budget_s < spent <= CONFIG.degraded_budget_s + DT + 1e-9
 
 
+def test_degraded_at_its_own_speed_goes_the_distance_budget_before_the_time_runs_out() -> None:
+    """The defaults, written out: DEGRADED drives at 0.2 m/s x 0.5 = 0.1 m/s, and its 0.3 m take
+    3 s, the time budget. One edge lost for 2.5 s (0.257 m commanded: the first third of a second
+    slows from the follow speed) is still DEGRADED, where the 2 s budget of the twenty-seventh
+    campaign had halted it (terrazzo bends, REPEATED_OUTLIERS: docs/supervisor.md); it halts on
+    the budget by 3 s and one frame, having commanded at most 0.3 m and a frame's worth."""
+    rig, _ = _degraded()
+    entered = rig.clock.now()
+    travelled = rig.outputs[-1].command.linear_m_s * DT
+    while rig.clock.now() - entered < 2.5:
+        assert rig.step(left=False, confidence=0.5).state == "DEGRADED"
+        travelled += rig.outputs[-1].command.linear_m_s * DT
+    assert 0.25 < travelled < 0.26
+    while rig.step(left=False, confidence=0.5).state == "DEGRADED":
+        travelled += rig.outputs[-1].command.linear_m_s * DT
+    assert rig.controller.halt_reason is not None
+    assert rig.controller.halt_reason.startswith("DEGRADED_BUDGET_EXHAUSTED")
+    assert rig.clock.now() - entered <= 3.0 + DT + 1e-9
+    assert travelled <= 0.3 + 0.2 * DT
+
+
 def test_degraded_distance_budget_halts_first_when_it_is_shorter() -> None:
     config = SupervisorConfig(degraded_budget_m=0.025, degraded_budget_s=10.0)
     rig = Rig(config)
