@@ -17,9 +17,11 @@ makes the slope sum, its floor line the lane centre, as for a seen edge.
 Such an observation says so: `components["both_sides"]` is 0.5 (one side seen) with both edges
 present (`LaneObservation.sides_seen` is 1). Its confidence is the two-sided formula's on the
 seen side's evidence, so at most 0.5 (default weights): the supervisor takes it as usable (it
-does not lose the lane), never as confident (it never engages, recovers or judges a departure on
-it, and it breaks a run of confident frames), and raises ONE_EDGE_LOST (DEGRADED: half speed,
-clipped steering, and the DEGRADED budget bounds how long it may go on). The detector reports it
+does not lose the lane), never as confident (it never engages or recovers on it, and it breaks a
+run of confident frames), and raises ONE_EDGE_LOST (DEGRADED: half speed, clipped steering, and
+the DEGRADED budget bounds how long it may go on). Its placed edge counts for the lane-departure
+rule as a seen one does, and a placed lane that jumps where the robot could not have moved it is
+no lane to the supervisor (`supervisor.lane_evidence`). The detector reports it
 only when it scores higher than the two-sided lane, and never without a reference lane (a still
 image, the first frame, after a loss).
 
