@@ -32,7 +32,7 @@ import math
 import os
 import tempfile
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +51,7 @@ from lanewarden.documents import (
 )
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import (
+    IMAGE_SUFFIXES,
     decode_image,
     file_problem,
     header_facts,
@@ -742,6 +743,17 @@ def _frame_sequence(source: str, paths: list[Path], max_pixels: int,
                         frames=PathFrames(paths, max_pixels))
 
 
+def _one_image(path: Path, source: str, max_pixels: int, camera_rate_hz: float) -> ReplaySource:
+    """One photo, a sequence of one frame, read as `detect` and `survey` read it: refused in one
+    line when it cannot be decoded (OpenCV's video reader took a cut JPEG for a 1-frame video
+    and a text file for a video whose only frame it could not decode, a summary then the
+    error)."""
+    image, why = read_image(path, cv2.IMREAD_UNCHANGED, max_pixels)
+    if image is None:
+        raise InputFileError(f"SOURCE '{source}': {why}")
+    return replace(_frame_sequence(source, [path], max_pixels, camera_rate_hz), name=path.stem)
+
+
 def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> ReplaySource:
     # FFmpeg logs each frame it cannot decode itself; the replay says what it could not read.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
@@ -830,6 +842,8 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
     paths = image_sequence_paths(source)
     if paths is not None:
         return _frame_sequence(source, paths, max_pixels, camera_rate_hz)
+    if path.is_file() and path.suffix.lower() in IMAGE_SUFFIXES:
+        return _one_image(path, source, max_pixels, camera_rate_hz)
     if path.is_file():
         return _video(path, source, camera_rate_hz, max_pixels)
     raise UsageError(f"SOURCE '{source}': no such file or folder; expected {SOURCE_HELP}")

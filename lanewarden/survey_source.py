@@ -369,8 +369,13 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
     if table is None:
         stills = _class_folders(path)
         if not stills:
+            # photos there, unsorted: name them, and the two ways to label them
+            loose = image_sequence_paths(str(path)) or []
+            there = (f" ({counted(len(loose), 'image')} there, unlabelled: "
+                     f"{first_few([p.name for p in loose])}; move each into lane/ or no-lane/, "
+                     f"or list them in {LABELS_NAME} as file,expect)" if loose else "")
             raise UsageError(f"FOLDER '{folder}': no images in lane/ or no-lane/ and no "
-                             f"{LABELS_NAME}; expected {FOLDER_HELP}")
+                             f"{LABELS_NAME}{there}; expected {FOLDER_HELP}")
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (class folders lane/, no-lane/)",
                             stills=stills)

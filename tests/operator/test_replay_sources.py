@@ -126,6 +126,31 @@ def test_an_image_that_does_not_decode_is_no_frame_and_bad_input(
     assert metrics["frames_undecoded"] == [unread]
 
 
+def test_one_photo_is_a_one_frame_replay_and_a_broken_one_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A single photo is read as `detect` reads it (a new user's trial: OpenCV's video reader
+    took a cut JPEG for a 1-frame video, exit 0, and a text file named .jpg for a video whose
+    only frame it could not decode: a summary, then the error)."""
+    folder = write_images(lane_end_frames(start_m=2.0, end_m=2.1, speed_m_s=0.6), tmp_path / "i")
+    photo = next(iter(sorted(folder.iterdir())))
+    assert main(["replay", str(photo), "--no-video", "--out", str(tmp_path / "o")]) == 0
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert (metrics["source_kind"], metrics["frames"]) == ("images", 1)
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(photo.read_bytes()[:200])
+    text = tmp_path / "text.jpg"
+    text.write_text("not a picture\n")
+    for broken in (cut, text):
+        capsys.readouterr()
+        out = tmp_path / broken.stem
+        assert main(["replay", str(broken), "--no-video", "--out", str(out)]) == 2
+        captured = capsys.readouterr()
+        (line,) = captured.err.splitlines()
+        assert line.startswith(f"lanewarden: error: SOURCE '{broken}': "), line
+        assert captured.out == "", "no summary of a replay that never ran"
+        assert not out.exists()
+
+
 def test_ctrl_c_during_a_replay_names_its_partial_marker(
         tmp_path: Path, capsys: pytest.CaptureFixture[str],
         monkeypatch: pytest.MonkeyPatch) -> None:

@@ -449,6 +449,13 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         return [str(tmp_path / "nowhere")], f"FOLDER '{tmp_path / 'nowhere'}': no such folder"
     if case == "no frames":
         return [str(folder)], f"FOLDER '{folder}': no images in lane/ or no-lane/ and no labels.csv"
+    if case == "photos not sorted":  # a new user's first try: the photos named, and both ways
+        shutil.copy(lane, folder)
+        shutil.copy(tiles, folder)
+        return [str(folder)], (f"FOLDER '{folder}': no images in lane/ or no-lane/ and no "
+                               "labels.csv (2 images there, unlabelled: straight.jpg, tiles.jpg; "
+                               "move each into lane/ or no-lane/, or list them in labels.csv as "
+                               "file,expect)")
     if case == "unknown class folder":
         (folder / "lane").mkdir()
         (folder / "nolane").mkdir()
@@ -552,8 +559,9 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 
 
 @pytest.mark.parametrize("case", [
-    "missing folder", "no frames", "unknown class folder", "images beside the class folders",
-    "no no-lane frame", "no lane frame", "a photo the survey cannot read", "frames of two sizes",
+    "missing folder", "no frames", "photos not sorted", "unknown class folder",
+    "images beside the class folders", "no no-lane frame", "no lane frame",
+    "a photo the survey cannot read", "frames of two sizes",
     "a photo turned by its EXIF orientation",
     "frame labels for photos", "calibration of another size", "not an image",
     "too many pixels", "unknown label", "bad labels line", "labelled file missing",
