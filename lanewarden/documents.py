@@ -306,6 +306,19 @@ def text_kind(value: str) -> str:
     return QUOTED_NUMBER
 
 
+def _not_true_or_false(value: Any, options: Sequence[Any]) -> str:
+    """Why `value` may not stand for true/false of a key that takes only that, or '' when it
+    may: pydantic would read `auto_resume_after_lane_loss: "yes"` (quoted, so text to YAML) or
+    `: 1` as true, and such a key can let the robot drive off by itself."""
+    if isinstance(value, bool) or not options or any(_plain(o) is not bool for o in options):
+        return ""
+    if isinstance(value, str):
+        return "text (write true or false without quotes)"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return ""
+
+
 def _not_a_number(value: Any, options: Sequence[Any]) -> str:
     """Why `value` may not stand for a number of a key whose annotation has these `options`
     (its alternatives), or '' when it may: true/false is never a number (YAML's `yes` and `on`
@@ -324,7 +337,8 @@ class DocumentModel(BaseModel):
     """The base of every model read from a YAML document (config, scenario, campaign spec): a
     numeric key refuses true/false and quoted text instead of converting them (pydantic would
     read `lane_lost_halt_s: true` as 1.0 and `engage_confident_frames: yes` as 1), with the
-    same one-line error as a value out of range. Numbers inside lists and tuples too."""
+    same one-line error as a value out of range. Numbers inside lists and tuples too. A
+    true/false key refuses numbers and text (pydantic would read 1 and "yes" as true)."""
 
     @field_validator("*", mode="before")
     @classmethod
@@ -344,6 +358,8 @@ class DocumentModel(BaseModel):
             allowed = allowed_range(field)
             raise ValueError(f"expected {kind}{f' with {allowed}' if allowed else ''}, "
                              f"not {problem}")
+        if flag := _not_true_or_false(value, options):
+            raise ValueError(f"expected true or false, not {flag}")
         return value
 
 

@@ -70,6 +70,33 @@ def test_every_numeric_key_refuses_true_false_and_quoted_numbers(path: tuple[str
                          + re.escape(why) + "$", lines[0]), lines[0]
 
 
+FLAG_KEYS = [node.path for node in walk_config(LanewardenConfig())
+             if not node.is_section and isinstance(node.value, bool)]
+
+
+@pytest.mark.parametrize("path", FLAG_KEYS, ids=[".".join(p) for p in FLAG_KEYS])
+def test_every_true_false_key_refuses_numbers_and_text(path: tuple[str, ...]) -> None:
+    """pydantic would read 1, 0 and a quoted "yes" or "false" as true and false
+    (`auto_resume_after_lane_loss: "yes"`: the robot driving off by itself after a lane-loss
+    halt); the tool refuses them, and takes true and false."""
+    for value, why in ((1, "a number"), (0, "a number"), (1.0, "a number"),
+                       ("yes", "text (write true or false without quotes)"),
+                       ("false", "text (write true or false without quotes)")):
+        lines = refusal(path, value).splitlines()
+        assert len(lines) == 1, (value, lines)
+        assert lines[0].startswith(f"cfg.yaml: {'.'.join(path)} = "), lines[0]
+        assert lines[0].endswith(f": expected true or false, not {why}"), lines[0]
+    for value in (True, False):
+        section = config_from_mapping(nested(path, value), "cfg.yaml")
+        for part in path:
+            section = getattr(section, part)
+        assert section is value
+
+
+def test_the_walk_sees_the_true_false_keys() -> None:
+    assert ("supervisor", "auto_resume_after_lane_loss") in FLAG_KEYS
+
+
 def test_a_true_safety_setting_is_refused_not_read_as_one() -> None:
     assert refusal(("supervisor", "engage_confident_frames"), True) == (
         "cfg.yaml: supervisor.engage_confident_frames = true (YAML's reading of true, yes or "
