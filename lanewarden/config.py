@@ -94,6 +94,33 @@ class LanewardenConfig(DocumentModel):
 _UNKNOWN_KEY_HINT = " (check the spelling; `lanewarden config show` lists every key)"
 
 
+def lane_margin_m(config: LanewardenConfig) -> float:
+    """How far the robot, centred in the lane, may drift before the lane-departure rule halts
+    it: half the floor between the tapes' inner edges less `lane_departure_clearance_m`."""
+    return (0.5 * config.perception.free_width_m
+            - config.supervisor.lane_departure_clearance_m)
+
+
+def narrow_lane_warning(config: LanewardenConfig) -> str | None:
+    """A lane the robot fits in (narrower is refused) but with less room to drift than the
+    defaults' lane leaves (81 mm: a 0.6 m lane of 48 mm tapes, what the scenarios and the
+    campaigns drive): said where the robot is about to drive (`run`, `sim`), since in bends it
+    halts on LANE_DEPARTURE while on course (a new user's 0.5 m lane of 19 mm tape, the README's
+    own example then, halted in a 2 m-radius bend 23 mm off the lane's centre). None otherwise."""
+    margin = lane_margin_m(config)
+    usual = lane_margin_m(LanewardenConfig())
+    if margin >= usual - 1e-9:
+        return None
+    return (f"perception.lane.width_m {config.perception.lane.width_m:g} leaves the robot "
+            f"{1000 * margin:.0f} mm to drift either way before the lane-departure rule halts "
+            f"it (half the {config.perception.free_width_m:.3g} m between the tapes' inner "
+            f"edges, less supervisor.lane_departure_clearance_m "
+            f"{config.supervisor.lane_departure_clearance_m:g}); in bends, where the robot runs "
+            "a few centimetres off the lane's centre and an edge read ahead of it errs by a few "
+            f"more, expect LANE_DEPARTURE halts on course: the defaults leave "
+            f"{1000 * usual:.0f} mm (a 0.6 m lane of 48 mm tape)")
+
+
 def config_from_mapping(data: Any, source: str = "config") -> LanewardenConfig:
     """Validate a parsed mapping; every problem becomes one line of the raised ConfigError."""
     if data is None:

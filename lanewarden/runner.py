@@ -42,7 +42,7 @@ from lanewarden.camera_source import (
     replay_rate_fps,
     require_camera_view,
 )
-from lanewarden.config import LanewardenConfig
+from lanewarden.config import LanewardenConfig, narrow_lane_warning
 from lanewarden.errors import UsageError
 from lanewarden.perception.calibration import load_calibration, require_usable_calibration
 from lanewarden.perception.detector import too_small
@@ -50,6 +50,7 @@ from lanewarden.recording import RUN_MCAP
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
+from lanewarden.scenarios.camera_clip import ClipFiles
 from lanewarden.stop_signals import signal_requests, suspend
 from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
@@ -143,6 +144,35 @@ def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
     return None
 
 
+def start_warnings(camera: str, calibration_path: str | None, controller_name: str,
+                   config: LanewardenConfig | None = None) -> list[str]:
+    """What `run` says at start-up, before the base opens, about a run that may not stop where
+    a user expects: no calibration (perception then judges the frames as the simulator's default
+    camera's; a lens it does not undistort can show a lane where there is none: a clip of
+    `lane-ends` through a distorted lens, run without its calibration, drove to the clip's end
+    at confidence 0.89 where with it the run halted at the tape's end), naming a sim clip's own
+    calibration beside `--camera` when there is one; and the lecture's controller, which never
+    halts on lane loss; and a lane with little room to drift (`config.narrow_lane_warning`)."""
+    warnings = []
+    if calibration_path is None:
+        text = ("no --calibration: perception judges these frames as if from the simulator's "
+                "default camera (no lens distortion, its height and pitch); through another "
+                "lens or mount it can see a lane where there is none and drive on (calibrate "
+                "yours: lanewarden calibrate, then lanewarden calibrate ground)")
+        beside = ClipFiles.for_target(Path(camera)).calibration
+        if beside.is_file():
+            text += f"; the clip's own calibration lies beside it: --calibration {beside}"
+        warnings.append(text)
+    if config is not None and (narrow := narrow_lane_warning(config)):
+        warnings.append(narrow)
+    if controller_name == "lecture":
+        warnings.append("--controller lecture: the lecture's baseline never halts on lane loss "
+                        "(it keeps its last turn and follows floor seams); only the operator's "
+                        "stop and the physical hazards stop it: run it on a safe, enclosed track "
+                        "only")
+    return warnings
+
+
 def run_robot(
     config: LanewardenConfig,
     *,
@@ -179,6 +209,8 @@ def run_robot(
                             debug_tap=True,  # the live page draws the detection's overlay
                             image_size=(width, height))
         print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
+        for said in start_warnings(camera, calibration_path, controller_name, config):
+            print(f"warning: {said}", flush=True)  # beside the ground model's line it qualifies
 
         session = RunSession(
             SessionOptions(base_kind=base_kind, record=record, record_image=record_image,

@@ -19,7 +19,9 @@ import numpy as np
 import pytest
 
 from lanewarden.cli import main
+from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from lanewarden.runner import start_warnings
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.actuation.processes import (
     DEADLINE_S,
@@ -130,6 +132,52 @@ def test_run_engages_on_a_clean_lane_and_ends_with_stop(
     assert moving and all(r["state"] != "HALT" for r in moving), "it never engaged on a clean lane"
     assert last_line(out).startswith("run ended: --duration 1 s reached; after ")
     assert "state before the final stop: FOLLOW;" in out
+    # no --calibration: said at start-up, under the ground model's line, before anything moved
+    lines = out.splitlines()
+    warned = next(k for k, line in enumerate(lines) if line.startswith("warning: no --calibration"))
+    assert lines[warned - 1].startswith("ground model: no ground calibration"), lines[warned - 1]
+
+
+def test_run_warns_at_start_up_without_a_calibration_and_names_a_clips_own(
+        tmp_path: Path) -> None:
+    """A clip through a distorted lens run without its calibration drove to the clip's end at
+    confidence 0.89 where with it the run halted at the tape's end (a new user's trial): `run`
+    says so at start-up, and names the calibration `sim --camera-out` wrote beside the clip."""
+    camera = tmp_path / "clip.mp4"
+    camera.write_bytes(b"")
+    (warning,) = start_warnings(str(camera), None, "supervised")
+    assert warning.startswith("no --calibration: perception judges these frames as if from the "
+                              "simulator's default camera"), warning
+    assert "beside" not in warning
+    beside = tmp_path / "clip.calibration.yaml"
+    beside.write_text("not read\n")
+    (warning,) = start_warnings(str(camera), None, "supervised")
+    assert warning.endswith(f"; the clip's own calibration lies beside it: --calibration {beside}")
+    assert start_warnings(str(camera), str(beside), "supervised") == []
+    assert start_warnings("0", None, "supervised")[0].endswith("calibrate ground)")
+
+
+def test_run_warns_of_a_lane_with_little_room_to_drift() -> None:
+    """19 mm tapes 0.5 m apart (the README's example lane once) leave a Kobuki 45 mm either way
+    before the departure rule (the defaults: 81 mm); a new user's sim of it halted on course in
+    a 2 m-radius bend, with no word at start-up."""
+    narrow = config_from_mapping(
+        {"perception": {"tape": {"width_m": 0.019}, "lane": {"width_m": 0.5}}})
+    (warning,) = start_warnings("0", "camera.yaml", "supervised", narrow)
+    assert warning.startswith("perception.lane.width_m 0.5 leaves the robot 45 mm to drift "
+                              "either way before the lane-departure rule halts it"), warning
+    assert warning.endswith("the defaults leave 81 mm (a 0.6 m lane of 48 mm tape)"), warning
+    assert start_warnings("0", "camera.yaml", "supervised", LanewardenConfig()) == []
+    wider = config_from_mapping(
+        {"perception": {"tape": {"width_m": 0.019}, "lane": {"width_m": 0.6}}})
+    assert start_warnings("0", "camera.yaml", "supervised", wider) == []
+
+
+def test_run_warns_that_the_lecture_controller_never_halts_on_lane_loss() -> None:
+    (warning,) = start_warnings("0", "camera.yaml", "lecture")
+    assert warning.startswith("--controller lecture: the lecture's baseline never halts on lane "
+                              "loss"), warning
+    assert start_warnings("0", "camera.yaml", "supervised") == []
 
 
 def test_calibration_for_another_camera_refuses_before_the_base_is_touched(

@@ -22,7 +22,7 @@ from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder, interrupted_in
-from lanewarden.config import load_config
+from lanewarden.config import load_config, narrow_lane_warning
 from lanewarden.errors import QualityGateError, UsageError
 from lanewarden.scenarios.before_halt import halt_line
 from lanewarden.scenarios.errors import ScenarioError
@@ -37,6 +37,7 @@ from lanewarden.scenarios.report import (
     write_report,
 )
 from lanewarden.scenarios.sim_run import RunRequest, run_title, run_to_directory
+from lanewarden.scenarios.simulator import effective_config
 from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.stop_signals import leave_interrupts_to_the_parent, raise_interrupt
 from lanewarden.supervisor.controllers import CONTROLLERS, DEFAULT_CONTROLLER
@@ -156,6 +157,8 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
             camera_out=camera_out)
     if camera_out is not None:
         _check_clip_beside_outputs(camera_out, out)
+    if narrow := narrow_lane_warning(effective_config(request.config, spec)):
+        click.echo(f"warning: {narrow}")
     create_output_folder(out)
     try:
         metrics = run_to_directory(request)
