@@ -103,7 +103,8 @@ def _output_gone(exc: OSError) -> int:
     with contextlib.suppress(OSError, ValueError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     with contextlib.suppress(OSError):
-        _error(f"cannot write the output ({exc.strerror or exc})")
+        where = f"{exc.filename}: " if exc.filename else ""  # which file, when the error knows
+        _error(f"{where}cannot write the output ({exc.strerror or exc})")
     return EXIT_RUNTIME_FAILURE
 
 

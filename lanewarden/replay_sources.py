@@ -798,8 +798,25 @@ def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> R
                         frames=VideoFrames(capture, max_pixels), meta={"fps": fps})
 
 
+def _recording_file_problem(path: Path) -> str:
+    """Why the recording file a run folder names (run.mcap, run.jsonl) cannot be read although
+    something of that name is there, or '' (missing, or a regular file): a folder said 'a run
+    folder without its recording' of a run.mcap that was a FIFO, a link to /dev/zero, a folder
+    or a link to itself (an attacker's review)."""
+    if not os.path.lexists(path) or path.is_file():
+        return ""
+    if path.is_dir():
+        return f"{path}: a folder, expected the recording file"
+    if is_special_file(path):
+        return f"{path}: {NOT_A_REGULAR_FILE}, expected the recording file"
+    return f"{path}: a link that leads to no file, expected the recording file"
+
+
 def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
             camera_rate_hz: float) -> ReplaySource:
+    for name in (RUN_MCAP, "run.jsonl"):
+        if problem := _recording_file_problem(path / name):
+            raise InputFileError(problem)
     if (path / RUN_MCAP).is_file():
         return _load_run_mcap(path / RUN_MCAP, path.name, max_pixels)
     if (path / "run.jsonl").is_file() and (path / "meta.json").is_file():

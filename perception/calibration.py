@@ -29,7 +29,13 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from lanewarden.documents import MAX_DOCUMENT_BYTES, NOT_A_REGULAR_FILE, is_special_file
+from lanewarden.documents import (
+    MAX_DOCUMENT_BYTES,
+    MAX_NESTING_DEPTH,
+    NOT_A_REGULAR_FILE,
+    is_special_file,
+    nesting_depth,
+)
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
 
@@ -452,6 +458,14 @@ def load_calibration(path: str | Path) -> CameraCalibration:
     if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
         raise PerceptionError(f"{path}: calibration file is larger than "
                               f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
+    try:  # OpenCV's parser recurses per level before any check: a deep file crashed the process
+        depth = nesting_depth(path.read_bytes().decode("utf-8", errors="replace"))
+    except OSError as exc:
+        raise PerceptionError(f"{path}: cannot read calibration file ({exc.strerror or exc})"
+                              ) from None
+    if depth > MAX_NESTING_DEPTH:
+        raise PerceptionError(f"{path}: nested deeper than {MAX_NESTING_DEPTH} levels, refusing "
+                              f"to read it; {EXPECTED_CALIBRATION}")
     try:
         storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:

@@ -396,6 +396,14 @@ class VideoRecorder:
         if self._poster is None:
             self._poster = self._frame
             self.poster_shows, self.poster_time_s = "the last frame", self._last_time_s
-        if not cv2.imwrite(str(self.poster_path), self._poster, [cv2.IMWRITE_JPEG_QUALITY, 90]):
-            raise ScenarioOutputError(f"{self.poster_path}: cannot write the video poster")
+        # encoded here and written by Python, so a failed write says why (a full disk had given
+        # "cannot write the video poster" and no reason)
+        encoded, data = cv2.imencode(".jpg", self._poster, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        try:
+            if not encoded:
+                raise OSError("the frame could not be encoded as JPEG")
+            self.poster_path.write_bytes(data.tobytes())
+        except OSError as exc:
+            raise ScenarioOutputError(f"{self.poster_path}: cannot write the video poster "
+                                      f"({exc.strerror or exc})") from exc
 

@@ -9,6 +9,7 @@ import pytest
 
 from lanewarden.documents import (
     MAX_DOCUMENT_BYTES,
+    nesting_depth,
     parse_yaml_text,
     read_yaml_document,
     shorten,
@@ -105,3 +106,16 @@ def test_a_document_of_another_kind_lists_ten_problems_not_all(
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 11
     assert lines[-1] == f"lanewarden: error: {other}: ... and 17 more problems"
+
+
+def test_nesting_depth_counts_brackets_and_xml_elements_not_quoted_text() -> None:
+    """Read before OpenCV's FileStorage parses a calibration (it recursed once per level and
+    crashed the process on 40 000 of them)."""
+    assert nesting_depth("a: " + "[" * 40) == 40
+    assert nesting_depth("a: {b: [1, {c: [2]}]}") == 4
+    assert nesting_depth("note: \"[[[[[[\"\nother: '{{{{'\n") == 0
+    assert nesting_depth('<?xml version="1.0"?>\n<opencv_storage>\n<camera_matrix '
+                         'type_id="opencv-matrix"><rows>3</rows><data>1 0 0</data>'
+                         "</camera_matrix><empty/></opencv_storage>\n") == 3
+    assert nesting_depth("%YAML:1.0\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
+                         "   data: [ 500., 0., 320. ]\n") == 1

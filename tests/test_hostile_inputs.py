@@ -177,6 +177,8 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         "image that is a FIFO": ["detect", str(folder / "fifo.png")],
         "calibration that is a FIFO": ["detect", str(folder / "small.png"), "--calibration",
                                        str(folder / "fifo-calibration.yaml")],
+        "calibration nested 40k deep": ["detect", str(folder / "small.png"), "--calibration",
+                                        write("deep-calibration.yaml", "a: " + "[" * 40_000)],
         "labels that are a FIFO": ["survey", str(folder / "dup"), "--labels",
                                    str(folder / "fifo-labels.csv")],
         "photo that is a FIFO": ["survey", str(folder / "fifo-survey"), "--out",
@@ -259,6 +261,9 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "image that is a FIFO": "fifo.png: not a regular file (a FIFO, socket or device)",
     "calibration that is a FIFO": "fifo-calibration.yaml: not a regular file (a FIFO, socket or "
                                   "device), expected a calibration YAML file",
+    # OpenCV's parser recursed once per level: a segmentation fault, exit 139, not a word
+    "calibration nested 40k deep": "deep-calibration.yaml: nested deeper than 32 levels, refusing "
+                                   "to read it",
     "labels that are a FIFO": "fifo-labels.csv': not a regular file (a FIFO, socket or device), "
                               "expected a labels file",
     # its header was read before it was looked at: the survey waited for a writer forever

@@ -674,3 +674,64 @@ def test_a_video_of_frames_larger_than_the_pixel_limit(
     code, _, err = replay(video, tmp_path, capsys, "--config", str(config))
     assert_one_line(code, err, f"SOURCE '{video}': image is 160x120 = 19200 pixels, more than "
                     "perception.max_image_pixels (4096)")
+
+
+# ---- a calibration run would refuse -------------------------------------------------------------
+@pytest.mark.parametrize(("change", "says"), [
+    # a ValueError traceback, a LinAlgError traceback, and a silent replay that never engaged
+    ((0, ".nan"), "camera_matrix has non-finite values"),
+    ((8, "0."), "camera_matrix last row must be [0, 0, 1]"),
+    ((9, ".nan"), "dist_coeffs has non-finite values"),
+])
+def test_a_calibration_run_would_refuse_is_refused(change: tuple[int, str], says: str,
+                                                    recorded: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """`replay --calibration` skipped the check `run`, `detect`, `survey` and `undistort` make
+    (`require_usable_calibration`; an attacker's review)."""
+    from lanewarden.perception.calibration import CameraCalibration, save_calibration
+
+    good = tmp_path / "good.yaml"
+    save_calibration(CameraCalibration(np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]),
+                                       np.zeros(5), (640, 480)), good)
+    values = [*np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]).ravel(), *np.zeros(5)]
+    index, text = change
+    lines = good.read_text().splitlines()
+    # the matrix's and the distortion's data lines, written out again with one value changed
+    data = [k for k, line in enumerate(lines) if line.strip().startswith("data:")]
+    assert len(data) == 2 and all(lines[k].rstrip().endswith("]") for k in data), lines
+    shown = [repr(float(v)) for v in values]
+    shown[index] = text
+    lines[data[0]] = "   data: [ " + ", ".join(shown[:9]) + " ]"
+    lines[data[1]] = "   data: [ " + ", ".join(shown[9:]) + " ]"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("\n".join(lines) + "\n")
+    code, out, err = replay(recorded, tmp_path, capsys, "--calibration", str(bad))
+    assert_one_line(code, err, f"--calibration {bad}: refusing to engage: ", says)
+    assert out == "" and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("what", "says"), [
+    ("fifo", "not a regular file (a FIFO, socket or device), expected the recording file"),
+    ("device", "not a regular file (a FIFO, socket or device), expected the recording file"),
+    ("folder", "a folder, expected the recording file"),
+    ("loop", "a link that leads to no file, expected the recording file"),
+])
+def test_a_recording_file_that_is_no_file_is_named(what: str, says: str, recorded: Path,
+                                                   tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """Each had been 'a run folder without its recording (run.mcap or run.jsonl)', of a folder
+    whose run.mcap was there (an attacker's review)."""
+    folder = tmp_path / "run"
+    shutil.copytree(recorded, folder)
+    target = folder / "run.mcap"
+    target.unlink()
+    if what == "fifo":
+        os.mkfifo(target)
+    elif what == "device":
+        target.symlink_to("/dev/zero")
+    elif what == "folder":
+        target.mkdir()
+    else:
+        target.symlink_to(target)
+    code, _, err = replay(folder, tmp_path, capsys)
+    assert_one_line(code, err, f"{target}: {says}")
