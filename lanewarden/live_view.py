@@ -343,6 +343,8 @@ class LiveView:
         self._open = 0
         self._refusals_unreported = 0
         self._last_refusal_report_s = -float("inf")
+        self._busy_unreported = 0
+        self._last_busy_report_s = -float("inf")
         self._page = resources.files("lanewarden").joinpath("static/live.html").read_bytes()
         self.rules = AccessRules.for_bind(host, port, token)
         try:
@@ -471,6 +473,24 @@ class LiveView:
             self.counts["closed"] += 1
             self.counts["largest_request"] = max(self.counts["largest_request"], bytes_read)
 
+    def busy(self, client: str) -> None:
+        """A connection closed unserved, every slot taken: one line on the terminal, at most
+        every REFUSAL_REPORT_EVERY_S (slow or idle clients holding every slot kept the page's
+        Stop from being served for seconds, and nothing said so: an attacker's review)."""
+        now = time.monotonic()
+        with self._counts_lock:
+            self.counts["busy"] += 1
+            if now - self._last_busy_report_s < REFUSAL_REPORT_EVERY_S:
+                self._busy_unreported += 1
+                return
+            more, self._busy_unreported = self._busy_unreported, 0
+            self._last_busy_report_s = now
+        self._log(f"live view: all {MAX_CONNECTIONS} connections busy, one from "
+                  f"{printable(client)} closed unserved"
+                  + (f" (and {more} more before)" if more else "")
+                  + ": the page's buttons may not get through (slow or idle clients?); stop "
+                  "from the keys, Ctrl-C or the base's B1")
+
     def refused(self, what: str, client: str, problem: str) -> None:
         """A refused request: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S
         (with how many more were refused meanwhile)."""
@@ -564,8 +584,10 @@ class _Server(ThreadingHTTPServer):
     def process_request(self, request: Any, client_address: Any) -> None:
         """A thread per connection, at most MAX_CONNECTIONS: more are closed at once."""
         if not self._slots.acquire(blocking=False):
-            self.view.count("busy")
             self.shutdown_request(request)
+            self.view.busy(f"{client_address[0]}:{client_address[1]}"
+                           if isinstance(client_address, tuple) and len(client_address) >= 2
+                           else str(client_address))
             return
         try:
             super().process_request(request, client_address)

@@ -496,6 +496,11 @@ def test_many_connections_are_bounded() -> None:
                           20.0), counts
         assert counts["peak_open"] == MAX_CONNECTIONS
         assert counts["busy"] == 2 * MAX_CONNECTIONS
+        # said on the terminal, once for the burst (the rest within REFUSAL_REPORT_EVERY_S)
+        assert len(v.lines) == 1, v.lines
+        assert v.lines[0].startswith(f"live view: all {MAX_CONNECTIONS} connections busy, one "
+                                     "from 127.0.0.1:"), v.lines
+        assert v.lines[0].endswith("stop from the keys, Ctrl-C or the base's B1")
         assert threading.active_count() <= before + MAX_CONNECTIONS
         v.server.publish({"state": "HALT", "step": 1}, None)
     finally:
