@@ -358,6 +358,25 @@ def test_a_recording_cut_before_its_first_step_says_so(
                     "run killed at its start, or its disk full?")
 
 
+@pytest.mark.parametrize(("size", "says"), [
+    (0, "empty (0 bytes)"),
+    (7, "ends at byte 7, before MCAP's first record"),
+    (300, "ends at byte 300 inside a record that starts at byte "),
+])
+def test_a_recording_cut_before_its_meta_says_so(size: int, says: str, recorded: Path,
+                                                 tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A run folder whose run.mcap ends within its first records (an attacker's review: cut
+    anywhere in its first kB it was 'no lanewarden metadata record ...; not a Lanewarden
+    recording', as if it were another program's file)."""
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "run.mcap").write_bytes((recorded / "run.mcap").read_bytes()[:size])
+    code, _, err = replay(folder, tmp_path, capsys)
+    assert_one_line(code, err, f"{folder / 'run.mcap'}: cut short before its 'lanewarden' "
+                    f"metadata record ({says}", "a run killed as it began, or its disk full?")
+
+
 def test_a_damaged_last_line_and_a_missing_summary_are_said(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     old = as_format_1(recorded, tmp_path / "old")
