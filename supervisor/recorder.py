@@ -30,14 +30,25 @@ class JsonlRecorder:
     def __call__(self, record: StepRecord) -> None:
         if self._file is None:
             raise SupervisorError(f"{self.path}: run log already closed")
-        self._file.write(json.dumps(record.as_json(), separators=(",", ":")) + "\n")
-        self._file.flush()
+        try:
+            self._file.write(json.dumps(record.as_json(), separators=(",", ":")) + "\n")
+            self._file.flush()
+        except OSError as exc:
+            raise self._named(exc) from exc
         self.lines += 1
 
     def close(self) -> None:
         if self._file is not None:
-            self._file.close()
-            self._file = None
+            file, self._file = self._file, None
+            try:
+                file.close()
+            except OSError as exc:
+                raise self._named(exc) from exc
+
+    def _named(self, exc: OSError) -> OSError:
+        """The write error with this log's path (a full disk had been 'cannot write the output
+        (No space left on device)', naming no file)."""
+        return OSError(exc.errno, exc.strerror or str(exc), str(self.path))
 
     def __enter__(self) -> JsonlRecorder:
         return self

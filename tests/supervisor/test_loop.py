@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 from pathlib import Path
 
@@ -243,6 +244,24 @@ def test_no_frames_at_all_never_moves() -> None:
     run.until(1.0)
     assert all(r.command == STOP and r.state == "HALT" for r in run.records)
     assert any("FRAME_STALE" in r.events for r in run.records)
+
+
+def test_a_run_log_that_cannot_be_written_names_its_file() -> None:
+    """A full disk under `replay --out` had said 'cannot write the output (No space left on
+    device)', naming no file (an attacker's review)."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    run = Run()
+    with pytest.raises(OSError) as raised, JsonlRecorder("/dev/full") as recorder:
+        run.loop = ControlLoop(
+            ScriptedCamera(), ScriptedDetector(),
+            SafetyGate(SupervisedController(CONFIG), CONFIG), SimBase(),
+            record=recorder,
+        )  # fmt: skip
+        run.loop.start(0.0)
+        run.until(0.1)
+    assert raised.value.filename == "/dev/full"
+    assert raised.value.errno == errno.ENOSPC
 
 
 def test_jsonl_recorder_writes_one_flushed_line_per_step(tmp_path: Path) -> None:
