@@ -173,10 +173,12 @@ _NESTING_TOKENS = re.compile(r'"[^"\n]*"|\'[^\'\n]*\'|[\[{]|[\]}]|<[A-Za-z_]|</|
 
 
 def nesting_depth(text: str) -> int:
-    """How deep `text` nests flow lists and mappings (`[`, `{`) and XML elements, read without
-    parsing it (quoted strings skipped): for a parser that recurses once per level before it
-    checks anything, as OpenCV's FileStorage does (a 40 kB calibration file of 40 000 `[` crashed
-    the process with a segmentation fault)."""
+    """How deep `text` nests, read without parsing it: flow lists and mappings (`[`, `{`) and
+    XML elements (quoted strings skipped), or YAML's block levels (each line indented deeper
+    than the one it belongs to), whichever is deeper. For a parser that recurses once per level
+    before it checks anything, as OpenCV's FileStorage does (a 40 kB calibration file of 40 000
+    `[` crashed the process with a segmentation fault; 1 400 block levels, a RecursionError
+    where the calibration's nodes were walked)."""
     depth = deepest = 0
     for token in _NESTING_TOKENS.finditer(text):
         mark = token.group()
@@ -185,6 +187,16 @@ def nesting_depth(text: str) -> int:
             deepest = max(deepest, depth)
         elif mark[0] not in "\"'":
             depth -= 1
+    indents: list[int] = []  # the indentation of each block level open at this line
+    for line in text.splitlines():
+        content = line.lstrip(" ")
+        if not content or content.startswith(("#", "%", "---", "...")):
+            continue
+        indent = len(line) - len(content)
+        while indents and indents[-1] >= indent:
+            indents.pop()
+        indents.append(indent)
+        deepest = max(deepest, len(indents))
     return deepest
 
 

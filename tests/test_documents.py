@@ -113,9 +113,12 @@ def test_nesting_depth_counts_brackets_and_xml_elements_not_quoted_text() -> Non
     crashed the process on 40 000 of them)."""
     assert nesting_depth("a: " + "[" * 40) == 40
     assert nesting_depth("a: {b: [1, {c: [2]}]}") == 4
-    assert nesting_depth("note: \"[[[[[[\"\nother: '{{{{'\n") == 0
+    assert nesting_depth("note: \"[[[[[[\"\nother: '{{{{'\n") == 1  # two top-level keys
     assert nesting_depth('<?xml version="1.0"?>\n<opencv_storage>\n<camera_matrix '
                          'type_id="opencv-matrix"><rows>3</rows><data>1 0 0</data>'
                          "</camera_matrix><empty/></opencv_storage>\n") == 3
-    assert nesting_depth("%YAML:1.0\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
-                         "   data: [ 500., 0., 320. ]\n") == 1
+    assert nesting_depth("%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
+                         "   data: [ 500., 0., 320. ]\n# a comment\nimage_width: 640\n") == 2
+    # block levels: each line one deeper (a 1 MB file holds 1 400; walking the calibration's
+    # nodes then raised a RecursionError, a traceback)
+    assert nesting_depth("".join(" " * k + "a:\n" for k in range(40)) + " " * 40 + "1\n") == 41

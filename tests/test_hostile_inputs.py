@@ -179,6 +179,10 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
                                        str(folder / "fifo-calibration.yaml")],
         "calibration nested 40k deep": ["detect", str(folder / "small.png"), "--calibration",
                                         write("deep-calibration.yaml", "a: " + "[" * 40_000)],
+        "calibration of 1400 block levels": [
+            "detect", str(folder / "small.png"), "--calibration",
+            write("block-calibration.yaml", "%YAML:1.0\n" + "".join(
+                " " * k + "a:\n" for k in range(1400)) + " " * 1400 + "1\n")],
         "labels that are a FIFO": ["survey", str(folder / "dup"), "--labels",
                                    str(folder / "fifo-labels.csv")],
         "photo that is a FIFO": ["survey", str(folder / "fifo-survey"), "--out",
@@ -264,6 +268,8 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     # OpenCV's parser recursed once per level: a segmentation fault, exit 139, not a word
     "calibration nested 40k deep": "deep-calibration.yaml: nested deeper than 32 levels, refusing "
                                    "to read it",
+    # walking its nodes was a RecursionError traceback
+    "calibration of 1400 block levels": "block-calibration.yaml: nested deeper than 32 levels",
     "labels that are a FIFO": "fifo-labels.csv': not a regular file (a FIFO, socket or device), "
                               "expected a labels file",
     # its header was read before it was looked at: the survey waited for a writer forever
