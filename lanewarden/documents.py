@@ -167,18 +167,25 @@ def check_event_stream(text: str) -> None:
             add(anchor_sizes.get(event.anchor or "", 1))
 
 
-#: A quoted string on one line (its brackets are text), or one bracket or XML tag that opens or
-#: closes a level.
+#: A quoted string on one line, or one bracket or XML tag that opens or closes a level.
 _NESTING_TOKENS = re.compile(r'"[^"\n]*"|\'[^\'\n]*\'|[\[{]|[\]}]|<[A-Za-z_]|</|/>')
+#: The characters one of which every nesting level needs, in any of OpenCV's FileStorage
+#: formats: a flow list or mapping's `[` or `{`, an XML element's `<`, a block sequence's `-`.
+_LEVEL_MARKS = re.compile(r"[\[{<-]")
+#: At most this many of them in a file read by a parser that recurses once per level (a
+#: calibration holds a few dozen; OpenCV's parser overflowed its stack at 20 000-40 000 levels).
+MAX_LEVEL_MARKS = 1000
 
 
 def nesting_depth(text: str) -> int:
-    """How deep `text` nests, read without parsing it: flow lists and mappings (`[`, `{`) and
-    XML elements (quoted strings skipped), or YAML's block levels (each line indented deeper
-    than the one it belongs to), whichever is deeper. For a parser that recurses once per level
-    before it checks anything, as OpenCV's FileStorage does (a 40 kB calibration file of 40 000
-    `[` crashed the process with a segmentation fault; 1 400 block levels, a RecursionError
-    where the calibration's nodes were walked)."""
+    """How deep `text` nests, read without parsing it, for a parser that recurses once per
+    level before it checks anything, as OpenCV's FileStorage does (a 40 kB calibration file of
+    40 000 `[` crashed the process with a segmentation fault; 1 400 YAML block levels were a
+    RecursionError where the calibration's nodes were walked): flow lists and mappings (`[`,
+    `{`) and XML elements (text in quotes on one line skipped; never below the top), and YAML's
+    block levels (a line indented deeper than the one it belongs to, each `- ` that opens it),
+    whichever is deeper. A scan, not a parse, so a file can hide levels from it that a parser
+    sees; `level_marks` bounds those."""
     depth = deepest = 0
     for token in _NESTING_TOKENS.finditer(text):
         mark = token.group()
@@ -186,7 +193,7 @@ def nesting_depth(text: str) -> int:
             depth += 1
             deepest = max(deepest, depth)
         elif mark[0] not in "\"'":
-            depth -= 1
+            depth = max(depth - 1, 0)
     indents: list[int] = []  # the indentation of each block level open at this line
     for line in text.splitlines():
         content = line.lstrip(" ")
@@ -196,8 +203,16 @@ def nesting_depth(text: str) -> int:
         while indents and indents[-1] >= indent:
             indents.pop()
         indents.append(indent)
-        deepest = max(deepest, len(indents))
+        dashes = len(content) - len(content.lstrip("- "))  # "- - - 1": three levels more
+        deepest = max(deepest, len(indents) + content[:dashes].count("-"))
     return deepest
+
+
+def level_marks(text: str) -> int:
+    """How many characters of `text` could each open a nesting level in one of OpenCV's
+    FileStorage formats (`_LEVEL_MARKS`): every level needs one, so this bounds the nesting
+    whatever a scan is fooled by (quotes, comments, closers)."""
+    return len(_LEVEL_MARKS.findall(text))
 
 
 def _yaml_problem(exc: yaml.YAMLError, text: str) -> str:

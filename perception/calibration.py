@@ -31,9 +31,11 @@ from numpy.typing import NDArray
 
 from lanewarden.documents import (
     MAX_DOCUMENT_BYTES,
+    MAX_LEVEL_MARKS,
     MAX_NESTING_DEPTH,
     NOT_A_REGULAR_FILE,
     is_special_file,
+    level_marks,
     nesting_depth,
 )
 from lanewarden.perception.errors import PerceptionError
@@ -458,16 +460,27 @@ def load_calibration(path: str | Path) -> CameraCalibration:
     if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
         raise PerceptionError(f"{path}: calibration file is larger than "
                               f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
-    try:  # OpenCV's parser recurses per level before any check: a deep file crashed the process
-        depth = nesting_depth(path.read_bytes().decode("utf-8", errors="replace"))
+    # Read once and parsed from memory, as read: OpenCV would decompress a *.gz file of any
+    # size, and a file may change between a check and a second read. OpenCV's parser recurses
+    # once per level before any check: a deep file crashed the process (a segfault).
+    try:
+        data = path.read_bytes()
     except OSError as exc:
         raise PerceptionError(f"{path}: cannot read calibration file ({exc.strerror or exc})"
                               ) from None
-    if depth > MAX_NESTING_DEPTH:
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise PerceptionError(f"{path}: not UTF-8 text; {EXPECTED_CALIBRATION}") from None
+    if (marks := level_marks(text)) > MAX_LEVEL_MARKS:
+        raise PerceptionError(f"{path}: {marks} characters that open a nesting level ([, {{, "
+                              f"<, -), more than any calibration holds (at most "
+                              f"{MAX_LEVEL_MARKS}), refusing to read it; {EXPECTED_CALIBRATION}")
+    if nesting_depth(text) > MAX_NESTING_DEPTH:
         raise PerceptionError(f"{path}: nested deeper than {MAX_NESTING_DEPTH} levels, refusing "
                               f"to read it; {EXPECTED_CALIBRATION}")
     try:
-        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        storage = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
     except (cv2.error, SystemError) as exc:
         raise PerceptionError(
             f"{path}: not a readable OpenCV FileStorage YAML calibration file"

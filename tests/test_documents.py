@@ -9,6 +9,7 @@ import pytest
 
 from lanewarden.documents import (
     MAX_DOCUMENT_BYTES,
+    level_marks,
     nesting_depth,
     parse_yaml_text,
     read_yaml_document,
@@ -119,6 +120,13 @@ def test_nesting_depth_counts_brackets_and_xml_elements_not_quoted_text() -> Non
                          "</camera_matrix><empty/></opencv_storage>\n") == 3
     assert nesting_depth("%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
                          "   data: [ 500., 0., 320. ]\n# a comment\nimage_width: 640\n") == 2
+    # what a scan could be fooled by, each of which had crashed OpenCV's parser anyway (a
+    # reviewer's bypasses): closers before the openers, compact block sequences
+    assert nesting_depth("# " + "]" * 50 + "\na: " + "[" * 40) == 40
+    assert nesting_depth("a:\n  " + "- " * 40 + "1\n") == 42  # a, its line, 40 dashes
+    # ... and what bounds them, whatever the scan: the characters that open a level
+    assert level_marks("a: [ x'y, " + "[" * 40 + " 'z") == 41
+    assert level_marks("<?xml?><a><!-- </ --><b/></a>") == 10  # six <, four -
     # block levels: each line one deeper (a 1 MB file holds 1 400; walking the calibration's
     # nodes then raised a RecursionError, a traceback)
     assert nesting_depth("".join(" " * k + "a:\n" for k in range(40)) + " " * 40 + "1\n") == 41

@@ -10,6 +10,7 @@ imports take seconds; each case's stderr and exit code are captured separately.
 
 from __future__ import annotations
 
+import gzip
 import json
 import os
 import re
@@ -101,6 +102,10 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
         (folder / name).write_text(text, encoding="utf-8")
         return str(folder / name)
 
+    def gzipped(name: str, text: str) -> str:
+        (folder / name).write_bytes(gzip.compress(text.encode()))
+        return str(folder / name)
+
     square_loop = "".join("    - {straight_m: 20}\n    - {arc_radius_m: 1, turn_deg: 90}\n"
                           for _ in range(4))
     (folder / "huge.png").write_bytes(big_png(20000, 20000))
@@ -179,6 +184,11 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[object
                                        str(folder / "fifo-calibration.yaml")],
         "calibration nested 40k deep": ["detect", str(folder / "small.png"), "--calibration",
                                         write("deep-calibration.yaml", "a: " + "[" * 40_000)],
+        "calibration with closers before 40k openers": [
+            "detect", str(folder / "small.png"), "--calibration",
+            write("closers-calibration.yaml", "# " + "]" * 40_000 + "\na: " + "[" * 40_000)],
+        "gzip-compressed calibration": ["detect", str(folder / "small.png"), "--calibration",
+                                        gzipped("packed.yaml.gz", "a: " + "[" * 40_000)],
         "calibration of 1400 block levels": [
             "detect", str(folder / "small.png"), "--calibration",
             write("block-calibration.yaml", "%YAML:1.0\n" + "".join(
@@ -266,10 +276,15 @@ EXPECTED: dict[str, str | tuple[str, ...]] = {
     "calibration that is a FIFO": "fifo-calibration.yaml: not a regular file (a FIFO, socket or "
                                   "device), expected a calibration YAML file",
     # OpenCV's parser recursed once per level: a segmentation fault, exit 139, not a word
-    "calibration nested 40k deep": "deep-calibration.yaml: nested deeper than 32 levels, refusing "
-                                   "to read it",
+    "calibration nested 40k deep": "deep-calibration.yaml: 40000 characters that open a nesting "
+                                   "level ([, {, <, -), more than any calibration holds",
     # walking its nodes was a RecursionError traceback
     "calibration of 1400 block levels": "block-calibration.yaml: nested deeper than 32 levels",
+    # each got past a scan of the nesting and crashed OpenCV's parser (a reviewer's bypasses;
+    # OpenCV decompressed the .gz itself)
+    "calibration with closers before 40k openers": "closers-calibration.yaml: 40000 characters "
+                                                   "that open a nesting level",
+    "gzip-compressed calibration": "packed.yaml.gz: not UTF-8 text",
     "labels that are a FIFO": "fifo-labels.csv': not a regular file (a FIFO, socket or device), "
                               "expected a labels file",
     # its header was read before it was looked at: the survey waited for a writer forever
