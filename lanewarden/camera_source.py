@@ -159,6 +159,14 @@ def open_camera(camera: str,
         if max_pixels is not None and (why := header_problem(paths[0], max_pixels)):
             raise UsageError(f"--camera '{camera}': {paths[0]}: {why}")
         return ImageSequence(paths, max_pixels)
+    if Path(camera).suffix.lower() in IMAGE_SUFFIXES and Path(camera).is_file():
+        # one photo: a sequence of one frame, read as `detect` reads it (OpenCV's video reader
+        # took a cut JPEG for a 1-frame clip and a text file for a camera that sent nothing)
+        image, why = read_image(Path(camera), cv2.IMREAD_UNCHANGED,
+                                DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels)
+        if image is None:
+            raise UsageError(f"--camera '{camera}': {why}")
+        return ImageSequence([Path(camera)], max_pixels)
     source: int | str
     if camera.strip().isdigit():
         source = int(camera)

@@ -469,7 +469,9 @@ def _recorded_controller(meta: dict[str, Any]) -> str | None:
 def _check_format(mcap: McapFile, path: Path) -> dict[str, Any]:
     """The recording's meta; InputFileError when its format is not one replay reads."""
     record = mcap.metadata.get(META_NAME)
-    if record is None and mcap.cut_short is not None:  # a recording cut within its first kB
+    if record is None and mcap.cut_short is not None and not mcap.topics:
+        # cut within its first records, before any channel: a Lanewarden recording's meta comes
+        # first (another program's file cut anywhere is still not one)
         detail = "empty (0 bytes)" if mcap.cut_short == EMPTY else mcap.cut_short
         raise InputFileError(f"{path}: cut short before its '{META_NAME}' metadata record "
                              f"({detail}): a run killed as it began, or its disk full? (or not "

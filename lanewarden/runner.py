@@ -159,8 +159,14 @@ def start_warnings(camera: str, calibration_path: str | None, controller_name: s
                 "default camera (no lens distortion, its height and pitch); through another "
                 "lens or mount it can see a lane where there is none and drive on (calibrate "
                 "yours: lanewarden calibrate, then lanewarden calibrate ground)")
-        beside = ClipFiles.for_target(Path(camera)).calibration
-        if beside.is_file():
+        # beside the clip, or beside the folder a pattern picks its frames from
+        # ('clip/*.png', 'clip/frame_%06d.png': `sim --camera-out clip` writes
+        # clip.calibration.yaml)
+        given = Path(camera)
+        places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
+        beside = next((ClipFiles.for_target(p).calibration for p in places
+                       if ClipFiles.for_target(p).calibration.is_file()), None)
+        if beside is not None:
             text += f"; the clip's own calibration lies beside it: --calibration {beside}"
         warnings.append(text)
     if config is not None and (narrow := narrow_lane_warning(config)):

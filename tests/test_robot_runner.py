@@ -154,6 +154,13 @@ def test_run_warns_at_start_up_without_a_calibration_and_names_a_clips_own(
     (warning,) = start_warnings(str(camera), None, "supervised")
     assert warning.endswith(f"; the clip's own calibration lies beside it: --calibration {beside}")
     assert start_warnings(str(camera), str(beside), "supervised") == []
+    # a clip of frames (`sim --camera-out clip`), named as a folder or by a pattern
+    (tmp_path / "frames").mkdir()
+    frames_calibration = tmp_path / "frames.calibration.yaml"
+    frames_calibration.write_text("not read\n")
+    for named in ("frames", "frames/", "frames/*.png", "frames/frame_%06d.png"):
+        (warning,) = start_warnings(str(tmp_path / named), None, "supervised")
+        assert warning.endswith(f"--calibration {frames_calibration}"), (named, warning)
     assert start_warnings("0", None, "supervised")[0].endswith("calibrate ground)")
 
 
@@ -207,6 +214,29 @@ def test_unopenable_camera_is_one_line(tmp_path: Path, capsys: pytest.CaptureFix
     assert code != 0
     assert str(missing) in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("broken", ["cut.jpg", "text.jpg"])
+def test_one_photo_that_cannot_be_read_is_one_line(
+        broken: str, scenes: dict[str, list[Path]], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`run --camera PHOTO` reads the photo as `detect` does (a reviewer: OpenCV's video reader
+    ran a cut JPEG as a 1-frame clip, exit 0, and said of a text file that the camera stopped
+    delivering frames)."""
+    photo = tmp_path / broken
+    if broken == "cut.jpg":
+        good = scenes["lane"][0]
+        ok, data = cv2.imencode(".jpg", cv2.imread(str(good)))
+        assert ok
+        photo.write_bytes(data.tobytes()[:300])
+    else:
+        photo.write_text("not a picture\n")
+    code = main(["run", "--camera", str(photo), "--base", "none", "--duration", "1.0",
+                 "--record", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.splitlines() == [f"lanewarden: error: --camera '{photo}': not a readable image"]
+    assert not (tmp_path / "run").exists(), "refused before the recording folder"
 
 
 # ---- why a run ended: normal ends (0) and safety stops (3) --------------------------------------

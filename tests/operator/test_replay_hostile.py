@@ -377,6 +377,28 @@ def test_a_recording_cut_before_its_meta_says_so(size: int, says: str, recorded:
                     f"metadata record ({says}", "a run killed as it began, or its disk full?")
 
 
+def test_another_programs_recording_cut_short_is_not_called_a_cut_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Another program's MCAP, cut in half, as a run folder's run.mcap: not a Lanewarden
+    recording, whatever its cut (a reviewer found it called 'a run killed as it began')."""
+    whole = tmp_path / "other.mcap"
+    with whole.open("wb") as stream:
+        writer = McapWriter(stream)
+        writer.start("ros2", "another program")
+        schema = writer.register_schema("std_msgs/msg/String", "ros2msg", b"string data")
+        channel = writer.register_channel("/chatter", "cdr", schema)
+        for k in range(200):
+            writer.add_message(channel, k, bytes(200), k)
+        writer.finish()
+    folder = tmp_path / "run"
+    folder.mkdir()
+    data = whole.read_bytes()
+    (folder / "run.mcap").write_bytes(data[:len(data) // 2])
+    code, _, err = replay(folder, tmp_path, capsys)
+    assert_one_line(code, err, f"{folder / 'run.mcap'}: no 'lanewarden' metadata record before "
+                    "its steps; not a Lanewarden recording")
+
+
 def test_a_damaged_last_line_and_a_missing_summary_are_said(
         recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     old = as_format_1(recorded, tmp_path / "old")

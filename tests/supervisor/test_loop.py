@@ -248,20 +248,25 @@ def test_no_frames_at_all_never_moves() -> None:
 
 def test_a_run_log_that_cannot_be_written_names_its_file() -> None:
     """A full disk under `replay --out` had said 'cannot write the output (No space left on
-    device)', naming no file (an attacker's review)."""
+    device)', naming no file (an attacker's review). The write itself names it, and so does the
+    close that flushes what the failed write left buffered."""
     if not Path("/dev/full").exists():
         pytest.skip("no /dev/full on this system")
+    records: list[StepRecord] = []
     run = Run()
-    with pytest.raises(OSError) as raised, JsonlRecorder("/dev/full") as recorder:
-        run.loop = ControlLoop(
-            ScriptedCamera(), ScriptedDetector(),
-            SafetyGate(SupervisedController(CONFIG), CONFIG), SimBase(),
-            record=recorder,
-        )  # fmt: skip
-        run.loop.start(0.0)
-        run.until(0.1)
-    assert raised.value.filename == "/dev/full"
-    assert raised.value.errno == errno.ENOSPC
+    run.loop = ControlLoop(
+        ScriptedCamera(), ScriptedDetector(),
+        SafetyGate(SupervisedController(CONFIG), CONFIG), SimBase(), record=records.append,
+    )  # fmt: skip
+    run.loop.start(0.0)
+    run.until(0.1)
+    recorder = JsonlRecorder("/dev/full")
+    with pytest.raises(OSError) as raised:
+        recorder(records[0])
+    assert (raised.value.filename, raised.value.errno) == ("/dev/full", errno.ENOSPC)
+    with pytest.raises(OSError) as closing:
+        recorder.close()
+    assert (closing.value.filename, closing.value.errno) == ("/dev/full", errno.ENOSPC)
 
 
 def test_jsonl_recorder_writes_one_flushed_line_per_step(tmp_path: Path) -> None:
