@@ -457,17 +457,18 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         raise PerceptionError(f"{path}: is a directory, expected a calibration YAML file")
     if is_special_file(path):  # OpenCV would wait for a writer
         raise PerceptionError(f"{path}: {NOT_A_REGULAR_FILE}, expected a calibration YAML file")
-    if path.stat().st_size > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
-        raise PerceptionError(f"{path}: calibration file is larger than "
-                              f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
     # Read once and parsed from memory, as read: OpenCV would decompress a *.gz file of any
     # size, and a file may change between a check and a second read. OpenCV's parser recurses
     # once per level before any check: a deep file crashed the process (a segfault).
     try:
-        data = path.read_bytes()
+        with path.open("rb") as stream:  # at most one byte past the limit, whatever its size
+            data = stream.read(MAX_DOCUMENT_BYTES + 1)
     except OSError as exc:
         raise PerceptionError(f"{path}: cannot read calibration file ({exc.strerror or exc})"
                               ) from None
+    if len(data) > MAX_DOCUMENT_BYTES:  # the --config limit: refused before parsing
+        raise PerceptionError(f"{path}: calibration file is larger than "
+                              f"{MAX_DOCUMENT_BYTES // 1000} kB, refusing to read it")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
