@@ -341,10 +341,8 @@ class LiveView:
         self.counts: dict[str, int] = {"served": 0, "closed": 0, "busy": 0, "cut_off": 0,
                                        "refused": 0, "peak_open": 0, "largest_request": 0}
         self._open = 0
-        self._refusals_unreported = 0
-        self._last_refusal_report_s = -float("inf")
-        self._busy_unreported = 0
-        self._last_busy_report_s = -float("inf")
+        self._refusals = _Throttle()
+        self._busy = _Throttle()
         self._page = resources.files("lanewarden").joinpath("static/live.html").read_bytes()
         self.rules = AccessRules.for_bind(host, port, token)
         try:
@@ -477,14 +475,11 @@ class LiveView:
         """A connection closed unserved, every slot taken: one line on the terminal, at most
         every REFUSAL_REPORT_EVERY_S (slow or idle clients holding every slot kept the page's
         Stop from being served for seconds, and nothing said so: an attacker's review)."""
-        now = time.monotonic()
         with self._counts_lock:
             self.counts["busy"] += 1
-            if now - self._last_busy_report_s < REFUSAL_REPORT_EVERY_S:
-                self._busy_unreported += 1
-                return
-            more, self._busy_unreported = self._busy_unreported, 0
-            self._last_busy_report_s = now
+            more = self._busy.due(time.monotonic())
+        if more is None:
+            return
         self._log(f"live view: all {MAX_CONNECTIONS} connections busy, one from "
                   f"{printable(client)} closed unserved"
                   + (f" (and {more} more before)" if more else "")
@@ -494,14 +489,11 @@ class LiveView:
     def refused(self, what: str, client: str, problem: str) -> None:
         """A refused request: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S
         (with how many more were refused meanwhile)."""
-        now = time.monotonic()
         with self._counts_lock:
             self.counts["refused"] += 1
-            if now - self._last_refusal_report_s < REFUSAL_REPORT_EVERY_S:
-                self._refusals_unreported += 1
-                return
-            more, self._refusals_unreported = self._refusals_unreported, 0
-            self._last_refusal_report_s = now
+            more = self._refusals.due(time.monotonic())
+        if more is None:
+            return
         self._log(f"live view: refused {printable(what)} from {printable(client)}: "
                   f"{printable(problem, 200)}"
                   + (f" (and {more} more refused before)" if more else ""))
@@ -518,10 +510,32 @@ class LiveView:
         for thread in self._threads:
             thread.join(timeout=2.0)
         with self._counts_lock:  # refusals counted but not yet reported: said once, at the end
-            more, self._refusals_unreported = self._refusals_unreported, 0
+            more = self._refusals.take_held()
         if more:
             self._log(f"live view: {more} more request{'s' if more > 1 else ''} refused after the "
                       "last one reported")
+
+
+class _Throttle:
+    """One kind of terminal line, said at most every REFUSAL_REPORT_EVERY_S: `due(now)` is None
+    while it is held back (counted), else how many were held back since it was last said.
+    Called under the view's counts lock."""
+
+    def __init__(self) -> None:
+        self._last_s = -float("inf")
+        self._held = 0
+
+    def due(self, now: float) -> int | None:
+        if now - self._last_s < REFUSAL_REPORT_EVERY_S:
+            self._held += 1
+            return None
+        self._last_s = now
+        return self.take_held()
+
+    def take_held(self) -> int:
+        """How many were held back, and none any more."""
+        held, self._held = self._held, 0
+        return held
 
 
 class _RequestTooLarge(Exception):
