@@ -59,7 +59,12 @@ from lanewarden.image_files import (
     read_image,
     too_many_pixels,
 )
-from lanewarden.perception.calibration import CameraCalibration, load_calibration
+from lanewarden.perception.calibration import (
+    CameraCalibration,
+    load_calibration,
+    require_usable_calibration,
+)
+from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.detector import PreparedImage
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.ros_bag import (
@@ -871,6 +876,19 @@ def open_replay_source(source: str, camera_rate_hz: float, *, topic: str | None 
     if path.is_file():
         return _video(path, source, camera_rate_hz, max_pixels)
     raise UsageError(f"SOURCE '{source}': no such file or folder; expected {SOURCE_HELP}")
+
+
+def usable_calibration(calibration_path: str | None, recorded: CameraCalibration | None,
+                       gates: CalibrationConfig, recorded_named: str) -> CameraCalibration | None:
+    """The calibration `replay` and `survey` use: --calibration's (`calibration_path`), else the
+    recording's own (`recorded`); refused in one line, as `run` refuses it
+    (`require_usable_calibration`), naming the flag or, for the recording's, `recorded_named`."""
+    calibration = load_calibration(calibration_path) if calibration_path else recorded
+    if calibration is not None:
+        require_usable_calibration(calibration, calibration.image_size, gates,
+                                   f"--calibration {calibration_path}" if calibration_path
+                                   else recorded_named)
+    return calibration
 
 
 def replay_config(source: ReplaySource, config_path: str | None) -> LanewardenConfig:

@@ -164,8 +164,8 @@ def start_warnings(camera: str, calibration_path: str | None, controller_name: s
         # clip.calibration.yaml)
         given = Path(camera)
         places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
-        beside = next((ClipFiles.for_target(p).calibration for p in places
-                       if ClipFiles.for_target(p).calibration.is_file()), None)
+        beside = next((c for c in (ClipFiles.for_target(p).calibration for p in places)
+                       if c.is_file()), None)
         if beside is not None:
             text += f"; the clip's own calibration lies beside it: --calibration {beside}"
         warnings.append(text)

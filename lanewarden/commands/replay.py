@@ -61,11 +61,15 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     calibration unless --config/--calibration say otherwise, and every step is compared."""
     from lanewarden.commands.output_folders import create_output_folder, interrupted_in
     from lanewarden.config import load_config
-    from lanewarden.perception.calibration import load_calibration, require_usable_calibration
     from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
-    from lanewarden.replay_sources import frame_indices, open_replay_source, replay_config
+    from lanewarden.replay_sources import (
+        frame_indices,
+        open_replay_source,
+        replay_config,
+        usable_calibration,
+    )
 
     if out_dir is not None:
         _refuse_a_recording_folder(Path(out_dir))
@@ -75,13 +79,11 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                                        topic=topic,
                                        max_pixels=given.perception.max_image_pixels)
     config = replay_config(replay_source, config_path)
-    calibration = (load_calibration(calibration_path) if calibration_path
-                   else replay_source.calibration)
-    if calibration is not None:  # as run, detect, survey and undistort check it (a NaN focal
-        # length had been a ValueError traceback here, a NaN distortion a silent replay)
-        require_usable_calibration(calibration, calibration.image_size, config.calibration,
-                                   f"--calibration {calibration_path}" if calibration_path
-                                   else f"SOURCE '{source}': the recording's calibration")
+    # checked as run checks it (a NaN focal length had been a ValueError traceback here, a NaN
+    # distortion a silent replay)
+    calibration = usable_calibration(calibration_path, replay_source.calibration,
+                                     config.calibration,
+                                     f"SOURCE '{source}': the recording's calibration")
     check_preparation(replay_source, config, calibration, config_path=config_path,
                       calibration_path=calibration_path)  # before any output is written
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER

@@ -84,10 +84,9 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     whether the supervisor engages. Exit 0 when SAFE, 3 when NOT SAFE."""
     from lanewarden.config import load_config
     from lanewarden.image_files import read_image
-    from lanewarden.perception.calibration import load_calibration, require_usable_calibration
     from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
-    from lanewarden.replay_sources import replay_config
+    from lanewarden.replay_sources import replay_config, usable_calibration
     from lanewarden.survey import NONE
     from lanewarden.survey_source import open_survey_source
 
@@ -99,16 +98,12 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
         raise UsageError(f"--jitter {jitter}: shifts stills (class folders or a labels file of "
                          f"images); '{folder}' is a recording, whose frames already differ from "
                          "one to the next: survey it without --jitter")
-    calibration = None
     if source.sequence is not None:
         config = replay_config(source.sequence, config_path)
         config_origin = source.sequence.config_origin
-        calibration = source.sequence.calibration
-    if calibration_path is not None:
-        calibration = load_calibration(calibration_path)
-    if calibration is not None:
-        require_usable_calibration(calibration, calibration.image_size, config.calibration,
-                                   f"--calibration {calibration_path or 'of the recording'}")
+    calibration = usable_calibration(
+        calibration_path, None if source.sequence is None else source.sequence.calibration,
+        config.calibration, "--calibration of the recording")
     if source.sequence is not None:
         # a run folder holds perception's prepared input: refused, as replay refuses it, when
         # --config or --calibration would prepare frames otherwise (its figures would be the
