@@ -99,6 +99,8 @@ class EdgeEvidence:
     dark: bool | None = None
     polarity: float = 0.0
     line_ids: frozenset[int] = frozenset()
+    #: how far ahead (robot x, metres) the near line ends: the far point `direction` runs to
+    far_m: float | None = None
 
 
 def ramp(deviation: float, tolerance: float) -> float:

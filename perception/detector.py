@@ -418,11 +418,11 @@ class LaneDetector:
               floor: EdgeEvidence | None) -> LaneEdge | None:
         if choice is None:
             return None
-        offset = heading = near = None
+        offset = heading = near = far = None
         if floor is not None:
             offset = signed_offset(floor.point, floor.direction)
             heading = math.atan2(floor.direction[1], floor.direction[0])
-            near = floor.point[0]
+            near, far = floor.point[0], floor.far_m
         return LaneEdge(
             x1=choice.x1,
             y1=choice.y1,
@@ -435,6 +435,7 @@ class LaneDetector:
             offset_m=offset,
             heading_rad=heading,
             near_m=near,
+            far_m=far,
         )
 
 
@@ -471,7 +472,7 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
     return EdgeEvidence(point=near, direction=d, support_px=choice.support_px,
                         tape_score=choice.tape_score, verified=choice.verified,
                         dark=choice.tape_dark, polarity=choice.polarity,
-                        line_ids=choice.line_ids)
+                        line_ids=choice.line_ids, far_m=far[0] if math.isfinite(far[0]) else None)
 
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,

@@ -27,8 +27,9 @@ class LaneEdge:
     On the floor (robot frame), the edge's near part is a line `offset_m` from the robot's
     centre (signed: positive when it passes left of it) running at `heading_rad` from the robot's
     heading (counter-clockwise, i.e. to the left, positive); `near_m` is how far ahead of the
-    robot's centre that near part begins (its nearest point on the floor, metres, robot x).
-    None when not measured.
+    robot's centre that near part begins (its nearest point on the floor, metres, robot x), and
+    `far_m` how far ahead it ends (the far point its direction was measured to: in a bend the
+    line is that stretch's chord). None when not measured.
     """
 
     x1: float
@@ -40,6 +41,7 @@ class LaneEdge:
     offset_m: float | None = None
     heading_rad: float | None = None
     near_m: float | None = None
+    far_m: float | None = None
 
     def as_json(self) -> dict[str, float | None]:
         return {
@@ -51,6 +53,7 @@ class LaneEdge:
             "offset_m": _rounded(self.offset_m, 4),
             "heading_rad": _rounded(self.heading_rad, 4),
             "near_m": _rounded(self.near_m, 4),
+            "far_m": _rounded(self.far_m, 4),
         }
 
 

@@ -92,14 +92,16 @@ def lane_from_one_side(
     # The near line on the floor, moved the same way (offset, heading, lane centre).
     shift = _across(floor.direction, seen, free)
     point = (floor.point[0] + shift[0], floor.point[1] + shift[1])
+    far = None if floor.far_m is None else floor.far_m + shift[0]
     placed = EdgeEvidence(point=point, direction=floor.direction, support_px=floor.support_px,
                           tape_score=floor.tape_score, verified=False, dark=floor.dark,
-                          polarity=-floor.polarity)
+                          polarity=-floor.polarity, far_m=far)
     placed_edge = LaneEdge(
         x1=b0[0], y1=b0[1], x2=b1[0], y2=b1[1],
         slope=edge_slope(b0[0], b0[1], b1[0], b1[1], other, config.edges.max_abs_slope),
         support_px=0.0, offset_m=signed_offset(point, floor.direction),
-        heading_rad=math.atan2(floor.direction[1], floor.direction[0]), near_m=point[0])
+        heading_rad=math.atan2(floor.direction[1], floor.direction[0]), near_m=point[0],
+        far_m=far)
     left, right = (edge, placed_edge) if seen == "left" else (placed_edge, edge)
     left_floor, right_floor = (floor, placed) if seen == "left" else (placed, floor)
     components = lane_components(height_px=height_px, left=left_floor, right=right_floor,

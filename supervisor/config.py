@@ -146,7 +146,9 @@ class SupervisorConfig(DocumentModel):
         ge=0.0,
         le=1.0,
         description="A usable frame whose lane edge passes the robot's centre nearer than this "
-        "(read square to the edge, half-way to where it is seen nearest), or beyond it, shows "
+        "(read square to the edge, near x far / (near + far) ahead, where its chord from "
+        "where it is seen nearest to where it is seen farthest passes a bend's arc at the "
+        "robot), or beyond it, shows "
         "the robot leaving the lane, m. 0.195: the Kobuki's footprint radius 0.175 and 0.02 "
         "to stop in (3 frames and the brakes, closing on a tape at 25 degrees). A lane whose "
         "tapes' inner edges lie less than twice this apart is refused (the robot does not fit)",
@@ -156,8 +158,9 @@ class SupervisorConfig(DocumentModel):
         gt=0.0,
         le=5.0,
         description="The departure rule reads an edge only when it is seen beginning within this "
-        "far ahead of the robot's centre (read back half-way, an edge seen from 0.55 m errs by "
-        "24 mm for 5 degrees of error in its direction, more than the clearance's margin), m",
+        "far ahead of the robot's centre (read back at most half-way, an edge seen from 0.55 m "
+        "errs by 24 mm for 5 degrees of error in its direction, more than the clearance's "
+        "margin), m",
     )
     lane_departure_jump_m: float = Field(
         default=0.03,

@@ -17,16 +17,20 @@ Per new frame:
   when the lane's shape stops matching (r00665 had no confident frame in its last 0.5 s); a
   lane placed from one tape counts with its placed edge. Where an edge passes the robot comes
   from its near part on the floor (`LaneEdge`: a line through its nearest point seen, `near_m`
-  ahead, at its measured direction), read half-way back from that point (`near_m / 2` ahead on
-  the robot's axis) and, where the edge closes in on the robot, measured square to it
-  (`edge_passing_m`: a round footprint touches a tape at that distance; measured along the
-  robot's y axis, a tape crossing its path at 25 degrees reads 10% too far; an edge opening
-  away is read along the y axis, its line read back cutting the corner of a tight bend). For a
-  straight tape any point of the line gives the same distance, and for a bend's arc the
-  tangent read back at the robot puts the inner tape too near by about near_m^2 / 2R and the
-  nearest point itself too far by as much, so half-way cancels to second order (an error in
-  the measured direction counts with half the distance, which is why only an edge seen
-  beginning within `lane_departure_view_m` ahead counts).
+  ahead, to a farther point `far_m` ahead), read back from that point to `near_m x far_m /
+  (near_m + far_m)` ahead on the robot's axis (`read_back_m`) and, where the edge closes in on
+  the robot, measured square to it (`edge_passing_m`: a round footprint touches a tape at that
+  distance; measured along the robot's y axis, a tape crossing its path at 25 degrees reads
+  10% too far; an edge opening away is read along the y axis, its line read back cutting the
+  corner of a tight bend). For a straight tape any point of the line gives the same distance;
+  for a bend's arc the line is a chord, and there it passes the arc's point at the robot to
+  second order. (Until 2026-12-06 it was read half-way, `near_m / 2`, which is right for a
+  tangent at the nearest point, the limit of a short chord; for a chord from 0.36 to 0.66 m
+  in a 2 m bend it put the inner tape 16 mm too near and the outer 12 mm too far. Read farther
+  ahead, a straight tape the robot closes in on at 10 degrees reads up to 20 mm nearer than it
+  did: the rule anticipates an approach a little more.) An error in
+  the measured direction counts with at most half the distance, which is why only an edge seen
+  beginning within `lane_departure_view_m` ahead counts.
   Frames that are not usable neither count nor reset the streak.
 - A departure must be reachable: the robot moves its centre at most `limiter_max_linear_m_s`
   (the gate's cap), so an edge line's distance from its centre (`LaneEdge.offset_m`, which
@@ -122,19 +126,34 @@ def observation_problem(observation: LaneObservation, frame: FrameInfo | None) -
     return None
 
 
-def edge_passing_m(offset_m: float, heading_rad: float, near_m: float, side: float) -> float:
+def read_back_m(near_m: float, far_m: float | None) -> float:
+    """How far ahead of the robot's centre the departure rule reads an edge line measured from
+    `near_m` to `far_m` ahead: near x far / (near + far). There the chord of a bend's arc (the
+    line through its points at near and far) passes the arc's point at the robot, offset as the
+    robot's heading offsets a straight tape, to second order: the arc c + t x + k x^2 / 2 and its
+    chord differ by k (x - near)(x - far) / 2, which is k near far / 2 at the robot and the rest
+    of the arc's own bend at near x far / (near + far). A chord as short as its tangent (far
+    near `near_m`), or no far end: half-way, `near_m / 2`."""
+    if far_m is None or not far_m > near_m or not near_m > 0.0:
+        return near_m / 2
+    return near_m * far_m / (near_m + far_m)
+
+
+def edge_passing_m(offset_m: float, heading_rad: float, near_m: float, side: float,
+                   far_m: float | None = None) -> float:
     """How far from the robot's centre an edge passes, signed (left +), as the departure rule
-    reads it: the edge line's lateral position at the point of the robot's axis half-way to
-    where the edge is seen nearest (`near_m / 2` ahead), and, where the edge closes in on the
-    robot ahead (`side` +1 for the left edge, -1 for the right: heading towards the robot's
-    centre line), its distance square to the edge from that point. A round footprint touches
-    a tape at its distance square to it: along the robot's y axis, a tape crossing its path at
-    25 degrees reads 10% too far (the twentieth campaign's r00665 stopped over the tape). An
-    edge opening away from the robot is read along the y axis: its line read back behind where
-    it is seen cuts the corner of a bend (the inner tape of the lecture's tight corners, its
-    chord at 40-48 degrees, read square 0.17 m from a robot 7 cm clear of it: seed 1's r00623,
-    r00932). Half-way ahead a bend's curvature cancels to second order (module docstring)."""
-    lateral = lateral_offset_at(offset_m, heading_rad, near_m / 2)
+    reads it: the edge line's lateral position at the point of the robot's axis `read_back_m`
+    ahead (between half-way to where the edge is seen nearest and that point), and, where the
+    edge closes in on the robot ahead (`side` +1 for the left edge, -1 for the right: heading
+    towards the robot's centre line), its distance square to the edge from that point. A round
+    footprint touches a tape at its distance square to it: along the robot's y axis, a tape
+    crossing its path at 25 degrees reads 10% too far (the twentieth campaign's r00665 stopped
+    over the tape). An edge opening away from the robot is read along the y axis: its line
+    read back behind where it is seen cuts the corner of a bend (the inner tape of the
+    lecture's tight corners, its chord at 40-48 degrees, read square 0.17 m from a robot 7 cm
+    clear of it: seed 1's r00623, r00932). There a bend's curvature cancels to second order
+    (`read_back_m`)."""
+    lateral = lateral_offset_at(offset_m, heading_rad, read_back_m(near_m, far_m))
     if side * heading_rad < 0.0:
         lateral *= math.cos(preview_heading(heading_rad))
     return lateral
@@ -149,7 +168,7 @@ def departure_of(observation: LaneObservation, clearance_m: float,
         if (edge is None or edge.offset_m is None or edge.heading_rad is None
                 or edge.near_m is None or not edge.near_m <= view_m):
             continue
-        passing = edge_passing_m(edge.offset_m, edge.heading_rad, edge.near_m, sign)
+        passing = edge_passing_m(edge.offset_m, edge.heading_rad, edge.near_m, sign, edge.far_m)
         if sign * passing < clearance_m:
             return (f"{name} edge {abs(passing):.3f} m {'left' if passing > 0 else 'right'} of "
                     f"the robot's centre, {clearance_m:g} m at the least")

@@ -59,7 +59,9 @@ def test_json_lines(frames: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert [line["decision"] for line in lines] == ["straight", "right", "none"]
     straight, right, tiles = lines
     assert set(straight["left"]) == {"x1", "y1", "x2", "y2", "slope", "offset_m", "heading_rad",
-                                    "near_m"}
+                                    "near_m", "far_m"}
+    # the near line on the floor runs from near_m to far_m ahead: at least EVIDENCE_MIN_M (0.10)
+    assert straight["left"]["far_m"] >= straight["left"]["near_m"] + 0.10
     assert straight["left"]["slope"] > 0 > straight["right"]["slope"]
     # Metric outputs, robot frame: the inner tape edges 0.276 m either side, the lane straight
     # ahead and centred.

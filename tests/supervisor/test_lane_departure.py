@@ -15,7 +15,7 @@ import pytest
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.supervisor.commands import command_for, turn_extra_rad_s
 from lanewarden.supervisor.config import SupervisorConfig
-from lanewarden.supervisor.lane_evidence import departure_of
+from lanewarden.supervisor.lane_evidence import departure_of, read_back_m
 from lanewarden.supervisor.state_machine import SupervisorState
 from tests.supervisor.rig import LEFT_EDGE, RIGHT_EDGE, Rig, observation
 
@@ -54,6 +54,50 @@ def test_edges_outside_the_footprint_are_no_departure() -> None:
 def test_a_right_edge_inside_the_footprint_is_a_departure() -> None:
     text = departure_of(_obs(right=_edge(RIGHT_EDGE, -0.15)), CLEARANCE, VIEW)
     assert text is not None and text.startswith("right edge 0.150 m right")
+
+
+def _chord(base: LaneEdge, offset: float, heading: float, near: float,
+           far: float | None) -> LaneEdge:
+    return replace(base, offset_m=offset, heading_rad=heading, near_m=near, far_m=far)
+
+
+# A 2 m bend to the left, the lane's inner edges 0.55 m apart, seen as each edge's chord from
+# 0.36 to 0.66 m ahead (the 320x240 camera's near line). Written out from the arcs
+# y = c + x^2 / 2R: the chord through x = 0.36 and 0.66 is read at 0.36 x 0.66 / 1.02 =
+# 0.2329 m ahead, where it passes the arc's point at the robot; half-way to the nearest point
+# (0.18 m, the rule before 2026-12-06) it does not.
+
+
+def test_where_an_edge_is_read_back_to() -> None:
+    assert read_back_m(0.36, 0.66) == pytest.approx(0.36 * 0.66 / 1.02)  # 0.2329 m
+    assert read_back_m(0.36, 1.6149) == pytest.approx(0.2944, abs=1e-4)  # a long straight line
+    assert read_back_m(0.36, None) == 0.18  # no far end: half-way, as a tangent
+    assert read_back_m(0.36, 0.36) == 0.18  # nor a far end that is no farther
+    assert read_back_m(0.0, 0.5) == 0.0  # seen from the robot's centre on: there
+
+
+def test_a_bends_inner_edge_read_on_its_chord_is_where_the_tape_is() -> None:
+    # left (inner) edge y = 0.205 + x^2 / 3.45: the chord runs at 0.28746 rad, offset 0.130544;
+    # 0.205 m from the robot's centre, clear of 0.195 (read half-way: 0.18935 m, a departure)
+    cfg = SupervisorConfig()
+    chord = _chord(LEFT_EDGE, 0.130544, 0.2874632, 0.36, 0.66)
+    assert departure_of(_obs(left=chord), cfg.lane_departure_clearance_m, VIEW) is None
+    half_way = departure_of(_obs(left=replace(chord, far_m=None)),
+                            cfg.lane_departure_clearance_m, VIEW)
+    assert half_way is not None and half_way.startswith("left edge 0.189 m left")
+
+
+def test_a_bends_outer_edge_read_on_its_chord_shows_the_departure() -> None:
+    # right (outer) edge y = -0.19 + x^2 / 4.55, 0.19 m from the robot's centre (inside the
+    # 0.195 m clearance): the chord runs at 0.22053 rad, offset -0.236354, closing in on the
+    # robot, so read square to it: 0.19 x cos(0.22053) = 0.1854 m, a departure (read half-way:
+    # 0.20187 x cos(0.22053) = 0.1970 m, none)
+    cfg = SupervisorConfig()
+    chord = _chord(RIGHT_EDGE, -0.236354, 0.2205298, 0.36, 0.66)
+    text = departure_of(_obs(right=chord), cfg.lane_departure_clearance_m, VIEW)
+    assert text is not None and text.startswith("right edge 0.185 m right")
+    assert departure_of(_obs(right=replace(chord, far_m=None)),
+                        cfg.lane_departure_clearance_m, VIEW) is None
 
 
 def test_an_edge_on_the_wrong_side_of_the_robot_is_a_departure() -> None:

@@ -150,7 +150,8 @@ def test_the_jetbot_tape_lane(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     48.6 degrees paired with a sliver of the other line at the border gave "straight" at 0.39
     (docs/perception.md). How useful: floors under today's figures (215 of the 338 lane frames
     with a decision, 206 confident, with `tape.kind: dark` as camera.yaml says; the supervisor
-    engages on 136 of them; 216, 207 and 137 before the joint choice wanted parallel tapes,
+    engages on 134 of them, 136 before the departure rule read a chord where it passes a bend;
+    216, 207 and 137 before the joint choice wanted parallel tapes,
     139 engaged before usable frames counted towards a departure; 213 and 204
     without the kind; before one floor could be shaded, `tape_rules.FLOOR_SHADE`, 139, 136 and
     101)."""
