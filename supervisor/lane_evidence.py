@@ -22,7 +22,9 @@ Per new frame:
   the robot, measured square to it (`edge_passing_m`: a round footprint touches a tape at that
   distance; measured along the robot's y axis, a tape crossing its path at 25 degrees reads
   10% too far; an edge opening away is read along the y axis, its line read back cutting the
-  corner of a tight bend). For a straight tape any point of the line gives the same distance;
+  corner of a tight bend). For a straight tape parallel to the robot any point of the line
+  gives the same distance (one at an angle does not: closing in, it reads nearer the farther
+  ahead it is read, below);
   for a bend's arc the line is a chord, and there it passes the arc's point at the robot to
   second order. (Until 2026-12-06 it was read half-way, `near_m / 2`, which is right for a
   tangent at the nearest point, the limit of a short chord; for a chord from 0.36 to 0.66 m
