@@ -133,9 +133,7 @@ def stage_ms(detector: LaneDetector, frames: list[np.ndarray], loops: int) -> di
                 t1 = clock()
                 detector._normalise_contrast(state)
                 t2 = clock()
-                cv2.Canny(state.smooth, config.canny.low_threshold, config.canny.high_threshold,
-                          edges=state.edges, apertureSize=config.canny.aperture_px)
-                cv2.bitwise_and(state.edges, state.mask, dst=state.edges)
+                detector._edges_within_budget(state)
                 t3 = clock()
                 found = cv2.HoughLinesP(state.edges, config.hough.rho_px, theta,
                                         state.hough_votes, minLineLength=state.hough_min_length,

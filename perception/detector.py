@@ -93,6 +93,11 @@ def too_small(width: int, height: int, use: str = "perception") -> str:
 #: is about as light as parquet's light slats; `perception.gray.yellow_boost` lifts it out of a
 #: colour frame (the simulator then gives perception colour frames; docs/perception.md, "Gray").
 GRAY_WEIGHTS_BGR: tuple[float, float, float] = (0.114, 0.587, 0.299)
+#: Where Canny's edges cover more than `canny.max_edge_share` of the ROI, its thresholds are
+#: raised this many times over (`LaneDetector._edges_within_budget`)...
+EDGE_THRESHOLD_STEP = 1.5
+#: ...at most this many times (5.1 times the configured thresholds: 203 and 608 by default).
+MAX_EDGE_THRESHOLD_RAISES = 4
 #: The floor length over which a reported edge's direction is taken for the lane's width,
 #: parallelism, offset and heading (`_evidence`), metres.
 EVIDENCE_MIN_M = 0.10
@@ -116,6 +121,8 @@ class DetectionDebug:
     - `lines`: the candidate lines they were grouped into.
     - `left` / `right`: the choice made on each side (chain of lines, tape partner), or None.
     - `image_size`: (width, height) of the image that was analysed (after undistortion).
+    - `edge_threshold_factor`: what Canny's thresholds were raised by to keep the frame's edges
+      within `canny.max_edge_share` of the ROI (1.0: as configured; a textured floor).
     - `image`: the frame as the detector saw it, undistorted (the caller's array when there is
       no undistorter; not a copy; in colour for a colour frame, while perception itself works on
       its gray version; a `PreparedImage` as it came), so an overlay can be drawn on what the
@@ -129,6 +136,7 @@ class DetectionDebug:
     right: SideChoice | None
     image_size: tuple[int, int]
     image: np.ndarray
+    edge_threshold_factor: float = 1.0
 
 
 class LaneDetector:
@@ -258,6 +266,7 @@ class LaneDetector:
             right=right,
             image_size=state.size,
             image=analysed,
+            edge_threshold_factor=state.edge_threshold_factor,
         )
         return observation, debug
 
@@ -321,17 +330,10 @@ class LaneDetector:
         return state
 
     def _segments(self, state: SizeSetup) -> NDArray[np.int32] | None:
-        """(prepared image) -> contrast -> Canny -> ROI mask -> HoughLinesP, in the buffers."""
-        canny = self.config.canny
+        """(prepared image) -> contrast -> Canny (within the edge budget) -> ROI mask ->
+        HoughLinesP, in the buffers."""
         self._normalise_contrast(state)
-        cv2.Canny(
-            state.smooth,
-            canny.low_threshold,
-            canny.high_threshold,
-            edges=state.edges,
-            apertureSize=canny.aperture_px,
-        )
-        cv2.bitwise_and(state.edges, state.mask, dst=state.edges)
+        state.edge_threshold_factor = self._edges_within_budget(state)
         segments = cv2.HoughLinesP(
             state.edges,
             self.config.hough.rho_px,
@@ -341,6 +343,32 @@ class LaneDetector:
             maxLineGap=state.hough_max_gap,
         )
         return None if segments is None else np.asarray(segments, dtype=np.int32)
+
+    def _edges_within_budget(self, state: SizeSetup) -> float:
+        """Canny's edges of `state.smooth`, masked to the ROI, into `state.edges`; where they
+        cover more than `canny.max_edge_share` of the ROI (`state.edge_budget_px`), again with
+        both thresholds EDGE_THRESHOLD_STEP times higher, at most MAX_EDGE_THRESHOLD_RAISES
+        times. Returns the factor the thresholds were raised by (1.0: as configured).
+
+        Why: on a textured floor (terrazzo's chips, carpet's pile; parquet and planks at
+        320x240, where the same texture covers twice the share of a 640x480 frame) Canny's
+        edges cover a fifth of the floor, and in such clutter a random line collects
+        HoughLinesP's votes: Hough reports hundreds of segments through the texture, and each
+        one it follows takes the pixels it crosses, so the tape's own edges, by far the
+        strongest steps in the frame, come out in pieces or not at all (campaign runs r00144,
+        r00191, r00105: LANE_LOST on terrazzo). The texture's steps are weaker than a tape's:
+        raised thresholds drop them first."""
+        canny = self.config.canny
+        factor = 1.0
+        for raises in range(MAX_EDGE_THRESHOLD_RAISES + 1):
+            if raises:
+                factor *= EDGE_THRESHOLD_STEP
+            cv2.Canny(state.smooth, canny.low_threshold * factor, canny.high_threshold * factor,
+                      edges=state.edges, apertureSize=canny.aperture_px)
+            cv2.bitwise_and(state.edges, state.mask, dst=state.edges)
+            if cv2.countNonZero(state.edges) <= state.edge_budget_px:
+                break
+        return factor
 
     def _normalise_contrast(self, state: SizeSetup) -> None:
         """Stretch a dim or low-contrast frame's blurred image about its mean, in place, so its

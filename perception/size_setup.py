@@ -56,6 +56,9 @@ class SizeSetup:
     - `contrast_step`, `contrast_mask`: the sparse grid (every `contrast_step`-th row and
       column) and its ROI mask on which a frame's contrast is read.
     - `blur_kernel`: (k, k), `kernel_px` scaled to this height (odd, >= 3).
+    - `edge_budget_px`: the most edge pixels Canny may leave in the ROI before its thresholds
+      are raised (`canny.max_edge_share` of the ROI's pixels); `edge_threshold_factor`: what
+      they were raised by for the last frame `edges` holds (`LaneDetector._segments`).
     - `hough_votes`, `hough_min_length`, `hough_max_gap`: HoughLinesP's accumulator threshold,
       minLineLength and maxLineGap in pixels at this size.
     - `at_look_ahead`: the tape and seam hypotheses at the look-ahead distance (the worse side).
@@ -80,6 +83,8 @@ class SizeSetup:
             )
         self.mask = np.zeros((height, width), dtype=np.uint8)
         cv2.fillPoly(self.mask, [self.polygon_px], 255)
+        self.edge_budget_px = config.canny.max_edge_share * cv2.countNonZero(self.mask)
+        self.edge_threshold_factor = 1.0
         self.y_bottom = float(min(float(self.polygon_px[:, 1].max()), float(height)))
         self.look_ahead_m, self.look_ahead_auto = _look_ahead(self.view, near, far, config,
                                                               self.size)
