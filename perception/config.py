@@ -91,13 +91,13 @@ class CannyConfig(DocumentModel):
     aperture_px: int = Field(default=3, ge=3, le=7,
                              description="Sobel aperture of Canny: 3, 5 or 7")
     max_edge_share: PositiveFraction = Field(
-        default=0.08,
+        default=0.15,
         description=(
             "The most of the region of interest Canny's edges may cover. Where a frame's edges "
-            "cover more (a textured floor: terrazzo's chips, carpet, parquet at 320x240), both "
-            "thresholds are raised 1.5 times, at most four times, until they do not: in such "
-            "clutter HoughLinesP's random lines through the texture take the tape's edge "
-            "pixels. 1: never raised"
+            "cover more (a textured floor: terrazzo's chips, carpet's pile), both thresholds "
+            "are raised 1.2 times, at most six times (3 times the configured ones), until they "
+            "do not: in such clutter HoughLinesP's random lines through the texture take the "
+            "tape's edge pixels. 1: never raised"
         ),
     )
 

@@ -94,10 +94,14 @@ def too_small(width: int, height: int, use: str = "perception") -> str:
 #: colour frame (the simulator then gives perception colour frames; docs/perception.md, "Gray").
 GRAY_WEIGHTS_BGR: tuple[float, float, float] = (0.114, 0.587, 0.299)
 #: Where Canny's edges cover more than `canny.max_edge_share` of the ROI, its thresholds are
-#: raised this many times over (`LaneDetector._edges_within_budget`)...
-EDGE_THRESHOLD_STEP = 1.5
-#: ...at most this many times (5.1 times the configured thresholds: 203 and 608 by default).
-MAX_EDGE_THRESHOLD_RAISES = 4
+#: raised this many times over (`LaneDetector._edges_within_budget`), in small steps: a glossy
+#: tape with a ceiling light mirrored along it steps little more than carpet's pile at its lit
+#: edge (campaign run r00016: raised 1.5 times at once, that edge went first)...
+EDGE_THRESHOLD_STEP = 1.2
+#: ...at most this many times (3.0 times the configured thresholds: 119 and 358 by default;
+#: beyond it the tapes' own edges go: on the simulator's terrazzo at 5 times, 5 of 6 frames lost
+#: their lane, where 3.4 times kept it in all of them).
+MAX_EDGE_THRESHOLD_RAISES = 6
 #: The floor length over which a reported edge's direction is taken for the lane's width,
 #: parallelism, offset and heading (`_evidence`), metres.
 EVIDENCE_MIN_M = 0.10
@@ -122,7 +126,7 @@ class DetectionDebug:
     - `left` / `right`: the choice made on each side (chain of lines, tape partner), or None.
     - `image_size`: (width, height) of the image that was analysed (after undistortion).
     - `edge_threshold_factor`: what Canny's thresholds were raised by to keep the frame's edges
-      within `canny.max_edge_share` of the ROI (1.0: as configured; a textured floor).
+      within `canny.max_edge_share` of the ROI (1.0: as configured; above it: a textured floor).
     - `image`: the frame as the detector saw it, undistorted (the caller's array when there is
       no undistorter; not a copy; in colour for a colour frame, while perception itself works on
       its gray version; a `PreparedImage` as it came), so an overlay can be drawn on what the
@@ -136,7 +140,7 @@ class DetectionDebug:
     right: SideChoice | None
     image_size: tuple[int, int]
     image: np.ndarray
-    edge_threshold_factor: float = 1.0
+    edge_threshold_factor: float
 
 
 class LaneDetector:
@@ -348,7 +352,8 @@ class LaneDetector:
         """Canny's edges of `state.smooth`, masked to the ROI, into `state.edges`; where they
         cover more than `canny.max_edge_share` of the ROI (`state.edge_budget_px`), again with
         both thresholds EDGE_THRESHOLD_STEP times higher, at most MAX_EDGE_THRESHOLD_RAISES
-        times. Returns the factor the thresholds were raised by (1.0: as configured).
+        times (a frame still over the budget then keeps those edges). Returns the factor the
+        thresholds were raised by (1.0: as configured).
 
         Why: on a textured floor (terrazzo's chips, carpet's pile; parquet and planks at
         320x240, where the same texture covers twice the share of a 640x480 frame) Canny's
@@ -359,10 +364,8 @@ class LaneDetector:
         r00191, r00105: LANE_LOST on terrazzo). The texture's steps are weaker than a tape's:
         raised thresholds drop them first."""
         canny = self.config.canny
-        factor = 1.0
         for raises in range(MAX_EDGE_THRESHOLD_RAISES + 1):
-            if raises:
-                factor *= EDGE_THRESHOLD_STEP
+            factor = EDGE_THRESHOLD_STEP ** raises
             cv2.Canny(state.smooth, canny.low_threshold * factor, canny.high_threshold * factor,
                       edges=state.edges, apertureSize=canny.aperture_px)
             cv2.bitwise_and(state.edges, state.mask, dst=state.edges)

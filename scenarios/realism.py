@@ -70,18 +70,24 @@ def noise_levels(gray: U8, mask: U8 | None = None) -> float:
 
 
 def frame_stats(detector: LaneDetector, gray: U8) -> FrameStats:
-    """The statistics of `gray` (already analysed by `detector.detect`: its edge buffer holds
-    this frame's Canny edges) inside the detector's ROI."""
+    """The statistics of `gray` (already analysed by `detector.detect`: its smoothed buffer
+    holds this frame as Canny saw it) inside the detector's ROI. The edge density is Canny's at
+    the configured thresholds, as the texture gives it, not what perception kept within its
+    edge budget (`perception.canny.max_edge_share`): it compares rendered floors with real
+    ones."""
     h, w = gray.shape[:2]
     setup = detector.setup_for(w, h)
     mask = setup.mask > 0
     values = gray[mask].astype(np.float64)
     mean = float(values.mean()) if values.size else 0.0
+    canny = detector.config.canny
+    edges = cv2.Canny(setup.smooth, canny.low_threshold, canny.high_threshold,
+                      apertureSize=canny.aperture_px)
     return FrameStats(
         mean_level=mean,
         rms_contrast=float(values.std() / mean) if mean > 0 else 0.0,
         noise_levels=noise_levels(gray, setup.mask),
-        edge_density=float(np.count_nonzero(setup.edges[mask]) / max(values.size, 1)))
+        edge_density=float(np.count_nonzero(edges[mask]) / max(values.size, 1)))
 
 
 def confident_runs(confident: Iterable[bool]) -> list[int]:

@@ -13,11 +13,7 @@ import pytest
 
 from lanewarden.perception.calibration import CameraCalibration, Undistorter
 from lanewarden.perception.config import PerceptionConfig
-from lanewarden.perception.detector import (
-    EDGE_THRESHOLD_STEP,
-    MAX_EDGE_THRESHOLD_RAISES,
-    LaneDetector,
-)
+from lanewarden.perception.detector import LaneDetector
 from lanewarden.scenarios.realism import rendered_straight
 from tests.perception import synthetic as syn
 
@@ -64,12 +60,14 @@ def test_a_textured_floors_thresholds_are_raised_just_enough() -> None:
         assert edge_share(detector, frame, 1.0) > 0.2  # the texture, at the configured thresholds
         _, debug = detector.detect_debug(frame, 0, 0.0)
         factor = debug.edge_threshold_factor
-        assert factor in {EDGE_THRESHOLD_STEP ** k for k in range(1, MAX_EDGE_THRESHOLD_RAISES + 1)}
+        # raised in steps of 1.2, at most six (3 times the configured thresholds)
+        assert any(factor == pytest.approx(step)
+                   for step in (1.2, 1.44, 1.728, 2.0736, 2.48832, 2.985984)), factor
         # within the budget at the factor chosen, over it one step lower: raised just enough
-        assert edge_share(detector, frame, factor) <= 0.08
-        assert edge_share(detector, frame, factor / EDGE_THRESHOLD_STEP) > 0.08
+        assert edge_share(detector, frame, factor) <= 0.15
+        assert edge_share(detector, frame, factor / 1.2) > 0.15
         setup = detector.setup_for(320, 240)
-        assert cv2.countNonZero(setup.edges) <= 0.08 * cv2.countNonZero(setup.mask)
+        assert cv2.countNonZero(setup.edges) <= 0.15 * cv2.countNonZero(setup.mask)
 
 
 def test_on_terrazzo_the_raised_thresholds_keep_the_tapes_edges() -> None:
@@ -95,7 +93,7 @@ def test_a_frame_within_the_budget_keeps_the_configured_thresholds(scene: str) -
     assert debug.edge_threshold_factor == 1.0
     unlimited = LaneDetector(with_share(1.0))
     assert unlimited.detect(frame, 0, 0.0) == observation
-    assert edge_share(budgeted, cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), 1.0) <= 0.08
+    assert edge_share(budgeted, cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), 1.0) <= 0.15
 
 
 def test_share_one_never_raises_the_thresholds() -> None:
