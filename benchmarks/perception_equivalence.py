@@ -7,7 +7,7 @@ Run on demand from the project root:
 
 Frames: the six scenes of `benchmarks/perception_speed.py` (640x480 and 320x240, each alone and in
 sequence with the previous observation, and distorted through an undistorter), 30 frames of each of
-the simulator's floors (`realism.FLOOR_SETS`: terrazzo and carpet give 500-odd Hough segments a
+the simulator's floors (`realism.FLOOR_SETS`: terrazzo and carpet give 150-360 Hough segments a
 frame), and every frame the detector sees in closed-loop simulations of several library scenarios
 at 320x240 and 640x480. For each frame it dumps the whole `LaneObservation` (every field and
 component) and the `DetectionDebug` data (Hough segments, ROI, every candidate line's arrays, both
@@ -131,9 +131,9 @@ def recording_stack(out: list[Any]) -> Any:
 def floor_records() -> list[Any]:
     """Every floor of `realism.FLOOR_SETS` (a straight lane through the default camera at
     320x240, its camera effects on): 30 frames each, each detected alone and with the previous
-    observation. Terrazzo and carpet give 500-odd Hough segments, so clustering's and the tape
-    choice's shortcuts for many lines (`lines._compatible_pairs`,
-    `edge_choice._pairs_worth_checking`) are checked here too."""
+    observation. Terrazzo and carpet give 150-360 Hough segments (500-odd without the edge
+    budget), so clustering's and the tape choice's shortcuts for many lines
+    (`lines._compatible_pairs`, `edge_choice._pairs_worth_checking`) are checked here too."""
     detector = LaneDetector(PerceptionConfig())
     records: list[Any] = []
     for name, changes, effects_on in FLOOR_SETS:

@@ -160,6 +160,16 @@ def draw_overlay(
     draw_detection(canvas, observation, debug)
     # Capitals 1/30 of the height (16 px at 480 rows), never below 9 px.
     cap = max(9.0, canvas.shape[0] / 30.0)
-    put_text_lines(canvas, perception_text(observation, decision),
+    put_text_lines(canvas, overlay_text(observation, debug, decision),
                    (round(cap / 2), line_step_px(cap)), cap)
     return canvas
+
+
+def overlay_text(observation: LaneObservation, debug: DetectionDebug, decision: str) -> list[str]:
+    """The overlay's words: `perception_text`, and where Canny's thresholds were raised to keep a
+    textured floor's edges within the edge budget (`perception.canny.max_edge_share`), by how
+    much: 'Canny x1.44 (textured floor)'."""
+    lines = perception_text(observation, decision)
+    if debug.edge_threshold_factor > 1.0:
+        lines.append(f"Canny x{debug.edge_threshold_factor:.2f} (textured floor)")
+    return lines

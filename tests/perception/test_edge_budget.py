@@ -14,11 +14,12 @@ import pytest
 from lanewarden.perception.calibration import CameraCalibration, Undistorter
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.overlay import overlay_text
 from lanewarden.scenarios.realism import rendered_straight
 from tests.perception import synthetic as syn
 
-#: The simulator's terrazzo (`realism.FLOOR_SETS`): at 320x240 Canny's edges at the configured
-#: thresholds cover a fifth of the floor (21-22 %).
+#: The simulator's terrazzo (`realism.FLOOR_SETS`): at 320x240, read without undistortion as
+#: below, Canny's edges at the configured thresholds cover a fifth of the floor (21-22 %).
 TERRAZZO = {"floor": {"kind": "terrazzo"}, "tape": {"color": "#1c1c1e"}}
 #: The scenario's lane: tape centres 0.60 m apart, 48 mm tape: the inner edges 0.552 m apart.
 FREE_WIDTH_M = 0.60 - 0.048
@@ -45,7 +46,8 @@ def undistorting(config: PerceptionConfig) -> LaneDetector:
 
 
 def edge_share(detector: LaneDetector, frame: np.ndarray, factor: float) -> float:
-    """The share of the ROI Canny's edges cover at `factor` times the configured thresholds."""
+    """The share of the ROI Canny's edges cover at `factor` times the configured thresholds
+    (of a well-lit `frame`: the detector's contrast stretch leaves it as it is)."""
     setup = detector.setup_for(frame.shape[1], frame.shape[0])
     canny = detector.config.canny
     smooth = cv2.GaussianBlur(frame, setup.blur_kernel, detector.config.blur.sigma_px)
@@ -100,3 +102,13 @@ def test_share_one_never_raises_the_thresholds() -> None:
     detector = LaneDetector(with_share(1.0))
     _, debug = detector.detect_debug(terrazzo_frames()[0], 0, 0.0)
     assert debug.edge_threshold_factor == 1.0
+
+
+def test_the_overlay_says_when_the_thresholds_were_raised() -> None:
+    detector = LaneDetector(PerceptionConfig())
+    observation, debug = detector.detect_debug(terrazzo_frames()[0], 0, 0.0)
+    # this terrazzo frame needs three steps of 1.2 (1.728)
+    assert overlay_text(observation, debug, "straight")[-1] == "Canny x1.73 (textured floor)"
+    clean = np.ascontiguousarray(syn.render(syn.STRAIGHT, 320, 240))
+    observation, debug = detector.detect_debug(clean, 0, 0.0)
+    assert len(overlay_text(observation, debug, "straight")) == 3  # slope, confidence, decision

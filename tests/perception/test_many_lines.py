@@ -1,7 +1,8 @@
-"""A textured floor's frame (terrazzo's chips: 500-odd Hough segments, 100-odd candidate lines a
-side at 320x240) takes two shortcuts that must not change a result: clustering compares only
-segments whose directions are within the angle tolerance (`lines._compatible_pairs`, beyond
-64 segments), and the choice of tapes sifts a side's pairs with numpy before its loop
+"""A textured floor's frame (terrazzo's chips at 320x240: 150-280 Hough segments within the edge
+budget, `perception.canny.max_edge_share`, 500-odd without; 100-odd candidate lines a side)
+takes two shortcuts that must not change a result: clustering compares only segments whose
+directions are within the angle tolerance (`lines._compatible_pairs`, beyond 64 segments), and
+the choice of tapes sifts a side's pairs with numpy before its loop
 (`edge_choice._pairs_worth_checking`, from 16 lines). Each is held here to the plain way, element
 for element, on seeded random input that includes the ties at the tolerance's very edge."""
 
