@@ -94,9 +94,10 @@ def too_small(width: int, height: int, use: str = "perception") -> str:
 #: colour frame (the simulator then gives perception colour frames; docs/perception.md, "Gray").
 GRAY_WEIGHTS_BGR: tuple[float, float, float] = (0.114, 0.587, 0.299)
 #: Where Canny's edges cover more than `canny.max_edge_share` of the ROI, its thresholds are
-#: raised this many times over (`LaneDetector._edges_within_budget`), in small steps: a glossy
-#: tape with a ceiling light mirrored along it steps little more than carpet's pile at its lit
-#: edge (campaign run r00016: raised 1.5 times at once, that edge went first)...
+#: raised this many times over (`LaneDetector._edges_within_budget`), in small steps, so a frame
+#: just over the budget loses only its weakest steps (a first version raised 1.5 times at once
+#: above 8 %: a very dim room's frames, just over it, lost a glossy tape's edge, weakened by a
+#: mirrored ceiling light, before their stretched noise; tests/perception/test_glossy_tape.py)...
 EDGE_THRESHOLD_STEP = 1.2
 #: ...at most this many times (3.0 times the configured thresholds: 119 and 358 by default;
 #: beyond it the tapes' own edges go: on the simulator's terrazzo at 5 times, 5 of 6 frames lost
@@ -355,9 +356,9 @@ class LaneDetector:
         times (a frame still over the budget then keeps those edges). Returns the factor the
         thresholds were raised by (1.0: as configured).
 
-        Why: on a textured floor (terrazzo's chips, carpet's pile; parquet and planks at
-        320x240, where the same texture covers twice the share of a 640x480 frame) Canny's
-        edges cover a fifth of the floor, and in such clutter a random line collects
+        Why: on a textured floor (terrazzo's chips, carpet's pile) at 320x240 Canny's edges
+        cover a fifth of the floor (18-25 %; at 640x480, whose pixels are smaller than the
+        chips, about half that), and in such clutter a random line collects
         HoughLinesP's votes: Hough reports hundreds of segments through the texture, and each
         one it follows takes the pixels it crosses, so the tape's own edges, by far the
         strongest steps in the frame, come out in pieces or not at all (campaign runs r00144,
