@@ -50,9 +50,8 @@ def edge_share(detector: LaneDetector, frame: np.ndarray, factor: float) -> floa
     (of a well-lit `frame`: the detector's contrast stretch leaves it as it is)."""
     setup = detector.setup_for(frame.shape[1], frame.shape[0])
     canny = detector.config.canny
-    smooth = cv2.GaussianBlur(frame, setup.blur_kernel, detector.config.blur.sigma_px)
-    edges = cv2.Canny(smooth, canny.low_threshold * factor, canny.high_threshold * factor,
-                      apertureSize=canny.aperture_px)
+    edges = cv2.Canny(detector.prepare(frame), canny.low_threshold * factor,
+                      canny.high_threshold * factor, apertureSize=canny.aperture_px)
     return cv2.countNonZero(cv2.bitwise_and(edges, setup.mask)) / cv2.countNonZero(setup.mask)
 
 
