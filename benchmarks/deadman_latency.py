@@ -10,7 +10,8 @@ busy processes load every core (default two per core), then measures:
 - SIGKILL of the control process: the dead-man sees end-of-stream and stops at once;
 - SIGSTOP of the dead-man itself: the control side notices its silence, kills it and writes the
   stop to the port directly (measured from the signal);
-- SIGTSTP and SIGQUIT to the process group of `lanewarden base drive` (from the signal);
+- SIGINT (Ctrl-C), SIGTSTP and SIGQUIT to the process group of `lanewarden base drive` (from
+  the signal);
 - a bumper pressed while the control process is frozen (SIGSTOP, the press at a random moment
   0-100 ms after the freeze): from the stand-in's write of the first packet with the bumper bit
   to the dead-man's stop (written, and arrived), target 60 ms (the acceptance figure of issue
@@ -389,7 +390,7 @@ def main() -> None:
         ] + [
             (f"{how.name} to base drive's group: signal -> stop", args.drive_trials, BOUND_S,
              lambda how=how: [drive_trial(how) for _ in range(args.drive_trials)])
-            for how in (signal.SIGTSTP, signal.SIGQUIT)
+            for how in (signal.SIGINT, signal.SIGTSTP, signal.SIGQUIT)
         ]
         for name, trials, target_s, measure in measurements:
             if trials > 0:

@@ -135,11 +135,15 @@ class EndReason:
 
     @property
     def stop_line(self) -> str:
-        """The summary's first line: what stopped the robot."""
+        """The summary's first line: what stopped the robot: `halted: REASON` for every safety
+        stop (a failure that ended the run from FOLLOW says the state it stopped: `halted:
+        DEADMAN_TRIPPED: ... (while FOLLOW)`), else the normal end and the state it stopped."""
         if not self.engaged:
             return "never engaged"
         if self.state == "HALT":
             return f"halted: {self.halt_reason or 'HALT'}"
+        if self.safety_stop is not None:  # a failure that ended the run (the dead-man, a link)
+            return f"halted: {self.safety_stop} (while {self.state})"
         return f"stopped by the end of the run ({self.ended_by}) while {self.state}"
 
     def as_json(self) -> dict[str, Any]:

@@ -44,8 +44,13 @@ from lanewarden.camera_source import (
 )
 from lanewarden.config import LanewardenConfig, narrow_lane_warning
 from lanewarden.errors import UsageError
-from lanewarden.perception.calibration import load_calibration, require_usable_calibration
+from lanewarden.perception.calibration import (
+    CameraCalibration,
+    load_calibration,
+    require_usable_calibration,
+)
 from lanewarden.perception.detector import too_small
+from lanewarden.perception.ground import default_pose
 from lanewarden.recording import RUN_MCAP
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
@@ -144,8 +149,64 @@ def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
     return None
 
 
+#: The flag that lets a real base drive on an assumed camera (`assumed_camera`).
+ASSUME_CAMERA_FLAG = "--assume-camera"
+
+
+def assumed_camera(calibration_path: str | None,
+                   calibration: CameraCalibration | None) -> str | None:
+    """What perception would assume about the camera, in one clause, or None when the
+    calibration describes it whole (its lens and its ground pose): with no calibration the
+    simulator's default camera, with one that has no ground pose (`lanewarden calibrate`
+    without `calibrate ground`) the simulator's mount. Either way tape and seam widths are
+    measured in millimetres through a camera that may not be yours, so a lane can be seen where
+    there is none (`run` refuses a real base on it: `refuse_assumed_camera`)."""
+    mount = default_pose().describe()
+    if calibration_path is None:
+        return (f"no --calibration: perception judges these frames as if from the simulator's "
+                f"default camera (no lens distortion, {mount})")
+    if calibration is not None and calibration.ground is None:
+        return (f"--calibration {calibration_path} has no ground pose (`lanewarden calibrate "
+                f"ground` was not run): perception assumes the simulator's mount ({mount})")
+    return None
+
+
+def clip_calibration_hint(camera: str) -> str:
+    """'; the clip's own calibration lies beside it: --calibration FILE' when `--camera` is a
+    simulator clip with its calibration beside it (or beside the folder a pattern picks its
+    frames from: 'clip/*.png', 'clip/frame_%06d.png'; `sim --camera-out clip` writes
+    clip.calibration.yaml), else ''."""
+    given = Path(camera)
+    places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
+    beside = next((c for c in (ClipFiles.for_target(p).calibration for p in places)
+                   if c.is_file()), None)
+    return "" if beside is None else (
+        f"; the clip's own calibration lies beside it: --calibration {beside}")
+
+
+def refuse_assumed_camera(base_kind: str, camera: str, calibration_path: str | None,
+                          calibration: CameraCalibration | None, assume: bool) -> None:
+    """The robot does not drive on an assumed camera (`assumed_camera`) unless the user says so
+    (`--assume-camera`): a UsageError for `--base kobuki`; the bench bases (sim, none) only get
+    `start_warnings`' warning. A new user's run of a `lane-ends` clip on the Kobuki stand-in with
+    no calibration drove to the clip's end, where with its calibration it halted at the tape's
+    end."""
+    said = assumed_camera(calibration_path, calibration)
+    if said is None or assume or base_kind != "kobuki":
+        return
+    fix = ("--calibration FILE from `lanewarden calibrate`, then `lanewarden calibrate ground`"
+           if calibration_path is None else
+           f"its ground pose (`lanewarden calibrate ground --calibration {calibration_path} "
+           "...`)")
+    raise UsageError(f"--base kobuki: {said}; through another lens or mount it can see a lane "
+                     f"where there is none and drive on; expected {fix}, or "
+                     f"{ASSUME_CAMERA_FLAG} to drive on the assumed camera anyway"
+                     f"{clip_calibration_hint(camera) if calibration_path is None else ''}")
+
+
 def start_warnings(camera: str, calibration_path: str | None, controller_name: str,
-                   config: LanewardenConfig | None = None) -> list[str]:
+                   config: LanewardenConfig | None = None,
+                   calibration: CameraCalibration | None = None) -> list[str]:
     """What `run` says at start-up, before the base opens, about a run that may not stop where
     a user expects: no calibration (perception then judges the frames as the simulator's default
     camera's; a lens it does not undistort can show a lane where there is none: a clip of
@@ -154,21 +215,15 @@ def start_warnings(camera: str, calibration_path: str | None, controller_name: s
     calibration beside `--camera` when there is one; and the lecture's controller, which never
     halts on lane loss; and a lane with little room to drift (`config.narrow_lane_warning`)."""
     warnings = []
-    if calibration_path is None:
-        text = ("no --calibration: perception judges these frames as if from the simulator's "
-                "default camera (no lens distortion, its height and pitch); through another "
-                "lens or mount it can see a lane where there is none and drive on (calibrate "
-                "yours: lanewarden calibrate, then lanewarden calibrate ground)")
-        # beside the clip, or beside the folder a pattern picks its frames from
-        # ('clip/*.png', 'clip/frame_%06d.png': `sim --camera-out clip` writes
-        # clip.calibration.yaml)
-        given = Path(camera)
-        places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
-        beside = next((c for c in (ClipFiles.for_target(p).calibration for p in places)
-                       if c.is_file()), None)
-        if beside is not None:
-            text += f"; the clip's own calibration lies beside it: --calibration {beside}"
-        warnings.append(text)
+    said = assumed_camera(calibration_path, calibration)
+    if said is not None and calibration_path is not None:
+        warnings.append(f"{said}; with another height or pitch it measures tapes and seams "
+                        "wrong and can see a lane where there is none (run lanewarden "
+                        "calibrate ground)")
+    elif said is not None:
+        warnings.append(f"{said}; through another lens or mount it can see a lane where there "
+                        "is none and drive on (calibrate yours: lanewarden calibrate, then "
+                        f"lanewarden calibrate ground){clip_calibration_hint(camera)}")
     if config is not None and (narrow := narrow_lane_warning(config)):
         warnings.append(narrow)
     if controller_name == "lecture":
@@ -192,6 +247,7 @@ def run_robot(
     record_image: str = PERCEPTION_INPUT,
     view: str | None = None,
     meta: dict[str, object] | None = None,
+    assume_camera: bool = False,
 ) -> RunSummary:
     clock = Ticker(config.supervisor.camera_period_s)
     controller_factory(controller_name)  # an unknown name fails here, before the camera opens
@@ -211,11 +267,14 @@ def run_robot(
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
                                        f"--calibration {calibration_path}")
+        # after the camera's and the calibration's own checks, before anything can move
+        refuse_assumed_camera(base_kind, camera, calibration_path, calibration, assume_camera)
         stack = build_stack(config, controller=controller_name, calibration=calibration,
                             debug_tap=True,  # the live page draws the detection's overlay
                             image_size=(width, height))
         print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
-        for said in start_warnings(camera, calibration_path, controller_name, config):
+        for said in start_warnings(camera, calibration_path, controller_name, config,
+                                   calibration):
             print(f"warning: {said}", flush=True)  # beside the ground model's line it qualifies
 
         session = RunSession(
@@ -282,7 +341,10 @@ def run_robot(
                         if frames.end_seen:  # a recorded clip ran out, its last frame seen
                             loop_end = LoopEnd(LoopEndKind.CLIP, "end of the clip")
                             break
-                        clock.wait()  # an overrun: the watchdog sees it; no burst follows
+                        # an overrun: the watchdog sees it; no burst follows. A stop signal
+                        # ends the wait at once (acted on at the top of the loop).
+                        clock.wait(interrupted=lambda: (requests.stop is not None
+                                                        or requests.suspend))
                 finally:
                     loop_end = loop_end.with_steps(steps)  # the closing stop comes after these
                     now = clock.now()

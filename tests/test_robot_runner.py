@@ -98,8 +98,9 @@ def relaxed_config(tmp_path: Path) -> str:
 
 
 def _run(camera: str, port: str, tmp_path: Path, config: str, *extra: str) -> list[str]:
+    # (the frames are the simulator's default camera's: the camera --assume-camera assumes)
     return ["run", "--camera", camera, "--port", port, "--record", str(tmp_path / "run"),
-            "--config", config, *extra]
+            "--config", config, "--assume-camera", *extra]
 
 
 def _safety_line(err: str) -> str:
@@ -162,6 +163,72 @@ def test_run_warns_at_start_up_without_a_calibration_and_names_a_clips_own(
         (warning,) = start_warnings(str(tmp_path / named), None, "supervised")
         assert warning.endswith(f"--calibration {frames_calibration}"), (named, warning)
     assert start_warnings("0", None, "supervised")[0].endswith("calibrate ground)")
+
+
+def _calibration_without_ground(path: Path) -> Path:
+    """The simulator's default camera's intrinsics, as `lanewarden calibrate` writes them for
+    640x480, with no ground pose (`calibrate ground` not run)."""
+    k = np.array([[457.0, 0, 320], [0, 457.0, 240], [0, 0, 1]])
+    save_calibration(CameraCalibration(k, np.zeros(5), (640, 480)), path)
+    return path
+
+
+@pytest.mark.parametrize("given", ["none", "no ground pose"])
+def test_the_robot_does_not_drive_on_an_assumed_camera(
+        given: str, scenes: dict[str, list[Path]], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`--base kobuki` (the default) with no --calibration, or with one that has no ground pose,
+    is refused before the base opens: tapes and seams would be measured in millimetres through
+    the simulator's camera or mount. A new user's `lane-ends` clip, run so on the Kobuki
+    stand-in, drove to the clip's end (858 non-zero packets) where with its calibration it
+    halted at the tape's end. The port here does not exist: the refusal comes first."""
+    camera = clip(tmp_path / "camera", scenes, ("lane", 1.0))
+    flags = [] if given == "none" else [
+        "--calibration", str(_calibration_without_ground(tmp_path / "intrinsics.yaml"))]
+    code = main(["run", "--camera", camera, "--port", str(tmp_path / "no-port"), *flags,
+                 "--duration", "1.0", "--record", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, err
+    assert len(err) == 1, err
+    if given == "none":
+        assert err[0].startswith(
+            "lanewarden: error: --base kobuki: no --calibration: perception judges these frames "
+            "as if from the simulator's default camera (no lens distortion, h 0.400 m, pitch "
+            "35.0°, 0.150 m ahead of the robot's centre)"), err[0]
+        assert "expected --calibration FILE from `lanewarden calibrate`, then `lanewarden " \
+               "calibrate ground`, or --assume-camera" in err[0], err[0]
+    else:
+        assert err[0].startswith(
+            f"lanewarden: error: --base kobuki: --calibration {tmp_path / 'intrinsics.yaml'} "
+            "has no ground pose (`lanewarden calibrate ground` was not run): perception assumes "
+            "the simulator's mount (h 0.400 m, pitch 35.0°"), err[0]
+        assert "expected its ground pose (`lanewarden calibrate ground --calibration" in err[0]
+    assert not (tmp_path / "run").exists(), "refused before the recording opens"
+
+
+def test_assume_camera_lets_the_robot_drive_and_the_bench_bases_only_warn(
+        scenes: dict[str, list[Path]], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """With --assume-camera the Kobuki (the stand-in) drives as before, warned; `--base sim`
+    and `--base none` are never refused, only warned, for a calibration without a ground pose
+    too."""
+    camera = clip(tmp_path / "camera", scenes, ("lane", 1.0))
+    with KobukiStandIn() as base:
+        code = main(["run", "--camera", camera, "--port", base.port, "--assume-camera",
+                     "--duration", "0.5", "--record", str(tmp_path / "kobuki")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "warning: no --calibration: perception judges these frames" in out
+    intrinsics = _calibration_without_ground(tmp_path / "intrinsics.yaml")
+    code = main(["run", "--camera", camera, "--base", "none", "--calibration", str(intrinsics),
+                 "--duration", "0.5", "--record", str(tmp_path / "none")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert (f"warning: --calibration {intrinsics} has no ground pose (`lanewarden calibrate "
+            "ground` was not run): perception assumes the simulator's mount (h 0.400 m, pitch "
+            "35.0°, 0.150 m ahead of the robot's centre); with another height or pitch it "
+            "measures tapes and seams wrong and can see a lane where there is none (run "
+            "lanewarden calibrate ground)") in out, out
 
 
 def test_run_warns_of_a_lane_with_little_room_to_drift() -> None:

@@ -109,6 +109,19 @@ def test_what_every_place_shows() -> None:
                               "state": "FOLLOW", "halt_reason": None, "engaged": True}
 
 
+def test_a_failure_that_stops_a_following_robot_reads_as_a_halt() -> None:
+    """A dead-man trip (or a lost link or camera) while FOLLOW is a safety stop: the summary's
+    first line says `halted:` as for every safety stop, naming the state it stopped, never "the
+    end of the run" (a new user's review: `stopped by the end of the run (DEADMAN_TRIPPED: ...)
+    while FOLLOW`)."""
+    trip = "DEADMAN_TRIPPED: the dead-man stopped the base (no heartbeat for 0.20 s)"
+    reason = _end(ENGAGED + [("FOLLOW", None, 0.2, 0.2)], LoopEnd(LoopEndKind.FAILURE, trip))
+    assert (reason.state, reason.exit_code) == ("FOLLOW", 3)
+    assert reason.stop_line == (
+        "halted: DEADMAN_TRIPPED: the dead-man stopped the base (no heartbeat for 0.20 s) "
+        "(while FOLLOW)")
+
+
 def test_the_runners_closing_stop_is_not_looked_at() -> None:
     """A recorded run ends with the runner's own stop (OPERATOR_STOP); `steps` says where the
     loop ended, so a replay decides as the run did: engaged (FOLLOW) when Ctrl-C came."""

@@ -44,6 +44,11 @@ MAX_RUN_DURATION_S = 86_400.0
 @click.option("--calibration", "calibration_path",
               type=PathFlag("a calibration file", dir_okay=False), default=None,
               help="Camera calibration (OpenCV YAML from `lanewarden calibrate`).")
+@click.option("--assume-camera", "assume_camera", is_flag=True,
+              help="Let --base kobuki drive on an assumed camera: with no --calibration the "
+              "simulator's default camera, with a calibration that has no ground pose the "
+              "simulator's mount (refused without this flag: tapes and seams are then measured "
+              "through a camera that may not be yours).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="supervised, or the lecture's baseline (never halts on lane "
               "loss: for comparison on a safe track only).")
@@ -66,8 +71,9 @@ MAX_RUN_DURATION_S = 86_400.0
               help="Stop after this many seconds (default: until Ctrl-C).")
 @config_option
 def run_command(camera: str, base_kind: str, port: str | None, calibration_path: str | None,
-                controller: str, record_dir: Path | None, record_gray: bool, record_lossy: bool,
-                view: str | None, duration_s: float | None, config_path: str | None) -> int:
+                assume_camera: bool, controller: str, record_dir: Path | None,
+                record_gray: bool, record_lossy: bool, view: str | None,
+                duration_s: float | None, config_path: str | None) -> int:
     """Follow the lane under the supervisor, on the robot or on the bench. Ctrl-C, SIGTERM or
     SIGQUIT stop the robot and end the run; Ctrl-Z stops the robot, then suspends (after `fg` it
     stays halted); a crash leaves the dead-man holding stop. Every check (config, calibration,
@@ -86,7 +92,7 @@ def run_command(camera: str, base_kind: str, port: str | None, calibration_path:
     summary = run_robot(config, camera=camera, port=port, calibration_path=calibration_path,
                         controller_name=controller, duration_s=duration_s, base_kind=base_kind,
                         record=record_dir, record_image=record_image, view=view,
-                        meta={"config_file": config_path})
+                        meta={"config_file": config_path}, assume_camera=assume_camera)
     for line in summary.lines:
         click.echo(line)
     click.echo(summary_line(summary))

@@ -219,7 +219,8 @@ def test_run_halts_on_the_deadmans_latch_and_names_it(
     camera = clip(tmp_path / "camera", scenes, ("lane", 30.0))
     with KobukiStandIn() as base:
         run = start_lanewarden("run", "--camera", camera, "--port", base.port, "--record",
-                               str(tmp_path / "run"), "--config", str(config))
+                               str(tmp_path / "run"), "--config", str(config),
+                               "--assume-camera")  # (the simulator's default camera's frames)
         try:
             assert base.wait_for(lambda pkts: any(map(is_motion, pkts)), 6 * DEADLINE_S)
             os.kill(run.pid, signal.SIGSTOP)

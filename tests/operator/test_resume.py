@@ -82,6 +82,7 @@ def test_resume_from_the_kobuki_b0_button(gap_clip: Path, tmp_path: Path,
                 kobuki.buttons = 0  # ... and up
 
         code = run_beside(operator, ["--camera", str(gap_clip), "--port", kobuki.port,
+                                     "--assume-camera",
                                      "--record", str(record), "--config", str(patient)])
     assert code == 0, capsys.readouterr().err
     records = steps(record)

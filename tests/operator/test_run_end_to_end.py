@@ -118,7 +118,8 @@ def test_kobuki_steady_stream_then_stop_after_halt(
         capsys: pytest.CaptureFixture[str]) -> None:
     record = tmp_path / "run"  # relaxed: a starved CPU's 0.27 s stall had tripped the dead-man
     with KobukiStandIn() as kobuki:
-        code = main(["run", "--camera", str(clip), "--port", kobuki.port, "--record",
+        code = main(["run", "--camera", str(clip), "--port", kobuki.port,
+                     "--assume-camera", "--record",
                      str(record), *relaxed])
         controls = kobuki.base_controls()
     assert code == 3, capsys.readouterr().err
@@ -138,7 +139,8 @@ def test_sigstop_of_the_runner_stops_the_base_through_the_deadman(
         long_lane: Path, tmp_path: Path) -> None:
     record = tmp_path / "run"
     with KobukiStandIn() as kobuki:
-        process = start_run(["--camera", str(long_lane), "--port", kobuki.port, "--record",
+        process = start_run(["--camera", str(long_lane), "--port", kobuki.port,
+                             "--assume-camera", "--record",
                              str(record)], stdout=open(os.devnull, "w"))
         try:
             assert kobuki.wait_for(moving, 30.0), "it never moved"
@@ -163,7 +165,8 @@ def test_sigint_and_sigterm_end_with_stop_and_the_summary(
         sig: signal.Signals, long_lane: Path, tmp_path: Path) -> None:
     record = tmp_path / "run"
     with KobukiStandIn() as kobuki:
-        process = start_run(["--camera", str(long_lane), "--port", kobuki.port, "--record",
+        process = start_run(["--camera", str(long_lane), "--port", kobuki.port,
+                             "--assume-camera", "--record",
                              str(record)], stdout=-1, stderr=-1)
         try:
             assert kobuki.wait_for(moving, 30.0), "it never moved"
@@ -187,7 +190,8 @@ def test_base_vanishing_mid_run_is_a_clean_one_line_safety_stop(
         long_lane: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     record = tmp_path / "run"
     with KobukiStandIn(unplug_on_motion=True) as kobuki:
-        code = main(["run", "--camera", str(long_lane), "--port", kobuki.port, "--record",
+        code = main(["run", "--camera", str(long_lane), "--port", kobuki.port,
+                     "--assume-camera", "--record",
                      str(record)])
     captured = capsys.readouterr()
     assert code == 3
@@ -221,6 +225,7 @@ def test_a_busy_view_port_is_one_line_before_anything_is_written(
 def test_a_missing_robot_leaves_a_closed_recording(
         clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["run", "--camera", str(clip), "--port", str(tmp_path / "no-such-port"),
+                 "--assume-camera",
                  "--record", str(tmp_path / "run")])
     assert code == 1
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
@@ -281,6 +286,8 @@ def assert_one_end_reason(out: str, err: str, record: Path, replay_out: Path) ->
     status_lines = [line for line in out.splitlines() if line.startswith("[")]
     assert status_lines[-1].split("] ", 1)[1].startswith(f"ENDED: {text}  "), status_lines[-1]
     stopped = (f"  halted: {end['halt_reason']}" if end["state"] == "HALT"
+               else f"  halted: {end['safety_stop']} (while {end['state']})"
+               if end["safety_stop"] is not None
                else f"  stopped by the end of the run ({end['ended_by']}) while {end['state']}")
     assert stopped + "\n" in out, out
     last = out.strip().splitlines()[-1]
@@ -364,6 +371,7 @@ def test_a_bumper_that_held_when_the_clip_ended_is_the_reason(
                 kobuki.set_sensors(bumper=1)
 
         code = run_beside(operator, ["--camera", str(camera), "--port", kobuki.port,
+                                     "--assume-camera",
                                      "--record", str(record), *relaxed])
     out, err = capsys.readouterr()
     assert code == 3, err
