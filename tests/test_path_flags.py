@@ -79,3 +79,19 @@ def test_detect_with_an_empty_out_writes_nothing_in_the_current_folder(
     assert capsys.readouterr().err == ("lanewarden: error: lanewarden detect: Invalid value for "
                                        "'--out': '' is empty; expected a folder\n")
     assert [p.name for p in tmp_path.iterdir()] == ["lane.png"]
+
+
+def test_a_folder_flag_given_a_file_says_what_was_expected(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """click's own refusal ("Directory 'afile' is a file.") named no expectation, unlike every
+    other error (a new user's review); it now ends with what the flag takes."""
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    assert main(["sim", "--scenario", "straight", "--out", str(afile), "--quiet"]) == 2
+    assert capsys.readouterr().err == (
+        f"lanewarden: error: lanewarden sim: Invalid value for '--out': Directory '{afile}' is "
+        "a file; expected a folder\n")
+    assert main(["run", "--calibration", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (
+        f"lanewarden: error: lanewarden run: Invalid value for '--calibration': File "
+        f"'{tmp_path}' is a directory; expected a calibration file\n")

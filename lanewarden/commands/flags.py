@@ -68,7 +68,8 @@ CAMERA_EXPECTED = "a camera index, device, video file, image sequence or stream 
 
 class PathFlag(click.Path):
     """click.Path, and an empty value refused: "Invalid value for '--out': '' is empty; expected
-    a folder" (`expected`: what the flag names). `readable=False` for a value that is not always
+    a folder" (`expected`: what the flag names); click's own refusals say it too ("Directory
+    'afile' is a file; expected a folder"). `readable=False` for a value that is not always
     a file (a camera index or URL, a glob): then it is checked for nothing else, as a string."""
 
     def __init__(self, expected: str, **kwargs: Any) -> None:
@@ -79,4 +80,7 @@ class PathFlag(click.Path):
                 ctx: click.Context | None) -> Any:
         if isinstance(value, str) and not value:
             self.fail(f"'' is empty; expected {self.expected}", param, ctx)
-        return super().convert(value, param, ctx)
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter as exc:  # click's own ("Directory 'x' is a file."): + expected
+            self.fail(f"{exc.message.rstrip('.')}; expected {self.expected}", param, ctx)
