@@ -28,6 +28,11 @@ from lanewarden.perception.config import PerceptionConfig
 
 #: File name endings read as images (a folder or glob of frames, a survey's class folders).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
+#: Files named as videos: a photo command given one says which commands read videos.
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".h264")
+#: What a photo command adds when it was given a video (`read_image`).
+VIDEO_HINT = ("a video: `lanewarden replay` and `lanewarden survey --labels FILE` read videos, "
+              "`lanewarden run --camera` plays one")
 
 #: The config key of the limit, named in the messages.
 LIMIT_KEY = "perception.max_image_pixels"
@@ -127,7 +132,15 @@ def read_image(
     """Decode an image file: (image, "") or (None, why it cannot be used). An image with more
     than `max_pixels` pixels is refused, from its header before decoding (`decode_image`); so
     is a file larger than any image within the limit, before it is read, and anything but a
-    regular file."""
+    regular file. A file named as a video that is refused says which commands read videos
+    (`VIDEO_HINT`: a new user's `detect tub.mp4` got "not a readable image" alone)."""
+    image, why = _read_image(path, flags, max_pixels)
+    if image is None and path.suffix.lower() in VIDEO_SUFFIXES:
+        why = f"{why} ({VIDEO_HINT})"
+    return image, why
+
+
+def _read_image(path: Path, flags: int, max_pixels: int) -> tuple[np.ndarray | None, str]:
     if why := file_problem(path):
         return None, why
     if why := header_problem(path, max_pixels):

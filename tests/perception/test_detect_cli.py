@@ -256,3 +256,19 @@ def test_the_ground_line_is_for_the_images_own_size(
     assert len(grounds) == 2
     assert "; 160x120: look-ahead" in grounds[0]
     assert "; 640x480: look-ahead" in grounds[1]
+
+
+def test_a_video_given_to_detect_says_which_commands_read_videos(
+    frames: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`detect tub.mp4` said only "not a readable image" (a new user's review); a file named as
+    a video now says where videos go. A photo that is not an image still says only that."""
+    video = frames.parent / "tub.mp4"
+    video.write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(64))  # an MP4's first box, no image
+    code, out, err = run(["detect", str(video), str(frames / "notes.png")], capsys)
+    assert code == 2
+    err = err.removeprefix(GROUND_LINE)
+    assert err.strip().splitlines() == [
+        f"lanewarden: error: 2 of 2 images not analysed: {video}: not a readable image (a "
+        "video: `lanewarden replay` and `lanewarden survey --labels FILE` read videos, "
+        f"`lanewarden run --camera` plays one); {frames / 'notes.png'}: not a readable image"]
