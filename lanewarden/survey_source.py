@@ -67,7 +67,8 @@ class SurveySource:
     """What to survey: `stills` (independent images) or `sequence` (a recording, with the
     labelled frames by the recording's frame index in `labelled`). `unlabelled`: images in a
     labels file's folder that it does not name, `skipped`: frame indices within labelled ranges
-    that the recording lacks (neither surveyed; the command says so)."""
+    that the recording lacks (neither surveyed; the command says so). `labels`: the labels file
+    as messages name it ("--labels 'clip.csv'", "floor/labels.csv"; None: class folders)."""
 
     name: str
     description: str
@@ -76,6 +77,7 @@ class SurveySource:
     labelled: dict[int, LabelledFrame] = field(default_factory=dict)
     unlabelled: list[str] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
+    labels: str | None = None
 
 
 def shown_name(name: str) -> str:
@@ -96,10 +98,16 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
     return f"{len(problems)} of {total} {what}: {shown}{more}"
 
 
+def labels_named(path: Path, flag: bool) -> str:
+    """The labels file as messages name it (`flag`: given with --labels, else FOLDER's own
+    labels.csv)."""
+    return f"--labels '{path}'" if flag else str(path)
+
+
 def read_labels(path: Path, flag: bool = True) -> LabelsTable:
     """The labels file at `path` (`flag`: named with --labels, else FOLDER's own labels.csv),
     refused unread above MAX_LABELS_BYTES."""
-    named = f"--labels '{path}'" if flag else str(path)
+    named = labels_named(path, flag)
     if is_special_file(path):
         raise InputFileError(f"{named}: {NOT_A_REGULAR_FILE}, expected a labels file")
     try:
@@ -366,7 +374,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
             labels_path = path / LABELS_NAME
     if labels_path is not None:
         table = read_labels(labels_path, flag=labels is not None)
-    if table is None:
+    if table is None or labels_path is None:
         stills = _class_folders(path)
         if not stills:
             # photos there, unsorted: name them, and the two ways to label them
@@ -390,7 +398,8 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         stills = _labelled_files(path, table)
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",
-                            stills=stills, unlabelled=_unlabelled(path, stills))
+                            stills=stills, unlabelled=_unlabelled(path, stills),
+                            labels=labels_named(labels_path, labels is not None))
     if classes := _class_folder_names(path):
         raise UsageError(f"FOLDER '{folder}': {table.source} labels frame numbers "
                          f"(frames,expect) of a recording, but FOLDER holds "
@@ -409,4 +418,5 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         _check_headers([(f"frame {i}", p) for i, p in enumerate(source.frames.paths)
                         if first <= i <= last], max_pixels)
     return SurveySource(source.name, f"{folder} ({source.kind}; labels: {table.source})",
-                        sequence=source, labelled=labelled, skipped=skipped)
+                        sequence=source, labelled=labelled, skipped=skipped,
+                        labels=labels_named(labels_path, labels is not None))

@@ -476,7 +476,25 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     if case == "no lane frame":
         (folder / "no-lane").mkdir()
         shutil.copy(tiles, folder / "no-lane")
-        return [str(folder)], f"FOLDER '{folder}': no lane frame"
+        return [str(folder)], (f"FOLDER '{folder}': no lane frame; a survey also shows that "
+                               "perception finds your lane and the supervisor engages on it: "
+                               "put such photos in lane/\n")
+    if case in ("frame labels without none", "file labels without lane"):
+        # a video's labels had been told to "put such frames in no-lane/"
+        shutil.copy(lane, folder / "000.jpg")
+        shutil.copy(tiles, folder / "001.jpg")
+        if case == "file labels without lane":
+            (folder / "labels.csv").write_text("file,expect\n001.jpg,none\n")
+            return [str(folder)], (
+                f"{folder / 'labels.csv'}: no frame labelled lane; a survey also shows that "
+                "perception finds your lane and the supervisor engages on it: expected at least "
+                "one row labelling such frames lane (e.g. photo.jpg,lane)\n")
+        labels = tmp_path / "frames.csv"
+        labels.write_text("frames,expect\n0-1,lane\n")
+        return [str(folder), "--labels", str(labels)], (
+            f"--labels '{labels}': no frame labelled none; a survey shows that perception sees "
+            "no lane on bare floor, seams, one tape alone, a tape's end: expected at least one "
+            "row labelling such frames none (e.g. 120-180,none)\n")
     if case in ("a photo the survey cannot read", "frames of two sizes"):
         _photos(folder, lane, tiles)
         # files Windows leaves in a folder of photos are passed over, as hidden ones are (a
@@ -561,6 +579,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 @pytest.mark.parametrize("case", [
     "missing folder", "no frames", "photos not sorted", "unknown class folder",
     "images beside the class folders", "no no-lane frame", "no lane frame",
+    "frame labels without none", "file labels without lane",
     "a photo the survey cannot read", "frames of two sizes",
     "a photo turned by its EXIF orientation",
     "frame labels for photos", "calibration of another size", "not an image",
