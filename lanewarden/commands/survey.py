@@ -248,6 +248,10 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
                      f"labels file, not surveyed ({some})")
+    if source.hidden:
+        some = first_few([shorten(name) for name in source.hidden[:4]])
+        notes.append(f"note: {counted(len(source.hidden), 'image')} in hidden files or folders "
+                     f"under lane/ and no-lane/ skipped, not surveyed ({some})")
     if source.skipped:
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "

@@ -414,6 +414,24 @@ def test_images_in_sub_folders_of_a_class_folder_are_of_that_class(
     assert names == ["lane/dashed.jpg", "no-lane/tiles.jpg", "no-lane/tricky/straight.jpg"]
 
 
+def test_images_in_hidden_files_and_folders_are_skipped_and_named(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A lane photo in no-lane/.thumbs/ was skipped without a word (and one in a hidden file
+    surveyed): both are skipped, and a note says how many and names the first few."""
+    (floor / "no-lane" / ".thumbs").mkdir()
+    shutil.copy(RENDERED / "lane" / "straight.jpg", floor / "no-lane" / ".thumbs")
+    shutil.copy(RENDERED / "lane" / "straight.jpg", floor / "no-lane" / ".straight.jpg")
+    code, out, err = _survey([str(floor), "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert "verdict: SAFE: no decision on any of the 2 no-lane frames" in out
+    note = ("note: 2 images in hidden files or folders under lane/ and no-lane/ skipped, not "
+            "surveyed (no-lane/.straight.jpg, no-lane/.thumbs/straight.jpg)")
+    assert note in out.splitlines()
+    document = json.loads((tmp_path / "o" / "survey.json").read_text())
+    assert note.removeprefix("note: ") in document["notes"]
+    assert len(document["frames"]) == 5
+
+
 def test_the_ground_model_is_described_at_the_frames_size(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Without --calibration the ground model line is for the frames' own size, as `detect`
