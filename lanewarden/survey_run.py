@@ -114,9 +114,10 @@ def frame_result(frame: LabelledFrame, observation: LaneObservation, decide: Dec
 
 
 def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug,
-            shifted_decision: str | None = None) -> Picture:
-    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame
-    (`shifted_decision`: the frame is a shifted version of the still, which decided this)."""
+            other: tuple[str, str] | None = None) -> Picture:
+    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame.
+    `other`: the detection is not the frame's as judged but (what it is, its decision): a
+    shifted version of a still; the caption's first line says which."""
     canvas = as_bgr(debug.image)
     draw_detection(canvas, observation, debug)
     if canvas.shape[0] < PICTURE_MIN_ROWS:
@@ -124,11 +125,18 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
         canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
     assert ok, "OpenCV could not encode a picture"
-    caption = tuple(perception_text(observation, shifted_decision or result.decision))
-    if shifted_decision is not None:
-        caption = ("shifted by a fraction of a pixel:", *caption)
+    caption = tuple(perception_text(observation, result.decision if other is None else other[1]))
+    if other is not None:
+        caption = (other[0], *caption)
     return Picture(result.frame.name, result.frame.expect, observation.confidence, caption,
                    data.tobytes())
+
+
+def shifted_caption(offset: tuple[float, float], shifted: Shifted) -> str:
+    """The first caption line of a shifted version's picture: which copy, and how many such
+    copies got a decision."""
+    return (f"a copy shifted by ({offset[0]:+.2f}, {offset[1]:+.2f}) px (x, y); "
+            f"{len(shifted.decided)} of {shifted.versions} such copies got a decision")
 
 
 class PictureKeeper:
@@ -267,22 +275,34 @@ def shifted_offsets(name: str, seed: int = SHIFT_SEED) -> Iterator[tuple[float, 
         yield float(dx), float(dy)
 
 
+@dataclass(frozen=True)
+class ShiftedSeen:
+    """The first shifted version of a still that got a decision: its detection and its shift
+    (dx, dy), pixels."""
+
+    observation: LaneObservation
+    debug: DetectionDebug
+    offset: tuple[float, float]
+
+
 def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: DecisionRule,
                   versions: int, order: int = 0,
-                  ) -> tuple[Shifted, tuple[LaneObservation, DetectionDebug] | None]:
+                  ) -> tuple[Shifted, ShiftedSeen | None]:
     """A still judged in `versions` copies shifted by `shifted_offsets(name)`: which got a
-    decision, and the first such copy's detection (for its picture)."""
+    decision, and the first such copy's detection and shift (for its picture)."""
     decided: list[float] = []
-    first: np.ndarray | None = None
+    first: tuple[np.ndarray, tuple[float, float]] | None = None
     for dx, dy in itertools.islice(shifted_offsets(name), versions):
         copy = shifted_image(image, dx, dy)
         observation = detector.detect(copy, order, 0.0)
         if decide(observation) != "none":
             decided.append(observation.confidence)
-            first = copy if first is None else first
+            first = (copy, (dx, dy)) if first is None else first
+    if first is None:
+        return Shifted(versions, tuple(decided)), None
     # the debug data (and its undistorted picture) only for the copy the report shows
-    seen = None if first is None else detector.detect_debug(first, order, 0.0)
-    return Shifted(versions, tuple(decided)), seen
+    return Shifted(versions, tuple(decided)), ShiftedSeen(
+        *detector.detect_debug(first[0], order, 0.0), first[1])
 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
@@ -334,8 +354,11 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
                               engaged=None if still.frame.expect != LANE else
                               engaged_after is not None, not_engaged=why_not, shifted=shifted)
         results.append(result)
-        if seen is not None and not result.has_decision:  # a false lane only when shifted
-            keeper.offer(result, partial(picture, result, *seen, decide(seen[0])))
+        if seen is not None and shifted is not None and not result.has_decision:
+            # a false lane only when shifted: the picture of the copy that decided
+            keeper.offer(result, partial(
+                picture, result, seen.observation, seen.debug,
+                (shifted_caption(seen.offset, shifted), decide(seen.observation))))
         else:
             keeper.offer(result, partial(picture, result, observation, debug))
     if problems:

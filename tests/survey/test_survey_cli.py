@@ -664,7 +664,11 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
     assert all(0.2 <= c < 0.6 for s in shifted.values() for c in s["confidences"])
     assert all(f["decision"] == "none" for f in document["frames"] if f["expect"] == "none")
     page = (tmp_path / "out" / "report.html").read_text()
-    assert "shifted by a fraction of a pixel:" in page  # the picture of a shifted version
+    # the picture of a shifted version: which one, in words that end (the caption had ended in
+    # "shifted by a fraction of a pixel:" and nothing after the colon)
+    assert "shifted by a fraction of a pixel:" not in page
+    assert (f"<figcaption><b>{SLIVER}</b><br>a copy shifted by (+0.42, +0.44) px (x, y); 9 of "
+            "16 such copies got a decision<br>slope sum ") in page
     assert "<td>none; shifted: 9 of 16 decided</td>" in page  # the frame's row in the table
     # the summary table's false lanes say where they came from: its decisions column has none
     assert "<td class=num>2 (2 only in a shifted version)</td>" in page
