@@ -3,9 +3,10 @@ embedded, so the page can be mailed or archived alone).
 
 The page: the verdict at the top (SAFE / NOT SAFE with the false lanes named, whether the
 supervisor engaged), the figures per class, the pictures of the false lanes and of the weakest
-lane frames (perception's overlay, with the colours explained from `perception.overlay.
-OVERLAY_STYLES`, the table the drawing uses), then one table per class with every frame. Text
-building is pure; `write_outputs` is the one place that writes.
+lane frames (or, when every lane frame is confident, of the least confident ones; perception's
+overlay, with the colours explained from `perception.overlay.OVERLAY_STYLES`, the table the
+drawing uses), then one table per class with every frame. Text building is pure;
+`write_outputs` is the one place that writes.
 """
 
 from __future__ import annotations
@@ -103,6 +104,20 @@ def _pictures(title: str, pictures: Sequence[Picture], empty: str, note: str) ->
     return f"<section><h2>{_e(title)}</h2><p>{_e(note)}</p>{body}</section>"
 
 
+def _lane_pictures(pictures: Sequence[Picture]) -> str:
+    """The weakest lane frames; when all of them are confident (every lane frame was), the
+    least confident, headed so."""
+    if pictures and all(p.confident for p in pictures):
+        return _pictures(
+            "Least confident lane frames (every lane frame is confident)", pictures, "",
+            f"No lane frame fell short of confident; these are the least confident of each of "
+            f"up to {WEAK_PICTURES} stretches of the lane frames (in sequence order), to show "
+            "what perception paired.")
+    return _pictures("Weakest lane frames", pictures, "None: no lane frame was surveyed.",
+                     f"Lane frames that are not confident: the least confident of each of up to "
+                     f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")
+
+
 def _legend(undistorted: bool) -> str:
     items = "".join(
         f'<li><span class="swatch" style="background:{_css_rgb(s.bgr)}"></span>'
@@ -184,9 +199,7 @@ test (both edges, confidence at least <code>confidence_confident_min</code>); it
 order.</p>
 {_pictures("False lanes", false_lane_pictures, "None: no no-lane frame got a decision.",
            false_note)}
-{_pictures("Weakest lane frames", weak_pictures, "None: every lane frame was confident.",
-           f"Lane frames that are not confident: the least confident of each of up to "
-           f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")}
+{_lane_pictures(weak_pictures)}
 {_legend(about.get("calibration", "none") != "none")}
 {"".join(_class_table(e, figures.results) for e in EXPECTS)}
 </body></html>

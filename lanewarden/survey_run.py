@@ -17,8 +17,9 @@ Confident is the supervisor's test (`supervisor.lane_evidence.LaneEvidence`), th
 `lanewarden.assembly.decision_rule`'s. Pictures (perception's own overlay drawing,
 `perception.overlay.draw_detection`) are kept for the first `FALSE_LANE_PICTURES` false lanes and,
 in `WEAK_PICTURES` stretches of the lane frames, the least confident lane frame of each that is not
-confident: memory stays bounded on a long recording. Never reads a clock, never prints (the caller
-passes a progress callback).
+confident; when every lane frame is confident, the least confident lane frame of each stretch
+instead (so the report still shows what perception paired): memory stays bounded on a long
+recording. Never reads a clock, never prints (the caller passes a progress callback).
 """
 
 from __future__ import annotations
@@ -76,13 +77,15 @@ Progress = Callable[[int], None]
 
 @dataclass(frozen=True)
 class Picture:
-    """An annotated frame for the report: JPEG bytes and perception's words about it."""
+    """An annotated frame for the report: JPEG bytes and perception's words about it;
+    `confident`: the frame as judged was (the supervisor's test)."""
 
     name: str
     expect: str
     confidence: float
     caption: tuple[str, ...]
     jpeg: bytes
+    confident: bool = False
 
 
 @dataclass
@@ -129,7 +132,7 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
     if other is not None:
         caption = (other[0], *caption)
     return Picture(result.frame.name, result.frame.expect, observation.confidence, caption,
-                   data.tobytes())
+                   data.tobytes(), result.confident)
 
 
 def shifted_caption(offset: tuple[float, float], shifted: Shifted) -> str:
@@ -149,20 +152,35 @@ class PictureKeeper:
         self._lanes = max(1, len(ordered))
         self.false_lanes: list[Picture] = []
         self._weak: dict[int, tuple[tuple[float, int], Picture]] = {}
+        #: the least confident confident lane frame of each stretch, kept only while no lane
+        #: frame is weak (then the weak ones are shown)
+        self._least: dict[int, tuple[tuple[float, int], Picture]] = {}
 
     def offer(self, result: FrameResult, draw: Callable[[], Picture]) -> None:
         if result.false_lane:
             if len(self.false_lanes) < FALSE_LANE_PICTURES:
                 self.false_lanes.append(draw())
-        elif result.frame.expect == LANE and not result.confident:
-            stretch = self._rank[result.frame.order] * WEAK_PICTURES // self._lanes
-            key = (result.confidence, result.frame.order)
-            if stretch not in self._weak or key < self._weak[stretch][0]:
-                self._weak[stretch] = (key, draw())
+            return
+        if result.frame.expect != LANE:
+            return
+        if not result.confident:
+            self._least.clear()
+            kept = self._weak
+        elif self._weak:
+            return
+        else:
+            kept = self._least
+        stretch = self._rank[result.frame.order] * WEAK_PICTURES // self._lanes
+        key = (result.confidence, result.frame.order)
+        if stretch not in kept or key < kept[stretch][0]:
+            kept[stretch] = (key, draw())
 
     @property
     def weak(self) -> list[Picture]:
-        return [self._weak[k][1] for k in sorted(self._weak)]
+        """The weakest lane frames in sequence order: not confident, or, when every lane frame
+        was confident, the least confident (their pictures say `confident`)."""
+        kept = self._weak or self._least
+        return [kept[k][1] for k in sorted(kept)]
 
 
 class HeldImage(FrameStore):

@@ -337,7 +337,7 @@ def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture
     page = (tmp_path / "o" / "report.html").read_text()
     _report_is_self_contained(page)
     assert '<div class="verdict unsafe"><b>NOT SAFE</b>' in page
-    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Weakest lane")]
+    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Least confident")]
     assert false_lanes.count("<figure>") == 1 and "<b>straight.jpg</b>" in false_lanes
     # no --calibration: the pictures were not undistorted, and the caption says so
     assert "the frame perception analysed (as the camera gave it: no calibration" in page
@@ -430,6 +430,27 @@ def test_images_in_hidden_files_and_folders_are_skipped_and_named(
     document = json.loads((tmp_path / "o" / "survey.json").read_text())
     assert note.removeprefix("note: ") in document["notes"]
     assert len(document["frames"]) == 5
+
+
+def test_the_report_shows_lane_pictures_when_every_lane_frame_is_confident(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A SAFE survey whose lane frames were all confident showed no picture at all: now the
+    least confident lane frames, under a heading that says they are confident. With one lane
+    frame not confident, only the weakest are shown, as before."""
+    assert _survey([str(floor), "--out", str(tmp_path / "o")], capsys)[0] == 0
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "<h2>Weakest lane frames</h2>" not in page
+    shown = page[page.index("<h2>Least confident lane frames (every lane frame is confident)"
+                            "</h2>"):page.index("<h2>Reading the pictures")]
+    assert re.findall(r"<figcaption><b>([^<]*)</b>", shown) == [
+        "lane/dashed.jpg", "lane/straight.jpg", "lane/tiles-lane.jpg"]
+    # two different tapes: no decision, not confident
+    shutil.copy(RENDERED / "lane" / "two-tapes.jpg", floor / "lane")
+    assert _survey([str(floor), "--out", str(tmp_path / "o")], capsys)[0] == 0
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "<h2>Least confident lane frames" not in page
+    shown = page[page.index("<h2>Weakest lane frames</h2>"):page.index("<h2>Reading the")]
+    assert re.findall(r"<figcaption><b>([^<]*)</b>", shown) == ["lane/two-tapes.jpg"]
 
 
 def test_the_ground_model_is_described_at_the_frames_size(
