@@ -30,8 +30,9 @@ from lanewarden.survey import (
     SurveyFigures,
     engage_line,
     not_engaged_words,
-    shifted_only_text,
+    on_its_own_text,
     survey_json,
+    uncounted_text,
     verdict_line,
 )
 from lanewarden.survey_run import FALSE_LANE_PICTURES, WEAK_PICTURES, Picture
@@ -84,7 +85,7 @@ def _summary_table(classes: Mapping[str, ClassFigures]) -> str:
                                                            else "")) for r in f.runs) or "-"
         weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median_where_weakest:.2f}")
                            for c in f.components if c.weakest_in) or "-"
-        false = f"{len(f.false_lanes)}{shifted_only_text(f)}" if expect == NONE else "-"
+        false = f"{len(f.false_lanes)}{uncounted_text(f)}" if expect == NONE else "-"
         rows.append(f"<tr><th>{_e(CLASS_FOLDERS[expect])}</th><td class=num>{f.frames}</td>"
                     f"<td class=num>{f.decisions}</td><td class=num>{f.confident}</td>"
                     f"<td class=num>{false}</td><td>{runs}</td><td>{weak}</td></tr>")
@@ -146,6 +147,8 @@ def _frame_row(result: FrameResult) -> str:
         decision += (f"; shifted: {result.shifted_decisions} of {result.shifted.versions} "
                      "decided" if result.shifted_decisions
                      else f"; shifted: none of {result.shifted.versions}")
+    if result.on_its_own is not None:  # a recording's no-lane frame, judged on its own too
+        decision += f"; on its own: {on_its_own_text(result.on_its_own)}"
     return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(decision)}</td>'
             f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
             f"</td><td>{_e(weak)}</td><td>{_e(engaged)}</td><td>{_e(result.frame.note)}</td></tr>")

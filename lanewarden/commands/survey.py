@@ -238,7 +238,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
             run = survey_stills(source.stills, config, calibration, detector, bar.update,
                                 jitter, size)
         else:
-            run = survey_sequence(source, config, calibration, bar.update, size)
+            run = survey_sequence(source, config, calibration, detector, bar.update, size)
     figures = judge(run.results, run.engage)
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),

@@ -396,6 +396,65 @@ def test_frame_labels_beyond_the_recording(clip: Path, tmp_path: Path,
                    "(video, frames 0-100)\n")
 
 
+@pytest.fixture
+def jumped(tmp_path: Path) -> tuple[Path, Path]:
+    """A recording (a folder of frames) whose no-lane frame shows a lane that jumped: frames 0-9
+    a straight lane (solid and dashed tapes in turn), frame 10 a bend to the left labelled none
+    on purpose, frame 11 bare tiles; and its frame labels."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index in range(10):
+        shutil.copy(RENDERED / "lane" / ("dashed.jpg" if index % 2 else "straight.jpg"),
+                    frames / f"{index:03d}.jpg")
+    shutil.copy(RENDERED / "lane" / "bend-left.jpg", frames / "010.jpg")
+    shutil.copy(RENDERED / "no-lane" / "tiles.jpg", frames / "011.jpg")
+    labels = tmp_path / "frames.csv"
+    labels.write_text("frames,expect,note\n0-9,lane,two tapes\n"
+                      "10,none,a lane that jumped: labelled none on purpose\n11,none,bare tiles\n")
+    return frames, labels
+
+
+def test_a_recordings_no_lane_frame_is_also_judged_on_its_own(
+        jumped: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """In sequence the bend after the straight lane gets confidence 0 (its `consistency` with
+    the frame before: the lane jumped), so the loop sees no lane there and the survey said SAFE;
+    judged on its own, as `detect` and a survey of photos judge it, it decides "left" at 0.77.
+    A robot that comes upon that view gradually has no jump to save it: NOT SAFE, exit 3, the
+    frame named with its decision on its own, its picture that detection's."""
+    frames, labels = jumped
+    code, out, err = _survey([str(frames), "--labels", str(labels), "--out",
+                              str(tmp_path / "o")], capsys)
+    assert code == 3, out
+    lines = out.splitlines()
+    assert lines[2] == ("no-lane: 2 frames, 0 with a decision (0%), 0 confident, 1 false lane "
+                        "(1 only judged on its own); no confident frame; weakest: consistency "
+                        "in 1 frame (median there 0.00), lane_width in 1 (0.00)")
+    assert lines[3] == ("no-lane, each also judged on its own (as a photo is, without the frame "
+                        "before it): 1 decision in 2 frames: frame 10 (left at 0.77)")
+    assert lines[4] == ("verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame, judged "
+                        "in sequence or on its own): frame 10 (on its own: left at 0.77)")
+    assert err.endswith("lanewarden: not safe: 1 false lane (a decision on a no-lane frame, "
+                        "judged in sequence or on its own): frame 10 (on its own: left at "
+                        "0.77)\n")
+    document = json.loads((tmp_path / "o" / "survey.json").read_text())
+    assert document["verdict"]["false_lanes"] == ["frame 10"]
+    no_lane = {f["frame"]: (f["decision"], f["confidence"], f["weakest"], f["on_its_own"])
+               for f in document["frames"] if f["expect"] == "none"}
+    assert no_lane == {
+        "frame 10": ("none", 0.0, "consistency", {"decision": "left", "confidence": 0.7746}),
+        "frame 11": ("none", 0.0, "lane_width", {"decision": "none", "confidence": 0.0})}
+    # lane frames keep the loop's judgement: none is judged again
+    assert not any("on_its_own" in f for f in document["frames"] if f["expect"] == "lane")
+    page = html.unescape((tmp_path / "o" / "report.html").read_text())
+    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Least confident")]
+    assert false_lanes.count("<figure>") == 1
+    assert ("<figcaption><b>frame 10</b><br>judged on its own, as a photo is (in sequence: none "
+            "at 0.00)<br>slope sum +10.86<br>confidence 0.77 (lowest tape_pair_left 0.60)<br>"
+            "decision left</figcaption>") in false_lanes
+    assert "<td>none; on its own: left at 0.77</td>" in page
+    assert "<td class=num>1 (1 only judged on its own)</td>" in page
+
+
 def test_images_in_sub_folders_of_a_class_folder_are_of_that_class(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A user sorts no-lane/ into kinds of floor: a lane photo put in no-lane/tricky/ by mistake
