@@ -5,7 +5,8 @@ A survey judges a camera on a real floor before it drives: frames labelled `lane
 view) or `none` (bare floor, seams, one tape, a tape's end, clutter, a dark frame). Per class it
 counts the frames with a decision (perception's `decision` with the supervisor's thresholds: not
 "none"), the confident ones (the supervisor's own test, `supervisor.lane_evidence`: both edges and
-`confidence_confident_min`), the false lanes (any decision on a `none` frame), the weakest
+`confidence_confident_min`), the false lanes (any decision on a `none` frame: as judged, in a
+shifted version of a still, or, for a recording's frame, judged again on its own), the weakest
 confidence components and the longest runs of confident frames in sequence order. The verdict:
 SAFE when no `none` frame got a decision, else NOT SAFE naming them; and whether the real
 supervisor engaged (`EngageFigures`, measured by `lanewarden.survey_run`).
@@ -194,6 +195,21 @@ class Shifted:
 
 
 @dataclass(frozen=True)
+class OnItsOwn:
+    """A recording's no-lane frame judged again on its own, as a still is (no previous
+    observation): perception's `decision` and `confidence` then. In sequence the `consistency`
+    component can hide a lane that jumped since the previous frame; a robot that comes upon the
+    same view gradually sees it as this does."""
+
+    decision: str
+    confidence: float
+
+    @property
+    def has_decision(self) -> bool:
+        return self.decision != "none"
+
+
+@dataclass(frozen=True)
 class FrameResult:
     """What perception made of one labelled frame. `decision`: "straight", "left", "right" or
     "none"; `confident`: the supervisor's test; `engaged_after_s`: for a lane still held in view,
@@ -202,7 +218,9 @@ class FrameResult:
     `not_engaged`: for a lane still the supervisor did not engage on, its halt reason at the end
     of the hold (why it stayed halted); `shifted`: for a no-lane still judged again in versions
     moved by a fraction of a pixel (`survey --jitter`), how many versions and the confidence of
-    each that got a decision (a false lane the camera may deliver on its next frame)."""
+    each that got a decision (a false lane the camera may deliver on its next frame);
+    `on_its_own`: for a recording's no-lane frame, what perception made of it on its own (a
+    decision there makes it a false lane too)."""
 
     frame: LabelledFrame
     decision: str
@@ -213,6 +231,7 @@ class FrameResult:
     engaged: bool | None = None
     not_engaged: str | None = None
     shifted: Shifted | None = None
+    on_its_own: OnItsOwn | None = None
 
     @property
     def has_decision(self) -> bool:
@@ -224,9 +243,16 @@ class FrameResult:
         return 0 if self.shifted is None else len(self.shifted.decided)
 
     @property
+    def decided_on_its_own(self) -> bool:
+        """Judged on its own (a recording's no-lane frame), it got a decision."""
+        return self.on_its_own is not None and self.on_its_own.has_decision
+
+    @property
     def false_lane(self) -> bool:
-        """A decision on a no-lane frame, or on one of its shifted versions."""
-        return self.frame.expect == NONE and (self.has_decision or self.shifted_decisions > 0)
+        """A decision on a no-lane frame, on one of its shifted versions, or on it judged on its
+        own."""
+        return self.frame.expect == NONE and (self.has_decision or self.shifted_decisions > 0
+                                              or self.decided_on_its_own)
 
     @property
     def weakest(self) -> tuple[str, float] | None:
@@ -443,11 +469,16 @@ def _percent(part: int, whole: int) -> str:
     return f"{100.0 * part / whole:.0f}%" if whole else "-"
 
 
-def shifted_only_text(figures: ClassFigures) -> str:
-    """' (2 only in a shifted version)': the false lanes no frame as given showed ('' if none),
-    beside a count of decisions that leaves them out (the terminal's line, the report's table)."""
-    shifted_only = sum(not r.has_decision for r in figures.false_lanes)
-    return f" ({shifted_only} only in a shifted version)" if shifted_only else ""
+def uncounted_text(figures: ClassFigures) -> str:
+    """' (2 only in a shifted version)', ' (1 only judged on its own)': the false lanes no frame
+    as judged showed ('' if none), beside a count of decisions that leaves them out (the
+    terminal's line, the report's table)."""
+    hidden = [r for r in figures.false_lanes if not r.has_decision]
+    parts = [f"{n} only {where}" for n, where in (
+        (sum(r.shifted_decisions > 0 for r in hidden), "in a shifted version"),
+        (sum(r.decided_on_its_own and not r.shifted_decisions for r in hidden),
+         "judged on its own")) if n]
+    return f" ({', '.join(parts)})" if parts else ""
 
 
 def class_line(figures: ClassFigures) -> str:
@@ -456,7 +487,7 @@ def class_line(figures: ClassFigures) -> str:
     text = (f"{title}: {counted(figures.frames, 'frame')}, {figures.decisions} with a decision "
             f"({_percent(figures.decisions, figures.frames)}), {figures.confident} confident")
     if figures.expect == NONE:
-        text += f", {false_lanes_text(len(figures.false_lanes))}{shifted_only_text(figures)}"
+        text += f", {false_lanes_text(len(figures.false_lanes))}{uncounted_text(figures)}"
     if figures.runs:
         run = figures.runs[0]
         span = run.first if run.length == 1 else f"{run.first} .. {run.last}"
@@ -485,20 +516,33 @@ def verdict_line(verdict: Verdict) -> str:
 
 
 def false_lanes_named(false_lanes: Sequence[FrameResult]) -> str:
-    """"2 false lanes (a decision on a no-lane frame): a.jpg, b.jpg", naming each."""
+    """"2 false lanes (a decision on a no-lane frame): a.jpg, b.jpg", naming each; where a
+    false lane's frame as judged had none, where the decision was: "... or a shifted version of
+    it", "..., judged in sequence or on its own"."""
     names = [false_lane_name(r) for r in false_lanes]
-    shifted = " or a shifted version of it" if any(not r.has_decision for r in false_lanes) else ""
-    return (f"{false_lanes_text(len(names))} (a decision on a no-lane frame{shifted}): "
+    hidden = [r for r in false_lanes if not r.has_decision]
+    shifted = " or a shifted version of it" if any(r.shifted_decisions for r in hidden) else ""
+    alone = (", judged in sequence or on its own"
+             if any(r.decided_on_its_own for r in hidden) else "")
+    return (f"{false_lanes_text(len(names))} (a decision on a no-lane frame{shifted}{alone}): "
             f"{name_frames(names)}")
 
 
 def false_lane_name(result: FrameResult) -> str:
-    """A false lane's name, with how many shifted versions got a decision where any did:
-    "free/a.jpg (shifted: 5 of 16)"."""
-    if result.shifted is None or not result.shifted_decisions:
-        return result.frame.name
-    return (f"{result.frame.name} (shifted: {result.shifted_decisions} of "
-            f"{result.shifted.versions})")
+    """A false lane's name, with how many shifted versions got a decision where any did, and
+    the decision it got on its own where only that one decided: "free/a.jpg (shifted: 5 of
+    16)", "frame 512 (on its own: straight at 0.33)"."""
+    name = result.frame.name
+    if result.shifted is not None and result.shifted_decisions:
+        name += f" (shifted: {result.shifted_decisions} of {result.shifted.versions})"
+    if result.on_its_own is not None and result.decided_on_its_own and not result.has_decision:
+        name += f" (on its own: {on_its_own_text(result.on_its_own)})"
+    return name
+
+
+def on_its_own_text(judged: OnItsOwn) -> str:
+    """'straight at 0.33', 'none at 0.00'."""
+    return f"{judged.decision} at {judged.confidence:.2f}"
 
 
 def engage_line(engage: EngageFigures | None) -> str:
@@ -543,11 +587,25 @@ def shifted_line(results: Sequence[FrameResult]) -> str | None:
     return text
 
 
+def on_its_own_line(results: Sequence[FrameResult]) -> str | None:
+    """What a recording's no-lane frames showed judged each on its own (None: none was)."""
+    judged = [r for r in results if r.on_its_own is not None]
+    if not judged:
+        return None
+    hit = [r for r in judged if r.decided_on_its_own]
+    text = (f"no-lane, each also judged on its own (as a photo is, without the frame before it): "
+            f"{counted(len(hit), 'decision')} in {counted(len(judged), 'frame')}")
+    if hit:
+        text += ": " + name_frames([f"{r.frame.name} ({on_its_own_text(r.on_its_own)})"
+                                    for r in hit if r.on_its_own is not None])
+    return text
+
+
 def summary_lines(figures: SurveyFigures) -> list[str]:
-    shifted = shifted_line(figures.results)
-    return [*(class_line(figures.classes[e]) for e in EXPECTS),
-            *([] if shifted is None else [shifted]), verdict_line(figures.verdict),
-            engage_line(figures.verdict.engage)]
+    extra = [line for line in (shifted_line(figures.results), on_its_own_line(figures.results))
+             if line is not None]
+    return [*(class_line(figures.classes[e]) for e in EXPECTS), *extra,
+            verdict_line(figures.verdict), engage_line(figures.verdict.engage)]
 
 
 def survey_notes(figures: SurveyFigures, calibrated: bool) -> list[str]:
@@ -598,6 +656,9 @@ def _result_json(result: FrameResult) -> dict[str, Any]:
         out["shifted"] = {"versions": result.shifted.versions,
                           "decisions": len(result.shifted.decided),
                           "confidences": [round(c, 4) for c in result.shifted.decided]}
+    if result.on_its_own is not None:
+        out["on_its_own"] = {"decision": result.on_its_own.decision,
+                             "confidence": round(result.on_its_own.confidence, 4)}
     if result.frame.note:
         out["note"] = result.frame.note
     return out

@@ -3,9 +3,10 @@ embedded, so the page can be mailed or archived alone).
 
 The page: the verdict at the top (SAFE / NOT SAFE with the false lanes named, whether the
 supervisor engaged), the figures per class, the pictures of the false lanes and of the weakest
-lane frames (perception's overlay, with the colours explained from `perception.overlay.
-OVERLAY_STYLES`, the table the drawing uses), then one table per class with every frame. Text
-building is pure; `write_outputs` is the one place that writes.
+lane frames (or, when every lane frame is confident, of the least confident ones; perception's
+overlay, with the colours explained from `perception.overlay.OVERLAY_STYLES`, the table the
+drawing uses), then one table per class with every frame. Text building is pure;
+`write_outputs` is the one place that writes.
 """
 
 from __future__ import annotations
@@ -29,8 +30,9 @@ from lanewarden.survey import (
     SurveyFigures,
     engage_line,
     not_engaged_words,
-    shifted_only_text,
+    on_its_own_text,
     survey_json,
+    uncounted_text,
     verdict_line,
 )
 from lanewarden.survey_run import FALSE_LANE_PICTURES, WEAK_PICTURES, Picture
@@ -83,7 +85,7 @@ def _summary_table(classes: Mapping[str, ClassFigures]) -> str:
                                                            else "")) for r in f.runs) or "-"
         weak = "<br>".join(_e(f"{c.name}: {c.weakest_in}, {c.median_where_weakest:.2f}")
                            for c in f.components if c.weakest_in) or "-"
-        false = f"{len(f.false_lanes)}{shifted_only_text(f)}" if expect == NONE else "-"
+        false = f"{len(f.false_lanes)}{uncounted_text(f)}" if expect == NONE else "-"
         rows.append(f"<tr><th>{_e(CLASS_FOLDERS[expect])}</th><td class=num>{f.frames}</td>"
                     f"<td class=num>{f.decisions}</td><td class=num>{f.confident}</td>"
                     f"<td class=num>{false}</td><td>{runs}</td><td>{weak}</td></tr>")
@@ -101,6 +103,20 @@ def _pictures(title: str, pictures: Sequence[Picture], empty: str, note: str) ->
     body = (f'<div class="pictures">{"".join(_figure(p) for p in pictures)}</div>'
             if pictures else f"<p>{_e(empty)}</p>")
     return f"<section><h2>{_e(title)}</h2><p>{_e(note)}</p>{body}</section>"
+
+
+def _lane_pictures(pictures: Sequence[Picture]) -> str:
+    """The weakest lane frames; when all of them are confident (every lane frame was), the
+    least confident, headed so."""
+    if pictures and all(p.confident for p in pictures):
+        return _pictures(
+            "Least confident lane frames (every lane frame is confident)", pictures, "",
+            f"No lane frame fell short of confident; these are the least confident of each of "
+            f"up to {WEAK_PICTURES} stretches of the lane frames (in sequence order), to show "
+            "what perception paired.")
+    return _pictures("Weakest lane frames", pictures, "None: no lane frame was surveyed.",
+                     f"Lane frames that are not confident: the least confident of each of up to "
+                     f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")
 
 
 def _legend(undistorted: bool) -> str:
@@ -131,6 +147,8 @@ def _frame_row(result: FrameResult) -> str:
         decision += (f"; shifted: {result.shifted_decisions} of {result.shifted.versions} "
                      "decided" if result.shifted_decisions
                      else f"; shifted: none of {result.shifted.versions}")
+    if result.on_its_own is not None:  # a recording's no-lane frame, judged on its own too
+        decision += f"; on its own: {on_its_own_text(result.on_its_own)}"
     return (f'<tr class="{css}"><td>{_e(result.frame.name)}</td><td>{_e(decision)}</td>'
             f"<td class=num>{result.confidence:.2f}</td><td>{'yes' if result.confident else 'no'}"
             f"</td><td>{_e(weak)}</td><td>{_e(engaged)}</td><td>{_e(result.frame.note)}</td></tr>")
@@ -184,9 +202,7 @@ test (both edges, confidence at least <code>confidence_confident_min</code>); it
 order.</p>
 {_pictures("False lanes", false_lane_pictures, "None: no no-lane frame got a decision.",
            false_note)}
-{_pictures("Weakest lane frames", weak_pictures, "None: every lane frame was confident.",
-           f"Lane frames that are not confident: the least confident of each of up to "
-           f"{WEAK_PICTURES} stretches of the lane frames (in sequence order).")}
+{_lane_pictures(weak_pictures)}
 {_legend(about.get("calibration", "none") != "none")}
 {"".join(_class_table(e, figures.results) for e in EXPECTS)}
 </body></html>

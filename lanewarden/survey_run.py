@@ -11,14 +11,20 @@ on a fake clock; out come the per-frame results, the engage figures and the repo
   first labelled one to the last, in order at their own times, through the same stack, with a
   start at the first and a resume after every halt (an operator who resumes at once); each
   labelled frame's result is the loop's own observation (with the previous one, as on the robot),
-  and the supervisor's state at it is recorded.
+  and the supervisor's state at it is recorded. Each labelled no-lane frame is also judged on its
+  own, exactly as a still is (`OnItsOwn`): in sequence, a lane that "jumped" since the previous
+  frame gets confidence 0 from the `consistency` component, but a robot that comes upon the same
+  view gradually has no such jump to save it; a decision either way is a false lane. Lane frames
+  keep the loop's judgement.
 
 Confident is the supervisor's test (`supervisor.lane_evidence.LaneEvidence`), the decision is
 `lanewarden.assembly.decision_rule`'s. Pictures (perception's own overlay drawing,
-`perception.overlay.draw_detection`) are kept for the first `FALSE_LANE_PICTURES` false lanes and,
-in `WEAK_PICTURES` stretches of the lane frames, the least confident lane frame of each that is not
-confident: memory stays bounded on a long recording. Never reads a clock, never prints (the caller
-passes a progress callback).
+`perception.overlay.draw_detection`, of the detection that decided: the frame as judged, else the
+shifted version or the frame judged on its own) are kept for the first `FALSE_LANE_PICTURES` false
+lanes and, in `WEAK_PICTURES` stretches of the lane frames, the least confident lane frame of each
+that is not confident; when every lane frame is confident, the least confident lane frame of each
+stretch instead (so the report still shows what perception paired): memory stays bounded on a
+long recording. Never reads a clock, never prints (the caller passes a progress callback).
 """
 
 from __future__ import annotations
@@ -53,8 +59,10 @@ from lanewarden.survey import (
     EngageFigures,
     FrameResult,
     LabelledFrame,
+    OnItsOwn,
     Shifted,
     not_engaged_counts,
+    on_its_own_text,
 )
 from lanewarden.survey_source import StillFrame, SurveySource, problems_line
 
@@ -76,13 +84,15 @@ Progress = Callable[[int], None]
 
 @dataclass(frozen=True)
 class Picture:
-    """An annotated frame for the report: JPEG bytes and perception's words about it."""
+    """An annotated frame for the report: JPEG bytes and perception's words about it;
+    `confident`: the frame as judged was (the supervisor's test)."""
 
     name: str
     expect: str
     confidence: float
     caption: tuple[str, ...]
     jpeg: bytes
+    confident: bool = False
 
 
 @dataclass
@@ -105,18 +115,21 @@ def is_engaged(state: str) -> bool:
 def frame_result(frame: LabelledFrame, observation: LaneObservation, decide: DecisionRule,
                  supervisor: SupervisorConfig, *, engaged_after_s: float | None = None,
                  engaged: bool | None = None, not_engaged: str | None = None,
-                 shifted: Shifted | None = None) -> FrameResult:
+                 shifted: Shifted | None = None,
+                 on_its_own: OnItsOwn | None = None) -> FrameResult:
     return FrameResult(
         frame=frame, decision=decide(observation), confidence=observation.confidence,
         confident=LaneEvidence(supervisor).assess(observation).confident,
         components=observation.components, engaged_after_s=engaged_after_s, engaged=engaged,
-        not_engaged=not_engaged, shifted=shifted)
+        not_engaged=not_engaged, shifted=shifted, on_its_own=on_its_own)
 
 
 def picture(result: FrameResult, observation: LaneObservation, debug: DetectionDebug,
-            shifted_decision: str | None = None) -> Picture:
-    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame
-    (`shifted_decision`: the frame is a shifted version of the still, which decided this)."""
+            other: tuple[str, str] | None = None) -> Picture:
+    """Perception's overlay (ROI, segments, tape partners, chosen edges) on the analysed frame.
+    `other`: the detection is not the frame's as judged but (what it is, its decision): a
+    shifted version of a still, or a recording's frame judged on its own; the caption's first
+    line says which."""
     canvas = as_bgr(debug.image)
     draw_detection(canvas, observation, debug)
     if canvas.shape[0] < PICTURE_MIN_ROWS:
@@ -124,11 +137,24 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
         canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
     assert ok, "OpenCV could not encode a picture"
-    caption = tuple(perception_text(observation, shifted_decision or result.decision))
-    if shifted_decision is not None:
-        caption = ("shifted by a fraction of a pixel:", *caption)
+    caption = tuple(perception_text(observation, result.decision if other is None else other[1]))
+    if other is not None:
+        caption = (other[0], *caption)
     return Picture(result.frame.name, result.frame.expect, observation.confidence, caption,
-                   data.tobytes())
+                   data.tobytes(), result.confident)
+
+
+def shifted_caption(offset: tuple[float, float], shifted: Shifted) -> str:
+    """The first caption line of a shifted version's picture: which copy, and how many such
+    copies got a decision."""
+    return (f"a copy shifted by ({offset[0]:+.2f}, {offset[1]:+.2f}) px (x, y); "
+            f"{len(shifted.decided)} of {shifted.versions} such copies got a decision")
+
+
+def on_its_own_caption(result: FrameResult) -> str:
+    """The first caption line of a picture of a recording's frame judged on its own."""
+    return (f"judged on its own, as a photo is (in sequence: "
+            f"{on_its_own_text(OnItsOwn(result.decision, result.confidence))})")
 
 
 class PictureKeeper:
@@ -141,20 +167,35 @@ class PictureKeeper:
         self._lanes = max(1, len(ordered))
         self.false_lanes: list[Picture] = []
         self._weak: dict[int, tuple[tuple[float, int], Picture]] = {}
+        #: the least confident confident lane frame of each stretch, kept only while no lane
+        #: frame is weak (then the weak ones are shown)
+        self._least: dict[int, tuple[tuple[float, int], Picture]] = {}
 
     def offer(self, result: FrameResult, draw: Callable[[], Picture]) -> None:
         if result.false_lane:
             if len(self.false_lanes) < FALSE_LANE_PICTURES:
                 self.false_lanes.append(draw())
-        elif result.frame.expect == LANE and not result.confident:
-            stretch = self._rank[result.frame.order] * WEAK_PICTURES // self._lanes
-            key = (result.confidence, result.frame.order)
-            if stretch not in self._weak or key < self._weak[stretch][0]:
-                self._weak[stretch] = (key, draw())
+            return
+        if result.frame.expect != LANE:
+            return
+        if not result.confident:
+            self._least.clear()
+            kept = self._weak
+        elif self._weak:
+            return
+        else:
+            kept = self._least
+        stretch = self._rank[result.frame.order] * WEAK_PICTURES // self._lanes
+        key = (result.confidence, result.frame.order)
+        if stretch not in kept or key < kept[stretch][0]:
+            kept[stretch] = (key, draw())
 
     @property
     def weak(self) -> list[Picture]:
-        return [self._weak[k][1] for k in sorted(self._weak)]
+        """The weakest lane frames in sequence order: not confident, or, when every lane frame
+        was confident, the least confident (their pictures say `confident`)."""
+        kept = self._weak or self._least
+        return [kept[k][1] for k in sorted(kept)]
 
 
 class HeldImage(FrameStore):
@@ -267,22 +308,46 @@ def shifted_offsets(name: str, seed: int = SHIFT_SEED) -> Iterator[tuple[float, 
         yield float(dx), float(dy)
 
 
+@dataclass(frozen=True)
+class ShiftedSeen:
+    """The first shifted version of a still that got a decision: its detection and its shift
+    (dx, dy), pixels."""
+
+    observation: LaneObservation
+    debug: DetectionDebug
+    offset: tuple[float, float]
+
+
 def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: DecisionRule,
                   versions: int, order: int = 0,
-                  ) -> tuple[Shifted, tuple[LaneObservation, DetectionDebug] | None]:
+                  ) -> tuple[Shifted, ShiftedSeen | None]:
     """A still judged in `versions` copies shifted by `shifted_offsets(name)`: which got a
-    decision, and the first such copy's detection (for its picture)."""
+    decision, and the first such copy's detection and shift (for its picture)."""
     decided: list[float] = []
-    first: np.ndarray | None = None
+    first: tuple[np.ndarray, tuple[float, float]] | None = None
     for dx, dy in itertools.islice(shifted_offsets(name), versions):
         copy = shifted_image(image, dx, dy)
         observation = detector.detect(copy, order, 0.0)
         if decide(observation) != "none":
             decided.append(observation.confidence)
-            first = copy if first is None else first
+            first = (copy, (dx, dy)) if first is None else first
+    if first is None:
+        return Shifted(versions, tuple(decided)), None
     # the debug data (and its undistorted picture) only for the copy the report shows
-    seen = None if first is None else detector.detect_debug(first, order, 0.0)
-    return Shifted(versions, tuple(decided)), seen
+    return Shifted(versions, tuple(decided)), ShiftedSeen(
+        *detector.detect_debug(first[0], order, 0.0), first[1])
+
+
+def judge_on_its_own(image: np.ndarray, index: int, time_s: float, detector: LaneDetector,
+                     name: str) -> tuple[LaneObservation, DetectionDebug]:
+    """A recording's frame (the image the loop analysed) judged on its own: no previous
+    observation, as `survey_stills` judges a still."""
+    try:
+        return detector.detect_debug(image, index, time_s)
+    except PerceptionConfigError as exc:
+        raise ConfigError(f"{name}: {exc}") from None
+    except PerceptionError as exc:  # the loop analysed it: only a detector that differs
+        raise InputFileError(f"{name}: {exc}") from None
 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
@@ -334,8 +399,11 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
                               engaged=None if still.frame.expect != LANE else
                               engaged_after is not None, not_engaged=why_not, shifted=shifted)
         results.append(result)
-        if seen is not None and not result.has_decision:  # a false lane only when shifted
-            keeper.offer(result, partial(picture, result, *seen, decide(seen[0])))
+        if seen is not None and shifted is not None and not result.has_decision:
+            # a false lane only when shifted: the picture of the copy that decided
+            keeper.offer(result, partial(
+                picture, result, seen.observation, seen.debug,
+                (shifted_caption(seen.offset, shifted), decide(seen.observation))))
         else:
             keeper.offer(result, partial(picture, result, observation, debug))
     if problems:
@@ -347,10 +415,11 @@ def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
 
 
 def survey_sequence(source: SurveySource, config: LanewardenConfig,
-                    calibration: CameraCalibration | None, progress: Progress,
-                    size: tuple[int, int] | None = None) -> SurveyRun:
-    """The recording's labelled span through the loop (see the module docstring); a frame of
-    another size than the calibration's (without one: `size`, the first frame's) is an
+                    calibration: CameraCalibration | None, detector: LaneDetector,
+                    progress: Progress, size: tuple[int, int] | None = None) -> SurveyRun:
+    """The recording's labelled span through the loop, and each labelled no-lane frame also on
+    its own through `detector` (as `survey_stills` judges a still; see the module docstring); a
+    frame of another size than the calibration's (without one: `size`, the first frame's) is an
     InputFileError."""
     recording = source.sequence
     assert recording is not None
@@ -393,10 +462,21 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
             unread.append(frame.name)
             continue
         observation, debug = step.detection
-        result = frame_result(frame, observation, decide, config.supervisor, engaged=engaged)
+        alone = None
+        if frame.expect == NONE:
+            assert step.image is not None  # the image the loop's detection analysed
+            alone = judge_on_its_own(step.image, index, step.step_input.t, detector, frame.name)
+        result = frame_result(frame, observation, decide, config.supervisor, engaged=engaged,
+                              on_its_own=None if alone is None else OnItsOwn(
+                                  decide(alone[0]), alone[0].confidence))
         results.append(result)
         engaged_lane += engaged and frame.expect == LANE
-        keeper.offer(result, partial(picture, result, observation, debug))
+        if alone is not None and result.decided_on_its_own and not result.has_decision:
+            # a false lane only on its own: the picture of that detection
+            keeper.offer(result, partial(picture, result, *alone, (
+                on_its_own_caption(result), decide(alone[0]))))
+        else:
+            keeper.offer(result, partial(picture, result, observation, debug))
     if unread:
         raise InputFileError(problems_line(f"labelled frames of {recording.name} could not be "
                                            "read or analysed", len(labelled), unread))

@@ -5,6 +5,8 @@
   order; then those of its sub-folders, such as `no-lane/seams/`), labelled by the class folder
   they are under; another sub-folder holding images is an error (an unknown label), so a
   misspelt `nolane/` is not silently left out, and so are images beside the class folders;
+  hidden files and folders under a class folder (`.DS_Store`, `.thumbs/`) are skipped alike, and
+  the images among them counted (`SurveySource.hidden`: the command names them in a note);
 - FOLDER with a `labels.csv` (or `--labels FILE` naming one): `file,expect[,note]` rows name
   images by their path relative to FOLDER; the rows' order is the sequence order;
 - a recording with `--labels FILE` of `frames,expect[,note]` rows (a frame index or an inclusive
@@ -67,7 +69,9 @@ class SurveySource:
     """What to survey: `stills` (independent images) or `sequence` (a recording, with the
     labelled frames by the recording's frame index in `labelled`). `unlabelled`: images in a
     labels file's folder that it does not name, `skipped`: frame indices within labelled ranges
-    that the recording lacks (neither surveyed; the command says so)."""
+    that the recording lacks, `hidden`: images under the class folders in hidden files or
+    folders (none of these surveyed; the command says so). `labels`: the labels file as messages
+    name it ("--labels 'clip.csv'", "floor/labels.csv"; None: class folders)."""
 
     name: str
     description: str
@@ -76,6 +80,8 @@ class SurveySource:
     labelled: dict[int, LabelledFrame] = field(default_factory=dict)
     unlabelled: list[str] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
+    hidden: list[str] = field(default_factory=list)
+    labels: str | None = None
 
 
 def shown_name(name: str) -> str:
@@ -96,10 +102,16 @@ def problems_line(what: str, total: int, problems: list[str]) -> str:
     return f"{len(problems)} of {total} {what}: {shown}{more}"
 
 
+def labels_named(path: Path, flag: bool) -> str:
+    """The labels file as messages name it (`flag`: given with --labels, else FOLDER's own
+    labels.csv)."""
+    return f"--labels '{path}'" if flag else str(path)
+
+
 def read_labels(path: Path, flag: bool = True) -> LabelsTable:
     """The labels file at `path` (`flag`: named with --labels, else FOLDER's own labels.csv),
     refused unread above MAX_LABELS_BYTES."""
-    named = f"--labels '{path}'" if flag else str(path)
+    named = labels_named(path, flag)
     if is_special_file(path):
         raise InputFileError(f"{named}: {NOT_A_REGULAR_FILE}, expected a labels file")
     try:
@@ -119,13 +131,16 @@ def read_labels(path: Path, flag: bool = True) -> LabelsTable:
     return parse_labels(text, str(path))
 
 
-def _class_folders(folder: Path) -> list[StillFrame]:
+def _class_folders(folder: Path) -> tuple[list[StillFrame], list[str]]:
     """The images of FOLDER/lane and FOLDER/no-lane, their sub-folders included (a user may sort
     no-lane/ into seams/, one-tape/, ...: every image under a class folder is of that class);
     an unknown sub-folder of images, or images beside the class folders, is an error: a frame
-    the survey cannot label is never silently left out."""
+    the survey cannot label is never silently left out. Also the images skipped as hidden (a
+    hidden file, or any file in a hidden folder, under a class folder), named relative to
+    FOLDER."""
     by_folder = {name: expect for expect, name in CLASS_FOLDERS.items()}
     stills: list[StillFrame] = []
+    hidden: list[str] = []
     subs = sorted(p for p in folder.iterdir() if p.is_dir())
     loose = image_sequence_paths(str(folder)) or []
     if loose and any(sub.name in by_folder for sub in subs):
@@ -135,7 +150,7 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                          f"({names}); expected every image in lane/ or no-lane/ (or a "
                          f"{LABELS_NAME})")
     for sub in subs:
-        paths = _images_under(sub)
+        paths, skipped = _images_under(sub)
         if sub.name not in by_folder:
             if paths:
                 close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
@@ -144,6 +159,7 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                  f"{counted(len(paths), 'image')}; expected lane/ or "
                                  f"no-lane/{hint}")
             continue
+        hidden.extend(shown_name(path.relative_to(folder).as_posix()) for path in skipped)
         for path in paths:
             name = shown_name(path.relative_to(folder).as_posix())
             stills.append(StillFrame(LabelledFrame(name, by_folder[sub.name], 0), path))
@@ -156,7 +172,7 @@ def _class_folders(folder: Path) -> list[StillFrame]:
                                  "link, or a hard link); expected each photo once, in lane/ or "
                                  "no-lane/")
     return [StillFrame(LabelledFrame(s.frame.name, s.frame.expect, i), s.path)
-            for i, s in enumerate(stills)]
+            for i, s in enumerate(stills)], hidden
 
 
 def _same_file(path: Path, name: str, seen: dict[tuple[int, int], str]) -> str | None:
@@ -180,27 +196,38 @@ def _same_file(path: Path, name: str, seen: dict[tuple[int, int], str]) -> str |
 SYSTEM_FILES = frozenset({"thumbs.db", "ehthumbs.db", "ehthumbs_vista.db", "desktop.ini"})
 
 
-def _images_under(folder: Path) -> list[Path]:
+def is_hidden(path: Path) -> bool:
+    """A hidden file or folder (its name starts with a dot: .DS_Store, macOS's ._IMG_0001.jpg
+    beside a copied photo, .thumbs/, .git/)."""
+    return path.name.startswith(".")
+
+
+def _images_under(folder: Path) -> tuple[list[Path], list[Path]]:
     """The images in `folder` (natural name order), then those of its sub-folders, each in
-    turn, in name order (hidden folders, such as .git, left out; a folder reached twice through
-    a link is read once, so a link loop ends). A loop over a stack, not recursion: a folder
-    nested thousands deep is walked, not a RecursionError; an unreadable folder is one line."""
+    turn, in name order; and the images skipped as hidden: hidden files, and every image in a
+    hidden folder (such as .thumbs/ or .git/), walked only to count them (a folder reached
+    twice through a link is read once, so a link loop ends). A loop over a stack, not
+    recursion: a folder nested thousands deep is walked, not a RecursionError; an unreadable
+    folder is one line."""
     paths: list[Path] = []
+    skipped: list[Path] = []
     seen: set[tuple[int, int]] = set()  # (device, inode): one stat, not a walk of the path
     inside = folder.resolve().parent  # the survey's FOLDER (`folder` is a class folder in it)
-    stack = [folder]
+    stack = [(folder, False)]
     while stack:
-        here = stack.pop()
+        here, in_hidden = stack.pop()
         try:
             info = here.stat()
             if (info.st_dev, info.st_ino) in seen:
                 continue
             seen.add((info.st_dev, info.st_ino))
-            paths.extend(image_sequence_paths(str(here)) or [])
-            others = sorted(p for p in here.iterdir() if not p.name.startswith(".")
-                            and p.name.lower() not in SYSTEM_FILES
-                            and p.suffix.lower() not in IMAGE_SUFFIXES and p.is_file())
-            subs = sorted(p for p in here.iterdir() if p.is_dir() and not p.name.startswith("."))
+            for image in image_sequence_paths(str(here)) or []:
+                (skipped if in_hidden or is_hidden(image) else paths).append(image)
+            others = [] if in_hidden else sorted(
+                p for p in here.iterdir() if not is_hidden(p)
+                and p.name.lower() not in SYSTEM_FILES
+                and p.suffix.lower() not in IMAGE_SUFFIXES and p.is_file())
+            subs = sorted(p for p in here.iterdir() if p.is_dir())
         except OSError as exc:
             raise InputFileError(f"{here}: cannot read this folder ({exc.strerror or exc})"
                                  ) from None
@@ -218,8 +245,9 @@ def _images_under(folder: Path) -> list[Path]:
                 raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
                                      "expected the survey's photos inside its folder (copy them "
                                      "in)")
-        stack.extend(reversed(subs))  # the first in name order is walked next
-    return paths
+        # the first in name order is walked next
+        stack.extend((sub, in_hidden or is_hidden(sub)) for sub in reversed(subs))
+    return paths, skipped
 
 
 def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
@@ -366,8 +394,8 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
             labels_path = path / LABELS_NAME
     if labels_path is not None:
         table = read_labels(labels_path, flag=labels is not None)
-    if table is None:
-        stills = _class_folders(path)
+    if table is None or labels_path is None:
+        stills, hidden = _class_folders(path)
         if not stills:
             # photos there, unsorted: name them, and the two ways to label them
             loose = image_sequence_paths(str(path)) or []
@@ -378,7 +406,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                              f"{LABELS_NAME}{there}; expected {FOLDER_HELP}")
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (class folders lane/, no-lane/)",
-                            stills=stills)
+                            stills=stills, hidden=hidden)
     if table.kind == "file":
         if not path.is_dir():
             raise UsageError(f"FOLDER '{folder}': {table.source} names image files, so FOLDER "
@@ -390,7 +418,8 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         stills = _labelled_files(path, table)
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",
-                            stills=stills, unlabelled=_unlabelled(path, stills))
+                            stills=stills, unlabelled=_unlabelled(path, stills),
+                            labels=labels_named(labels_path, labels is not None))
     if classes := _class_folder_names(path):
         raise UsageError(f"FOLDER '{folder}': {table.source} labels frame numbers "
                          f"(frames,expect) of a recording, but FOLDER holds "
@@ -409,4 +438,5 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         _check_headers([(f"frame {i}", p) for i, p in enumerate(source.frames.paths)
                         if first <= i <= last], max_pixels)
     return SurveySource(source.name, f"{folder} ({source.kind}; labels: {table.source})",
-                        sequence=source, labelled=labelled, skipped=skipped)
+                        sequence=source, labelled=labelled, skipped=skipped,
+                        labels=labels_named(labels_path, labels is not None))

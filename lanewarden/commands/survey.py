@@ -38,6 +38,7 @@ from lanewarden.errors import (
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig
     from lanewarden.perception.calibration import CameraCalibration
+    from lanewarden.survey import LabelledFrame
     from lanewarden.survey_source import SurveySource
 
 #: Most shifted versions `--jitter` makes of each no-lane still.
@@ -87,7 +88,6 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
     from lanewarden.replay_sources import replay_config, usable_calibration
-    from lanewarden.survey import NONE
     from lanewarden.survey_source import open_survey_source
 
     config = load_config(config_path)
@@ -112,14 +112,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
                           config_path=config_path, calibration_path=calibration_path)
     frames = ([s.frame for s in source.stills] if source.sequence is None
               else list(source.labelled.values()))
-    if not any(f.expect == NONE for f in frames):
-        raise UsageError(f"FOLDER '{folder}': no no-lane frame; a survey shows that perception "
-                         "sees no lane on bare floor, seams, one tape alone, a tape's end: put "
-                         "such frames in no-lane/ or label them none")
-    if not any(f.expect != NONE for f in frames):
-        raise UsageError(f"FOLDER '{folder}': no lane frame; a survey also shows that perception "
-                         "finds your lane and the supervisor engages on it: put photos of the "
-                         "lane in lane/ or label them lane")
+    _refuse_a_missing_class(folder, source, frames)
     # the frames' own size (the first frame's: a survey's stills are of one size), for the
     # ground model as detect describes it, and to check the calibration before any work
     first = (source.sequence.frames.image(0) if source.sequence is not None
@@ -147,6 +140,33 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
             with contextlib.suppress(OSError):
                 out.rmdir()
         raise
+
+
+#: Why a survey needs frames of each class, and what such a frame shows.
+NEEDED = {
+    "none": ("a survey shows that perception sees no lane on bare floor, seams, one tape alone, "
+             "a tape's end"),
+    "lane": "a survey also shows that perception finds your lane and the supervisor engages on it",
+}
+
+
+def _refuse_a_missing_class(folder: str, source: SurveySource,
+                            frames: list[LabelledFrame]) -> None:
+    """UsageError when no frame is of one class, in the words of how the frames were labelled:
+    the class folder to fill, or the label the labels file lacks (with a row's form)."""
+    from lanewarden.survey import CLASS_FOLDERS, EXPECTS
+
+    for expect in EXPECTS:
+        if any(f.expect == expect for f in frames):
+            continue
+        title = CLASS_FOLDERS[expect]
+        if source.labels is None:
+            raise UsageError(f"FOLDER '{folder}': no {title} frame; {NEEDED[expect]}: put such "
+                             f"photos in {title}/")
+        row = "120-180" if source.sequence is not None else "photo.jpg"
+        raise UsageError(f"{source.labels}: no frame labelled {expect}; {NEEDED[expect]}: "
+                         f"expected at least one row labelling such frames {expect} (e.g. "
+                         f"{row},{expect})")
 
 
 def _refuse_out_among_inputs(out: Path, folder: str, source: SurveySource, flag: bool) -> None:
@@ -218,7 +238,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
             run = survey_stills(source.stills, config, calibration, detector, bar.update,
                                 jitter, size)
         else:
-            run = survey_sequence(source, config, calibration, bar.update, size)
+            run = survey_sequence(source, config, calibration, detector, bar.update, size)
     figures = judge(run.results, run.engage)
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
@@ -228,6 +248,10 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "
                      f"labels file, not surveyed ({some})")
+    if source.hidden:
+        some = first_few([shorten(name) for name in source.hidden[:4]])
+        notes.append(f"note: {counted(len(source.hidden), 'image')} in hidden files or folders "
+                     f"under lane/ and no-lane/ skipped, not surveyed ({some})")
     if source.skipped:
         notes.append(f"note: {counted(len(source.skipped), 'labelled frame')} not in the "
                      f"recording, not surveyed (dropped or skipped while recording: frame "

@@ -19,7 +19,7 @@ SAFETY_FILES = {
     "supervisor/lane_evidence.py", "supervisor/commands.py", "supervisor/loop.py",
     "perception/confidence.py", "perception/lines.py", "perception/one_side.py",
     "perception/edge_choice.py", "lanewarden/survey.py", "supervisor/center_offset.py",
-    "perception/detector.py", "lanewarden/runner.py",
+    "perception/detector.py", "lanewarden/runner.py", "lanewarden/survey_run.py",
 }  # fmt: skip
 
 

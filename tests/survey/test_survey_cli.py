@@ -337,7 +337,7 @@ def test_a_labels_csv_and_not_safe(tmp_path: Path, capsys: pytest.CaptureFixture
     page = (tmp_path / "o" / "report.html").read_text()
     _report_is_self_contained(page)
     assert '<div class="verdict unsafe"><b>NOT SAFE</b>' in page
-    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Weakest lane")]
+    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Least confident")]
     assert false_lanes.count("<figure>") == 1 and "<b>straight.jpg</b>" in false_lanes
     # no --calibration: the pictures were not undistorted, and the caption says so
     assert "the frame perception analysed (as the camera gave it: no calibration" in page
@@ -396,6 +396,65 @@ def test_frame_labels_beyond_the_recording(clip: Path, tmp_path: Path,
                    "(video, frames 0-100)\n")
 
 
+@pytest.fixture
+def jumped(tmp_path: Path) -> tuple[Path, Path]:
+    """A recording (a folder of frames) whose no-lane frame shows a lane that jumped: frames 0-9
+    a straight lane (solid and dashed tapes in turn), frame 10 a bend to the left labelled none
+    on purpose, frame 11 bare tiles; and its frame labels."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index in range(10):
+        shutil.copy(RENDERED / "lane" / ("dashed.jpg" if index % 2 else "straight.jpg"),
+                    frames / f"{index:03d}.jpg")
+    shutil.copy(RENDERED / "lane" / "bend-left.jpg", frames / "010.jpg")
+    shutil.copy(RENDERED / "no-lane" / "tiles.jpg", frames / "011.jpg")
+    labels = tmp_path / "frames.csv"
+    labels.write_text("frames,expect,note\n0-9,lane,two tapes\n"
+                      "10,none,a lane that jumped: labelled none on purpose\n11,none,bare tiles\n")
+    return frames, labels
+
+
+def test_a_recordings_no_lane_frame_is_also_judged_on_its_own(
+        jumped: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """In sequence the bend after the straight lane gets confidence 0 (its `consistency` with
+    the frame before: the lane jumped), so the loop sees no lane there and the survey said SAFE;
+    judged on its own, as `detect` and a survey of photos judge it, it decides "left" at 0.77.
+    A robot that comes upon that view gradually has no jump to save it: NOT SAFE, exit 3, the
+    frame named with its decision on its own, its picture that detection's."""
+    frames, labels = jumped
+    code, out, err = _survey([str(frames), "--labels", str(labels), "--out",
+                              str(tmp_path / "o")], capsys)
+    assert code == 3, out
+    lines = out.splitlines()
+    assert lines[2] == ("no-lane: 2 frames, 0 with a decision (0%), 0 confident, 1 false lane "
+                        "(1 only judged on its own); no confident frame; weakest: consistency "
+                        "in 1 frame (median there 0.00), lane_width in 1 (0.00)")
+    assert lines[3] == ("no-lane, each also judged on its own (as a photo is, without the frame "
+                        "before it): 1 decision in 2 frames: frame 10 (left at 0.77)")
+    assert lines[4] == ("verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame, judged "
+                        "in sequence or on its own): frame 10 (on its own: left at 0.77)")
+    assert err.endswith("lanewarden: not safe: 1 false lane (a decision on a no-lane frame, "
+                        "judged in sequence or on its own): frame 10 (on its own: left at "
+                        "0.77)\n")
+    document = json.loads((tmp_path / "o" / "survey.json").read_text())
+    assert document["verdict"]["false_lanes"] == ["frame 10"]
+    no_lane = {f["frame"]: (f["decision"], f["confidence"], f["weakest"], f["on_its_own"])
+               for f in document["frames"] if f["expect"] == "none"}
+    assert no_lane == {
+        "frame 10": ("none", 0.0, "consistency", {"decision": "left", "confidence": 0.7746}),
+        "frame 11": ("none", 0.0, "lane_width", {"decision": "none", "confidence": 0.0})}
+    # lane frames keep the loop's judgement: none is judged again
+    assert not any("on_its_own" in f for f in document["frames"] if f["expect"] == "lane")
+    page = html.unescape((tmp_path / "o" / "report.html").read_text())
+    false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Least confident")]
+    assert false_lanes.count("<figure>") == 1
+    assert ("<figcaption><b>frame 10</b><br>judged on its own, as a photo is (in sequence: none "
+            "at 0.00)<br>slope sum +10.86<br>confidence 0.77 (lowest tape_pair_left 0.60)<br>"
+            "decision left</figcaption>") in false_lanes
+    assert "<td>none; on its own: left at 0.77</td>" in page
+    assert "<td class=num>1 (1 only judged on its own)</td>" in page
+
+
 def test_images_in_sub_folders_of_a_class_folder_are_of_that_class(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A user sorts no-lane/ into kinds of floor: a lane photo put in no-lane/tricky/ by mistake
@@ -412,6 +471,45 @@ def test_images_in_sub_folders_of_a_class_folder_are_of_that_class(
                    "no-lane/tricky/straight.jpg\n")
     names = [f["frame"] for f in json.loads((tmp_path / "o" / "survey.json").read_text())["frames"]]
     assert names == ["lane/dashed.jpg", "no-lane/tiles.jpg", "no-lane/tricky/straight.jpg"]
+
+
+def test_images_in_hidden_files_and_folders_are_skipped_and_named(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A lane photo in no-lane/.thumbs/ was skipped without a word (and one in a hidden file
+    surveyed): both are skipped, and a note says how many and names the first few."""
+    (floor / "no-lane" / ".thumbs").mkdir()
+    shutil.copy(RENDERED / "lane" / "straight.jpg", floor / "no-lane" / ".thumbs")
+    shutil.copy(RENDERED / "lane" / "straight.jpg", floor / "no-lane" / ".straight.jpg")
+    code, out, err = _survey([str(floor), "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert "verdict: SAFE: no decision on any of the 2 no-lane frames" in out
+    note = ("note: 2 images in hidden files or folders under lane/ and no-lane/ skipped, not "
+            "surveyed (no-lane/.straight.jpg, no-lane/.thumbs/straight.jpg)")
+    assert note in out.splitlines()
+    document = json.loads((tmp_path / "o" / "survey.json").read_text())
+    assert note.removeprefix("note: ") in document["notes"]
+    assert len(document["frames"]) == 5
+
+
+def test_the_report_shows_lane_pictures_when_every_lane_frame_is_confident(
+        floor: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A SAFE survey whose lane frames were all confident showed no picture at all: now the
+    least confident lane frames, under a heading that says they are confident. With one lane
+    frame not confident, only the weakest are shown, as before."""
+    assert _survey([str(floor), "--out", str(tmp_path / "o")], capsys)[0] == 0
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "<h2>Weakest lane frames</h2>" not in page
+    shown = page[page.index("<h2>Least confident lane frames (every lane frame is confident)"
+                            "</h2>"):page.index("<h2>Reading the pictures")]
+    assert re.findall(r"<figcaption><b>([^<]*)</b>", shown) == [
+        "lane/dashed.jpg", "lane/straight.jpg", "lane/tiles-lane.jpg"]
+    # two different tapes: no decision, not confident
+    shutil.copy(RENDERED / "lane" / "two-tapes.jpg", floor / "lane")
+    assert _survey([str(floor), "--out", str(tmp_path / "o")], capsys)[0] == 0
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "<h2>Least confident lane frames" not in page
+    shown = page[page.index("<h2>Weakest lane frames</h2>"):page.index("<h2>Reading the")]
+    assert re.findall(r"<figcaption><b>([^<]*)</b>", shown) == ["lane/two-tapes.jpg"]
 
 
 def test_the_ground_model_is_described_at_the_frames_size(
@@ -476,7 +574,25 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     if case == "no lane frame":
         (folder / "no-lane").mkdir()
         shutil.copy(tiles, folder / "no-lane")
-        return [str(folder)], f"FOLDER '{folder}': no lane frame"
+        return [str(folder)], (f"FOLDER '{folder}': no lane frame; a survey also shows that "
+                               "perception finds your lane and the supervisor engages on it: "
+                               "put such photos in lane/\n")
+    if case in ("frame labels without none", "file labels without lane"):
+        # a video's labels had been told to "put such frames in no-lane/"
+        shutil.copy(lane, folder / "000.jpg")
+        shutil.copy(tiles, folder / "001.jpg")
+        if case == "file labels without lane":
+            (folder / "labels.csv").write_text("file,expect\n001.jpg,none\n")
+            return [str(folder)], (
+                f"{folder / 'labels.csv'}: no frame labelled lane; a survey also shows that "
+                "perception finds your lane and the supervisor engages on it: expected at least "
+                "one row labelling such frames lane (e.g. photo.jpg,lane)\n")
+        labels = tmp_path / "frames.csv"
+        labels.write_text("frames,expect\n0-1,lane\n")
+        return [str(folder), "--labels", str(labels)], (
+            f"--labels '{labels}': no frame labelled none; a survey shows that perception sees "
+            "no lane on bare floor, seams, one tape alone, a tape's end: expected at least one "
+            "row labelling such frames none (e.g. 120-180,none)\n")
     if case in ("a photo the survey cannot read", "frames of two sizes"):
         _photos(folder, lane, tiles)
         # files Windows leaves in a folder of photos are passed over, as hidden ones are (a
@@ -561,6 +677,7 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 @pytest.mark.parametrize("case", [
     "missing folder", "no frames", "photos not sorted", "unknown class folder",
     "images beside the class folders", "no no-lane frame", "no lane frame",
+    "frame labels without none", "file labels without lane",
     "a photo the survey cannot read", "frames of two sizes",
     "a photo turned by its EXIF orientation",
     "frame labels for photos", "calibration of another size", "not an image",
@@ -627,7 +744,11 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
     assert all(0.2 <= c < 0.6 for s in shifted.values() for c in s["confidences"])
     assert all(f["decision"] == "none" for f in document["frames"] if f["expect"] == "none")
     page = (tmp_path / "out" / "report.html").read_text()
-    assert "shifted by a fraction of a pixel:" in page  # the picture of a shifted version
+    # the picture of a shifted version: which one, in words that end (the caption had ended in
+    # "shifted by a fraction of a pixel:" and nothing after the colon)
+    assert "shifted by a fraction of a pixel:" not in page
+    assert (f"<figcaption><b>{SLIVER}</b><br>a copy shifted by (+0.42, +0.44) px (x, y); 9 of "
+            "16 such copies got a decision<br>slope sum ") in page
     assert "<td>none; shifted: 9 of 16 decided</td>" in page  # the frame's row in the table
     # the summary table's false lanes say where they came from: its decisions column has none
     assert "<td class=num>2 (2 only in a shifted version)</td>" in page

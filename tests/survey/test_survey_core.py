@@ -17,6 +17,7 @@ from lanewarden.survey import (
     EngageFigures,
     FrameResult,
     LabelledFrame,
+    OnItsOwn,
     _engage_json,
     _result_json,
     class_figures,
@@ -28,6 +29,7 @@ from lanewarden.survey import (
     name_frames,
     not_engaged_counts,
     parse_labels,
+    summary_lines,
     survey_json,
     verdict_line,
 )
@@ -202,6 +204,42 @@ def test_a_decision_on_a_no_lane_frame_makes_it_not_safe_and_names_the_frames() 
     assert (none.frames, none.decisions, none.confident) == (4, 3, 1)
     assert class_line(none) == ("no-lane: 4 frames, 3 with a decision (75%), 1 confident, 3 false "
                                 "lanes; longest confident run 1 (frame 12)")
+
+
+def test_a_recordings_no_lane_frame_that_decides_on_its_own_is_a_false_lane() -> None:
+    """A no-lane frame of a recording is judged in sequence and on its own: a decision either
+    way is a false lane; its name says the decision on its own only where the sequence had
+    none (frame 11 decided in both); a lane frame's judgement on its own is never asked."""
+    results = [
+        result("frame 10", "lane", 10, "straight", 0.9, True),
+        dataclasses.replace(result("frame 11", "none", 11, "straight", 0.45),
+                            on_its_own=OnItsOwn("straight", 0.53)),
+        dataclasses.replace(result("frame 12", "none", 12, consistency=0.0),
+                            on_its_own=OnItsOwn("straight", 0.33)),
+        dataclasses.replace(result("frame 13", "none", 13), on_its_own=OnItsOwn("none", 0.0)),
+    ]
+    figures = judge(results, None)
+    assert not figures.verdict.safe
+    assert [r.frame.name for r in figures.verdict.false_lanes] == ["frame 11", "frame 12"]
+    assert verdict_line(figures.verdict) == (
+        "verdict: NOT SAFE: 2 false lanes (a decision on a no-lane frame, judged in sequence or "
+        "on its own): frame 11, frame 12 (on its own: straight at 0.33)")
+    assert class_line(figures.classes["none"]) == (
+        "no-lane: 3 frames, 1 with a decision (33%), 0 confident, 2 false lanes (1 only judged "
+        "on its own); no confident frame; weakest: consistency in 1 frame (median there 0.00)")
+    assert summary_lines(figures)[2] == (
+        "no-lane, each also judged on its own (as a photo is, without the frame before it): 2 "
+        "decisions in 3 frames: frame 11 (straight at 0.53), frame 12 (straight at 0.33)")
+    frames = {f["frame"]: f.get("on_its_own") for f in survey_json(figures, {})["frames"]}
+    assert frames == {"frame 10": None,
+                      "frame 11": {"decision": "straight", "confidence": 0.53},
+                      "frame 12": {"decision": "straight", "confidence": 0.33},
+                      "frame 13": {"decision": "none", "confidence": 0.0}}
+    # none decides on its own: SAFE, and the line says so
+    safe = judge([results[0], results[3]], None)
+    assert safe.verdict.safe
+    assert summary_lines(safe)[2] == ("no-lane, each also judged on its own (as a photo is, "
+                                      "without the frame before it): 0 decisions in 1 frame")
 
 
 def test_no_decision_on_no_lane_frames_is_safe_and_lane_decisions_are_no_false_lanes() -> None:

@@ -61,7 +61,7 @@ def test_a_link_loop_under_a_class_folder_ends(tmp_path: Path) -> None:
     (tmp_path / "lane" / "a.png").write_bytes(b"")
     (tmp_path / "no-lane" / "b.png").write_bytes(b"")
     (tmp_path / "no-lane" / "again").symlink_to(tmp_path / "no-lane", target_is_directory=True)
-    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path)]
+    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path)[0]]
     assert names == [("lane/a.png", "lane"), ("no-lane/b.png", "none")]
 
 
@@ -109,7 +109,7 @@ def test_a_folder_nested_deeper_than_pythons_recursion_limit_is_walked(
     Path("b.png").write_bytes(b"")
     monkeypatch.chdir(tmp_path)
     try:
-        stills = _class_folders(tmp_path)
+        stills, _ = _class_folders(tmp_path)
         assert [s.frame.expect for s in stills] == ["lane", "none"]
         assert stills[1].frame.name == "no-lane/" + "d/" * 1200 + "b.png"
     finally:
@@ -202,9 +202,26 @@ def test_a_class_folder_whose_name_has_a_percent_sign_is_read(tmp_path: Path) ->
     _class_set(tmp_path / "50% light")
     (tmp_path / "50% light" / "no-lane" / "dim 50%").mkdir()
     (tmp_path / "50% light" / "no-lane" / "dim 50%" / "d.png").write_bytes(b"")
-    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path / "50% light")]
+    names = [(s.frame.name, s.frame.expect) for s in _class_folders(tmp_path / "50% light")[0]]
     assert names == [("lane/a.png", "lane"), ("lane/b.png", "lane"), ("no-lane/c.png", "none"),
                      ("no-lane/dim 50%/d.png", "none")]
+
+
+def test_hidden_files_and_hidden_folders_under_a_class_folder_are_skipped_alike(
+        tmp_path: Path) -> None:
+    """no-lane/.thumbs/straight.png was left out without a word while no-lane/.hidden.png was
+    surveyed: both are skipped now, and both named (every image under a hidden folder, however
+    deep; a hidden folder's other files are no error, nor is a hidden file that is no image)."""
+    _class_set(tmp_path)
+    for name in ("no-lane/.thumbs/straight.png", "no-lane/.hidden.png", "lane/.thumbs/notes.txt",
+                 "lane/sub/.cache/deeper/x.jpg", "lane/.DS_Store", "no-lane/._c.png"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(b"")
+    stills, hidden = _class_folders(tmp_path)
+    assert [(s.frame.name, s.frame.expect) for s in stills] == [
+        ("lane/a.png", "lane"), ("lane/b.png", "lane"), ("no-lane/c.png", "none")]
+    assert hidden == ["lane/sub/.cache/deeper/x.jpg", "no-lane/._c.png", "no-lane/.hidden.png",
+                      "no-lane/.thumbs/straight.png"]
 
 
 @pytest.mark.parametrize("target", ["/dev/null", "missing.csv", "labels.csv"])
@@ -242,7 +259,7 @@ def test_a_frame_is_named_in_one_line_whatever_its_file_is_called(tmp_path: Path
     _class_set(tmp_path)
     (tmp_path / "no-lane" / "fake\nlane.png").write_bytes(b"")
     (tmp_path / "no-lane" / "red\x1b[31m.png").write_bytes(b"")
-    names = [s.frame.name for s in _class_folders(tmp_path)]
+    names = [s.frame.name for s in _class_folders(tmp_path)[0]]
     assert names[2:] == ["no-lane/c.png", "no-lane/fake\\nlane.png", "no-lane/red\\x1b[31m.png"]
     table = parse_labels("file,expect\nno-lane/red\x1b[31m.png,none\n", "labels.csv")
     assert [s.frame.name for s in _labelled_files(tmp_path, table)] == ["no-lane/red\\x1b[31m.png"]
