@@ -243,7 +243,8 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground, "jitter": jitter}
-    notes = survey_notes(figures, calibration is not None)
+    notes = survey_notes(figures, calibration is not None,
+                         calibration is None or calibration.ground is not None)
     if source.unlabelled:
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "

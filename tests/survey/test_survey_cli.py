@@ -772,3 +772,19 @@ def test_jitter_is_for_stills(clip: Path, capsys: pytest.CaptureFixture[str]) ->
     assert err == (f"lanewarden: error: --jitter 4: shifts stills (class folders or a labels "
                    f"file of images); '{clip / 'clip.mp4'}' is a recording, whose frames "
                    "already differ from one to the next: survey it without --jitter\n")
+
+
+def test_a_calibration_without_a_ground_pose_gets_a_note() -> None:
+    """`lanewarden calibrate`'s file without `calibrate ground`: a new user's survey said SAFE
+    with no note, though tapes and seams were measured through the simulator's mount."""
+    from lanewarden.survey import LANE, ClassFigures, SurveyFigures, Verdict, survey_notes
+
+    lane = ClassFigures(LANE, frames=3, decisions=3, confident=3, false_lanes=(), runs=(),
+                        components=())
+    figures = SurveyFigures({LANE: lane}, Verdict(True, (), 6, None), ())
+    assert survey_notes(figures, calibrated=True, ground_pose=False) == [
+        "note: the --calibration has no ground pose: the frames were judged as if your camera "
+        "were mounted as the simulator's (h 0.400 m, pitch 35.0°, 0.150 m ahead of the "
+        "robot's centre), so tapes and seams were measured through that mount; with its ground "
+        "pose (lanewarden calibrate ground) the figures are your camera's"]
+    assert survey_notes(figures, calibrated=True, ground_pose=True) == []
