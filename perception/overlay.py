@@ -40,7 +40,10 @@ OVERLAY_STYLES: dict[str, OverlayStyle] = {
     "partner": OverlayStyle((200, 120, 255), "tape partner",
                             "the other side of the same tape (thin): the chosen edge belongs "
                             "to a tape, not to a tile seam"),
-    "segment": OverlayStyle((0, 200, 255), "Hough segments",
+    # Deep blue: yellow's (and wood's, and beige's) opposite, so it stands apart from yellow and
+    # white tape, grey and brown floors and the other colours here (it was orange-yellow, which
+    # a yellow centre line hid in real frames).
+    "segment": OverlayStyle((255, 100, 60), "Hough segments",
                             "every line segment Hough found inside the ROI (faint)"),
     "roi": OverlayStyle((255, 200, 0), "ROI",
                         "perception's region of interest (the floor it looks at)"),
