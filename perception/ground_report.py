@@ -281,7 +281,8 @@ def draw_ground_check(
     floor grid every 0.1 m (thicker every 0.5 m, labelled with the forward distance), the
     horizon (red), the look-ahead row (yellow), an ideal straight lane's tape centres (green)
     and, when given, the detected board corners (green circles) against the solved projection
-    of their true floor positions (red crosses). `lines`: text for the top-left corner."""
+    of their true floor positions (red crosses). `lines`: the caption, in the top-left corner
+    or wherever it leaves the look-ahead row in sight (`caption_top`)."""
     width, height = model.image_size
     canvas: NDArray[np.uint8]
     if image is None:
@@ -319,9 +320,6 @@ def draw_ground_check(
     if all(math.isfinite(v) and abs(v) < 1e5 for v in (h_left, h_right)):
         cv2.line(canvas, (0, round(h_left)), (width - 1, round(h_right)), (40, 40, 230), 2,
                  cv2.LINE_AA)
-    if look_ahead_v is not None and math.isfinite(look_ahead_v):
-        cv2.line(canvas, (0, round(look_ahead_v)), (width - 1, round(look_ahead_v)),
-                 (0, 220, 240), 1, cv2.LINE_AA)
     if corners_px is not None:
         for u, v in np.asarray(corners_px, dtype=np.float64).reshape(-1, 2):
             cv2.circle(canvas, (round(u), round(v)), 4, (60, 220, 60), 1, cv2.LINE_AA)
@@ -330,11 +328,40 @@ def draw_ground_check(
             if np.all(np.isfinite(piece)) and np.all(np.abs(piece) < 1e5):
                 cv2.drawMarker(canvas, (round(piece[0]), round(piece[1])), (40, 40, 230),
                                cv2.MARKER_CROSS, 7, 1, cv2.LINE_AA)
-    for i, text in enumerate(lines):
-        text = text.replace("°", " deg").encode("ascii", "replace").decode()  # Hershey: ASCII
-        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)
-        top = 4 + 18 * i
+    texts = [t.replace("°", " deg").encode("ascii", "replace").decode()  # Hershey: ASCII
+             for t in lines]
+    sizes = [cv2.getTextSize(t, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1) for t in texts]
+    block_px = 0 if not sizes else _CAPTION_LINE_PX * (len(sizes) - 1) + max(
+        h + base + 4 for (_, h), base in sizes)
+    row = look_ahead_v if look_ahead_v is not None and math.isfinite(look_ahead_v) else None
+    first = caption_top(height, block_px, row)
+    for i, (text, ((w, h), base)) in enumerate(zip(texts, sizes, strict=True)):
+        top = first + _CAPTION_LINE_PX * i
         cv2.rectangle(canvas, (4, top), (12 + w, top + h + base + 4), (0, 0, 0), cv2.FILLED)
         cv2.putText(canvas, text, (8, top + h + 2), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
                     (255, 255, 255), 1, cv2.LINE_AA)
+    if row is not None:  # last: nothing is drawn over it
+        cv2.line(canvas, (0, round(row)), (width - 1, round(row)), (0, 220, 240), 1, cv2.LINE_AA)
     return canvas
+
+
+#: The caption's line pitch and its clearance from the image's edge and the look-ahead row, px.
+_CAPTION_LINE_PX = 18
+_CAPTION_MARGIN_PX = 4
+
+
+def caption_top(height_px: int, block_px: int, look_ahead_v: float | None) -> int:
+    """The first row of the check picture's caption, a block `block_px` tall: the top-left
+    corner, unless it would cover the look-ahead row (a steep camera looks ahead near the top
+    of its image, row 31 for one), then the bottom-left corner, then just below or above the
+    row. An image too short for any of these gets the top (the row is drawn over it)."""
+    margin = _CAPTION_MARGIN_PX
+    places = [margin, height_px - margin - block_px]
+    if look_ahead_v is not None:
+        places += [round(look_ahead_v) + margin, round(look_ahead_v) - margin - block_px]
+    for top in places:
+        inside = 0 <= top and top + block_px <= height_px
+        if inside and (look_ahead_v is None
+                       or not top - margin < look_ahead_v < top + block_px + margin):
+            return top
+    return margin

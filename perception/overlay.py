@@ -2,10 +2,10 @@
 
 Draws the ROI outline, every Hough segment faintly, the tape partners thinly, the chosen edges
 bold, and (in `draw_overlay`) a text block with the slope sum, the confidence (with its lowest
-component) and the decision. Every colour it uses is a row of `OVERLAY_STYLES`, which is also the
-legend a report prints, so a colour cannot be drawn without being explained. Only for
-`lanewarden detect --out`, recordings and diagnosis: never called from the detector's hot path,
-and it never changes the observation.
+component, or "all components 1.00") and the decision. Every colour it uses is a row of
+`OVERLAY_STYLES`, which is also the legend a report prints, so a colour cannot be drawn without
+being explained. Only for `lanewarden detect --out`, recordings and diagnosis: never called from
+the detector's hot path, and it never changes the observation.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from lanewarden.perception.detector import DetectionDebug
-from lanewarden.perception.observation import LaneObservation
+from lanewarden.perception.observation import LaneObservation, weakest_component
 
 BGR = tuple[int, int, int]
 
@@ -40,7 +40,10 @@ OVERLAY_STYLES: dict[str, OverlayStyle] = {
     "partner": OverlayStyle((200, 120, 255), "tape partner",
                             "the other side of the same tape (thin): the chosen edge belongs "
                             "to a tape, not to a tile seam"),
-    "segment": OverlayStyle((0, 200, 255), "Hough segments",
+    # Deep blue: yellow's (and wood's, and beige's) opposite, so it stands apart from yellow and
+    # white tape, grey and brown floors and the other colours here (it was orange-yellow, which
+    # a yellow centre line hid in real frames).
+    "segment": OverlayStyle((255, 100, 60), "Hough segments",
                             "every line segment Hough found inside the ROI (faint)"),
     "roi": OverlayStyle((255, 200, 0), "ROI",
                         "perception's region of interest (the floor it looks at)"),
@@ -128,14 +131,23 @@ def draw_detection(canvas: np.ndarray, observation: LaneObservation,
             )
 
 
+def confidence_text(observation: LaneObservation) -> str:
+    """'confidence 0.77 (lowest tape_pair_left 0.60)': the component that held it down most;
+    with none below 1, 'confidence 1.00 (all components 1.00)' (naming one as the lowest said
+    something untrue); without components, the confidence alone."""
+    text = f"confidence {observation.confidence:.2f}"
+    weakest = weakest_component(observation.components)
+    if weakest is not None:
+        return f"{text} (lowest {weakest[0]} {weakest[1]:.2f})"
+    return f"{text} (all components 1.00)" if observation.components else text
+
+
 def perception_text(observation: LaneObservation, decision: str) -> list[str]:
     """What perception says about one frame, in words (slope sum, confidence, decision)."""
     slope = "--" if observation.slope_sum is None else f"{observation.slope_sum:+.2f}"
-    lowest = min(observation.components.items(), key=lambda kv: kv[1], default=None)
-    low_text = "" if lowest is None else f" (lowest {lowest[0]} {lowest[1]:.2f})"
     return [
         f"slope sum {slope}",
-        f"confidence {observation.confidence:.2f}{low_text}",
+        confidence_text(observation),
         f"decision {decision}",
     ]
 

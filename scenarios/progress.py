@@ -9,6 +9,12 @@ line every `PLAIN_EVERY_S` seconds (the first after `FIRST_LINE_S`), each comple
 and, when at least one such line was printed, a last one when the work ends. A piped command is
 never silent for long, and a short one prints nothing extra.
 
+The rate is measured on this session's work only (a resumed campaign's stored runs are not
+counted), from the start, or with `warm_up` from the first update (a simulation's set-up is
+not work, and counted as work it made the first estimate many times too long). Until it can be
+measured the line says it is estimating, not "0 runs/s, ETA unknown". With `at_most` (a
+simulation that may halt long before its time limit) the ETA is an upper bound and says so.
+
 Wall time is read here for display only (`clock`, injectable); it never feeds a simulation.
 Never raises on a closed or broken stream: progress is not worth failing a run for.
 """
@@ -50,20 +56,25 @@ def _duration(seconds: float) -> str:
 
 class Progress:
     """done/total of one piece of work. `unit`: what is counted ("run", "step", "s simulated");
-    `fmt`: how a count is written; `total_is_bound`: the work may end before `total` (a
-    simulation's time limit), so the ETA is an upper bound. `terminal` (default: the stream is
-    one) picks the bar or the lines; `enabled=False` shows nothing; `bar_format`: tqdm's, for
-    the bar; `leave`: the bar stays on the terminal when the work ends (else it is wiped, for a
-    command whose last lines are its result); `heartbeat`: without a terminal, a thread prints
-    the line when it is due even while nothing advances (a campaign waiting for its first
-    runs)."""
+    `fmt`: how a count is written; `initial`: done before this session (a resumed campaign's
+    stored runs: not in the rate); `at_most`: the work may end anywhere before `total` (a
+    simulation that halts) and ends by this count at the latest (its time limit and the
+    overtime a run still DEGRADED there may take), so the ETA is an upper bound, the time to
+    reach it at the rate so far; `warm_up`: the time before the first update is set-up, not
+    work, so the rate is measured from the first update on (no estimate before the second).
+    `terminal` (default: the stream is one) picks the bar or the lines; `enabled=False` shows
+    nothing; `bar_format`: tqdm's, for the bar; `leave`: the bar stays on the terminal when the
+    work ends (else it is wiped, for a command whose last lines are its result); `heartbeat`:
+    without a terminal, a thread prints the line when it is due even while nothing advances (a
+    campaign waiting for its first runs)."""
 
     def __init__(self, total: float, desc: str, unit: str, *, initial: float = 0.0,
                  enabled: bool = True, stream: TextIO | None = None,
                  terminal: bool | None = None, clock: Callable[[], float] = time.monotonic,
                  every_s: float | None = None, position: int = 0, fmt: str = "{:.0f}",
-                 total_is_bound: bool = False, bar_format: str | None = None,
-                 leave: bool = True, heartbeat: bool = False) -> None:
+                 at_most: float | None = None, warm_up: bool = False,
+                 bar_format: str | None = None, leave: bool = True,
+                 heartbeat: bool = False) -> None:
         self.total = total
         self.desc = desc
         self.unit = unit
@@ -73,9 +84,12 @@ class Progress:
         self._clock = clock
         self._every_s = PLAIN_EVERY_S if every_s is None else every_s
         self._fmt = fmt
-        self._bound = total_is_bound
+        self._at_most = at_most
         self._postfix = ""
         self._started = clock()
+        #: (time, done) the rate is measured from; with warm_up, set at the first update
+        self._rate_from: tuple[float, float] | None = None if warm_up else (
+            self._started, initial)
         self._next_line_s = self._started + min(FIRST_LINE_S, self._every_s)
         self._lines = 0
         self._closed = False
@@ -114,6 +128,8 @@ class Progress:
     def advance_to(self, done: float) -> None:
         step = done - self.done
         self.done = done
+        if self._rate_from is None and self._plain:
+            self._rate_from = (self._clock(), done)
         if self._bar is not None:
             self._bar.update(_count(step))
         else:
@@ -161,21 +177,36 @@ class Progress:
 
     # ---- the line ----------------------------------------------------------------------------
     def line(self, now: float, final: bool = False) -> str:
-        """'desc: 12/20 runs (60%), 0.45 runs/s, ETA 18 s  postfix'."""
+        """'desc: 12/20 runs (60%), 0.45 runs/s, ETA 18 s  postfix'; 'ETA at most 40 s (if it
+        runs to its limit)' with `at_most`; 'estimating the time left (6 s so far)' until this
+        session's rate can be measured."""
         elapsed = max(now - self._started, 1e-9)
-        rate = (self.done - self._initial) / elapsed
         counts = f"{self._fmt.format(self.done)}/{self._fmt.format(self.total)} {self.unit}"
         share = f" ({100.0 * self.done / self.total:.0f}%)" if self.total > 0 else ""
+        rate = self.rate(now)
         if final:
             text = f"{self.desc}: done, {counts} in {_duration(elapsed)}"
+        elif rate is None:
+            text = (f"{self.desc}: {counts}{share}, estimating the time left "
+                    f"({_duration(elapsed)} so far)")
         else:
             text = f"{self.desc}: {counts}{share}, {_rate(rate)} {self.unit}/s, "
-            if rate > 0:
-                left = max(self.total - self.done, 0.0) / rate
-                text += f"ETA {'at most ' if self._bound else ''}{_duration(left)}"
+            if self._at_most is None:
+                text += f"ETA {_duration(max(self.total - self.done, 0.0) / rate)}"
             else:
-                text += "ETA unknown"
+                left = max(self._at_most - self.done, 0.0) / rate
+                text += f"ETA at most {_duration(left)} (if it runs to its limit)"
         return f"{text}  {self._postfix}" if self._postfix else text
+
+    def rate(self, now: float) -> float | None:
+        """This session's work per second, measured since the start (with `warm_up`: since the
+        first update); None while nothing was measured."""
+        if self._rate_from is None:
+            return None
+        since, done_then = self._rate_from
+        if self.done <= done_then or now <= since:
+            return None
+        return (self.done - done_then) / (now - since)
 
     def _write(self, text: str) -> None:
         try:

@@ -25,7 +25,12 @@ from lanewarden.scenarios.output_folder import OutputFolder
 from lanewarden.scenarios.plot import PlotMarker, write_plot
 from lanewarden.scenarios.progress import Progress
 from lanewarden.scenarios.report import run_summary, write_report
-from lanewarden.scenarios.simulator import Simulation, SimulationResult, effective_config
+from lanewarden.scenarios.simulator import (
+    Simulation,
+    SimulationResult,
+    effective_config,
+    latest_time_s,
+)
 from lanewarden.scenarios.spec import ScenarioSpec
 from lanewarden.scenarios.state_reasons import state_reasons
 from lanewarden.scenarios.world import build_world
@@ -69,11 +74,15 @@ class RunRequest:
     judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
 
 
-def _progress(request: RunRequest, config: LanewardenConfig, total_s: float) -> Progress:
+def _progress(request: RunRequest, config: LanewardenConfig) -> Progress:
+    """Simulated seconds of the time limit; the run may halt long before it, and one still
+    DEGRADED there goes on a little (`latest_time_s`): the ETA is a bound. The rate is measured
+    from the first simulated step (building the world is not simulating it)."""
     return Progress(
-        total_s, f"{request.spec.name}/{request.controller}", "s simulated",
+        request.spec.run.max_time_s, f"{request.spec.name}/{request.controller}", "s simulated",
         enabled=request.progress and config.simulation.progress,
-        position=request.progress_position, fmt="{:.1f}", total_is_bound=True,
+        position=request.progress_position, fmt="{:.1f}",
+        at_most=latest_time_s(config, request.spec.run), warm_up=True,
         bar_format="{desc}: {bar} {n:.1f}/{total:.1f} s simulated [{elapsed}]")
 
 
@@ -118,7 +127,7 @@ def run_to_directory(request: RunRequest) -> dict[str, object]:
     folder.begin()
     video_path = out / "video.mp4" if request.video else None
     clip = _camera_clip(request, config)
-    bar = _progress(request, config, request.spec.run.max_time_s)
+    bar = _progress(request, config)
     shown = [0.0]
 
     def progress(now: float) -> None:

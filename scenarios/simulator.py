@@ -246,7 +246,8 @@ class Simulation:
         sim = self.config.simulation
         spec = self.spec
         dt = 1.0 / sim.camera_rate_hz
-        ticks = int(math.floor(spec.run.max_time_s * sim.camera_rate_hz + 1e-9)) + 1
+        ticks, overtime = tick_limits(spec.run.max_time_s, sim.camera_rate_hz,
+                                      self.config.supervisor.degraded_budget_s)
         video_every = max(1, round(sim.camera_rate_hz / sim.video.fps))
         if self._video_path is not None:
             from lanewarden.scenarios.video import MapView, VideoRecorder, roi_ground_outline
@@ -269,9 +270,6 @@ class Simulation:
         ending = EndConditions(self.world, spec.run)
         end_reason = "time limit"
         try:
-            # A run whose time is up while DEGRADED goes on until the supervisor decides (back
-            # to following, or HALT), at most its DEGRADED time budget: otherwise undecided.
-            overtime = int(math.ceil(self.config.supervisor.degraded_budget_s / dt)) + 2
             for k in range(ticks + overtime):
                 if k >= ticks and (not records or records[-1].state != "DEGRADED"):
                     break
@@ -369,6 +367,24 @@ class Simulation:
             draw_detection(undistorted, observation, debug)
             detection = (observation, self.stack.decide(observation))
         self._video.add(undistorted, pose, now, record, detection)
+
+
+def tick_limits(max_time_s: float, camera_rate_hz: float,
+                degraded_budget_s: float) -> tuple[int, int]:
+    """(ticks, overtime): a run steps ticks 0 .. ticks - 1 (to its time limit, s); one whose time
+    is up while DEGRADED goes on until the supervisor decides (back to following, or HALT), at
+    most `overtime` more ticks (its DEGRADED time budget, s, and two): otherwise undecided. No
+    run steps a tick beyond these."""
+    ticks = int(math.floor(max_time_s * camera_rate_hz + 1e-9)) + 1
+    overtime = int(math.ceil(degraded_budget_s / (1.0 / camera_rate_hz))) + 2
+    return ticks, overtime
+
+
+def latest_time_s(config: LanewardenConfig, run: RunSpec) -> float:
+    """The latest simulated time a run can reach (`tick_limits`), s: a bound on its length."""
+    rate_hz = config.simulation.camera_rate_hz
+    ticks, overtime = tick_limits(run.max_time_s, rate_hz, config.supervisor.degraded_budget_s)
+    return (ticks + overtime - 1) / rate_hz
 
 
 class EndConditions:

@@ -58,7 +58,7 @@ from lanewarden.perception.calibration import (
 from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneEdge, LaneObservation
-from lanewarden.perception.overlay import draw_overlay
+from lanewarden.perception.overlay import confidence_text, draw_overlay
 
 
 def result_json(image: str, observation: LaneObservation, decision: str) -> dict[str, object]:
@@ -84,11 +84,9 @@ def result_text(image: str, observation: LaneObservation, decision: str) -> str:
         return "--" if edge is None else f"{edge.slope:+.2f}"
 
     total = "--" if observation.slope_sum is None else f"{observation.slope_sum:+.2f}"
-    lowest = min(observation.components.items(), key=lambda kv: kv[1])
     return (
         f"{image}: {decision}  slope sum {total} (left {slope(observation.left)}, "
-        f"right {slope(observation.right)})  confidence {observation.confidence:.2f} "
-        f"(lowest {lowest[0]} {lowest[1]:.2f})"
+        f"right {slope(observation.right)})  {confidence_text(observation)}"
     )
 
 

@@ -328,7 +328,9 @@ def _time_to_halt(summary: CampaignSummary) -> str:
 
 def _rerun_cell(out_dir: Path, case_id: str) -> str:
     command = html.escape(rerun_command(out_dir, case_id))
-    return (f'<td class="rerun"><code class="cmd">{command}</code> <button type="button" '
+    # A long path wraps after a slash (<wbr>: no character, so a selection copies the command)
+    shown = command.replace("/", "/<wbr>")
+    return (f'<td class="rerun"><code class="cmd">{shown}</code> <button type="button" '
             f'class="copy" data-copy="{command}" title="copy the command">copy</button></td>')
 
 
@@ -353,10 +355,10 @@ def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
             f"<td>{'' if cross is None else cross}</td>"
             f"<td class=\"before\">{html.escape(_before_halt_text(row))}</td>"
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
-    return ("<table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
-            "<th>faults</th><th>why</th><th>time to halt s</th><th>max cross-track m</th>"
-            "<th>perception before the halt</th>"
-            f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table>")
+    return ("<div class=\"wide\"><table><tr><th>run</th><th>outcome</th><th>scenario</th>"
+            "<th>camera</th><th>faults</th><th>why</th><th>time to halt s</th>"
+            "<th>max cross-track m</th><th>perception before the halt</th>"
+            f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table></div>")
 
 
 def _before_halt_text(row: Row) -> str:
@@ -427,10 +429,11 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
     return (head + f"<p>{counted(kept.count, 'run')} of {summary.false_lane_measured}, "
             f"{counted(summary.false_lane_frames, 'frame')} in all; the longest stretch "
-            "first.</p><table><tr><th>run</th><th>outcome</th><th>scenario</th><th>camera</th>"
-            "<th>longest stretch s</th><th>frames</th><th>largest edge error m</th>"
-            "<th>closest approach to a tape mm</th><th>rerun (with video and plot)</th></tr>"
-            f"{''.join(lines)}</table>" + _more(kept, "run on a false lane"))
+            "first.</p><div class=\"wide\"><table><tr><th>run</th><th>outcome</th>"
+            "<th>scenario</th><th>camera</th><th>longest stretch s</th><th>frames</th>"
+            "<th>largest edge error m</th><th>closest approach to a tape mm</th>"
+            f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table></div>"
+            + _more(kept, "run on a false lane"))
 
 
 def _errors(summary: CampaignSummary, out_dir: Path) -> str:
@@ -482,11 +485,13 @@ table {{ border-collapse: collapse; margin-bottom: 1em; }}
 td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
 th {{ background: #f4f4f4; }}
 td.why {{ text-align: left; max-width: 32em; }}
-td.before {{ text-align: left; min-width: 13em; max-width: 22em; font-size: .85em; }}
+td.before {{ text-align: left; min-width: 11em; max-width: 22em; font-size: .85em; }}
 td.plot {{ padding: 0 4px; }}
-td.rerun {{ text-align: left; min-width: 14em; }}
+div.wide {{ overflow-x: auto; margin-bottom: 1em; }}
+div.wide table {{ margin-bottom: 0; }}
+td.rerun {{ text-align: left; min-width: 10em; }}
 code.cmd {{ font-size: 90%; user-select: all; background: #f6f6f6; padding: 1px 4px;
-            word-break: break-all; }}
+            overflow-wrap: anywhere; }}
 button.copy {{ font-size: 80%; }}
 </style></head><body>
 <h1>Campaign {html.escape(name)}</h1>

@@ -66,12 +66,24 @@ def test_worst_cases_are_unsafe_false_halts_and_the_slowest_halts(tmp_path: Path
     assert _run_ids(_section(page, "Runs in error")) == ["r00009"]
 
 
-def test_the_rerun_commands_can_be_selected_and_copied(tmp_path: Path) -> None:
-    page = report_html("spec", summarize(ROWS), tmp_path, "text")
-    command = f"lanewarden sim --case {tmp_path.resolve() / 'cases' / 'r00007.yaml'}"
-    assert (f'<code class="cmd">{command}</code> <button type="button" class="copy" '
-            f'data-copy="{command}"') in page
+def test_the_rerun_commands_can_be_selected_and_copied() -> None:
+    """The command may wrap after each slash (<wbr>, no character: a selection copies the
+    command as it is); the button copies it whole."""
+    page = report_html("spec", summarize(ROWS), Path("/data/campaigns/c1"), "text")
+    assert ('<code class="cmd">lanewarden sim --case /<wbr>data/<wbr>campaigns/<wbr>c1/<wbr>'
+            'cases/<wbr>r00007.yaml</code> <button type="button" class="copy" '
+            'data-copy="lanewarden sim --case /data/campaigns/c1/cases/r00007.yaml"') in page
     assert "user-select: all" in page and "navigator.clipboard.writeText" in page
+
+
+def test_the_case_tables_scroll_in_their_own_box() -> None:
+    """Wider than the window (many columns, long names), a case table scrolls inside its box,
+    the scroll bar under it; the page itself does not (its rerun column was out of sight)."""
+    page = report_html("spec", summarize(ROWS), Path("/data/c1"), "text")
+    for heading in ("Worst cases", "Runs in error"):
+        section = _section(page, heading)
+        assert section.count('<div class="wide"><table>') == section.count("<table>") > 0
+    assert "div.wide { overflow-x: auto;" in page
 
 
 def test_a_relative_out_folder_still_gives_commands_that_work_from_anywhere(

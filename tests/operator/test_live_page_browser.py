@@ -1,8 +1,9 @@
 """The live page in a real headless browser (Debian's chromium + chromedriver, driven by selenium).
 
 - During a real `lanewarden run --base sim --view`: the page shows the camera image with the panel
-  of the same step, its plot updates, its buttons are enabled by the rule, and its Stop halts the
-  run (OPERATOR_STOP) and is announced on the terminal. A screenshot is saved in the test's folder.
+  of the same step (the picture's box as tall as the picture, not as the panel beside it), its
+  plot updates, its buttons are enabled by the rule, and its Stop halts the run (OPERATOR_STOP)
+  and is announced on the terminal. A screenshot is saved in the test's folder.
 - Issue 18's attacks where a browser matters, against a halted robot (the view's requests record
   what would reach it): another site's page (a second local server, another host name and port)
   smuggling a POST /resume in the body of a no-cors fetch or a text/plain form; a DNS-rebinding
@@ -144,6 +145,9 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
                                     "window.lanewarden.frameStatus.step]")
             seen["same_step"] = (panel, frame_step)
             seen["buttons_follow"] = buttons()
+            seen["heights"] = js(browser, "const h = (id) => document.getElementById(id)"
+                                 ".getBoundingClientRect().height;"
+                                 "return [h('camera'), h('frame'), h('panel')];")
             shot = tmp_path / "live-page.png"
             browser.save_screenshot(str(shot))
             seen["screenshot"] = shot
@@ -170,6 +174,9 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
     (panel_step, step_text), frame_step = seen["same_step"]
     assert panel_step == frame_step and step_text == f"step {frame_step}", seen["same_step"]
     assert seen["buttons_follow"] == {"start": False, "resume": False, "stop": True}
+    camera, picture, panel = seen["heights"]
+    assert panel > picture + 100, f"the panel beside the picture is taller: {seen['heights']}"
+    assert abs(camera - picture) <= 1, f"no black area under the picture: {seen['heights']}"
     assert seen.get("halt") and seen.get("reason", "").startswith("OPERATOR_STOP"), seen
     assert seen["buttons_halt"] == {"start": False, "resume": True, "stop": False}
     assert seen["screenshot"].stat().st_size > 10_000

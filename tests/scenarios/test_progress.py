@@ -63,14 +63,47 @@ def test_short_work_prints_nothing_and_a_resumed_count_starts_the_rate_anew() ->
     assert stream.getvalue() == "campaign default: 11/20 runs (55%), 0.5 runs/s, ETA 18 s\n"
 
 
-def test_a_bounded_total_and_minutes() -> None:
+def test_a_resumed_campaign_says_it_is_estimating_until_a_run_of_this_session_ends() -> None:
+    """The review's resumed campaign printed '6/16 runs (38%), 0 runs/s, ETA unknown' twice."""
+    stream, clock = io.StringIO(), FakeClock()
+    progress = Progress(16, "campaign default", "runs", initial=6, stream=stream, clock=clock,
+                        terminal=False)
+    clock.now += 1.0
+    progress.tick()
+    clock.now += 5.0
+    progress.tick()
+    clock.now += 14.0
+    progress.update()  # the first run of this session, 20 s in
+    clock.now += 20.0
+    progress.update()
+    assert stream.getvalue().splitlines() == [
+        "campaign default: 6/16 runs (38%), estimating the time left (1 s so far)",
+        "campaign default: 6/16 runs (38%), estimating the time left (6 s so far)",
+        "campaign default: 7/16 runs (44%), 0.05 runs/s, ETA 3 min 00 s",
+        "campaign default: 8/16 runs (50%), 0.05 runs/s, ETA 2 min 40 s",
+    ]
+
+
+def test_a_bounded_total_measured_from_the_first_step_and_minutes() -> None:
+    """A simulation: 10 s of set-up, then 1 s simulated per second. Counted from the start, the
+    first estimate was 5.5 s simulated in 15 s, ETA 'at most' 27 min (the review's demo: 'at
+    most 5 min 46 s', then done in 18 s)."""
     stream, clock = io.StringIO(), FakeClock()
     progress = Progress(600.0, "lecture/supervised", "s simulated", stream=stream, clock=clock,
-                        terminal=False, fmt="{:.1f}", total_is_bound=True)
+                        terminal=False, fmt="{:.1f}", at_most=605.5, warm_up=True)
     clock.now += 10.0
-    progress.advance_to(5.0)
-    assert stream.getvalue() == ("lecture/supervised: 5.0/600.0 s simulated (1%), 0.5 s "
-                                 "simulated/s, ETA at most 19 min 50 s\n")
+    progress.advance_to(0.5)
+    clock.now += 5.0
+    progress.advance_to(5.5)
+    clock.now += 5.0
+    progress.advance_to(10.5)
+    assert stream.getvalue().splitlines() == [
+        "lecture/supervised: 0.5/600.0 s simulated (0%), estimating the time left (10 s so far)",
+        "lecture/supervised: 5.5/600.0 s simulated (1%), 1 s simulated/s, ETA at most 10 min "
+        "00 s (if it runs to its limit)",
+        "lecture/supervised: 10.5/600.0 s simulated (2%), 1 s simulated/s, ETA at most 9 min "
+        "55 s (if it runs to its limit)",
+    ]
 
 
 def test_the_heartbeat_prints_while_nothing_advances_and_nothing_after_close() -> None:
@@ -78,7 +111,8 @@ def test_the_heartbeat_prints_while_nothing_advances_and_nothing_after_close() -
     progress = _progress(stream, clock)
     clock.now += 1.0
     progress.tick()
-    assert stream.getvalue() == "campaign default: 0/20 runs (0%), 0 runs/s, ETA unknown\n"
+    assert stream.getvalue() == ("campaign default: 0/20 runs (0%), estimating the time left "
+                                 "(1 s so far)\n")
     progress.close(finished=False)
     clock.now += 60.0
     progress.tick()
@@ -138,8 +172,10 @@ def test_sim_and_replay_say_how_far_they_are_when_piped(
     assert main(["sim", "--scenario", str(scenario), "--no-video", "--out", str(tmp_path / "s"),
                  "--camera-out", str(tmp_path / "frames")]) == 0
     err = capsys.readouterr().err.splitlines()
-    assert err[0].startswith("short/supervised: 0.5/2.0 s simulated (25%), ")
-    assert "ETA at most" in err[0]
+    assert err[0].startswith("short/supervised: 0.5/2.0 s simulated (25%), estimating the "
+                             "time left (")
+    assert err[1].startswith("short/supervised: 1.0/2.0 s simulated (50%), ")
+    assert err[1].endswith(" (if it runs to its limit)")
     assert err[-1].startswith("short/supervised: done, 2.0/2.0 s simulated in ")
     assert main(["replay", str(tmp_path / "frames"), "--no-video", "--out",
                  str(tmp_path / "r")]) == 0

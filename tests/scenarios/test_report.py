@@ -114,7 +114,7 @@ def test_report_explains_every_colour_of_the_video(tmp_path: Path) -> None:
     # Each colour the overlay, the map and the path draw, as the page's CSS writes it (r, g, b).
     expected = {
         "left edge": "rgb(0,255,0)", "right edge": "rgb(255,0,255)",
-        "tape partner": "rgb(255,120,200)", "Hough segments": "rgb(255,200,0)",
+        "tape partner": "rgb(255,120,200)", "Hough segments": "rgb(60,100,255)",
         "ROI": "rgb(0,200,255)", "turn gate A, B, ...": "rgb(0,140,0)",
         "end of the tape": "rgb(220,0,0)", "ROI on the floor": "rgb(0,200,255)",
         "FOLLOW": "rgb(60,200,60)", "TURN_LEFT": "rgb(40,180,230)",

@@ -89,3 +89,47 @@ def test_a_rerun_command_is_copied_or_selected(browser: Any,  # noqa: F811 (the 
     assert code.text == f"lanewarden sim --case {Path('campaign-out').resolve()}/cases/r00007.yaml"
     assert code.value_of_css_property("user-select") == "all", "one click selects it all"
     browser.save_screenshot(str(tmp_path / "campaign.png"))
+
+
+def _slow_halt(index: int, kinds: str, reason: str) -> dict[str, Any]:
+    """A safe halt as results.sqlite holds it, with the longest names the default spec draws."""
+    before = {"window_s": 2.0, "frames": 60, "confident": 54, "longest_confident_run": 54,
+              "usable": 0, "unusable": 6, "no_frame": 0, "jumped": 0, "outliers": 0,
+              "at_slope_cap": 0,
+              "weakest": {"lane_width": 2, "tape_pair_left": 2, "tape_pair_right": 1}}
+    return {"id": f"r{index:05d}", "idx": index, "scenario": "dark-tape-on-light",
+            "camera": "320x240", "fault_kinds": kinds, "outcome": "safe_halt", "reason": reason,
+            "time_to_halt_s": 0.167, "metrics_json": json.dumps(
+                {"max_cross_track_error_m": 0.0003, "before_halt": before})}
+
+
+def test_the_slowest_halts_fit_a_1280_px_window(browser: Any,  # noqa: F811 (the fixture)
+                                                tmp_path: Path) -> None:
+    """The review: at 1280 px the table of the slowest safe halts ran off the window's right
+    edge, its rerun column out of sight. Now it fits, the command wrapping after its slashes."""
+    from selenium.webdriver.common.by import By
+
+    rows = [_slow_halt(0, "checksum_storm,exposure_jump",
+                       "LANE_LOST answering exposure_jump (fault 1)"),
+            _slow_halt(6, "frame_from_future,perception_exception",
+                       "PERCEPTION_ERROR answering perception_exception (fault 1)")]
+    out = tmp_path / "campaigns" / "nightly-2024-06-01" / "default-seed-1"
+    page = tmp_path / "report.html"
+    page.write_text(report_html("default", summarize(rows), out, "text"), encoding="utf-8")
+    browser.set_window_size(1280, 2000)
+    browser.get(page.as_uri())
+    browser.save_screenshot(str(tmp_path / "slowest.png"))
+    window, page_width = browser.execute_script(
+        "return [document.documentElement.clientWidth, document.documentElement.scrollWidth]")
+    assert page_width == window, "the page does not scroll sideways"
+    table = browser.find_element(By.CSS_SELECTOR, "h3 + div.wide > table")
+    box = browser.execute_script(
+        "const t = arguments[0].getBoundingClientRect(), b = arguments[0].parentElement;"
+        "return [t.right, b.getBoundingClientRect().right, b.scrollWidth, b.clientWidth];",
+        table)
+    assert box[0] <= box[1] <= window and box[2] == box[3], "the table fits its box"
+    code = browser.find_elements(By.CSS_SELECTOR, "h3 + div.wide td.rerun code.cmd")[0]
+    lines = browser.execute_script(
+        "const r = arguments[0].getClientRects(); return r.length;", code)
+    assert lines >= 2, "the long command wraps"
+    assert code.text == f"lanewarden sim --case {out.resolve()}/cases/r00000.yaml"
