@@ -150,7 +150,11 @@ def _class_folders(folder: Path) -> tuple[list[StillFrame], list[str]]:
                          f"({names}); expected every image in lane/ or no-lane/ (or a "
                          f"{LABELS_NAME})")
     for sub in subs:
-        paths, skipped = _images_under(sub)
+        if sub.name not in by_folder and is_hidden(sub):
+            continue  # .git/, .thumbs/ beside the class folders: no class, nothing to survey
+        # other folders beside them (docs/ of notes) are looked into only for images: images
+        # there may be a misnamed class folder
+        paths, skipped = _images_under(sub, others_allowed=sub.name not in by_folder)
         if sub.name not in by_folder:
             if paths:
                 close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
@@ -202,13 +206,15 @@ def is_hidden(path: Path) -> bool:
     return path.name.startswith(".")
 
 
-def _images_under(folder: Path) -> tuple[list[Path], list[Path]]:
+def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path], list[Path]]:
     """The images in `folder` (natural name order), then those of its sub-folders, each in
     turn, in name order; and the images skipped as hidden: hidden files, and every image in a
     hidden folder (such as .thumbs/ or .git/), walked only to count them (a folder reached
     twice through a link is read once, so a link loop ends). A loop over a stack, not
     recursion: a folder nested thousands deep is walked, not a RecursionError; an unreadable
-    folder is one line."""
+    folder is one line. A file that is not an image is an error (a photo the survey cannot
+    read), unless `others_allowed` (a folder beside the class folders: only its images
+    matter)."""
     paths: list[Path] = []
     skipped: list[Path] = []
     seen: set[tuple[int, int]] = set()  # (device, inode): one stat, not a walk of the path
@@ -223,7 +229,7 @@ def _images_under(folder: Path) -> tuple[list[Path], list[Path]]:
             seen.add((info.st_dev, info.st_ino))
             for image in image_sequence_paths(str(here)) or []:
                 (skipped if in_hidden or is_hidden(image) else paths).append(image)
-            others = [] if in_hidden else sorted(
+            others = [] if in_hidden or others_allowed else sorted(
                 p for p in here.iterdir() if not is_hidden(p)
                 and p.name.lower() not in SYSTEM_FILES
                 and p.suffix.lower() not in IMAGE_SUFFIXES and p.is_file())

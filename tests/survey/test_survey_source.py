@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lanewarden.errors import InputFileError
+from lanewarden.errors import InputFileError, UsageError
 from lanewarden.replay_sources import PathFrames, ReplaySource
 from lanewarden.run_record import StepInput
 from lanewarden.survey import parse_labels
@@ -222,6 +222,24 @@ def test_hidden_files_and_hidden_folders_under_a_class_folder_are_skipped_alike(
         ("lane/a.png", "lane"), ("lane/b.png", "lane"), ("no-lane/c.png", "none")]
     assert hidden == ["lane/sub/.cache/deeper/x.jpg", "no-lane/._c.png", "no-lane/.hidden.png",
                       "no-lane/.thumbs/straight.png"]
+
+
+def test_folders_beside_the_class_folders_matter_only_for_their_images(tmp_path: Path) -> None:
+    """A survey folder kept in git (.git/HEAD) or with notes (docs/notes.txt) beside lane/ and
+    no-lane/ was refused: "not an image the survey reads (a file under a class folder ...)",
+    which it is not. A hidden folder there is passed over (images and all: it is no class); any
+    other folder is looked into for images only: images there are still an unknown class."""
+    _class_set(tmp_path)
+    for name in (".git/HEAD", ".git/objects/x.png", "docs/notes.txt", "docs/old/readme.md"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(b"")
+    stills, hidden = _class_folders(tmp_path)
+    assert [s.frame.name for s in stills] == ["lane/a.png", "lane/b.png", "no-lane/c.png"]
+    assert hidden == []
+    (tmp_path / "docs" / "old" / "shot.jpg").write_bytes(b"")
+    with pytest.raises(UsageError, match=r"docs: unknown class folder 'docs' with 1 image; "
+                                         r"expected lane/ or no-lane/$"):
+        _class_folders(tmp_path)
 
 
 @pytest.mark.parametrize("target", ["/dev/null", "missing.csv", "labels.csv"])
