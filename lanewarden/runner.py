@@ -162,10 +162,10 @@ def assumed_camera(calibration_path: str | None,
     measured in millimetres through a camera that may not be yours, so a lane can be seen where
     there is none (`run` refuses a real base on it: `refuse_assumed_camera`)."""
     mount = default_pose().describe()
-    if calibration_path is None:
+    if calibration is None:  # (the loaded calibration decides, never the path alone)
         return (f"no --calibration: perception judges these frames as if from the simulator's "
                 f"default camera (no lens distortion, {mount})")
-    if calibration is not None and calibration.ground is None:
+    if calibration.ground is None:
         return (f"--calibration {calibration_path} has no ground pose (`lanewarden calibrate "
                 f"ground` was not run): perception assumes the simulator's mount ({mount})")
     return None
@@ -195,18 +195,18 @@ def refuse_assumed_camera(base_kind: str, camera: str, calibration_path: str | N
     if said is None or assume or base_kind != "kobuki":
         return
     fix = ("--calibration FILE from `lanewarden calibrate`, then `lanewarden calibrate ground`"
-           if calibration_path is None else
+           if calibration is None else
            f"its ground pose (`lanewarden calibrate ground --calibration {calibration_path} "
            "...`)")
     raise UsageError(f"--base kobuki: {said}; through another lens or mount it can see a lane "
                      f"where there is none and drive on; expected {fix}, or "
                      f"{ASSUME_CAMERA_FLAG} to drive on the assumed camera anyway"
-                     f"{clip_calibration_hint(camera) if calibration_path is None else ''}")
+                     f"{clip_calibration_hint(camera) if calibration is None else ''}")
 
 
-def start_warnings(camera: str, calibration_path: str | None, controller_name: str,
-                   config: LanewardenConfig | None = None,
-                   calibration: CameraCalibration | None = None) -> list[str]:
+def start_warnings(camera: str, calibration_path: str | None,
+                   calibration: CameraCalibration | None, controller_name: str,
+                   config: LanewardenConfig | None = None) -> list[str]:
     """What `run` says at start-up, before the base opens, about a run that may not stop where
     a user expects: no calibration (perception then judges the frames as the simulator's default
     camera's; a lens it does not undistort can show a lane where there is none: a clip of
@@ -216,7 +216,7 @@ def start_warnings(camera: str, calibration_path: str | None, controller_name: s
     halts on lane loss; and a lane with little room to drift (`config.narrow_lane_warning`)."""
     warnings = []
     said = assumed_camera(calibration_path, calibration)
-    if said is not None and calibration_path is not None:
+    if said is not None and calibration is not None:
         warnings.append(f"{said}; with another height or pitch it measures tapes and seams "
                         "wrong and can see a lane where there is none (run lanewarden "
                         "calibrate ground)")
@@ -273,8 +273,8 @@ def run_robot(
                             debug_tap=True,  # the live page draws the detection's overlay
                             image_size=(width, height))
         print(stack.detector.describe_ground(calibration_path), flush=True)  # stdout: status
-        for said in start_warnings(camera, calibration_path, controller_name, config,
-                                   calibration):
+        for said in start_warnings(camera, calibration_path, calibration, controller_name,
+                                   config):
             print(f"warning: {said}", flush=True)  # beside the ground model's line it qualifies
 
         session = RunSession(
@@ -343,8 +343,7 @@ def run_robot(
                             break
                         # an overrun: the watchdog sees it; no burst follows. A stop signal
                         # ends the wait at once (acted on at the top of the loop).
-                        clock.wait(interrupted=lambda: (requests.stop is not None
-                                                        or requests.suspend))
+                        clock.wait(interrupted=requests.pending)
                 finally:
                     loop_end = loop_end.with_steps(steps)  # the closing stop comes after these
                     now = clock.now()

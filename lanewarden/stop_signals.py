@@ -39,6 +39,11 @@ class SignalRequests:
     stop: signal.Signals | None = None
     suspend: bool = False
 
+    def pending(self) -> bool:
+        """Whether a stop or a suspend was asked for (what ends a tick's wait at once:
+        `Ticker.wait(interrupted=requests.pending)`)."""
+        return self.stop is not None or self.suspend
+
 
 @contextmanager
 def signal_requests() -> Iterator[SignalRequests]:

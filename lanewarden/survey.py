@@ -609,13 +609,14 @@ def summary_lines(figures: SurveyFigures) -> list[str]:
             verdict_line(figures.verdict), engage_line(figures.verdict.engage)]
 
 
-def survey_notes(figures: SurveyFigures, calibrated: bool,
-                 ground_pose: bool = True) -> list[str]:
+def survey_notes(figures: SurveyFigures, calibrated: bool, ground_pose: bool = True,
+                 calibration_name: str = "the --calibration") -> list[str]:
     """What a verdict does not say: that perception never found the lane either (a SAFE verdict
     then proves little: a wrong tape width or camera also gives no decision anywhere), and that
     without a calibration the frames were judged through the simulator's default camera, or
     with one that has no ground pose (`ground_pose` False) on the simulator's mount (a new
-    user's survey with `calibrate`'s file alone said SAFE with no note)."""
+    user's survey with `calibrate`'s file alone said SAFE with no note; `calibration_name`
+    says which: "--calibration FILE", "the recording's calibration")."""
     notes = []
     lane = figures.classes[LANE]
     little = ", so SAFE says little" if figures.verdict.safe else ""
@@ -636,7 +637,7 @@ def survey_notes(figures: SurveyFigures, calibrated: bool,
                      "calibration (lanewarden calibrate, then calibrate ground) the figures are "
                      "your camera's")
     elif not ground_pose:
-        notes.append("note: the --calibration has no ground pose: the frames were judged as if "
+        notes.append(f"note: {calibration_name} has no ground pose: the frames were judged as if "
                      f"your camera were mounted as the simulator's ({default_pose().describe()}), "
                      "so tapes and seams were measured through that mount; with its ground pose "
                      "(lanewarden calibrate ground) the figures are your camera's")

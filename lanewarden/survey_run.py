@@ -339,15 +339,25 @@ def judge_shifted(image: np.ndarray, name: str, detector: LaneDetector, decide: 
 
 
 def judge_on_its_own(image: np.ndarray, index: int, time_s: float, detector: LaneDetector,
-                     name: str) -> tuple[LaneObservation, DetectionDebug]:
+                     name: str) -> LaneObservation:
     """A recording's frame (the image the loop analysed) judged on its own: no previous
-    observation, as `survey_stills` judges a still."""
+    observation, as `survey_stills` judges a still (`detect`: the debug data only for a picture,
+    `on_its_own_picture`)."""
     try:
-        return detector.detect_debug(image, index, time_s)
+        return detector.detect(image, index, time_s)
     except PerceptionConfigError as exc:
         raise ConfigError(f"{name}: {exc}") from None
     except PerceptionError as exc:  # the loop analysed it: only a detector that differs
         raise InputFileError(f"{name}: {exc}") from None
+
+
+def on_its_own_picture(result: FrameResult, image: np.ndarray, index: int, time_s: float,
+                       detector: LaneDetector, decide: DecisionRule) -> Picture:
+    """The picture of a frame that decided only on its own: that detection (made again with its
+    debug data: pictures are drawn for a bounded few, the judging is done for every frame)."""
+    observation, debug = detector.detect_debug(image, index, time_s)
+    return picture(result, observation, debug,
+                   (on_its_own_caption(result), decide(observation)))
 
 
 def survey_stills(stills: list[StillFrame], config: LanewardenConfig,
@@ -468,13 +478,14 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
             alone = judge_on_its_own(step.image, index, step.step_input.t, detector, frame.name)
         result = frame_result(frame, observation, decide, config.supervisor, engaged=engaged,
                               on_its_own=None if alone is None else OnItsOwn(
-                                  decide(alone[0]), alone[0].confidence))
+                                  decide(alone), alone.confidence))
         results.append(result)
         engaged_lane += engaged and frame.expect == LANE
         if alone is not None and result.decided_on_its_own and not result.has_decision:
             # a false lane only on its own: the picture of that detection
-            keeper.offer(result, partial(picture, result, *alone, (
-                on_its_own_caption(result), decide(alone[0]))))
+            assert step.image is not None
+            keeper.offer(result, partial(on_its_own_picture, result, step.image, index,
+                                         step.step_input.t, detector, decide))
         else:
             keeper.offer(result, partial(picture, result, observation, debug))
     if unread:

@@ -246,6 +246,11 @@ def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path
                 "under a class folder is a photo of that class); expected "
                 f"{', '.join(sorted(IMAGE_SUFFIXES))}: convert them, or move other files out of "
                 "lane/ and no-lane/")
+        # a link in a hidden folder, or a hidden link, or one in a folder beside the class
+        # folders, is not followed: those are walked only to count or find images, and a link
+        # there is nobody's photo (a link to /tmp in no-lane/.thumbs/ had refused the survey)
+        subs = [sub for sub in subs if not (sub.is_symlink() and (
+            in_hidden or others_allowed or is_hidden(sub)))]
         for sub in subs:
             if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
                 raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "

@@ -22,6 +22,7 @@ from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.runner import start_warnings
+from lanewarden.scenarios.camera import CameraModel
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.actuation.processes import (
     DEADLINE_S,
@@ -53,6 +54,11 @@ supervisor:
   base_link_timeout_s: 0.6
   loop_overrun_s: 0.3
 """
+
+
+#: A calibration with its ground pose (the simulator's default camera's, as `sim --camera-out`
+#: writes it): nothing about the camera is assumed.
+CALIBRATED = CameraModel().calibration()
 
 
 def last_line(out: str) -> str:
@@ -146,23 +152,23 @@ def test_run_warns_at_start_up_without_a_calibration_and_names_a_clips_own(
     says so at start-up, and names the calibration `sim --camera-out` wrote beside the clip."""
     camera = tmp_path / "clip.mp4"
     camera.write_bytes(b"")
-    (warning,) = start_warnings(str(camera), None, "supervised")
+    (warning,) = start_warnings(str(camera), None, None, "supervised")
     assert warning.startswith("no --calibration: perception judges these frames as if from the "
                               "simulator's default camera"), warning
     assert "beside" not in warning
     beside = tmp_path / "clip.calibration.yaml"
     beside.write_text("not read\n")
-    (warning,) = start_warnings(str(camera), None, "supervised")
+    (warning,) = start_warnings(str(camera), None, None, "supervised")
     assert warning.endswith(f"; the clip's own calibration lies beside it: --calibration {beside}")
-    assert start_warnings(str(camera), str(beside), "supervised") == []
+    assert start_warnings(str(camera), str(beside), CALIBRATED, "supervised") == []
     # a clip of frames (`sim --camera-out clip`), named as a folder or by a pattern
     (tmp_path / "frames").mkdir()
     frames_calibration = tmp_path / "frames.calibration.yaml"
     frames_calibration.write_text("not read\n")
     for named in ("frames", "frames/", "frames/*.png", "frames/frame_%06d.png"):
-        (warning,) = start_warnings(str(tmp_path / named), None, "supervised")
+        (warning,) = start_warnings(str(tmp_path / named), None, None, "supervised")
         assert warning.endswith(f"--calibration {frames_calibration}"), (named, warning)
-    assert start_warnings("0", None, "supervised")[0].endswith("calibrate ground)")
+    assert start_warnings("0", None, None, "supervised")[0].endswith("calibrate ground)")
 
 
 def _calibration_without_ground(path: Path) -> Path:
@@ -231,27 +237,48 @@ def test_assume_camera_lets_the_robot_drive_and_the_bench_bases_only_warn(
             "lanewarden calibrate ground)") in out, out
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTSTP])
+def test_a_stop_signal_ends_the_runs_wait_at_once(
+        sig: signal.Signals, scenes: dict[str, list[Path]], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A signal at the start of a tick's wait (the tenth, while following the clip): the wait
+    asks, and knows at once, instead of sleeping to the next frame. (SIGTSTP is asked for
+    too; the real suspend is left out here: it would stop the test process, so it is replaced
+    by a no-op and the run ends by --duration.)"""
+    import lanewarden.runner as runner
+    from tests.signal_probe import signalling_ticker
+
+    seen: list[bool | None] = []
+    monkeypatch.setattr(runner, "Ticker", signalling_ticker(sig, 10, seen))
+    monkeypatch.setattr(runner, "suspend", lambda: None)
+    camera = clip(tmp_path / "camera", scenes, ("lane", 2.0))
+    code = main(["run", "--camera", camera, "--base", "none", "--duration", "1.0",
+                 "--record", str(tmp_path / "run")])
+    assert seen == [True]
+    assert code == 0, capsys.readouterr().err
+
+
 def test_run_warns_of_a_lane_with_little_room_to_drift() -> None:
     """19 mm tapes 0.5 m apart (the README's example lane once) leave a Kobuki 45 mm either way
     before the departure rule (the defaults: 81 mm); a new user's sim of it halted on course in
     a 2 m-radius bend, with no word at start-up."""
     narrow = config_from_mapping(
         {"perception": {"tape": {"width_m": 0.019}, "lane": {"width_m": 0.5}}})
-    (warning,) = start_warnings("0", "camera.yaml", "supervised", narrow)
+    (warning,) = start_warnings("0", "camera.yaml", CALIBRATED, "supervised", narrow)
     assert warning.startswith("perception.lane.width_m 0.5 leaves the robot 45 mm to drift "
                               "either way before the lane-departure rule halts it"), warning
     assert warning.endswith("the defaults leave 81 mm (a 0.6 m lane of 48 mm tape)"), warning
-    assert start_warnings("0", "camera.yaml", "supervised", LanewardenConfig()) == []
+    assert start_warnings("0", "camera.yaml", CALIBRATED, "supervised", LanewardenConfig()) == []
     wider = config_from_mapping(
         {"perception": {"tape": {"width_m": 0.019}, "lane": {"width_m": 0.6}}})
-    assert start_warnings("0", "camera.yaml", "supervised", wider) == []
+    assert start_warnings("0", "camera.yaml", CALIBRATED, "supervised", wider) == []
 
 
 def test_run_warns_that_the_lecture_controller_never_halts_on_lane_loss() -> None:
-    (warning,) = start_warnings("0", "camera.yaml", "lecture")
+    (warning,) = start_warnings("0", "camera.yaml", CALIBRATED, "lecture")
     assert warning.startswith("--controller lecture: the lecture's baseline never halts on lane "
                               "loss"), warning
-    assert start_warnings("0", "camera.yaml", "supervised") == []
+    assert start_warnings("0", "camera.yaml", CALIBRATED, "supervised") == []
 
 
 def test_calibration_for_another_camera_refuses_before_the_base_is_touched(

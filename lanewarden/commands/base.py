@@ -211,8 +211,8 @@ def drive(port: str | None, linear_m_s: float, angular_rad_s: float, duration_s:
             if record.state == "HALT":
                 raise ActuationError(f"{base.port}: stopped after {now - start_s:.2f} s: "
                                      f"{record.halt_reason}")
-            ticks.wait(until_s=start_s + duration_s,  # a signal ends the wait at once
-                       interrupted=lambda: requests.stop is not None or requests.suspend)
+            # a signal ends the wait at once
+            ticks.wait(until_s=start_s + duration_s, interrupted=requests.pending)
             now = ticks.now()
         base.send(STOP, now)
         pose = base.feedback(now).odometry

@@ -244,7 +244,9 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground, "jitter": jitter}
     notes = survey_notes(figures, calibration is not None,
-                         calibration is None or calibration.ground is not None)
+                         calibration is None or calibration.ground is not None,
+                         f"--calibration {calibration_path}" if calibration_path
+                         else "the recording's calibration")
     if source.unlabelled:
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "

@@ -343,3 +343,21 @@ def test_frozen_control_process_trips_and_stays_stopped_until_rearmed(
     assert control.expect("rearmed") == ""
     mark = len(standin.snapshot())
     assert standin.wait_for(lambda pkts: any(map(_is_motion, pkts[mark:])), DEADLINE_S)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGQUIT])
+def test_a_stop_signal_ends_base_drives_wait_at_once(
+        sig: signal.Signals, standin: KobukiStandIn, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The signal comes at the start of a 50 ms tick's wait: the wait asks, and knows at once
+    (it had slept to the next tick, while the dead-man repeated the motion command)."""
+    from lanewarden.commands import base as base_command
+    from tests.signal_probe import signalling_ticker
+
+    seen: list[bool | None] = []
+    monkeypatch.setattr(base_command, "Ticker", signalling_ticker(sig, 2, seen))
+    code = main(["base", "drive", "--port", standin.port, "--linear", "0.1",
+                 "--duration", "30"])
+    assert seen == [True]
+    assert code == 130, capsys.readouterr().err
+    assert standin.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)

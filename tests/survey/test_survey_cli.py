@@ -782,8 +782,10 @@ def test_a_calibration_without_a_ground_pose_gets_a_note() -> None:
     lane = ClassFigures(LANE, frames=3, decisions=3, confident=3, false_lanes=(), runs=(),
                         components=())
     figures = SurveyFigures({LANE: lane}, Verdict(True, (), 6, None), ())
-    assert survey_notes(figures, calibrated=True, ground_pose=False) == [
-        "note: the --calibration has no ground pose: the frames were judged as if your camera "
+    assert survey_notes(figures, calibrated=True, ground_pose=False,
+                        calibration_name="--calibration camera.yaml") == [
+        "note: --calibration camera.yaml has no ground pose: the frames were judged as if your "
+        "camera "
         "were mounted as the simulator's (h 0.400 m, pitch 35.0°, 0.150 m ahead of the "
         "robot's centre), so tapes and seams were measured through that mount; with its ground "
         "pose (lanewarden calibrate ground) the figures are your camera's"]

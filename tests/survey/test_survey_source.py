@@ -228,11 +228,21 @@ def test_folders_beside_the_class_folders_matter_only_for_their_images(tmp_path:
     """A survey folder kept in git (.git/HEAD) or with notes (docs/notes.txt) beside lane/ and
     no-lane/ was refused: "not an image the survey reads (a file under a class folder ...)",
     which it is not. A hidden folder there is passed over (images and all: it is no class); any
-    other folder is looked into for images only: images there are still an unknown class."""
+    other folder is looked into for images only: images there are still an unknown class. A
+    link in such a folder, or in or as a hidden folder under a class folder, is not followed (a
+    link to /tmp in no-lane/.thumbs/ had refused the survey as a link outside FOLDER)."""
     _class_set(tmp_path)
     for name in (".git/HEAD", ".git/objects/x.png", "docs/notes.txt", "docs/old/readme.md"):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_bytes(b"")
+    stills, hidden = _class_folders(tmp_path)
+    assert [s.frame.name for s in stills] == ["lane/a.png", "lane/b.png", "no-lane/c.png"]
+    assert hidden == []
+    # links there are not followed: a link to a folder outside FOLDER is no error there
+    (tmp_path / "docs" / "tmp").symlink_to("/tmp")
+    (tmp_path / "no-lane" / ".thumbs").mkdir()
+    (tmp_path / "no-lane" / ".thumbs" / "out").symlink_to("/tmp")
+    (tmp_path / "no-lane" / ".cache").symlink_to("/tmp")
     stills, hidden = _class_folders(tmp_path)
     assert [s.frame.name for s in stills] == ["lane/a.png", "lane/b.png", "no-lane/c.png"]
     assert hidden == []
