@@ -204,6 +204,22 @@ def refuse_assumed_camera(base_kind: str, camera: str, calibration_path: str | N
                      f"{clip_calibration_hint(camera) if calibration is None else ''}")
 
 
+def assume_camera_note(base_kind: str, calibration_path: str | None,
+                       calibration: CameraCalibration | None, assume: bool) -> str | None:
+    """What `--assume-camera` did not do, when it changes nothing (None otherwise): on a bench
+    base nothing is refused anyway, and a calibration with its ground pose assumes nothing (a
+    reviewer: the flag was accepted there without a word)."""
+    if not assume:
+        return None
+    if base_kind != "kobuki":
+        return (f"{ASSUME_CAMERA_FLAG} changes nothing with --base {base_kind}: only the robot "
+                "(--base kobuki) is refused an assumed camera")
+    if assumed_camera(calibration_path, calibration) is None:
+        return (f"{ASSUME_CAMERA_FLAG} changes nothing: --calibration {calibration_path} has its "
+                "lens and its ground pose, nothing is assumed")
+    return None
+
+
 def start_warnings(camera: str, calibration_path: str | None,
                    calibration: CameraCalibration | None, controller_name: str,
                    config: LanewardenConfig | None = None) -> list[str]:
@@ -276,6 +292,8 @@ def run_robot(
         for said in start_warnings(camera, calibration_path, calibration, controller_name,
                                    config):
             print(f"warning: {said}", flush=True)  # beside the ground model's line it qualifies
+        if note := assume_camera_note(base_kind, calibration_path, calibration, assume_camera):
+            print(f"note: {note}", flush=True)
 
         session = RunSession(
             SessionOptions(base_kind=base_kind, record=record, record_image=record_image,

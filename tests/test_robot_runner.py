@@ -258,6 +258,21 @@ def test_a_stop_signal_ends_the_runs_wait_at_once(
     assert code == 0, capsys.readouterr().err
 
 
+def test_assume_camera_says_when_it_changes_nothing() -> None:
+    """On a bench base nothing is refused, and a calibration with its ground pose assumes
+    nothing: the flag says so (it had been accepted without a word)."""
+    from lanewarden.runner import assume_camera_note
+
+    assert assume_camera_note("sim", None, None, True) == (
+        "--assume-camera changes nothing with --base sim: only the robot (--base kobuki) is "
+        "refused an assumed camera")
+    assert assume_camera_note("kobuki", "camera.yaml", CALIBRATED, True) == (
+        "--assume-camera changes nothing: --calibration camera.yaml has its lens and its ground "
+        "pose, nothing is assumed")
+    assert assume_camera_note("kobuki", None, None, True) is None  # it lets the robot drive
+    assert assume_camera_note("kobuki", "camera.yaml", CALIBRATED, False) is None
+
+
 def test_run_warns_of_a_lane_with_little_room_to_drift() -> None:
     """19 mm tapes 0.5 m apart (the README's example lane once) leave a Kobuki 45 mm either way
     before the departure rule (the defaults: 81 mm); a new user's sim of it halted on course in
