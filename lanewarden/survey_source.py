@@ -389,7 +389,6 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                        max_pixels: int) -> SurveySource:
     """Recognise FOLDER (and --labels), see the module docstring."""
     path = Path(folder)
-    table = None
     labels_path = Path(labels) if labels is not None else None
     if labels_path is None:
         if not path.exists():
@@ -403,9 +402,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                                  f"{'/ and '.join(classes)}/: keep one way of labelling, or "
                                  "name the labels with --labels")
             labels_path = path / LABELS_NAME
-    if labels_path is not None:
-        table = read_labels(labels_path, flag=labels is not None)
-    if table is None or labels_path is None:
+    if labels_path is None:
         stills, hidden = _class_folders(path)
         if not stills:
             # photos there, unsorted: name them, and the two ways to label them
@@ -418,6 +415,8 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (class folders lane/, no-lane/)",
                             stills=stills, hidden=hidden)
+    table = read_labels(labels_path, flag=labels is not None)
+    named = labels_named(labels_path, labels is not None)
     if table.kind == "file":
         if not path.is_dir():
             raise UsageError(f"FOLDER '{folder}': {table.source} names image files, so FOLDER "
@@ -430,7 +429,7 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
         _check_headers([(s.frame.name, s.path) for s in stills], max_pixels)
         return SurveySource(_name(path), f"{folder} (labels: {table.source})",
                             stills=stills, unlabelled=_unlabelled(path, stills),
-                            labels=labels_named(labels_path, labels is not None))
+                            labels=named)
     if classes := _class_folder_names(path):
         raise UsageError(f"FOLDER '{folder}': {table.source} labels frame numbers "
                          f"(frames,expect) of a recording, but FOLDER holds "
@@ -450,4 +449,4 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                         if first <= i <= last], max_pixels)
     return SurveySource(source.name, f"{folder} ({source.kind}; labels: {table.source})",
                         sequence=source, labelled=labelled, skipped=skipped,
-                        labels=labels_named(labels_path, labels is not None))
+                        labels=named)

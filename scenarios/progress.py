@@ -79,7 +79,6 @@ class Progress:
         self.desc = desc
         self.unit = unit
         self.done = initial
-        self._initial = initial
         self._stream = stream if stream is not None else sys.stderr
         self._clock = clock
         self._every_s = PLAIN_EVERY_S if every_s is None else every_s
