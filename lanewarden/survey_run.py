@@ -53,6 +53,7 @@ from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import LaneEvidence
 from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
+from lanewarden.supervisor.watchdog import mark_capture
 from lanewarden.survey import (
     LANE,
     NONE,
@@ -201,18 +202,17 @@ class PictureKeeper:
 class HeldImage(FrameStore):
     """A still held in front of a live camera: the same view at every frame index. A live
     camera's frames of one view still differ in their sensor noise, and the supervisor does not
-    count an image identical to the previous one (a frozen camera) towards engaging; so each
-    capture differs from the one before in the lowest bit of its top-left pixel, which is outside
-    every region perception reads (the ROI is a triangle on the bottom edge; a test checks that
-    the observation is unchanged)."""
+    count an image identical to one of its last few (a frozen camera, or one cycling through old
+    buffers) towards engaging; so each capture is marked with its index (`mark_capture`: the
+    lowest bit of a few pixels of the top row, outside every region perception reads; a test
+    checks that the observation is unchanged)."""
 
     def __init__(self, image: np.ndarray) -> None:
         super().__init__()
-        self._captures = (image, image.copy())
-        self._captures[1][0, 0] ^= 1
+        self._image = image
 
     def image(self, index: int) -> np.ndarray | None:
-        return self._captures[index % 2]
+        return mark_capture(self._image.copy(), index)
 
 
 def other_size(image: np.ndarray, size: tuple[int, int] | None, first: str,

@@ -71,9 +71,9 @@ class SimulationConfig(DocumentModel):
     noise_bank_frames: int = Field(
         default=12, ge=2, le=64,
         description="precomputed unit-noise frames, one drawn (seeded) per frame, never the "
-        "previous frame's (a real sensor never repeats its noise, and the supervisor does not "
-        "count an image identical to the previous one); the noise's strength is the camera's: "
-        "the scenario's camera.sensor",
+        "previous frame's (a real sensor never repeats its noise; each capture is also marked "
+        "with its count, as the supervisor does not count an image identical to one of its "
+        "last 16); the noise's strength is the camera's: the scenario's camera.sensor",
     )
     perception_color: bool = Field(
         default=False,

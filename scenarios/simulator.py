@@ -55,6 +55,7 @@ from lanewarden.scenarios.texture import (
 )
 from lanewarden.scenarios.world import World, build_world
 from lanewarden.supervisor.loop import StepRecord
+from lanewarden.supervisor.watchdog import mark_capture
 
 if TYPE_CHECKING:
     from lanewarden.assembly import BuildStack
@@ -346,6 +347,9 @@ class Simulation:
             self.renderer.render_bgr(pose, buffer, motion, noise, now)
         else:
             self.renderer.render_gray(pose, buffer, motion, noise, now)
+        # A real sensor's noise never repeats; the noise bank's dozen frames do, and a robot
+        # standing still would show the watchdog an image it saw a few frames before.
+        mark_capture(buffer, k)
         self.faults.after_render(k, now, buffer)
         # Ground truth: what the delivered frame shows of the lane (the campaign judge's).
         self._contrast = self.lane_contrast.measure(buffer, pose)

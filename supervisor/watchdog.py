@@ -6,10 +6,15 @@ Checks, each step:
 - camera: age of the newest frame (now - capture time) above `frame_late_s` (FRAME_LATE) or
   `frame_stale_s` (FRAME_STALE); a new frame from the future, or going backwards in time or index
   (FRAME_INVALID); identical images for `frame_frozen_s` while the robot is commanded to move
-  (FRAME_FROZEN; a stopped robot may legitimately see the same image); and, moving or not,
-  whether this step's new frame shows exactly the previous frame's image (`image_repeated`: no new
-  evidence, so the supervisor does not count it towards engaging or recovering: a camera that
-  froze on a confident lane while the robot waited must not be what engages it);
+  (FRAME_FROZEN; a stopped robot may legitimately see the same image: "identical" as below); and,
+  moving or not,
+  whether this step's new frame shows exactly the image of one of the last RECENT_IMAGES frames
+  (`image_repeated`: no new evidence, so the supervisor does not count it towards engaging or
+  recovering: a camera that froze on a confident lane while the robot waited must not be what
+  engages it). Identical to any of the recent images, not only the previous one: a camera
+  stuck re-delivering a ring of old buffers (A, B, A, B: a V4L2 mmap ring, a looping decoder)
+  shows no new image either, and an attacker's review drove 1.84 m on two alternating frames
+  when only the previous image counted (a real sensor's noise never gives the same pixels twice);
 - base: age of the newest feedback above `base_feedback_late_s` but not above
   `base_link_timeout_s` (BASE_FEEDBACK_LATE; beyond it the SafetyGate halts on BASE_LINK_LOST for
   every controller, see supervisor/gate.py).
@@ -23,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections import deque
 
 import numpy as np
 
@@ -34,6 +40,10 @@ from lanewarden.supervisor.hazards import feedback_age_s
 
 #: Pixel stride of the fingerprint: 1/16 of the pixels is plenty to tell sensor noise apart.
 FINGERPRINT_STRIDE = 4
+#: A new frame whose image equals any of this many previous frames' is a repeated image: a
+#: camera cycling through up to this many stale buffers is caught (V4L2 drivers keep 2-8; half a
+#: second at 30 fps).
+RECENT_IMAGES = 16
 
 
 def frame_fingerprint(image: object) -> bytes | None:
@@ -46,6 +56,27 @@ def frame_fingerprint(image: object) -> bytes | None:
     return digest.digest()
 
 
+#: `mark_capture` makes this many different versions of an image: a power of two above
+#: RECENT_IMAGES, so no version repeats one the watchdog remembers.
+CAPTURE_MARKS = 2 * RECENT_IMAGES
+
+
+def mark_capture(image: np.ndarray, index: int) -> np.ndarray:
+    """`image` (in place, and returned) made different, as the fingerprint sees it, from the
+    versions marked with the CAPTURE_MARKS - 1 indices before `index`: capture `index`'s count
+    in the lowest bit of a few pixels of the top row, pixels the fingerprint samples, outside
+    every region perception reads (its region of interest is floor below the horizon). For the
+    cameras that can deliver the same pixels twice where a real one cannot: the simulator's,
+    whose sensor noise comes from a bank of a dozen frames, and a still held in view
+    (lanewarden survey). A real sensor's noise never repeats."""
+    version = index % CAPTURE_MARKS
+    width = image.shape[1]
+    for bit in range(CAPTURE_MARKS.bit_length() - 1):
+        if version >> bit & 1:
+            image[0, min(FINGERPRINT_STRIDE * bit, width - 1)] ^= 1
+    return image
+
+
 class Watchdog:
     def __init__(self, config: SupervisorConfig) -> None:
         self._config = config
@@ -53,9 +84,11 @@ class Watchdog:
         self._last_check_s: float | None = None
         self._newest_index: int | None = None
         self._newest_time_s: float | None = None
-        self._fingerprint: bytes | None = None
+        #: The fingerprints of the last RECENT_IMAGES accepted frames' images (None: not an image).
+        self._recent: deque[bytes | None] = deque(maxlen=RECENT_IMAGES)
         self._same_since_s: float | None = None
-        #: This step's new frame shows exactly the previous accepted frame's image.
+        #: This step's new frame shows exactly the image of one of the last RECENT_IMAGES
+        #: accepted frames.
         self.image_repeated = False
 
     @property
@@ -107,11 +140,11 @@ class Watchdog:
 
     def _accept_frame(self, frame: FrameInfo, moving: bool) -> frozenset[Event]:
         previous_time_s = self._newest_time_s
-        same = frame.fingerprint is not None and frame.fingerprint == self._fingerprint
+        same = frame.fingerprint is not None and frame.fingerprint in self._recent
         self.image_repeated = same
         self._newest_index = frame.index
         self._newest_time_s = frame.time_s
-        self._fingerprint = frame.fingerprint
+        self._recent.append(frame.fingerprint)
         if not (same and moving) or previous_time_s is None:
             self._same_since_s = None
             return frozenset()

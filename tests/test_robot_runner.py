@@ -23,6 +23,7 @@ from lanewarden.config import LanewardenConfig, config_from_mapping
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.runner import start_warnings
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.supervisor.watchdog import RECENT_IMAGES, mark_capture
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.actuation.processes import (
     DEADLINE_S,
@@ -68,15 +69,16 @@ def last_line(out: str) -> str:
 
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
-    """A few frames of a straight taped lane and of bare floor, each with its own sensor noise
-    (so a clip made of them is never frozen). Rendered once: the renderer is slow."""
+    """Frames of a straight taped lane and of bare floor, each with its own sensor noise (more of
+    them than the watchdog remembers, so a clip cycling through them is never frozen). Rendered
+    once: the renderer is slow."""
     folder = tmp_path_factory.mktemp("scenes")
     rng = np.random.default_rng(7)
     frames: dict[str, list[Path]] = {}
     for name, scene in (("lane", STRAIGHT), ("floor", STRAIGHT.__class__(tapes=()))):
         clean = render(scene, 640, 480).astype(np.int16)
         frames[name] = []
-        for index in range(6):
+        for index in range(RECENT_IMAGES + 2):
             noisy = np.clip(clean + rng.normal(0.0, 2.0, clean.shape), 0, 255).astype(np.uint8)
             path = folder / f"{name}_{index}.png"
             cv2.imwrite(str(path), noisy)
@@ -85,13 +87,19 @@ def scenes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
 
 
 def clip(folder: Path, scenes: dict[str, list[Path]], *parts: tuple[str, float]) -> str:
-    """An image sequence (30 fps) of `parts`, e.g. ("lane", 2.0), ("floor", 1.0): hard links to
-    the rendered frames, cycling through their noise."""
+    """An image sequence (30 fps) of `parts`, e.g. ("lane", 2.0), ("floor", 1.0): the rendered
+    frames, cycling through their noise, each also marked with its index (`mark_capture`), so
+    that no image repeats one of the last few the watchdog remembers even where the loop, late
+    on a loaded machine, skips frames."""
     folder.mkdir()
     index = 0
+    loaded: dict[Path, np.ndarray] = {}
     for name, seconds in parts:
         for i in range(round(seconds * FPS)):
-            os.link(scenes[name][i % len(scenes[name])], folder / f"frame_{index:04d}.png")
+            path = scenes[name][i % len(scenes[name])]
+            image = loaded.setdefault(path, cv2.imread(str(path)))
+            cv2.imwrite(str(folder / f"frame_{index:04d}.png"), mark_capture(image.copy(), index),
+                        [cv2.IMWRITE_PNG_COMPRESSION, 1])
             index += 1
     return str(folder / "frame_%04d.png")
 
@@ -362,19 +370,65 @@ def test_the_end_of_the_clip_is_a_normal_end(
     assert last_line(out).startswith("run ended: end of the clip; after ")
 
 
-def test_lane_lost_is_a_safety_stop(
+def test_a_camera_cycling_through_two_old_images_never_moves_the_base(
     scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    camera = clip(tmp_path / "camera", scenes, ("lane", 3.0), ("floor", 1.0))
+    """The attacker's review: a clip alternating two lane images (A, B, A, B: a camera stuck on
+    two old buffers) engaged and drove 1.84 m on `--base sim`, when only the previous image
+    counted as a repeat. Every image after the second is one the camera showed before: no
+    evidence to engage on, and the base gets no motion command at all."""
+    camera = _ring_clip(tmp_path / "camera", scenes["lane"][:2], seconds=2.0)
     with KobukiStandIn() as base:
         code = main(_run(camera, base.port, tmp_path, relaxed_config))
+        assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
+        packets = base.snapshot()
+    out, _ = capsys.readouterr()
+    assert code == 0 and not any(map(is_motion, packets)), out
+    assert "never engaged" in out
+
+
+def test_a_camera_that_starts_cycling_old_images_while_following_halts_on_frozen(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Following a lane, the camera starts re-delivering two old images: FRAME_FROZEN once they
+    have run for frame_frozen_s, a safety stop (exit 3), the last packet a stop."""
+    camera = clip(tmp_path / "camera", scenes, ("lane", 3.0))
+    _ring_clip(tmp_path / "camera", scenes["lane"][:2], seconds=2.0, first=round(3.0 * FPS))
+    _, line = _run_to_a_safety_stop(camera, tmp_path, relaxed_config, capsys)
+    assert line.startswith("lanewarden: safety stop: FRAME_FROZEN")
+
+
+def _run_to_a_safety_stop(camera: str, tmp_path: Path, config: str,
+                          capsys: pytest.CaptureFixture[str]) -> tuple[str, str]:
+    """`run` of `camera` on the stand-in, which must move the base and end in a safety stop
+    (exit 3, the last packet a stop): its stdout and its one stderr line."""
+    with KobukiStandIn() as base:
+        code = main(_run(camera, base.port, tmp_path, config))
         assert base.wait_for(lambda pkts: pkts[-1].packet == STOP_PACKET, DEADLINE_S)
         moved = any(map(is_motion, base.snapshot()))
     out, err = capsys.readouterr()
     assert moved, "it never engaged on the lane part of the clip"
     assert code == 3
-    line = _safety_line(err)
+    return out, _safety_line(err)
+
+
+def _ring_clip(folder: Path, images: list[Path], seconds: float, first: int = 0) -> str:
+    """`seconds` of frames (30 fps) cycling through `images` (hard links), numbered from `first`
+    in `folder` (made when missing): a camera stuck on old buffers."""
+    folder.mkdir(exist_ok=True)
+    for i in range(round(seconds * FPS)):
+        os.link(images[i % len(images)], folder / f"frame_{first + i:04d}.png")
+    return str(folder / "frame_%04d.png")
+
+
+def test_lane_lost_is_a_safety_stop(
+    scenes: dict[str, list[Path]], tmp_path: Path, relaxed_config: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    camera = clip(tmp_path / "camera", scenes, ("lane", 3.0), ("floor", 1.0))
+    out, line = _run_to_a_safety_stop(camera, tmp_path, relaxed_config, capsys)
     assert line.startswith("lanewarden: safety stop: LANE_LOST: no usable lane")
     assert last_line(out).startswith("run ended by a safety stop: LANE_LOST: no usable lane")
 

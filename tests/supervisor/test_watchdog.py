@@ -9,7 +9,7 @@ from lanewarden.actuation.base import BaseFeedback
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import FrameInfo
 from lanewarden.supervisor.events import Event
-from lanewarden.supervisor.watchdog import Watchdog, frame_fingerprint
+from lanewarden.supervisor.watchdog import RECENT_IMAGES, Watchdog, frame_fingerprint
 
 CONFIG = SupervisorConfig()
 DT = 1.0 / 30.0
@@ -79,8 +79,43 @@ def test_changing_images_reset_the_frozen_timer() -> None:
     wd = Watchdog(CONFIG)
     for i in range(60):
         t = i * DT
-        fp = b"A" if (i // 3) % 2 else b"B"  # runs of 3 identical frames (0.1 s < limit)
+        fp = (i // 3).to_bytes(4, "big")  # runs of 3 identical frames (0.1 s < limit), each new
         assert Event.FRAME_FROZEN not in wd.check(t, _frame(i, t, fp=fp), _alive(t), True)
+
+
+def _ring(buffers: int, frames: int, moving: bool) -> list[tuple[float, frozenset[Event], bool]]:
+    """A camera cycling through `buffers` old images (A, B, A, B for two): each step's time,
+    events and `image_repeated`."""
+    wd = Watchdog(CONFIG)
+    seen = []
+    for i in range(frames):
+        t = i * DT
+        events = wd.check(t, _frame(i, t, fp=b"buffer %d" % (i % buffers)), _alive(t), moving)
+        seen.append((t, events, wd.image_repeated))
+    return seen
+
+
+def test_a_camera_cycling_through_two_old_images_is_frozen() -> None:
+    """The attacker's review: a clip alternating two frames (A, B, A, B) engaged and drove 1.84 m
+    when only the previous image counted as the same. From the third frame on every image is one
+    the camera showed before: FRAME_FROZEN while moving once they have run for frame_frozen_s
+    (from the last new image, the second frame)."""
+    seen = _ring(2, 30, moving=True)
+    assert [repeated for _, _, repeated in seen[:4]] == [False, False, True, True]
+    frozen_at = [t for t, events, _ in seen if Event.FRAME_FROZEN in events]
+    assert frozen_at, "two alternating images while moving must be reported as frozen"
+    assert CONFIG.frame_frozen_s - 1e-9 <= frozen_at[0] - DT <= CONFIG.frame_frozen_s + DT + 1e-9
+
+
+def test_a_ring_of_old_buffers_is_repeated_images_moving_or_not() -> None:
+    """A ring as long as the watchdog remembers: once round, every image is a repeated one (no
+    evidence towards engaging), whether the robot moves or not; a stopped robot is never
+    FRAME_FROZEN."""
+    for moving in (False, True):
+        seen = _ring(RECENT_IMAGES, 3 * RECENT_IMAGES, moving)
+        assert [repeated for _, _, repeated in seen] == (
+            [False] * RECENT_IMAGES + [True] * (2 * RECENT_IMAGES))
+        assert any(Event.FRAME_FROZEN in events for _, events, _ in seen) == moving
 
 
 def test_invalid_frames() -> None:

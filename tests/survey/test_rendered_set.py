@@ -30,19 +30,23 @@ def test_a_scene_rendered_again_matches_its_committed_frame() -> None:
 
 
 def test_a_held_still_is_a_live_camera_to_the_supervisor_and_the_same_view_to_perception() -> None:
-    """The survey's engage test holds a still in view: consecutive captures must differ (the
-    supervisor does not count a repeated image: a frozen camera), and perception must see the
-    same view in both (the observation of each committed frame is unchanged)."""
+    """The survey's engage test holds a still in view: no capture may repeat one of the last
+    RECENT_IMAGES (the supervisor does not count a repeated image: a frozen camera, or one
+    cycling through old buffers), and perception must see the same view in all of them (the
+    observation of each committed frame is unchanged)."""
     from lanewarden.config import LanewardenConfig
     from lanewarden.perception.detector import LaneDetector
-    from lanewarden.supervisor.watchdog import frame_fingerprint
+    from lanewarden.supervisor.watchdog import CAPTURE_MARKS, RECENT_IMAGES, frame_fingerprint
     from lanewarden.survey_run import HeldImage
 
     detector = LaneDetector(LanewardenConfig().perception)
     for path in sorted(RENDERED.glob("*/*.jpg")):
         image = cv2.imread(str(path))
         held = HeldImage(image)
-        first, second, third = (held.image(k) for k in range(3))
-        assert first is not None and second is not None and third is not None
-        assert frame_fingerprint(first) != frame_fingerprint(second) != frame_fingerprint(third)
-        assert detector.detect(first, 0, 0.0) == detector.detect(second, 0, 0.0), path.name
+        captures = [held.image(k) for k in range(3 * RECENT_IMAGES)]
+        prints = [frame_fingerprint(c) for c in captures]
+        assert all(prints[k] not in prints[max(0, k - RECENT_IMAGES):k]
+                   for k in range(len(prints))), path.name
+        first = detector.detect(captures[0], 0, 0.0)
+        assert all(detector.detect(c, 0, 0.0) == first
+                   for c in captures[1:CAPTURE_MARKS]), path.name
