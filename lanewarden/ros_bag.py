@@ -63,6 +63,7 @@ from lanewarden.run_mcap import (
     META_NAME,
     SUMMARY_NAME,
 )
+from lanewarden.sqlite_tables import computed_table
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: Largest MCAP record read into memory (a chunk, an attachment, a message outside chunks).
@@ -380,19 +381,9 @@ class Db3File:
 
     def _check_tables(self, connection: sqlite3.Connection) -> None:
         for table in ("topics", "messages"):
-            row = connection.execute("SELECT type, sql FROM sqlite_master WHERE name = ? "
-                                     "COLLATE NOCASE", (table,)).fetchone()
-            if row is None:
-                raise self._refuse(f"no '{table}' table")
-            kind, sql = row
-            if kind != "table" or str(sql).lstrip().upper().startswith("CREATE VIRTUAL"):
-                raise self._refuse(f"'{table}' is a {'virtual table' if kind == 'table' else kind}"
-                                   ", not a table")
-            computed = [str(column[1]) for column in
-                        connection.execute(f"PRAGMA table_xinfo({table})") if column[6]]
-            if computed:
-                raise self._refuse(f"'{table}' has computed columns ({shorten(', '.join(computed))}"
-                                   ")")
+            problem = computed_table(connection, table)
+            if problem is not None:
+                raise self._refuse(problem)
 
     def _topics(self, connection: sqlite3.Connection) -> dict[object, BagTopic]:
         rows = connection.execute("SELECT id, name, type, serialization_format FROM topics "

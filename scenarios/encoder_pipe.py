@@ -12,14 +12,23 @@ goes to any thread that does not block it, such as a progress bar's monitor thre
 SIGQUIT (Ctrl-\\) is not deferred: should an encoder ever stop reading in the middle of a
 frame, it still ends the process at once. Only offline commands write videos (`sim`, `demo`,
 `replay`); the robot runner does not.
+
+imageio-ffmpeg's generator does not say how ffmpeg ended, and its error for a write to a
+stopped ffmpeg is 7 lines with the ffmpeg command: `encoder_process`, `encoder_failure` and
+`mp4_problem` let a writer tell a finished video from one ffmpeg could not finish (a file-size
+limit, a full disk), in a few words.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import signal
+import struct
+import subprocess
 import threading
 from collections.abc import Generator
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -47,3 +56,55 @@ def send_whole(writer: Generator[Any, Any, None], frame: Any) -> None:
             signal.signal(sig, handler)
         for signum in dict.fromkeys(noted):
             os.kill(os.getpid(), signum)
+
+
+def encoder_process(writer: Generator[Any, Any, None]) -> subprocess.Popen[bytes] | None:
+    """The ffmpeg process behind a started `write_frames` generator (its local `p`), or None.
+    imageio-ffmpeg's close() never looks at how ffmpeg ended: a video cut short by a file-size
+    limit or a full disk was taken for a finished one."""
+    frame = getattr(writer, "gi_frame", None)  # a generator object's; None once it ended
+    process = None if frame is None else frame.f_locals.get("p")
+    return process if isinstance(process, subprocess.Popen) else None
+
+
+def encoder_failure(process: subprocess.Popen[bytes] | None,
+                    error: BaseException | None = None) -> str | None:
+    """Why the encoder failed, in a few words ("ffmpeg stopped: File size limit exceeded",
+    "ffmpeg stopped: Broken pipe", "ffmpeg ended with exit status 1"), or None when it ended
+    well. `error`: what a write to it raised; imageio-ffmpeg's text of it is 7 lines (the
+    ffmpeg command among them): only its reason is kept."""
+    code = None if process is None else process.poll()
+    if code is not None and code < 0:
+        return f"ffmpeg stopped: {signal.strsignal(-code) or f'signal {-code}'}"
+    if code:
+        return f"ffmpeg ended with exit status {code}"
+    if error is None:
+        return None
+    first = re.sub(r"^\[Errno \d+\] ", "", (str(error).splitlines() or [""])[0])
+    return f"ffmpeg stopped: {first or type(error).__name__}"
+
+
+def mp4_problem(path: Path) -> str | None:
+    """Why the MP4 (or MOV) file at `path` is not a finished one, or None: its top-level boxes
+    must fill the file exactly and include `moov` (the index ffmpeg writes last, or first with
+    +faststart, once every frame is in; without it no player opens the file)."""
+    try:
+        with path.open("rb") as file:
+            size, offset, boxes = os.fstat(file.fileno()).st_size, 0, set()
+            while offset < size:
+                file.seek(offset)
+                head = file.read(16)
+                if len(head) < 8:
+                    return f"cut short at byte {offset}"
+                length, kind = struct.unpack(">I4s", head[:8])
+                if length == 1 and len(head) == 16:
+                    length = struct.unpack(">Q", head[8:])[0]
+                elif length == 0:
+                    length = size - offset
+                if length < 8 or offset + length > size:
+                    return f"cut short at byte {offset}"
+                boxes.add(kind)
+                offset += length
+    except OSError as exc:
+        return f"cannot be read back ({exc.strerror or exc})"
+    return None if b"moov" in boxes else "unfinished: no moov box (the index a player needs)"

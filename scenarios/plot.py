@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.video import STATE_COLORS
 
 if TYPE_CHECKING:
@@ -255,5 +256,10 @@ def write_plot(
     # a run of one step has no span: a tenth of a second, not matplotlib's singular-limits warning
     ax_decision.set_xlim(start, max(latest + 0.5 if latest > end else end, start + 0.1))
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    try:
+        fig.savefig(path, dpi=90)
+    except OSError as exc:  # a full disk's error names no file: this line does
+        raise ScenarioOutputError(f"{path}: cannot write the plot ({exc.strerror or exc})"
+                                  ) from exc
+    finally:
+        plt.close(fig)

@@ -37,7 +37,12 @@ from lanewarden.perception.overlay import (
     text_scale,
 )
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.encoder_pipe import send_whole
+from lanewarden.scenarios.encoder_pipe import (
+    encoder_failure,
+    encoder_process,
+    mp4_problem,
+    send_whole,
+)
 from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.state_reasons import StateReasons, state_with_reason
 from lanewarden.scenarios.texture import GroundTexture
@@ -335,6 +340,7 @@ class VideoRecorder:
         except (OSError, RuntimeError) as exc:
             raise ScenarioOutputError(f"{path}: cannot start the video encoder ({exc})") from exc
         self._writer = writer
+        self._process = encoder_process(writer)
         self.frames = 0
 
     @property
@@ -373,7 +379,9 @@ class VideoRecorder:
         try:
             send_whole(self._writer, self._frame)
         except (OSError, RuntimeError) as exc:
-            raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
+            self._writer = None  # ffmpeg is gone: close() has nothing more to say
+            raise ScenarioOutputError(f"{self.path}: video encoding failed "
+                                      f"({encoder_failure(self._process, exc)})") from exc
         self.frames += 1
         self._last_time_s = now
         if record.state != "HALT":
@@ -390,9 +398,15 @@ class VideoRecorder:
         try:
             writer.close()
         except (OSError, RuntimeError) as exc:
-            raise ScenarioOutputError(f"{self.path}: video encoding failed ({exc})") from exc
+            raise ScenarioOutputError(f"{self.path}: video encoding failed "
+                                      f"({encoder_failure(self._process, exc)})") from exc
         if self.frames == 0:
             return
+        # before the poster: a video ffmpeg could not finish is the failure, not the poster
+        failed = encoder_failure(self._process) or (
+            None if (problem := mp4_problem(self.path)) is None else f"the file is {problem}")
+        if failed is not None:
+            raise ScenarioOutputError(f"{self.path}: video encoding failed ({failed})")
         if self._poster is None:
             self._poster = self._frame
             self.poster_shows, self.poster_time_s = "the last frame", self._last_time_s

@@ -2,8 +2,9 @@
 any missing parents, the same way for every command.
 
 A path that exists as the wrong kind (a file where a folder is wanted, or the reverse) is bad
-input (UsageError, exit 2); a folder that cannot be created is an I/O failure (OSError from the
-system, reported as a one-line error, exit 1).
+input (UsageError, exit 2); so is a run's recording folder, which no command writes into (`sim`
+and `replay` had written their run.jsonl over a format-1 recording's own); a folder that cannot
+be created is an I/O failure (OSError from the system, reported as a one-line error, exit 1).
 """
 
 from __future__ import annotations
@@ -15,9 +16,25 @@ from lanewarden.errors import Interrupted, OutputError, UsageError
 from lanewarden.scenarios.output_folder import PARTIAL
 
 
+def refuse_a_recording_folder(folder: Path, flag: str = "--out",
+                              given: Path | None = None) -> None:
+    """UsageError when `folder` holds a run's recording (run.mcap, as `run --record` writes, or
+    a format-1 recording's meta.json beside its run.jsonl and frames/): a command would write
+    its outputs among the recording's files. `given`: the file the flag named in `folder` (a
+    calibration's --out), named in the line."""
+    from lanewarden.recording import RUN_MCAP  # (the recorder: imported only when writing)
+
+    held = [name for name in (RUN_MCAP, "meta.json") if (folder / name).is_file()]
+    if held:
+        where = f"'{folder}': holds" if given is None else f"'{given}': its folder holds"
+        raise UsageError(f"{flag} {where} a recording ({', '.join(held)}); recording folders "
+                         "are never written into: expected another folder")
+
+
 def create_output_folder(folder: Path, flag: str = "--out") -> Path:
     """`folder`, created with its missing parents; UsageError if it exists and is not a folder
-    (a file, a FIFO, a device) or is a link to nothing."""
+    (a file, a FIFO, a device), is a link to nothing or holds a recording."""
+    refuse_a_recording_folder(folder, flag)
     if link := dangling_link(folder):
         raise UsageError(f"{flag} '{folder}': {link}; expected a folder")
     if folder.exists() and not folder.is_dir():
@@ -43,6 +60,7 @@ def create_output_file_folder(file: Path, flag: str = "--out") -> Path:
     """`file`, after creating its folder; UsageError if `file` is a folder."""
     if file.is_dir():
         raise UsageError(f"{flag} '{file}': is a folder, expected a file name")
+    refuse_a_recording_folder(file.parent, flag, given=file)
     create_output_folder(file.parent, flag)
     return file
 

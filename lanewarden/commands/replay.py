@@ -59,7 +59,11 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     at its recorded timestamps: OUT/{video.mp4, poster.jpg, plot.png, metrics.json, run.jsonl,
     report.html}, as `sim` writes them. A recorded run replays with its own recorded config and
     calibration unless --config/--calibration say otherwise, and every step is compared."""
-    from lanewarden.commands.output_folders import create_output_folder, interrupted_in
+    from lanewarden.commands.output_folders import (
+        create_output_folder,
+        interrupted_in,
+        refuse_a_recording_folder,
+    )
     from lanewarden.config import load_config
     from lanewarden.perception.detector import too_small
     from lanewarden.replay import check_preparation
@@ -72,7 +76,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     )
 
     if out_dir is not None:
-        _refuse_a_recording_folder(Path(out_dir))
+        refuse_a_recording_folder(Path(out_dir))  # before the source is read
         _refuse_the_source_folder(Path(out_dir), source)
     given = load_config(config_path)
     replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
@@ -179,17 +183,6 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and not metrics["reproduced"]:
         raise QualityGateError(f"replay {source}: diverges from the recording at "
                                f"{metrics['first_divergence']['text']}")
-
-
-def _refuse_a_recording_folder(out: Path) -> None:
-    """UsageError when --out names a run's recording folder: replay would write its run.jsonl,
-    metrics and report there (a format-1 recording's own run.jsonl among them)."""
-    from lanewarden.replay_sources import RUN_MCAP
-
-    held = [name for name in (RUN_MCAP, "meta.json") if (out / name).is_file()]
-    if held:
-        raise UsageError(f"--out '{out}': holds a recording ({', '.join(held)}); recording "
-                         "folders are never written into: expected another folder")
 
 
 def _refuse_the_source_folder(out: Path, source: str) -> None:

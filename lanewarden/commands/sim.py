@@ -21,7 +21,11 @@ import click
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag, WholeRange
-from lanewarden.commands.output_folders import create_output_folder, interrupted_in
+from lanewarden.commands.output_folders import (
+    create_output_folder,
+    interrupted_in,
+    refuse_a_recording_folder,
+)
 from lanewarden.config import load_config, narrow_lane_warning
 from lanewarden.errors import QualityGateError, UsageError
 from lanewarden.scenarios.before_halt import halt_line
@@ -156,6 +160,8 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
             build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario,
             camera_out=camera_out)
     if camera_out is not None:
+        # the clip and its calibration go into its folder
+        refuse_a_recording_folder(camera_out.parent, "--camera-out", given=camera_out)
         _check_clip_beside_outputs(camera_out, out)
     if narrow := narrow_lane_warning(effective_config(request.config, spec)):
         click.echo(f"warning: {narrow}")
@@ -212,6 +218,8 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     spec = _load_scenario(DEMO_SCENARIO)
     out = create_output_folder(Path(out_dir))
     names = ("lecture", "supervised")
+    for name in names:  # each run's outputs go into its own folder there
+        refuse_a_recording_folder(out / name)
     folder = OutputFolder(out, ["report.html"], subfolders=names)
     folder.begin()
     requests = [

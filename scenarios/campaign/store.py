@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from lanewarden.scenarios.errors import ScenarioError
+from lanewarden.sqlite_tables import computed_table
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("id", "TEXT PRIMARY KEY"), ("idx", "INTEGER"), ("scenario", "TEXT"), ("camera", "TEXT"),
@@ -83,7 +84,7 @@ class ResultStore:
         self.unstored_carried = 0
         self._select = _SELECT
         if read_only:
-            self._db = _open_read_only(path)
+            self._db = _open_read_only(path)  # its tables checked: only stored rows are read
             have = self._read(lambda db: {row[1] for row in db.execute("PRAGMA table_info(runs)")})
             if "id" not in have or "outcome" not in have:
                 self._db.close()
@@ -93,6 +94,8 @@ class ResultStore:
                             " FROM runs")
             return
         problem = _damage(path) if path.exists() else None
+        if problem is None and path.exists():
+            _refuse_computed_tables(path)  # before a row is read or written (damaged: below)
         if problem is not None:
             if not recover:
                 raise DamagedResults(
@@ -307,11 +310,40 @@ def _open_read_only(path: Path) -> sqlite3.Connection:
     if problem is not None:
         raise DamagedResults(f"{path}: the results database is damaged ({problem}); run the "
                              "campaign that wrote it again with --recover first")
+    _refuse_computed_tables(path)
     try:
         return sqlite3.connect(_read_only_uri(path), uri=True)
     except sqlite3.Error as exc:
         raise ScenarioError(f"{path}: cannot open the results database "
                             f"({_problem(exc)})") from None
+
+
+#: The tables a campaign writes; each must hold its rows (`computed_table`) when present.
+_TABLES = ("runs", "campaign")
+
+
+def _refuse_computed_tables(path: Path) -> None:
+    """DamagedResults (one line, exit 2; nothing read or changed) when `runs` or `campaign` in
+    the (undamaged) file at `path` is a view, a virtual table or has generated columns: their
+    rows would be computed on every read, without bound (a recursive view never ends). A file
+    without them is left to its reader (a new store creates them; a reader refuses a file
+    without `runs`)."""
+    try:
+        db = sqlite3.connect(_read_only_uri(path), uri=True)
+    except sqlite3.Error as exc:
+        raise ScenarioError(f"{path}: cannot open the results database "
+                            f"({_problem(exc)})") from None
+    try:
+        found = next(filter(None, (computed_table(db, table, required=False)
+                                   for table in _TABLES)), None)
+    except sqlite3.Error as exc:
+        found = f"its tables cannot be read ({_problem(exc)})"
+    finally:
+        db.close()
+    if found is not None:
+        raise DamagedResults(f"{path}: {found}; expected the tables `lanewarden campaign` "
+                             "writes (their rows stored in the file); nothing was read or "
+                             "changed")
 
 
 def _damage(path: Path) -> str | None:
@@ -330,6 +362,15 @@ def _damage(path: Path) -> str | None:
         return _problem(exc)
     finally:
         db.close()
+
+
+def _computes_rows(db: sqlite3.Connection) -> bool:
+    """Whether `runs` or `campaign` computes its rows (False when the schema cannot be read: the
+    scans then find what they can)."""
+    try:
+        return any(computed_table(db, table, required=False) for table in _TABLES)
+    except sqlite3.Error:
+        return False
 
 
 def _scan(db: sqlite3.Connection, query: str, found: dict[str, dict[str, Any]]) -> None:
@@ -365,6 +406,8 @@ def _recover(path: Path) -> Recovery:
     except sqlite3.Error:
         return Recovery([], {}, kept, 0)
     try:
+        if _computes_rows(db):
+            return Recovery([], {}, kept, 0)  # rows it computes are no campaign's (nor bounded)
         _scan(db, f"{_SELECT} ORDER BY rowid", found)
         _scan(db, f"{_SELECT} ORDER BY rowid DESC", found)
         try:  # the primary key's own index: the ids of rows the table scans could not reach

@@ -286,6 +286,46 @@ def test_replay_never_writes_into_a_recording_folder(recorded: Path, tmp_path: P
         assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
 
 
+def every_file(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+SIM = ["sim", "--scenario", "fault-operator-stop", "--no-video", "--quiet"]
+
+
+@pytest.mark.parametrize("command, where", [
+    ([*SIM, "--out", "{rec}"], "--out '{rec}': holds"),
+    (["demo", "--no-video", "--quiet", "--out", "{rec}"], "--out '{rec}': holds"),
+    (["demo", "--no-video", "--quiet", "--out", "{parent}"], "--out '{rec}': holds"),
+    ([*SIM, "--out", "{tmp}/o", "--camera-out", "{rec}/clip.mp4"],
+     "--camera-out '{rec}/clip.mp4': its folder holds"),
+    (["campaign", "--spec", "default", "--runs", "1", "--scheduler", "in-process", "--out",
+      "{rec}"], "--out '{rec}': holds"),
+], ids=["sim", "demo", "demo-run-folder", "sim-camera-out", "campaign"])
+def test_no_command_writes_into_a_recording_folder(
+        command: list[str], where: str, recorded: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`sim --out` into a format-1 recording wrote its own run.jsonl over the recording's and
+    exited 0 (an attacker's review): every command writing a folder refuses a recording's
+    before it writes anything (`demo`: also each run's folder in it, `supervised/` here), as
+    `replay` does."""
+    for kind, rec in (("format 3", tmp_path / "parent" / "supervised"),
+                      ("format 1", tmp_path / "old" / "supervised")):
+        if kind == "format 3":
+            shutil.copytree(recorded, rec)
+        else:
+            as_format_1(recorded, rec)
+        before = every_file(rec.parent)
+        names = {"rec": rec, "parent": rec.parent, "tmp": tmp_path}
+        code = main([arg.format(**names) for arg in command])
+        held = "run.mcap, meta.json" if kind == "format 3" else "meta.json"
+        assert_one_line(code, capsys.readouterr().err,
+                        f"{where.format(**names)} a recording ({held}); recording folders are "
+                        "never written into: expected another folder")
+        assert every_file(rec.parent) == before, kind
+        assert not (tmp_path / "o").exists()
+
+
 def test_replay_never_writes_into_its_source_folder(tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     """`replay imgs --out imgs` wrote metrics.json, plot.png and run.jsonl among the frames, and

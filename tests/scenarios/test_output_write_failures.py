@@ -1,0 +1,86 @@
+"""A video ffmpeg cannot finish, and a plot that cannot be written, are one line naming the
+file, exit 1, with the PARTIAL marker kept.
+
+imageio-ffmpeg's close() never looks at how ffmpeg ended: under a file-size limit `replay` had
+exited 0 with a video.mp4 no player opens (no moov box), on a full disk it blamed poster.jpg,
+and ffmpeg stopping mid-video had been 7 lines with the ffmpeg command; a full disk under
+plot.png had named no file (an attacker's review). The limit is a real RLIMIT_FSIZE in the
+command's process, which its ffmpeg inherits."""
+
+from __future__ import annotations
+
+import resource
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lanewarden.scenarios.encoder_pipe import mp4_problem
+from lanewarden.scenarios.errors import ScenarioOutputError
+from lanewarden.scenarios.plot import write_plot
+
+SIM = ["sim", "--scenario", "fault-operator-stop", "--quiet"]
+
+
+def sim_limited(out: Path, limit_bytes: int | None) -> subprocess.CompletedProcess[str]:
+    """`lanewarden sim` into `out`, its files (and its ffmpeg's) limited to `limit_bytes`."""
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG)
+        if limit_bytes is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+
+    return subprocess.run([sys.executable, "-m", "lanewarden", *SIM, "--out", str(out)],
+                          capture_output=True, text=True, preexec_fn=limit, timeout=600)
+
+
+def test_a_video_ffmpeg_cannot_finish_is_one_line_and_the_run_stays_partial(
+        tmp_path: Path) -> None:
+    whole = sim_limited(tmp_path / "whole", None)
+    assert whole.returncode == 0, whole.stderr
+    video = tmp_path / "whole" / "video.mp4"
+    assert mp4_problem(video) is None
+    size = video.stat().st_size
+    # just under the finished file: ffmpeg fails writing its index at the end (it had exited 0
+    # in the review's replay); 200 KiB: it stops in the middle of the frames (run.jsonl,
+    # 125 KiB in all, stays below)
+    for name, limit in (("at-the-end", size - 4096), ("mid-video", 200 * 1024)):
+        out = tmp_path / name
+        done = sim_limited(out, limit)
+        assert (done.returncode, done.stderr) == (1, (
+            f"lanewarden: error: {out / 'video.mp4'}: video encoding failed (ffmpeg stopped: "
+            "File size limit exceeded)\n")), name
+        assert "video.mp4" in (out / "PARTIAL").read_text(encoding="utf-8"), name
+        assert not (out / "poster.jpg").exists(), name
+
+
+def box(kind: bytes, body: bytes = b"") -> bytes:
+    return (8 + len(body)).to_bytes(4, "big") + kind + body
+
+
+def test_a_cut_or_unfinished_mp4_is_told_from_a_finished_one(tmp_path: Path) -> None:
+    """(A real finished video passes: above.)"""
+    finished = box(b"ftyp", b"isom\0\0\0\0") + box(b"moov", b"\0" * 40) + box(b"mdat", b"x" * 99)
+    for name, data, problem in (
+            ("finished", finished, None),
+            ("cut", finished[:-10], "cut short at byte 64"),
+            ("no-index", box(b"ftyp", b"isom\0\0\0\0") + box(b"mdat", b"x" * 99),
+             "unfinished: no moov box (the index a player needs)"),
+            ("empty", b"", "unfinished: no moov box (the index a player needs)")):
+        (tmp_path / name).write_bytes(data)
+        assert mp4_problem(tmp_path / name) == problem, name
+    assert mp4_problem(tmp_path / "missing") == "cannot be read back (No such file or directory)"
+
+
+def test_a_plot_that_cannot_be_written_names_plot_png(tmp_path: Path) -> None:
+    """plot.png a link to /dev/full: every write fails with ENOSPC, as on a full disk, whose
+    OSError names no file."""
+    plot = tmp_path / "plot.png"
+    plot.symlink_to("/dev/full")
+    with pytest.raises(ScenarioOutputError) as failed:
+        write_plot(plot, "a run", np.array([0.0, 0.1]), [0.1, 0.2], [0.1, 0.2], [0.9, 0.9],
+                   ["FOLLOW", "HALT"], [None, "LANE_LOST"], 0.5, [])
+    assert str(failed.value) == f"{plot}: cannot write the plot (No space left on device)"
