@@ -23,6 +23,8 @@ It must never let a request it did not mean to serve reach the robot (issue 18's
   length, a chunked body, or a GET with a body is refused with a 4xx before anything is read.
 - The `Host` header must name this server (`AccessRules`: DNS rebinding); a state-changing request
   must come from this server's own page (`Origin`, `Sec-Fetch-Site`) and carry `X-Lanewarden`;
+  a GET must not come from another site's page (`Sec-Fetch-Site`), and every answer says
+  `Cross-Origin-Resource-Policy: same-origin`, so another site cannot embed the camera picture;
   on any bind address but loopback every request but the page itself carries the run's token.
 - A bad client never prints a traceback; an error in this module's own code prints one line.
 Buttons go through `OperatorPanel`: Stop always works (the loop's own operator_stop, at once);
@@ -96,12 +98,19 @@ FRAME_STATUS_HEADER = "X-Lanewarden-Status"
 #: Host names that are this machine's loopback (IPv6 as in a URL).
 LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
 ACTIONS = ("start", "stop", "resume")
+#: `Sec-Fetch-Site` of the requests served: the page's own, and for a GET also an address typed,
+#: bookmarked or opened from the terminal ('none'); never another site's page (a browser sends
+#: 'cross-site' or 'same-site' for those: an <img> of /frame.jpg, a form, a fetch).
+STATE_CHANGING_FETCH_SITES = frozenset({"same-origin"})
+GET_FETCH_SITES = frozenset({"same-origin", "none"})
 _CONTENT_LENGTH = re.compile(r"[0-9]{1,9}")
 _SECURITY_HEADERS = (
     ("Cache-Control", "no-store"),
     ("X-Content-Type-Options", "nosniff"),
     ("Referrer-Policy", "no-referrer"),
     ("X-Frame-Options", "DENY"),  # no clickjacking of the buttons from another site's frame
+    # no other site's page may embed an answer (an <img> of /frame.jpg showed the camera there)
+    ("Cross-Origin-Resource-Policy", "same-origin"),
     ("Content-Security-Policy", "default-src 'none'; script-src 'unsafe-inline'; "
      "style-src 'unsafe-inline'; img-src 'self' blob:; connect-src 'self'; "
      "frame-ancestors 'none'; base-uri 'none'; form-action 'none'"),
@@ -223,6 +232,7 @@ class AccessRules:
       address the connection arrived on. A DNS-rebinding page sends its own name: refused.
     - A state-changing request (POST): `X-Lanewarden` present; `Sec-Fetch-Site`, when sent, is
       `same-origin`; `Origin`, when sent, is `http://` + the Host header.
+    - Any other request (GET): `Sec-Fetch-Site`, when sent, is `same-origin` or `none`.
     - `token` (every bind but loopback): every request but the page itself carries it in
       `X-Lanewarden-Token` (compared in constant time).
     """
@@ -250,11 +260,20 @@ class AccessRules:
             return f"unexpected Host header {hosts[0][:80]!r}"
         return None
 
+    @staticmethod
+    def fetch_site_problem(fetch_site: str | None, state_changing: bool) -> str | None:
+        """Why the browser says the request comes from another site's page (None: it does not,
+        or it is no browser: no header)."""
+        allowed = STATE_CHANGING_FETCH_SITES if state_changing else GET_FETCH_SITES
+        if fetch_site is not None and fetch_site.strip().lower() not in allowed:
+            return f"a {fetch_site[:40]!r} request (Sec-Fetch-Site)"
+        return None
+
     def origin_problem(self, origin: str | None, fetch_site: str | None, host: str,
                        marked: bool) -> str | None:
         """Why a state-changing request is not from this server's own page (None: it is)."""
-        if fetch_site is not None and fetch_site.strip().lower() != "same-origin":
-            return f"a {fetch_site[:40]!r} request (Sec-Fetch-Site)"
+        if problem := self.fetch_site_problem(fetch_site, state_changing=True):
+            return problem
         if origin is not None and origin.strip().lower() != f"http://{host.strip().lower()}":
             return f"unexpected Origin {origin[:80]!r}"
         if not marked:
@@ -747,10 +766,12 @@ class _Handler(BaseHTTPRequestHandler):
         rules = self.server.view.rules
         hosts = self.headers.get_all("Host") or []
         problem = rules.host_problem(hosts, self._arrived_on())
+        fetch_site = self.headers.get("Sec-Fetch-Site")
         if problem is None and state_changing:
-            problem = rules.origin_problem(self.headers.get("Origin"),
-                                           self.headers.get("Sec-Fetch-Site"), hosts[0],
+            problem = rules.origin_problem(self.headers.get("Origin"), fetch_site, hosts[0],
                                            self.headers.get(REQUEST_HEADER) is not None)
+        elif problem is None:  # another site's <img> of /frame.jpg had shown the camera there
+            problem = rules.fetch_site_problem(fetch_site, state_changing=False)
         if problem is not None:
             self._refuse(HTTPStatus.FORBIDDEN, problem)
             return False

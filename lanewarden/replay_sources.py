@@ -547,12 +547,43 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
                           "filled)")
     pattern = str(meta.get("frames", "frames/%06d.png"))
     suffix = ".jpg" if pattern.endswith(".jpg") else ".png"
+    _check_frames_folder(folder / "frames", {f"{s.frame[0]:06d}{suffix}" for s in reader.steps
+                                             if s.frame is not None})
     return ReplaySource(
         kind="run", name=folder.name, steps=reader.steps,
         frames=RunFolderFrames(folder / "frames", suffix, max_pixels),
         recorded=reader.recorded, config=config, calibration=calibration,
         controller=_recorded_controller(meta), meta=meta, summary=summary, incomplete=incomplete,
         config_origin=f"recorded ({config_path})" if config is not None else "defaults")
+
+
+def _check_frames_folder(frames: Path, names: set[str]) -> None:
+    """InputFileError when a format-1 run's `frames` folder cannot give the frames its steps
+    name (`names`, such as '000005.png'): it is missing, no folder (a file, a link to itself),
+    unreadable, holds none of them, or holds one as something that is no image file (a FIFO or
+    a device, refused unopened, or a folder). A frame that is simply not there was dropped while
+    recording: the replay counts it. (A missing frames/ had replayed with 0 frames and exit 0; a
+    link to /dev/zero as a frame was 'a damaged or cut file?'.)"""
+    expected = "expected the folder of the recording's frames" + (f" ({min(names)}, ...)"
+                                                                  if names else "")
+    if not frames.is_dir():
+        what = _what_is_there(frames, "folder") if os.path.lexists(frames) else "no such folder"
+        raise InputFileError(f"{frames}: {what}, {expected}")
+    try:
+        with os.scandir(frames) as entries:  # a regular file costs no stat (its d_type)
+            there = {e.name: e.is_file() for e in entries if e.name in names}
+    except OSError as exc:
+        raise InputFileError(f"{frames}: cannot read this folder ({exc.strerror or exc})"
+                             ) from None
+    if names and not there:
+        raise InputFileError(f"{frames}: none of the {len(names)} frames the recording's steps "
+                             f"name is there, {expected}")
+    problems = [(name, why) for name, regular in sorted(there.items()) if not regular
+                and (why := file_problem(frames / name)) and why != "no such file"]
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise InputFileError(f"{frames / problems[0][0]}: {problems[0][1]}{more}, expected a "
+                             "recorded frame (an image file)")
 
 
 def _check_image_message(message: BagMessage, decoded: Any, where: str,
@@ -810,18 +841,27 @@ def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> R
                         frames=VideoFrames(capture, max_pixels), meta={"fps": fps})
 
 
-def _recording_file_problem(path: Path) -> str:
-    """Why the recording file a run folder names (run.mcap, run.jsonl) cannot be read although
-    something of that name is there, or '' (missing, or a regular file): a folder said 'a run
-    folder without its recording' of a run.mcap that was a FIFO, a link to /dev/zero, a folder
-    or a link to itself (an attacker's review)."""
+def _what_is_there(path: Path, wanted: str) -> str:
+    """What is at `path` (which exists), in a few words, for a message that expected a `wanted`
+    ('file', 'folder') there."""
+    if path.is_dir():
+        return "a folder"
+    if path.is_file():
+        return "a file"
+    if is_special_file(path):
+        return NOT_A_REGULAR_FILE
+    return f"a link that leads to no {wanted}"  # to nothing, or to itself
+
+
+def _recording_file_problem(path: Path, expected: str = "the recording file") -> str:
+    """Why the recording file a run folder names (run.mcap, run.jsonl, meta.json) cannot be read
+    although something of that name is there, or '' (missing, or a regular file): a folder said
+    'a run folder without its recording' of a run.mcap that was a FIFO, a link to /dev/zero, a
+    folder or a link to itself, and 'no recording and no images there' of a FIFO meta.json (an
+    attacker's reviews)."""
     if not os.path.lexists(path) or path.is_file():
         return ""
-    if path.is_dir():
-        return f"{path}: a folder, expected the recording file"
-    if is_special_file(path):
-        return f"{path}: {NOT_A_REGULAR_FILE}, expected the recording file"
-    return f"{path}: a link that leads to no file, expected the recording file"
+    return f"{path}: {_what_is_there(path, 'file')}, expected {expected}"
 
 
 def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
@@ -831,6 +871,8 @@ def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
             raise InputFileError(problem)
     if (path / RUN_MCAP).is_file():
         return _load_run_mcap(path / RUN_MCAP, path.name, max_pixels)
+    if problem := _recording_file_problem(path / "meta.json", "the recording's meta.json"):
+        raise InputFileError(problem)
     if (path / "run.jsonl").is_file() and (path / "meta.json").is_file():
         return _load_legacy_run(path, max_pixels)
     if (path / "meta.json").is_file():

@@ -32,7 +32,7 @@ from typing import Any
 from lanewarden.errors import InputFileError
 from lanewarden.perception.ground import default_pose
 from lanewarden.perception.observation import weakest_component
-from lanewarden.wording import counted
+from lanewarden.wording import counted, shown_name
 
 LANE = "lane"
 NONE = "none"
@@ -56,6 +56,9 @@ HEADER_HELP = "file,expect[,note] (images) or frames,expect[,note] (a video, run
 #: Where a labels file's lines end: as an editor counts them (str.splitlines also ends a line at a
 #: form feed, U+2028 or U+0085 inside a note, and then names the wrong line).
 LINE_BREAK = re.compile(r"\r\n|\r|\n")
+#: A frame index or an inclusive range of them, in ASCII digits (int() also takes '٣', '+3' and
+#: '1_000'), at most 12 digits each (int() refuses a field of 4301 digits with a ValueError).
+FRAME_RANGE = re.compile(r"([0-9]{1,12})(?:-([0-9]{1,12}))?")
 
 
 # ---- labels -----------------------------------------------------------------------------------
@@ -77,6 +80,12 @@ class LabelsTable:
     rows: tuple[LabelRow, ...]
 
 
+def _quoted(value: str) -> str:
+    """A labels file's text as an error quotes it: stripped, at most 60 characters, and nothing a
+    terminal acts on (an escape sequence in a row is shown as '\\x1b]0;...', never sent)."""
+    return shown_name(value.strip()[:60])
+
+
 def _expect(value: str, where: str) -> str:
     expect = value.strip().lower()
     if expect not in EXPECTS:
@@ -84,23 +93,21 @@ def _expect(value: str, where: str) -> str:
         folder = CLASS_FOLDERS[NONE]
         hint = (f" (did you mean {NONE}? {folder}/ is the folder's name)"
                 if expect.rstrip("/") == folder else "")
-        raise InputFileError(f"{where}: label '{value.strip()[:60]}': expected lane or "
+        raise InputFileError(f"{where}: label '{_quoted(value)}': expected lane or "
                              f"none{hint}")
     return expect
 
 
 def _frame_range(value: str, where: str) -> tuple[int, int]:
-    text = value.strip()
-    first, dash, last = text.partition("-")
-    try:
-        a = int(first)
-        b = int(last) if dash else a
-    except ValueError:
-        raise InputFileError(f"{where}: frames '{text[:60]}': expected a frame index (120) or an "
-                             "inclusive range (120-340)") from None
-    if a < 0 or b < a:
-        raise InputFileError(f"{where}: frames '{text[:60]}': expected 0 <= first <= last")
-    return a, b
+    found = FRAME_RANGE.fullmatch(value.strip())
+    if found is None:
+        raise InputFileError(f"{where}: frames '{_quoted(value)}': expected a frame index in "
+                             "digits 0-9 (120) or an inclusive range (120-340)")
+    first = int(found.group(1))
+    last = int(found.group(2)) if found.group(2) is not None else first
+    if last < first:
+        raise InputFileError(f"{where}: frames '{_quoted(value)}': expected 0 <= first <= last")
+    return first, last
 
 
 def parse_labels(text: str, source: str) -> LabelsTable:
@@ -125,13 +132,13 @@ def parse_labels(text: str, source: str) -> LabelsTable:
         if header is None:
             names = tuple(f.strip().lower() for f in fields)
             if names not in LABEL_HEADERS:
-                raise InputFileError(f"{where}: header '{raw.strip()[:60]}': expected "
+                raise InputFileError(f"{where}: header '{_quoted(raw)}': expected "
                                      f"{HEADER_HELP}")
             header = LABEL_HEADERS[names]
             with_note = len(names) == 3
             continue
         if len(fields) < 2 or (len(fields) > 2 and not with_note):
-            raise InputFileError(f"{where}: '{raw.strip()[:60]}': expected "
+            raise InputFileError(f"{where}: '{_quoted(raw)}': expected "
                                  f"{'2 or 3' if with_note else '2'} columns")
         if len(rows) >= MAX_LABEL_ROWS:
             raise InputFileError(f"{where}: more than {MAX_LABEL_ROWS} labelled rows")
@@ -142,7 +149,7 @@ def parse_labels(text: str, source: str) -> LabelsTable:
             if not name:
                 raise InputFileError(f"{where}: empty file name")
             if name in files:
-                raise InputFileError(f"{where}: {name[:60]} is already labelled on line "
+                raise InputFileError(f"{where}: {_quoted(name)} is already labelled on line "
                                      f"{files[name]}")
             files[name] = number
             rows.append(LabelRow(number, expect, note, file=name))

@@ -48,7 +48,7 @@ from lanewarden.survey import (
     LabelsTable,
     parse_labels,
 )
-from lanewarden.wording import counted, first_few
+from lanewarden.wording import counted, first_few, shown_name
 
 LABELS_NAME = "labels.csv"
 FOLDER_HELP = (f"a folder with lane/ and no-lane/ sub-folders of images, or with a {LABELS_NAME}"
@@ -82,16 +82,6 @@ class SurveySource:
     skipped: list[int] = field(default_factory=list)
     hidden: list[str] = field(default_factory=list)
     labels: str | None = None
-
-
-def shown_name(name: str) -> str:
-    """`name` with each character a terminal acts on (a newline, ESC, a tab) written as its
-    escape ('\\n', '\\x1b'): a frame is named in one line of text, whatever its file is called
-    (a file name with a newline had split the NOT SAFE line in two)."""
-    if name.isprintable():
-        return name
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
-                   for c in name)
 
 
 def problems_line(what: str, total: int, problems: list[str]) -> str:
@@ -139,6 +129,7 @@ def _class_folders(folder: Path) -> tuple[list[StillFrame], list[str]]:
     hidden file, or any file in a hidden folder, under a class folder), named relative to
     FOLDER."""
     by_folder = {name: expect for expect, name in CLASS_FOLDERS.items()}
+    inside = folder.resolve()
     stills: list[StillFrame] = []
     hidden: list[str] = []
     subs = sorted(p for p in folder.iterdir() if p.is_dir())
@@ -152,9 +143,11 @@ def _class_folders(folder: Path) -> tuple[list[StillFrame], list[str]]:
     for sub in subs:
         if sub.name not in by_folder and is_hidden(sub):
             continue  # .git/, .thumbs/ beside the class folders: no class, nothing to survey
+        if sub.name in by_folder:
+            _refuse_a_link_outside(sub, inside)  # lane -> /elsewhere: not the survey's photos
         # other folders beside them (docs/ of notes) are looked into only for images: images
         # there may be a misnamed class folder
-        paths, skipped = _images_under(sub, others_allowed=sub.name not in by_folder)
+        paths, skipped = _images_under(sub, inside, others_allowed=sub.name not in by_folder)
         if sub.name not in by_folder:
             if paths:
                 close = difflib.get_close_matches(sub.name, list(by_folder), n=1, cutoff=0.5)
@@ -206,7 +199,28 @@ def is_hidden(path: Path) -> bool:
     return path.name.startswith(".")
 
 
-def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path], list[Path]]:
+def _leads_outside(path: Path, inside: Path) -> bool:
+    """Does `path`, its links followed, lie outside `inside`? A link loop leads nowhere, so not
+    (Path.resolve raises on one; reading the file then says why, in one line)."""
+    try:
+        return not path.resolve().is_relative_to(inside)
+    except (OSError, RuntimeError):
+        return False
+
+
+def _refuse_a_link_outside(path: Path, inside: Path) -> None:
+    """InputFileError when `path` is a link that leads out of `inside` (the survey's FOLDER,
+    resolved): a class folder, a folder under one or a photo, all by one rule (a linked photo or
+    class folder leading out had been surveyed without a word, a linked sub-folder refused). A
+    link inside FOLDER is followed."""
+    if path.is_symlink() and _leads_outside(path, inside):
+        target = shown_name(str(path.resolve()))
+        raise InputFileError(f"{shown_name(str(path))}: a link to {target}, outside {inside}; "
+                             "expected the survey's photos inside its folder (copy them in)")
+
+
+def _images_under(folder: Path, inside: Path, others_allowed: bool = False
+                  ) -> tuple[list[Path], list[Path]]:
     """The images in `folder` (natural name order), then those of its sub-folders, each in
     turn, in name order; and the images skipped as hidden: hidden files, and every image in a
     hidden folder (such as .thumbs/ or .git/), walked only to count them (a folder reached
@@ -214,11 +228,11 @@ def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path
     recursion: a folder nested thousands deep is walked, not a RecursionError; an unreadable
     folder is one line. A file that is not an image is an error (a photo the survey cannot
     read), unless `others_allowed` (a folder beside the class folders: only its images
-    matter)."""
+    matter). A link to a photo or a folder (one that is walked: not hidden, not beside the class
+    folders) must lead inside `inside`, the survey's FOLDER resolved (`_refuse_a_link_outside`)."""
     paths: list[Path] = []
     skipped: list[Path] = []
     seen: set[tuple[int, int]] = set()  # (device, inode): one stat, not a walk of the path
-    inside = folder.resolve().parent  # the survey's FOLDER (`folder` is a class folder in it)
     stack = [(folder, False)]
     while stack:
         here, in_hidden = stack.pop()
@@ -228,7 +242,10 @@ def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path
                 continue
             seen.add((info.st_dev, info.st_ino))
             for image in image_sequence_paths(str(here)) or []:
-                (skipped if in_hidden or is_hidden(image) else paths).append(image)
+                surveyed = not (in_hidden or is_hidden(image))
+                if surveyed and not others_allowed:
+                    _refuse_a_link_outside(image, inside)
+                (paths if surveyed else skipped).append(image)
             others = [] if in_hidden or others_allowed else sorted(
                 p for p in here.iterdir() if not is_hidden(p)
                 and p.name.lower() not in SYSTEM_FILES
@@ -252,10 +269,7 @@ def _images_under(folder: Path, others_allowed: bool = False) -> tuple[list[Path
         subs = [sub for sub in subs if not (sub.is_symlink() and (
             in_hidden or others_allowed or is_hidden(sub)))]
         for sub in subs:
-            if sub.is_symlink() and not sub.resolve().is_relative_to(inside):
-                raise InputFileError(f"{sub}: a link to {sub.resolve()}, outside {inside}; "
-                                     "expected the survey's photos inside its folder (copy them "
-                                     "in)")
+            _refuse_a_link_outside(sub, inside)
         # the first in name order is walked next
         stack.extend((sub, in_hidden or is_hidden(sub)) for sub in reversed(subs))
     return paths, skipped
@@ -267,8 +281,8 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     for order, row in enumerate(table.rows):
         assert row.file is not None
         path = folder / row.file
-        where = f"{table.source}:{row.line}: {row.file[:60]}"
-        if Path(row.file).is_absolute() or not path.resolve().is_relative_to(folder.resolve()):
+        where = f"{table.source}:{row.line}: {shown_name(row.file[:60])}"  # no escapes sent
+        if Path(row.file).is_absolute() or _leads_outside(path, folder.resolve()):
             raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
                                  "inside it")
         if why := file_problem(path):

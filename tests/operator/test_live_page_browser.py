@@ -7,8 +7,9 @@
 - Issue 18's attacks where a browser matters, against a halted robot (the view's requests record
   what would reach it): another site's page (a second local server, another host name and port)
   smuggling a POST /resume in the body of a no-cors fetch or a text/plain form; a DNS-rebinding
-  page (the same origin, then the view behind it); and on a non-loopback bind the token, taken
-  from the address once and never left in it.
+  page (the same origin, then the view behind it); another site's page showing the camera
+  picture in an <img> (review finding 7); and on a non-loopback bind the token, taken from the
+  address once and never left in it.
 Skipped, with the reason, where chromium, chromedriver or selenium is absent (`apt-get install -y
 chromium chromium-driver`)."""
 
@@ -25,12 +26,13 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
-from lanewarden.live_view import LiveView
+from lanewarden.live_view import LiveView, ViewFrame
 from tests.operator.clips import lane_end_frames, write_images
 from tests.operator.runs import free_port, run_beside, steps, wait_until
-from tests.operator.test_live_view import Requests
+from tests.operator.test_live_view import Requests, View, _wait_for_frame
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
@@ -275,7 +277,10 @@ def test_another_sites_page_cannot_smuggle_a_resume(
                 fetch("{target}/stop", {{method: "POST", mode: "no-cors",
                                          body: "a".repeat({padding}) + "{smuggled}"}})
                   .then(() => done("sent"), (e) => done("failed: " + e));""")
-            assert result == "sent"
+            # the answer is withheld from the page (Cross-Origin-Resource-Policy: same-origin),
+            # so the fetch's promise rejects; the request itself went out: the view counts it
+            # as refused below
+            assert result == "failed: TypeError: Failed to fetch"
         else:
             browser.execute_script(f"""
                 const form = document.createElement("form");
@@ -287,6 +292,40 @@ def test_another_sites_page_cannot_smuggle_a_resume(
         assert requests.calls == [], "nothing reached the robot: it never left HALT"
     finally:
         site.close()
+
+
+#: Loads an image from arguments[0] and says "loaded WxH" or "failed".
+LOAD_IMAGE = """
+    const done = arguments[arguments.length - 1];
+    const image = new Image();
+    image.onload = () => done("loaded " + image.naturalWidth + "x" + image.naturalHeight);
+    image.onerror = () => done("failed");
+    image.src = arguments[0] + "?" + Date.now();"""
+
+
+def test_another_sites_page_cannot_show_the_camera_picture(browser: Any) -> None:
+    """Review finding 7: a page from another origin showed the robot's camera picture in the
+    operator's browser (<img src=http://127.0.0.1:PORT/frame.jpg>: "loaded cross-origin:
+    640x480"). Now the browser's request is refused (Sec-Fetch-Site: cross-site), and the answer
+    would not be shown there anyway (Cross-Origin-Resource-Policy). The same image loads on the
+    view's own page (the test's own check that it can load at all)."""
+    view = View()
+    site = Site("<!doctype html><title>cat pictures</title><p>nothing to see")
+    try:
+        frame = ViewFrame(np.full((120, 160, 3), 90, np.uint8), None, None, "none", "FOLLOW",
+                          None)
+        _wait_for_frame(view, {"state": "FOLLOW", "step": 7}, frame)
+        picture = f"http://127.0.0.1:{view.port}/frame.jpg"
+        browser.get(f"http://attacker.example:{site.port}/")
+        refused = view.server.counts["refused"]
+        assert browser.execute_async_script(LOAD_IMAGE, picture) == "failed"
+        assert view.server.counts["refused"] == refused + 1, "the request reached the view"
+        browser.get(f"http://127.0.0.1:{view.port}/")
+        assert browser.execute_async_script(LOAD_IMAGE, picture) == "loaded 160x120"
+        assert view.requests.calls == []
+    finally:
+        site.close()
+        view.server.close()
 
 
 @pytest.mark.parametrize("bind", ["127.0.0.1", "0.0.0.0"])

@@ -154,6 +154,14 @@ def test_access_rules_for_a_loopback_bind() -> None:
                          ("http://127.0.0.1:9999", "same-site"), (None, "cross-site"),
                          ("http://localhost:8080", None), ("https://127.0.0.1:8080", None)):
         assert rules.origin_problem(origin, site, same, True) is not None, (origin, site)
+    # a GET: the page's own, an address typed (none) or no browser (no header); not another
+    # site's page
+    for site in ("same-origin", "none", "None ", None):
+        assert rules.fetch_site_problem(site, state_changing=False) is None, site
+    for site in ("cross-site", "same-site", "CROSS-SITE", "sameorigin", ""):
+        assert rules.fetch_site_problem(site, state_changing=False) == (
+            f"a {site!r} request (Sec-Fetch-Site)"), site
+    assert rules.origin_problem(None, "none", same, True) == "a 'none' request (Sec-Fetch-Site)"
 
 
 def test_access_rules_for_any_other_bind_need_the_token() -> None:
@@ -188,6 +196,7 @@ def test_the_page_is_self_contained(view: View) -> None:
     assert "frame-ancestors 'none'" in response.getheader("Content-Security-Policy", "")
     assert response.getheader("X-Frame-Options") == "DENY", "no clickjacking of the buttons"
     assert response.getheader("Referrer-Policy") == "no-referrer"
+    assert response.getheader("Cross-Origin-Resource-Policy") == "same-origin"
 
 
 def _wait_for_frame(view: View, status: dict[str, Any], frame: ViewFrame) -> None:
@@ -392,6 +401,44 @@ def test_a_foreign_host_or_origin_is_refused(view: View) -> None:
     assert statuses(exchange(port, two_hosts)) == [403]
     assert view.requests.calls == []
     assert fetch(port, "GET", "/status", {"Host": f"localhost:{port}"})[0] == 200
+
+
+def _get(port: int, path: str, fetch_site: str | None) -> bytes:
+    """A raw GET as a browser sends it (`fetch_site`: its Sec-Fetch-Site; None: curl's, none)."""
+    site = "" if fetch_site is None else f"Sec-Fetch-Site: {fetch_site}\r\n"
+    return exchange(port, f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n{site}\r\n"
+                    .encode())
+
+
+def test_another_sites_page_cannot_get_the_picture(view: View) -> None:
+    """Review finding 7: any web page could show the robot's camera picture in the operator's
+    browser (<img src=http://127.0.0.1:PORT/frame.jpg>), tell a run was live on that port, and
+    keep the encoder busy by polling. A GET another site's page makes (its browser says
+    cross-site, or same-site for another port of this machine) is refused like a POST; the
+    page's own, an address typed (none) and a client that is no browser are served. Every
+    answer says Cross-Origin-Resource-Policy: same-origin (a browser without Sec-Fetch-Site
+    then still shows no other site the picture)."""
+    frame = ViewFrame(np.full((120, 160, 3), 90, np.uint8), None, None, "none", "FOLLOW", None)
+    _wait_for_frame(view, {"state": "FOLLOW", "step": 7}, frame)
+    refused = view.server.counts["refused"]
+    for site in ("cross-site", "same-site", "Cross-Site", "bogus"):
+        for path in ("/frame.jpg", "/status", "/"):
+            answer = _get(view.port, path, site)
+            assert statuses(answer) == [403], (site, path, answer[:200])
+            assert answer.endswith(f"a {site!r} request (Sec-Fetch-Site)\n".encode()), answer
+            assert b"\xff\xd8" not in answer and b'"step"' not in answer
+    assert view.server.counts["refused"] == refused + 12
+    for site in ("same-origin", "none", None):
+        answer = _get(view.port, "/frame.jpg", site)
+        assert statuses(answer) == [200] and b"\r\n\r\n\xff\xd8" in answer, site
+    answers = [_get(view.port, "/frame.jpg", None), _get(view.port, "/frame.jpg", "cross-site"),
+               _get(view.port, "/nowhere", None),
+               exchange(view.port, f"PUT / HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\n\r\n"
+                        .encode())]
+    assert [statuses(a) for a in answers] == [[200], [403], [404], [501]]
+    for answer in answers:
+        assert b"\r\nCross-Origin-Resource-Policy: same-origin\r\n" in answer
+    assert view.requests.calls == []
 
 
 def test_refused_requests_are_reported_in_one_line_now_and_then(view: View) -> None:

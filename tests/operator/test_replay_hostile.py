@@ -15,7 +15,7 @@ import shutil
 import struct
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -816,3 +816,56 @@ def test_a_recording_file_that_is_no_file_is_named(what: str, says: str, recorde
         target.symlink_to(target)
     code, _, err = replay(folder, tmp_path, capsys)
     assert_one_line(code, err, f"{target}: {says}")
+
+
+# ---- a format-1 run folder whose meta.json or frames/ is no such thing --------------------------
+FRAMES_FOLDER = "expected the folder of the recording's frames (000000.png, ...)"
+SPECIAL = "not a regular file (a FIFO, socket or device)"
+
+
+@pytest.mark.parametrize(("case", "says"), [
+    # it had been "SOURCE '...': no recording and no images there"
+    ("meta.json a FIFO", f"meta.json: {SPECIAL}, expected the recording's meta.json"),
+    # these three had replayed with 0 frames and exit 0 ("45 frames missing")
+    ("frames/ missing", f"frames: no such folder, {FRAMES_FOLDER}"),
+    ("frames/ a link to itself", f"frames: a link that leads to no folder, {FRAMES_FOLDER}"),
+    ("frames/ empty", "frames: none of the 15 frames the recording's steps name is there, "
+                      f"{FRAMES_FOLDER}"),
+    ("frames/ a file", f"frames: a file, {FRAMES_FOLDER}"),
+    # these had been "frame 5 (a damaged or cut file?)", after the replay; the docs say a
+    # device where a frame is expected is refused unopened
+    ("a frame a link to /dev/zero", f"frames/000005.png: {SPECIAL}, expected a recorded frame "
+                                    "(an image file)"),
+    ("a frame a FIFO", f"frames/000005.png: {SPECIAL}, expected a recorded frame (an image "
+                       "file)"),
+])
+def test_a_format_1_folder_without_its_meta_or_frames_is_one_line(
+        case: str, says: str, recorded: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """An attacker's review: misleading messages, or a replay of nothing that exited 0, for a
+    format-1 run folder whose meta.json is a FIFO, whose frames/ is missing, a link to itself
+    or empty, or whose frame is a device. Each is one line naming the file and what was
+    expected, exit 2, with or without --check, before any output is written."""
+    run = as_format_1(recorded, tmp_path / "run")
+    frames = run / "frames"
+    if case.startswith("frames/"):
+        shutil.rmtree(frames)
+        if case == "frames/ a link to itself":
+            frames.symlink_to("frames")
+        elif case == "frames/ empty":
+            frames.mkdir()
+        elif case == "frames/ a file":
+            frames.write_bytes(b"")
+    elif case == "a frame a link to /dev/zero":
+        (frames / "000005.png").unlink()
+        (frames / "000005.png").symlink_to("/dev/zero")
+    fifo = {"meta.json a FIFO": run / "meta.json", "a frame a FIFO": frames / "000005.png"}
+    target = fifo.get(case)
+    data = target.read_bytes() if target else b""
+    if target:
+        target.unlink()
+    with fifo_with_a_writer(target, data) if target else nullcontext():
+        for extra in ((), ("--check",)):
+            code, out, err = replay(run, tmp_path, capsys, *extra)
+            assert_one_line(code, err, f"lanewarden: error: {run}/{says}\n")
+            assert out == "" and not (tmp_path / "out").exists()

@@ -636,6 +636,13 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         return [str(folder), "--calibration", str(calibration)], (
             f"--calibration '{calibration}': for 160x120 images, the frames are 640x480 "
             "(lane/straight.jpg); expected the calibration of the camera that took them")
+    if case == "a photo linked from outside":  # it had been surveyed without a word
+        _photos(folder, lane, tiles)
+        shutil.copy(lane, tmp_path / "elsewhere.jpg")
+        (folder / "lane" / "link.jpg").symlink_to(tmp_path / "elsewhere.jpg")
+        return [str(folder)], (f"{folder / 'lane' / 'link.jpg'}: a link to "
+                               f"{tmp_path / 'elsewhere.jpg'}, outside {folder}; expected the "
+                               "survey's photos inside its folder (copy them in)")
     if case == "not an image":
         _photos(folder, lane, tiles)
         (folder / "no-lane" / "notes.jpg").write_text("not a photo\n")
@@ -657,6 +664,9 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     if case == "bad labels line":
         labels.write_text("# shots\nfile,expect\nstraight.jpg\n")
         return [str(folder)], f"{labels}:3: 'straight.jpg': expected 2 columns"
+    if case == "labels with a terminal escape":  # an OSC that set the terminal's title
+        labels.write_text("file,expect,note\n\x1b]0;pwned\x07.png,lane,x\n")
+        return [str(folder)], f"{labels}:2: \\x1b]0;pwned\\x07.png: no such file"
     if case == "labelled file missing":
         labels.write_text("file,expect\nstraight.jpg,lane\ntile.jpg,none\n")
         return [str(folder)], f"{labels}:3: tile.jpg: no such file (paths are relative to {folder})"
@@ -681,7 +691,8 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
     "a photo the survey cannot read", "frames of two sizes",
     "a photo turned by its EXIF orientation",
     "frame labels for photos", "calibration of another size", "not an image",
-    "too many pixels", "unknown label", "bad labels line", "labelled file missing",
+    "too many pixels", "a photo linked from outside", "unknown label", "bad labels line",
+    "labels with a terminal escape", "labelled file missing",
     "labels too large", "labels and class folders", "labels missing", "a file without labels"])
 def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:

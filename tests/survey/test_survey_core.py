@@ -72,11 +72,32 @@ def test_frame_labels_single_frames_and_ranges() -> None:
     ("file,expect\n,lane\n", "clip.csv:2: empty file name"),
     ("file,expect\na.jpg,lane\n# again\na.jpg,none\n",
      "clip.csv:4: a.jpg is already labelled on line 2"),
-    ("frames,expect\nten,lane\n", "clip.csv:2: frames 'ten': expected a frame index (120) or an "
-                                  "inclusive range (120-340)"),
+    ("frames,expect\nten,lane\n", "clip.csv:2: frames 'ten': expected a frame index in digits "
+                                  "0-9 (120) or an inclusive range (120-340)"),
     ("frames,expect\n40-30,lane\n", "clip.csv:2: frames '40-30': expected 0 <= first <= last"),
-    ("frames,expect\n-3,lane\n", "clip.csv:2: frames '-3': expected a frame index (120) or an "
-                                 "inclusive range (120-340)"),
+    ("frames,expect\n-3,lane\n", "clip.csv:2: frames '-3': expected a frame index in digits 0-9 "
+                                 "(120) or an inclusive range (120-340)"),
+    # int() takes any Unicode digit ('\u0663' is an Arabic-Indic 3: it had labelled frame 3), a
+    # sign and underscores; a frame number is ASCII digits only
+    *((f"frames,expect\n{bad},lane\n", f"clip.csv:2: frames '{bad}': expected a frame index in "
+       "digits 0-9 (120) or an inclusive range (120-340)")
+      for bad in ("\u0663", "1-\u0663", "\uff11\uff12", "+3", "1_000", "3-+4")),
+    # over 4300 digits int() raised a ValueError of its own; any number of digits beyond a
+    # recording's frames is refused as a value
+    ("frames,expect\n" + "9" * 5000 + ",lane\n", "clip.csv:2: frames '" + "9" * 60
+     + "': expected a frame index in digits 0-9 (120) or an inclusive range (120-340)"),
+    # a labels file's text is quoted with its control characters escaped: an OSC sequence
+    # (set the terminal's title) had reached the terminal as it was
+    ("file,expect\na.jpg,\x1b]0;pwned\x07\n",
+     "clip.csv:2: label '\\x1b]0;pwned\\x07': expected lane or none"),
+    ("frames,expect\n\x1b[2J,lane\n", "clip.csv:2: frames '\\x1b[2J': expected a frame index in "
+                                     "digits 0-9 (120) or an inclusive range (120-340)"),
+    ("fi\x1b[31mle,expect\n", "clip.csv:1: header 'fi\\x1b[31mle,expect': expected "
+                              "file,expect[,note] (images) or frames,expect[,note] (a video, "
+                              "run or tub)"),
+    ("file,expect\n\x1b]0;t\x07.png\n", "clip.csv:2: '\\x1b]0;t\\x07.png': expected 2 columns"),
+    ("file,expect\n\x1b]0;t\x07.png,lane\n\x1b]0;t\x07.png,none\n",
+     "clip.csv:3: \\x1b]0;t\\x07.png is already labelled on line 2"),
     ("frames,expect\n10-20,lane\n20-25,none\n",
      "clip.csv:3: frames 20-25 overlap frames 10-20 of line 2"),
     ("file,expect\na.jpg,lane," + "x" * 200_000 + "\n",  # csv's own field limit: was a traceback

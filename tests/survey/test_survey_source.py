@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +74,81 @@ def test_a_link_out_of_the_survey_folder_is_refused(tmp_path: Path) -> None:
                                                           target_is_directory=True)
     with pytest.raises(InputFileError, match=r"no-lane/loop: a link to .*elsewhere, outside "):
         _class_folders(tmp_path / "survey")
+
+
+def _outside_photo(tmp_path: Path) -> Path:
+    """tmp_path/outside/x.png, beside the survey's folder tmp_path/survey (made here)."""
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "x.png").write_bytes(b"")
+    _class_set(tmp_path / "survey")
+    return tmp_path / "outside" / "x.png"
+
+
+@pytest.mark.parametrize("link", ["lane/link.png", "lane", "no-lane/sub/link.png"])
+def test_every_link_out_of_the_survey_folder_is_refused_alike(tmp_path: Path, link: str) -> None:
+    """A linked photo (lane/link.png -> /elsewhere/x.png) or a linked class folder (lane ->
+    /elsewhere) had been surveyed without a word while a linked folder under a class folder was
+    refused: one rule for every link that is followed, one message."""
+    photo = _outside_photo(tmp_path)
+    survey = tmp_path / "survey"
+    target = photo if link.endswith(".png") else photo.parent
+    if link == "lane":
+        shutil.rmtree(survey / "lane")
+    (survey / link).parent.mkdir(parents=True, exist_ok=True)
+    (survey / link).symlink_to(target)
+    with pytest.raises(InputFileError) as caught:
+        _class_folders(survey)
+    assert str(caught.value) == (f"{survey / link}: a link to {target}, outside {survey}; "
+                                 "expected the survey's photos inside its folder (copy them in)")
+
+
+def test_links_inside_the_survey_folder_are_followed(tmp_path: Path) -> None:
+    """A class folder linked to a folder inside FOLDER, a photo linked to one inside, and under
+    that linked class folder a link to another folder inside FOLDER (judged against FOLDER, not
+    the linked folder's parent) are surveyed; a hidden link leading out is skipped as hidden, as
+    hidden files are."""
+    survey = tmp_path / "survey"
+    _outside_photo(tmp_path)
+    # kept in hidden folders beside the class folders (images elsewhere there are an error)
+    for name in (".store/lane/a.png", ".store/lane/b.png", ".extra/c.png", ".kept/d.png"):
+        (survey / name).parent.mkdir(parents=True, exist_ok=True)
+        (survey / name).write_bytes(name.encode())
+    shutil.rmtree(survey / "lane")
+    (survey / "lane").symlink_to(survey / ".store" / "lane")
+    (survey / ".store" / "lane" / "more").symlink_to(survey / ".extra")
+    (survey / "no-lane" / "d.png").symlink_to(survey / ".kept" / "d.png")
+    (survey / "no-lane" / ".x.png").symlink_to(tmp_path / "outside" / "x.png")
+    stills, hidden = _class_folders(survey)
+    assert [s.frame.name for s in stills] == ["lane/a.png", "lane/b.png", "lane/more/c.png",
+                                              "no-lane/c.png", "no-lane/d.png"]
+    assert hidden == ["no-lane/.x.png"]
+
+
+def test_a_photo_that_links_to_itself_is_one_line(tmp_path: Path) -> None:
+    """A link loop as a photo, or as a labelled file: Path.resolve raised RuntimeError ("Symlink
+    loop from ...", a traceback) when a labels row named one; it is a file that cannot be read."""
+    _class_set(tmp_path / "classes")
+    (tmp_path / "classes" / "no-lane" / "loop.png").symlink_to("loop.png")
+    with pytest.raises(InputFileError, match=r"no-lane/loop\.png: cannot read file \(Too many "
+                                             r"levels of symbolic links\)"):
+        open_survey_source(str(tmp_path / "classes"), None, 30.0, 10**7)
+    (tmp_path / "listed").mkdir()
+    (tmp_path / "listed" / "loop.png").symlink_to("loop.png")
+    table = parse_labels("file,expect\nloop.png,none\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path / "listed", table)
+    assert str(caught.value) == ("labels.csv:2: loop.png: cannot read file (Too many levels of "
+                                 f"symbolic links) (paths are relative to {tmp_path / 'listed'})")
+
+
+def test_a_labelled_files_name_reaches_the_terminal_escaped(tmp_path: Path) -> None:
+    """A labels row's raw text ('\\x1b]0;pwned\\x07.png', an OSC sequence that sets the
+    terminal's title) was written as it was into the error line naming it."""
+    table = parse_labels("file,expect,note\n\x1b]0;pwned\x07.png,lane,x\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path, table)
+    assert str(caught.value) == ("labels.csv:2: \\x1b]0;pwned\\x07.png: no such file (paths are "
+                                 f"relative to {tmp_path})")
 
 
 @pytest.mark.parametrize("row, message", [
