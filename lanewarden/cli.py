@@ -93,8 +93,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 #: A write that failed because the output itself is gone or full (`> /dev/full`, a closed pipe,
-#: a full or read-only disk): one line and exit 1, not a traceback.
-_OUTPUT_GONE = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EROFS, errno.EIO}
+#: a full or read-only disk, a file-size limit): one line and exit 1, not a traceback.
+_OUTPUT_GONE = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG}
 
 
 def _output_gone(exc: OSError) -> int:

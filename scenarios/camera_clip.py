@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import re
 import shlex
+import subprocess
 from collections.abc import Generator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +35,12 @@ from numpy.typing import NDArray
 
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.perception.errors import PerceptionError
-from lanewarden.scenarios.encoder_pipe import send_whole
+from lanewarden.scenarios.encoder_pipe import (
+    close_encoder,
+    encoder_failure,
+    encoder_process,
+    send_whole,
+)
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 
 #: FILE endings written as a video (what OpenCV and `lanewarden run --camera` read back).
@@ -98,6 +104,7 @@ class CameraClipWriter:
         self.fps = fps
         self.frames = 0
         self._writer: Generator[Any, Any, None] | None = None
+        self._process: subprocess.Popen[bytes] | None = None
         try:
             files.clip.parent.mkdir(parents=True, exist_ok=True)
             if files.is_video:
@@ -112,6 +119,7 @@ class CameraClipWriter:
                                    "-movflags", "+faststart"])
                 writer.send(None)
                 self._writer = writer
+                self._process = encoder_process(writer)
             else:
                 files.clip.mkdir(exist_ok=True)
                 for old in files.clip.glob("frame_*.png"):
@@ -129,8 +137,10 @@ class CameraClipWriter:
                                  [cv2.IMWRITE_PNG_COMPRESSION, 1]):
                 raise OSError("cv2.imwrite failed")
         except (OSError, RuntimeError) as exc:
+            why = exc if self._writer is None else encoder_failure(self._process, exc)
+            self._writer = None  # ffmpeg is gone: closing it has nothing more to say
             raise ScenarioOutputError(f"--camera-out {self.files.clip}: cannot write frame "
-                                      f"{self.frames} ({exc})") from exc
+                                      f"{self.frames} ({why})") from exc
         self.frames += 1
 
     def close(self, calibration: CameraCalibration,
@@ -138,9 +148,11 @@ class CameraClipWriter:
         """Finish the clip, write its calibration (and config, when not the defaults); what was
         written (for metrics.json)."""
         writer, self._writer = self._writer, None
+        if writer is not None and (failed := close_encoder(writer, self._process,
+                                                           self.files.clip, self.frames)):
+            raise ScenarioOutputError(f"--camera-out {self.files.clip}: video encoding failed "
+                                      f"({failed})")
         try:
-            if writer is not None:
-                writer.close()
             save_calibration(calibration, self.files.calibration)
             if config_overrides:
                 self.files.config.write_text(

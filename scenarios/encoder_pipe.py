@@ -84,6 +84,21 @@ def encoder_failure(process: subprocess.Popen[bytes] | None,
     return f"ffmpeg stopped: {first or type(error).__name__}"
 
 
+def close_encoder(writer: Generator[Any, Any, None],
+                  process: subprocess.Popen[bytes] | None, path: Path, frames: int) -> str | None:
+    """Close a started `write_frames` generator (`process`: its ffmpeg, `encoder_process`) that
+    was sent `frames` frames into `path`, and say why the video is not a finished one (None: it
+    is, or nothing was sent): what closing raised, how ffmpeg ended, or the file cut short."""
+    try:
+        writer.close()
+    except (OSError, RuntimeError) as exc:
+        return encoder_failure(process, exc)
+    if frames == 0:
+        return None
+    return encoder_failure(process) or (
+        None if (problem := mp4_problem(path)) is None else f"the file is {problem}")
+
+
 def mp4_problem(path: Path) -> str | None:
     """Why the MP4 (or MOV) file at `path` is not a finished one, or None: its top-level boxes
     must fill the file exactly and include `moov` (the index ffmpeg writes last, or first with

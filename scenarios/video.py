@@ -38,9 +38,9 @@ from lanewarden.perception.overlay import (
 )
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.encoder_pipe import (
+    close_encoder,
     encoder_failure,
     encoder_process,
-    mp4_problem,
     send_whole,
 )
 from lanewarden.scenarios.errors import ScenarioOutputError
@@ -395,18 +395,12 @@ class VideoRecorder:
         if self._writer is None:
             return
         writer, self._writer = self._writer, None
-        try:
-            writer.close()
-        except (OSError, RuntimeError) as exc:
-            raise ScenarioOutputError(f"{self.path}: video encoding failed "
-                                      f"({encoder_failure(self._process, exc)})") from exc
-        if self.frames == 0:
-            return
         # before the poster: a video ffmpeg could not finish is the failure, not the poster
-        failed = encoder_failure(self._process) or (
-            None if (problem := mp4_problem(self.path)) is None else f"the file is {problem}")
+        failed = close_encoder(writer, self._process, self.path, self.frames)
         if failed is not None:
             raise ScenarioOutputError(f"{self.path}: video encoding failed ({failed})")
+        if self.frames == 0:
+            return
         if self._poster is None:
             self._poster = self._frame
             self.poster_shows, self.poster_time_s = "the last frame", self._last_time_s

@@ -25,15 +25,17 @@ from lanewarden.scenarios.plot import write_plot
 SIM = ["sim", "--scenario", "fault-operator-stop", "--quiet"]
 
 
-def sim_limited(out: Path, limit_bytes: int | None) -> subprocess.CompletedProcess[str]:
-    """`lanewarden sim` into `out`, its files (and its ffmpeg's) limited to `limit_bytes`."""
+def sim_limited(out: Path, limit_bytes: int | None,
+                *extra: str) -> subprocess.CompletedProcess[str]:
+    """`lanewarden sim` into `out` (with `extra` flags), its files (and its ffmpeg's) limited to
+    `limit_bytes`."""
 
     def limit() -> None:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG)
         if limit_bytes is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
 
-    return subprocess.run([sys.executable, "-m", "lanewarden", *SIM, "--out", str(out)],
+    return subprocess.run([sys.executable, "-m", "lanewarden", *SIM, "--out", str(out), *extra],
                           capture_output=True, text=True, preexec_fn=limit, timeout=600)
 
 
@@ -55,6 +57,27 @@ def test_a_video_ffmpeg_cannot_finish_is_one_line_and_the_run_stays_partial(
             "File size limit exceeded)\n")), name
         assert "video.mp4" in (out / "PARTIAL").read_text(encoding="utf-8"), name
         assert not (out / "poster.jpg").exists(), name
+
+
+def test_a_camera_clip_ffmpeg_cannot_finish_is_one_line_and_moved_aside(tmp_path: Path) -> None:
+    """`sim --camera-out clip.mp4` shares the encoder: ffmpeg stopped by the limit is one line
+    naming the clip (it had been 7, with the ffmpeg command), and the cut clip is moved aside so
+    it is never played as the clip."""
+    clip = tmp_path / "camera" / "clip.mp4"
+    done = sim_limited(tmp_path / "out", 64 * 1024, "--no-video", "--camera-out", str(clip))
+    assert done.returncode == 1
+    assert done.stderr.startswith(f"lanewarden: error: --camera-out {clip}: cannot write frame ")
+    assert done.stderr.endswith(" (ffmpeg stopped: File size limit exceeded)\n")
+    assert done.stderr.count("\n") == 1
+    assert sorted(p.name for p in clip.parent.iterdir()) == ["clip.partial.mp4"]
+
+
+def test_a_run_log_past_a_file_size_limit_is_one_line_naming_it(tmp_path: Path) -> None:
+    """A write refused with EFBIG (a file-size limit) had been a traceback from the recorder."""
+    out = tmp_path / "out"
+    done = sim_limited(out, 64 * 1024, "--no-video")
+    assert (done.returncode, done.stderr) == (1, (
+        f"lanewarden: error: {out / 'run.jsonl'}: cannot write the output (File too large)\n"))
 
 
 def box(kind: bytes, body: bytes = b"") -> bytes:
