@@ -28,12 +28,14 @@ from lanewarden.survey import (
     ClassFigures,
     FrameResult,
     SurveyFigures,
+    WhatIf,
     engage_line,
     not_engaged_words,
     on_its_own_text,
     survey_json,
     uncounted_text,
     verdict_line,
+    what_if_lines,
 )
 from lanewarden.survey_run import FALSE_LANE_PICTURES, WEAK_PICTURES, Picture
 
@@ -46,6 +48,8 @@ body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width
 .verdict { padding: .8em 1.2em; border-radius: 6px; margin: 1em 0; font-size: 1.15em; }
 .verdict b { font-size: 1.4em; margin-right: .4em; }
 .note { background: #fff8e1; border-left: 4px solid #f9a825; padding: .4em .8em; }
+.what-if { background: #e8f0fe; border-left: 4px solid #3367d6; padding: .2em .8em; margin: 1em 0; }
+.what-if h2 { font-size: 1.05em; margin: .5em 0; }
 .safe { background: #e3f4e1; border: 2px solid #3c8d3c; }
 .unsafe { background: #fbe3e1; border: 2px solid #c0392b; }
 .engage { margin: .4em 0 0; font-size: .9em; }
@@ -172,9 +176,18 @@ def _about_row(key: str, value: Any) -> str:
     return text if text.startswith(f"{name}:") else f"{name}: {text}"
 
 
+def _what_ifs(what_ifs: Sequence[WhatIf], figures: SurveyFigures) -> str:
+    """The stricter settings a NOT SAFE survey tried on the same frames, each in the terminal's
+    words."""
+    return "".join(
+        '<div class="what-if"><h2>Tried on the same frames: a stricter setting</h2>'
+        + "".join(f"<p>{_e(line.strip())}</p>" for line in what_if_lines(what_if, figures))
+        + "</div>" for what_if in what_ifs)
+
+
 def report_html(figures: SurveyFigures, about: Mapping[str, Any],
                 false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture],
-                notes: Sequence[str] = ()) -> str:
+                notes: Sequence[str] = (), what_ifs: Sequence[WhatIf] = ()) -> str:
     verdict = figures.verdict
     css = "safe" if verdict.safe else "unsafe"
     text = verdict_line(verdict).removeprefix("verdict: ").removeprefix(verdict.headline)
@@ -193,6 +206,7 @@ def report_html(figures: SurveyFigures, about: Mapping[str, Any],
 <div class="verdict {css}"><b>{_e(verdict.headline)}</b>{_e(text.lstrip(": "))}
 <p class="engage">{_e(engage_line(verdict.engage))}</p></div>
 {"".join(f'<p class="note">{_e(note)}</p>' for note in notes)}
+{_what_ifs(what_ifs, figures)}
 <ul class="about">{about_rows}</ul>
 {_summary_table(figures.classes)}
 <p class="about">A decision: perception's straight / left / right (confidence at least the
@@ -211,14 +225,16 @@ order.</p>
 
 def write_outputs(out: Path, figures: SurveyFigures, about: Mapping[str, Any],
                   false_lane_pictures: Sequence[Picture],
-                  weak_pictures: Sequence[Picture], notes: Sequence[str] = ()) -> dict[str, Any]:
+                  weak_pictures: Sequence[Picture], notes: Sequence[str] = (),
+                  what_ifs: Sequence[WhatIf] = ()) -> dict[str, Any]:
     """Write OUT/survey.json and OUT/report.html; returns the JSON document. `notes`: the
-    terminal's `note:` lines, which both carry too (a SAFE that says little is said there)."""
-    document = {**survey_json(figures, about),
+    terminal's `note:` lines, which both carry too (a SAFE that says little is said there);
+    `what_ifs`: the stricter settings tried on the same frames (a NOT SAFE survey's)."""
+    document = {**survey_json(figures, about, what_ifs),
                 "notes": [note.removeprefix("note: ") for note in notes]}
     texts = {"survey.json": json.dumps(document, indent=1) + "\n",
              "report.html": report_html(figures, about, false_lane_pictures, weak_pictures,
-                                        notes)}
+                                        notes, what_ifs)}
     # each written whole under a passing name, then renamed: a disk that fills up leaves no
     # report cut off after its verdict (nor a survey.json beside no report)
     passing = {name: out / f".{name}.part" for name in texts}

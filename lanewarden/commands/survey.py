@@ -18,6 +18,8 @@ from __future__ import annotations
 import contextlib
 import json
 import tempfile
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -38,7 +40,7 @@ from lanewarden.errors import (
 if TYPE_CHECKING:
     from lanewarden.config import LanewardenConfig
     from lanewarden.perception.calibration import CameraCalibration
-    from lanewarden.survey import LabelledFrame
+    from lanewarden.survey import LabelledFrame, StricterSetting
     from lanewarden.survey_source import SurveySource
 
 #: Most shifted versions `--jitter` makes of each no-lane still.
@@ -134,7 +136,10 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     create_output_folder(out)
     try:
         return _survey_into(out, folder, source, config, config_origin, calibration,
-                            calibration_path, size, as_json, jitter)
+                            calibration_path, size, as_json, jitter, reopen=partial(
+                                open_survey_source, folder, labels_path,
+                                1.0 / config.supervisor.camera_period_s,
+                                config.perception.max_image_pixels))
     except BaseException:
         if made:  # a survey that fails leaves no empty folder behind (nothing was written)
             with contextlib.suppress(OSError):
@@ -195,16 +200,26 @@ def _refuse_out_among_inputs(out: Path, folder: str, source: SurveySource, flag:
 def _survey_into(out: Path, folder: str, source: SurveySource, config: LanewardenConfig,
                  config_origin: str, calibration: CameraCalibration | None,
                  calibration_path: str | None, size: tuple[int, int] | None,
-                 as_json: bool, jitter: int = 0) -> int:
-    """The survey proper, once its inputs passed their checks: into the output folder `out`."""
+                 as_json: bool, jitter: int = 0,
+                 reopen: Callable[[], SurveySource] | None = None) -> int:
+    """The survey proper, once its inputs passed their checks: into the output folder `out`.
+    `reopen`: opens the source again, for a recording surveyed a second time (a stricter setting
+    tried on its frames: its frames are read once)."""
     from lanewarden.documents import shorten
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
     from lanewarden.scenarios.progress import Progress
-    from lanewarden.survey import false_lanes_named, judge, summary_lines, survey_notes
+    from lanewarden.survey import (
+        WhatIf,
+        false_lanes_named,
+        judge,
+        summary_lines,
+        survey_notes,
+        what_if_lines,
+    )
     from lanewarden.survey_report import OUTPUTS, write_outputs
-    from lanewarden.survey_run import survey_sequence, survey_stills
+    from lanewarden.survey_run import SurveyRun, survey_sequence, survey_stills
     from lanewarden.wording import counted, first_few
 
     try:
@@ -233,13 +248,23 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         max(source.labelled) - min(source.labelled) + 1)
     # on stderr as the other long commands: a bar on a terminal (wiped at the end: the figures
     # follow), else a line every few seconds
-    with Progress(total, "survey", "frames", leave=False) as bar:
-        if source.sequence is None:
-            run = survey_stills(source.stills, config, calibration, detector, bar.update,
-                                jitter, size)
-        else:
-            run = survey_sequence(source, config, calibration, detector, bar.update, size)
+    def surveyed(with_config: LanewardenConfig, surveyor: LaneDetector, what: str,
+                 again: bool = True) -> SurveyRun:
+        with Progress(total, what, "frames", leave=False) as bar:
+            if source.sequence is None:
+                return survey_stills(source.stills, with_config, calibration, surveyor,
+                                     bar.update, jitter, size)
+            opened = source if not again or reopen is None else reopen()
+            return survey_sequence(opened, with_config, calibration, surveyor, bar.update, size)
+
+    run = surveyed(config, detector, "survey", again=False)
     figures = judge(run.results, run.engage)
+    what_ifs = [] if figures.verdict.safe else [
+        WhatIf(setting, judge(stricter.results, stricter.engage))
+        for setting, stricter_config in _stricter_configs(config)
+        for stricter in [surveyed(stricter_config, LaneDetector(
+            stricter_config.perception, detector.undistorter), f"survey with {setting.key} "
+            f"{setting.value:g}")]]
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground, "jitter": jitter}
@@ -260,12 +285,15 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
                      f"recording, not surveyed (dropped or skipped while recording: frame "
                      f"{source.skipped[0]}{', ...' if len(source.skipped) > 1 else ''})")
     document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures,
-                             notes)
+                             notes, what_ifs)
     if as_json:
         click.echo(json.dumps(document))
     else:
         for line in summary_lines(figures):
             click.echo(line)
+        for what_if in what_ifs:
+            for line in what_if_lines(what_if, figures):
+                click.echo(line)
     for note in notes:
         click.echo(note, err=as_json)
     click.echo(f"outputs in {out}/ (report: {out / 'report.html'})", err=as_json)
@@ -274,6 +302,21 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         click.echo(f"lanewarden: not safe: {false_lanes_named(verdict.false_lanes)}", err=True)
         return EXIT_SAFETY_STOP
     return EXIT_OK
+
+
+def _stricter_configs(config: LanewardenConfig) -> list[tuple[StricterSetting, LanewardenConfig]]:
+    """Each stricter setting a NOT SAFE survey tries (`survey.STRICTER_SETTINGS`) that `config`
+    does not already have, with `config` changed by it."""
+    from lanewarden.scenarios.spec import merge_overrides
+    from lanewarden.survey import STRICTER_SETTINGS
+
+    tried = []
+    for setting in STRICTER_SETTINGS:
+        stricter = type(config).model_validate(merge_overrides(config.model_dump(),
+                                                               setting.nested()))
+        if stricter != config:
+            tried.append((setting, stricter))
+    return tried
 
 
 def commands() -> list[click.Command]:

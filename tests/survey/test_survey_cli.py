@@ -765,6 +765,65 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
     assert "<td class=num>2 (2 only in a shifted version)</td>" in page
 
 
+def test_a_not_safe_survey_tries_the_stricter_setting_on_the_same_frames(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Both shifted false lanes pair the one tape with an edge at the image's border whose tape
+    cannot be checked: the survey tries tape.unverifiable_score 0 on the same stills and shifts,
+    which is SAFE and still engages on the lane still; it says so (stdout, survey.json, report),
+    with the line to add to --config, and the exit code stays the verdict's (3). A SAFE survey,
+    and one whose config has the setting already, try nothing."""
+    code, out, _ = _survey_jetbot_few(tmp_path, capsys, [SHADING, SLIVER], "--jitter", "16")
+    assert code == 3
+    tried = out[out.index("\nwhat if "):].splitlines()[1:4]
+    assert tried == [
+        "what if perception.tape.unverifiable_score were 0 (an edge at the image's border, whose "
+        "tape cannot be checked, never stands in for the lane's other tape): SAFE: no decision on "
+        "any of the 2 no-lane frames (was 2 false lanes)",
+        "  with it: lane frames with a decision 1 (was 1), confident 1 (was 1); supervisor: "
+        "engages on 1 of 1 lane stills held in view for 1.0 s after a start (after 0.30 s at the "
+        "most)",
+        "  to drive with it, add to --config: perception: {tape: {unverifiable_score: 0}}; what "
+        "it costs: a bend whose inner tape leaves the view is then no lane, and the robot halts "
+        "there (LANE_LOST)"]
+    document = json.loads((tmp_path / "out" / "survey.json").read_text())
+    [what_if] = document["what_if"]
+    assert (what_if["setting"], what_if["value"], what_if["verdict"]["safe"],
+            what_if["verdict"]["false_lanes"], what_if["lane"]) == (
+        "perception.tape.unverifiable_score", 0.0, True, [],
+        {"frames": 1, "decisions": 1, "confident": 1})
+    assert document["verdict"]["safe"] is False
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "Tried on the same frames: a stricter setting" in page
+    assert "<p>to drive with it, add to --config: perception: {tape: {unverifiable_score: 0}};" \
+        in page
+    # without --jitter the same stills are SAFE: nothing tried
+    code, out, _ = _survey_jetbot_few(tmp_path, capsys, [SHADING, SLIVER])
+    assert code == 0 and "what if" not in out
+    assert json.loads((tmp_path / "out" / "survey.json").read_text())["what_if"] == []
+    # with the setting in the config the shifted versions get no decision: SAFE
+    config = tmp_path / "strict.yaml"
+    config.write_text((JETBOT / "camera.yaml").read_text().replace(
+        "kind: dark}", "kind: dark, unverifiable_score: 0}"))
+    code, out, _ = _survey([str(JETBOT), "--labels", str(tmp_path / "few.csv"),
+                            "--calibration", str(JETBOT / "calibration.yaml"), "--config",
+                            str(config), "--out", str(tmp_path / "out"), "--jitter", "16"], capsys)
+    assert code == 0 and "what if" not in out, out
+
+
+def test_a_setting_the_config_has_already_is_not_tried() -> None:
+    from lanewarden.commands.survey import _stricter_configs
+    from lanewarden.config import LanewardenConfig, config_from_mapping
+
+    [(setting, stricter)] = _stricter_configs(LanewardenConfig())
+    assert setting.key == "perception.tape.unverifiable_score"
+    assert LanewardenConfig().perception.tape.unverifiable_score == 0.6
+    assert stricter.perception.tape.unverifiable_score == 0.0
+    assert stricter.model_copy(update={"perception": LanewardenConfig().perception}) == (
+        LanewardenConfig())  # nothing else changed
+    assert _stricter_configs(config_from_mapping(
+        {"perception": {"tape": {"unverifiable_score": 0}}})) == []
+
+
 def test_a_stills_shifted_versions_do_not_depend_on_the_others(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Each still's shifts are seeded by its name: surveyed alone, the sliver frame gets the
