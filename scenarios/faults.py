@@ -50,8 +50,8 @@ SHADOW_REACH_M = 1.0
 
 #: Which alteration (noted by SimCamera or FaultyLink) proves each fault kind took effect.
 _CAMERA_ALTERATION = {
-    "camera_freeze": "freeze", "camera_drop": "drop", "camera_error": "error",
-    "late_frames": "latency", "frame_from_future": "future",
+    "camera_freeze": "freeze", "camera_ring": "ring", "camera_drop": "drop",
+    "camera_error": "error", "late_frames": "latency", "frame_from_future": "future",
     "perception_exception": "corrupt", "frame_rate_collapse": "rate",
     "timestamp_jump": "time_jump",
 }
@@ -262,6 +262,9 @@ class FaultSchedule:
         frozen = bool(self._active("camera_freeze"))
         if frozen != camera.frozen:
             camera.freeze(frozen)
+        rings = self._active("camera_ring")
+        if bool(rings) != camera.ringing:
+            camera.ring(bool(rings), max((f.buffers for f in rings), default=2))
         bits = {name: 0 for name in _BASE_BITS}
         for name in _BASE_BITS:
             for spec in self._active(name):

@@ -7,6 +7,8 @@ real camera driver does. Camera faults change what `read` delivers:
 - drop: captures stop arriving, so the newest frame ages (the loop sees a stale frame);
 - freeze: the driver keeps delivering the image it had when the freeze began, with fresh indices
   and timestamps (only the pixels say it is stuck);
+- ring: the driver keeps re-delivering its last few captured images in turn (A, B, A, B, ...),
+  with fresh indices and timestamps (a driver stuck on its ring of buffers);
 - latency: frames arrive `latency_s` after their capture time;
 - corrupt: frames arrive as unusable (empty) images, so the real detector raises;
 - failing: reading raises `SimulatedCameraError` (a driver error);
@@ -19,7 +21,7 @@ Every alteration of what `read` delivers (or of what was captured) is noted in `
 fault really took effect, not merely that it was switched on. The time is the frame's capture
 time for what happens to frames as they are captured or stamped (drop, rate, latency, future,
 time_jump), and the delivery time (`now`) for what `read` does to any frame it hands over while
-the fault is on (freeze, corrupt, error): a late frame captured before a corruption began is
+the fault is on (freeze, ring, corrupt, error): a late frame captured before a corruption began is
 still delivered corrupted, and the loop halts on it then.
 
 Image buffers come from a fixed pool owned here (no per-frame allocation); a `Frame` stays valid
@@ -61,12 +63,18 @@ class SimCamera:
         self.time_offset_s = 0.0
         self.rate_hz: float | None = None
         self._frozen_image: U8 | None = None
+        self._ring: list[U8] = []
+        self._ring_next = 0
         self._last_kept_s: float | None = None
         self.altered: dict[str, tuple[int, float]] = {}
 
     @property
     def frozen(self) -> bool:
         return self._frozen_image is not None
+
+    @property
+    def ringing(self) -> bool:
+        return bool(self._ring)
 
     @property
     def pool_size(self) -> int:
@@ -102,6 +110,13 @@ class SimCamera:
         else:
             self._frozen_image = None
 
+    def ring(self, on: bool, buffers: int = 2) -> None:
+        """Start (copying the last `buffers` captured images, at most the pool's) or end
+        re-delivering them in turn."""
+        recent = list(self._captured)[-buffers:] if on else []
+        self._ring = [frame.image.copy() for frame in recent]
+        self._ring_next = 0
+
     def read(self, now: float) -> Frame | None:
         if self.failing:
             self.altered["error"] = (-1, now)
@@ -122,6 +137,11 @@ class SimCamera:
         if self._frozen_image is not None:
             newest = Frame(image=self._frozen_image, index=newest.index, time_s=newest.time_s)
             self.altered["freeze"] = (newest.index, now)
+        elif self._ring:
+            image = self._ring[self._ring_next % len(self._ring)]
+            self._ring_next += 1
+            newest = Frame(image=image, index=newest.index, time_s=newest.time_s)
+            self.altered["ring"] = (newest.index, now)
         elif self.corrupt:
             newest = Frame(image=_EMPTY, index=newest.index, time_s=newest.time_s)
             self.altered["corrupt"] = (newest.index, now)

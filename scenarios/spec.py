@@ -60,6 +60,7 @@ TapeSide = Literal["left", "right", "both"]
 #: Every fault a scenario can inject (see `scenarios.faults` for what each does).
 FaultKind = Literal[
     "camera_freeze",
+    "camera_ring",
     "camera_drop",
     "camera_error",
     "late_frames",
@@ -519,6 +520,8 @@ class FaultSpec(_Model):
     instead and are there for the whole run.
 
     - camera_freeze: the camera keeps delivering the same image (with fresh indices and times).
+    - camera_ring: the camera keeps re-delivering its last `buffers` images in turn (A, B, A,
+      B, ...: a driver stuck on its ring of buffers), with fresh indices and times.
     - camera_drop: no new frames at all (the newest one ages).
     - camera_error: reading the camera raises an error.
     - late_frames: frames arrive `latency_s` after capture.
@@ -567,6 +570,7 @@ class FaultSpec(_Model):
     rate_hz: Annotated[float, Field(gt=0.0, le=120.0)] = 5.0
     jump_s: Annotated[float, Field(ge=-10.0, le=10.0)] = -0.5
     battery_v: Annotated[float, Field(ge=0.0, le=20.0)] = 12.0
+    buffers: Annotated[int, Field(ge=2, le=16)] = 2
 
     @model_validator(mode="after")
     def _placed(self) -> FaultSpec:

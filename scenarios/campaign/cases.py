@@ -433,7 +433,8 @@ def _not_inside_a_stall(faults: list[dict[str, Any]]) -> None:
 
 #: Faults that act through the camera's frames, and through the base's serial link.
 CAMERA_STREAM_KINDS = frozenset({
-    "camera_freeze", "camera_drop", "camera_error", "late_frames", "frame_from_future",
+    "camera_freeze", "camera_ring", "camera_drop", "camera_error", "late_frames",
+    "frame_from_future",
     "perception_exception", "frame_rate_collapse", "timestamp_jump", "exposure_jump",
     "glare_sweep", "occlusion", "lens_smudge"})
 LINK_STREAM_KINDS = frozenset({
@@ -441,7 +442,8 @@ LINK_STREAM_KINDS = frozenset({
     "wheel_drop", "low_battery"})
 #: Without a duration these end their stream for good (no new frames, or a frozen image; no
 #: link): a fault on the same stream starting later could never take effect.
-STREAM_KILLERS = {"camera_freeze": CAMERA_STREAM_KINDS, "camera_drop": CAMERA_STREAM_KINDS,
+STREAM_KILLERS = {"camera_freeze": CAMERA_STREAM_KINDS, "camera_ring": CAMERA_STREAM_KINDS,
+                  "camera_drop": CAMERA_STREAM_KINDS,
                   "camera_error": CAMERA_STREAM_KINDS, "base_link_loss": LINK_STREAM_KINDS}
 #: ... so such a fault starts at least this long after the other faults on its stream.
 AFTER_OTHERS_S = 0.5

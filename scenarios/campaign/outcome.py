@@ -63,6 +63,7 @@ _FLOOR = (*_LANE, "LANE_DEPARTURE")
 #: Halt reasons that are a right answer to each fault kind while it acts.
 ANSWERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "camera_freeze": ("FRAME_FROZEN", "FRAME_STALE", *_LANE),
+    "camera_ring": ("FRAME_FROZEN", "FRAME_STALE", *_LANE),
     "camera_drop": ("FRAME_STALE",),
     "camera_error": ("CAMERA_ERROR",),
     "late_frames": ("FRAME_STALE", *_LANE),
@@ -152,6 +153,7 @@ MUST_HALT: Mapping[str, Callable[[FaultSpec, Limits], float | None]] = MappingPr
     "frame_from_future": _instant,
     "camera_drop": _after(lambda lim: lim.supervisor.frame_stale_s),
     "camera_freeze": _after(lambda lim: lim.supervisor.frame_frozen_s),
+    "camera_ring": _after(lambda lim: lim.supervisor.frame_frozen_s),
     "base_link_loss": _after(lambda lim: lim.supervisor.base_link_timeout_s),
     "write_blocks": _after(lambda lim: lim.write_timeout_s),
     "checksum_storm": _storm,

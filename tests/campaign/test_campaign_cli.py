@@ -258,26 +258,29 @@ def test_sim_case_reproduces_the_campaign_run(
 
 
 def test_a_fault_drawn_inside_a_loop_stall_starts_after_it() -> None:
-    """Run 957 of the default campaign drew a 0.05 s blocked write inside a 0.32 s loop stall:
+    """Run 957 of a default campaign drew a 0.05 s blocked write inside a 0.32 s loop stall:
     nothing writes during a stall, so the fault never took effect (an `error` of the case's own
-    making). The drawer moves such a fault to just after the stall."""
+    making). The drawer moves such a fault to just after the stall (run 771 of today's default
+    spec: a lens smudge drawn inside a 0.37 s stall)."""
     spec, path = load_campaign_spec("default")
-    case = draw_case(spec, path, 0, 957, {}, 0.2)
+    case = draw_case(spec, path, 0, 771, {}, 0.2)
     assert case.scenario["faults"] == [
-        {"kind": "loop_stall", "duration_s": 0.3195, "at_s": 5.404},
-        {"kind": "write_blocks", "duration_s": 0.05, "at_s": 5.773},  # 5.404 + 0.3195 + 0.05
+        {"kind": "loop_stall", "duration_s": 0.3707, "at_s": 5.685},
+        {"kind": "lens_smudge", "intensity": 0.9181, "duration_s": 1.0,
+         "at_s": 6.106},  # 5.685 + 0.3707 + 0.05
     ]
 
 
 def test_a_permanent_stream_loss_starts_after_the_other_faults_on_that_stream() -> None:
     """Run 210 of a first default campaign drew late frames 0.76 s after a permanent camera
     error: they could never take effect (an `error` of the case's making). The loss now starts
-    0.5 s after the last other fault on its stream."""
+    0.5 s after the last other fault on its stream (run 120 of today's default spec: a camera
+    stuck on a ring of five old buffers, for good, and late frames)."""
     spec, path = load_campaign_spec("default")
-    case = draw_case(spec, path, 0, 210, {}, 0.2)
+    case = draw_case(spec, path, 0, 120, {}, 0.2)
     assert case.scenario["faults"] == [
-        {"kind": "late_frames", "latency_s": 0.0722, "duration_s": 2.2918, "at_s": 7.87},
-        {"kind": "camera_error", "duration_s": None, "at_s": 8.37},  # was 7.11
+        {"kind": "camera_ring", "buffers": 5, "duration_s": None, "at_s": 7.214},  # 6.714 + 0.5
+        {"kind": "late_frames", "latency_s": 0.4402, "duration_s": 1.4836, "at_s": 6.714},
     ]
 
 

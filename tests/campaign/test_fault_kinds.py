@@ -18,6 +18,7 @@ EXPECTED: dict[str, tuple[dict[str, Any], str, str | None]] = {
     "camera_freeze": ({"at_s": T}, "safe_halt", "FRAME_FROZEN"),
     "camera_drop": ({"at_s": T}, "safe_halt", "FRAME_STALE"),
     "camera_error": ({"at_s": T}, "safe_halt", "CAMERA_ERROR"),
+    "camera_ring": ({"at_s": T, "buffers": 3}, "safe_halt", "FRAME_FROZEN"),
     "late_frames": ({"at_s": T, "latency_s": 0.3}, "safe_halt", "FRAME_STALE"),
     "frame_from_future": ({"at_s": T, "latency_s": 0.5}, "safe_halt", "FRAME_INVALID"),
     "perception_exception": ({"at_s": T}, "safe_halt", "PERCEPTION_ERROR"),
