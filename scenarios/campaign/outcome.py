@@ -8,7 +8,9 @@ Classes, checked in this order (the first that applies):
   tape; a non-zero command left the controller after its HALT, or the robot still moved
   STOPPED_AFTER_S after it (a stop that never reached the motors); or a hazard the supervisor must
   answer (`MUST_HALT`) was not answered by HALT within its detection limit plus
-  `hazard_halt_deadline_s` after it took effect.
+  `hazard_halt_deadline_s` after it took effect, that time moved on by as long as a loop stall
+  hung the control process within it (`stalled_within`: a hung loop answers nothing; what stops
+  a robot whose control process hangs is the dead-man process, benchmarks/deadman_latency.py).
 - `safe_halt`: halted, for a reason that matches a fault acting then (`ANSWERS`, up to
   `fault_grace_s` after the fault stopped acting) or for real lane loss (LANE_LOST or
   DEGRADED_BUDGET_EXHAUSTED with the robot within `lane_end_window_m` of the end of the tape), or
@@ -309,6 +311,7 @@ def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
         if limit is None:
             continue
         deadline = effect + limit + config.hazard_halt_deadline_s
+        deadline += stalled_within(facts.windows, effect, deadline)
         run_end = float(facts.times[-1]) if facts.times else 0.0
         if deadline > run_end + 1e-9:
             continue  # the run ended first (settled after another halt, or the time limit)
@@ -317,6 +320,21 @@ def _unanswered_hazard(facts: RunFacts, config: CampaignConfig, limits: Limits,
             return (f"{spec.kind} (fault {index}) took effect at {effect:.3f} s: HALT due by "
                     f"{deadline:.3f} s, came {when}", index)
     return None
+
+
+def stalled_within(windows: Sequence[tuple[int, str, float, float]], start_s: float,
+                   end_s: float) -> float:
+    """How long loop stalls (`windows`: (index, kind, from, to) of the faults that acted) hung
+    the control process between `start_s` and the deadline `end_s`, that deadline moving on by
+    the stalls already counted (a stall that begins in the extra time counts too): the time no
+    control step ran, in which no halt could come from the loop."""
+    stalls = sorted((s, e) for _, kind, s, e in windows if kind == "loop_stall")
+    extra = 0.0
+    for stall_from, stall_to in stalls:
+        if stall_to <= start_s or stall_from >= end_s + extra:
+            continue
+        extra += min(stall_to, end_s + extra) - max(stall_from, start_s)
+    return extra
 
 
 #: How a blind halt's reason names it (after the halt code and time).

@@ -111,6 +111,34 @@ def test_time_to_halt_is_from_the_fault_the_halt_answered() -> None:
     assert (lane_end.outcome, lane_end.time_to_halt_s) == ("safe_halt", None)
 
 
+def test_a_loop_stall_moves_a_hazards_deadline_on_by_the_time_it_hung_the_loop() -> None:
+    """Run r00064 of the default campaign (seed 0, 2026-12-06): late frames (0.46 s latency)
+    from 5.333 s, then the control process hung 0.40 s from 5.356 s. FRAME_STALE was due by
+    5.583 s; the loop, hung until 5.753 s, halted at its first step after (5.767 s), and the run
+    was judged unsafe. No halt can come from a hung loop (a robot's dead-man stops its base
+    then): the 0.227 s of the stall within the deadline move the deadline to 5.811 s. The same
+    halt without the stall stays unsafe, and one later than the moved deadline too."""
+    late = FaultSpec(kind="late_frames", at_s=5.309, latency_s=0.4634, duration_s=2.8437)
+    stall = FaultSpec(kind="loop_stall", at_s=5.356, duration_s=0.3974)
+    effects = {0: 160 * DT, 1: 5.356}  # 5.333 s
+    windows = ((0, "late_frames", 160 * DT, 8.15), (1, "loop_stall", 5.356, 5.7534))
+
+    def judged(halt_at: int, with_stall: bool = True) -> Any:
+        return classify(facts(run(5, halt_at=halt_at, total=300),
+                              faults=(late, stall) if with_stall else (late,),
+                              effects=effects if with_stall else {0: effects[0]},
+                              windows=windows if with_stall else windows[:1],
+                              reasons={halt_at: "FRAME_STALE: no new camera frame"}),
+                        CONFIG, LIMITS)
+
+    assert judged(173).outcome == "safe_halt"  # 5.767 s, as in the run
+    assert judged(173, with_stall=False).outcome == "unsafe"
+    too_late = judged(175)  # 5.833 s, after 5.811 s
+    assert too_late.outcome == "unsafe"
+    assert too_late.reason == ("late_frames (fault 0) took effect at 5.333 s: HALT due by "
+                               "5.811 s, came at 5.833 s")
+
+
 def test_a_hazard_answered_too_late_is_unsafe() -> None:
     # bumper at frame 60, deadline 0.1 s after it; HALT only at frame 70 (0.33 s later)
     verdict = classify(facts(run(5, halt_at=70), faults=(BUMPER,), effects={0: 60 * DT},
