@@ -84,7 +84,8 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     the real supervisor on the lane frames. Prints per class the frames with a decision, the
     confident ones, the false lanes (a decision on a no-lane frame), the weakest confidence
     components and the longest runs of confident frames; the verdict, SAFE or NOT SAFE, and
-    whether the supervisor engages. Exit 0 when SAFE, 3 when NOT SAFE."""
+    whether the supervisor engages; when NOT SAFE, what a stricter setting makes of the same
+    frames. Exit 0 when SAFE, 3 when NOT SAFE."""
     from lanewarden.config import load_config
     from lanewarden.image_files import read_image
     from lanewarden.perception.detector import too_small
