@@ -1,14 +1,20 @@
 """Runs of the 1000-run default campaign (seed 0) that once went wrong, drawn again from the
 spec and run without their faults: each must follow its lane (nominal, or recovered after a
-brief DEGRADED), not halt."""
+brief DEGRADED), not halt. Drawn from the default spec they were found with
+(`default_spec_2026_12_05.yaml`, before camera_ring joined it and changed every draw)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
 from lanewarden.assembly import build_stack
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
 from lanewarden.scenarios.campaign.run_case import run_case
+
+#: The default spec these runs were found with.
+FOUND_WITH = str(Path(__file__).with_name("default_spec_2026_12_05.yaml"))
 
 
 @pytest.mark.parametrize(("index", "drawn"), [
@@ -19,7 +25,7 @@ from lanewarden.scenarios.campaign.run_case import run_case
 ])
 def test_a_run_that_once_false_halted_follows_its_lane(
         index: int, drawn: tuple[str, str, str, str]) -> None:
-    spec, path = load_campaign_spec("default")
+    spec, path = load_campaign_spec(FOUND_WITH)
     case = draw_case(spec, path, 0, index, {}, 0.2)
     assert (case.scenario["name"], case.camera, case.tape, case.floor) == drawn
     case = case.model_copy(update={"scenario": {**case.scenario, "faults": []}})
@@ -40,7 +46,7 @@ def test_a_tape_patch_at_the_lectures_corner_does_not_take_the_robot_over_a_tape
         index: int, drawn: tuple[str, str, str, str]) -> None:
     """The departure rule as it was (confident frames only, the footprint's bare radius, the
     edge read along the robot's y axis) let both cross the tape (docs/supervisor.md)."""
-    spec, path = load_campaign_spec("default")
+    spec, path = load_campaign_spec(FOUND_WITH)
     case = draw_case(spec, path, 4, index, {}, 0.2)
     assert (case.scenario["name"], case.camera, case.tape, case.floor) == drawn
     assert [f["kind"] for f in case.scenario["faults"]] == ["tape_patch"]
@@ -62,7 +68,7 @@ def test_a_steep_edge_near_the_robot_is_no_false_departure(
     """Seed 1 runs the first version of today's departure rule (usable frames, the distance
     read square to every edge) halted LANE_DEPARTURE 52-88 mm from the tape
     (docs/campaigns.md, "Twenty-first run")."""
-    spec, path = load_campaign_spec("default")
+    spec, path = load_campaign_spec(FOUND_WITH)
     case = draw_case(spec, path, 1, index, {}, 0.2)
     assert (case.scenario["name"], case.camera, case.tape, case.floor) == drawn
     row = run_case(case.model_dump_json(), build_stack)
@@ -85,7 +91,7 @@ def test_a_lane_on_terrazzo_at_320x240_keeps_it(
     """The twenty-ninth run's three false halts on terrazzo (docs/campaigns.md): Canny's edges
     covered a fifth of the floor; with the edge budget (`perception.canny.max_edge_share`) each
     follows its lane. (With `max_edge_share: 1` each halts as it did.)"""
-    spec, path = load_campaign_spec("default")
+    spec, path = load_campaign_spec(FOUND_WITH)
     case = draw_case(spec, path, seed, index, {}, 0.2)
     assert (case.scenario["name"], case.camera, case.tape, case.floor) == drawn
     row = run_case(case.model_dump_json(), build_stack)
