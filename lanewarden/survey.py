@@ -80,7 +80,7 @@ class LabelsTable:
     rows: tuple[LabelRow, ...]
 
 
-def _quoted(value: str) -> str:
+def quoted(value: str) -> str:
     """A labels file's text as an error quotes it: stripped, at most 60 characters, and nothing a
     terminal acts on (an escape sequence in a row is shown as '\\x1b]0;...', never sent)."""
     return shown_name(value.strip()[:60])
@@ -93,7 +93,7 @@ def _expect(value: str, where: str) -> str:
         folder = CLASS_FOLDERS[NONE]
         hint = (f" (did you mean {NONE}? {folder}/ is the folder's name)"
                 if expect.rstrip("/") == folder else "")
-        raise InputFileError(f"{where}: label '{_quoted(value)}': expected lane or "
+        raise InputFileError(f"{where}: label '{quoted(value)}': expected lane or "
                              f"none{hint}")
     return expect
 
@@ -101,12 +101,12 @@ def _expect(value: str, where: str) -> str:
 def _frame_range(value: str, where: str) -> tuple[int, int]:
     found = FRAME_RANGE.fullmatch(value.strip())
     if found is None:
-        raise InputFileError(f"{where}: frames '{_quoted(value)}': expected a frame index in "
+        raise InputFileError(f"{where}: frames '{quoted(value)}': expected a frame index in "
                              "digits 0-9 (120) or an inclusive range (120-340)")
     first = int(found.group(1))
     last = int(found.group(2)) if found.group(2) is not None else first
     if last < first:
-        raise InputFileError(f"{where}: frames '{_quoted(value)}': expected 0 <= first <= last")
+        raise InputFileError(f"{where}: frames '{quoted(value)}': expected 0 <= first <= last")
     return first, last
 
 
@@ -132,13 +132,13 @@ def parse_labels(text: str, source: str) -> LabelsTable:
         if header is None:
             names = tuple(f.strip().lower() for f in fields)
             if names not in LABEL_HEADERS:
-                raise InputFileError(f"{where}: header '{_quoted(raw)}': expected "
+                raise InputFileError(f"{where}: header '{quoted(raw)}': expected "
                                      f"{HEADER_HELP}")
             header = LABEL_HEADERS[names]
             with_note = len(names) == 3
             continue
         if len(fields) < 2 or (len(fields) > 2 and not with_note):
-            raise InputFileError(f"{where}: '{_quoted(raw)}': expected "
+            raise InputFileError(f"{where}: '{quoted(raw)}': expected "
                                  f"{'2 or 3' if with_note else '2'} columns")
         if len(rows) >= MAX_LABEL_ROWS:
             raise InputFileError(f"{where}: more than {MAX_LABEL_ROWS} labelled rows")
@@ -149,7 +149,7 @@ def parse_labels(text: str, source: str) -> LabelsTable:
             if not name:
                 raise InputFileError(f"{where}: empty file name")
             if name in files:
-                raise InputFileError(f"{where}: {_quoted(name)} is already labelled on line "
+                raise InputFileError(f"{where}: {quoted(name)} is already labelled on line "
                                      f"{files[name]}")
             files[name] = number
             rows.append(LabelRow(number, expect, note, file=name))
@@ -695,9 +695,7 @@ def what_if_json(what_if: WhatIf) -> dict[str, Any]:
     return {
         "setting": setting.key, "value": setting.value, "config": setting.as_config,
         "does": setting.does, "costs": setting.costs,
-        "verdict": {"safe": figures.verdict.safe,
-                    "text": verdict_line(figures.verdict).removeprefix("verdict: "),
-                    "false_lanes": [r.frame.name for r in figures.verdict.false_lanes]},
+        "verdict": _verdict_json(figures.verdict),
         "lane": {"frames": lane.frames, "decisions": lane.decisions,
                  "confident": lane.confident},
         "engage": _engage_json(figures.verdict.engage),
@@ -806,6 +804,13 @@ def _engage_json(engage: EngageFigures | None) -> dict[str, Any] | None:
     return figures
 
 
+def _verdict_json(verdict: Verdict) -> dict[str, Any]:
+    """A verdict in survey.json (the survey's, and a stricter setting's): safe, its text, the
+    false lanes named."""
+    return {"safe": verdict.safe, "text": verdict_line(verdict).removeprefix("verdict: "),
+            "false_lanes": [r.frame.name for r in verdict.false_lanes]}
+
+
 def survey_json(figures: SurveyFigures, about: Mapping[str, Any],
                 what_ifs: Sequence[WhatIf] = ()) -> dict[str, Any]:
     """survey.json: `about` (source, config, calibration, ground model), the verdict, the figures
@@ -815,9 +820,7 @@ def survey_json(figures: SurveyFigures, about: Mapping[str, Any],
     return {
         **about,
         "verdict": {
-            "safe": verdict.safe,
-            "text": verdict_line(verdict).removeprefix("verdict: "),
-            "false_lanes": [r.frame.name for r in verdict.false_lanes],
+            **_verdict_json(verdict),
             "would_engage": verdict.engage is not None and verdict.engage.would_engage,
             "engage_text": engage_line(verdict.engage).removeprefix("supervisor: "),
         },

@@ -47,6 +47,7 @@ from lanewarden.survey import (
     LabelledFrame,
     LabelsTable,
     parse_labels,
+    quoted,
 )
 from lanewarden.wording import counted, first_few, shown_name
 
@@ -281,7 +282,7 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
     for order, row in enumerate(table.rows):
         assert row.file is not None
         path = folder / row.file
-        where = f"{table.source}:{row.line}: {shown_name(row.file[:60])}"  # no escapes sent
+        where = f"{table.source}:{row.line}: {quoted(row.file)}"  # no escapes sent
         if Path(row.file).is_absolute() or _leads_outside(path, folder.resolve()):
             raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
                                  "inside it")

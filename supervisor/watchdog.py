@@ -6,15 +6,15 @@ Checks, each step:
 - camera: age of the newest frame (now - capture time) above `frame_late_s` (FRAME_LATE) or
   `frame_stale_s` (FRAME_STALE); a new frame from the future, or going backwards in time or index
   (FRAME_INVALID); identical images for `frame_frozen_s` while the robot is commanded to move
-  (FRAME_FROZEN; a stopped robot may legitimately see the same image: "identical" as below); and,
-  moving or not,
-  whether this step's new frame shows exactly the image of one of the last RECENT_IMAGES frames
-  (`image_repeated`: no new evidence, so the supervisor does not count it towards engaging or
-  recovering: a camera that froze on a confident lane while the robot waited must not be what
-  engages it). Identical to any of the recent images, not only the previous one: a camera
-  stuck re-delivering a ring of old buffers (A, B, A, B: a V4L2 mmap ring, a looping decoder)
-  shows no new image either, and an attacker's review drove 1.84 m on two alternating frames
-  when only the previous image counted (a real sensor's noise never gives the same pixels twice);
+  (FRAME_FROZEN; a stopped robot may legitimately see the same image: "identical" as below);
+  and, moving or not, whether this step's new frame shows exactly the image of one of the last
+  RECENT_IMAGES frames (`image_repeated`: no new evidence, so the supervisor does not count it
+  towards engaging or recovering: a camera that froze on a confident lane while the robot waited
+  must not be what engages it). Identical to any of the recent images, not only the previous
+  one: a camera stuck re-delivering a ring of old buffers (A, B, A, B: a V4L2 mmap ring, a
+  looping decoder) shows no new image either, and an attacker's review drove 1.84 m on two
+  alternating frames when only the previous image counted (a real sensor's noise never gives the
+  same pixels twice);
 - base: age of the newest feedback above `base_feedback_late_s` but not above
   `base_link_timeout_s` (BASE_FEEDBACK_LATE; beyond it the SafetyGate halts on BASE_LINK_LOST for
   every controller, see supervisor/gate.py).

@@ -137,7 +137,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     create_output_folder(out)
     try:
         return _survey_into(out, folder, source, config, config_origin, calibration,
-                            calibration_path, size, as_json, jitter, reopen=partial(
+                            calibration_path, size, as_json, jitter, partial(
                                 open_survey_source, folder, labels_path,
                                 1.0 / config.supervisor.camera_period_s,
                                 config.perception.max_image_pixels))
@@ -201,11 +201,10 @@ def _refuse_out_among_inputs(out: Path, folder: str, source: SurveySource, flag:
 def _survey_into(out: Path, folder: str, source: SurveySource, config: LanewardenConfig,
                  config_origin: str, calibration: CameraCalibration | None,
                  calibration_path: str | None, size: tuple[int, int] | None,
-                 as_json: bool, jitter: int = 0,
-                 reopen: Callable[[], SurveySource] | None = None) -> int:
+                 as_json: bool, jitter: int, reopen: Callable[[], SurveySource]) -> int:
     """The survey proper, once its inputs passed their checks: into the output folder `out`.
     `reopen`: opens the source again, for a recording surveyed a second time (a stricter setting
-    tried on its frames: its frames are read once)."""
+    tried on its frames)."""
     from lanewarden.documents import shorten
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
@@ -249,23 +248,23 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         max(source.labelled) - min(source.labelled) + 1)
     # on stderr as the other long commands: a bar on a terminal (wiped at the end: the figures
     # follow), else a line every few seconds
-    def surveyed(with_config: LanewardenConfig, surveyor: LaneDetector, what: str,
-                 again: bool = True) -> SurveyRun:
+    def surveyed(frames: SurveySource, with_config: LanewardenConfig, surveyor: LaneDetector,
+                 what: str) -> SurveyRun:
         with Progress(total, what, "frames", leave=False) as bar:
-            if source.sequence is None:
-                return survey_stills(source.stills, with_config, calibration, surveyor,
+            if frames.sequence is None:
+                return survey_stills(frames.stills, with_config, calibration, surveyor,
                                      bar.update, jitter, size)
-            opened = source if not again or reopen is None else reopen()
-            return survey_sequence(opened, with_config, calibration, surveyor, bar.update, size)
+            return survey_sequence(frames, with_config, calibration, surveyor, bar.update, size)
 
-    run = surveyed(config, detector, "survey", again=False)
+    run = surveyed(source, config, detector, "survey")
     figures = judge(run.results, run.engage)
-    what_ifs = [] if figures.verdict.safe else [
-        WhatIf(setting, judge(stricter.results, stricter.engage))
-        for setting, stricter_config in _stricter_configs(config)
-        for stricter in [surveyed(stricter_config, LaneDetector(
-            stricter_config.perception, detector.undistorter), f"survey with {setting.key} "
-            f"{setting.value:g}")]]
+    what_ifs: list[WhatIf] = []
+    for setting, stricter in ([] if figures.verdict.safe else _stricter_configs(config)):
+        # a recording's frames are read once: opened again (stills are files, read again)
+        again = source if source.sequence is None else reopen()
+        tried = surveyed(again, stricter, LaneDetector(stricter.perception, detector.undistorter),
+                         f"survey with {setting.key} {setting.value:g}")
+        what_ifs.append(WhatIf(setting, judge(tried.results, tried.engage)))
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
              "ground_model": ground, "jitter": jitter}
@@ -308,13 +307,12 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
 def _stricter_configs(config: LanewardenConfig) -> list[tuple[StricterSetting, LanewardenConfig]]:
     """Each stricter setting a NOT SAFE survey tries (`survey.STRICTER_SETTINGS`) that `config`
     does not already have, with `config` changed by it."""
-    from lanewarden.scenarios.spec import merge_overrides
+    from lanewarden.scenarios.spec import with_overrides
     from lanewarden.survey import STRICTER_SETTINGS
 
     tried = []
     for setting in STRICTER_SETTINGS:
-        stricter = type(config).model_validate(merge_overrides(config.model_dump(),
-                                                               setting.nested()))
+        stricter = with_overrides(config, setting.nested(), "survey.STRICTER_SETTINGS")
         if stricter != config:
             tried.append((setting, stricter))
     return tried

@@ -334,8 +334,7 @@ def _refuse_computed_tables(path: Path) -> None:
         raise ScenarioError(f"{path}: cannot open the results database "
                             f"({_problem(exc)})") from None
     try:
-        found = next(filter(None, (computed_table(db, table, required=False)
-                                   for table in _TABLES)), None)
+        found = _computed(db)
     except sqlite3.Error as exc:
         found = f"its tables cannot be read ({_problem(exc)})"
     finally:
@@ -364,11 +363,18 @@ def _damage(path: Path) -> str | None:
         db.close()
 
 
+def _computed(db: sqlite3.Connection) -> str | None:
+    """What makes `runs` or `campaign` compute its rows (`computed_table`), the first found; None
+    when both hold theirs or are absent. sqlite3.Error propagates (an unreadable schema)."""
+    return next(filter(None, (computed_table(db, table, required=False) for table in _TABLES)),
+                None)
+
+
 def _computes_rows(db: sqlite3.Connection) -> bool:
     """Whether `runs` or `campaign` computes its rows (False when the schema cannot be read: the
     scans then find what they can)."""
     try:
-        return any(computed_table(db, table, required=False) for table in _TABLES)
+        return _computed(db) is not None
     except sqlite3.Error:
         return False
 

@@ -22,8 +22,9 @@ class FakeClock:
         return self.now
 
 
-def _progress(stream: io.StringIO, clock: FakeClock, **options: object) -> Progress:
-    return Progress(20, "campaign default", "runs", stream=stream, clock=clock,
+def _progress(stream: io.StringIO, clock: FakeClock, total: int = 20,
+              **options: object) -> Progress:
+    return Progress(total, "campaign default", "runs", stream=stream, clock=clock,
                     terminal=False, **options)  # type: ignore[arg-type]
 
 
@@ -66,8 +67,7 @@ def test_short_work_prints_nothing_and_a_resumed_count_starts_the_rate_anew() ->
 def test_a_resumed_campaign_says_it_is_estimating_until_a_run_of_this_session_ends() -> None:
     """The review's resumed campaign printed '6/16 runs (38%), 0 runs/s, ETA unknown' twice."""
     stream, clock = io.StringIO(), FakeClock()
-    progress = Progress(16, "campaign default", "runs", initial=6, stream=stream, clock=clock,
-                        terminal=False)
+    progress = _progress(stream, clock, total=16, initial=6)
     clock.now += 1.0
     progress.tick()
     clock.now += 5.0
