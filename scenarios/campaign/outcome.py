@@ -22,7 +22,8 @@ Classes, checked in this order (the first that applies):
 - `nominal`: never DEGRADED, never halted.
 
 A blind halt: LANE_LOST or DEGRADED_BUDGET_EXHAUSTED while the frames the camera delivered did
-not show the lane (`RunFacts.lane_visible`, the simulator's ground truth per frame:
+not show the lane (a step that got no new frame showed nothing: `lane_shown_per_step`;
+`RunFacts.lane_visible`, the simulator's ground truth per frame:
 `scenarios.metrics.LaneContrast`, every tape standing out from the floor beside it by a contrast
 the detector can use): in NO frame of the last `lane_lost_halt_s` before the halt (the
 supervisor's own window: it halts LANE_LOST because no frame in it gave a usable lane; had the
@@ -186,12 +187,16 @@ class RunFacts:
     end_reason: str
     #: the base's true speed at the end of the run (m/s)
     final_speed_m_s: float = 0.0
-    #: per control step: did the camera's frame show the lane (None: not measured, no blind
-    #: halts)
+    #: per captured frame (its index): did it show the lane (None: not measured, no blind
+    #: halts); the simulator captures frame k at control step k
     lane_visible: Sequence[bool] | None = None
     #: per control step: the robot footprint's distance to the nearest tape edge, ground truth
     #: (m; None: not measured, no LANE_DEPARTURE halt is right)
     tape_clearance_m: Sequence[float] | None = None
+    #: per control step: the index of the newest frame the loop had (None: none yet); a step
+    #: whose index is the step before's got no new frame (dropped, late, or none yet). None:
+    #: not recorded, every step analysed its own frame k.
+    frame_index: Sequence[int | None] | None = None
 
 
 @dataclass(frozen=True)
@@ -349,16 +354,20 @@ def blind_halt(reason: str) -> bool:
 def _blind_window(facts: RunFacts, halt: int, code: str, limits: Limits) -> str | None:
     """Why a lane halt at step `halt` was blind (the rest of its reason), or None when the
     camera showed the lane (see the module docstring)."""
-    shown = facts.lane_visible
-    if shown is None or code not in _LANE:
+    if facts.lane_visible is None or code not in _LANE:
         return None
+    shown, new = lane_shown_per_step(facts.lane_visible, facts.frame_index, len(facts.times))
     halt_s = float(facts.times[halt])
     window_s = limits.supervisor.lane_lost_halt_s
     last = [i for i in range(halt + 1) if halt_s - window_s + 1e-9 < float(facts.times[i])]
     if not last or any(shown[i] for i in last):
         return None
+    missing = sum(1 for i in last if not new[i])
     why = (f"the detector could use in any of the last {counted(len(last), 'frame')} "
-           f"({window_s:g} s)")
+           f"({window_s:g} s)" if not missing else
+           f"the detector could use in the last {window_s:g} s "
+           f"({counted(len(last) - missing, 'frame')}; {counted(missing, 'step')} got no new "
+           "frame)")
     if code == "DEGRADED_BUDGET_EXHAUSTED":
         start = halt
         while start > 0 and facts.states[start - 1] == "DEGRADED":
@@ -369,6 +378,28 @@ def _blind_window(facts: RunFacts, halt: int, code: str, limits: Limits) -> str 
             return None
         why += f"; lane shown in {seen} of the {len(stretch)} DEGRADED frames"
     return why
+
+
+def lane_shown_per_step(frame_visible: Sequence[bool], frame_index: Sequence[int | None] | None,
+                        steps: int) -> tuple[list[bool], list[bool]]:
+    """Per control step: (whether the loop got a new frame at it that showed the lane, whether
+    it got a new frame at all). `frame_visible`: per captured frame, by its index;
+    `frame_index`: per step, the newest frame the loop had (None: every step k got frame k).
+    A step that got no new frame showed the detector nothing, whatever the camera captured
+    then: a dropped frame's picture never reached perception (campaign run r00331 of the
+    thirty-first run: three frames dropped, then three blinded by a light switched up, and
+    the dropped ones had counted as showing the lane)."""
+    if frame_index is None:
+        return [bool(v) for v in frame_visible[:steps]], [True] * steps
+    shown, new = [], []
+    before: int | None = None
+    for index in frame_index[:steps]:
+        fresh = index is not None and index != before
+        new.append(fresh)
+        shown.append(fresh and index is not None and 0 <= index < len(frame_visible)
+                     and bool(frame_visible[index]))
+        before = index
+    return shown, new
 
 
 #: How long before a LANE_DEPARTURE halt the judge looks for the robot near a tape, s.

@@ -59,6 +59,7 @@ def judge(result: SimulationResult, config: LanewardenConfig) -> Verdict:
         lane_visible=None if result.trace.lane_visible is None else [
             bool(v) for v in result.trace.lane_visible],
         tape_clearance_m=tape_clearance_m(result),
+        frame_index=[r.frame_index for r in records],
     )
     campaign: CampaignConfig = getattr(config, "campaign", CampaignConfig())
     limits = Limits(config.supervisor, config.actuation.write_timeout_s)

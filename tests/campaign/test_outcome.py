@@ -29,7 +29,8 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
           reasons: dict[int, str] | None = None, moving_after: int | None = None,
           metrics: dict[str, Any] | None = None, markings_end_s: float | None = None,
           lane_visible: list[bool] | None = None,
-          tape_clearance_m: list[float] | None = None) -> RunFacts:
+          tape_clearance_m: list[float] | None = None,
+          frame_index: list[int | None] | None = None) -> RunFacts:
     n = len(states)
     halt_reasons: list[str | None] = [None] * n
     for i, text in (reasons or {}).items():
@@ -44,7 +45,8 @@ def facts(states: list[str], *, faults: tuple[FaultSpec, ...] = (),
                     metrics={"crossed_tape": False, "distance_past_lane_end_m": None,
                              **(metrics or {})},
                     markings_end_s=markings_end_s, end_reason="halted",
-                    lane_visible=lane_visible, tape_clearance_m=tape_clearance_m)
+                    lane_visible=lane_visible, tape_clearance_m=tape_clearance_m,
+                    frame_index=frame_index)
 
 
 def run(follow: int, halt_at: int | None = None, total: int = 120,
@@ -254,6 +256,38 @@ def test_one_frame_that_showed_the_lane_in_the_window_keeps_it_a_false_halt(
                        CONFIG, LIMITS)
     assert verdict.outcome == "false_halt"
     assert not blind_halt(verdict.reason)
+
+
+def test_a_step_that_got_no_new_frame_showed_the_detector_nothing() -> None:
+    """Campaign run r00331 (thirty-first run): the camera dropped frames 147-149, then a light
+    switched up blinded it from frame 150; LANE_LOST at step 152, 0.2 s after the last frame
+    perception got that showed the lane. The dropped frames had been captured showing the lane,
+    and counted as shown."""
+    seen = shown(160, range(150, 160))  # the captured frames 150.. blind
+    states = run(5, halt_at=152, total=160)
+    index: list[int | None] = [146 if 147 <= k <= 149 else k for k in range(160)]
+    verdict = classify(facts(states, reasons={152: LOST}, lane_visible=seen,
+                             frame_index=index), CONFIG, LIMITS)
+    assert (verdict.outcome, verdict.reason) == (
+        "safe_halt", "LANE_LOST at 5.067 s: camera showed no lane contrast the detector could "
+        "use in the last 0.2 s (3 frames; 3 steps got no new frame)")
+    # Had the frames come (frame k at step k), the captured frames 147-149 showed the lane.
+    assert classify(facts(states, reasons={152: LOST}, lane_visible=seen,
+                          frame_index=list(range(160))), CONFIG, LIMITS).outcome == "false_halt"
+
+
+def test_a_late_frame_that_showed_the_lane_keeps_a_lane_halt_false() -> None:
+    """A step is judged on the frame perception got at it: with every frame three steps late,
+    steps 147 and 148 (in the window before the halt at 152) got frames 144 and 145, captured
+    before the camera went blind at 146, and those showed the lane."""
+    seen = shown(160, range(146, 160))
+    states = run(5, halt_at=152, total=160)
+    late: list[int | None] = [None, None, None] + list(range(157))
+    assert classify(facts(states, reasons={152: LOST}, lane_visible=seen, frame_index=late),
+                    CONFIG, LIMITS).outcome == "false_halt"
+    on_time: list[int | None] = list(range(160))
+    assert classify(facts(states, reasons={152: LOST}, lane_visible=seen,
+                          frame_index=on_time), CONFIG, LIMITS).outcome == "safe_halt"
 
 
 def test_only_lane_halts_are_excused_by_a_blind_camera() -> None:
