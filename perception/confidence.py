@@ -52,7 +52,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.config import ConfidenceWeights, PerceptionConfig
 from lanewarden.perception.floor_view import (
     FloorView,
     Point,
@@ -134,7 +134,8 @@ def lane_components(
         "parallel": 0.0,
         "tape_pair_left": left.tape_score if left is not None else 0.0,
         "tape_pair_right": right.tape_score if right is not None else 0.0,
-        "verified_tape": 1.0 if any(e is not None and e.verified for e in (left, right)) else 0.0,
+        "verified_tape": 1.0 if ((left is not None and left.verified)
+                                 or (right is not None and right.verified)) else 0.0,
         "floor_between": 0.0,
         "heading": 0.0,
     }
@@ -144,7 +145,7 @@ def lane_components(
         comps["heading"] = 1.0 if heading_deg <= config.lane.max_heading_deg else 0.0
         gap = 0.5 * (distance_to_line(left.point, right.point, right.direction)
                      + distance_to_line(right.point, left.point, left.direction))
-        expected = config.free_width_m
+        expected = free_width_m(config)
         # The left edge must lie left of the right one (a crossed pair is no lane).
         left_of = (right.direction[0] * (left.point[1] - right.point[1])
                    - right.direction[1] * (left.point[0] - right.point[0]))
@@ -177,10 +178,18 @@ def floor_between(left: EdgeEvidence, right: EdgeEvidence) -> float:
     left edge and left of the right one, so beside dark tapes (floor lighter) the left edge reads
     +1 and the right edge -1; beside light tapes the reverse. The tapes' kind comes from the
     verified ones (without a verified tape confidence is 0 anyway)."""
-    kinds = {e.dark for e in (left, right) if e.verified}
-    if len(kinds) != 1 or left.line_ids & right.line_ids:
+    # (The verified kinds compared one by one, not gathered into a set: it runs every frame.)
+    if left.verified:
+        dark = left.dark
+        if right.verified and right.dark != dark:
+            return 0.0  # two kinds
+    elif right.verified:
+        dark = right.dark
+    else:
+        return 0.0  # no kind
+    if not left.line_ids.isdisjoint(right.line_ids):
         return 0.0
-    floor_lighter = 1.0 if kinds.pop() else -1.0
+    floor_lighter = 1.0 if dark else -1.0
     return 1.0 if left.polarity == floor_lighter and right.polarity == -floor_lighter else 0.0
 
 
@@ -223,7 +232,30 @@ def _agreement(left: LaneEdge | None, right: LaneEdge | None, previous: LaneObse
 
 def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
     """The weighted geometric product of the components (see module docstring)."""
-    w = config.confidence.weights
+    total = 1.0
+    get = components.get
+    for name, exponent in _exponents(config.confidence.weights):
+        value = float(get(name, 1.0))
+        # min(1.0, max(0.0, value)), written out (the same for NaN: 0.0)
+        value = value if value > 0.0 else 0.0
+        value = value if value < 1.0 else 1.0
+        if value == 0.0:
+            return 0.0
+        if value != 1.0:  # (1.0 ** exponent is 1.0: the product is the same without it)
+            total *= value**exponent
+    return total
+
+
+#: `_exponents` per weights object, by identity (the weights are frozen; building the table
+#: cost as much as the product).
+_EXPONENTS: dict[int, tuple[ConfidenceWeights, tuple[tuple[str, float], ...]]] = {}
+
+
+def _exponents(w: ConfidenceWeights) -> tuple[tuple[str, float], ...]:
+    """(component, exponent) in `combine`'s order, leaving out those weighted 0 (ignored)."""
+    hit = _EXPONENTS.get(id(w))
+    if hit is not None and hit[0] is w:
+        return hit[1]
     exponents = {
         "both_sides": w.both_sides,
         "support_left": w.support / 2.0,
@@ -237,15 +269,28 @@ def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
         "heading": 1.0,
         "consistency": w.consistency,
     }
-    total = 1.0
-    for name, exponent in exponents.items():
-        if exponent == 0.0:
-            continue
-        value = min(1.0, max(0.0, float(components.get(name, 1.0))))
-        if value == 0.0:
-            return 0.0
-        total *= value**exponent
-    return total
+    table = tuple((name, exponent) for name, exponent in exponents.items() if exponent != 0.0)
+    if len(_EXPONENTS) >= 64:
+        _EXPONENTS.clear()
+    _EXPONENTS[id(w)] = (w, table)
+    return table
+
+
+#: `free_width_m` per config object, by identity (a property of three properties, and the
+#: choice of tapes asks it of every pair of tapes).
+_FREE_WIDTH: dict[int, tuple[PerceptionConfig, float]] = {}
+
+
+def free_width_m(config: PerceptionConfig) -> float:
+    """`PerceptionConfig.free_width_m` (the config is frozen: taken once per config)."""
+    hit = _FREE_WIDTH.get(id(config))
+    if hit is not None and hit[0] is config:
+        return hit[1]
+    width = config.free_width_m
+    if len(_FREE_WIDTH) >= 64:
+        _FREE_WIDTH.clear()
+    _FREE_WIDTH[id(config)] = (config, width)
+    return width
 
 
 def frozen_components(components: Mapping[str, float]) -> Mapping[str, float]:

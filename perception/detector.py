@@ -455,20 +455,11 @@ class LaneDetector:
             offset = signed_offset(floor.point, floor.direction)
             heading = math.atan2(floor.direction[1], floor.direction[0])
             near, far = floor.point[0], floor.far_m
-        return LaneEdge(
-            x1=choice.x1,
-            y1=choice.y1,
-            x2=choice.x2,
-            y2=choice.y2,
-            slope=edge_slope(
-                choice.x1, choice.y1, choice.x2, choice.y2, side, self.config.edges.max_abs_slope
-            ),
-            support_px=choice.support_px,
-            offset_m=offset,
-            heading_rad=heading,
-            near_m=near,
-            far_m=far,
-        )
+        x1, y1, x2, y2 = choice.x1, choice.y1, choice.x2, choice.y2
+        # (LaneEdge's fields in their order: positional, a quarter cheaper than by keyword)
+        return LaneEdge(x1, y1, x2, y2,
+                        edge_slope(x1, y1, x2, y2, side, self.config.edges.max_abs_slope),
+                        choice.support_px, offset, heading, near, far)
 
 
 def assumed_ground_model(undistorter: Undistorter | None,
@@ -491,20 +482,24 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
     has no floor position (it would have to reach the horizon, which the ROI never does)."""
     if choice is None:
         return None
-    line = rows[choice.near_line]
-    near = (line.near_fx, line.near_fy)
-    far = (line.far_fx, line.far_fy)
-    for k in choice.chain[1:]:
-        if not math.hypot(far[0] - near[0], far[1] - near[1]) < EVIDENCE_MIN_M:
+    chain = choice.chain
+    line = rows[chain[0]]
+    near_x, near_y = near = (line.near_fx, line.near_fy)
+    far_x, far_y = line.far_fx, line.far_fy
+    for k in chain[1:]:
+        if not math.hypot(far_x - near_x, far_y - near_y) < EVIDENCE_MIN_M:
             break
-        far = (rows[k].far_fx, rows[k].far_fy)
-    d = direction(near, far)
-    if not all(math.isfinite(v) for v in (*near, *d)) or d == (0.0, 0.0):
+        line = rows[k]
+        far_x, far_y = line.far_fx, line.far_fy
+    d = direction(near, (far_x, far_y))
+    isfinite = math.isfinite
+    if (not (isfinite(near_x) and isfinite(near_y) and isfinite(d[0]) and isfinite(d[1]))
+            or d == (0.0, 0.0)):
         return None
-    return EdgeEvidence(point=near, direction=d, support_px=choice.support_px,
-                        tape_score=choice.tape_score, verified=choice.verified,
-                        dark=choice.tape_dark, polarity=choice.polarity,
-                        line_ids=choice.line_ids, far_m=far[0] if math.isfinite(far[0]) else None)
+    # (EdgeEvidence's fields in their order: positional, a quarter cheaper than by keyword)
+    return EdgeEvidence(near, d, choice.support_px, choice.tape_score, choice.verified,
+                        choice.tape_dark, choice.polarity, choice.line_ids,
+                        far_x if isfinite(far_x) else None)
 
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,

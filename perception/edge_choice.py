@@ -61,17 +61,25 @@ import itertools
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from lanewarden.perception.confidence import floor_angle_deg, ramp
+from lanewarden.perception.confidence import floor_angle_deg, free_width_m, ramp
 from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.floor_config import LaneConfig, TapeConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
 from lanewarden.perception.lines import LineRow, pairs_within_angle
 from lanewarden.perception.size_setup import SizeSetup
-from lanewarden.perception.tape_rules import band_is_tape, tape_profile_fraction, tape_width_score
+from lanewarden.perception.tape_rules import (
+    WidthTerms,
+    band_is_tape,
+    tape_profile_fraction,
+    width_score,
+    width_terms,
+)
 
 _MAX_CHAIN_STEPS = 8
 #: Pairs band-checked per side (the check reads pixels), best width first.
@@ -138,12 +146,12 @@ class SideChoice:
         return frozenset(self.chain if self.partner is None else (*self.chain, self.partner))
 
 
-@dataclass(frozen=True)
-class TapeCandidate:
+class TapeCandidate(NamedTuple):
     """A pair of lines whose width on the floor verifies a tape: its `inner` and `outer` edges,
     width score, width on the floor, whether it is darker than the floor, where its inner edge
     was measured (`at`, floor metres), the image rows both edges cover (`rows`, for the band
-    check) and the configured tape width it is ranked against (`tape_width_m`)."""
+    check) and the configured tape width it is ranked against (`tape_width_m`). (A named tuple:
+    made for every pair that measures as tape, at a third of a frozen dataclass's cost.)"""
 
     inner: LineRow
     outer: LineRow
@@ -185,24 +193,27 @@ def choose_edges(
 ) -> tuple[SideChoice | None, SideChoice | None]:
     """The left and right edges (None where a side has no candidate line). `rows` are the
     frame's candidate lines, `smooth_gray` the blurred frame they came from."""
-    cands = {side: side_candidates(rows, side, setup.centre_x_bottom, config)
-             for side in ("left", "right")}
-    tapes = {side: tape_candidates(cands[side], side, setup.view, config, setup.look_ahead_m)
-             for side in ("left", "right")}
+    view, look_ahead_m, centre_x = setup.view, setup.look_ahead_m, setup.centre_x_bottom
+    cands = {"left": side_candidates(rows, "left", centre_x, config),
+             "right": side_candidates(rows, "right", centre_x, config)}
     # The band check reads pixels: only for the tapes the choice would take, each at most once.
-    checked: dict[int, bool] = {}
+    # (Kept with the tape itself: a tape let go of could leave its id to another one.)
+    checked: dict[int, tuple[TapeCandidate, bool]] = {}
 
     def band_ok(tape: TapeCandidate) -> bool:
         key = id(tape)
         if key not in checked:
-            checked[key] = tape.band_is_tape(smooth_gray, config)
-        return checked[key]
+            checked[key] = (tape, tape.band_is_tape(smooth_gray, config))
+        return checked[key][1]
 
-    left_tape, right_tape = pick_tapes(tapes["left"], tapes["right"], config, band_ok)
+    left_tape, right_tape = pick_tapes(
+        tape_candidates(cands["left"], "left", view, config, look_ahead_m),
+        tape_candidates(cands["right"], "right", view, config, look_ahead_m),
+        config, band_ok)
 
     def fallback(side: Side) -> TapeCandidate | None:
         """A tape whose outer edge has no sign, the best ranked whose band is tape."""
-        unsigned = tape_candidates(cands[side], side, setup.view, config, setup.look_ahead_m,
+        unsigned = tape_candidates(cands[side], side, view, config, look_ahead_m,
                                    unsigned_outer=True)
         return _best_accepted(unsigned, [t.rank() for t in unsigned], band_ok)
 
@@ -229,18 +240,44 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
     y_hi = min(a.near_y, b.near_y)
     if y_hi <= y_lo:
         return None
-    xa, xb = a.x_at(y_hi), b.x_at(y_hi)
-    inner, outer, u = (a, b, xa) if (xa > xb) == (side == "left") else (b, a, xb)
-    at = view.to_floor(u, y_hi)
-    o_near = (outer.near_fx, outer.near_fy)
-    o_dir = direction(o_near, (outer.far_fx, outer.far_fy))
-    if not math.isfinite(sum((*at, *o_near, *o_dir))) or o_dir == (0.0, 0.0):
+    inner, outer, u = _inner_outer(a, b, y_hi, side == "left")
+    measured = _measure(inner, outer, u, y_hi, view, width_terms(config.tape.for_side(side)))
+    if measured is None:
         return None
-    width_m = distance_to_line(at, o_near, o_dir)
-    m_per_px = view.metres_per_px_across(u, y_hi, inner.ux, inner.uy, (-o_dir[1], o_dir[0]),
-                                         floor_at=at)
-    score = tape_width_score(width_m, m_per_px, config.tape.for_side(side))
+    score, width_m, at = measured
     return inner, outer, score, width_m, at
+
+
+def _inner_outer(a: LineRow, b: LineRow, y: float, left: bool) -> tuple[LineRow, LineRow, float]:
+    """(inner, outer, the inner edge's column at image row `y`) of two lines taken as one tape's
+    edges on the left side (`left`) or the right."""
+    xa = a.cx + (y - a.cy) * a.ux / a.uy  # LineRow.x_at, written out (a pair's hot path)
+    xb = b.cx + (y - b.cy) * b.ux / b.uy
+    return (a, b, xa) if (xa > xb) == left else (b, a, xb)
+
+
+def _measure(inner: LineRow, outer: LineRow, u: float, v: float, view: FloorView,
+             terms: WidthTerms) -> tuple[float, float, Point] | None:
+    """`measure_pair` at pixel (u, v) of the inner edge: (width score, width on the floor,
+    measured point), None when it cannot be put on the floor. `terms`: the side's
+    `perception.tape_rules.width_terms`."""
+    at = view.to_floor(u, v)
+    at_x, at_y = at
+    near_x, near_y = outer.near_fx, outer.near_fy
+    # The outer edge's floor direction (`direction`, written out; (0, 0): no direction).
+    dx, dy = outer.far_fx - near_x, outer.far_fy - near_y
+    norm = math.hypot(dx, dy)
+    if norm < 1e-15:
+        return None
+    dx, dy = dx / norm, dy / norm
+    if not math.isfinite(at_x + at_y + near_x + near_y + dx + dy):
+        return None
+    width_m = abs(dx * (at_y - near_y) - dy * (at_x - near_x))  # distance_to_line
+    # `FloorView.metres_per_px_across` across the outer edge (its floor normal (-dy, dx)),
+    # written out: one pixel's step perpendicular to the inner edge, on the floor.
+    x1, y1 = view.to_floor(u - inner.uy, v + inner.ux)
+    m_per_px = abs((x1 - at_x) * -dy + (y1 - at_y) * dx)
+    return width_score(width_m, m_per_px, terms), width_m, at
 
 
 def tape_candidates(
@@ -257,39 +294,75 @@ def tape_candidates(
 
     `unsigned_outer`: instead of two edges of opposite signs, a signed INNER edge and an outer
     edge of no sign (polarity 0): a glossy tape whose outer edge a mirrored ceiling light left
-    without a sign (`_side_choice` takes such a tape only as a fallback)."""
-    angle_tol = config.tape.pair_angle_tol_deg
-    tape_width = config.tape.side_width_m(side)
+    without a sign (`_side_choice` takes such a tape only as a fallback).
+
+    (Every check is a filter, each pair's cheapest first: the outcome is the same in any order.
+    `measure_pair`'s steps are taken one at a time so that a pair of the wrong kind or beyond
+    the look-ahead is not measured further.)"""
+    angle_tol, tape_width, terms = _pair_rules(config.tape, side)
+    rough_min, rough_max = tape_width / 3.0, 3.0 * tape_width
     look_ahead = look_ahead_m
+    left = side == "left"
+    any_kind = config.tape.kind == "any"  # (`of_configured_kind` takes every tape then)
+    hypot = math.hypot
+    # (Each line's sign and angle in a list: most pairs fail these first two checks.)
+    polarity = [r.polarity for r in cand]
+    angle = [r.angle_deg for r in cand]
     found: list[TapeCandidate] = []
     for i, j in _pairs_worth_checking(cand, angle_tol, tape_width, unsigned_outer):
-        a, b = cand[i], cand[j]
         if unsigned_outer:
-            if (a.polarity == 0) == (b.polarity == 0):
+            if (polarity[i] == 0) == (polarity[j] == 0):
                 continue
-        elif a.polarity * b.polarity >= 0:
+        elif polarity[i] * polarity[j] >= 0:
             continue
-        if abs(a.angle_deg - b.angle_deg) > angle_tol:
+        if abs(angle[i] - angle[j]) > angle_tol:
+            continue
+        a, b = cand[i], cand[j]
+        # The image rows both cover, where the pair is measured (none: no tape).
+        y_lo = b.far_y if b.far_y > a.far_y else a.far_y  # (max() and min(), written out)
+        y_hi = b.near_y if b.near_y < a.near_y else a.near_y
+        if y_hi <= y_lo:
             continue
         # Distance from a's near end to b's line on the floor (not yet where they are
         # measured): a third to three tape widths, or no tape.
         bx, by = b.far_fx - b.near_fx, b.far_fy - b.near_fy
         rough = abs(bx * (a.near_fy - b.near_fy) - by * (a.near_fx - b.near_fx))
-        if not tape_width / 3.0 <= rough / max(math.hypot(bx, by), 1e-9) <= 3.0 * tape_width:
+        norm = hypot(bx, by)
+        if not rough_min <= rough / (1e-9 if 1e-9 > norm else norm) <= rough_max:
             continue
-        pair = measure_pair(a, b, side, view, config)
-        if pair is None or pair[2] < MIN_VERIFIED_WIDTH_SCORE or pair[4][0] > look_ahead:
-            continue
-        inner, outer, score, width_m, at = pair
+        inner, outer, u = _inner_outer(a, b, y_hi, left)
         if inner.polarity == 0:
             continue  # (unsigned_outer: the sign must be the inner edge's)
-        dark = darker_beyond(inner, side)
-        if not of_configured_kind(inner, side, config):
+        if not any_kind and not of_configured_kind(inner, side, config):
             continue
-        rows = (max(a.far_y, b.far_y), min(a.near_y, b.near_y))
-        found.append(TapeCandidate(inner, outer, score, width_m, dark, at, rows, tape_width))
-    found.sort(key=TapeCandidate.rank, reverse=True)
+        measured = _measure(inner, outer, u, y_hi, view, terms)
+        if (measured is None or measured[0] < MIN_VERIFIED_WIDTH_SCORE
+                or measured[2][0] > look_ahead):
+            continue
+        score, width_m, at = measured
+        found.append(TapeCandidate(inner, outer, score, width_m, darker_beyond(inner, side), at,
+                                   (y_lo, y_hi), tape_width))
+    if len(found) > 1:
+        found.sort(key=TapeCandidate.rank, reverse=True)
     return found[:_MAX_TAPE_CHECKS]
+
+
+#: `_pair_rules` per tape config object (by identity, it is frozen) and side.
+_PAIR_RULES: dict[tuple[int, Side], tuple[TapeConfig, tuple[float, float, WidthTerms]]] = {}
+
+
+def _pair_rules(tape: TapeConfig, side: Side) -> tuple[float, float, WidthTerms]:
+    """(`pair_angle_tol_deg`, the side's tape width, its `width_terms`) that `tape_candidates`
+    measures pairs by: taken once per config (a config's properties cost more than a pair's
+    first checks)."""
+    hit = _PAIR_RULES.get((id(tape), side))
+    if hit is not None and hit[0] is tape:
+        return hit[1]
+    rules = (tape.pair_angle_tol_deg, tape.side_width_m(side), width_terms(tape.for_side(side)))
+    if len(_PAIR_RULES) >= 64:
+        _PAIR_RULES.clear()
+    _PAIR_RULES[(id(tape), side)] = (tape, rules)
+    return rules
 
 
 #: From this many candidate lines on a side (a textured floor: terrazzo's chips give a hundred
@@ -370,13 +443,23 @@ def lane_fit(left: TapeCandidate, right: TapeCandidate, config: PerceptionConfig
     `lane.parallel_tolerance_deg`, 0 at twice). A lane's two tapes run parallel: a slat or
     strip across the lane can lie the lane's width from the other tape where it is measured,
     never along it."""
-    r_near = (right.inner.near_fx, right.inner.near_fy)
-    r_dir = direction(r_near, (right.inner.far_fx, right.inner.far_fy))
-    l_dir = direction((left.inner.near_fx, left.inner.near_fy),
-                      (left.inner.far_fx, left.inner.far_fy))
-    gap = distance_to_line(left.at, r_near, r_dir)
-    lane = config.lane
-    return (ramp(gap - config.free_width_m, lane.width_tolerance_m)
+    r_near, r_dir = _floor_line(right.inner)
+    return _lane_fit(left.at, _floor_line(left.inner)[1], r_near, r_dir, free_width_m(config),
+                     config.lane)
+
+
+def _floor_line(line: LineRow) -> tuple[Point, Point]:
+    """A line's near end on the floor and its unit floor direction, towards its far end."""
+    near = (line.near_fx, line.near_fy)
+    return near, direction(near, (line.far_fx, line.far_fy))
+
+
+def _lane_fit(left_at: Point, l_dir: Point, r_near: Point, r_dir: Point, free_m: float,
+              lane: LaneConfig) -> float:
+    """`lane_fit` of a left tape measured at `left_at` whose inner edge runs along `l_dir` and a
+    right tape whose inner edge runs through `r_near` along `r_dir` (`_floor_line`)."""
+    gap = distance_to_line(left_at, r_near, r_dir)
+    return (ramp(gap - free_m, lane.width_tolerance_m)
             * ramp(floor_angle_deg(l_dir, r_dir), lane.parallel_tolerance_deg))
 
 
@@ -391,15 +474,29 @@ def pick_tapes(
     that best fits the lane (`lane_fit`: its width, parallel edges), then the best width scores,
     then the nearest; otherwise
     each side's best (`TapeCandidate.rank`)."""
+    if len(left) == 1 and len(right) == 1:
+        # One tape a side (most frames): nothing to order, the same questions in the same order.
+        lt, rt = left[0], right[0]
+        if accept(lt) and accept(rt):
+            return lt, rt
+        return (lt if accept(lt) else None), (rt if accept(rt) else None)
     left_ranks = [t.rank() for t in left]
     right_ranks = [t.rank() for t in right]
-    combos = sorted(
-        ((lt.dark == rt.dark, lane_fit(lt, rt, config) * lt.score * rt.score,
-          lt.score * rt.score, lr[1] + rr[1], lr[2] + rr[2], -i, -j)
-         for i, (lt, lr) in enumerate(zip(left, left_ranks, strict=True))
-         for j, (rt, rr) in enumerate(zip(right, right_ranks, strict=True))),
-        reverse=True,
-    )
+    combos = []
+    if left and right:
+        # (`lane_fit` of every combination, each tape's inner edge put on the floor once.)
+        left_dirs = [_floor_line(t.inner)[1] for t in left]
+        right_lines = [_floor_line(t.inner) for t in right]
+        free_m, lane = free_width_m(config), config.lane
+        combos = sorted(
+            ((lt.dark == rt.dark,
+              _lane_fit(lt.at, l_dir, *r_line, free_m, lane) * lt.score * rt.score,
+              lt.score * rt.score, lr[1] + rr[1], lr[2] + rr[2], -i, -j)
+             for i, (lt, lr, l_dir) in enumerate(zip(left, left_ranks, left_dirs, strict=True))
+             for j, (rt, rr, r_line) in enumerate(zip(right, right_ranks, right_lines,
+                                                       strict=True))),
+            reverse=True,
+        )
     for *_, neg_i, neg_j in combos:  # the indices are negated so that ties keep list order
         lt, rt = left[-neg_i], right[-neg_j]
         if accept(lt) and accept(rt):
@@ -452,12 +549,14 @@ def _side_choice(
         partner, verified, width_m, dark = None, False, None, None
     near = rows[chain[0]]
     x2, y2 = _chain_point_at(rows, chain, setup.look_ahead_row)
-    return SideChoice(
-        side=side, chain=chain, partner=partner, verified=verified, tape_score=score,
-        tape_width_m=width_m, tape_dark=dark, polarity=near.polarity,
-        support_px=sum(rows[k].support_px for k in chain),
-        x1=near.near_x, y1=near.near_y, x2=x2, y2=y2,
-    )
+    return SideChoice(side, chain, partner, verified, score, width_m, dark, near.polarity,
+                      _support(rows, chain), near.near_x, near.near_y, x2, y2)
+
+
+def _support(rows: list[LineRow], chain: tuple[int, ...]) -> float:
+    """Total length of a chain's Hough segments (`SideChoice.support_px`), summed in chain
+    order."""
+    return sum([rows[k].support_px for k in chain])
 
 
 def _best_single(
@@ -484,15 +583,22 @@ def _best_single(
     singles = polar or [max(plain, key=lambda r: r.support_px)]
     preference = config.tape.unpaired_preference
     best: tuple[float, tuple[int, ...], float] | None = None
+    # The profile is a function of the chain alone, and the strongest lines of one bending
+    # edge often follow into the same chain: read each chain's profile once.
+    profiles: dict[tuple[int, ...], float | None] = {}
+    view, side_tape = setup.view, config.tape.for_side(side)
     for line in singles[:_MAX_SINGLE_CHECKS]:
         if best is not None and line.support_px * _CHAIN_BONUS_LIMIT <= best[0]:
             break  # even a chain of four times its own length could not win
         chain = follow_edge(rows, line.line_id, (width, height), config)
-        support = sum(rows[k].support_px for k in chain)
+        support = _support(rows, chain)
         if best is not None and support <= best[0]:
             continue  # cannot win even as a perfect tape edge: skip the profile
-        fraction = tape_profile_fraction(smooth_gray, rows, chain, side, setup.view,
-                                         config.tape.for_side(side))
+        if chain in profiles:
+            fraction = profiles[chain]
+        else:
+            fraction = profiles[chain] = tape_profile_fraction(smooth_gray, rows, chain, side,
+                                                               view, side_tape)
         if fraction is None and not fainter_than_tape(line, other_tape):
             # The tape's far side would be outside the image: nothing to check it against.
             score, factor = config.tape.unverifiable_score, config.tape.unverifiable_score
@@ -545,13 +651,20 @@ def follow_edge(
     """The chain of lines continuing `start` away from the robot and towards it: same polarity,
     an end within the chain gap, turning by at most `chain_max_turn_deg`."""
     width, height = size
-    polarity = rows[start].polarity
-    usable = [r for r in rows if r.line_id != start and (polarity == 0 or r.polarity == polarity)]
-    gap = config.edges.chain_gap_frac_of_height * height
-    max_turn = config.edges.chain_max_turn_deg
-    on_line_px = max(1.5, 0.5 * config.edges.cluster_offset_frac_of_width * width)
-    away = _extend(rows[start], usable, gap, max_turn, on_line_px, away=True)
-    towards = _extend(rows[start], usable, gap, max_turn, on_line_px, away=False)
+    first = rows[start]
+    polarity = first.polarity
+    usable = ([r for r in rows if r.line_id != start] if polarity == 0
+              else [r for r in rows if r.polarity == polarity and r.line_id != start])
+    if not usable:
+        return (start,)
+    edges = config.edges
+    gap = edges.chain_gap_frac_of_height * height
+    max_turn = edges.chain_max_turn_deg
+    on_line_px = max(1.5, 0.5 * edges.cluster_offset_frac_of_width * width)
+    away = _extend(first, usable, gap, max_turn, on_line_px, away=True)
+    towards = _extend(first, usable, gap, max_turn, on_line_px, away=False)
+    if not away and not towards:
+        return (start,)
     return tuple([r.line_id for r in reversed(towards)] + [start] + [r.line_id for r in away])
 
 
@@ -577,36 +690,52 @@ def _extend(
     found: list[LineRow] = []
     overlap = 0.25 * gap
     min_cos = math.cos(math.radians(max_turn))
+    two_on_line = 2.0 * on_line_px
+    hypot = math.hypot
+    # (The current line's values are bound once per step, and a line farther than the best so
+    # far is passed over before the checks that could only refuse it: the same choice.)
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
+        c_angle, c_ux, c_uy = current.angle_deg, current.ux, current.uy
+        c_cx, c_cy = current.cx, current.cy
+        if away:
+            end_x, end_y = current.far_x, current.far_y
+        else:
+            end_x, end_y = current.near_x, current.near_y
+        beyond = end_y - 1.0 if away else end_y + 1.0  # (a line must reach past this row)
         for r in usable:
-            if abs(r.angle_deg - current.angle_deg) > max_turn:
+            if away:
+                if r.far_y >= beyond:
+                    continue
+            elif r.near_y <= beyond:
+                continue
+            if abs(r.angle_deg - c_angle) > max_turn:
                 continue
             if away:
-                if r.far_y >= current.far_y - 1.0:
-                    continue
-                shared = r.near_y - current.far_y  # rows both lines cover
-                step_x, step_y = r.near_x - current.far_x, r.near_y - current.far_y
-                forward = current.ux * step_x + current.uy * step_y
+                shared = r.near_y - end_y  # rows both lines cover
+                step_x, step_y = r.near_x - end_x, r.near_y - end_y
             else:
-                if r.near_y <= current.near_y + 1.0:
-                    continue
-                shared = current.near_y - r.far_y
-                step_x, step_y = r.far_x - current.near_x, r.far_y - current.near_y
-                forward = -(current.ux * step_x + current.uy * step_y)
-            dist = math.hypot(step_x, step_y)
+                shared = end_y - r.far_y
+                step_x, step_y = r.far_x - end_x, r.far_y - end_y
+            dist = hypot(step_x, step_y)
+            if dist > best_dist:
+                continue
             if shared > overlap:
-                mid = (current.far_y + shared / 2.0) if away else (current.near_y - shared / 2.0)
-                if abs(r.x_at(mid) - current.x_at(mid)) > on_line_px:
+                mid = (end_y + shared / 2.0) if away else (end_y - shared / 2.0)
+                # (`LineRow.x_at` of both lines, written out)
+                if abs(r.cx + (mid - r.cy) * r.ux / r.uy
+                       - (c_cx + (mid - c_cy) * c_ux / c_uy)) > on_line_px:
                     continue
             elif shared > 0.0:
                 # It overlaps a little (Hough's pieces of a curve do): it must start on the
                 # current line's extension, not beside it.
-                if abs(step_x * current.uy - step_y * current.ux) > 2.0 * on_line_px:
+                if abs(step_x * c_uy - step_y * c_ux) > two_on_line:
                     continue
-            elif dist > 2.0 * on_line_px and forward < min_cos * dist:
-                continue
+            elif dist > two_on_line:
+                forward = c_ux * step_x + c_uy * step_y
+                if (forward if away else -forward) < min_cos * dist:
+                    continue
             if dist <= best_dist:
                 best, best_dist = r, dist
         if best is None:

@@ -27,7 +27,6 @@ Pure functions of pixels, lines, the floor view and the config: no state, no clo
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -35,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.floor_config import TapeConfig
-from lanewarden.perception.floor_view import FloorView, Point, column_at
+from lanewarden.perception.floor_view import FloorView, Point
 from lanewarden.perception.geometry import Side
 from lanewarden.perception.lines import LineRow
 
@@ -75,10 +74,10 @@ class WidthHypotheses:
 
 def width_hypotheses(m_per_px: float, tape: TapeConfig) -> WidthHypotheses:
     """The seam and tape hypotheses where one pixel covers `m_per_px` metres across a line."""
-    return WidthHypotheses(m_per_px, *_hypotheses(m_per_px, _width_terms(tape)))
+    return WidthHypotheses(m_per_px, *_hypotheses(m_per_px, width_terms(tape)))
 
 
-class _WidthTerms(NamedTuple):
+class WidthTerms(NamedTuple):
     """What the width hypotheses take from a tape config (`width_hypotheses`): the error in
     pixels, the widest seam and thinnest line (pixels), and the tape's narrowest and widest
     width before the error."""
@@ -90,16 +89,18 @@ class _WidthTerms(NamedTuple):
     tape_hi_m: float
 
 
-#: `_width_terms` per config object, by identity (a config's properties cost more than the
+#: `width_terms` per config object, by identity (a config's properties cost more than the
 #: score's arithmetic, and the score is taken for every candidate pair of every frame).
-_TERMS: dict[int, tuple[TapeConfig, _WidthTerms]] = {}
+_TERMS: dict[int, tuple[TapeConfig, WidthTerms]] = {}
 
 
-def _width_terms(tape: TapeConfig) -> _WidthTerms:
+def width_terms(tape: TapeConfig) -> WidthTerms:
+    """What the width hypotheses take from `tape` (`tape_width_score`), kept per config object;
+    a caller scoring many widths of one side takes them once (`width_score`)."""
     hit = _TERMS.get(id(tape))
     if hit is not None and hit[0] is tape:
         return hit[1]
-    terms = _WidthTerms(
+    terms = WidthTerms(
         error_px=tape.width_error_px,
         seam_m=tape.seam_width_m,
         min_gap_px=tape.min_gap_px,
@@ -112,7 +113,7 @@ def _width_terms(tape: TapeConfig) -> _WidthTerms:
     return terms
 
 
-def _hypotheses(m_per_px: float, terms: _WidthTerms) -> tuple[float, float, float, float]:
+def _hypotheses(m_per_px: float, terms: WidthTerms) -> tuple[float, float, float, float]:
     """(error, widest seam, narrowest tape, widest tape) in metres where one pixel covers
     `m_per_px`."""
     error = terms.error_px * m_per_px
@@ -125,9 +126,18 @@ def tape_width_score(width_m: float, m_per_px: float, tape: TapeConfig) -> float
     `m_per_px` metres across it: 0 at or below the widest seam, 1 from the narrowest to the
     widest tape, linear between, falling to 0 at 1.5x the widest tape. 0 where the hypotheses
     do not separate (nothing there can be told from a seam) and for non-finite input."""
+    return width_score(width_m, m_per_px, width_terms(tape))
+
+
+def width_score(width_m: float, m_per_px: float, terms: WidthTerms) -> float:
+    """`tape_width_score` with the config's `width_terms` taken already."""
     if not (math.isfinite(width_m) and math.isfinite(m_per_px)) or m_per_px <= 0.0:
         return 0.0
-    error, seam_max, tape_min, tape_max = _hypotheses(m_per_px, _width_terms(tape))
+    # `_hypotheses`, written out (taken for every pair measured)
+    error = terms.error_px * m_per_px
+    seam, thinnest = terms.seam_m, terms.min_gap_px * m_per_px
+    seam_max = (thinnest if thinnest > seam else seam) + error
+    tape_min, tape_max = terms.tape_lo_m - error, terms.tape_hi_m + error
     if not tape_min - seam_max > error:  # not `WidthHypotheses.resolvable`
         return 0.0
     if width_m <= seam_max:
@@ -187,10 +197,29 @@ def band_is_tape(
         col = int(lo + 0.75 * w + 0.5)
         band_3 = pixel(r, 0 if col < 0 else last_col if col > last_col else col)
         # Each side's (lighter, darker) floor point 0.3 and 0.6 band widths beyond its edge
-        # (-1, -1: neither inside the image).
-        left_light, left_dark = _floor_beside(pixel, r, lo - 0.3 * w, lo - 0.6 * w, right_limit)
-        right_light, right_dark = _floor_beside(pixel, r, hi + 0.3 * w, hi + 0.6 * w,
-                                                right_limit)
+        # (both the one inside where only one is; -1, -1: neither inside the image). (Written
+        # out for each side rather than a function called twice: the check runs on the
+        # candidate tapes of every frame.)
+        x = lo - 0.3 * w
+        near = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
+        x = lo - 0.6 * w
+        far = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
+        if near < 0:
+            left_light = left_dark = far
+        elif far < 0:
+            left_light = left_dark = near
+        else:
+            left_light, left_dark = (near, far) if near >= far else (far, near)
+        x = hi + 0.3 * w
+        near = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
+        x = hi + 0.6 * w
+        far = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
+        if near < 0:
+            right_light = right_dark = far
+        elif far < 0:
+            right_light = right_dark = near
+        else:
+            right_light, right_dark = (near, far) if near >= far else (far, near)
         if left_light < 0:  # no floor point inside the image on the left
             if right_light < 0:
                 continue
@@ -219,20 +248,6 @@ def band_is_tape(
         if tape_like >= needed * (seen + n - k):
             return True
     return seen > 0 and tape_like >= needed * seen
-
-
-def _floor_beside(pixel: Callable[[int, int], int], r: int, x_near: float, x_far: float,
-                  right_limit: float) -> tuple[int, int]:
-    """(lighter, darker) of the floor points at columns `x_near` and `x_far` of row `r` that
-    lie inside the image (columns 0..`right_limit`; both the one inside where only one is),
-    (-1, -1) when neither does."""
-    near = pixel(r, int(x_near + 0.5)) if 0.0 <= x_near <= right_limit else -1
-    far = pixel(r, int(x_far + 0.5)) if 0.0 <= x_far <= right_limit else -1
-    if near < 0:
-        return far, far
-    if far < 0:
-        return near, near
-    return (near, far) if near >= far else (far, near)
 
 
 def outward_normal(direction: Point, side: Side) -> Point:
@@ -268,26 +283,39 @@ def tape_profile_fraction(
     n = tape.polarity_samples
     seen = hidden = tape_like = 0
     member = -1
-    outer: tuple[float, float, float, float] | None = None  # in the image (`image_line`)
+    last_member = len(chain) - 1
+    right_limit = width - 1.0
+    isfinite = math.isfinite
+    # The member line and the image of its tape's far side (`image_line`), as the numbers
+    # `LineRow.x_at` and `column_at` take (written out below: this runs for every lone edge).
+    line_at = outer_at = None
     for i in range(n):
         y = near_y + (far_y - near_y) * (i + 0.5) / n
         k = member
-        while k < len(chain) - 1 and (k < 0 or rows[chain[k]].far_y > y):
+        while k < last_member and (k < 0 or rows[chain[k]].far_y > y):
             k += 1
         if k != member:
             member = k
-            floor_line = _outer_line(rows[chain[member]], side, view, tape.width_m)
-            outer = None if floor_line is None else view.image_line(*floor_line)
-        if outer is None:
+            line = rows[chain[member]]
+            line_at = (line.cx, line.cy, line.ux, line.uy)
+            floor_line = _outer_line(line, side, view, tape.width_m)
+            outer_at = None
+            if floor_line is not None:
+                ua, va, ub, vb = view.image_line(*floor_line)
+                if isfinite(ua) and isfinite(ub) and not abs(vb - va) < 1e-12:
+                    outer_at = (ua, va, ub - ua, vb - va)
+                # (else `column_at` is NaN at every row: no sample of this member counts)
+        if outer_at is None or line_at is None:
             continue
-        line = rows[chain[member]]
-        x = line.x_at(y)
-        x_tape = column_at(outer, y)
-        w = x_tape - x  # signed: outwards in the image
-        if not math.isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
+        cx, cy, ux, uy = line_at
+        x = cx + (y - cy) * ux / uy  # LineRow.x_at
+        ua, va, du, dv = outer_at
+        w = (ua + (y - va) * du / dv) - x  # column_at - x: signed, outwards in the image
+        if not isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
             continue
         lo, hi = x - 0.5 * w, x + 1.75 * w
-        if min(lo, hi) < 0.0 or max(lo, hi) > width - 1.0:
+        # (min() and max() of the two, written out: both are finite here)
+        if lo < 0.0 or hi < 0.0 or lo > right_limit or hi > right_limit:
             hidden += 1
             continue
         # (Pixels as ints through `ndarray.item`, comparisons written out: several times
