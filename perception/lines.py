@@ -3,6 +3,9 @@ line's brightness polarity.
 
 A `LineSet` holds every candidate line of one frame as parallel numpy arrays (struct of arrays, so
 the per-frame work is a handful of vectorised operations rather than Python loops over segments).
+With a few dozen segments and a few lines a frame, what those operations cost is numpy's price per
+call, not the arithmetic: the numbers of each segment and of each line are kept as the rows of one
+block, ordered so that the ones worked on together are adjacent and one call serves them all.
 Pixels: x right, y down; each line runs from its NEAR end (larger y) to its FAR end, and its unit
 direction (ux, uy) points from near to far (uy <= 0).
 
@@ -102,8 +105,10 @@ class LineSet:
             self.far_x, self.far_y, self.support_px, self.polarity, self.x_bottom,
             self.near_fx, self.near_fy, self.far_fx, self.far_fy, self.contrast,
         )
-        values = zip(*(c.tolist() for c in columns), strict=True)
-        return [LineRow(i, *row) for i, row in enumerate(values)]
+        # Each row straight from its tuple of values (`tuple.__new__`, as `LineRow._make` does,
+        # without the keyword-checking constructor: this runs on every frame).
+        values = zip(range(len(self.angle_deg)), *(c.tolist() for c in columns), strict=True)
+        return list(map(tuple.__new__, [LineRow] * len(self.angle_deg), values))
 
 
 class LineRow(NamedTuple):
@@ -135,8 +140,8 @@ class LineRow(NamedTuple):
 
 
 _EMPTY_F = np.zeros(0, dtype=np.float64)
-#: A segment's columns with its two ends swapped.
-_REVERSED = [2, 3, 0, 1]
+#: A segment's rows (x1, y1, x2, y2) with its two ends swapped.
+_REVERSED = np.array([2, 3, 0, 1], dtype=np.intp)
 
 
 def empty_line_set(segment_count: int = 0) -> LineSet:
@@ -146,11 +151,6 @@ def empty_line_set(segment_count: int = 0) -> LineSet:
         support_px=e, polarity=e, x_bottom=e, near_fx=e, near_fy=e, far_fx=e, far_fy=e,
         segment_label=np.full(segment_count, -1, dtype=np.intp), contrast=e,
     )
-
-
-def _sum_by(label: IntArray, weights: FloatArray, n: int) -> FloatArray:
-    """Per-line sums of `weights` (np.bincount, typed)."""
-    return np.bincount(label, weights=weights, minlength=n).astype(np.float64, copy=False)
 
 
 def build_line_set(
@@ -171,75 +171,139 @@ def build_line_set(
     """
     if segments is None or len(segments) == 0:
         return empty_line_set()
-    seg, angle = _oriented_segments(segments)
+    rows = _segment_rows(segments)
+    angle = rows[_ANGLE]
     min_h = edges.min_angle_from_horizontal_deg
-    kept = np.nonzero((angle >= min_h) & (angle <= 180.0 - min_h))[0]
+    kept = ((angle >= min_h) & (angle <= 180.0 - min_h)).nonzero()[0]
+    count = len(angle)
     if len(kept) == 0:
-        return empty_line_set(len(seg))
+        return empty_line_set(count)
     width = smooth_gray.shape[1]
     offset_tol = max(edges.cluster_offset_frac_of_width * width, 1.0)
-    pieces = (_Pieces.of(seg, angle) if len(kept) == len(seg)
-              else _Pieces.of(seg[kept], angle[kept]))
+    every = len(kept) == count
+    pieces = _Pieces.measured(rows if every else rows.take(kept, axis=1))
     line_of, lines = _cluster_collinear(pieces, edges.cluster_angle_tol_deg, offset_tol)
-    label = np.full(len(seg), -1, dtype=np.intp)
-    label[kept] = line_of
-    fit = _fit_lines(pieces, line_of, lines)
-    x_bottom = fit.cx + (y_bottom - fit.cy) * fit.ux / np.minimum(fit.uy, -1e-9)
-    polarity, contrast = _polarity(smooth_gray, fit.near_x, fit.near_y, fit.far_x, fit.far_y,
-                                   fit.ux, fit.uy, tape)
-    count = len(fit.cx)
-    ends_x, ends_y = floor.to_floor_many(np.concatenate([fit.near_x, fit.far_x]),
-                                         np.concatenate([fit.near_y, fit.far_y]))
-    return LineSet(
-        angle_deg=np.degrees(np.arctan2(-fit.uy, fit.ux)),
-        cx=fit.cx,
-        cy=fit.cy,
-        ux=fit.ux,
-        uy=fit.uy,
-        near_x=fit.near_x,
-        near_y=fit.near_y,
-        far_x=fit.far_x,
-        far_y=fit.far_y,
-        support_px=fit.support_px,
-        polarity=polarity,
-        x_bottom=x_bottom,
-        near_fx=ends_x[:count],
-        near_fy=ends_y[:count],
-        far_fx=ends_x[count:],
-        far_fy=ends_y[count:],
-        segment_label=label,
-        contrast=contrast,
-    )
+    if every:
+        label = line_of
+    else:
+        label = np.empty(count, dtype=np.intp)
+        label.fill(-1)
+        label[kept] = line_of
+    fit, ends = _fit_lines(pieces, line_of, lines)
+    cx, cy, ux, uy = fit[:4]
+    x_bottom = cx + (y_bottom - cy) * ux / np.minimum(uy, -1e-9)
+    polarity, contrast = _polarity_of(smooth_gray, ends, fit[_UX:_UY + 1], tape)
+    # Every near end then every far end, x and y each one contiguous run: one projection.
+    ends_x, ends_y = floor.to_floor_many(ends[0].ravel(), ends[1].ravel())
+    return _line_set({
+        "angle_deg": np.degrees(np.arctan2(-uy, ux)),
+        "cx": cx,
+        "cy": cy,
+        "ux": ux,
+        "uy": uy,
+        "near_x": ends[0, 0],
+        "near_y": ends[1, 0],
+        "far_x": ends[0, 1],
+        "far_y": ends[1, 1],
+        "support_px": fit[_SUPPORT],
+        "polarity": polarity,
+        "x_bottom": x_bottom,
+        "near_fx": ends_x[:lines],
+        "near_fy": ends_y[:lines],
+        "far_fx": ends_x[lines:],
+        "far_fy": ends_y[lines:],
+        "segment_label": label,
+        "contrast": contrast,
+    })
+
+
+def _line_set(fields: dict[str, Any]) -> LineSet:
+    """`LineSet(**fields)` (`fields`: every one of its fields), made without the frozen
+    dataclass's `__init__`, which sets the eighteen fields one `object.__setattr__` at a time
+    (a tenth of the cost; `LineSet` has no defaults and no `__post_init__` to skip)."""
+    line_set = object.__new__(LineSet)
+    line_set.__dict__.update(fields)
+    return line_set
 
 
 def _oriented_segments(segments: NDArray[np.int32]) -> tuple[FloatArray, FloatArray]:
     """Segments (N, 4) as floats running near (bottom) -> far (top), and their angle from the
-    image's x axis with y up, degrees in [0, 180]."""
-    raw = segments.reshape(-1, 4)
-    seg = np.where((raw[:, 1] < raw[:, 3])[:, None], raw[:, _REVERSED], raw).astype(np.float64)
-    angle = np.degrees(np.arctan2(seg[:, 1] - seg[:, 3], seg[:, 2] - seg[:, 0]))
-    return seg, angle
+    image's x axis with y up, degrees in [0, 180] (`_segment_rows`, as (N, 4) and (N,))."""
+    rows = _segment_rows(segments)
+    return rows[_X1:_Y2 + 1].T, rows[_ANGLE]
+
+
+def _segment_rows(segments: NDArray[np.int32]) -> FloatArray:
+    """A `_Pieces.rows` block for HoughLinesP's segments with their ends (as floats, running
+    near (bottom) -> far (top)) and their angle (from the image's x axis with y up, degrees in
+    [0, 180]) filled in; `_Pieces.measured` fills the rest. Worked row by row: x1, y1, x2 and y2
+    each one contiguous row."""
+    raw = segments.reshape(-1, 4).T
+    rows = np.empty((14, raw.shape[1]))
+    ends = rows[_X1:_Y2 + 1]
+    ends[...] = np.where(raw[1] < raw[3], raw[_REVERSED], raw)
+    np.degrees(np.arctan2(ends[1] - ends[3], ends[2] - ends[0]), out=rows[_ANGLE])
+    return rows
+
+
+#: The rows of `_Pieces.rows`, one (14, N) block, so that one numpy call serves several rows
+#: where they are adjacent: the segment's ends, as (end, x|y) (`_Pieces.ends`); the five weights
+#: `_fit_lines` sums per line; the three numbers `_compatible` compares and the two it
+#: multiplies them by.
+(_X1, _Y1, _X2, _Y2, _LENGTH, _DX, _DY, _MID_X_LENGTH, _MID_Y_LENGTH, _ANGLE, _MID_X, _MID_Y,
+ _DIR_Y, _DIR_X) = range(14)
 
 
 @dataclass(frozen=True)
 class _Pieces:
-    """The kept segments, oriented near -> far, with what clustering and fitting both need:
-    their run (`dx`, `dy`: pixels, y down), length, midpoint and angle (degrees, y up)."""
+    """The kept segments as the rows of one block (`rows`, see `_X1`...): their ends (oriented
+    near -> far), run (dx, dy: pixels, y down), length, midpoint (also times the length), angle
+    (degrees, y up) and unit direction (dir_y before dir_x: what a midpoint's x and y offsets
+    across a line are multiplied by)."""
 
-    seg: FloatArray
-    dx: FloatArray
-    dy: FloatArray
-    length: FloatArray
-    mid_x: FloatArray
-    mid_y: FloatArray
-    angle: FloatArray
+    rows: FloatArray
+
+    @property
+    def seg(self) -> FloatArray:
+        """(N, 4): x1, y1, x2, y2 of each segment."""
+        return self.rows[_X1:_Y2 + 1].T
+
+    @property
+    def ends(self) -> FloatArray:
+        """(near|far, x|y, N)."""
+        return self.rows[_X1:_Y2 + 1].reshape(2, 2, -1)
+
+    @property
+    def angle(self) -> FloatArray:
+        return self.rows[_ANGLE]
+
+    @property
+    def length(self) -> FloatArray:
+        return self.rows[_LENGTH]
 
     @staticmethod
     def of(seg: FloatArray, angle: FloatArray) -> _Pieces:
-        dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-        return _Pieces(seg=seg, dx=dx, dy=dy, length=np.hypot(dx, dy),
-                       mid_x=0.5 * (seg[:, 0] + seg[:, 2]), mid_y=0.5 * (seg[:, 1] + seg[:, 3]),
-                       angle=angle)
+        """The pieces of segments `seg` ((N, 4) floats, oriented) of angles `angle`."""
+        rows = np.empty((14, len(angle)))
+        rows[_X1:_Y2 + 1] = seg.T
+        rows[_ANGLE] = angle
+        return _Pieces.measured(rows)
+
+    @staticmethod
+    def measured(rows: FloatArray) -> _Pieces:
+        """The pieces of a block whose ends and angles are filled in (`_segment_rows`): the
+        rest of its rows filled in."""
+        ends = rows[_X1:_Y2 + 1]
+        dx = np.subtract(ends[2], ends[0], out=rows[_DX])
+        dy = np.subtract(ends[3], ends[1], out=rows[_DY])
+        length = np.hypot(dx, dy, out=rows[_LENGTH])
+        mid = np.add(ends[:2], ends[2:], out=rows[_MID_X:_MID_Y + 1])
+        mid *= 0.5
+        np.multiply(mid[0], length, out=rows[_MID_X_LENGTH])
+        np.multiply(mid[1], length, out=rows[_MID_Y_LENGTH])
+        np.divide(dy, length, out=rows[_DIR_Y])
+        np.divide(dx, length, out=rows[_DIR_X])
+        return _Pieces(rows)
 
 
 def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
@@ -252,14 +316,11 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
     The greedy pass runs on Python ints used as bit sets (bit j: segment j), one per segment
     for the segments compatible with it, plus the set of segments still free: a few dozen
     segments make a few lines, and this saves the few numpy calls per line the pass needed."""
-    count = len(pieces.angle)
+    count = pieces.rows.shape[1]
     compatible_with: list[int]
-    if count <= _DENSE_UP_TO:  # each row's bits in one 64-bit word: one conversion for all rows
-        packed = np.packbits(_compatible_dense(pieces, angle_tol_deg, offset_tol_px), axis=1,
-                             bitorder="little")
-        words = np.zeros((count, 8), dtype=np.uint8)
-        words[:, :packed.shape[1]] = packed
-        compatible_with = words.view("<u8").ravel().tolist()
+    if count <= _DENSE_UP_TO:  # each row's bits as one 64-bit word: one product for all rows
+        compatible_with = (_compatible_dense(pieces, angle_tol_deg, offset_tol_px)
+                           @ _bit_values(count)).tolist()
     else:  # few pairs are compatible: each row's bits set one by one
         compatible_with = [0] * count
         rows, columns = _compatible_pairs(pieces, angle_tol_deg, offset_tol_px)
@@ -268,7 +329,7 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
     line_of = [-1] * count
     free = (1 << count) - 1
     lines = 0
-    for leader in np.argsort(-pieces.length, kind="stable").tolist():
+    for leader in (-pieces.length).argsort(kind="stable").tolist():
         if not (free >> leader) & 1:
             if not free:
                 break  # every segment has its line
@@ -287,6 +348,15 @@ def _cluster_collinear(pieces: _Pieces, angle_tol_deg: float,
 #: floor: terrazzo's chips give 500 and more at 320x240) only for the pairs whose directions
 #: are within the angle tolerance (`_compatible_pairs`), a few percent of them.
 _DENSE_UP_TO = 64
+
+
+@functools.cache
+def _bit_values(count: int) -> NDArray[np.uint64]:
+    """2**j for j < `count` (at most 64): a boolean row times these, summed, is its bits as one
+    word (integer products and sums: exact)."""
+    values = np.left_shift(np.uint64(1), np.arange(count, dtype=np.uint64))
+    values.flags.writeable = False
+    return values
 
 
 def _compatible_dense(pieces: _Pieces, angle_tol_deg: float,
@@ -314,12 +384,25 @@ def _compatible(pieces: _Pieces, i: _Which, j: _Which, angle_tol_deg: float,
                 offset_tol_px: float) -> NDArray[np.bool_]:
     """For segments `i` and `j` (index arrays, or index expressions such as `np.s_[:, None]`,
     broadcast together): whether segment j's direction lies within `angle_tol_deg` of segment
-    i's and its midpoint within `offset_tol_px` of segment i's line."""
-    dir_x, dir_y = pieces.dx / pieces.length, pieces.dy / pieces.length
-    off_line = np.abs((pieces.mid_x[j] - pieces.mid_x[i]) * dir_y[i]
-                      - (pieces.mid_y[j] - pieces.mid_y[i]) * dir_x[i])
-    return np.asarray((np.abs(pieces.angle[j] - pieces.angle[i]) <= angle_tol_deg)
-                      & (off_line <= offset_tol_px))
+    i's and its midpoint within `offset_tol_px` of segment i's line.
+
+    Angle and midpoint are adjacent rows of `pieces.rows`, as are the direction's y and x: the
+    differences of all three are one subtraction, their products one multiplication."""
+    rows = pieces.rows
+    compared = rows[_ANGLE:_MID_Y + 1]
+    diff = _on_last_axis(compared, j) - _on_last_axis(compared, i)  # angle, mid_x, mid_y
+    across = diff[1:] * _on_last_axis(rows[_DIR_Y:_DIR_X + 1], i)
+    off_line = across[0] - across[1]
+    return (np.abs(diff[0]) <= angle_tol_deg) & (np.abs(off_line) <= offset_tol_px)
+
+
+def _on_last_axis(rows: FloatArray, which: _Which) -> FloatArray:
+    """`rows[:, which]`: `which` (an index array or index expression) applied to the last axis
+    (an index array through `take`, whose result, unlike fancy indexing's, is C-contiguous:
+    the thousands of pairs of a textured floor are then worked on row by row)."""
+    if isinstance(which, tuple):
+        return rows[(Ellipsis, *which)]
+    return np.asarray(rows.take(which, axis=-1))
 
 
 def pairs_within_angle(angle: FloatArray, tol_deg: float, *,
@@ -346,47 +429,59 @@ def pairs_within_angle(angle: FloatArray, tol_deg: float, *,
     return i, j
 
 
-@dataclass(frozen=True)
-class _LineFit:
-    """Per line: the support-weighted unit direction (`ux`, `uy`: pixels, y down, pointing
-    far), centre (`cx`, `cy`), its near and far ends, and its support (total segment length)."""
-
-    ux: FloatArray
-    uy: FloatArray
-    cx: FloatArray
-    cy: FloatArray
-    near_x: FloatArray
-    near_y: FloatArray
-    far_x: FloatArray
-    far_y: FloatArray
-    support_px: FloatArray
+#: The rows of `_fit_lines`' per-line block: centre, unit direction (pixels, y down, pointing
+#: far), support (total segment length).
+_CX, _CY, _UX, _UY, _SUPPORT = range(5)
 
 
-def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp], lines: int) -> _LineFit:
+@functools.cache
+def _weight_bins(lines: int) -> IntArray:
+    """Where each of the five weights' per-line sums starts among `_fit_lines`' bincount bins,
+    shaped (5, 1) to add to the segments' line indices."""
+    offsets = (np.arange(5) * lines).reshape(5, 1)
+    offsets.flags.writeable = False
+    return offsets
+
+
+@functools.cache
+def _no_extent(lines: int) -> FloatArray:
+    """(2, lines): where the lowest projections start (inf), and the highest (-inf)."""
+    start = np.array([[np.inf], [-np.inf]]).repeat(lines, axis=1)
+    start.flags.writeable = False
+    return start
+
+
+def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp],
+               lines: int) -> tuple[FloatArray, FloatArray]:
     """Each of the `lines` lines from its member segments (oriented near -> far): direction and
     centre weighted by length; its extent is the lowest and highest projection of its members'
-    ends on it (all members run near -> far within a few degrees of the line)."""
-    seg = pieces.seg
-    x1, y1, x2, y2 = seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 3]
-    length = pieces.length
-    support = _sum_by(line_of, length, lines)
-    ux = _sum_by(line_of, pieces.dx, lines)  # sum(unit * length)
-    uy = _sum_by(line_of, pieces.dy, lines)
-    norm = np.hypot(ux, uy)
-    ux, uy = ux / norm, uy / norm
-    cx = _sum_by(line_of, pieces.mid_x * length, lines) / support
-    cy = _sum_by(line_of, pieces.mid_y * length, lines) / support
-    # Each segment's line's centre and direction, gathered once for both ends.
-    seg_cx, seg_cy, seg_ux, seg_uy = cx[line_of], cy[line_of], ux[line_of], uy[line_of]
-    along_near = (x1 - seg_cx) * seg_ux + (y1 - seg_cy) * seg_uy
-    along_far = (x2 - seg_cx) * seg_ux + (y2 - seg_cy) * seg_uy
-    lowest = np.full(lines, np.inf)
-    highest = np.full(lines, -np.inf)
-    np.minimum.at(lowest, line_of, np.minimum(along_near, along_far))
-    np.maximum.at(highest, line_of, np.maximum(along_near, along_far))
-    return _LineFit(ux=ux, uy=uy, cx=cx, cy=cy,
-                    near_x=cx + lowest * ux, near_y=cy + lowest * uy,
-                    far_x=cx + highest * ux, far_y=cy + highest * uy, support_px=support)
+    ends on it (all members run near -> far within a few degrees of the line). Returned: the
+    (5, lines) block of `_CX`... and the lines' ends, (x|y, near|far, line).
+
+    The five per-line sums (length, dx, dy, midpoint x and y times length) are one bincount:
+    weight w of segment i counts in bin w * lines + line_of[i]; bincount adds each bin's
+    weights in index order, as one bincount per weight would."""
+    sums = np.bincount((line_of + _weight_bins(lines)).ravel(),
+                       weights=pieces.rows[_LENGTH:_MID_Y_LENGTH + 1].ravel(),
+                       minlength=5 * lines).reshape(5, lines)
+    fit = np.empty((5, lines))
+    support = sums[0]
+    fit[_SUPPORT] = support
+    np.divide(sums[3], support, out=fit[_CX])  # sum(mid * length) / support
+    np.divide(sums[4], support, out=fit[_CY])
+    norm = np.hypot(sums[1], sums[2])  # of sum(unit * length)
+    np.divide(sums[1], norm, out=fit[_UX])
+    np.divide(sums[2], norm, out=fit[_UY])
+    # Each segment's line's centre and direction (one gather), then both ends' projections on
+    # it: (x - cx) * ux + (y - cy) * uy.
+    seg_fit = fit.take(line_of, axis=1)
+    terms = (pieces.ends - seg_fit[_CX:_CY + 1]) * seg_fit[_UX:_UY + 1]
+    along = terms[:, 0] + terms[:, 1]
+    extent = _no_extent(lines).copy()  # per line: the lowest projection, the highest
+    np.minimum.at(extent[0], line_of, np.minimum(along[0], along[1]))
+    np.maximum.at(extent[1], line_of, np.maximum(along[0], along[1]))
+    ends = fit[_CX:_CY + 1, None] + extent * fit[_UX:_UY + 1, None]
+    return fit, ends
 
 
 @functools.cache
@@ -406,6 +501,17 @@ def _image_limits(width: int, height: int) -> FloatArray:
     return limits
 
 
+@functools.cache
+def _side_offsets(offset: float) -> FloatArray:
+    """What (uy, ux) are multiplied by for the steps from a line to the points right of it and
+    left of it, shaped (x|y, right|left, 1): right is (-uy, ux) * offset (the normal pointing
+    to +x, "right of the line", since uy <= 0), left the opposite (negating a product is
+    exact: the same steps as negating a factor)."""
+    steps = np.array(((-offset, offset), (offset, -offset))).reshape(2, 2, 1)
+    steps.flags.writeable = False
+    return steps
+
+
 def _polarity(
     gray: NDArray[np.uint8],
     near_x: FloatArray,
@@ -416,35 +522,44 @@ def _polarity(
     uy: FloatArray,
     tape: TapeConfig,
 ) -> tuple[FloatArray, FloatArray]:
-    """(polarity, contrast) of each line. Its contrast: the median of (right side - left side)
-    brightness over a few points sampled along it. Its polarity: the sign of that median (0
-    when it is within `min_contrast_levels`), or the sign of the median over
-    the least-lit half of them (the half whose darker side is darkest) when that is a clear
-    step of the other sign, or of any sign where the median and the vote said none and the
-    steps show a mirrored light along a tape (see below)."""
+    """(polarity, contrast) of each line (`_polarity_of`, the ends given one by one)."""
+    ends = np.array(((near_x, far_x), (near_y, far_y)), dtype=np.float64)
+    return _polarity_of(gray, ends, np.array((ux, uy), dtype=np.float64), tape)
+
+
+def _polarity_of(
+    gray: NDArray[np.uint8],
+    ends: FloatArray,
+    unit: FloatArray,
+    tape: TapeConfig,
+) -> tuple[FloatArray, FloatArray]:
+    """(polarity, contrast) of each line, from its ends ((x|y, near|far, line), as
+    `_fit_lines` gives them) and its unit direction ((ux, uy), line). Its contrast: the median
+    of (right side - left side) brightness over a few points sampled along it. Its polarity:
+    the sign of that median (0 when it is within `min_contrast_levels`), or the sign of the
+    median over the least-lit half of them (the half whose darker side is darkest) when that
+    is a clear step of the other sign, or of any sign where the median and the vote said none
+    and the steps show a mirrored light along a tape (see below)."""
     height, width = gray.shape[:2]
     k = POLARITY_SAMPLE_FACTOR * tape.polarity_samples
     offset = max(tape.polarity_offset_frac_of_width * width, 1.5)
     # The sample points, x and y stacked (2, n, k): near + (far - near) * fraction (stacked, the
     # dozen numpy calls of the two coordinates are half as many: this runs on every frame).
-    start = np.array((near_x, near_y))
-    run = np.array((far_x, far_y))
-    run -= start
-    points = run[:, :, None] * _sample_fractions(k)
+    start = ends[:, 0]
+    points = (ends[:, 1] - start)[:, :, None] * _sample_fractions(k)
     points += start[:, :, None]
-    # Normal pointing to +x ("right of the line"): (-uy, ux), since uy <= 0, and its opposite.
-    # One gather for both sides: rows 0..n-1 right of the lines, n..2n-1 left of them.
-    right_x, right_y = -uy * offset, ux * offset
-    normals = np.array(((right_x, right_y), (-right_x, -right_y)))  # (side, x|y, n)
-    sides = (points[:, None] + normals.transpose(1, 0, 2)[:, :, :, None]).reshape(2, -1, k)
+    # Beside each point, right of its line and left of it, (x|y, right|left, n, k): one gather
+    # for both sides, rows 0..n-1 right of the lines, n..2n-1 left of them.
+    normals = unit[::-1, None, :] * _side_offsets(offset)
+    sides = (points[:, None] + normals[:, :, :, None]).reshape(2, -1, k)
     sides += 0.5
     np.maximum(sides, 0.0, out=sides)
     np.minimum(sides, _image_limits(width, height), out=sides)
     pixel = sides.astype(np.intp)
-    values = gray[pixel[1], pixel[0]].astype(np.int16)
-    n = len(near_x)
+    values = gray[pixel[1], pixel[0]]
+    n = unit.shape[1]
     right, left = values[:n], values[n:]
-    step = right - left
+    step = np.subtract(right, left, dtype=np.int16)
     threshold = tape.min_contrast_levels
     # (For whole-number steps, step > t exactly when step > floor(t): compared as ints, twice
     # as fast as against a float.)
@@ -452,17 +567,20 @@ def _polarity(
     # The median step, not the mean: a ceiling light mirrored in glossy tape makes a few samples
     # of its edges brighter on the tape's side than the floor by far more than the tape is darker
     # elsewhere, and their mean says "no contrast" (or the wrong sign).
-    contrast = _median(step)
-    whole = _signs(contrast, threshold)
+    # (Sorted once, kept: the quarters below are read off it too.)
+    ordered = step.copy()
+    ordered.sort(axis=1)
+    contrast = _middle(ordered)
+    rising, falling = contrast > threshold, contrast < -threshold
+    whole = np.subtract(rising, falling, dtype=np.float64)  # as `_signs` (kept for below)
     # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
-    up, down = step > whole_threshold, step < -whole_threshold
-    n_up, n_down = up.sum(axis=1), down.sum(axis=1)
-    unclear = np.nonzero(whole == 0.0)[0]
+    unclear = (whole == 0.0).nonzero()[0]
     if unclear.size:
-        whole[unclear] = _vote(up[unclear], down[unclear], n_up[unclear], n_down[unclear])
+        whole[unclear] = _vote(*_clear_steps(step[unclear], whole_threshold))
+        rising, falling = whole > 0.0, whole < 0.0
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
     # light, to the side it lies on: where the edge's darker side is darkest, nothing is
     # mirrored. So where the median step over the least-lit half of the points (by the darker
@@ -483,17 +601,22 @@ def _polarity(
     # A line of no sign is only read at all when both signs show on a quarter of its points:
     # that guard is the mirrored-light reading's "a quarter lit the other way" (the unlit
     # half's own sign is the other quarter), and it spares the others the sort.
+    # (At least `quarter` points step clearly down exactly when the quarter-th lowest step
+    # does, and up when the quarter-th highest does: read off the sorted steps, no counting.
+    # A rising line is read where a quarter step down, a falling one where a quarter step up.)
     half = k // 2
-    against = np.where(whole > 0.0, n_down, np.where(whole < 0.0, n_up, np.minimum(n_up, n_down)))
     quarter = (half - 1) // 2 + 1
-    rows = np.nonzero(against >= quarter)[0]
+    quarter_down = ordered[:, quarter - 1] < -whole_threshold
+    quarter_up = ordered[:, k - quarter] > whole_threshold
+    against = (quarter_down | falling) & (quarter_up | rising)
+    rows = against.nonzero()[0]
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]
         unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), threshold)
         was = whole[rows]
-        rising = (unlit > 0.0)[:, None]
-        same = np.where(rising, up[rows], down[rows])
+        up, down = _clear_steps(step[rows], whole_threshold)
+        same = np.where((unlit > 0.0)[:, None], up, down)
         unlit_same = np.take_along_axis(same, least_lit, axis=1).sum(axis=1)
         mirrored = ((was == 0.0) & (unlit != 0.0)
                     & (4 * unlit_same >= 3 * half)
@@ -502,9 +625,14 @@ def _polarity(
     return whole, contrast
 
 
-def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,
-          n_down: IntArray) -> FloatArray:
-    """Per row, from which points step up (`up`) and down (`down`) clearly, and how many: +1
+def _clear_steps(step: NDArray[np.int16],
+                 whole_threshold: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Which points step clearly up, and which clearly down (beyond the threshold)."""
+    return step > whole_threshold, step < -whole_threshold
+
+
+def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_]) -> FloatArray:
+    """Per row, from which points step up (`up`) and down (`down`) clearly: +1
     where at least `POLARITY_VOTE_SHARE` of the points step up, in one run from one end of the
     line unbroken but for gaps of one or two points (`_bridged`), and at least
     `POLARITY_VOTE_MARGIN` times as many points step up as down; -1 the other way round; 0
@@ -513,38 +641,32 @@ def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_], n_up: IntArray,
     slats or chips happens to line up mid-line, a line of no contrast has no such run.)
 
     Each row's points as the bits of a Python int (bit j: point j): the few rows this is asked
-    about cost a few integer operations each, where the same on boolean arrays took twenty-odd
-    numpy calls."""
+    about cost a few integer operations each (how many points step each way: the count of its
+    bits), where the same on boolean arrays took twenty-odd numpy calls."""
     k = up.shape[1]
     need = math.ceil(POLARITY_VOTE_SHARE * k)
     first = (1 << need) - 1  # the first `need` points
     last = first << (k - need)  # the last `need` points
-    rising_bits, falling_bits = _RowBits(up), _RowBits(down)
     votes = []
-    for row, (n_rising, n_falling) in enumerate(zip(n_up.tolist(), n_down.tolist(),
-                                                    strict=True)):
+    for rising, falling in zip(_row_bits(up), _row_bits(down), strict=True):
+        n_rising, n_falling = rising.bit_count(), falling.bit_count()
         if (n_rising >= need and n_rising >= POLARITY_VOTE_MARGIN * n_falling
-                and _run_from_an_end(_bridged(rising_bits[row]), first, last)):
+                and _run_from_an_end(_bridged(rising), first, last)):
             votes.append(1.0)
         elif (n_falling >= need and n_falling >= POLARITY_VOTE_MARGIN * n_rising
-              and _run_from_an_end(_bridged(falling_bits[row]), first, last)):
+              and _run_from_an_end(_bridged(falling), first, last)):
             votes.append(-1.0)
         else:
             votes.append(0.0)
     return np.array(votes, dtype=np.float64)
 
 
-class _RowBits:
-    """The rows of a boolean array as Python ints (`bits[row]`: bit j is the row's value j),
-    packed once, each row's int made when asked for (most rows fail the vote's counts first)."""
-
-    def __init__(self, flags: NDArray[np.bool_]) -> None:
-        packed = np.packbits(flags, axis=1, bitorder="little")
-        self._data, self._size = packed.tobytes(), packed.shape[1]
-
-    def __getitem__(self, row: int) -> int:
-        start = row * self._size
-        return int.from_bytes(self._data[start:start + self._size], "little")
+def _row_bits(flags: NDArray[np.bool_]) -> list[int]:
+    """The rows of a boolean array as Python ints (bit j: the row's value j), packed at once."""
+    packed = np.packbits(flags, axis=1, bitorder="little")
+    data, size = packed.tobytes(), packed.shape[1]
+    return [int.from_bytes(data[start:start + size], "little")
+            for start in range(0, len(data), size)]
 
 
 def _bridged(bits: int) -> int:
@@ -565,7 +687,11 @@ def _run_from_an_end(bits: int, first: int, last: int) -> bool:
 
 def _median(values: NDArray[np.int16]) -> FloatArray:
     """Per row, the median (exact in whole numbers: the middle two of the sorted values)."""
-    ordered = np.sort(values, axis=1)
+    return _middle(np.sort(values, axis=1))
+
+
+def _middle(ordered: NDArray[np.int16]) -> FloatArray:
+    """Per row of values sorted along it, their median (the mean of the middle two)."""
     m = ordered.shape[1]
     return np.asarray(0.5 * (ordered[:, (m - 1) // 2] + ordered[:, m // 2]), dtype=np.float64)
 
