@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -107,8 +107,9 @@ class LineSet:
         )
         # Each row straight from its tuple of values (`tuple.__new__`, as `LineRow._make` does,
         # without the keyword-checking constructor: this runs on every frame).
-        values = zip(range(len(self.angle_deg)), *(c.tolist() for c in columns), strict=True)
-        return list(map(tuple.__new__, [LineRow] * len(self.angle_deg), values))
+        count = len(self.angle_deg)
+        values = zip(range(count), *map(np.ndarray.tolist, columns), strict=True)
+        return list(map(tuple.__new__, [LineRow] * count, values))
 
 
 class LineRow(NamedTuple):
@@ -193,8 +194,8 @@ def build_line_set(
     cx, cy, ux, uy = fit[:4]
     x_bottom = cx + (y_bottom - cy) * ux / np.minimum(uy, -1e-9)
     polarity, contrast = _polarity_of(smooth_gray, ends, fit[_UX:_UY + 1], tape)
-    # Every near end then every far end, x and y each one contiguous run: one projection.
-    ends_x, ends_y = floor.to_floor_many(ends[0].ravel(), ends[1].ravel())
+    # Every near end then every far end, x and y each one contiguous row: one projection.
+    ends_x, ends_y = floor.to_floor_rows(ends.reshape(2, -1))
     return _line_set({
         "angle_deg": np.degrees(np.arctan2(-uy, ux)),
         "cx": cx,
@@ -387,13 +388,27 @@ def _compatible(pieces: _Pieces, i: _Which, j: _Which, angle_tol_deg: float,
     i's and its midpoint within `offset_tol_px` of segment i's line.
 
     Angle and midpoint are adjacent rows of `pieces.rows`, as are the direction's y and x: the
-    differences of all three are one subtraction, their products one multiplication."""
+    differences of all three are one subtraction, their products one multiplication. The
+    offset across then takes the midpoints' x difference's place, beside the angle difference:
+    both are made absolute and compared with their tolerances in one call each."""
     rows = pieces.rows
     compared = rows[_ANGLE:_MID_Y + 1]
     diff = _on_last_axis(compared, j) - _on_last_axis(compared, i)  # angle, mid_x, mid_y
     across = diff[1:] * _on_last_axis(rows[_DIR_Y:_DIR_X + 1], i)
-    off_line = across[0] - across[1]
-    return (np.abs(diff[0]) <= angle_tol_deg) & (np.abs(off_line) <= offset_tol_px)
+    measured = diff[:2]  # the angle difference, and (below) the offset across
+    np.subtract(across[0], across[1], out=measured[1])
+    np.abs(measured, out=measured)
+    within = measured <= _tolerances(angle_tol_deg, offset_tol_px, measured.ndim)
+    return within[0] & within[1]
+
+
+@functools.cache
+def _tolerances(angle_tol_deg: float, offset_tol_px: float, ndim: int) -> FloatArray:
+    """The two tolerances `_compatible` compares with, shaped to broadcast against its
+    (angle|offset, ...) block of `ndim` dimensions."""
+    tolerances = np.array((angle_tol_deg, offset_tol_px)).reshape((2,) + (1,) * (ndim - 1))
+    tolerances.flags.writeable = False
+    return tolerances
 
 
 def _on_last_axis(rows: FloatArray, which: _Which) -> FloatArray:
@@ -467,11 +482,9 @@ def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp],
     fit = np.empty((5, lines))
     support = sums[0]
     fit[_SUPPORT] = support
-    np.divide(sums[3], support, out=fit[_CX])  # sum(mid * length) / support
-    np.divide(sums[4], support, out=fit[_CY])
+    np.divide(sums[3:5], support, out=fit[_CX:_CY + 1])  # sum(mid * length) / support
     norm = np.hypot(sums[1], sums[2])  # of sum(unit * length)
-    np.divide(sums[1], norm, out=fit[_UX])
-    np.divide(sums[2], norm, out=fit[_UY])
+    np.divide(sums[1:3], norm, out=fit[_UX:_UY + 1])
     # Each segment's line's centre and direction (one gather), then both ends' projections on
     # it: (x - cx) * ux + (y - cy) * uy.
     seg_fit = fit.take(line_of, axis=1)
@@ -559,7 +572,9 @@ def _polarity_of(
     values = gray[pixel[1], pixel[0]]
     n = unit.shape[1]
     right, left = values[:n], values[n:]
-    step = np.subtract(right, left, dtype=np.int16)
+    # (Widened first, then subtracted: two plain loops, cheaper than one that casts as it goes.)
+    wide = values.astype(np.int16)
+    step = wide[:n] - wide[n:]
     threshold = tape.min_contrast_levels
     # (For whole-number steps, step > t exactly when step > floor(t): compared as ints, twice
     # as fast as against a float.)
@@ -571,16 +586,14 @@ def _polarity_of(
     ordered = step.copy()
     ordered.sort(axis=1)
     contrast = _middle(ordered)
-    rising, falling = contrast > threshold, contrast < -threshold
-    whole = np.subtract(rising, falling, dtype=np.float64)  # as `_signs` (kept for below)
+    whole = _signs(contrast, threshold)
     # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
     unclear = (whole == 0.0).nonzero()[0]
     if unclear.size:
-        whole[unclear] = _vote(*_clear_steps(step[unclear], whole_threshold))
-        rising, falling = whole > 0.0, whole < 0.0
+        whole[unclear] = _vote(step[unclear], whole_threshold)
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
     # light, to the side it lies on: where the edge's darker side is darkest, nothing is
     # mirrored. So where the median step over the least-lit half of the points (by the darker
@@ -603,19 +616,25 @@ def _polarity_of(
     # half's own sign is the other quarter), and it spares the others the sort.
     # (At least `quarter` points step clearly down exactly when the quarter-th lowest step
     # does, and up when the quarter-th highest does: read off the sorted steps, no counting.
-    # A rising line is read where a quarter step down, a falling one where a quarter step up.)
+    # A rising line is read where a quarter step down, a falling one where a quarter step up.
+    # A line the median says falls has at least half its points step clearly down, one the
+    # vote says falls at least `_vote_need(k)` of them, no fewer than `quarter` (for the vote's
+    # share of a quarter; the test below keeps this true for any): either way a quarter step
+    # down, so "falling or a quarter down" is "a quarter down"; the same rising.)
     half = k // 2
     quarter = (half - 1) // 2 + 1
     quarter_down = ordered[:, quarter - 1] < -whole_threshold
     quarter_up = ordered[:, k - quarter] > whole_threshold
-    against = (quarter_down | falling) & (quarter_up | rising)
+    against = quarter_down & quarter_up
+    if _vote_need(k) < quarter:
+        against = (quarter_down | (whole < 0.0)) & (quarter_up | (whole > 0.0))
     rows = against.nonzero()[0]
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]
         unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), threshold)
         was = whole[rows]
-        up, down = _clear_steps(step[rows], whole_threshold)
+        up, down = step[rows] > whole_threshold, step[rows] < -whole_threshold
         same = np.where((unlit > 0.0)[:, None], up, down)
         unlit_same = np.take_along_axis(same, least_lit, axis=1).sum(axis=1)
         mirrored = ((was == 0.0) & (unlit != 0.0)
@@ -625,14 +644,20 @@ def _polarity_of(
     return whole, contrast
 
 
-def _clear_steps(step: NDArray[np.int16],
-                 whole_threshold: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    """Which points step clearly up, and which clearly down (beyond the threshold)."""
-    return step > whole_threshold, step < -whole_threshold
+#: A row of steps times these: the steps themselves, then negated ((2, 1, 1) int16: exact), so
+#: that "steps clearly up" and "steps clearly down" are one comparison.
+_UP_DOWN = np.array((1, -1), dtype=np.int16).reshape(2, 1, 1)
+_UP_DOWN.flags.writeable = False
 
 
-def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_]) -> FloatArray:
-    """Per row, from which points step up (`up`) and down (`down`) clearly: +1
+def _vote_need(k: int) -> int:
+    """How many of a line's `k` points must step clearly one way for `_vote` to say so."""
+    return math.ceil(POLARITY_VOTE_SHARE * k)
+
+
+def _vote(step: NDArray[np.int16], whole_threshold: int) -> FloatArray:
+    """Per row of steps `step` (points along a line, whole grey levels), from which points
+    step clearly up (beyond `whole_threshold`) and which clearly down: +1
     where at least `POLARITY_VOTE_SHARE` of the points step up, in one run from one end of the
     line unbroken but for gaps of one or two points (`_bridged`), and at least
     `POLARITY_VOTE_MARGIN` times as many points step up as down; -1 the other way round; 0
@@ -642,13 +667,18 @@ def _vote(up: NDArray[np.bool_], down: NDArray[np.bool_]) -> FloatArray:
 
     Each row's points as the bits of a Python int (bit j: point j): the few rows this is asked
     about cost a few integer operations each (how many points step each way: the count of its
-    bits), where the same on boolean arrays took twenty-odd numpy calls."""
-    k = up.shape[1]
-    need = math.ceil(POLARITY_VOTE_SHARE * k)
+    bits), where the same on boolean arrays took twenty-odd numpy calls. Up to 64 points, the
+    ints of both ways come from one comparison and one product with 2**j (`_bit_values`)."""
+    k = step.shape[1]
+    if k <= 64:  # (each row's bits one 64-bit word)
+        ups, downs = ((step * _UP_DOWN > whole_threshold) @ _bit_values(k)).tolist()
+    else:
+        ups, downs = _row_bits(step > whole_threshold), _row_bits(step < -whole_threshold)
+    need = _vote_need(k)
     first = (1 << need) - 1  # the first `need` points
     last = first << (k - need)  # the last `need` points
     votes = []
-    for rising, falling in zip(_row_bits(up), _row_bits(down), strict=True):
+    for rising, falling in zip(ups, downs, strict=True):
         n_rising, n_falling = rising.bit_count(), falling.bit_count()
         if (n_rising >= need and n_rising >= POLARITY_VOTE_MARGIN * n_falling
                 and _run_from_an_end(_bridged(rising), first, last)):
@@ -693,7 +723,7 @@ def _median(values: NDArray[np.int16]) -> FloatArray:
 def _middle(ordered: NDArray[np.int16]) -> FloatArray:
     """Per row of values sorted along it, their median (the mean of the middle two)."""
     m = ordered.shape[1]
-    return np.asarray(0.5 * (ordered[:, (m - 1) // 2] + ordered[:, m // 2]), dtype=np.float64)
+    return cast(FloatArray, (ordered[:, (m - 1) // 2] + ordered[:, m // 2]) * 0.5)
 
 
 def _signs(median: FloatArray, threshold: float) -> FloatArray:
