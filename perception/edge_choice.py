@@ -67,7 +67,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.confidence import floor_angle_deg, free_width_m, ramp
-from lanewarden.perception.config import PerceptionConfig
+from lanewarden.perception.config import EdgesConfig, PerceptionConfig
 from lanewarden.perception.floor_config import LaneConfig, TapeConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
@@ -206,16 +206,16 @@ def choose_edges(
             checked[key] = (tape, tape.band_is_tape(smooth_gray, config))
         return checked[key][1]
 
-    left_tape, right_tape = pick_tapes(
-        tape_candidates(cands["left"], "left", view, config, look_ahead_m),
-        tape_candidates(cands["right"], "right", view, config, look_ahead_m),
-        config, band_ok)
+    # (Each side's candidates come with their ranks, best first: nothing is ranked twice.)
+    left_tape, right_tape = _pick_tapes(
+        *_tape_candidates(cands["left"], "left", view, config, look_ahead_m, False),
+        *_tape_candidates(cands["right"], "right", view, config, look_ahead_m, False),
+        config, band_ok, ranked=True)
 
     def fallback(side: Side) -> TapeCandidate | None:
         """A tape whose outer edge has no sign, the best ranked whose band is tape."""
-        unsigned = tape_candidates(cands[side], side, view, config, look_ahead_m,
-                                   unsigned_outer=True)
-        return _best_accepted(unsigned, [t.rank() for t in unsigned], band_ok)
+        unsigned, _ = _tape_candidates(cands[side], side, view, config, look_ahead_m, True)
+        return _best_accepted(unsigned, None, band_ok)
 
     # A border edge must show the other side's tape's contrast only where the lane's two lines
     # are one tape: not where one of them is dashed (a road's centre line, often another paint:
@@ -299,16 +299,29 @@ def tape_candidates(
     (Every check is a filter, each pair's cheapest first: the outcome is the same in any order.
     `measure_pair`'s steps are taken one at a time so that a pair of the wrong kind or beyond
     the look-ahead is not measured further.)"""
+    return _tape_candidates(cand, side, view, config, look_ahead_m, unsigned_outer)[0]
+
+
+#: A tape's `TapeCandidate.rank`.
+Rank = tuple[float, float, float]
+
+
+def _tape_candidates(
+    cand: list[LineRow], side: Side, view: FloorView, config: PerceptionConfig,
+    look_ahead_m: float, unsigned_outer: bool,
+) -> tuple[list[TapeCandidate], list[Rank]]:
+    """`tape_candidates` and their `rank()`s (taken once here, the order they are in)."""
     angle_tol, tape_width, terms = _pair_rules(config.tape, side)
     rough_min, rough_max = tape_width / 3.0, 3.0 * tape_width
     look_ahead = look_ahead_m
     left = side == "left"
     any_kind = config.tape.kind == "any"  # (`of_configured_kind` takes every tape then)
-    hypot = math.hypot
+    hypot, isfinite, to_floor = math.hypot, math.isfinite, view.to_floor
     # (Each line's sign and angle in a list: most pairs fail these first two checks.)
     polarity = [r.polarity for r in cand]
     angle = [r.angle_deg for r in cand]
     found: list[TapeCandidate] = []
+    ranks: list[Rank] = []
     for i, j in _pairs_worth_checking(cand, angle_tol, tape_width, unsigned_outer):
         if unsigned_outer:
             if (polarity[i] == 0) == (polarity[j] == 0):
@@ -330,21 +343,42 @@ def tape_candidates(
         norm = hypot(bx, by)
         if not rough_min <= rough / (1e-9 if 1e-9 > norm else norm) <= rough_max:
             continue
-        inner, outer, u = _inner_outer(a, b, y_hi, left)
+        # `_inner_outer`, written out (this and `_measure` below are a pair's hot path)
+        xa = a.cx + (y_hi - a.cy) * a.ux / a.uy  # LineRow.x_at
+        xb = b.cx + (y_hi - b.cy) * b.ux / b.uy
+        inner, outer, u = (a, b, xa) if (xa > xb) == left else (b, a, xb)
         if inner.polarity == 0:
             continue  # (unsigned_outer: the sign must be the inner edge's)
         if not any_kind and not of_configured_kind(inner, side, config):
             continue
-        measured = _measure(inner, outer, u, y_hi, view, terms)
-        if (measured is None or measured[0] < MIN_VERIFIED_WIDTH_SCORE
-                or measured[2][0] > look_ahead):
+        # `_measure`, written out, beyond the look-ahead refused before the width is measured
+        # (a filter like the others: the same pairs pass).
+        at = to_floor(u, y_hi)
+        at_x, at_y = at
+        if at_x > look_ahead:
             continue
-        score, width_m, at = measured
+        near_x, near_y = outer.near_fx, outer.near_fy
+        dx, dy = outer.far_fx - near_x, outer.far_fy - near_y
+        norm = hypot(dx, dy)
+        if norm < 1e-15:
+            continue
+        dx, dy = dx / norm, dy / norm
+        if not isfinite(at_x + at_y + near_x + near_y + dx + dy):
+            continue
+        width_m = abs(dx * (at_y - near_y) - dy * (at_x - near_x))
+        x1, y1 = to_floor(u - inner.uy, y_hi + inner.ux)
+        score = width_score(width_m, abs((x1 - at_x) * -dy + (y1 - at_y) * dx), terms)
+        if score < MIN_VERIFIED_WIDTH_SCORE:
+            continue
         found.append(TapeCandidate(inner, outer, score, width_m, darker_beyond(inner, side), at,
                                    (y_lo, y_hi), tape_width))
+        # (`TapeCandidate.rank`, taken here once: the choice of tapes orders by it again)
+        ranks.append((score, -round(at_x, 2), -abs(width_m - tape_width)))
     if len(found) > 1:
-        found.sort(key=TapeCandidate.rank, reverse=True)
-    return found[:_MAX_TAPE_CHECKS]
+        order = sorted(range(len(found)), key=ranks.__getitem__, reverse=True)
+        found = [found[k] for k in order[:_MAX_TAPE_CHECKS]]
+        ranks = [ranks[k] for k in order[:_MAX_TAPE_CHECKS]]
+    return found, ranks
 
 
 #: `_pair_rules` per tape config object (by identity, it is frozen) and side.
@@ -474,14 +508,29 @@ def pick_tapes(
     that best fits the lane (`lane_fit`: its width, parallel edges), then the best width scores,
     then the nearest; otherwise
     each side's best (`TapeCandidate.rank`)."""
+    return _pick_tapes(left, [t.rank() for t in left], right, [t.rank() for t in right], config,
+                       accept, ranked=False)
+
+
+def _pick_tapes(
+    left: list[TapeCandidate],
+    left_ranks: list[Rank],
+    right: list[TapeCandidate],
+    right_ranks: list[Rank],
+    config: PerceptionConfig,
+    accept: Callable[[TapeCandidate], bool],
+    *,
+    ranked: bool,
+) -> tuple[TapeCandidate | None, TapeCandidate | None]:
+    """`pick_tapes` with each tape's `rank()` given (`left_ranks`, `right_ranks`); `ranked`:
+    each side's tapes are in rank order already, best first, ties in their first order
+    (`tape_candidates`' order), so ordering them again would keep them as they are."""
     if len(left) == 1 and len(right) == 1:
         # One tape a side (most frames): nothing to order, the same questions in the same order.
         lt, rt = left[0], right[0]
         if accept(lt) and accept(rt):
             return lt, rt
         return (lt if accept(lt) else None), (rt if accept(rt) else None)
-    left_ranks = [t.rank() for t in left]
-    right_ranks = [t.rank() for t in right]
     combos = []
     if left and right:
         # (`lane_fit` of every combination, each tape's inner edge put on the floor once.)
@@ -501,16 +550,23 @@ def pick_tapes(
         lt, rt = left[-neg_i], right[-neg_j]
         if accept(lt) and accept(rt):
             return lt, rt
+    if ranked:
+        return _best_accepted(left, None, accept), _best_accepted(right, None, accept)
     return _best_accepted(left, left_ranks, accept), _best_accepted(right, right_ranks, accept)
 
 
 def _best_accepted(
     tapes: list[TapeCandidate],
-    ranks: list[tuple[float, float, float]],
+    ranks: list[Rank] | None,
     accept: Callable[[TapeCandidate], bool],
 ) -> TapeCandidate | None:
-    """The best ranked of `tapes` (their `rank()`s: `ranks`) that `accept` takes (ties: the
-    first)."""
+    """The best ranked of `tapes` (their `rank()`s: `ranks`; None: `tapes` are in rank order
+    already, as `tape_candidates` gives them) that `accept` takes (ties: the first)."""
+    if ranks is None:
+        for tape in tapes:
+            if accept(tape):
+                return tape
+        return None
     order = sorted(range(len(tapes)), key=ranks.__getitem__, reverse=True)
     return next((tapes[i] for i in order if accept(tapes[i])), None)
 
@@ -549,8 +605,37 @@ def _side_choice(
         partner, verified, width_m, dark = None, False, None, None
     near = rows[chain[0]]
     x2, y2 = _chain_point_at(rows, chain, setup.look_ahead_row)
-    return SideChoice(side, chain, partner, verified, score, width_m, dark, near.polarity,
-                      _support(rows, chain), near.near_x, near.near_y, x2, y2)
+    return _side_choice_of(side, chain, partner, verified, score, width_m, dark, near.polarity,
+                           _support(rows, chain), near.near_x, near.near_y, x2, y2)
+
+
+def _side_choice_of(side: Side, chain: tuple[int, ...], partner: int | None, verified: bool,
+                    tape_score: float, tape_width_m: float | None, tape_dark: bool | None,
+                    polarity: float, support_px: float, x1: float, y1: float, x2: float,
+                    y2: float) -> SideChoice:
+    """`SideChoice(side, chain, ...)`: the same object, its fields written straight into the
+    instance's dict. (A frozen dataclass's `__init__` sets each of the thirteen fields through
+    `object.__setattr__`, five times this cost, twice a frame; nothing else differs, and
+    tests/perception/test_edge_choice_build.py checks it equals the dataclass's own.)"""
+    choice = _new_object(SideChoice)
+    fields = choice.__dict__
+    fields["side"] = side
+    fields["chain"] = chain
+    fields["partner"] = partner
+    fields["verified"] = verified
+    fields["tape_score"] = tape_score
+    fields["tape_width_m"] = tape_width_m
+    fields["tape_dark"] = tape_dark
+    fields["polarity"] = polarity
+    fields["support_px"] = support_px
+    fields["x1"] = x1
+    fields["y1"] = y1
+    fields["x2"] = x2
+    fields["y2"] = y2
+    return choice
+
+
+_new_object = object.__new__
 
 
 def _support(rows: list[LineRow], chain: tuple[int, ...]) -> float:
@@ -657,15 +742,32 @@ def follow_edge(
               else [r for r in rows if r.polarity == polarity and r.line_id != start])
     if not usable:
         return (start,)
-    edges = config.edges
-    gap = edges.chain_gap_frac_of_height * height
-    max_turn = edges.chain_max_turn_deg
-    on_line_px = max(1.5, 0.5 * edges.cluster_offset_frac_of_width * width)
+    gap, max_turn, on_line_px = _chain_rules(config.edges, width, height)
     away = _extend(first, usable, gap, max_turn, on_line_px, away=True)
     towards = _extend(first, usable, gap, max_turn, on_line_px, away=False)
     if not away and not towards:
         return (start,)
     return tuple([r.line_id for r in reversed(towards)] + [start] + [r.line_id for r in away])
+
+
+#: `_chain_rules` per edges config object (by identity, it is frozen) and image size.
+_CHAIN_RULES: dict[tuple[int, int, int], tuple[EdgesConfig, tuple[float, float, float]]] = {}
+
+
+def _chain_rules(edges: EdgesConfig, width: int, height: int) -> tuple[float, float, float]:
+    """(chain gap, `chain_max_turn_deg`, on-line tolerance in pixels) that `follow_edge` follows
+    a chain by at this image size: taken once per config and size (the config's fields cost
+    about as much as following a short chain)."""
+    key = (id(edges), width, height)
+    hit = _CHAIN_RULES.get(key)
+    if hit is not None and hit[0] is edges:
+        return hit[1]
+    rules = (edges.chain_gap_frac_of_height * height, edges.chain_max_turn_deg,
+             max(1.5, 0.5 * edges.cluster_offset_frac_of_width * width))
+    if len(_CHAIN_RULES) >= 64:
+        _CHAIN_RULES.clear()
+    _CHAIN_RULES[key] = (edges, rules)
+    return rules
 
 
 def _extend(
@@ -694,6 +796,10 @@ def _extend(
     hypot = math.hypot
     # (The current line's values are bound once per step, and a line farther than the best so
     # far is passed over before the checks that could only refuse it: the same choice.)
+    # `pool`: the usable lines that still reach past the chain's end, in their order. The end
+    # only moves on (away: up the image, by more than a row a step; towards: down), so a line
+    # that did not reach past it never will, and later steps pass it over without a look.
+    pool = usable
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
@@ -704,12 +810,16 @@ def _extend(
         else:
             end_x, end_y = current.near_x, current.near_y
         beyond = end_y - 1.0 if away else end_y + 1.0  # (a line must reach past this row)
-        for r in usable:
+        if beyond != beyond:
+            pool = usable  # (no row to compare with (NaN): every line is looked at, as before)
+        reaching: list[LineRow] = []
+        for r in pool:
             if away:
                 if r.far_y >= beyond:
                     continue
             elif r.near_y <= beyond:
                 continue
+            reaching.append(r)
             if abs(r.angle_deg - c_angle) > max_turn:
                 continue
             if away:
@@ -742,5 +852,7 @@ def _extend(
             break
         found.append(best)
         usable.remove(best)
+        reaching.remove(best)
+        pool = reaching
         current = best
     return found
