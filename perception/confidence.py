@@ -103,31 +103,6 @@ class EdgeEvidence:
     far_m: float | None = None
 
 
-def edge_evidence(point: Point, direction: Point, support_px: float, tape_score: float,
-                  verified: bool, dark: bool | None, polarity: float, line_ids: frozenset[int],
-                  far_m: float | None) -> EdgeEvidence:
-    """`EdgeEvidence(point, direction, ...)` with every field given: the same object, its
-    fields written straight into the instance's dict. (A frozen dataclass's `__init__` sets
-    each field through `object.__setattr__`, several times this cost, twice a frame; nothing
-    else differs, and tests/perception/test_edge_choice_build.py checks it equals the
-    dataclass's own.)"""
-    evidence = _new_object(EdgeEvidence)
-    fields = evidence.__dict__
-    fields["point"] = point
-    fields["direction"] = direction
-    fields["support_px"] = support_px
-    fields["tape_score"] = tape_score
-    fields["verified"] = verified
-    fields["dark"] = dark
-    fields["polarity"] = polarity
-    fields["line_ids"] = line_ids
-    fields["far_m"] = far_m
-    return evidence
-
-
-_new_object = object.__new__
-
-
 def ramp(deviation: float, tolerance: float) -> float:
     """1 for |deviation| <= tolerance, linear down to 0 at twice the tolerance."""
     if not math.isfinite(deviation):

@@ -53,7 +53,6 @@ from lanewarden.perception.confidence import (
     EdgeEvidence,
     combine,
     consistency_component,
-    edge_evidence,
     frozen_components,
     lane_centre,
     lane_components,
@@ -410,8 +409,7 @@ class LaneDetector:
         components = lane_components(
             height_px=state.size[1], left=left_floor, right=right_floor, config=config
         )
-        # (No earlier lane: nothing to agree with, 1 as `consistency_component` says, uncalled.)
-        components["consistency"] = 1.0 if previous is None else consistency_component(
+        components["consistency"] = consistency_component(
             left_edge, right_edge, previous, state.view, config
         )
         slope_sum = None
@@ -498,10 +496,10 @@ def _evidence(rows: list[LineRow], choice: SideChoice | None) -> EdgeEvidence | 
     if (not (isfinite(near_x) and isfinite(near_y) and isfinite(d[0]) and isfinite(d[1]))
             or d == (0.0, 0.0)):
         return None
-    # (`EdgeEvidence(...)` without the frozen dataclass's field-by-field `__init__`)
-    return edge_evidence(near, d, choice.support_px, choice.tape_score, choice.verified,
-                         choice.tape_dark, choice.polarity, choice.line_ids,
-                         far_x if isfinite(far_x) else None)
+    # (EdgeEvidence's fields in their order: positional, a quarter cheaper than by keyword)
+    return EdgeEvidence(near, d, choice.support_px, choice.tape_score, choice.verified,
+                        choice.tape_dark, choice.polarity, choice.line_ids,
+                        far_x if isfinite(far_x) else None)
 
 
 def perception_gray(image: np.ndarray, dst: np.ndarray | None = None,

@@ -605,37 +605,8 @@ def _side_choice(
         partner, verified, width_m, dark = None, False, None, None
     near = rows[chain[0]]
     x2, y2 = _chain_point_at(rows, chain, setup.look_ahead_row)
-    return _side_choice_of(side, chain, partner, verified, score, width_m, dark, near.polarity,
-                           _support(rows, chain), near.near_x, near.near_y, x2, y2)
-
-
-def _side_choice_of(side: Side, chain: tuple[int, ...], partner: int | None, verified: bool,
-                    tape_score: float, tape_width_m: float | None, tape_dark: bool | None,
-                    polarity: float, support_px: float, x1: float, y1: float, x2: float,
-                    y2: float) -> SideChoice:
-    """`SideChoice(side, chain, ...)`: the same object, its fields written straight into the
-    instance's dict. (A frozen dataclass's `__init__` sets each of the thirteen fields through
-    `object.__setattr__`, five times this cost, twice a frame; nothing else differs, and
-    tests/perception/test_edge_choice_build.py checks it equals the dataclass's own.)"""
-    choice = _new_object(SideChoice)
-    fields = choice.__dict__
-    fields["side"] = side
-    fields["chain"] = chain
-    fields["partner"] = partner
-    fields["verified"] = verified
-    fields["tape_score"] = tape_score
-    fields["tape_width_m"] = tape_width_m
-    fields["tape_dark"] = tape_dark
-    fields["polarity"] = polarity
-    fields["support_px"] = support_px
-    fields["x1"] = x1
-    fields["y1"] = y1
-    fields["x2"] = x2
-    fields["y2"] = y2
-    return choice
-
-
-_new_object = object.__new__
+    return SideChoice(side, chain, partner, verified, score, width_m, dark, near.polarity,
+                      _support(rows, chain), near.near_x, near.near_y, x2, y2)
 
 
 def _support(rows: list[LineRow], chain: tuple[int, ...]) -> float:
