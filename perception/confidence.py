@@ -60,6 +60,7 @@ from lanewarden.perception.floor_view import (
     distance_to_line,
     signed_offset,
 )
+from lanewarden.perception.kept import KeptPerObject
 from lanewarden.perception.observation import (
     LaneEdge,
     LaneObservation,
@@ -246,16 +247,7 @@ def combine(components: Mapping[str, float], config: PerceptionConfig) -> float:
     return total
 
 
-#: `_exponents` per weights object, by identity (the weights are frozen; building the table
-#: cost as much as the product).
-_EXPONENTS: dict[int, tuple[ConfidenceWeights, tuple[tuple[str, float], ...]]] = {}
-
-
-def _exponents(w: ConfidenceWeights) -> tuple[tuple[str, float], ...]:
-    """(component, exponent) in `combine`'s order, leaving out those weighted 0 (ignored)."""
-    hit = _EXPONENTS.get(id(w))
-    if hit is not None and hit[0] is w:
-        return hit[1]
+def _derive_exponents(w: ConfidenceWeights) -> tuple[tuple[str, float], ...]:
     exponents = {
         "both_sides": w.both_sides,
         "support_left": w.support / 2.0,
@@ -269,28 +261,22 @@ def _exponents(w: ConfidenceWeights) -> tuple[tuple[str, float], ...]:
         "heading": 1.0,
         "consistency": w.consistency,
     }
-    table = tuple((name, exponent) for name, exponent in exponents.items() if exponent != 0.0)
-    if len(_EXPONENTS) >= 64:
-        _EXPONENTS.clear()
-    _EXPONENTS[id(w)] = (w, table)
-    return table
+    return tuple((name, exponent) for name, exponent in exponents.items() if exponent != 0.0)
 
 
-#: `free_width_m` per config object, by identity (a property of three properties, and the
-#: choice of tapes asks it of every pair of tapes).
-_FREE_WIDTH: dict[int, tuple[PerceptionConfig, float]] = {}
+#: (component, exponent) in `combine`'s order, leaving out those weighted 0 (ignored); kept
+#: per weights object (building the table cost as much as the product).
+_exponents: KeptPerObject[ConfidenceWeights, tuple[tuple[str, float], ...]] = KeptPerObject(
+    _derive_exponents)
 
 
-def free_width_m(config: PerceptionConfig) -> float:
-    """`PerceptionConfig.free_width_m` (the config is frozen: taken once per config)."""
-    hit = _FREE_WIDTH.get(id(config))
-    if hit is not None and hit[0] is config:
-        return hit[1]
-    width = config.free_width_m
-    if len(_FREE_WIDTH) >= 64:
-        _FREE_WIDTH.clear()
-    _FREE_WIDTH[id(config)] = (config, width)
-    return width
+def _derive_free_width_m(config: PerceptionConfig) -> float:
+    return config.free_width_m
+
+
+#: `PerceptionConfig.free_width_m`, kept per config object (a property of three properties,
+#: and the choice of tapes asks it of every pair of tapes).
+free_width_m: KeptPerObject[PerceptionConfig, float] = KeptPerObject(_derive_free_width_m)
 
 
 def frozen_components(components: Mapping[str, float]) -> Mapping[str, float]:

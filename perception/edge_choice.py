@@ -71,6 +71,7 @@ from lanewarden.perception.config import EdgesConfig, PerceptionConfig
 from lanewarden.perception.floor_config import LaneConfig, TapeConfig
 from lanewarden.perception.floor_view import FloorView, Point, direction, distance_to_line
 from lanewarden.perception.geometry import Side
+from lanewarden.perception.kept import KeptPerObject
 from lanewarden.perception.lines import LineRow, pairs_within_angle
 from lanewarden.perception.size_setup import SizeSetup
 from lanewarden.perception.tape_rules import (
@@ -241,43 +242,45 @@ def measure_pair(a: LineRow, b: LineRow, side: Side, view: FloorView,
     if y_hi <= y_lo:
         return None
     inner, outer, u = _inner_outer(a, b, y_hi, side == "left")
-    measured = _measure(inner, outer, u, y_hi, view, width_terms(config.tape.for_side(side)))
+    at = view.to_floor(u, y_hi)
+    measured = _measure(inner, outer, u, y_hi, at, view,
+                        width_terms(config.tape.for_side(side)))
     if measured is None:
         return None
-    score, width_m, at = measured
+    score, width_m = measured
     return inner, outer, score, width_m, at
 
 
 def _inner_outer(a: LineRow, b: LineRow, y: float, left: bool) -> tuple[LineRow, LineRow, float]:
     """(inner, outer, the inner edge's column at image row `y`) of two lines taken as one tape's
     edges on the left side (`left`) or the right."""
-    xa = a.cx + (y - a.cy) * a.ux / a.uy  # LineRow.x_at, written out (a pair's hot path)
+    xa = a.cx + (y - a.cy) * a.ux / a.uy  # LineRow.x_at, written out (every pair's path)
     xb = b.cx + (y - b.cy) * b.ux / b.uy
     return (a, b, xa) if (xa > xb) == left else (b, a, xb)
 
 
-def _measure(inner: LineRow, outer: LineRow, u: float, v: float, view: FloorView,
-             terms: WidthTerms) -> tuple[float, float, Point] | None:
-    """`measure_pair` at pixel (u, v) of the inner edge: (width score, width on the floor,
-    measured point), None when it cannot be put on the floor. `terms`: the side's
-    `perception.tape_rules.width_terms`."""
-    at = view.to_floor(u, v)
+def _measure(inner: LineRow, outer: LineRow, u: float, v: float, at: Point, view: FloorView,
+             terms: WidthTerms) -> tuple[float, float] | None:
+    """(width score, width on the floor) of a tape whose inner edge is measured at pixel (u, v),
+    on the floor `at` (`view.to_floor(u, v)`); None when it cannot be put on the floor.
+    `terms`: the side's `perception.tape_rules.width_terms`. (`direction`, `distance_to_line`
+    and `FloorView.metres_per_px_across` written out, in their arithmetic's order: this is
+    every measured pair's path, and the three calls cost a fifth of the choice on a straight
+    lane.)"""
     at_x, at_y = at
     near_x, near_y = outer.near_fx, outer.near_fy
-    # The outer edge's floor direction (`direction`, written out; (0, 0): no direction).
-    dx, dy = outer.far_fx - near_x, outer.far_fy - near_y
+    dx, dy = outer.far_fx - near_x, outer.far_fy - near_y  # the outer edge's floor direction
     norm = math.hypot(dx, dy)
     if norm < 1e-15:
-        return None
+        return None  # (no direction)
     dx, dy = dx / norm, dy / norm
     if not math.isfinite(at_x + at_y + near_x + near_y + dx + dy):
         return None
-    width_m = abs(dx * (at_y - near_y) - dy * (at_x - near_x))  # distance_to_line
-    # `FloorView.metres_per_px_across` across the outer edge (its floor normal (-dy, dx)),
-    # written out: one pixel's step perpendicular to the inner edge, on the floor.
+    width_m = abs(dx * (at_y - near_y) - dy * (at_x - near_x))
+    # One pixel's step perpendicular to the inner edge, on the floor, across the outer edge
+    # (its floor normal (-dy, dx)).
     x1, y1 = view.to_floor(u - inner.uy, v + inner.ux)
-    m_per_px = abs((x1 - at_x) * -dy + (y1 - at_y) * dx)
-    return width_score(width_m, m_per_px, terms), width_m, at
+    return width_score(width_m, abs((x1 - at_x) * -dy + (y1 - at_y) * dx), terms), width_m
 
 
 def tape_candidates(
@@ -316,7 +319,7 @@ def _tape_candidates(
     look_ahead = look_ahead_m
     left = side == "left"
     any_kind = config.tape.kind == "any"  # (`of_configured_kind` takes every tape then)
-    hypot, isfinite, to_floor = math.hypot, math.isfinite, view.to_floor
+    hypot, to_floor = math.hypot, view.to_floor
     # (Each line's sign and angle in a list: most pairs fail these first two checks.)
     polarity = [r.polarity for r in cand]
     angle = [r.angle_deg for r in cand]
@@ -343,37 +346,24 @@ def _tape_candidates(
         norm = hypot(bx, by)
         if not rough_min <= rough / (1e-9 if 1e-9 > norm else norm) <= rough_max:
             continue
-        # `_inner_outer`, written out (this and `_measure` below are a pair's hot path)
-        xa = a.cx + (y_hi - a.cy) * a.ux / a.uy  # LineRow.x_at
-        xb = b.cx + (y_hi - b.cy) * b.ux / b.uy
-        inner, outer, u = (a, b, xa) if (xa > xb) == left else (b, a, xb)
+        inner, outer, u = _inner_outer(a, b, y_hi, left)
         if inner.polarity == 0:
             continue  # (unsigned_outer: the sign must be the inner edge's)
         if not any_kind and not of_configured_kind(inner, side, config):
             continue
-        # `_measure`, written out, beyond the look-ahead refused before the width is measured
-        # (a filter like the others: the same pairs pass).
+        # Beyond the look-ahead refused before the width is measured (a filter like the
+        # others: the same pairs pass).
         at = to_floor(u, y_hi)
-        at_x, at_y = at
-        if at_x > look_ahead:
+        if at[0] > look_ahead:
             continue
-        near_x, near_y = outer.near_fx, outer.near_fy
-        dx, dy = outer.far_fx - near_x, outer.far_fy - near_y
-        norm = hypot(dx, dy)
-        if norm < 1e-15:
+        measured = _measure(inner, outer, u, y_hi, at, view, terms)
+        if measured is None or measured[0] < MIN_VERIFIED_WIDTH_SCORE:
             continue
-        dx, dy = dx / norm, dy / norm
-        if not isfinite(at_x + at_y + near_x + near_y + dx + dy):
-            continue
-        width_m = abs(dx * (at_y - near_y) - dy * (at_x - near_x))
-        x1, y1 = to_floor(u - inner.uy, y_hi + inner.ux)
-        score = width_score(width_m, abs((x1 - at_x) * -dy + (y1 - at_y) * dx), terms)
-        if score < MIN_VERIFIED_WIDTH_SCORE:
-            continue
-        found.append(TapeCandidate(inner, outer, score, width_m, darker_beyond(inner, side), at,
-                                   (y_lo, y_hi), tape_width))
-        # (`TapeCandidate.rank`, taken here once: the choice of tapes orders by it again)
-        ranks.append((score, -round(at_x, 2), -abs(width_m - tape_width)))
+        score, width_m = measured
+        tape = TapeCandidate(inner, outer, score, width_m, darker_beyond(inner, side), at,
+                             (y_lo, y_hi), tape_width)
+        found.append(tape)
+        ranks.append(tape.rank())  # (taken here once: the choice of tapes orders by it again)
     if len(found) > 1:
         order = sorted(range(len(found)), key=ranks.__getitem__, reverse=True)
         found = [found[k] for k in order[:_MAX_TAPE_CHECKS]]
@@ -381,22 +371,15 @@ def _tape_candidates(
     return found, ranks
 
 
-#: `_pair_rules` per tape config object (by identity, it is frozen) and side.
-_PAIR_RULES: dict[tuple[int, Side], tuple[TapeConfig, tuple[float, float, WidthTerms]]] = {}
+def _derive_pair_rules(tape: TapeConfig, side: Side) -> tuple[float, float, WidthTerms]:
+    return tape.pair_angle_tol_deg, tape.side_width_m(side), width_terms(tape.for_side(side))
 
 
-def _pair_rules(tape: TapeConfig, side: Side) -> tuple[float, float, WidthTerms]:
-    """(`pair_angle_tol_deg`, the side's tape width, its `width_terms`) that `tape_candidates`
-    measures pairs by: taken once per config (a config's properties cost more than a pair's
-    first checks)."""
-    hit = _PAIR_RULES.get((id(tape), side))
-    if hit is not None and hit[0] is tape:
-        return hit[1]
-    rules = (tape.pair_angle_tol_deg, tape.side_width_m(side), width_terms(tape.for_side(side)))
-    if len(_PAIR_RULES) >= 64:
-        _PAIR_RULES.clear()
-    _PAIR_RULES[(id(tape), side)] = (tape, rules)
-    return rules
+#: (`pair_angle_tol_deg`, the side's tape width, its `width_terms`) that `tape_candidates`
+#: measures pairs by, kept per config and side (a config's properties cost more than a pair's
+#: first checks).
+_pair_rules: KeptPerObject[TapeConfig, tuple[float, float, WidthTerms]] = KeptPerObject(
+    _derive_pair_rules)
 
 
 #: From this many candidate lines on a side (a textured floor: terrazzo's chips give a hundred
@@ -721,24 +704,17 @@ def follow_edge(
     return tuple([r.line_id for r in reversed(towards)] + [start] + [r.line_id for r in away])
 
 
-#: `_chain_rules` per edges config object (by identity, it is frozen) and image size.
-_CHAIN_RULES: dict[tuple[int, int, int], tuple[EdgesConfig, tuple[float, float, float]]] = {}
+def _derive_chain_rules(edges: EdgesConfig, width: int,
+                        height: int) -> tuple[float, float, float]:
+    return (edges.chain_gap_frac_of_height * height, edges.chain_max_turn_deg,
+            max(1.5, 0.5 * edges.cluster_offset_frac_of_width * width))
 
 
-def _chain_rules(edges: EdgesConfig, width: int, height: int) -> tuple[float, float, float]:
-    """(chain gap, `chain_max_turn_deg`, on-line tolerance in pixels) that `follow_edge` follows
-    a chain by at this image size: taken once per config and size (the config's fields cost
-    about as much as following a short chain)."""
-    key = (id(edges), width, height)
-    hit = _CHAIN_RULES.get(key)
-    if hit is not None and hit[0] is edges:
-        return hit[1]
-    rules = (edges.chain_gap_frac_of_height * height, edges.chain_max_turn_deg,
-             max(1.5, 0.5 * edges.cluster_offset_frac_of_width * width))
-    if len(_CHAIN_RULES) >= 64:
-        _CHAIN_RULES.clear()
-    _CHAIN_RULES[key] = (edges, rules)
-    return rules
+#: (chain gap, `chain_max_turn_deg`, on-line tolerance in pixels) that `follow_edge` follows a
+#: chain by at an image size, kept per config and size (the config's fields cost about as much
+#: as following a short chain).
+_chain_rules: KeptPerObject[EdgesConfig, tuple[float, float, float]] = KeptPerObject(
+    _derive_chain_rules)
 
 
 def _extend(

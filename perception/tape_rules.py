@@ -27,6 +27,7 @@ Pure functions of pixels, lines, the floor view and the config: no state, no clo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -34,8 +35,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lanewarden.perception.floor_config import TapeConfig
-from lanewarden.perception.floor_view import FloorView, Point
+from lanewarden.perception.floor_view import FloorView, Point, column_at
 from lanewarden.perception.geometry import Side
+from lanewarden.perception.kept import KeptPerObject
 from lanewarden.perception.lines import LineRow
 
 #: A lone edge's profile is only read where the tape spans at least this many pixels.
@@ -89,28 +91,21 @@ class WidthTerms(NamedTuple):
     tape_hi_m: float
 
 
-#: `width_terms` per config object, by identity (a config's properties cost more than the
-#: score's arithmetic, and the score is taken for every candidate pair of every frame).
-_TERMS: dict[int, tuple[TapeConfig, WidthTerms]] = {}
-
-
-def width_terms(tape: TapeConfig) -> WidthTerms:
-    """What the width hypotheses take from `tape` (`tape_width_score`), kept per config object;
-    a caller scoring many widths of one side takes them once (`width_score`)."""
-    hit = _TERMS.get(id(tape))
-    if hit is not None and hit[0] is tape:
-        return hit[1]
-    terms = WidthTerms(
+def _derive_width_terms(tape: TapeConfig) -> WidthTerms:
+    return WidthTerms(
         error_px=tape.width_error_px,
         seam_m=tape.seam_width_m,
         min_gap_px=tape.min_gap_px,
         tape_lo_m=tape.width_m * (1.0 - tape.width_tolerance_fraction),
         tape_hi_m=tape.width_m * (1.0 + tape.width_tolerance_fraction),
     )
-    if len(_TERMS) >= 64:
-        _TERMS.clear()
-    _TERMS[id(tape)] = (tape, terms)
-    return terms
+
+
+#: What the width hypotheses take from a tape config (`tape_width_score`), kept per config
+#: object (a config's properties cost more than the score's arithmetic, and the score is taken
+#: for every candidate pair of every frame); a caller scoring many widths of one side takes
+#: them once (`width_score`).
+width_terms: KeptPerObject[TapeConfig, WidthTerms] = KeptPerObject(_derive_width_terms)
 
 
 def _hypotheses(m_per_px: float, terms: WidthTerms) -> tuple[float, float, float, float]:
@@ -133,11 +128,7 @@ def width_score(width_m: float, m_per_px: float, terms: WidthTerms) -> float:
     """`tape_width_score` with the config's `width_terms` taken already."""
     if not (math.isfinite(width_m) and math.isfinite(m_per_px)) or m_per_px <= 0.0:
         return 0.0
-    # `_hypotheses`, written out (taken for every pair measured)
-    error = terms.error_px * m_per_px
-    seam, thinnest = terms.seam_m, terms.min_gap_px * m_per_px
-    seam_max = (thinnest if thinnest > seam else seam) + error
-    tape_min, tape_max = terms.tape_lo_m - error, terms.tape_hi_m + error
+    error, seam_max, tape_min, tape_max = _hypotheses(m_per_px, terms)
     if not tape_min - seam_max > error:  # not `WidthHypotheses.resolvable`
         return 0.0
     if width_m <= seam_max:
@@ -197,29 +188,10 @@ def band_is_tape(
         col = int(lo + 0.75 * w + 0.5)
         band_3 = pixel(r, 0 if col < 0 else last_col if col > last_col else col)
         # Each side's (lighter, darker) floor point 0.3 and 0.6 band widths beyond its edge
-        # (both the one inside where only one is; -1, -1: neither inside the image). (Written
-        # out for each side rather than a function called twice: the check runs on the
-        # candidate tapes of every frame.)
-        x = lo - 0.3 * w
-        near = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
-        x = lo - 0.6 * w
-        far = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
-        if near < 0:
-            left_light = left_dark = far
-        elif far < 0:
-            left_light = left_dark = near
-        else:
-            left_light, left_dark = (near, far) if near >= far else (far, near)
-        x = hi + 0.3 * w
-        near = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
-        x = hi + 0.6 * w
-        far = pixel(r, int(x + 0.5)) if 0.0 <= x <= right_limit else -1
-        if near < 0:
-            right_light = right_dark = far
-        elif far < 0:
-            right_light = right_dark = near
-        else:
-            right_light, right_dark = (near, far) if near >= far else (far, near)
+        # (-1, -1: neither inside the image).
+        left_light, left_dark = _floor_beside(pixel, r, lo - 0.3 * w, lo - 0.6 * w, right_limit)
+        right_light, right_dark = _floor_beside(pixel, r, hi + 0.3 * w, hi + 0.6 * w,
+                                                right_limit)
         if left_light < 0:  # no floor point inside the image on the left
             if right_light < 0:
                 continue
@@ -248,6 +220,20 @@ def band_is_tape(
         if tape_like >= needed * (seen + n - k):
             return True
     return seen > 0 and tape_like >= needed * seen
+
+
+def _floor_beside(pixel: Callable[[int, int], int], r: int, x_near: float, x_far: float,
+                  right_limit: float) -> tuple[int, int]:
+    """(lighter, darker) of the floor points at columns `x_near` and `x_far` of row `r` that
+    lie inside the image (columns 0..`right_limit`; both the one inside where only one is),
+    (-1, -1) when neither does."""
+    near = pixel(r, int(x_near + 0.5)) if 0.0 <= x_near <= right_limit else -1
+    far = pixel(r, int(x_far + 0.5)) if 0.0 <= x_far <= right_limit else -1
+    if near < 0:
+        return far, far
+    if far < 0:
+        return near, near
+    return (near, far) if near >= far else (far, near)
 
 
 def outward_normal(direction: Point, side: Side) -> Point:
@@ -283,39 +269,26 @@ def tape_profile_fraction(
     n = tape.polarity_samples
     seen = hidden = tape_like = 0
     member = -1
-    last_member = len(chain) - 1
-    right_limit = width - 1.0
-    isfinite = math.isfinite
-    # The member line and the image of its tape's far side (`image_line`), as the numbers
-    # `LineRow.x_at` and `column_at` take (written out below: this runs for every lone edge).
-    line_at = outer_at = None
+    outer: tuple[float, float, float, float] | None = None  # in the image (`image_line`)
     for i in range(n):
         y = near_y + (far_y - near_y) * (i + 0.5) / n
         k = member
-        while k < last_member and (k < 0 or rows[chain[k]].far_y > y):
+        while k < len(chain) - 1 and (k < 0 or rows[chain[k]].far_y > y):
             k += 1
         if k != member:
             member = k
-            line = rows[chain[member]]
-            line_at = (line.cx, line.cy, line.ux, line.uy)
-            floor_line = _outer_line(line, side, view, tape.width_m)
-            outer_at = None
-            if floor_line is not None:
-                ua, va, ub, vb = view.image_line(*floor_line)
-                if isfinite(ua) and isfinite(ub) and not abs(vb - va) < 1e-12:
-                    outer_at = (ua, va, ub - ua, vb - va)
-                # (else `column_at` is NaN at every row: no sample of this member counts)
-        if outer_at is None or line_at is None:
+            floor_line = _outer_line(rows[chain[member]], side, view, tape.width_m)
+            outer = None if floor_line is None else view.image_line(*floor_line)
+        if outer is None:
             continue
-        cx, cy, ux, uy = line_at
-        x = cx + (y - cy) * ux / uy  # LineRow.x_at
-        ua, va, du, dv = outer_at
-        w = (ua + (y - va) * du / dv) - x  # column_at - x: signed, outwards in the image
-        if not isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
+        line = rows[chain[member]]
+        x = line.x_at(y)
+        x_tape = column_at(outer, y)
+        w = x_tape - x  # signed: outwards in the image
+        if not math.isfinite(w) or abs(w) < MIN_PROFILE_TAPE_PX:
             continue
         lo, hi = x - 0.5 * w, x + 1.75 * w
-        # (min() and max() of the two, written out: both are finite here)
-        if lo < 0.0 or hi < 0.0 or lo > right_limit or hi > right_limit:
+        if min(lo, hi) < 0.0 or max(lo, hi) > width - 1.0:
             hidden += 1
             continue
         # (Pixels as ints through `ndarray.item`, comparisons written out: several times
