@@ -42,6 +42,14 @@ class SupervisorConfig(DocumentModel):
         description="Kalman measurement noise (std) of the slope sum at confidence 1, slope-sum "
         "units",
     )
+    slope_chord_px_std: float = Field(
+        default=1.0,
+        ge=0.0,
+        le=100.0,
+        description="Pixel noise (std) of each end of a reported edge; the slope-sum measurement's "
+        "variance grows by what it does to the two edges' slopes, so a short or nearly vertical "
+        "chord counts for little (0: the confidence alone sets the noise), px",
+    )
     measurement_confidence_floor: float = Field(
         default=0.1,
         gt=0.0,

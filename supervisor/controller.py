@@ -28,7 +28,11 @@ from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.control_io import ControlInputs, ControlOutput, FrameInfo
 from lanewarden.supervisor.events import Event, ordered
 from lanewarden.supervisor.lane_evidence import LaneEvidence, observation_problem
-from lanewarden.supervisor.slope_filter import SlopeEstimate, SlopeSumFilter
+from lanewarden.supervisor.slope_filter import (
+    SlopeEstimate,
+    SlopeSumFilter,
+    slope_sum_chord_variance,
+)
 from lanewarden.supervisor.state_machine import StepFacts, SupervisorState, SupervisorStateMachine
 from lanewarden.supervisor.watchdog import Watchdog
 
@@ -126,7 +130,8 @@ class SupervisedController:
         events |= lane.events
         if Event.LANE_DEPARTURE in lane.events and lane.departure:
             details.setdefault(Event.LANE_DEPARTURE, lane.departure)
-        self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence)
+        self._estimate = self._slope.step(obs.time_s, lane.slope_sum, obs.confidence,
+                                          slope_sum_chord_variance(obs, self.config))
         events |= self._estimate.events
         if lane.slope_sum is not None:
             if lane_steers(obs, self.config.center_max_edge_angle_deg):

@@ -3,8 +3,12 @@
 State x = [slope_sum, rate_per_s] (constant-rate model). Time is the frames' capture time: F and Q
 are built for each step's dt (once per distinct dt: a camera's frame intervals take few values)
 and passed to `predict(F=..., Q=...)`. The measurement noise grows
-as the observation's confidence falls (R = (std / max(confidence, floor))^2). A frame without a
-usable slope sum only predicts, so the variance grows. Before an update the innovation's Mahalanobis
+as the observation's confidence falls (R = (std / max(confidence, floor))^2), plus what the two
+edges' own pixels allow (`chord_slope_variance`): a slope measured over a short or nearly
+vertical chord moves a lot with one pixel at either end, so on a bend where perception reports
+a far stub of the tape in one frame and its near part in the next, the stub's slope counts for
+little instead of being rejected as an outlier frame after frame. A frame without a usable
+slope sum only predicts, so the variance grows. Before an update the innovation's Mahalanobis
 distance is checked: above `innovation_gate_sigma` the measurement is rejected and reported as
 INNOVATION_OUTLIER; repeated outliers raise REPEATED_OUTLIERS, and when the last
 `outliers_repeated_count` measurements were ALL rejected the lane has really changed (or perception
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.events import Event
 
@@ -74,15 +79,44 @@ def measurement_variance(confidence: float, config: SupervisorConfig) -> float:
     return (config.slope_sum_measurement_std / c) ** 2
 
 
+#: A chord this many pixels across, at least, in `chord_slope_variance` (a vertical chord's slope is
+#: known to be steep, not how steep: its noise is then large but finite).
+MIN_CHORD_RUN_PX = 0.5
+
+
+def chord_slope_variance(edge: LaneEdge, config: SupervisorConfig) -> float:
+    """The variance of an edge's slope from its end points' pixel noise.
+
+    The slope of the chord (x1, y1)-(x2, y2) is s = dy / dx (dx = x2 - x1, dy = y1 - y2). With
+    each end's x and y off by an independent `slope_chord_px_std` (sigma), dx and dy each have
+    variance 2 sigma^2, and first-order propagation gives
+        var(s) = 2 sigma^2 (dx^2 + dy^2) / dx^4 ,
+    about 0.0006 for a 640x480 straight lane's 230-pixel chord at slope 1.75, about 13 000 (a
+    std of 113) for a 20-pixel vertical stub (|dx| is taken as at least MIN_CHORD_RUN_PX)."""
+    sigma = config.slope_chord_px_std
+    dx = max(abs(edge.x2 - edge.x1), MIN_CHORD_RUN_PX)
+    dy = edge.y1 - edge.y2
+    return 2.0 * sigma * sigma * (dx * dx + dy * dy) / (dx * dx * dx * dx)
+
+
+def slope_sum_chord_variance(observation: LaneObservation, config: SupervisorConfig) -> float:
+    """`chord_slope_variance` of the two edges together (0 without both: no slope sum)."""
+    if observation.left is None or observation.right is None:
+        return 0.0
+    return (chord_slope_variance(observation.left, config)
+            + chord_slope_variance(observation.right, config))
+
+
 def make_slope_sum_filter(
-    slope_sum: float, confidence: float, config: SupervisorConfig
+    slope_sum: float, confidence: float, config: SupervisorConfig, chord_variance: float = 0.0
 ) -> KalmanFilter:
-    """The one factory: a filter started at a measured slope sum with rate 0."""
+    """The one factory: a filter started at a measured slope sum with rate 0 (its variance the
+    measurement's: `measurement_variance` + `chord_variance`)."""
     kf = KalmanFilter(dim_x=2, dim_z=1)
     kf.x = np.array([[slope_sum], [0.0]])
     kf.H = np.array([[1.0, 0.0]])
     kf.F = transition_matrix(0.0)
-    kf.R = np.array([[measurement_variance(confidence, config)]])
+    kf.R = np.array([[measurement_variance(confidence, config) + chord_variance]])
     kf.P = np.diag([kf.R[0, 0], config.slope_sum_initial_rate_std_per_s**2])
     kf.Q = process_noise(0.0, config)
     return kf
@@ -105,10 +139,13 @@ class SlopeSumFilter:
         """The latest output (also returned by `step`)."""
         return self._last
 
-    def step(self, time_s: float, slope_sum: float | None, confidence: float) -> SlopeEstimate:
+    def step(self, time_s: float, slope_sum: float | None, confidence: float,
+             chord_variance: float = 0.0) -> SlopeEstimate:
         """Advance to `time_s` (a frame's capture time) and fuse `slope_sum` if there is one.
 
         `slope_sum` None (or not finite) means "no usable measurement in this frame": predict only.
+        `chord_variance`: what the edges' pixels add to the measurement's variance
+        (`slope_sum_chord_variance`).
         """
         cfg = self._config
         measured = slope_sum is not None and math.isfinite(slope_sum)
@@ -121,7 +158,7 @@ class SlopeSumFilter:
                 self._time_s = time_s
                 return self._remember(SlopeEstimate(None, None, None))
             assert slope_sum is not None
-            return self._restart(time_s, slope_sum, confidence, frozenset())
+            return self._restart(time_s, slope_sum, confidence, chord_variance, frozenset())
 
         dt = 0.0 if self._time_s is None else max(0.0, time_s - self._time_s)
         self._time_s = time_s if self._time_s is None else max(time_s, self._time_s)
@@ -139,7 +176,7 @@ class SlopeSumFilter:
             return self._remember(self._snapshot())
         assert slope_sum is not None
 
-        r = measurement_variance(confidence, cfg)
+        r = measurement_variance(confidence, cfg) + chord_variance
         # H = [1, 0]: H x is the slope sum's estimate and H P H' its variance.
         innovation = slope_sum - float(self._kf.x[0, 0])
         s = float(self._kf.P[0, 0]) + r
@@ -152,7 +189,8 @@ class SlopeSumFilter:
             recent = list(self._rejections)[-cfg.outliers_repeated_count :]
             if len(recent) == cfg.outliers_repeated_count and all(recent):
                 # The world moved and the gate would ignore it forever: start again from here.
-                restarted = self._restart(time_s, slope_sum, confidence, frozenset(events))
+                restarted = self._restart(time_s, slope_sum, confidence, chord_variance,
+                                          frozenset(events))
                 return self._remember(
                     SlopeEstimate(
                         restarted.slope_sum,
@@ -184,9 +222,10 @@ class SlopeSumFilter:
         return model
 
     def _restart(
-        self, time_s: float, slope_sum: float, confidence: float, events: frozenset[Event]
+        self, time_s: float, slope_sum: float, confidence: float, chord_variance: float,
+        events: frozenset[Event]
     ) -> SlopeEstimate:
-        self._kf = make_slope_sum_filter(slope_sum, confidence, self._config)
+        self._kf = make_slope_sum_filter(slope_sum, confidence, self._config, chord_variance)
         self._time_s = time_s
         self._accepted_at_s = time_s
         self._rejections.clear()

@@ -7,16 +7,21 @@ import math
 import numpy as np
 import pytest
 
+from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.supervisor.center_offset import CenterOffsetFilter
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.events import Event
 from lanewarden.supervisor.slope_filter import (
     SlopeSumFilter,
+    chord_slope_variance,
     make_slope_sum_filter,
     measurement_variance,
     process_noise,
+    slope_sum_chord_variance,
     transition_matrix,
 )
+from tests.supervisor.rig import RIGHT_EDGE as RIG_RIGHT_EDGE
+from tests.supervisor.rig import Rig
 
 CONFIG = SupervisorConfig()
 DT = 1.0 / 30.0
@@ -170,3 +175,77 @@ def test_without_measurements_the_estimate_expires_instead_of_extrapolating() ->
     expired = f.step(last_measured + CONFIG.slope_filter_restart_after_s + DT, None, 0.0)
     assert expired.slope_sum is None and expired.variance is None
     assert f.step(last_measured + 5.0, None, 0.0).slope_sum is None  # no invented bend later
+
+
+# ---- the edges' own pixels in the measurement noise (slope_chord_px_std) ----------------------
+
+#: 640x480, a straight lane's left edge: 200 px across, 280 px up.
+LONG_CHORD = LaneEdge(100.0, 480.0, 300.0, 200.0, 1.4, 250.0)
+#: 320x240 on a bend: a far stub of the tape, 20 px straight up the image (its slope at the clamp).
+STUB = LaneEdge(20.0, 160.0, 20.0, 140.0, 12.0, 20.0)
+RIGHT = LaneEdge(300.0, 240.0, 200.0, 100.0, -1.4, 170.0)
+
+
+def test_a_chords_slope_variance_is_its_end_points_pixel_noise_propagated() -> None:
+    # 2 sigma^2 (dx^2 + dy^2) / dx^4, sigma 1 px: written out for each chord
+    assert chord_slope_variance(LONG_CHORD, CONFIG) == pytest.approx(
+        2.0 * (200.0**2 + 280.0**2) / 200.0**4)  # 1.48e-4
+    assert chord_slope_variance(STUB, CONFIG) == pytest.approx(
+        2.0 * (0.25 + 400.0) / 0.0625)  # |dx| 0 taken as 0.5 px: 12 808
+    assert chord_slope_variance(RIGHT, CONFIG) == pytest.approx(
+        2.0 * (100.0**2 + 140.0**2) / 100.0**4)
+    doubled = SupervisorConfig(slope_chord_px_std=2.0)
+    assert chord_slope_variance(LONG_CHORD, doubled) == pytest.approx(
+        4.0 * 2.0 * (200.0**2 + 280.0**2) / 200.0**4)
+    assert chord_slope_variance(STUB, SupervisorConfig(slope_chord_px_std=0.0)) == 0.0
+    both = LaneObservation(0, 0.0, STUB, RIGHT, 10.6, 0.9)
+    assert slope_sum_chord_variance(both, CONFIG) == pytest.approx(
+        2.0 * 400.25 / 0.0625 + 2.0 * (100.0**2 + 140.0**2) / 100.0**4)
+    assert slope_sum_chord_variance(LaneObservation(0, 0.0, STUB, None, None, 0.9),
+                                    CONFIG) == 0.0
+
+
+def test_a_stub_chords_slope_is_weighed_not_rejected() -> None:
+    """r00002/r00562 of the default campaign (seed 0), reduced: a steady slope sum of 1.6, then
+    every other frame a far stub of the tape at the slope clamp (sum 10.6). With the stub's own
+    noise it moves the estimate by little and is never an outlier; measured as if it were as
+    precise as a long chord, it is rejected frame after frame (REPEATED_OUTLIERS)."""
+    stub_variance = 2.0 * 400.25 / 0.0625 + 2.0 * (100.0**2 + 140.0**2) / 100.0**4
+    f = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        f.step(i * DT, 1.6, 0.9, 0.0003)
+    weighed = [f.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9,
+                      stub_variance if j % 2 == 0 else 0.0003) for j in range(12)]
+    assert not any(r.events for r in weighed)
+    assert all(r.accepted for r in weighed)
+    assert all(r.slope_sum is not None and abs(r.slope_sum - 1.6) < 0.05 for r in weighed)
+
+    g = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        g.step(i * DT, 1.6, 0.9, 0.0003)
+    rejected = [g.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9, 0.0003)
+                for j in range(12)]
+    assert Event.REPEATED_OUTLIERS in rejected[4].events  # the third outlier in the window
+
+
+@pytest.mark.parametrize("chord_px_std, degrades", [(1.0, False), (0.0, True)])
+def test_the_supervisor_passes_the_edges_pixels_to_the_filter(chord_px_std: float,
+                                                               degrades: bool) -> None:
+    """Through the controller and its gate: every other frame reports a far stub of the left tape
+    (slope at the clamp). With the default pixel noise the supervisor keeps following; with it
+    off (the filter told nothing about the chords) the stubs are outliers and it degrades."""
+    rig = Rig(SupervisorConfig(slope_chord_px_std=chord_px_std))
+    rig.engage(slope_sum=0.0)
+    states = []
+    for j in range(12):
+        if j % 2 == 0:
+            index, time_s = rig.index + 1, rig.clock.now() + DT
+            stub = LaneObservation(index, time_s, STUB, RIG_RIGHT_EDGE,
+                                   STUB.slope + RIG_RIGHT_EDGE.slope, 0.9,
+                                   lane_offset_m=0.0, lane_heading_rad=0.0)
+            out = rig.step(obs=stub)
+        else:
+            out = rig.step(slope_sum=0.0)
+        states.append(out.state)
+    assert ("DEGRADED" in states) is degrades
+    assert any(Event.REPEATED_OUTLIERS in out.events for out in rig.outputs) is degrades
