@@ -46,9 +46,10 @@ class SupervisorConfig(DocumentModel):
         default=1.0,
         ge=0.0,
         le=100.0,
-        description="Pixel noise (std) of each end of a reported edge; the slope-sum measurement's "
-        "variance grows by what it does to the two edges' slopes, so a short or nearly vertical "
-        "chord counts for little (0: the confidence alone sets the noise), px",
+        description="Pixel noise (std) of each end of a reported edge: a slope-sum outlier that "
+        "would pass the gate with the variance this gives the two edges' slopes added (a short "
+        "or nearly vertical chord) is still rejected but does not count towards "
+        "REPEATED_OUTLIERS (0: every outlier counts), px",
     )
     measurement_confidence_floor: float = Field(
         default=0.1,

@@ -3,17 +3,22 @@
 State x = [slope_sum, rate_per_s] (constant-rate model). Time is the frames' capture time: F and Q
 are built for each step's dt (once per distinct dt: a camera's frame intervals take few values)
 and passed to `predict(F=..., Q=...)`. The measurement noise grows
-as the observation's confidence falls (R = (std / max(confidence, floor))^2), plus what the two
-edges' own pixels allow (`chord_slope_variance`): a slope measured over a short or nearly
-vertical chord moves a lot with one pixel at either end, so on a bend where perception reports
-a far stub of the tape in one frame and its near part in the next, the stub's slope counts for
-little instead of being rejected as an outlier frame after frame. A frame without a usable
-slope sum only predicts, so the variance grows. Before an update the innovation's Mahalanobis
-distance is checked: above `innovation_gate_sigma` the measurement is rejected and reported as
-INNOVATION_OUTLIER; repeated outliers raise REPEATED_OUTLIERS, and when the last
+as the observation's confidence falls (R = (std / max(confidence, floor))^2). A frame without a
+usable slope sum only predicts, so the variance grows. Before an update the innovation's
+Mahalanobis distance is checked: above `innovation_gate_sigma` the measurement is rejected and
+reported as INNOVATION_OUTLIER; repeated outliers raise REPEATED_OUTLIERS, and when the last
 `outliers_repeated_count` measurements were ALL rejected the lane has really changed (or perception
 is garbage; either way the supervisor degrades), so the filter restarts on the newest measurement
 instead of ignoring the world forever.
+
+An outlier that the two edges' own pixels explain does not count towards REPEATED_OUTLIERS: one
+that would pass the gate with `chord_slope_variance` added to R. A slope measured over a short or
+nearly vertical chord moves a lot with one pixel at either end; on a bend at 320x240 perception
+may report the tape's near part in one frame and a far stub of it (slope at the clamp) in the
+next, and those stubs, rejected frame after frame, kept the supervisor DEGRADED until its budget
+ran out. They are still rejected (the estimate is what it would be without this), and a run of
+them still restarts the filter: at the lecture's corner the turn first shows as such steep
+chords, and weighing them less (R itself grown by the chords) turned right too late there.
 
 Pure: no clock (time comes with each call), no I/O.
 """
@@ -108,15 +113,14 @@ def slope_sum_chord_variance(observation: LaneObservation, config: SupervisorCon
 
 
 def make_slope_sum_filter(
-    slope_sum: float, confidence: float, config: SupervisorConfig, chord_variance: float = 0.0
+    slope_sum: float, confidence: float, config: SupervisorConfig
 ) -> KalmanFilter:
-    """The one factory: a filter started at a measured slope sum with rate 0 (its variance the
-    measurement's: `measurement_variance` + `chord_variance`)."""
+    """The one factory: a filter started at a measured slope sum with rate 0."""
     kf = KalmanFilter(dim_x=2, dim_z=1)
     kf.x = np.array([[slope_sum], [0.0]])
     kf.H = np.array([[1.0, 0.0]])
     kf.F = transition_matrix(0.0)
-    kf.R = np.array([[measurement_variance(confidence, config) + chord_variance]])
+    kf.R = np.array([[measurement_variance(confidence, config)]])
     kf.P = np.diag([kf.R[0, 0], config.slope_sum_initial_rate_std_per_s**2])
     kf.Q = process_noise(0.0, config)
     return kf
@@ -131,6 +135,8 @@ class SlopeSumFilter:
         self._time_s: float | None = None
         self._accepted_at_s: float | None = None
         self._rejections: deque[bool] = deque(maxlen=config.outliers_window_frames)
+        #: per frame of the window: an outlier that counts towards REPEATED_OUTLIERS
+        self._counted: deque[bool] = deque(maxlen=config.outliers_window_frames)
         self._last = SlopeEstimate(None, None, None)
         self._motion_by_dt: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -144,8 +150,9 @@ class SlopeSumFilter:
         """Advance to `time_s` (a frame's capture time) and fuse `slope_sum` if there is one.
 
         `slope_sum` None (or not finite) means "no usable measurement in this frame": predict only.
-        `chord_variance`: what the edges' pixels add to the measurement's variance
-        (`slope_sum_chord_variance`).
+        `chord_variance`: the variance the edges' own pixels give the measurement
+        (`slope_sum_chord_variance`): an outlier within it does not count towards
+        REPEATED_OUTLIERS.
         """
         cfg = self._config
         measured = slope_sum is not None and math.isfinite(slope_sum)
@@ -158,7 +165,7 @@ class SlopeSumFilter:
                 self._time_s = time_s
                 return self._remember(SlopeEstimate(None, None, None))
             assert slope_sum is not None
-            return self._restart(time_s, slope_sum, confidence, chord_variance, frozenset())
+            return self._restart(time_s, slope_sum, confidence, frozenset())
 
         dt = 0.0 if self._time_s is None else max(0.0, time_s - self._time_s)
         self._time_s = time_s if self._time_s is None else max(time_s, self._time_s)
@@ -176,21 +183,24 @@ class SlopeSumFilter:
             return self._remember(self._snapshot())
         assert slope_sum is not None
 
-        r = measurement_variance(confidence, cfg) + chord_variance
+        r = measurement_variance(confidence, cfg)
         # H = [1, 0]: H x is the slope sum's estimate and H P H' its variance.
         innovation = slope_sum - float(self._kf.x[0, 0])
         s = float(self._kf.P[0, 0]) + r
         distance = abs(innovation) / math.sqrt(s)
         if distance > cfg.innovation_gate_sigma:
             self._rejections.append(True)
+            # Rejected either way; one that its edges' own pixels explain (a far stub of a
+            # bending tape) does not count towards REPEATED_OUTLIERS (module docstring).
+            self._counted.append(
+                abs(innovation) > cfg.innovation_gate_sigma * math.sqrt(s + chord_variance))
             events = {Event.INNOVATION_OUTLIER}
-            if sum(self._rejections) >= cfg.outliers_repeated_count:
+            if sum(self._counted) >= cfg.outliers_repeated_count:
                 events.add(Event.REPEATED_OUTLIERS)
             recent = list(self._rejections)[-cfg.outliers_repeated_count :]
             if len(recent) == cfg.outliers_repeated_count and all(recent):
                 # The world moved and the gate would ignore it forever: start again from here.
-                restarted = self._restart(time_s, slope_sum, confidence, chord_variance,
-                                          frozenset(events))
+                restarted = self._restart(time_s, slope_sum, confidence, frozenset(events))
                 return self._remember(
                     SlopeEstimate(
                         restarted.slope_sum,
@@ -205,6 +215,7 @@ class SlopeSumFilter:
             return self._remember(self._snapshot(innovation, distance, False, frozenset(events)))
 
         self._rejections.append(False)
+        self._counted.append(False)
         self._kf.update(np.array([[slope_sum]]), R=np.array([[r]]), H=self._kf.H)
         self._accepted_at_s = time_s
         return self._remember(self._snapshot(innovation, distance, True))
@@ -222,13 +233,13 @@ class SlopeSumFilter:
         return model
 
     def _restart(
-        self, time_s: float, slope_sum: float, confidence: float, chord_variance: float,
-        events: frozenset[Event]
+        self, time_s: float, slope_sum: float, confidence: float, events: frozenset[Event]
     ) -> SlopeEstimate:
-        self._kf = make_slope_sum_filter(slope_sum, confidence, self._config, chord_variance)
+        self._kf = make_slope_sum_filter(slope_sum, confidence, self._config)
         self._time_s = time_s
         self._accepted_at_s = time_s
         self._rejections.clear()
+        self._counted.clear()
         return self._remember(self._snapshot(None, None, True, events))
 
     def _snapshot(

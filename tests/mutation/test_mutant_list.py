@@ -20,7 +20,7 @@ SAFETY_FILES = {
     "perception/confidence.py", "perception/lines.py", "perception/one_side.py",
     "perception/edge_choice.py", "lanewarden/survey.py", "supervisor/center_offset.py",
     "perception/detector.py", "lanewarden/runner.py", "lanewarden/survey_run.py",
-    "lanewarden/commands/base.py",
+    "lanewarden/commands/base.py", "supervisor/slope_filter.py",
 }  # fmt: skip
 
 

@@ -205,27 +205,43 @@ def test_a_chords_slope_variance_is_its_end_points_pixel_noise_propagated() -> N
                                     CONFIG) == 0.0
 
 
-def test_a_stub_chords_slope_is_weighed_not_rejected() -> None:
+def test_a_stub_chords_outliers_do_not_count_towards_repeated_outliers() -> None:
     """r00002/r00562 of the default campaign (seed 0), reduced: a steady slope sum of 1.6, then
-    every other frame a far stub of the tape at the slope clamp (sum 10.6). With the stub's own
-    noise it moves the estimate by little and is never an outlier; measured as if it were as
-    precise as a long chord, it is rejected frame after frame (REPEATED_OUTLIERS)."""
+    every other frame a far stub of the tape at the slope clamp (sum 10.6). Each stub is
+    rejected (the estimate stays at 1.6) and reported, but its own pixels explain it: no
+    REPEATED_OUTLIERS. Measured as if it were as precise as a long chord, the third stub in the
+    window raises REPEATED_OUTLIERS."""
     stub_variance = 2.0 * 400.25 / 0.0625 + 2.0 * (100.0**2 + 140.0**2) / 100.0**4
     f = SlopeSumFilter(CONFIG)
     for i in range(30):
         f.step(i * DT, 1.6, 0.9, 0.0003)
-    weighed = [f.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9,
-                      stub_variance if j % 2 == 0 else 0.0003) for j in range(12)]
-    assert not any(r.events for r in weighed)
-    assert all(r.accepted for r in weighed)
-    assert all(r.slope_sum is not None and abs(r.slope_sum - 1.6) < 0.05 for r in weighed)
+    stubs = [f.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9,
+                    stub_variance if j % 2 == 0 else 0.0003) for j in range(12)]
+    assert [r.events for r in stubs[0::2]] == [{Event.INNOVATION_OUTLIER}] * 6
+    assert not any(r.events or not r.accepted for r in stubs[1::2])
+    assert all(r.slope_sum is not None and abs(r.slope_sum - 1.6) < 0.05 for r in stubs)
 
     g = SlopeSumFilter(CONFIG)
     for i in range(30):
         g.step(i * DT, 1.6, 0.9, 0.0003)
-    rejected = [g.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9, 0.0003)
-                for j in range(12)]
-    assert Event.REPEATED_OUTLIERS in rejected[4].events  # the third outlier in the window
+    precise = [g.step((30 + j) * DT, 10.6 if j % 2 == 0 else 1.6, 0.9, 0.0003)
+               for j in range(12)]
+    assert Event.REPEATED_OUTLIERS not in precise[2].events
+    assert Event.REPEATED_OUTLIERS in precise[4].events  # the third outlier in the window
+
+
+def test_a_run_of_stub_outliers_still_restarts_the_filter() -> None:
+    """The lecture's corner: the turn first shows as steep short chords, frame after frame. They
+    are rejected like any outlier, and three in a row restart the filter on the newest one (the
+    lane really changed), however imprecise each is; only REPEATED_OUTLIERS is not raised."""
+    stub_variance = 2.0 * 400.25 / 0.0625
+    f = SlopeSumFilter(CONFIG)
+    for i in range(30):
+        f.step(i * DT, 0.0, 0.9, 0.0003)
+    run = [f.step((30 + j) * DT, -11.0, 0.9, stub_variance) for j in range(3)]
+    assert [r.accepted for r in run] == [False, False, True]
+    assert run[-1].slope_sum == pytest.approx(-11.0)
+    assert all(Event.REPEATED_OUTLIERS not in r.events for r in run)
 
 
 @pytest.mark.parametrize("chord_px_std, degrades", [(1.0, False), (0.0, True)])
