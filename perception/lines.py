@@ -141,6 +141,22 @@ class LineRow(NamedTuple):
 
 
 _EMPTY_F = np.zeros(0, dtype=np.float64)
+
+
+def _operand(value: float, dtype: type[np.generic] = np.float64) -> NDArray[Any]:
+    """`value` as a read-only 0-d array, for a number that meets the frame's arrays on every
+    frame: numpy converts a Python number operand on every call, a third of what a comparison
+    or product on a few dozen values costs, and a 0-d array of the arrays' type gives the
+    same results."""
+    operand = np.array(value, dtype=dtype)
+    operand.flags.writeable = False
+    return operand
+
+
+_HALF = _operand(0.5)
+_ZERO = _operand(0.0)
+#: `x_bottom` divides by uy, at most this (a line of uy 0 is flat, and flat ones are dropped).
+_MAX_UY = _operand(-1e-9)
 #: A segment's rows (x1, y1, x2, y2) with its two ends swapped.
 _REVERSED = np.array([2, 3, 0, 1], dtype=np.intp)
 
@@ -192,7 +208,7 @@ def build_line_set(
         label[kept] = line_of
     fit, ends = _fit_lines(pieces, line_of, lines)
     cx, cy, ux, uy = fit[:4]
-    x_bottom = cx + (y_bottom - cy) * ux / np.minimum(uy, -1e-9)
+    x_bottom = cx + (y_bottom - cy) * ux / np.minimum(uy, _MAX_UY)
     polarity, contrast = _polarity_of(smooth_gray, ends, fit[_UX:_UY + 1], tape)
     # Every near end then every far end, x and y each one contiguous row: one projection.
     ends_x, ends_y = floor.to_floor_rows(ends.reshape(2, -1))
@@ -299,7 +315,7 @@ class _Pieces:
         dy = np.subtract(ends[3], ends[1], out=rows[_DY])
         length = np.hypot(dx, dy, out=rows[_LENGTH])
         mid = np.add(ends[:2], ends[2:], out=rows[_MID_X:_MID_Y + 1])
-        mid *= 0.5
+        mid *= _HALF
         np.multiply(mid[0], length, out=rows[_MID_X_LENGTH])
         np.multiply(mid[1], length, out=rows[_MID_Y_LENGTH])
         np.divide(dy, length, out=rows[_DIR_Y])
@@ -565,8 +581,8 @@ def _polarity_of(
     # for both sides, rows 0..n-1 right of the lines, n..2n-1 left of them.
     normals = unit[::-1, None, :] * _side_offsets(offset)
     sides = (points[:, None] + normals[:, :, :, None]).reshape(2, -1, k)
-    sides += 0.5
-    np.maximum(sides, 0.0, out=sides)
+    sides += _HALF
+    np.maximum(sides, _ZERO, out=sides)
     np.minimum(sides, _image_limits(width, height), out=sides)
     pixel = sides.astype(np.intp)
     values = gray[pixel[1], pixel[0]]
@@ -578,7 +594,8 @@ def _polarity_of(
     threshold = tape.min_contrast_levels
     # (For whole-number steps, step > t exactly when step > floor(t): compared as ints, twice
     # as fast as against a float.)
-    whole_threshold = math.floor(threshold)
+    limits = _step_limits(threshold)
+    whole_threshold = limits.whole
     # The median step, not the mean: a ceiling light mirrored in glossy tape makes a few samples
     # of its edges brighter on the tape's side than the floor by far more than the tape is darker
     # elsewhere, and their mean says "no contrast" (or the wrong sign).
@@ -586,12 +603,12 @@ def _polarity_of(
     ordered = step.copy()
     ordered.sort(axis=1)
     contrast = _middle(ordered)
-    whole = _signs(contrast, threshold)
+    whole = _signs(contrast, limits)
     # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
     # view), the points in it show no step at all, and the median says "no contrast" once the
     # gap covers half the line. There, the sign that a quarter of the points in a row show
     # clearly, with at least twice as many points as show the other sign, is the line's.
-    unclear = (whole == 0.0).nonzero()[0]
+    unclear = (whole == _ZERO).nonzero()[0]
     if unclear.size:
         whole[unclear] = _vote(step[unclear], whole_threshold)
     # The light can also cover more than half of an edge, and turn the median. It only ADDS
@@ -623,8 +640,8 @@ def _polarity_of(
     # down, so "falling or a quarter down" is "a quarter down"; the same rising.)
     half = k // 2
     quarter = (half - 1) // 2 + 1
-    quarter_down = ordered[:, quarter - 1] < -whole_threshold
-    quarter_up = ordered[:, k - quarter] > whole_threshold
+    quarter_down = ordered[:, quarter - 1] < limits.whole_below
+    quarter_up = ordered[:, k - quarter] > limits.whole_above
     against = quarter_down & quarter_up
     if _vote_need(k) < quarter:
         against = (quarter_down | (whole < 0.0)) & (quarter_up | (whole > 0.0))
@@ -632,7 +649,7 @@ def _polarity_of(
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]
-        unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), threshold)
+        unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), limits)
         was = whole[rows]
         up, down = step[rows] > whole_threshold, step[rows] < -whole_threshold
         same = np.where((unlit > 0.0)[:, None], up, down)
@@ -723,13 +740,31 @@ def _median(values: NDArray[np.int16]) -> FloatArray:
 def _middle(ordered: NDArray[np.int16]) -> FloatArray:
     """Per row of values sorted along it, their median (the mean of the middle two)."""
     m = ordered.shape[1]
-    return cast(FloatArray, (ordered[:, (m - 1) // 2] + ordered[:, m // 2]) * 0.5)
+    return cast(FloatArray, (ordered[:, (m - 1) // 2] + ordered[:, m // 2]) * _HALF)
 
 
-def _signs(median: FloatArray, threshold: float) -> FloatArray:
-    """+1 above `threshold`, -1 below minus it, 0 between (the two tests' difference as floats:
-    never -0.0)."""
-    return np.subtract(median > threshold, median < -threshold, dtype=np.float64)
+class _StepLimits(NamedTuple):
+    """What a step is clear beyond (`tape.min_contrast_levels`): the threshold and minus it,
+    and for whole-number steps its whole part (`whole`) and the same as int16, as `_operand`s."""
+
+    above: FloatArray
+    below: FloatArray
+    whole: int
+    whole_above: NDArray[np.int16]
+    whole_below: NDArray[np.int16]
+
+
+@functools.cache
+def _step_limits(threshold: float) -> _StepLimits:
+    whole = math.floor(threshold)
+    return _StepLimits(_operand(threshold), _operand(-threshold), whole,
+                       _operand(whole, np.int16), _operand(-whole, np.int16))
+
+
+def _signs(median: FloatArray, limits: _StepLimits) -> FloatArray:
+    """+1 above `limits.above`, -1 below `limits.below`, 0 between (the two tests' difference as
+    floats: never -0.0)."""
+    return np.subtract(median > limits.above, median < limits.below, dtype=np.float64)
 
 
 def line_angle_deg(ux: float, uy: float) -> float:
