@@ -264,7 +264,7 @@ def _segment_rows(segments: NDArray[np.int32]) -> FloatArray:
 
 
 #: The rows of `_Pieces.rows`, one (14, N) block, so that one numpy call serves several rows
-#: where they are adjacent: the segment's ends, as (end, x|y) (`_Pieces.ends`); the five weights
+#: where they are adjacent: the segment's ends (x1, y1, x2, y2); the five weights
 #: `_fit_lines` sums per line; the three numbers `_compatible` compares and the two it
 #: multiplies them by.
 (_X1, _Y1, _X2, _Y2, _LENGTH, _DX, _DY, _MID_X_LENGTH, _MID_Y_LENGTH, _ANGLE, _MID_X, _MID_Y,
@@ -284,11 +284,6 @@ class _Pieces:
     def seg(self) -> FloatArray:
         """(N, 4): x1, y1, x2, y2 of each segment."""
         return self.rows[_X1:_Y2 + 1].T
-
-    @property
-    def ends(self) -> FloatArray:
-        """(near|far, x|y, N)."""
-        return self.rows[_X1:_Y2 + 1].reshape(2, 2, -1)
 
     @property
     def angle(self) -> FloatArray:
@@ -463,6 +458,11 @@ def pairs_within_angle(angle: FloatArray, tol_deg: float, *,
 #: The rows of `_fit_lines`' per-line block: centre, unit direction (pixels, y down, pointing
 #: far), support (total segment length).
 _CX, _CY, _UX, _UY, _SUPPORT = range(5)
+#: `_fit_lines`' rows beside a segment's ends (x1, y1, x2, y2): the centre's x and y twice,
+#: then the direction's, so that the ends' offsets and their products are steps of like
+#: shapes (a broadcast costs numpy about what two calls do).
+_BESIDE_ENDS = np.array([_CX, _CY, _CX, _CY, _UX, _UY, _UX, _UY], dtype=np.intp)
+_BESIDE_ENDS.flags.writeable = False
 
 
 @functools.cache
@@ -501,14 +501,15 @@ def _fit_lines(pieces: _Pieces, line_of: NDArray[np.intp],
     np.divide(sums[3:5], support, out=fit[_CX:_CY + 1])  # sum(mid * length) / support
     norm = np.hypot(sums[1], sums[2])  # of sum(unit * length)
     np.divide(sums[1:3], norm, out=fit[_UX:_UY + 1])
-    # Each segment's line's centre and direction (one gather), then both ends' projections on
-    # it: (x - cx) * ux + (y - cy) * uy.
-    seg_fit = fit.take(line_of, axis=1)
-    terms = (pieces.ends - seg_fit[_CX:_CY + 1]) * seg_fit[_UX:_UY + 1]
-    along = terms[:, 0] + terms[:, 1]
+    # Each segment's line's centre and direction beside its ends (`_BESIDE_ENDS`, one gather
+    # each way), then both ends' projections on it: (x - cx) * ux + (y - cy) * uy.
+    beside = fit.take(_BESIDE_ENDS, axis=0).take(line_of, axis=1)
+    terms = pieces.rows[_X1:_Y2 + 1] - beside[:4]
+    terms *= beside[4:]
+    near, far = terms[0] + terms[1], terms[2] + terms[3]
     extent = _no_extent(lines).copy()  # per line: the lowest projection, the highest
-    np.minimum.at(extent[0], line_of, np.minimum(along[0], along[1]))
-    np.maximum.at(extent[1], line_of, np.maximum(along[0], along[1]))
+    np.minimum.at(extent[0], line_of, np.minimum(near, far))
+    np.maximum.at(extent[1], line_of, np.maximum(near, far))
     ends = fit[_CX:_CY + 1, None] + extent * fit[_UX:_UY + 1, None]
     return fit, ends
 
