@@ -157,8 +157,6 @@ _HALF = _operand(0.5)
 _ZERO = _operand(0.0)
 #: `x_bottom` divides by uy, at most this (a line of uy 0 is flat, and flat ones are dropped).
 _MAX_UY = _operand(-1e-9)
-#: A segment's rows (x1, y1, x2, y2) with its two ends swapped.
-_REVERSED = np.array([2, 3, 0, 1], dtype=np.intp)
 
 
 def empty_line_set(segment_count: int = 0) -> LineSet:
@@ -190,8 +188,8 @@ def build_line_set(
         return empty_line_set()
     rows = _segment_rows(segments)
     angle = rows[_ANGLE]
-    min_h = edges.min_angle_from_horizontal_deg
-    kept = ((angle >= min_h) & (angle <= 180.0 - min_h)).nonzero()[0]
+    lowest, highest = _steep_enough(edges.min_angle_from_horizontal_deg)
+    kept = ((angle >= lowest) & (angle <= highest)).nonzero()[0]
     count = len(angle)
     if len(kept) == 0:
         return empty_line_set(count)
@@ -234,6 +232,13 @@ def build_line_set(
     })
 
 
+@functools.cache
+def _steep_enough(min_angle_deg: float) -> tuple[FloatArray, FloatArray]:
+    """The lowest and highest angle of a line that is not flat (`min_angle_deg` from the
+    horizontal either way), as `_operand`s."""
+    return _operand(min_angle_deg), _operand(180.0 - min_angle_deg)
+
+
 def _line_set(fields: dict[str, Any]) -> LineSet:
     """`LineSet(**fields)` (`fields`: every one of its fields), made without the frozen
     dataclass's `__init__`, which sets the eighteen fields one `object.__setattr__` at a time
@@ -255,10 +260,16 @@ def _segment_rows(segments: NDArray[np.int32]) -> FloatArray:
     near (bottom) -> far (top)) and their angle (from the image's x axis with y up, degrees in
     [0, 180]) filled in; `_Pieces.measured` fills the rest. Worked row by row: x1, y1, x2 and y2
     each one contiguous row."""
-    raw = segments.reshape(-1, 4).T
-    rows = np.empty((14, raw.shape[1]))
+    # HoughLinesP's ends as (end, x|y, segment), a view; with its ends swapped, the same view
+    # read backwards along its first axis. Copied as they come, then swapped where the first
+    # end is the far one: two copies that cast the ints as they go, no gathers.
+    raw = segments.reshape(-1, 2, 2).transpose(1, 2, 0)
+    count = raw.shape[2]
+    rows = np.empty((14, count))
     ends = rows[_X1:_Y2 + 1]
-    ends[...] = np.where(raw[1] < raw[3], raw[_REVERSED], raw)
+    by_end = ends.reshape(2, 2, count)
+    by_end[...] = raw
+    np.copyto(by_end, raw[::-1], where=ends[1] < ends[3])
     np.degrees(np.arctan2(ends[1] - ends[3], ends[2] - ends[0]), out=rows[_ANGLE])
     return rows
 
@@ -306,8 +317,8 @@ class _Pieces:
         """The pieces of a block whose ends and angles are filled in (`_segment_rows`): the
         rest of its rows filled in."""
         ends = rows[_X1:_Y2 + 1]
-        dx = np.subtract(ends[2], ends[0], out=rows[_DX])
-        dy = np.subtract(ends[3], ends[1], out=rows[_DY])
+        run = np.subtract(ends[2:], ends[:2], out=rows[_DX:_DY + 1])  # (dx and dy, one step)
+        dx, dy = run[0], run[1]
         length = np.hypot(dx, dy, out=rows[_LENGTH])
         mid = np.add(ends[:2], ends[2:], out=rows[_MID_X:_MID_Y + 1])
         mid *= _HALF
