@@ -378,17 +378,21 @@ class LaneDetector:
         """Stretch a dim or low-contrast frame's blurred image about its mean, in place, so its
         brightness in the floor region varies by `contrast.target_std_levels` (at most
         `contrast.max_gain` times; see `perception.config.ContrastConfig`). The spread is read on
-        a sparse grid of the ROI (`SizeSetup.contrast_step`), not every pixel."""
+        a sparse grid of the ROI (`SizeSetup.contrast_samples`), not every pixel."""
         contrast = self.config.contrast
         if contrast.max_gain <= 1.0:
             return
-        step = state.contrast_step
-        mean, std = cv2.meanStdDev(state.smooth[::step, ::step], mask=state.contrast_mask)
-        spread = float(std[0, 0])
+        if len(state.contrast_samples):
+            samples = np.take(state.smooth.ravel(), state.contrast_samples,
+                              out=state.contrast_buffer)
+            mean_std = cv2.meanStdDev(samples)
+            mean, spread = float(mean_std[0][0, 0]), float(mean_std[1][0, 0])
+        else:
+            mean = spread = 0.0  # (no grid point in the ROI: what OpenCV reads under an empty mask)
         if spread >= contrast.target_std_levels:
             return
         gain = min(contrast.max_gain, contrast.target_std_levels / max(spread, 1e-3))
-        cv2.addWeighted(state.smooth, gain, state.smooth, 0.0, (1.0 - gain) * float(mean[0, 0]),
+        cv2.addWeighted(state.smooth, gain, state.smooth, 0.0, (1.0 - gain) * mean,
                         dst=state.smooth)
 
     def _observe(
