@@ -206,7 +206,7 @@ def test_a_chords_slope_variance_is_its_end_points_pixel_noise_propagated() -> N
 
 
 def test_a_stub_chords_outliers_do_not_count_towards_repeated_outliers() -> None:
-    """r00562 of the default campaign (seed 0), reduced: a steady slope sum of 1.6, then
+    """r00002/r00562 of the default campaign (seed 0), reduced: a steady slope sum of 1.6, then
     every other frame a far stub of the tape at the slope clamp (sum 10.6). Each stub is
     rejected (the estimate stays at 1.6) and reported, but its own pixels explain it: no
     REPEATED_OUTLIERS. Measured as if it were as precise as a long chord, the third stub in the
