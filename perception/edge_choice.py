@@ -97,6 +97,13 @@ _MAX_SINGLE_CHECKS = 3
 #: strongly as the verified tape's (black tape both sides); the floor shading a shifted no-lane
 #: frame paired with its one tape, 0.36 times.
 UNVERIFIABLE_MIN_CONTRAST_SHARE = 0.5
+
+#: `follow_edge`: of the lines that could continue a chain, one stepping less than this share as
+#: strongly as the chain's current line (`LineRow.contrast`) is taken only when none steps more.
+#: Where a glossy bending tape's edge ends a Hough piece, a floor seam crossing it can start
+#: nearer than the edge's next piece: simulated parquet at 320x240, the tape's edge stepping
+#: 100-106 grey levels and the seam 30, the chain ran off along the seam.
+CHAIN_MIN_CONTRAST_SHARE = 0.5
 #: A lone line's chain is assumed at most this many times as long as the line itself when
 #: deciding whether it is worth following and checking (singles come strongest first).
 _CHAIN_BONUS_LIMIT = 4.0
@@ -735,7 +742,10 @@ def _extend(
     `on_line_px`: the same edge split by Hough). A line running alongside at a few pixels is a
     neighbour (a seam beside a tape edge), not the same edge. Across a gap, the step from one
     line's end to the next one's must itself run within `max_turn` of the current direction: a
-    bending edge continues forwards, it does not jump sideways onto a seam beside it."""
+    bending edge continues forwards, it does not jump sideways onto a seam beside it. Of the
+    lines that pass, the nearest is taken, but one much fainter than the current line
+    (CHAIN_MIN_CONTRAST_SHARE) only when no other passes: a seam crossing the edge is not its
+    continuation."""
     found: list[LineRow] = []
     overlap = 0.25 * gap
     min_cos = math.cos(math.radians(max_turn))
@@ -750,6 +760,10 @@ def _extend(
     for _ in range(_MAX_CHAIN_STEPS):
         best: LineRow | None = None
         best_dist = gap
+        best_faint = False
+        # (a continuation stepping less than CHAIN_MIN_CONTRAST_SHARE as strongly as the current
+        # line is "faint"; never where either contrast was not measured: NaN compares False)
+        faint_below = CHAIN_MIN_CONTRAST_SHARE * abs(current.contrast)
         c_angle, c_ux, c_uy = current.angle_deg, current.ux, current.uy
         c_cx, c_cy = current.cx, current.cy
         if away:
@@ -776,7 +790,11 @@ def _extend(
                 shared = end_y - r.far_y
                 step_x, step_y = r.far_x - end_x, r.far_y - end_y
             dist = hypot(step_x, step_y)
-            if dist > best_dist:
+            faint = abs(r.contrast) < faint_below
+            if faint and best is not None and not best_faint:
+                continue  # a faint line never displaces one that steps like the current line
+            stronger = best_faint and not faint
+            if dist > (gap if stronger else best_dist):
                 continue
             if shared > overlap:
                 mid = (end_y + shared / 2.0) if away else (end_y - shared / 2.0)
@@ -793,8 +811,8 @@ def _extend(
                 forward = c_ux * step_x + c_uy * step_y
                 if (forward if away else -forward) < min_cos * dist:
                     continue
-            if dist <= best_dist:
-                best, best_dist = r, dist
+            if dist <= best_dist or stronger:
+                best, best_dist, best_faint = r, dist, faint
         if best is None:
             break
         found.append(best)

@@ -369,6 +369,36 @@ def test_an_edge_continues_forwards_not_sideways_onto_a_seam() -> None:
     assert follow_edge([edge, seam_beside], 0, (640, 480), CONFIG) == (0,)
 
 
+def image_line(near: tuple[float, float], far: tuple[float, float], contrast: float,
+               line_id: int) -> LineRow:
+    """A candidate line of polarity +1 made in image pixels (nothing on the floor), with its
+    brightness step across (`LineRow.contrast`)."""
+    n = math.hypot(far[0] - near[0], far[1] - near[1])
+    nan = math.nan
+    return LineRow(
+        line_id=line_id, angle_deg=math.degrees(math.atan2(near[1] - far[1], far[0] - near[0])),
+        cx=0.5 * (near[0] + far[0]), cy=0.5 * (near[1] + far[1]),
+        ux=(far[0] - near[0]) / n, uy=(far[1] - near[1]) / n, near_x=near[0], near_y=near[1],
+        far_x=far[0], far_y=far[1], support_px=n, polarity=1.0, x_bottom=nan,
+        near_fx=nan, near_fy=nan, far_fx=nan, far_fy=nan, contrast=contrast)
+
+
+def test_a_seam_crossing_a_bending_edge_does_not_continue_it() -> None:
+    """Simulated parquet at 320x240 (campaign seed 0, r00562): a glossy tape bends across the
+    image's left corner. A Hough piece of its edge ends at row 167, where a plank seam crossing
+    the tape starts 3 px away and runs off at 30 degrees; the edge's next piece starts 8 px away
+    and steps as strongly (106 grey levels against the piece's 100; the seam 30). The chain takes
+    the edge's piece. With no such piece the seam still continues the chain (nothing better), and
+    with nothing measured about contrast the nearest line does, as before."""
+    edge = image_line((7.0, 239.0), (30.0, 167.0), 100.0, 0)
+    seam = image_line((29.0, 170.0), (174.0, 39.0), 30.0, 1)
+    next_piece = image_line((32.0, 159.0), (36.0, 130.0), 106.0, 2)
+    assert follow_edge([edge, seam, next_piece], 0, (320, 240), CONFIG) == (0, 2)
+    assert follow_edge([edge, seam], 0, (320, 240), CONFIG) == (0, 1)
+    unmeasured = [line._replace(contrast=math.nan) for line in (edge, seam, next_piece)]
+    assert follow_edge(unmeasured, 0, (320, 240), CONFIG) == (0, 1)
+
+
 def test_measured_at_the_same_spot_the_width_closest_to_the_tape_wins() -> None:
     """Grout running along a tape's inner edge: the tape (48 mm) and the tape with the grout
     (54 mm, still within the tape's tolerance, score 1) are measured at the same spot; the
