@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
@@ -84,6 +85,17 @@ def measurement_variance(confidence: float, config: SupervisorConfig) -> float:
     return (config.slope_sum_measurement_std / c) ** 2
 
 
+class Gated(Enum):
+    """What the gate made of one measurement, as `SlopeSumFilter` remembers it over
+    `outliers_window_frames`."""
+
+    ACCEPTED = "accepted"
+    #: rejected, but within what the edges' own pixels allow (`chord_slope_variance`)
+    EXPLAINED = "explained"
+    #: rejected, and counted towards REPEATED_OUTLIERS
+    OUTLIER = "outlier"
+
+
 #: A chord this many pixels across, at least, in `chord_slope_variance` (a vertical chord's slope is
 #: known to be steep, not how steep: its noise is then large but finite).
 MIN_CHORD_RUN_PX = 0.5
@@ -134,9 +146,7 @@ class SlopeSumFilter:
         self._kf: KalmanFilter | None = None
         self._time_s: float | None = None
         self._accepted_at_s: float | None = None
-        self._rejections: deque[bool] = deque(maxlen=config.outliers_window_frames)
-        #: per frame of the window: an outlier that counts towards REPEATED_OUTLIERS
-        self._counted: deque[bool] = deque(maxlen=config.outliers_window_frames)
+        self._window: deque[Gated] = deque(maxlen=config.outliers_window_frames)
         self._last = SlopeEstimate(None, None, None)
         self._motion_by_dt: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -189,16 +199,16 @@ class SlopeSumFilter:
         s = float(self._kf.P[0, 0]) + r
         distance = abs(innovation) / math.sqrt(s)
         if distance > cfg.innovation_gate_sigma:
-            self._rejections.append(True)
             # Rejected either way; one that its edges' own pixels explain (a far stub of a
             # bending tape) does not count towards REPEATED_OUTLIERS (module docstring).
-            self._counted.append(
-                abs(innovation) > cfg.innovation_gate_sigma * math.sqrt(s + chord_variance))
+            counted = abs(innovation) > cfg.innovation_gate_sigma * math.sqrt(s + chord_variance)
+            self._window.append(Gated.OUTLIER if counted else Gated.EXPLAINED)
             events = {Event.INNOVATION_OUTLIER}
-            if sum(self._counted) >= cfg.outliers_repeated_count:
+            if self._window.count(Gated.OUTLIER) >= cfg.outliers_repeated_count:
                 events.add(Event.REPEATED_OUTLIERS)
-            recent = list(self._rejections)[-cfg.outliers_repeated_count :]
-            if len(recent) == cfg.outliers_repeated_count and all(recent):
+            recent = list(self._window)[-cfg.outliers_repeated_count :]
+            if (len(recent) == cfg.outliers_repeated_count
+                    and Gated.ACCEPTED not in recent):
                 # The world moved and the gate would ignore it forever: start again from here.
                 restarted = self._restart(time_s, slope_sum, confidence, frozenset(events))
                 return self._remember(
@@ -214,8 +224,7 @@ class SlopeSumFilter:
                 )
             return self._remember(self._snapshot(innovation, distance, False, frozenset(events)))
 
-        self._rejections.append(False)
-        self._counted.append(False)
+        self._window.append(Gated.ACCEPTED)
         self._kf.update(np.array([[slope_sum]]), R=np.array([[r]]), H=self._kf.H)
         self._accepted_at_s = time_s
         return self._remember(self._snapshot(innovation, distance, True))
@@ -238,8 +247,7 @@ class SlopeSumFilter:
         self._kf = make_slope_sum_filter(slope_sum, confidence, self._config)
         self._time_s = time_s
         self._accepted_at_s = time_s
-        self._rejections.clear()
-        self._counted.clear()
+        self._window.clear()
         return self._remember(self._snapshot(None, None, True, events))
 
     def _snapshot(
