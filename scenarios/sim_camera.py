@@ -25,7 +25,8 @@ the fault is on (freeze, ring, corrupt, error): a late frame captured before a c
 still delivered corrupted, and the loop halts on it then.
 
 Image buffers come from a fixed pool owned here (no per-frame allocation); a `Frame` stays valid
-for `pool_size - 1` further captures. Never reads a clock: time is the `now` passed in.
+for `pool_size - 1` further captures that the camera keeps (one it drops takes no buffer). Never
+reads a clock: time is the `now` passed in.
 """
 
 from __future__ import annotations
@@ -85,9 +86,16 @@ class SimCamera:
         return self._pool[self._next]
 
     def capture(self, index: int, time_s: float) -> Frame:
-        """Record that `buffer()` now holds the frame `index` captured at `time_s`."""
+        """Record that `buffer()` now holds the frame `index` captured at `time_s`.
+
+        A frame the camera never delivers (dropped, or beyond a collapsed frame rate) does not
+        take a buffer: the next capture is rendered over it. The buffers of the frames it keeps
+        hold their images for `pool_size - 1` further kept frames, so a ring or a freeze
+        re-delivers images the camera really delivered. (It took the next buffer once; a
+        frame-rate collapse then overwrote the kept frames' buffers with renders the loop never
+        saw, and a ring replayed those: new images to the watchdog, campaign seed 3 run r00194
+        halted 83 ms after the judge's deadline.)"""
         image = self._pool[self._next]
-        self._next = (self._next + 1) % len(self._pool)
         frame = Frame(image=image, index=index, time_s=time_s)
         if self.dropping:
             self.altered["drop"] = (index, time_s)
@@ -96,6 +104,7 @@ class SimCamera:
                 time_s - self._last_kept_s < 1.0 / self.rate_hz - 1e-9):
             self.altered["rate"] = (index, time_s)
             return frame
+        self._next = (self._next + 1) % len(self._pool)
         self._last_kept_s = time_s
         self._captured.append(frame)
         return frame

@@ -15,6 +15,8 @@ from lanewarden.scenarios.campaign.run_case import run_case
 
 #: The default spec these runs were found with.
 FOUND_WITH = str(Path(__file__).with_name("default_spec_2026_12_05.yaml"))
+#: The default spec with camera_ring in it (the seed-3 campaign of 2026-12-07).
+FOUND_WITH_RING = str(Path(__file__).with_name("default_spec_2026_12_07.yaml"))
 
 
 @pytest.mark.parametrize(("index", "drawn"), [
@@ -97,3 +99,20 @@ def test_a_lane_on_terrazzo_at_320x240_keeps_it(
     row = run_case(case.model_dump_json(), build_stack)
     assert row["outcome"] != "false_halt", row["reason"]
     assert row["outcome"] != "unsafe", row["reason"]
+
+
+def test_a_camera_ring_during_a_frame_rate_collapse_halts_on_its_first_replayed_image() -> None:
+    """Seed 3 run r00194 (glare on ceramic, 640x480): the frame rate collapses to 6.5 Hz at
+    7.96 s, and at 8.46 s the driver starts re-delivering its last buffers. The simulated
+    camera once let the frames it did not deliver overwrite the buffers of those it did, so
+    the ring replayed renders the loop had never seen; FRAME_FROZEN came with the third
+    replayed image, at 8.93 s, 83 ms after the judge's deadline (unsafe). The buffers now
+    hold what the camera delivered: the first replayed image, at 8.60 s, is one the watchdog
+    has seen, 0.153 s after the last new one."""
+    spec, path = load_campaign_spec(FOUND_WITH_RING)
+    case = draw_case(spec, path, 3, 194, {}, 0.2)
+    assert (case.scenario["name"], case.camera, case.floor) == ("glare", "640x480", "ceramic")
+    assert case.fault_kinds == ["camera_ring", "frame_rate_collapse"]
+    row = run_case(case.model_dump_json(), build_stack)
+    assert row["outcome"] == "safe_halt", row["reason"]
+    assert row["reason"].startswith("FRAME_FROZEN"), row["reason"]

@@ -144,3 +144,36 @@ def test_a_corruption_takes_effect_when_a_late_frame_is_delivered_corrupted() ->
     delivered_s, captured_s = first_corrupt
     assert captured_s < 0.5 <= delivered_s  # a late frame, captured before the fault began
     assert schedule.effects[1].time_s == pytest.approx(delivered_s)
+
+
+def test_a_ring_under_a_collapsed_frame_rate_replays_images_the_camera_delivered() -> None:
+    """Campaign seed 3 run r00194: with the frame rate collapsed to a fifth, each capture the
+    camera did not deliver still took a pool buffer, so the kept frames' buffers held renders
+    the loop never saw; a ring then replayed those, new images to the watchdog, and its
+    FRAME_FROZEN came 83 ms after the judge's deadline. Every image a ring or a freeze
+    delivers must be one the camera delivered before."""
+    camera = SimCamera((4, 4), pool_size=4)
+    camera.rate_hz = 6.0  # every fifth capture at 30 Hz
+    delivered: list[int] = []
+    for k in range(40):
+        capture(camera, k)
+        frame = camera.read(k * DT)
+        if frame is not None and (not delivered or frame.index != delivered[-1]):
+            delivered.append(frame.index)
+            assert int(frame.image[0, 0]) == frame.index % 256
+    assert delivered == [0, 5, 10, 15, 20, 25, 30, 35]
+    camera.ring(True, buffers=3)
+    replayed = []
+    for k in range(40, 70):
+        capture(camera, k)
+        frame = camera.read(k * DT)
+        if frame is not None and frame.index >= 40 and (
+                not replayed or frame.index != replayed[-1][0]):
+            replayed.append((frame.index, int(frame.image[0, 0])))
+    # the last three delivered images (25, 30, 35), in turn, with fresh indices
+    assert replayed == [(40, 25), (45, 30), (50, 35), (55, 25), (60, 30), (65, 35)]
+    camera.ring(False)
+    camera.freeze(True)
+    capture(camera, 70)
+    frozen = camera.read(70 * DT)
+    assert frozen is not None and frozen.index == 70 and int(frozen.image[0, 0]) == 35
