@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.scenarios.encoder_pipe import (
+    FFMPEG_LOG_LEVEL,
     close_encoder,
     encoder_failure,
     encoder_process,
@@ -114,7 +115,7 @@ class CameraClipWriter:
                 writer = imageio_ffmpeg.write_frames(
                     str(files.clip), size, fps=fps, codec="libx264",
                     pix_fmt_in="gray" if gray else "bgr24", pix_fmt_out="yuv420p",
-                    macro_block_size=2, ffmpeg_log_level="error",
+                    macro_block_size=2, ffmpeg_log_level=FFMPEG_LOG_LEVEL,
                     output_params=["-preset", preset, "-crf", str(CLIP_CRF),
                                    "-movflags", "+faststart"])
                 writer.send(None)

@@ -16,11 +16,15 @@ frame, it still ends the process at once. Only offline commands write videos (`s
 imageio-ffmpeg's generator does not say how ffmpeg ended, and its error for a write to a
 stopped ffmpeg is 7 lines with the ffmpeg command: `encoder_process`, `encoder_failure` and
 `mp4_problem` let a writer tell a finished video from one ffmpeg could not finish (a file-size
-limit, a full disk), in a few words.
+limit, a full disk), in a few words. ffmpeg itself writes to the terminal only what is fatal
+(`FFMPEG_LOG_LEVEL`): on a full disk it had added two lines of its own ("[out#0/mp4 @ 0x...]
+Error writing trailer: No space left on device") to ours, which said only "exit status 228";
+its exit status carries the reason, and ours now says it.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 import signal
@@ -35,6 +39,10 @@ from typing import Any
 #: The signals that stop a command (`lanewarden.stop_signals.STOP_SIGNALS`) but SIGQUIT,
 #: deferred during a frame's write.
 _DEFERRED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+#: What ffmpeg may print on the terminal beside our one line: only what is fatal (a failed
+#: write's reason is read from its exit status instead, `encoder_failure`).
+FFMPEG_LOG_LEVEL = "fatal"
 
 
 def send_whole(writer: Generator[Any, Any, None], frame: Any) -> None:
@@ -70,13 +78,18 @@ def encoder_process(writer: Generator[Any, Any, None]) -> subprocess.Popen[bytes
 def encoder_failure(process: subprocess.Popen[bytes] | None,
                     error: BaseException | None = None) -> str | None:
     """Why the encoder failed, in a few words ("ffmpeg stopped: File size limit exceeded",
-    "ffmpeg stopped: Broken pipe", "ffmpeg ended with exit status 1"), or None when it ended
+    "ffmpeg stopped: No space left on device", "ffmpeg stopped: Broken pipe", "ffmpeg ended
+    with exit status 1"), or None when it ended
     well. `error`: what a write to it raised; imageio-ffmpeg's text of it is 7 lines (the
     ffmpeg command among them): only its reason is kept."""
     code = None if process is None else process.poll()
     if code is not None and code < 0:
         return f"ffmpeg stopped: {signal.strsignal(-code) or f'signal {-code}'}"
     if code:
+        # ffmpeg exits with the error it ended on, AVERROR(e) = -e, as a byte: 256 - e (228 on a
+        # full disk, ENOSPC). 255 is its own "stopped by a signal".
+        if 128 < code < 255 and (256 - code) in errno.errorcode:
+            return f"ffmpeg stopped: {os.strerror(256 - code)}"
         return f"ffmpeg ended with exit status {code}"
     if error is None:
         return None

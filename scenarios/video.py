@@ -38,6 +38,7 @@ from lanewarden.perception.overlay import (
 )
 from lanewarden.scenarios.camera import CameraModel
 from lanewarden.scenarios.encoder_pipe import (
+    FFMPEG_LOG_LEVEL,
     close_encoder,
     encoder_failure,
     encoder_process,
@@ -334,7 +335,7 @@ class VideoRecorder:
                 str(path), (width, height), fps=fps, codec="libx264",
                 pix_fmt_in="bgr24", pix_fmt_out="yuv420p", macro_block_size=2,
                 output_params=["-preset", preset, "-crf", str(crf), "-movflags", "+faststart"],
-                ffmpeg_log_level="error",
+                ffmpeg_log_level=FFMPEG_LOG_LEVEL,
             )
             writer.send(None)
         except (OSError, RuntimeError) as exc:

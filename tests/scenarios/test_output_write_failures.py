@@ -10,15 +10,17 @@ command's process, which its ffmpeg inherits."""
 from __future__ import annotations
 
 import resource
+import shutil
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from lanewarden.scenarios.encoder_pipe import mp4_problem
+from lanewarden.scenarios.encoder_pipe import encoder_failure, mp4_problem
 from lanewarden.scenarios.errors import ScenarioOutputError
 from lanewarden.scenarios.plot import write_plot
 
@@ -107,3 +109,45 @@ def test_a_plot_that_cannot_be_written_names_plot_png(tmp_path: Path) -> None:
         write_plot(plot, "a run", np.array([0.0, 0.1]), [0.1, 0.2], [0.1, 0.2], [0.9, 0.9],
                    ["FOLLOW", "HALT"], [None, "LANE_LOST"], 0.5, [])
     assert str(failed.value) == f"{plot}: cannot write the plot (No space left on device)"
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A real 400 KiB file system (tmpfs), mounted for the test: a full disk, not a limit."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)],
+                             capture_output=True, text=True, check=False) if shutil.which(
+        "mount") else None
+    if mounted is None or mounted.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root and CAP_SYS_ADMIN): "
+                    f"{'no mount command' if mounted is None else mounted.stderr.strip()}")
+    try:
+        yield disk
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)
+
+
+def test_a_video_on_a_full_disk_is_one_line_saying_so(small_disk: Path) -> None:
+    """On a real full disk ffmpeg had added two lines of its own ("[out#0/mp4 @ 0x...] Error
+    writing trailer: No space left on device", "Error closing file: ...") to ours, which said
+    only "ffmpeg ended with exit status 228". run.jsonl (125 KiB) fits; the video does not."""
+    out = small_disk / "out"
+    done = sim_limited(out, None)
+    assert (done.returncode, done.stderr) == (1, (
+        f"lanewarden: error: {out / 'video.mp4'}: video encoding failed (ffmpeg stopped: "
+        "No space left on device)\n"))
+    assert "video.mp4" in (out / "PARTIAL").read_text(encoding="utf-8")
+    assert not (out / "poster.jpg").exists()
+
+
+@pytest.mark.parametrize(("status", "said"), [
+    (228, "ffmpeg stopped: No space left on device"),  # AVERROR(ENOSPC) as a byte
+    (229, "ffmpeg stopped: File too large"),  # EFBIG
+    (255, "ffmpeg ended with exit status 255"),  # ffmpeg's own "a signal stopped it"
+    (1, "ffmpeg ended with exit status 1"),
+])
+def test_how_ffmpeg_ended_is_read_off_its_exit_status(status: int, said: str) -> None:
+    process = subprocess.Popen([sys.executable, "-c", f"raise SystemExit({status})"])
+    process.wait(timeout=60)
+    assert encoder_failure(process) == said
