@@ -5,7 +5,7 @@ The size is read from the file's header with Pillow (it parses only the header o
 BMP, TIFF, WebP, PNM, ...); OpenCV then decodes. A format Pillow does not know is not decoded
 (OpenCV would decode Radiance HDR, whose size only its decoder reads). Returns the reason an
 image cannot be used rather than raising, so a command can report every bad file in one line.
-Never prints.
+Never prints. `write_image` writes one (`detect --out`, `sim --camera-out`, `calibrate capture`).
 """
 
 from __future__ import annotations
@@ -106,6 +106,20 @@ def file_problem(path: Path) -> str:
     if not stat.S_ISREG(mode):
         return NOT_A_REGULAR_FILE
     return ""
+
+
+def write_image(path: Path, image: np.ndarray, params: Sequence[int] = ()) -> None:
+    """Write `image` to `path` in the format its suffix names (OpenCV's encoder, `params` as
+    cv2.imwrite takes them). Raises OSError with the reason: cv2.imwrite answers a full disk
+    with False alone, and libpng prints "libpng error: Write Error" on the terminal beside the
+    command's one line. Encoded in memory, written by Python: the OSError's `strerror` says
+    why ("No space left on device")."""
+    ok, data = cv2.imencode(path.suffix, image, list(params))
+    if not ok:
+        raise OSError(f"OpenCV cannot encode a {image.dtype} {image.shape} image as "
+                      f"{path.suffix or 'a file without a suffix'}")
+    with path.open("wb") as file:
+        file.write(data.data)
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -33,6 +33,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from lanewarden.image_files import write_image
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.scenarios.encoder_pipe import (
@@ -134,11 +135,12 @@ class CameraClipWriter:
         try:
             if self._writer is not None:
                 send_whole(self._writer, np.ascontiguousarray(image))
-            elif not cv2.imwrite(str(self.files.clip / f"frame_{self.frames:06d}.png"), image,
-                                 [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-                raise OSError("cv2.imwrite failed")
+            else:
+                write_image(self.files.clip / f"frame_{self.frames:06d}.png", image,
+                            [cv2.IMWRITE_PNG_COMPRESSION, 1])
         except (OSError, RuntimeError) as exc:
-            why = exc if self._writer is None else encoder_failure(self._process, exc)
+            why = (getattr(exc, "strerror", None) or exc if self._writer is None
+                   else encoder_failure(self._process, exc))
             self._writer = None  # ffmpeg is gone: closing it has nothing more to say
             raise ScenarioOutputError(f"--camera-out {self.files.clip}: cannot write frame "
                                       f"{self.frames} ({why})") from exc

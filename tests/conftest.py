@@ -13,6 +13,9 @@ fast subset (DEVELOPERS.md); plain `pytest` runs everything.
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -66,3 +69,20 @@ def shared_data(relative: str) -> Path:
             f"set {DATA_ENV} to the folder holding {relative.split('/')[0]}/ to run this test"
         )
     return path
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A real 400 KiB file system (tmpfs), mounted for the test: a full disk, not a limit."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)],
+                             capture_output=True, text=True, check=False) if shutil.which(
+        "mount") else None
+    if mounted is None or mounted.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root and CAP_SYS_ADMIN): "
+                    f"{'no mount command' if mounted is None else mounted.stderr.strip()}")
+    try:
+        yield disk
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)

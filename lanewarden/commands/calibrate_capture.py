@@ -28,7 +28,7 @@ from lanewarden.commands.flags import CAMERA_EXPECTED, PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import DeviceError, OutputError, QualityGateError, UsageError
-from lanewarden.image_files import read_image
+from lanewarden.image_files import read_image, write_image
 from lanewarden.perception.calibration_capture import BoardPlacement, judge_frame
 from lanewarden.perception.calibration_config import CalibrationConfig
 from lanewarden.perception.chessboard import ChessboardPattern, larger_pattern, suggest_pattern
@@ -105,8 +105,11 @@ def run_capture(
                         f"corners; use --pattern {found} (count ALL inner corners)"
                     )
             path = out_dir / f"view_{index:03d}.jpg"
-            if not cv2.imwrite(str(path), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
-                raise OutputError(f"{path}: cannot write captured view")
+            try:
+                write_image(path, frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot write captured view "
+                                  f"({exc.strerror or exc})") from None
             index += 1
             kept.append(decision.placement)
             outcome["kept"] += 1

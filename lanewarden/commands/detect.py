@@ -41,7 +41,6 @@ import sys
 from pathlib import Path
 
 import click
-import cv2
 
 from lanewarden.assembly import decision_rule
 from lanewarden.commands.config_cmd import config_option
@@ -49,7 +48,7 @@ from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_folder
 from lanewarden.config import load_config
 from lanewarden.errors import ConfigError, InputFileError, OutputError, UsageError
-from lanewarden.image_files import read_image, same_output_name
+from lanewarden.image_files import read_image, same_output_name, write_image
 from lanewarden.perception.calibration import (
     Undistorter,
     load_calibration,
@@ -190,14 +189,19 @@ def detect_command(
         if out is not None and debug is not None:
             target = out / f"{path.stem}_detect.png"
             overlay = draw_overlay(debug.image, observation, debug, decision)
-            if not cv2.imwrite(str(target), overlay):
-                unwritten.append(f"{target}: cannot write image")
+            try:
+                write_image(target, overlay)
+            except OSError as exc:
+                unwritten.append(f"{target}: cannot write image ({exc.strerror or exc})")
     failed = len(failures) + sum(len(paths) for _, paths in refused.values())
     failures += [f"{paths[0]}" + (f" and {len(paths) - 1} more {w}x{h} image"
                                   f"{'s' if len(paths) > 2 else ''}" if len(paths) > 1 else "")
                  + f": {why}" for (w, h), (why, paths) in refused.items()]
     if unwritten:  # a runtime failure (exit 1) outranks bad input files
-        raise OutputError("; ".join([*unwritten, *failures]))
+        # (the first, and how many more: a full disk had listed every one of 338 images)
+        more = (f"; {len(unwritten) - 1} more annotated image{'s' if len(unwritten) > 2 else ''}"
+                " not written" if len(unwritten) > 1 else "")
+        raise OutputError("; ".join([unwritten[0] + more, *failures]))
     if failures:
         raise InputFileError(
             f"{failed} of {len(images)} images not analysed: {'; '.join(failures)}"

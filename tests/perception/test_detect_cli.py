@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import cv2
@@ -272,3 +273,27 @@ def test_a_video_given_to_detect_says_which_commands_read_videos(
         f"lanewarden: error: 2 of 2 images not analysed: {video}: not a readable image (a "
         "video: `lanewarden replay` and `lanewarden survey --labels FILE` read videos, "
         f"`lanewarden run --camera` plays one); {frames / 'notes.png'}: not a readable image"]
+
+
+def test_annotated_images_on_a_full_disk_are_one_short_line(
+        small_disk: Path, frames: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """cv2.imwrite answers a full disk with False (and libpng prints "libpng error: Write
+    Error"): the line said "cannot write image" with no reason, once per image, every one of
+    338 real frames in one line. Now the first with its reason, and how many more."""
+    images = []
+    for k in range(12):
+        images.append(tmp_path / f"frame_{k:02d}.png")
+        images[-1].write_bytes((frames / "small.png").read_bytes())
+    out = small_disk / "annotated"
+    code = main(["detect", *map(str, images), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1
+    last = err.splitlines()[-1]
+    found = re.fullmatch(rf"lanewarden: error: {re.escape(str(out))}/frame_(\d\d)_detect\.png: "
+                         r"cannot write image \(No space left on device\); (\d+) more annotated "
+                         r"images? not written", last)
+    assert found is not None, last
+    first, more = int(found[1]), int(found[2])
+    assert first + 1 + more == 12  # every image from the first that failed on
+    assert "libpng" not in err

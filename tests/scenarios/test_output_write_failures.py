@@ -9,12 +9,11 @@ command's process, which its ffmpeg inherits."""
 
 from __future__ import annotations
 
+import re
 import resource
-import shutil
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -111,23 +110,6 @@ def test_a_plot_that_cannot_be_written_names_plot_png(tmp_path: Path) -> None:
     assert str(failed.value) == f"{plot}: cannot write the plot (No space left on device)"
 
 
-@pytest.fixture
-def small_disk(tmp_path: Path) -> Iterator[Path]:
-    """A real 400 KiB file system (tmpfs), mounted for the test: a full disk, not a limit."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)],
-                             capture_output=True, text=True, check=False) if shutil.which(
-        "mount") else None
-    if mounted is None or mounted.returncode != 0:
-        pytest.skip("cannot mount a small tmpfs here (needs root and CAP_SYS_ADMIN): "
-                    f"{'no mount command' if mounted is None else mounted.stderr.strip()}")
-    try:
-        yield disk
-    finally:
-        subprocess.run(["umount", str(disk)], check=False)
-
-
 def test_a_video_on_a_full_disk_is_one_line_saying_so(small_disk: Path) -> None:
     """On a real full disk ffmpeg had added two lines of its own ("[out#0/mp4 @ 0x...] Error
     writing trailer: No space left on device", "Error closing file: ...") to ours, which said
@@ -151,3 +133,14 @@ def test_how_ffmpeg_ended_is_read_off_its_exit_status(status: int, said: str) ->
     process = subprocess.Popen([sys.executable, "-c", f"raise SystemExit({status})"])
     process.wait(timeout=60)
     assert encoder_failure(process) == said
+
+
+def test_camera_frames_on_a_full_disk_are_one_line_saying_so(
+        small_disk: Path, tmp_path: Path) -> None:
+    """`sim --camera-out FOLDER` writes PNGs: on a full disk libpng had printed "libpng error:
+    Write Error" above a line that said only "cv2.imwrite failed"."""
+    frames = small_disk / "frames"
+    done = sim_limited(tmp_path / "out", None, "--no-video", "--camera-out", str(frames))
+    assert done.returncode == 1
+    assert re.fullmatch(rf"lanewarden: error: --camera-out {re.escape(str(frames))}: cannot "
+                        r"write frame \d+ \(No space left on device\)\n", done.stderr), done.stderr
