@@ -74,6 +74,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         replay_config,
         usable_calibration,
     )
+    from lanewarden.runner import clip_calibration_hint
 
     if out_dir is not None:
         refuse_a_recording_folder(Path(out_dir))  # before the source is read
@@ -90,6 +91,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                                      f"SOURCE '{source}': the recording's calibration")
     check_preparation(replay_source, config, calibration, config_path=config_path,
                       calibration_path=calibration_path)  # before any output is written
+    if calibration is None and (beside := clip_calibration_hint(source)):
+        # a sim clip replayed without the calibration beside it drove on past the tape's end,
+        # where with it the replay halted LANE_LOST (a new user's walk-through), as `run` warns
+        click.echo(f"lanewarden: warning: no --calibration{beside}", err=True)
     chosen = controller or replay_source.controller or DEFAULT_CONTROLLER
     if chosen not in CONTROLLERS:
         chosen = DEFAULT_CONTROLLER

@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 
 from lanewarden.cli import main
+from lanewarden.perception.calibration import CameraCalibration, save_calibration
+from lanewarden.scenarios.camera import CameraModel
 from tests.conftest import shared_data
 from tests.operator.clips import lane_end_frames, write_images, write_video
 
@@ -197,3 +199,24 @@ def test_not_a_source_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
         err = capsys.readouterr().err
         assert code == 2
         assert err.count("\n") == 1 and str(source) in err and "Traceback" not in err
+
+
+def test_a_clip_replayed_without_the_calibration_beside_it_is_warned(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A sim clip (`sim --camera-out clip.mp4` writes clip.calibration.yaml beside it) replayed
+    without --calibration drove on past the tape's end, where with it the replay halted
+    LANE_LOST, and said nothing (a new user's walk-through); `run` names the file."""
+    video = write_video(lane_end_frames(start_m=2.0, end_m=3.5, speed_m_s=0.6)[:12],
+                        tmp_path / "clip.mp4")
+    camera = CameraModel()
+    beside = tmp_path / "clip.calibration.yaml"
+    save_calibration(CameraCalibration(camera.camera_matrix(), camera.distortion(), (640, 480)),
+                     beside)
+    capsys.readouterr()
+    assert main(["replay", str(video), "--no-video", "--out", str(tmp_path / "a")]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert warned == [f"lanewarden: warning: no --calibration; the clip's own calibration lies "
+                      f"beside it: --calibration {beside}"]
+    assert main(["replay", str(video), "--no-video", "--calibration", str(beside), "--out",
+                 str(tmp_path / "b")]) == 0
+    assert "warning" not in capsys.readouterr().err
