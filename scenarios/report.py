@@ -112,12 +112,32 @@ def _past(m: Mapping[str, object]) -> str:
     value = m.get("distance_past_lane_end_m")
     if not isinstance(value, int | float):
         return "on a lane that never ends"
-    return f"{abs(value):.2f} m {'past' if value >= 0 else 'before'} the end of the tape"
+    return _from_the_end(value)
+
+
+def _from_the_end(value: float, end: str = "the end of the tape") -> str:
+    return f"{abs(value):.2f} m {'past' if value >= 0 else 'before'} {end}"
+
+
+def _halted_where(m: Mapping[str, object]) -> str:
+    """Where HALT began, as the table's "halt position" says it, and where the robot came to rest
+    when the two differ (the demo's sentence had given the resting place as where it halted,
+    0.02 m, under a table saying 0.01 m)."""
+    position = m.get("halt_position")
+    began = position.get("past_lane_end_m") if isinstance(position, Mapping) else None
+    rest = m.get("distance_past_lane_end_m")
+    if not isinstance(began, int | float):
+        return _past(m)
+    said = _from_the_end(began)
+    if isinstance(rest, int | float) and f"{rest:.2f}" != f"{began:.2f}":
+        said += f", coming to rest {_from_the_end(rest, 'it')}"
+    return said
 
 
 def run_story(name: str, m: Mapping[str, object]) -> str:
     """'the supervised controller completed turns A and B and halted (LANE_LOST) 0.37 m before
-    the end of the tape', built only from what the metrics say."""
+    the end of the tape, coming to rest 0.36 m before it', built only from what the metrics
+    say."""
     done = list(m.get("turns_completed") or [])  # type: ignore[call-overload]
     if not done:
         turns = "completed no turn"
@@ -128,7 +148,7 @@ def run_story(name: str, m: Mapping[str, object]) -> str:
     crossed = ", crossed a tape" if m.get("crossed_tape") else ""
     value = m.get("distance_past_lane_end_m")
     if m.get("halted"):
-        ending = f"halted ({format_value(m.get('halt_reason'))}) {_past(m)}"
+        ending = f"halted ({format_value(m.get('halt_reason'))}) {_halted_where(m)}"
     else:
         ending = f"never stopped, ending {_past(m)}"
         if isinstance(value, int | float) and value > 0.5 and not m.get("crossed_tape"):

@@ -111,7 +111,9 @@ def detect_command(
     out_dir: str | None,
     as_json: bool,
 ) -> None:
-    """Find the lane in IMAGE... and print slopes, confidence and the lecture's decision.
+    """Find the lane in IMAGE... and print slopes, confidence and a decision: the lecture's
+    rule (slope sum past +-6: turn) on a lane confident enough to trust
+    (supervisor.confidence_usable_min), else none.
 
     Example: lanewarden detect frames/*.png --json --out annotated/
     """

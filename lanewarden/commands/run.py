@@ -74,13 +74,14 @@ def run_command(camera: str, base_kind: str, port: str | None, calibration_path:
                 assume_camera: bool, controller: str, record_dir: Path | None,
                 record_gray: bool, record_lossy: bool, view: str | None,
                 duration_s: float | None, config_path: str | None) -> int:
-    """Follow the lane under the supervisor, on the robot or on the bench. Ctrl-C, SIGTERM or
-    SIGQUIT stop the robot and end the run; Ctrl-Z stops the robot, then suspends (after `fg` it
-    stays halted); a crash leaves the dead-man holding stop. Every check (config, calibration,
-    camera, recording folder, base link) passes before anything moves. Keys: s start, space stop,
-    r resume; Kobuki buttons: B0 start/resume, B1 stop. Every run is recorded (see `lanewarden
-    replay`). Exit 0 for a normal end (operator stop, --duration, end of a clip), 3 for a safety
-    stop (its reason also on stderr)."""
+    """Follow the lane under the supervisor, on the robot or on the bench. Every check (config,
+    calibration, camera, recording folder, base link) passes before anything moves; then the
+    command is the start: the robot moves as soon as it sees a confident lane, no key needed.
+    Ctrl-C, SIGTERM, SIGQUIT or SIGHUP stop the robot and end the run; Ctrl-Z stops the robot,
+    then suspends (after `fg` it stays halted); a crash leaves the dead-man holding stop. Keys
+    (after a stop): s start, space stop, r resume; Kobuki buttons: B0 start/resume, B1 stop.
+    Every run is recorded (see `lanewarden replay`). Exit 0 for a normal end (operator stop,
+    --duration, end of a clip), 3 for a safety stop (its reason also on stderr)."""
     from lanewarden.run_mcap import CAMERA_GRAY, CAMERA_JPEG, PERCEPTION_INPUT
     from lanewarden.runner import run_robot  # the robot stack loads only when used
 

@@ -69,8 +69,10 @@ def test_table_and_summary() -> None:
     summary = demo_summary(LECTURE, SUPERVISED)
     assert summary.startswith("The lecture's controller completed turn A, crossed a tape and "
                               "never stopped, ending 2.50 m past the end of the tape")
-    assert "the supervised controller completed turns A and B and halted (LANE_LOST) 0.36 m " \
-           "before the end of the tape." in summary
+    # where HALT began, as the table's halt position, then where it came to rest (the sentence
+    # had said 0.36 m, the resting place, under a table saying 0.37 m)
+    assert "the supervised controller completed turns A and B and halted (LANE_LOST) 0.37 m " \
+           "before the end of the tape, coming to rest 0.36 m before it." in summary
 
 
 def test_tile_seams_are_blamed_only_when_the_robot_stayed_in_the_lane() -> None:
