@@ -51,6 +51,11 @@ def quiet_opencv() -> Iterator[None]:
 MAX_CAMERA_INDEX = 9999
 _URL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*://")
 _GLOB_CHARS = re.compile(r"[*?\[]")
+#: What a file OpenCV's video reader cannot open is (run --camera, calibrate capture, replay).
+NOT_A_VIDEO = "not a video OpenCV can read"
+#: What --camera takes.
+CAMERA_HELP = ("a camera index like 0, a video file, an image sequence like "
+               "'dir/frame_%03d.png' or a stream URL")
 
 
 class CameraLost(Exception):
@@ -176,10 +181,7 @@ def open_camera(camera: str,
     else:
         source = camera
         if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
-            raise UsageError(
-                f"--camera '{camera}': no such file (expected a camera index like 0, a video "
-                "file, an image sequence like 'dir/frame_%03d.png' or a stream URL)"
-            )
+            raise UsageError(f"--camera '{camera}': no such file (expected {CAMERA_HELP})")
     # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     with quiet_opencv():
@@ -191,6 +193,9 @@ def open_camera(camera: str,
         opened = capture.isOpened()
     if not opened:
         capture.release()
+        if isinstance(source, str) and "%" not in source and Path(source).is_file():
+            # a file is the user's input, not a device that may be unplugged or busy
+            raise UsageError(f"--camera '{camera}': {NOT_A_VIDEO}; expected {CAMERA_HELP}")
         raise DeviceError(
             f"--camera '{camera}': cannot open it as a camera or video (is it plugged in, "
             "free, and a format OpenCV reads?)"

@@ -40,7 +40,12 @@ import cv2
 import numpy as np
 
 from lanewarden.actuation.base import BaseFeedback
-from lanewarden.camera_source import image_sequence_paths, quiet_opencv, require_camera_view
+from lanewarden.camera_source import (
+    NOT_A_VIDEO,
+    image_sequence_paths,
+    quiet_opencv,
+    require_camera_view,
+)
 from lanewarden.config import LanewardenConfig, config_from_mapping, load_config
 from lanewarden.documents import (
     MAX_DOCUMENT_BYTES,
@@ -806,7 +811,7 @@ def _video(path: Path, source: str, camera_rate_hz: float, max_pixels: int) -> R
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT) or 0) if opened else 0
     if not opened or count <= 0:
         capture.release()
-        raise UsageError(f"SOURCE '{source}': not a video OpenCV can read; expected "
+        raise UsageError(f"SOURCE '{source}': {NOT_A_VIDEO}; expected "
                          f"{SOURCE_HELP}")
     # the container's header says both, before a frame is decoded: a 12 kB AVI claiming 2**31
     # frames had made a list of as many times (a MemoryError at 5 GB), and claiming a million,

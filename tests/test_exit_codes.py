@@ -56,6 +56,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     folder = tmp_path_factory.mktemp("exit-codes")
     cv2.imwrite(str(folder / "lane.png"), syn.frame(syn.STRAIGHT))
     (folder / "notes.png").write_text("not an image\n")
+    (folder / "fake.mp4").write_text("hello\n")  # a file, but no video
     for name, k in (("good", GOOD_K), ("nan", NAN_K), ("zero-focal", ZERO_FOCAL_K)):
         save_calibration(CameraCalibration(np.array(k), np.zeros(5), (640, 480)),
                          folder / f"{name}.yaml")
@@ -69,8 +70,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     (folder / "sequence").mkdir()
     for index in range(3):
         cv2.imwrite(str(folder / "sequence" / f"f_{index}.png"), syn.frame(syn.STRAIGHT))
-    names = ("lane.png", "notes.png", "good.yaml", "nan.yaml", "blocked", "a-file", "tiny.yaml",
-             "long.yaml", "sequence")
+    names = ("lane.png", "notes.png", "fake.mp4", "good.yaml", "nan.yaml", "blocked", "a-file",
+             "tiny.yaml", "long.yaml", "sequence")
     return {name.split(".")[0]: str(folder / name) for name in names} | {"folder": str(folder)}
 
 
@@ -91,6 +92,9 @@ CASES = [
                       "{folder}/undistorted"], "not a readable image"),
     ("calibrate", 1, ["calibrate", "capture", "--camera", "97", "--pattern", "9x6", "--out",
                       "{folder}/shots"], "cannot open it as a camera"),
+    # a file OpenCV cannot read is bad input, said as replay says it, not a missing camera
+    ("calibrate", 2, ["calibrate", "capture", "--camera", "{fake}", "--pattern", "9x6", "--out",
+                      "{folder}/shots"], "--camera '{fake}': not a video OpenCV can read;"),
     ("calibrate", 2, ["calibrate", "--images", "{folder}/none-*.png", "--pattern", "9x6",
                       "--square", "0.025", "--out", "{folder}/cam.yaml"], "no files match"),
     ("base", 1, ["base", "info", "--port", "{folder}/no-such-port"], "no-such-port"),
@@ -104,6 +108,13 @@ CASES = [
                 "{folder}/sim-check"], "states no expected outcome"),
     ("run", 1, ["run", "--camera", "97", "--port", "{folder}/no-port", "--duration", "1"],
      "cannot open it as a camera"),
+    ("run", 1, ["run", "--camera", "/dev/null", "--port", "{folder}/no-port", "--duration", "1"],
+     "cannot open it as a camera or video (is it plugged in"),
+    ("run", 2, ["run", "--camera", "{fake}", "--calibration", "{good}", "--port",
+                "{folder}/no-port", "--duration", "1"],
+     "--camera '{fake}': not a video OpenCV can read; expected a camera index"),
+    ("replay", 2, ["replay", "{fake}", "--out", "{folder}/replay"],
+     "SOURCE '{fake}': not a video OpenCV can read; expected"),
     ("run", 2, ["run", "--camera", "{sequence}/f_%d.png", "--calibration", "{nan}",
                 "--port", "{folder}/no-port", "--duration", "1"], "refusing to engage"),
 ]
@@ -120,7 +131,7 @@ def test_exit_code(family: str, code: int, argv: list[str], text: str, files: di
         assert err == ""
     else:
         lines = err.strip().splitlines()
-        assert len(lines) == 1 and text in lines[0], lines
+        assert len(lines) == 1 and text.format_map(files) in lines[0], lines
 
 
 def test_base_exit_0_with_the_standin(capsys: pytest.CaptureFixture[str]) -> None:
