@@ -18,10 +18,12 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lanewarden.actuation.config import ActuationConfig
 from lanewarden.documents import (
+    CONFIG_SECTIONS,
     DocumentModel,
     allowed_range,
     read_yaml_document,
     validation_error_lines,
+    wrong_document,
 )
 from lanewarden.errors import ConfigError
 from lanewarden.perception.calibration_config import CalibrationConfig
@@ -143,7 +145,32 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
     if path is None:
         return LanewardenConfig()
     data = read_yaml_document(path, "config", ConfigError)
+    if other := another_document(data):
+        raise ConfigError(f"{path}: {other}")
     return config_from_mapping(data, str(path))
+
+
+def another_document(data: Any) -> str:
+    """Is a document read as a config a scenario, a campaign spec or a campaign case? Yes when
+    it has every key such a file must have and no config section of its own: `wrong_document`'s
+    line, without the file's name (the config's validation had said 'unknown key' of each of
+    its keys, a campaign spec's ten and more). '' otherwise."""
+    if not isinstance(data, dict) or all(key in CONFIG_SECTIONS for key in data):
+        return ""  # a config (or not a mapping, as config_from_mapping says)
+    # imported here: the campaign's modules import this one where they validate a config
+    from lanewarden.scenarios.campaign.cases import CampaignSpec, Case
+    from lanewarden.scenarios.spec import ScenarioSpec
+
+    for what, flag, model in (("scenario", "sim --scenario", ScenarioSpec),
+                              ("campaign spec", "campaign --spec", CampaignSpec),
+                              ("campaign case", "sim --case", Case)):
+        fields = model.model_fields
+        required = [name for name, field in fields.items() if field.is_required()]
+        sections = {key for key in data if key in CONFIG_SECTIONS} - set(fields)
+        if all(name in data for name in required) and not sections:
+            signs = [name for name in required if name not in CONFIG_SECTIONS][:2]
+            return wrong_document(f"a {what}", signs, "config", flag)
+    return ""
 
 
 @dataclass(frozen=True)

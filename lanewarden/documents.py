@@ -25,7 +25,7 @@ import reprlib
 import stat
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,11 @@ MAX_PROBLEM_LINES = 10
 #: Why a FIFO, socket or device is refused where a file is expected (reading one waits for a
 #: writer, or never ends).
 NOT_A_REGULAR_FILE = "not a regular file (a FIFO, socket or device)"
+#: The top-level sections of a lanewarden config: `LanewardenConfig`'s fields (this leaf module
+#: cannot import the config; tests/test_documents.py keeps the two in step). A file holding one
+#: of them, and none of the keys of the file expected, is a config given in the wrong place.
+CONFIG_SECTIONS = ("perception", "calibration", "supervisor", "actuation", "simulation",
+                   "campaign")
 
 _SAFE_LOADER: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -61,6 +66,33 @@ def is_special_file(path: Path) -> bool:
     except OSError:
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def wrong_document(kind: str, signs: Sequence[str], what: str, flag: str,
+                   expected: str = "") -> str:
+    """The one wording for a lanewarden file given in the place of another: "a lanewarden
+    config (it has 'perception:'), not a scenario (give this file to --config)", `expected`
+    (what the file given should have been) after a ';' when given."""
+    has = " and ".join(f"'{sign}:'" for sign in signs)
+    return (f"{kind} (it has {has}), not a {what}{f'; {expected}' if expected else ''} "
+            f"(give this file to {flag})")
+
+
+def config_given_as(keys: Iterable[object], own_keys: Iterable[str], what: str,
+                    expected: str = "") -> str:
+    """Is a document whose top-level keys are `keys`, read as a `what` (a scenario, a campaign
+    spec, a calibration), a lanewarden config? Yes when it holds a config section and none of
+    `own_keys` (the keys a `what` may have): `wrong_document`'s line, without the file's name
+    (each `what`'s own validation had said 'unknown key' of every section, and 'missing' of
+    every required key). '' otherwise: a `what` with a stray section is left to its own
+    validation, which names that key."""
+    keys = set(keys)
+    if keys & set(own_keys):
+        return ""
+    section = next((name for name in CONFIG_SECTIONS if name in keys), None)
+    if section is None:
+        return ""
+    return wrong_document("a lanewarden config", [section], what, "--config", expected)
 
 
 def dangling_link(path: Path) -> str:

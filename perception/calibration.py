@@ -34,6 +34,7 @@ from lanewarden.documents import (
     MAX_LEVEL_MARKS,
     MAX_NESTING_DEPTH,
     NOT_A_REGULAR_FILE,
+    config_given_as,
     is_special_file,
     level_marks,
     nesting_depth,
@@ -443,8 +444,6 @@ def image_size_problem(width: int, height: int) -> str:
 #: What a calibration file is, for errors about one that is not.
 EXPECTED_CALIBRATION = ("expected a camera calibration as `lanewarden calibrate` writes it "
                         "(camera_matrix, distortion_coefficients, image_width, image_height)")
-#: Top-level sections of a lanewarden config: a file with one of them given as a calibration.
-CONFIG_SECTIONS = ("perception", "supervisor", "actuation", "simulation", "campaign")
 
 
 def load_calibration(path: str | Path) -> CameraCalibration:
@@ -497,11 +496,9 @@ def load_calibration(path: str | Path) -> CameraCalibration:
             # file was ignored while the reader saw the correction
             raise PerceptionError(f"{path}: node '{repeated}' appears twice (OpenCV would read "
                                   "the first and ignore the other); expected each node once")
-        sections = [k for k in CONFIG_SECTIONS if not storage.getNode(k).isNone()]
-        if sections and storage.getNode("camera_matrix").isNone():
-            raise PerceptionError(f"{path}: a lanewarden config (it has '{sections[0]}:'), not "
-                                  f"a calibration; {EXPECTED_CALIBRATION} (give this file to "
-                                  "--config)")
+        if config := config_given_as(root.keys(), ("camera_matrix",), "calibration",
+                                     EXPECTED_CALIBRATION):
+            raise PerceptionError(f"{path}: {config}")
         camera_matrix = _read_matrix(storage.getNode("camera_matrix"), path, "camera_matrix")
         if camera_matrix.shape != (3, 3):
             raise PerceptionError(

@@ -31,7 +31,12 @@ from pydantic import (
     model_validator,
 )
 
-from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
+from lanewarden.documents import (
+    DocumentModel,
+    config_given_as,
+    read_yaml_document,
+    validation_error_lines,
+)
 from lanewarden.perception.ground import (
     DEFAULT_HFOV_DEG,
     DEFAULT_POSE_FORWARD_M,
@@ -703,6 +708,8 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
         raise ScenarioError(
             f"{source}: expected a YAML mapping at the top level, got {type(data).__name__}"
         )
+    if config := config_given_as(data, ScenarioSpec.model_fields, "scenario"):
+        raise ScenarioError(f"{source}: {config}")
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:

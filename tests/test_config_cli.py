@@ -9,6 +9,7 @@ import yaml
 
 from lanewarden.cli import main
 from lanewarden.config import LanewardenConfig, config_as_yaml, load_config
+from tests.conftest import PROJECT_ROOT
 
 
 def test_config_show_round_trips(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -50,6 +51,46 @@ def test_bad_config_is_one_line_naming_the_problem(
     assert str(path) in err
     assert "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
+
+
+#: A campaign's case file (DIR/cases/<id>.yaml) with every key a case must have.
+CASE = ("id: r00001\ncampaign: default\ncampaign_seed: 0\nindex: 1\ncontroller: supervised\n"
+        "seed: 5\ncamera: 320x240\nfault_kinds: []\nscenario: {name: s}\nconfig: {}\n")
+
+
+@pytest.mark.parametrize(("file", "expected"), [
+    ("scenarios/library/straight.yaml",
+     "a scenario (it has 'name:' and 'lane:'), not a config (give this file to sim --scenario)"),
+    ("scenarios/campaign/default.yaml",
+     "a campaign spec (it has 'name:' and 'scenarios:'), not a config (give this file to "
+     "campaign --spec)"),
+    # a case holds 'campaign: default', a name, where a config has its campaign section
+    ("r00001.yaml", "a campaign case (it has 'id:' and 'campaign_seed:'), not a config (give "
+                    "this file to sim --case)"),
+])
+def test_another_lanewarden_file_given_as_the_config_is_one_line_saying_so(
+    file: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A scenario given to --config had said 'unknown key' of each of its keys (six lines for
+    the library's straight.yaml), a campaign spec of ten and then '... and 3 more problems'."""
+    path = PROJECT_ROOT / file
+    if file == "r00001.yaml":
+        path = tmp_path / file
+        path.write_text(CASE, encoding="utf-8")
+    assert main(["config", "show", "--config", str(path)]) == 2
+    assert capsys.readouterr().err.splitlines() == [f"lanewarden: error: {path}: {expected}"]
+
+
+def test_a_config_with_a_stray_top_level_key_is_still_read_as_a_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Only a file with no config section of its own is taken for another kind: a config
+    with a misplaced 'name:' is told about that key."""
+    path = tmp_path / "lw.yaml"
+    path.write_text("name: mine\nlane: {}\nperception: {}\n", encoding="utf-8")
+    assert main(["config", "show", "--config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: unknown key 'name'" in err and "not a config" not in err
 
 
 def test_missing_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from lanewarden.documents import (
+    CONFIG_SECTIONS,
     MAX_DOCUMENT_BYTES,
     level_marks,
     nesting_depth,
@@ -130,3 +131,13 @@ def test_nesting_depth_counts_brackets_and_xml_elements_not_quoted_text() -> Non
     # block levels: each line one deeper (a 1 MB file holds 1 400; walking the calibration's
     # nodes then raised a RecursionError, a traceback)
     assert nesting_depth("".join(" " * k + "a:\n" for k in range(40)) + " " * 40 + "1\n") == 41
+
+
+def test_the_config_sections_other_files_are_told_apart_by_are_the_configs() -> None:
+    """`CONFIG_SECTIONS` (this leaf module cannot import lanewarden.config) names every
+    top-level section of the config: a section added to the config without it would let a
+    config given as a scenario, a campaign spec or a calibration that holds only that section
+    pass for one, with a 'missing' or 'unknown key' line of each key."""
+    from lanewarden.config import LanewardenConfig
+
+    assert CONFIG_SECTIONS == tuple(LanewardenConfig.model_fields)

@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from lanewarden.documents import (
     DocumentModel,
+    config_given_as,
     read_yaml_document,
     shown_value,
     validation_error_lines,
@@ -240,6 +241,8 @@ def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
     if not isinstance(data, dict):
         raise ScenarioError(f"{path}: expected a YAML mapping at the top level, got "
                             f"{type(data).__name__}")
+    if config := config_given_as(data, model.model_fields, what):
+        raise ScenarioError(f"{path}: {config}")
     try:
         return model.model_validate(data)
     except ValidationError as exc:

@@ -254,14 +254,3 @@ def test_load_of_partial_files_is_a_calibration_or_one_line_error(
         assert str(path) in str(exc) and "\n" not in str(exc)
     else:
         assert loaded.camera_matrix.shape == (3, 3) and loaded.image_size[0] > 0
-
-
-def test_the_config_sections_a_calibration_is_told_apart_from_are_the_configs() -> None:
-    """`CONFIG_SECTIONS` (perception/ cannot import lanewarden.config) names every top-level
-    section of the config but `calibration`, which a calibration file never holds either: a
-    section added to the config without it would let that config pass for a calibration with
-    only a 'missing node' error."""
-    from lanewarden.config import LanewardenConfig
-    from lanewarden.perception.calibration import CONFIG_SECTIONS
-
-    assert set(CONFIG_SECTIONS) == set(LanewardenConfig.model_fields) - {"calibration"}

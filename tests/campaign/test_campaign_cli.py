@@ -174,6 +174,23 @@ def test_a_spec_missing_its_keys_says_they_are_missing(
         f"lanewarden: error: {spec}: unknown key 'fautls': did you mean 'faults'?"]
 
 
+def test_a_config_given_as_the_spec_is_one_line_saying_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`config show`'s file given to --spec had said 'missing' of name, scenarios and faults
+    and 'unknown key' of each of the config's six sections: nine lines, none saying what the
+    file is."""
+    assert main(["config", "show"]) == 0
+    config = tmp_path / "lw.yaml"
+    config.write_text(capsys.readouterr().out, encoding="utf-8")
+    code = main(["campaign", "--spec", str(config), "--out", str(tmp_path / "o"), "--runs", "1",
+                 "--scheduler", "in-process"])
+    assert code == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {config}: a lanewarden config (it has 'perception:'), not a "
+        "campaign spec (give this file to --config)"]
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_misspelt_scenario_in_a_spec_is_one_line_naming_the_closest(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """'straigt' in the default spec's scenarios: it was read as a file beside the spec

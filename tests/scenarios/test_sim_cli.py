@@ -211,6 +211,22 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path, capsys: pytest.Cap
     assert err == [f"lanewarden: error: {bad}: run.max_time_s = {expected}"]
 
 
+def test_a_config_given_as_the_scenario_is_one_line_saying_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`config show`'s file given to --scenario had said 'missing' of name and lane and
+    'unknown key' of each of the config's six sections ('perception': did you mean
+    'description'?): eight lines, none saying what the file is."""
+    assert main(["config", "show"]) == 0
+    config = tmp_path / "lw.yaml"
+    config.write_text(capsys.readouterr().out, encoding="utf-8")
+    out = tmp_path / "o"
+    assert main(["sim", "--scenario", str(config), "--out", str(out), "--quiet"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {config}: a lanewarden config (it has 'perception:'), not a "
+        "scenario (give this file to --config)"]
+    assert not out.exists()
+
+
 def test_a_world_too_large_names_the_scenario_file(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The world's own size check knew only the scenario's name ('geo: the lane ... covers');
