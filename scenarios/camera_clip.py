@@ -19,10 +19,13 @@ after the sensor, so they are not in a clip (a clip plays at a constant rate).
 
 from __future__ import annotations
 
+import errno
 import logging
+import os
 import re
 import shlex
 import subprocess
+import tempfile
 from collections.abc import Generator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +36,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from lanewarden.documents import dangling_link
 from lanewarden.image_files import write_image
 from lanewarden.perception.calibration import CameraCalibration, save_calibration
 from lanewarden.perception.errors import PerceptionError
@@ -73,26 +77,63 @@ class ClipFiles:
 
 def check_clip_target(target: Path) -> ClipFiles:
     """The clip's files, or ScenarioError (one line naming --camera-out) when FILE cannot be
-    used: a folder where a video should go, a file where frames should go, or a folder holding
-    anything but an earlier clip's frames."""
+    used: a folder where a video should go, a file where frames should go, a folder holding
+    anything but an earlier clip's frames, or a place the clip and its calibration cannot be
+    written (`_unwritable`). Leaves every file as it was: called before the run's output folder
+    is prepared, so a refused --camera-out leaves an earlier run's outputs as they were."""
     files = ClipFiles.for_target(target)
     where = f"--camera-out {target}"
     if files.is_video:
         if target.is_dir():
             raise ScenarioError(f"{where}: is a folder (expected a video file name ending in "
                                 f"{', '.join(VIDEO_SUFFIXES)}, or a folder name for PNG frames)")
-        return files
-    if target.exists() and not target.is_dir():
+    elif target.exists() and not target.is_dir():
         raise ScenarioError(f"{where}: exists and is not a folder (a name without a video suffix "
                             f"is a folder of PNG frames; for a video end it in "
                             f"{', '.join(VIDEO_SUFFIXES)})")
-    if target.is_dir():
+    elif target.is_dir():
         others = sorted(p.name for p in target.iterdir() if not _FRAME_NAME.match(p.name))
         if others:
             raise ScenarioError(f"{where}: the folder holds other files ({', '.join(others[:3])}"
                                 f"{', ...' if len(others) > 3 else ''}): expected a new or empty "
                                 "folder, or one with an earlier clip's frame_NNNNNN.png only")
+    if problem := _unwritable(files):
+        raise ScenarioError(f"{where}: {problem}")
     return files
+
+
+def _unwritable(files: ClipFiles) -> str | None:
+    """Why the clip and the files beside it could not be written, or None. Their folder (the
+    clip's parent) must exist or be creatable: its nearest existing part a folder that takes a
+    new file (tried with a file created and removed at once: root may write anywhere by its
+    permissions, yet /proc takes no file), and so must a frames folder that exists; a file that
+    is there already must be a file this process may write. Found before the run: ffmpeg had
+    found an output it could not open only at the first frames, in two lines of its own."""
+    clip = files.clip
+    if link := dangling_link(clip):
+        return f"{link}; expected a new {'file' if files.is_video else 'folder'} name"
+    folder = clip.parent
+    while not (folder.exists() or folder.is_symlink()):  # "." and "/" always exist
+        folder = folder.parent
+    if not folder.is_dir():
+        return f"a part of this path exists and is not a folder ({folder})"
+    for place in (folder, clip if not files.is_video and clip.is_dir() else None):
+        if place is None:
+            continue
+        try:
+            fd, probe = tempfile.mkstemp(prefix=".lanewarden-probe-", dir=place)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            return f"cannot write there (cannot create a file in {place}: {exc.strerror or exc})"
+    for path in (clip if files.is_video else None, files.calibration, files.config):
+        if path is None or not path.exists():
+            continue
+        if not path.is_file():
+            return f"{path} exists and is not a file"
+        if not os.access(path, os.W_OK):
+            return f"cannot write there ({path}: {os.strerror(errno.EACCES)})"
+    return None
 
 
 class CameraClipWriter:

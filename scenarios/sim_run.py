@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanewarden.scenarios.camera_clip import CameraClipWriter, check_clip_target
+from lanewarden.scenarios.camera_clip import CameraClipWriter, ClipFiles
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
 from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.output_folder import OutputFolder
@@ -67,8 +67,10 @@ class RunRequest:
     progress: bool = True
     progress_position: int = 0
     source: str | None = None
-    #: `--camera-out`: write the camera's raw view there too (scenarios.camera_clip)
-    camera_out: Path | None = None
+    #: `--camera-out`: write the camera's raw view there too (scenarios.camera_clip); checked by
+    #: `check_clip_target` before the output folder is prepared, as a refused one must leave an
+    #: earlier run's outputs untouched
+    camera_out: ClipFiles | None = None
     #: more metrics from the finished run (e.g. a campaign case's outcome); a module-level
     #: function, so the request stays picklable
     judge: Callable[[SimulationResult, LanewardenConfig], dict[str, object]] | None = None
@@ -87,11 +89,11 @@ def _progress(request: RunRequest, config: LanewardenConfig) -> Progress:
 
 
 def _camera_clip(request: RunRequest, config: LanewardenConfig) -> CameraClipWriter | None:
-    """The camera clip's writer (`--camera-out`), checked and opened before the run starts."""
+    """The camera clip's writer (`--camera-out`), opened before the run starts."""
     if request.camera_out is None:
         return None
     sim = config.simulation
-    return CameraClipWriter(check_clip_target(request.camera_out), (sim.width_px, sim.height_px),
+    return CameraClipWriter(request.camera_out, (sim.width_px, sim.height_px),
                             sim.camera_rate_hz, sim.video.preset, gray=not sim.perception_color)
 
 

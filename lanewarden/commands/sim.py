@@ -29,6 +29,7 @@ from lanewarden.commands.output_folders import (
 from lanewarden.config import load_config, narrow_lane_warning
 from lanewarden.errors import QualityGateError, UsageError
 from lanewarden.scenarios.before_halt import halt_line
+from lanewarden.scenarios.camera_clip import check_clip_target
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
@@ -147,7 +148,6 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
             raise UsageError(f"--case: the case file holds the seed and the controller; drop "
                              f"{' and '.join(changed)}")
         request = _case_request(case_file, scenario, config_path, out_dir, no_video, quiet)
-        request = replace(request, camera_out=camera_out)
         spec, controller, out = request.spec, request.controller, request.out_dir
     else:
         if scenario is None:
@@ -157,12 +157,13 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         out = Path(out_dir) if out_dir else Path(DEFAULT_DEMO_OUT) / f"{spec.name}-{controller}"
         request = RunRequest(
             spec=spec, config=config, controller=controller, seed=seed, out_dir=out,
-            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario,
-            camera_out=camera_out)
+            build_stack=build_stack, video=not no_video, progress=not quiet, source=scenario)
     if camera_out is not None:
-        # the clip and its calibration go into its folder
+        # every check before the output folder is prepared (a refused --camera-out had left the
+        # earlier run's outputs deleted); the clip and its calibration go into its folder
         refuse_a_recording_folder(camera_out.parent, "--camera-out", given=camera_out)
         _check_clip_beside_outputs(camera_out, out)
+        request = replace(request, camera_out=check_clip_target(camera_out))
     if narrow := narrow_lane_warning(effective_config(request.config, spec)):
         click.echo(f"warning: {narrow}")
     create_output_folder(out)

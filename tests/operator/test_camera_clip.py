@@ -4,6 +4,7 @@ video (sim's composite video.mp4) refused as a camera, within seconds."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -15,6 +16,8 @@ from lanewarden.actuation.base import STOP
 from lanewarden.cli import main
 from lanewarden.perception.calibration import load_calibration
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.camera_clip import check_clip_target
+from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.texture import paint_ground
 from lanewarden.scenarios.video import MapView, VideoRecorder, run_video_layout
 from lanewarden.scenarios.world import build_world
@@ -123,6 +126,86 @@ def test_a_clip_never_overwrites_what_is_not_its_own(
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"lanewarden: error: --camera-out {target}: {expected}"]
     assert not (tmp_path / "sim" / "metrics.json").exists(), "refused before the run"
+
+
+#: An earlier run's outputs in --out (what `sim` deletes when it prepares the folder).
+EARLIER = {"metrics.json": "{}\n", "run.jsonl": "an earlier run's log\n",
+           "plot.png": "an earlier plot", "report.html": "an earlier report"}
+
+
+def _no_folder(path: Path) -> None:
+    pass
+
+
+@pytest.mark.parametrize(("make", "name"), [
+    (_folder_with_notes, "frames"), (_a_file, "frames"),
+    (_no_folder, "/proc/clip.mp4"),  # a folder that takes no file (bug 2's case)
+], ids=["folder-with-notes", "a-file", "unwritable-folder"])
+def test_a_refused_clip_leaves_the_earlier_runs_outputs(
+        make: Callable[[Path], None], name: str, scenario: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """--camera-out was checked once the run had prepared --out: a refused one had deleted the
+    earlier run's outputs there, leaving only PARTIAL. Every check runs first now."""
+    target = tmp_path / name  # (an absolute name stays itself)
+    make(target)
+    out = tmp_path / "sim"
+    out.mkdir()
+    for file, text in EARLIER.items():
+        (out / file).write_text(text)
+    assert main(["sim", "--scenario", str(scenario), "--no-video", "--quiet", "--out", str(out),
+                 "--camera-out", str(target)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"lanewarden: error: --camera-out {target}: ")
+    assert {p.name: p.read_text() for p in out.iterdir()} == EARLIER, "as they were, no PARTIAL"
+
+
+@pytest.mark.parametrize("target", ["/proc/clip.mp4", "/proc/clip", "/proc/none/clip.mp4"],
+                         ids=["video", "frames", "missing-folder"])
+def test_a_clip_where_nothing_can_be_written_is_refused_before_the_run_in_one_line(
+        target: str, scenario: Path, tmp_path: Path,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    """/proc takes no file (not even root's): ffmpeg had found it at the first frames, the run
+    under way, and printed two lines of its own ("Error opening output files: ...") before ours
+    (exit 1); a frames folder there was one line, but as late. Found before the run now: one
+    line, exit 2 (capfd: ffmpeg writes to the process's stderr itself)."""
+    out = tmp_path / "sim"
+    assert main(["sim", "--scenario", str(scenario), "--no-video", "--quiet", "--out", str(out),
+                 "--camera-out", target]) == 2
+    captured = capfd.readouterr()
+    # the reason is the system's: ENOENT for root, EACCES for anyone else
+    assert re.fullmatch(rf"lanewarden: error: --camera-out {re.escape(target)}: cannot write "
+                        r"there \(cannot create a file in /proc: [^()\n]+\)\n",
+                        captured.err), captured.err
+    assert not (out / "run.jsonl").exists(), "refused before the run"
+
+
+def _a_file_on_the_way(tmp_path: Path) -> tuple[Path, str]:
+    (tmp_path / "notes").write_text("mine")
+    return tmp_path / "notes" / "clip.mp4", f"a part of this path exists and is not a folder " \
+                                           f"({tmp_path / 'notes'})"
+
+
+def _a_folder_for_the_calibration(tmp_path: Path) -> tuple[Path, str]:
+    (tmp_path / "clip.calibration.yaml").mkdir()
+    return tmp_path / "clip.mp4", f"{tmp_path / 'clip.calibration.yaml'} exists and is not a file"
+
+
+def _a_link_to_nothing(tmp_path: Path) -> tuple[Path, str]:
+    (tmp_path / "clip.mp4").symlink_to(tmp_path / "gone" / "clip.mp4")
+    return tmp_path / "clip.mp4", (f"a link to '{tmp_path / 'gone' / 'clip.mp4'}', which does "
+                                   "not exist; expected a new file name")
+
+
+@pytest.mark.parametrize("make", [_a_file_on_the_way, _a_folder_for_the_calibration,
+                                  _a_link_to_nothing])
+def test_a_clip_its_files_cannot_be_written_for_is_refused_up_front(
+        make: Callable[[Path], tuple[Path, str]], tmp_path: Path) -> None:
+    """Each had been found only with the run under way: by ffmpeg opening the clip (a file on
+    its path, a link into a missing folder) or at the end, writing the calibration."""
+    target, expected = make(tmp_path)
+    with pytest.raises(ScenarioError) as raised:
+        check_clip_target(target)
+    assert str(raised.value) == f"--camera-out {target}: {expected}"
 
 
 # ---- a run video is not a camera -----------------------------------------------------------------
