@@ -45,6 +45,7 @@ from lanewarden.scenarios.encoder_pipe import (
     close_encoder,
     encoder_failure,
     encoder_process,
+    ffmpeg_output,
     send_whole,
 )
 from lanewarden.scenarios.errors import ScenarioError, ScenarioOutputError
@@ -155,7 +156,7 @@ class CameraClipWriter:
 
                 logging.getLogger("imageio_ffmpeg").setLevel(logging.ERROR)
                 writer = imageio_ffmpeg.write_frames(
-                    str(files.clip), size, fps=fps, codec="libx264",
+                    ffmpeg_output(files.clip), size, fps=fps, codec="libx264",
                     pix_fmt_in="gray" if gray else "bgr24", pix_fmt_out="yuv420p",
                     macro_block_size=2, ffmpeg_log_level=FFMPEG_LOG_LEVEL,
                     output_params=["-preset", preset, "-crf", str(CLIP_CRF),

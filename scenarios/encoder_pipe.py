@@ -45,6 +45,14 @@ _DEFERRED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 FFMPEG_LOG_LEVEL = "fatal"
 
 
+def ffmpeg_output(path: Path) -> str:
+    """`path` as ffmpeg's output argument, read as a file name whatever it holds: ffmpeg takes
+    `NAME:...` for a protocol (`a:b.mp4` failed, "Protocol not found"; `file:c.mp4` wrote
+    c.mp4) and a name starting with '-' for an option (pathlib makes `./-x.mp4` `-x.mp4`),
+    each reported by ffmpeg in lines of its own beside ours."""
+    return f"file:{path}"
+
+
 def send_whole(writer: Generator[Any, Any, None], frame: Any) -> None:
     """`writer.send(frame)` with the stop signals deferred until the frame is written (outside
     the main thread, where handlers cannot be set, a plain send)."""

@@ -14,9 +14,10 @@ import pytest
 
 from lanewarden.actuation.base import STOP
 from lanewarden.cli import main
-from lanewarden.perception.calibration import load_calibration
+from lanewarden.perception.calibration import CameraCalibration, load_calibration
 from lanewarden.scenarios.camera import CameraModel
-from lanewarden.scenarios.camera_clip import check_clip_target
+from lanewarden.scenarios.camera_clip import CameraClipWriter, check_clip_target
+from lanewarden.scenarios.encoder_pipe import mp4_problem
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.texture import paint_ground
 from lanewarden.scenarios.video import MapView, VideoRecorder, run_video_layout
@@ -206,6 +207,26 @@ def test_a_clip_its_files_cannot_be_written_for_is_refused_up_front(
     with pytest.raises(ScenarioError) as raised:
         check_clip_target(target)
     assert str(raised.value) == f"--camera-out {target}: {expected}"
+
+
+@pytest.mark.parametrize("name", ["a:b.mp4", "file:c.mp4", "-x.mp4"])
+def test_a_clip_name_is_a_file_name_to_ffmpeg(name: str, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch,
+                                              capfd: pytest.CaptureFixture[str]) -> None:
+    """ffmpeg read `a:b.mp4` as a protocol ("Protocol not found"), wrote `file:c.mp4` to c.mp4,
+    and took `-x.mp4` (`./-x.mp4` to pathlib) for an option, each in lines of its own; the clip
+    is the file named now, and stderr stays empty."""
+    monkeypatch.chdir(tmp_path)
+    writer = CameraClipWriter(check_clip_target(Path(name)), (64, 48), 30.0, "ultrafast",
+                              gray=True)
+    for i in range(3):
+        writer.add(np.zeros((48, 64), np.uint8), i / 30)
+    writer.close(CameraCalibration(np.array([[50.0, 0, 32], [0, 50.0, 24], [0, 0, 1]]),
+                                   np.zeros(5), (64, 48)), {})
+    assert capfd.readouterr().err == ""
+    assert mp4_problem(tmp_path / name) is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [name, name.removesuffix(".mp4") + ".calibration.yaml"])
 
 
 # ---- a run video is not a camera -----------------------------------------------------------------
