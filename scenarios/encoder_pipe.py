@@ -142,5 +142,5 @@ def mp4_problem(path: Path) -> str | None:
                 boxes.add(kind)
                 offset += length
     except OSError as exc:
-        return f"cannot be read back ({exc.strerror or exc})"
+        return f"unreadable ({exc.strerror or exc})"  # (a phrase after "the file is")
     return None if b"moov" in boxes else "unfinished: no moov box (the index a player needs)"

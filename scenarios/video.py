@@ -42,6 +42,7 @@ from lanewarden.scenarios.encoder_pipe import (
     close_encoder,
     encoder_failure,
     encoder_process,
+    ffmpeg_output,
     send_whole,
 )
 from lanewarden.scenarios.errors import ScenarioOutputError
@@ -332,7 +333,7 @@ class VideoRecorder:
         logging.getLogger("imageio_ffmpeg").setLevel(logging.ERROR)
         try:
             writer = imageio_ffmpeg.write_frames(
-                str(path), (width, height), fps=fps, codec="libx264",
+                ffmpeg_output(path), (width, height), fps=fps, codec="libx264",
                 pix_fmt_in="bgr24", pix_fmt_out="yuv420p", macro_block_size=2,
                 output_params=["-preset", preset, "-crf", str(crf), "-movflags", "+faststart"],
                 ffmpeg_log_level=FFMPEG_LOG_LEVEL,

@@ -96,7 +96,7 @@ def test_a_cut_or_unfinished_mp4_is_told_from_a_finished_one(tmp_path: Path) -> 
             ("empty", b"", "unfinished: no moov box (the index a player needs)")):
         (tmp_path / name).write_bytes(data)
         assert mp4_problem(tmp_path / name) == problem, name
-    assert mp4_problem(tmp_path / "missing") == "cannot be read back (No such file or directory)"
+    assert mp4_problem(tmp_path / "missing") == "unreadable (No such file or directory)"
 
 
 def test_a_plot_that_cannot_be_written_names_plot_png(tmp_path: Path) -> None:
@@ -144,3 +144,12 @@ def test_camera_frames_on_a_full_disk_are_one_line_saying_so(
     assert done.returncode == 1
     assert re.fullmatch(rf"lanewarden: error: --camera-out {re.escape(str(frames))}: cannot "
                         r"write frame \d+ \(No space left on device\)\n", done.stderr), done.stderr
+
+
+def test_a_run_video_in_a_folder_named_like_a_protocol_is_written(tmp_path: Path) -> None:
+    """ffmpeg reads a relative `a:b/video.mp4` as protocol 'a' ("Protocol not found", lines of
+    its own and a failed run): the run's video is named to it as a file, as the camera clip is."""
+    done = subprocess.run([sys.executable, "-m", "lanewarden", *SIM, "--out", "a:b"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert mp4_problem(tmp_path / "a:b" / "video.mp4") is None
