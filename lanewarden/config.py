@@ -150,12 +150,15 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
     return config_from_mapping(data, str(path))
 
 
-def another_document(data: Any) -> str:
-    """Is a document read as a config a scenario, a campaign spec or a campaign case? Yes when
-    it has every key such a file must have and no config section of its own: `wrong_document`'s
-    line, without the file's name (the config's validation had said 'unknown key' of each of
-    its keys, a campaign spec's ten and more). '' otherwise."""
-    if not isinstance(data, dict) or all(key in CONFIG_SECTIONS for key in data):
+def another_document(data: Any, read_as: str = "config") -> str:
+    """Is a document read as a `read_as` (a config, a scenario, a campaign spec or a campaign
+    case) one of the others but a config? Yes when it has every key such a file must have and no
+    config section of its own: `wrong_document`'s line, without the file's name (the config's
+    validation had said 'unknown key' of each of its keys, a campaign spec's ten and more; a
+    spec read as a scenario gave eleven lines). '' otherwise. (A config read as one of the
+    others: `documents.config_given_as`.)"""
+    if not isinstance(data, dict) or (
+            read_as == "config" and all(key in CONFIG_SECTIONS for key in data)):
         return ""  # a config (or not a mapping, as config_from_mapping says)
     # imported here: the campaign's modules import this one where they validate a config
     from lanewarden.scenarios.campaign.cases import CampaignSpec, Case
@@ -164,12 +167,14 @@ def another_document(data: Any) -> str:
     for what, flag, model in (("scenario", "sim --scenario", ScenarioSpec),
                               ("campaign spec", "campaign --spec", CampaignSpec),
                               ("campaign case", "sim --case", Case)):
+        if what == read_as:
+            continue
         fields = model.model_fields
         required = [name for name, field in fields.items() if field.is_required()]
         sections = {key for key in data if key in CONFIG_SECTIONS} - set(fields)
         if all(name in data for name in required) and not sections:
             signs = [name for name in required if name not in CONFIG_SECTIONS][:2]
-            return wrong_document(f"a {what}", signs, "config", flag)
+            return wrong_document(f"a {what}", signs, read_as, flag)
     return ""
 
 

@@ -708,7 +708,10 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
         raise ScenarioError(
             f"{source}: expected a YAML mapping at the top level, got {type(data).__name__}"
         )
-    if config := config_given_as(data, ScenarioSpec.model_fields, "scenario"):
+    from lanewarden.config import another_document  # (lanewarden.config imports this package)
+
+    if config := (config_given_as(data, ScenarioSpec.model_fields, "scenario")
+                  or another_document(data, "scenario")):
         raise ScenarioError(f"{source}: {config}")
     try:
         return ScenarioSpec.model_validate(data)

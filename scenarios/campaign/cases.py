@@ -241,7 +241,10 @@ def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
     if not isinstance(data, dict):
         raise ScenarioError(f"{path}: expected a YAML mapping at the top level, got "
                             f"{type(data).__name__}")
-    if config := config_given_as(data, model.model_fields, what):
+    from lanewarden.config import another_document  # lanewarden.config imports campaign/
+
+    if config := (config_given_as(data, model.model_fields, what)
+                  or another_document(data, what)):
         raise ScenarioError(f"{path}: {config}")
     try:
         return model.model_validate(data)
@@ -599,10 +602,13 @@ def load_case(path: str | Path) -> Case:
     saying it is no case file at all: a scenario or some other YAML gave a dozen lines)."""
     data = read_yaml_document(Path(path), "case", ScenarioError)
     if isinstance(data, dict) and not {"id", "scenario"} <= set(data):
-        kind = ("a scenario file (use --scenario)" if {"name", "lane"} <= set(data)
-                else "not a campaign case")
-        raise ScenarioError(f"{path}: {kind}: a case file is DIR/cases/<id>.yaml as a "
-                            "campaign writes it (with id: and scenario:)")
-    case = _read_model(Path(path), "case", Case)
+        from lanewarden.config import another_document  # lanewarden.config imports campaign/
+
+        raise ScenarioError(f"{path}: " + (
+            config_given_as(data, Case.model_fields, "campaign case")
+            or another_document(data, "campaign case")
+            or "not a campaign case: a case file is DIR/cases/<id>.yaml as a campaign writes "
+               "it (with id: and scenario:)"))
+    case = _read_model(Path(path), "campaign case", Case)
     case.scenario_spec(str(path))
     return case

@@ -263,8 +263,21 @@ def test_sim_case_reproduces_the_campaign_run(
     library = Path(__file__).resolve().parents[2] / "scenarios" / "library" / "straight.yaml"
     assert main(["sim", "--case", str(library), "--out", str(rerun)]) == 2
     assert capsys.readouterr().err.splitlines() == [
-        f"lanewarden: error: {library}: a scenario file (use --scenario): a case file is "
-        "DIR/cases/<id>.yaml as a campaign writes it (with id: and scenario:)"]
+        f"lanewarden: error: {library}: a scenario (it has 'name:' and 'lane:'), not a campaign "
+        "case (give this file to sim --scenario)"]
+    # and the default campaign spec given as a case, or as a scenario (eleven lines before)
+    spec = Path(__file__).resolve().parents[2] / "scenarios" / "campaign" / "default.yaml"
+    for flag, read_as in (("--case", "campaign case"), ("--scenario", "scenario")):
+        assert main(["sim", flag, str(spec), "--out", str(rerun)]) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f"lanewarden: error: {spec}: a campaign spec (it has 'name:' and 'scenarios:'), "
+            f"not a {read_as} (give this file to campaign --spec)"]
+    # a case given as a campaign spec
+    assert main(["campaign", "--spec", str(case_file), "--out", str(rerun.parent / "spec-cx"),
+                 "--runs", "1"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {case_file}: a campaign case (it has 'id:' and 'campaign_seed:'), "
+        "not a campaign spec (give this file to sim --case)"]
     # the case holds its seed and controller: another one is refused, not silently ignored
     for extra, named in ((["--seed", "3"], "--seed"), (["--controller", "lecture"],
                                                       "--controller")):
