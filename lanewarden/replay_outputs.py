@@ -36,10 +36,12 @@ from lanewarden.replay import (
 )
 from lanewarden.run_outcome import (
     CLIP_END,
+    NORMAL_HALTS,
     EndReason,
     LoopEnd,
     LoopEndKind,
     end_reason_of,
+    halt_event,
     recorded_loop_end,
 )
 from lanewarden.scenarios.before_halt import before_halt
@@ -280,7 +282,10 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "incomplete": list(source.incomplete),
     }
     if config is not None:
-        metrics["before_halt"] = None if halt is None else before_halt(
+        # what perception gave before a safety stop, as `run`'s summary says it; an operator's
+        # stop is no such halt (a replay of space, r, Ctrl-C had printed "before the halt")
+        operator = halt is not None and halt_event(records[halt].halt_reason or "") in NORMAL_HALTS
+        metrics["before_halt"] = None if halt is None or operator else before_halt(
             records, halt, config.supervisor, config.perception.edges.max_abs_slope)
     # frames that are there but did not decode: the loop got no frame at those steps
     wanted = frame_indices(source)

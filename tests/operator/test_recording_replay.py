@@ -121,6 +121,10 @@ def test_a_recorded_run_replays_exactly(clip: list[np.ndarray], tmp_path: Path,
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["reproduced"] is True and metrics["divergent_steps"] == 0
     assert (metrics["exact_input"], metrics["incomplete"]) == (True, [])
+    # the operator's stop is no safety stop: nothing "before the halt", as run's summary (a
+    # replay of space, r, Ctrl-C had printed it)
+    assert metrics["first_halt_reason"].startswith("OPERATOR_STOP")
+    assert metrics["before_halt"] is None and "before the halt" not in out
     replayed_lines = [json.loads(line) for line in
                       (tmp_path / "out" / "run.jsonl").read_text().splitlines()]
     assert [r["state"] for r in replayed_lines] == states
