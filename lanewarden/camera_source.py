@@ -181,6 +181,9 @@ def open_camera(camera: str,
     else:
         source = camera
         if not _URL.match(camera) and "%" not in camera and not Path(camera).exists():
+            if camera.startswith("/dev/"):  # a device not there: unplugged, not bad input
+                raise DeviceError(f"--camera '{camera}': no such device (is the camera plugged "
+                                  "in? `ls /dev/video*` lists the cameras there are)")
             raise UsageError(f"--camera '{camera}': no such file (expected {CAMERA_HELP})")
     # FFmpeg logs failed stream opens itself; keep our one-line error the only line.
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")

@@ -110,6 +110,10 @@ CASES = [
      "cannot open it as a camera"),
     ("run", 1, ["run", "--camera", "/dev/null", "--port", "{folder}/no-port", "--duration", "1"],
      "cannot open it as a camera or video (is it plugged in"),
+    # a camera device that is not there is unplugged (exit 1), not bad input (it said "no such
+    # file", exit 2)
+    ("run", 1, ["run", "--camera", "/dev/video-not-here", "--port", "{folder}/no-port",
+                "--duration", "1"], "--camera '/dev/video-not-here': no such device (is the"),
     ("run", 2, ["run", "--camera", "{fake}", "--calibration", "{good}", "--port",
                 "{folder}/no-port", "--duration", "1"],
      "--camera '{fake}': not a video OpenCV can read; expected a camera index"),
