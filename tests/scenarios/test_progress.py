@@ -177,8 +177,9 @@ def test_sim_and_replay_say_how_far_they_are_when_piped(
     assert err[1].startswith("short/supervised: 1.0/2.0 s simulated (50%), ")
     assert err[1].endswith(" (if it runs to its limit)")
     assert err[-1].startswith("short/supervised: done, 2.0/2.0 s simulated in ")
-    assert main(["replay", str(tmp_path / "frames"), "--no-video", "--out",
-                 str(tmp_path / "r")]) == 0
+    calibration = tmp_path / "frames.calibration.yaml"  # (`--camera-out` wrote it beside)
+    assert main(["replay", str(tmp_path / "frames"), "--calibration", str(calibration),
+                 "--no-video", "--out", str(tmp_path / "r")]) == 0
     err = capsys.readouterr().err.splitlines()
     steps = json.loads((tmp_path / "r" / "metrics.json").read_text())["steps"]
     assert err[0].startswith(f"replay frames: 1/{steps} steps (")
