@@ -55,7 +55,7 @@ from lanewarden.recording import RUN_MCAP
 from lanewarden.run_mcap import PERCEPTION_INPUT
 from lanewarden.run_outcome import EndReason, LoopEnd, LoopEndKind, RunWatch, end_reason
 from lanewarden.run_session import RunSession, SessionOptions
-from lanewarden.scenarios.camera_clip import ClipFiles
+from lanewarden.scenarios.camera_clip import clip_calibration_hint
 from lanewarden.stop_signals import signal_requests, suspend
 from lanewarden.supervisor.controllers import controller_factory
 from lanewarden.supervisor.errors import SupervisorError
@@ -169,19 +169,6 @@ def assumed_camera(calibration_path: str | None,
         return (f"--calibration {calibration_path} has no ground pose (`lanewarden calibrate "
                 f"ground` was not run): perception assumes the simulator's mount ({mount})")
     return None
-
-
-def clip_calibration_hint(camera: str) -> str:
-    """'; the clip's own calibration lies beside it: --calibration FILE' when `--camera` is a
-    simulator clip with its calibration beside it (or beside the folder a pattern picks its
-    frames from: 'clip/*.png', 'clip/frame_%06d.png'; `sim --camera-out clip` writes
-    clip.calibration.yaml), else ''."""
-    given = Path(camera)
-    places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
-    beside = next((c for c in (ClipFiles.for_target(p).calibration for p in places)
-                   if c.is_file()), None)
-    return "" if beside is None else (
-        f"; the clip's own calibration lies beside it: --calibration {beside}")
 
 
 def refuse_assumed_camera(base_kind: str, camera: str, calibration_path: str | None,

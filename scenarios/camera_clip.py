@@ -76,6 +76,19 @@ class ClipFiles:
                    stem.with_name(stem.name + ".config.yaml"))
 
 
+def clip_calibration_hint(camera: str) -> str:
+    """'; the clip's own calibration lies beside it: --calibration FILE' when `--camera` is a
+    simulator clip with its calibration beside it (or beside the folder a pattern picks its
+    frames from: 'clip/*.png', 'clip/frame_%06d.png'; `sim --camera-out clip` writes
+    clip.calibration.yaml), else ''."""
+    given = Path(camera)
+    places = [given, given.parent] if any(c in camera for c in "*?[%") else [given]
+    beside = next((c for c in (ClipFiles.for_target(p).calibration for p in places)
+                   if c.is_file()), None)
+    return "" if beside is None else (
+        f"; the clip's own calibration lies beside it: --calibration {beside}")
+
+
 def check_clip_target(target: Path) -> ClipFiles:
     """The clip's files, or ScenarioError (one line naming --camera-out) when FILE cannot be
     used: a folder where a video should go, a file where frames should go, a folder holding

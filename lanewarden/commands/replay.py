@@ -74,7 +74,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         replay_config,
         usable_calibration,
     )
-    from lanewarden.runner import clip_calibration_hint
+    from lanewarden.scenarios.camera_clip import clip_calibration_hint
 
     if out_dir is not None:
         refuse_a_recording_folder(Path(out_dir))  # before the source is read
