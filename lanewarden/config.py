@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
@@ -21,6 +21,7 @@ from lanewarden.documents import (
     CONFIG_SECTIONS,
     DocumentModel,
     allowed_range,
+    config_given_as,
     read_yaml_document,
     validation_error_lines,
     wrong_document,
@@ -148,6 +149,14 @@ def load_config(path: str | Path | None) -> LanewardenConfig:
     if other := another_document(data):
         raise ConfigError(f"{path}: {other}")
     return config_from_mapping(data, str(path))
+
+
+def misplaced_document(data: Any, read_as: str, own_keys: Iterable[str]) -> str:
+    """Is a document read as a `read_as` (a scenario, a campaign spec, a campaign case; the keys
+    it may have: `own_keys`) another lanewarden file: a config (`documents.config_given_as`) or
+    one of the others (`another_document`)? The one line saying which and where it goes, or
+    ''."""
+    return config_given_as(data, own_keys, read_as) or another_document(data, read_as)
 
 
 def another_document(data: Any, read_as: str = "config") -> str:

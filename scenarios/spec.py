@@ -31,12 +31,7 @@ from pydantic import (
     model_validator,
 )
 
-from lanewarden.documents import (
-    DocumentModel,
-    config_given_as,
-    read_yaml_document,
-    validation_error_lines,
-)
+from lanewarden.documents import DocumentModel, read_yaml_document, validation_error_lines
 from lanewarden.perception.ground import (
     DEFAULT_HFOV_DEG,
     DEFAULT_POSE_FORWARD_M,
@@ -708,11 +703,10 @@ def parse_scenario(data: Any, source: str) -> ScenarioSpec:
         raise ScenarioError(
             f"{source}: expected a YAML mapping at the top level, got {type(data).__name__}"
         )
-    from lanewarden.config import another_document  # (lanewarden.config imports this package)
+    from lanewarden.config import misplaced_document  # (lanewarden.config imports this package)
 
-    if config := (config_given_as(data, ScenarioSpec.model_fields, "scenario")
-                  or another_document(data, "scenario")):
-        raise ScenarioError(f"{source}: {config}")
+    if other := misplaced_document(data, "scenario", ScenarioSpec.model_fields):
+        raise ScenarioError(f"{source}: {other}")
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:

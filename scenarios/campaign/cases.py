@@ -29,7 +29,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from lanewarden.documents import (
     DocumentModel,
-    config_given_as,
     read_yaml_document,
     shown_value,
     validation_error_lines,
@@ -231,21 +230,26 @@ def load_campaign_spec(name_or_file: str) -> tuple[CampaignSpec, Path]:
         hint = f"did you mean '{close[0]}'? " if close else ""
         raise ScenarioError(f"--spec {name_or_file}: no such spec file; {hint}expected "
                             f"'{DEFAULT_SPEC}' (the built-in spec) or a YAML file")
-    spec = _read_model(path, "campaign spec", CampaignSpec)
+    spec = _validated(_read_mapping(path, "campaign spec"), path, "campaign spec", CampaignSpec)
     _check_draws(spec, path)
     return spec, path
 
 
-def _read_model(path: Path, what: str, model: type[ModelT]) -> ModelT:
+def _read_mapping(path: Path, what: str) -> dict[str, Any]:
     data = read_yaml_document(path, what, ScenarioError)
     if not isinstance(data, dict):
         raise ScenarioError(f"{path}: expected a YAML mapping at the top level, got "
                             f"{type(data).__name__}")
-    from lanewarden.config import another_document  # lanewarden.config imports campaign/
+    return data
 
-    if config := (config_given_as(data, model.model_fields, what)
-                  or another_document(data, what)):
-        raise ScenarioError(f"{path}: {config}")
+
+def _validated(data: dict[str, Any], path: Path, read_as: str, model: type[ModelT]) -> ModelT:
+    """`data` read from `path` as a `read_as` (a campaign spec, a campaign case): `model`, or
+    ScenarioError (one line for another lanewarden file, else one per problem)."""
+    from lanewarden.config import misplaced_document  # lanewarden.config imports campaign/
+
+    if other := misplaced_document(data, read_as, model.model_fields):
+        raise ScenarioError(f"{path}: {other}")
     try:
         return model.model_validate(data)
     except ValidationError as exc:
@@ -600,15 +604,14 @@ def case_yaml(case: Case) -> str:
 def load_case(path: str | Path) -> Case:
     """A case file (as written by a campaign); ScenarioError (one line per problem, or one
     saying it is no case file at all: a scenario or some other YAML gave a dozen lines)."""
-    data = read_yaml_document(Path(path), "case", ScenarioError)
-    if isinstance(data, dict) and not {"id", "scenario"} <= set(data):
-        from lanewarden.config import another_document  # lanewarden.config imports campaign/
+    data = _read_mapping(Path(path), "case")  # (read once: it had been read twice)
+    if not {"id", "scenario"} <= set(data):
+        from lanewarden.config import misplaced_document  # lanewarden.config imports campaign/
 
         raise ScenarioError(f"{path}: " + (
-            config_given_as(data, Case.model_fields, "campaign case")
-            or another_document(data, "campaign case")
+            misplaced_document(data, "campaign case", Case.model_fields)
             or "not a campaign case: a case file is DIR/cases/<id>.yaml as a campaign writes "
                "it (with id: and scenario:)"))
-    case = _read_model(Path(path), "campaign case", Case)
+    case = _validated(data, Path(path), "campaign case", Case)
     case.scenario_spec(str(path))
     return case
