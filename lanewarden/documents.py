@@ -85,9 +85,11 @@ def config_given_as(keys: Iterable[object], own_keys: Iterable[str], what: str,
     `own_keys` (the keys a `what` may have): `wrong_document`'s line, without the file's name
     (each `what`'s own validation had said 'unknown key' of every section, and 'missing' of
     every required key). '' otherwise: a `what` with a stray section is left to its own
-    validation, which names that key."""
+    validation, which names that key. A key that is both a config section and one of
+    `own_keys` (a campaign case's `campaign:`) says neither: a config given as a case had been
+    taken for a broken case ("not a campaign case")."""
     keys = set(keys)
-    if keys & set(own_keys):
+    if keys & (set(own_keys) - set(CONFIG_SECTIONS)):
         return ""
     section = next((name for name in CONFIG_SECTIONS if name in keys), None)
     if section is None:

@@ -211,19 +211,23 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path, capsys: pytest.Cap
     assert err == [f"lanewarden: error: {bad}: run.max_time_s = {expected}"]
 
 
+@pytest.mark.parametrize(("flag", "what"), [("--scenario", "scenario"),
+                                            ("--case", "campaign case")])
 def test_a_config_given_as_the_scenario_is_one_line_saying_so(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str, what: str) -> None:
     """`config show`'s file given to --scenario had said 'missing' of name and lane and
     'unknown key' of each of the config's six sections ('perception': did you mean
-    'description'?): eight lines, none saying what the file is."""
+    'description'?): eight lines, none saying what the file is. Given to --case it said "not a
+    campaign case": a config's `campaign:` section is also a case's key, and that had made it
+    a case."""
     assert main(["config", "show"]) == 0
     config = tmp_path / "lw.yaml"
     config.write_text(capsys.readouterr().out, encoding="utf-8")
     out = tmp_path / "o"
-    assert main(["sim", "--scenario", str(config), "--out", str(out), "--quiet"]) == 2
+    assert main(["sim", flag, str(config), "--out", str(out), "--quiet"]) == 2
     assert capsys.readouterr().err.splitlines() == [
         f"lanewarden: error: {config}: a lanewarden config (it has 'perception:'), not a "
-        "scenario (give this file to --config)"]
+        f"{what} (give this file to --config)"]
     assert not out.exists()
 
 
