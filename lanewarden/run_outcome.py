@@ -85,7 +85,7 @@ class LoopEnd:
 CLIP_END = LoopEnd(LoopEndKind.CLIP, "end of the clip")
 #: How a recorded run without summary.json ends: where its steps stop.
 CUT_SHORT = LoopEnd(LoopEndKind.CUT_SHORT,
-                    "the recording stops here (no summary.json: the run was cut short)")
+                    "the recording stops here (it holds no summary: the run was cut short)")
 
 
 def halt_event(halt_reason: str) -> str:

@@ -60,8 +60,9 @@ Examples:
               default=None,
               metavar="FILE", help="Labels for FOLDER's frames: file,expect[,note] (paths "
               "relative to FOLDER) or frames,expect[,note] (frame indices or ranges of a video, "
-              "run folder, image sequence or Donkeycar tub). Default: FOLDER/labels.csv, else "
-              "the lane/ and no-lane/ sub-folders.")
+              "run folder, image sequence or Donkeycar tub). Default: FOLDER/labels.csv or "
+              "the lane/ and no-lane/ sub-folders, whichever FOLDER has (with both, name "
+              "the labels with --labels).")
 @click.option("--calibration", "calibration_path",
               type=PathFlag("a calibration file", dir_okay=False), default=None,
               metavar="FILE", help="Camera calibration (default: a run folder's own, else none).")

@@ -374,10 +374,13 @@ def test_a_recording_cut_short_replays_but_is_not_checked(
     shutil.copytree(recorded, cut)
     data = (cut / "run.mcap").read_bytes()
     (cut / "run.mcap").write_bytes(data[: len(data) * 2 // 3])
-    (cut / "summary.json").unlink()
     code, out, err = replay(cut, tmp_path, capsys)
     assert code == 0, err
     assert "the recording is incomplete: run.mcap was cut short" in out
+    # its end is where the steps stop; the summary.json beside it (a copy, written at the end
+    # of a run whose run.mcap was damaged after) is not what is missing: it had said so
+    assert "ended: the recording stops here (it holds no summary: the run was cut short)" in out
+    (cut / "summary.json").unlink()
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["exact_input"] is False and "cut short" in metrics["incomplete"][0]
     code, out, err = replay(cut, tmp_path, capsys, "--check")
