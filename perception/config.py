@@ -123,16 +123,23 @@ class HoughConfig(DocumentModel):
 
     model_config = _FROZEN
 
-    rho_px: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+    # The lower bounds keep HoughLinesP's accumulator (180/theta_deg angles x about
+    # 2 (width + height)/rho_px distances, 4 bytes each) within 35 MB at 1920x1080 and 170 MB
+    # at the largest image `max_image_pixels` allows (50 Mpx, as much as the image's own
+    # buffers): 0.0002 degrees had taken a 320x240 photo past 8 GB, and smaller values crashed
+    # OpenCV's allocator with a traceback.
+    rho_px: Annotated[float, Field(ge=0.5, le=10.0)] = Field(
         default=1.0,
         description=(
-            "HoughLinesP distance resolution, pixels"
+            "HoughLinesP distance resolution, pixels (at least 0.5: the accumulator grows as "
+            "1/rho_px)"
         ),
     )
-    theta_deg: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+    theta_deg: Annotated[float, Field(ge=0.25, le=10.0)] = Field(
         default=1.0,
         description=(
-            "HoughLinesP angle resolution, degrees"
+            "HoughLinesP angle resolution, degrees (at least 0.25: the accumulator and the work "
+            "per edge pixel grow as 1/theta_deg)"
         ),
     )
     votes_frac_of_height: PositiveFraction = Field(

@@ -284,3 +284,18 @@ def test_a_sections_own_check_names_the_section_and_its_keys(tmp_path: Path) -> 
         load_config(path)
     assert str(err.value) == (f"{path}: perception: edges.look_ahead_m (5) must lie within the "
                               "region of interest, roi.near_m (0) to roi.far_m (1.6)")
+
+
+@pytest.mark.parametrize(("key", "refused", "accepted"), [("theta_deg", 0.2, 0.25),
+                                                          ("rho_px", 0.4, 0.5)])
+def test_hough_resolutions_are_bounded_below_by_the_accumulator_they_make(
+        key: str, refused: float, accepted: float) -> None:
+    """HoughLinesP's accumulator has 180/theta_deg x about 2 (width + height)/rho_px cells:
+    theta_deg 0.0002 took one 320x240 photo past 8 GB (a hostile config, or a recording's
+    config.yaml given to replay), 1e-7 crashed OpenCV's allocator with a traceback. At the
+    bounds, a 1920x1080 frame's accumulator is 720 x 12 000 cells, 35 MB."""
+    assert refusal(("perception", "hough", key), refused) == (
+        f"cfg.yaml: perception.hough.{key} = {refused}: expected a finite number with "
+        f"{accepted} <= value <= 10")
+    config = config_from_mapping(nested(("perception", "hough", key), accepted), "cfg.yaml")
+    assert getattr(config.perception.hough, key) == accepted
