@@ -24,6 +24,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
+from lanewarden.output_files import replace_file
 from lanewarden.perception.config import PerceptionConfig
 
 #: File name endings read as images (a folder or glob of frames, a survey's class folders).
@@ -113,13 +114,13 @@ def write_image(path: Path, image: np.ndarray, params: Sequence[int] = ()) -> No
     cv2.imwrite takes them). Raises OSError with the reason: cv2.imwrite answers a full disk
     with False alone, and libpng prints "libpng error: Write Error" on the terminal beside the
     command's one line. Encoded in memory, written by Python: the OSError's `strerror` says
-    why ("No space left on device")."""
+    why ("No space left on device"). Never written through what is at `path`
+    (`output_files.replace_file`: a link there is replaced, a FIFO or device refused)."""
     ok, data = cv2.imencode(path.suffix, image, list(params))
     if not ok:
         raise OSError(f"OpenCV cannot encode a {image.dtype} {image.shape} image as "
                       f"{path.suffix or 'a file without a suffix'}")
-    with path.open("wb") as file:
-        file.write(data.data)
+    replace_file(path, data.data)
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -39,6 +39,7 @@ from lanewarden.documents import (
     level_marks,
     nesting_depth,
 )
+from lanewarden.output_files import replace_file, unreplaceable
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
 
@@ -217,6 +218,8 @@ def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
     path = Path(path)
     if path.parent and not path.parent.exists():
         raise PerceptionError(f"{path}: folder {path.parent} does not exist")
+    if why := unreplaceable(path):  # moved over a device, it would replace it
+        raise PerceptionError(f"{path}: cannot write calibration file ({why})")
     # Written beside it, read back, then moved over it: a full disk or a crash mid-write never
     # leaves a calibration cut short in place of the one that was there (OpenCV's writer does
     # not say when its last write fails). The same suffix: OpenCV picks the format by it.
@@ -318,10 +321,10 @@ def save_ros_camera_info(
         ros_camera_info(calibration, camera_name), sort_keys=False, default_flow_style=None
     )
     try:
-        path.write_text(text, encoding="utf-8")
+        replace_file(path, text.encode("utf-8"))
     except OSError as exc:
         raise PerceptionError(
-            f"{path}: cannot write ROS camera_info file ({exc.strerror})"
+            f"{path}: cannot write ROS camera_info file ({exc.strerror or exc})"
         ) from exc
 
 

@@ -207,6 +207,8 @@ def run_calibration(
     ros_path = out.with_name(out.stem + ".ros.yaml") if ros else None
     if not failures:
         create_output_file_folder(out)
+        if ros_path is not None:
+            create_output_file_folder(ros_path, "--ros")
         try:
             save_calibration(run.calibration, out)
             if ros_path is not None:

@@ -29,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import click
-import cv2
 import numpy as np
 
 from lanewarden.commands.calibrate import PATTERN, _emit_json, _positive_length, read_image
@@ -38,6 +37,7 @@ from lanewarden.commands.flags import PathFlag
 from lanewarden.commands.output_folders import create_output_file_folder
 from lanewarden.config import LanewardenConfig, load_config
 from lanewarden.errors import OutputError, QualityGateError, UsageError
+from lanewarden.image_files import write_image
 from lanewarden.perception.calibration import (
     CameraCalibration,
     GroundCalibration,
@@ -364,11 +364,10 @@ def ground_command(
         # The picture first: if it cannot be written, the calibration is left as it was.
         create_output_file_folder(check, "--check-image")
         create_output_file_folder(out)
-        encoded, data = cv2.imencode(check.suffix, picture)
+        if ros_path is not None:
+            create_output_file_folder(ros_path, "--ros")
         try:
-            if not encoded:
-                raise OSError("the picture could not be encoded")
-            check.write_bytes(data.tobytes())
+            write_image(check, picture)
         except OSError as exc:  # a runtime failure (exit 1), as `calibrate` says it
             raise OutputError(f"--check-image '{check}': cannot write the picture "
                               f"({getattr(exc, 'strerror', None) or exc}); nothing written to "

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from lanewarden.documents import dangling_link
 from lanewarden.errors import Interrupted, OutputError, UsageError
+from lanewarden.output_files import unreplaceable
 from lanewarden.scenarios.output_folder import PARTIAL
 
 
@@ -57,9 +58,10 @@ def interrupted_in(out: Path) -> Interrupted:
 
 
 def create_output_file_folder(file: Path, flag: str = "--out") -> Path:
-    """`file`, after creating its folder; UsageError if `file` is a folder."""
-    if file.is_dir():
-        raise UsageError(f"{flag} '{file}': is a folder, expected a file name")
+    """`file`, after creating its folder; UsageError if `file` is a folder, a FIFO, socket or
+    device (`output_files.unreplaceable`: `calibrate --out /dev/null` had replaced the device)."""
+    if why := unreplaceable(file):
+        raise UsageError(f"{flag} '{file}': {why}")
     refuse_a_recording_folder(file.parent, flag, given=file)
     create_output_folder(file.parent, flag)
     return file

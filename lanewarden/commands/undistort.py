@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import cv2
+import numpy as np
 
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag
@@ -32,6 +32,7 @@ from lanewarden.image_files import (
     is_turned,
     read_image,
     same_output_name,
+    write_image,
 )
 from lanewarden.perception.calibration import (
     Undistorter,
@@ -41,9 +42,11 @@ from lanewarden.perception.calibration import (
 from lanewarden.perception.undistort_preview import side_by_side
 
 
-def _write(path: Path, image: object) -> None:
-    if not cv2.imwrite(str(path), image):  # type: ignore[call-overload]
-        raise OutputError(f"{path}: cannot write image")
+def _write(path: Path, image: np.ndarray) -> None:
+    try:
+        write_image(path, image)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write image ({exc.strerror or exc})") from None
 
 
 @click.command("undistort")

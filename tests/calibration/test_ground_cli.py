@@ -3,8 +3,8 @@ writes, what it prints, and what it refuses (one line, exit 2, nothing written).
 
 from __future__ import annotations
 
-import errno
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -84,24 +84,21 @@ def test_a_missing_output_folder_is_created_as_for_every_out(
 
 
 def test_a_check_picture_that_cannot_be_written_leaves_the_calibration_as_it_was(
-        intrinsics: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        intrinsics: Path, small_disk: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """On a full disk the calibration had been rewritten, then the picture failed (exit 2):
     the picture now goes first, and a file that cannot be written is a runtime failure (1).
-    The full disk is the operating system's answer to the write (not our code, replaced)."""
+    A real full disk: a 400 KiB file system, filled but for a few kilobytes."""
     before = intrinsics.read_bytes()
-
-    def disk_full(self: Path, data: bytes) -> int:
-        raise OSError(errno.ENOSPC, "No space left on device")
-
-    monkeypatch.setattr(Path, "write_bytes", disk_full)
+    disk = os.statvfs(small_disk)
+    (small_disk / "filler").write_bytes(b"\0" * (disk.f_bavail * disk.f_frsize - 8192))
     code, _, err = _run(capsys, "--calibration", str(intrinsics), "--height-m", "0.26",
                         "--pitch-deg", "40", "--out", str(intrinsics), "--check-image",
-                        str(tmp_path / "check.png"))
+                        str(small_disk / "check.png"))
     assert code == 1, err
     assert ("cannot write the picture (No space left on device); nothing written to "
             f"{intrinsics}") in err
     assert intrinsics.read_bytes() == before
+    assert sorted(p.name for p in small_disk.iterdir()) == ["filler"]  # nothing half-written
 
 
 def test_from_the_mount_prints_what_it_means(
