@@ -31,7 +31,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -95,6 +95,7 @@ from lanewarden.run_mcap import (
     STEP_TOPIC,
     SUMMARY_NAME,
 )
+from lanewarden.run_outcome import LoopEnd
 from lanewarden.run_record import (
     MAX_RUN_DURATION_S,
     MAX_STEP_BYTES,
@@ -329,6 +330,20 @@ def _json_problem(exc: Exception) -> str:
     return "nested too deeply" if isinstance(exc, RecursionError) else shorten(str(exc))
 
 
+def _unsaid_end(summary: Mapping[str, Any]) -> str:
+    """'' when a recorded summary says what ended the run (a valid `ended_by`, which the replay
+    ends the same way by), else what it lacks. Without it the replay cannot tell where the run
+    ended, as for a run cut short: `--check` had passed a recording whose summary was `{}` (or
+    held values of the wrong types) while saying it stopped where its steps stop. A summary
+    written before `ended_by` was (2026-12-02: its `end_reason` text alone) is whole: such a run
+    ends where its steps stop."""
+    if LoopEnd.from_json(summary.get("ended_by")) is not None or (
+            "ended_by" not in summary and isinstance(summary.get("end_reason"), str)):
+        return ""
+    return ("does not say what ended the run (no valid 'ended_by'): the replay cannot tell "
+            "where it ended")
+
+
 def _json_object(data: bytes, where: str, what: str) -> dict[str, Any]:
     try:
         value = json.loads(data.decode("utf-8"))
@@ -451,6 +466,8 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
                           f"{mcap.cut_short}): the run was killed or its disk filled")
     elif not summary:
         incomplete.append(f"{path.name} has no summary: the run did not end normally")
+    elif gap := _unsaid_end(summary):
+        incomplete.append(f"{path.name}'s summary {gap}")
     config = calibration = None
     if CONFIG_ATTACHMENT in mcap.attachments:
         config = _recorded_config(mcap.attachments[CONFIG_ATTACHMENT],
@@ -547,6 +564,8 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
     if summary_path.exists():
         summary = _json_object(_read_small(summary_path, "recording's summary"),
                                str(summary_path), "recording's summary")
+        if gap := _unsaid_end(summary):
+            incomplete.append(f"summary.json {gap}")
     else:
         incomplete.append("no summary.json: the run did not end normally (killed, or its disk "
                           "filled)")

@@ -236,6 +236,14 @@ def end_reason_of(steps: Iterable[tuple[str, str | None, float, float | None]],
 
 def recorded_loop_end(summary: Mapping[str, Any] | None) -> LoopEnd:
     """What ended a recorded run: its summary.json's `ended_by`, else (no summary: the run was
-    killed) where the recording stops."""
+    killed) where the recording stops; the same where a summary does not say (written before
+    `ended_by` was, or damaged: replay then says the recording is incomplete), in other words."""
     found = LoopEnd.from_json((summary or {}).get("ended_by"))
-    return found if found is not None else CUT_SHORT
+    if found is not None:
+        return found
+    return CUT_SHORT if not summary else UNSAID_END
+
+
+#: How a recorded run whose summary does not say what ended it ends: where its steps stop.
+UNSAID_END = LoopEnd(LoopEndKind.CUT_SHORT,
+                     "the recording stops here (its summary does not say what ended the run)")

@@ -138,11 +138,14 @@ def test_what_ended_a_recorded_run_is_read_from_its_summary() -> None:
     ended_by = {"kind": "clip", "text": "end of the clip", "steps": 75}
     assert recorded_loop_end({"ended_by": ended_by}) == CLIP_END.with_steps(75)
     assert LoopEnd.from_json(CLIP_END.with_steps(75).as_json()) == CLIP_END.with_steps(75)
-    for broken in ({}, {"ended_by": "end of the clip"}, {"ended_by": {**ended_by, "kind": "x"}},
+    for broken in ({"ended_by": "end of the clip"}, {"ended_by": {**ended_by, "kind": "x"}},
                    {"ended_by": {**ended_by, "steps": -1}},
-                   {"ended_by": {**ended_by, "steps": True}}):
-        assert recorded_loop_end(broken) == CUT_SHORT
-    assert recorded_loop_end(None) == CUT_SHORT
+                   {"ended_by": {**ended_by, "steps": True}}, {"end_reason": "end of the clip"}):
+        end = recorded_loop_end(broken)  # where the steps stop, not "no summary"
+        assert (end.kind, end.text, end.steps) == (
+            LoopEndKind.CUT_SHORT,
+            "the recording stops here (its summary does not say what ended the run)", None)
+    assert recorded_loop_end({}) == recorded_loop_end(None) == CUT_SHORT
 
 
 @pytest.mark.parametrize(("reason", "code"), [

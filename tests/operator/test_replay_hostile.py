@@ -461,6 +461,32 @@ def test_a_damaged_last_line_and_a_missing_summary_are_said(
     assert_one_line(code, err, "the recording is incomplete", "no summary.json")
 
 
+@pytest.mark.parametrize("summary", ["{}", '{"steps": "x", "complete": "yes"}',
+                                     '{"ended_by": {"kind": "operator", "text": 5}}'])
+@pytest.mark.parametrize("where", ["summary.json", "run.mcap summary"])
+def test_a_summary_that_does_not_say_what_ended_the_run_is_not_checked(
+        where: str, summary: str, recorded: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`--check` had passed (exit 0) a recording whose summary was `{}`, or held values of the
+    wrong types, while printing that it stopped where its steps stop: what ended the run
+    (`ended_by`) is what the replay ends it by. It replays, and says so; it is not checked."""
+    if where == "summary.json":
+        source = as_format_1(recorded, tmp_path / "old")
+        (source / "summary.json").write_text(summary)
+        said = "summary.json does not say what ended the run (no valid 'ended_by')"
+    else:
+        source = tmp_path / "forged.mcap"
+        rewrite_mcap(recorded / "run.mcap", source, lambda topic, n, message: message,
+                     metadata={"lanewarden.summary": {"summary": summary}})
+        said = ("forged.mcap has no summary" if summary == "{}" else
+                "forged.mcap's summary does not say what ended the run (no valid 'ended_by')")
+    code, out, err = replay(source, tmp_path, capsys)
+    assert code == 0, err
+    assert f"the recording is incomplete: {said}" in out, out
+    code, _, err = replay(source, tmp_path, capsys, "--check")
+    assert_one_line(code, err, "the recording is incomplete", said)
+
+
 # ---- hostile MCAP bytes ------------------------------------------------------------------------
 def _prefix(run: Path) -> bytes:
     """run.mcap's magic and header record."""
