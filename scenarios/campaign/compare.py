@@ -21,7 +21,6 @@ Never reads a clock and never runs anything.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter
 from collections.abc import Iterable, Mapping
@@ -29,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
+from lanewarden.scenarios.campaign.stored_row import METRICS, checked_row
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.wording import counted
 
@@ -45,34 +45,6 @@ Row = Mapping[str, Any]
 
 class CampaignsDiffer(ScenarioError):
     """Two result folders whose runs were not drawn alike (bad input: exit 2)."""
-
-
-class UnreadableRow(ScenarioError):
-    """A stored row that no campaign writes (bad input: exit 2)."""
-
-
-#: Where a checked row (`_checked`) keeps its metrics, parsed once.
-_METRICS = "_metrics"
-
-
-def _checked(row: Row, name: str) -> Row:
-    """`row` as a campaign stores it, with its metrics parsed once (under _METRICS), or
-    UnreadableRow naming the run and the column (after `name`, the folder it came from, when
-    given)."""
-    where = f"{name}: run {row.get('id')}" if name else f"run {row.get('id')}"
-    outcome = row.get("outcome")
-    if outcome not in OUTCOMES:
-        raise UnreadableRow(f"{where}: outcome {str(outcome)[:60]!r} is not "
-                            f"one a campaign stores (expected one of {', '.join(OUTCOMES)})")
-    text = row.get("metrics_json")
-    try:
-        metrics = json.loads(text) if text else {}
-    except (TypeError, ValueError):
-        metrics = None
-    if not isinstance(metrics, dict):
-        raise UnreadableRow(f"{where}: metrics_json {str(text)[:60]!r} is "
-                            "not readable (expected the JSON object a campaign stores)")
-    return {**row, _METRICS: metrics}
 
 
 def drawn_difference(a: Row, b: Row) -> str | None:
@@ -126,8 +98,8 @@ def compare_campaigns(before: Iterable[Row], after: Iterable[Row],
     which in a refusal). Raises CampaignsDiffer when a run both hold was drawn differently, when
     they share no run, and UnreadableRow for a row no campaign writes (an unknown outcome,
     metrics that are not a JSON object): a damaged row must not make a campaign look safer."""
-    old = {str(r["id"]): _checked(r, names[0]) for r in before}
-    new = {str(r["id"]): _checked(r, names[1]) for r in after}
+    old = {str(r["id"]): checked_row(r, names[0]) for r in before}
+    new = {str(r["id"]): checked_row(r, names[1]) for r in after}
     ids = sorted(old.keys() & new.keys())
     if not ids:
         raise CampaignsDiffer("the two campaigns share no run: compare two result folders of "
@@ -154,7 +126,7 @@ def is_notable(row: Row) -> bool:
     halt, or, whatever its outcome, it trusted a false lane or came within NEAR_TAPE_M of a
     tape. UnreadableRow as `compare_campaigns` (a damaged notable run must not drop out of a
     screen unseen)."""
-    row = _checked(row, "")
+    row = checked_row(row, "")
     clear = clearance_m(row)
     return bool(row.get("outcome") in _SEVERITY or (_metric(row, "false_lane_frames") or 0) > 0
                 or (clear is not None and clear < NEAR_TAPE_M))
@@ -204,9 +176,9 @@ def clearance_m(row: Row) -> float | None:
 
 
 def _metric(row: Row, name: str) -> float | None:
-    """A number from a checked row's metrics (`_checked`); None where missing or not a finite
-    number."""
-    value = row[_METRICS].get(name)
+    """A number from a checked row's metrics (`stored_row.checked_row`); None where missing or
+    not a finite number."""
+    value = row[METRICS].get(name)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         return None
     return float(value)

@@ -216,6 +216,7 @@ def _run_stored(plan: CampaignPlan, scheduler: str, workers: int | None, client:
     with ResultStore(plan.out_dir / "results.sqlite", recover=recover) as store:
         store.claim({"spec": spec_fingerprint(plan.spec, plan.config_overrides),
                      "seed": str(plan.seed)})
+        store.check()  # a row no campaign writes is refused before it is counted or rerun
         _refuse_fewer_runs(store, plan.runs)
         done = store.done_ids(below_index=plan.runs)
         total = plan.runs

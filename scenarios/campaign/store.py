@@ -15,6 +15,11 @@ Nothing stored is lost to damage (a bad disk, a copy cut short, a page overwritt
   to `results.unstored.jsonl` beside it instead, and the campaign stops with one line; the next
   campaign in that directory stores those rows first.
 
+Every row a reader gets (`iter_rows`: compare, --only-notable, a resumed campaign's counts and
+its report) is checked in one place, `stored_row.checked_row`, and a field longer than any run
+writes is measured in SQL and never fetched: a row no campaign writes is refused in one line
+naming this file and the run (`UnreadableRow`, exit 2), the same for every command.
+
 Another program may read the file while a campaign writes it (`sqlite3`, a database viewer, a
 script): a reader holds SQLite's shared lock while it reads, and each write waits for it, up to
 `LOCK_WAIT_S` (SQLite's busy timeout; Python's default is 5 s, and a campaign once stopped on a
@@ -33,6 +38,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from lanewarden.scenarios.campaign.stored_row import Oversized, checked_row, field_limit
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.sqlite_tables import computed_table
 
@@ -51,6 +57,20 @@ LOCK_WAIT_S = 600.0
 #: Rows that could not be written, beside the database (a name of its own, never overwritten).
 UNSTORED_SUFFIX = ".unstored.jsonl"
 DAMAGED_SUFFIX = ".damaged"
+
+
+def _bounded_select(have: Iterable[str] = COLUMN_NAMES) -> str:
+    """The query a reader reads runs with: each column's value only when it is no longer than
+    `stored_row.field_limit` (else NULL), then every column's length, so a damaged field of
+    hundreds of MB never reaches Python (a 300 MB reason had taken 3 GB to read). SQLite 3.40's
+    length() still reads a text once to count its characters (a blob's comes from the record
+    header), bounded by SQLite's own limit on a value (1 GB). A column the file lacks (a file
+    from before it existed) reads as empty."""
+    present = set(have)
+    names = [n if n in present else "NULL" for n in COLUMN_NAMES]
+    values = [f"CASE WHEN length({n}) > {field_limit(c)} THEN NULL ELSE {n} END"
+              for n, c in zip(names, COLUMN_NAMES, strict=True)]
+    return f"SELECT {', '.join(values)}, {', '.join(f'length({n})' for n in names)} FROM runs"
 
 
 class CampaignMismatch(ScenarioError):
@@ -82,16 +102,14 @@ class ResultStore:
         self.recovered: Recovery | None = None
         self.unstored_path = path.with_name(path.name + UNSTORED_SUFFIX)
         self.unstored_carried = 0
-        self._select = _SELECT
+        self._select = _bounded_select()
         if read_only:
             self._db = _open_read_only(path)  # its tables checked: only stored rows are read
             have = self._read(lambda db: {row[1] for row in db.execute("PRAGMA table_info(runs)")})
             if "id" not in have or "outcome" not in have:
                 self._db.close()
                 raise ScenarioError(f"{path}: not a campaign's results (no table of runs)")
-            # a file from before a column existed: that column reads as empty
-            self._select = (f"SELECT {', '.join(n if n in have else 'NULL' for n in COLUMN_NAMES)}"
-                            " FROM runs")
+            self._select = _bounded_select(have)
             return
         problem = _damage(path) if path.exists() else None
         if problem is None and path.exists():
@@ -207,17 +225,31 @@ class ResultStore:
             "outcome", (below_index,)))))
 
     def iter_rows(self, below_index: int | None = None) -> Iterator[dict[str, Any]]:
-        """Every row (of the runs with an index below `below_index`), by index, one at a time."""
+        """Every row (of the runs with an index below `below_index`), by index, one at a time,
+        each checked as every reader checks it (`stored_row.checked_row`: UnreadableRow naming
+        this file and the run, for a row no campaign writes)."""
         query: str = f"{self._select} ORDER BY idx"
         args: tuple[int, ...] = ()
         if below_index is not None:
             query, args = f"{self._select} WHERE idx < ? ORDER BY idx", (below_index,)
+        width = len(COLUMN_NAMES)
         try:
             for values in self._db.execute(query, args):
-                yield dict(zip(COLUMN_NAMES, values, strict=True))
+                row = {name: (Oversized(int(length)) if length is not None
+                              and length > field_limit(name) else value)
+                       for name, value, length in zip(COLUMN_NAMES, values[:width],
+                                                      values[width:], strict=True)}
+                yield checked_row(row, str(self.path))
         except sqlite3.Error as exc:
             raise DamagedResults(f"{self.path}: cannot read the results ({_problem(exc)}); run "
                                  "the same command with --recover") from None
+
+    def check(self) -> None:
+        """UnreadableRow for the first stored row no campaign writes (`iter_rows`), before a
+        resumed campaign counts what it holds or runs what is missing: a damaged row must not
+        stop it with a traceback, drop out of its counts, or make it look safer."""
+        for _ in self.iter_rows():
+            pass
 
     def rows(self, ids: Iterable[str] | None = None) -> list[dict[str, Any]]:
         wanted = None if ids is None else set(ids)

@@ -30,12 +30,12 @@ import pytest
 from lanewarden.cli import main
 from lanewarden.scenarios.campaign.compare import (
     CampaignsDiffer,
-    UnreadableRow,
     compare_campaigns,
     describe,
     is_notable,
 )
 from lanewarden.scenarios.campaign.store import ResultStore
+from lanewarden.scenarios.campaign.stored_row import UnreadableRow
 
 
 def row(index: int, outcome: str, clearance_m: float | None = 0.1,
@@ -310,6 +310,6 @@ def test_a_screen_is_refused_in_one_line_where_it_cannot_be_one(
     damaged = store(tmp_path / "damaged", [dict(row(3, "unsafe"), metrics_json="{oops")])
     assert main([*common, "--out", str(tmp_path / "s5"), "--only-notable", str(damaged)]) == 2
     assert capsys.readouterr().err.strip() == (
-        f"lanewarden: error: --only-notable {damaged}: run r00003: metrics_json '{{oops' is not "
-        "readable (expected the JSON object a campaign stores)")
+        f"lanewarden: error: --only-notable {damaged}: {damaged / 'results.sqlite'}: run r00003: "
+        "metrics_json '{oops' is not readable (expected the JSON object a campaign stores)")
     assert not any((tmp_path / f"s{i}").exists() for i in range(1, 6))
