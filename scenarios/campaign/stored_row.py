@@ -37,6 +37,10 @@ _TEXT = ("scenario", "camera", "floor", "tape", "effect", "fault_kinds", "reason
          "halt_reason", "worker", "effects_json")
 _WHOLE = ("seed", "frames")
 _SECONDS = ("halt_time_s", "time_to_halt_s", "sim_time_s", "cpu_s", "wall_s")
+#: The metrics readers compute with (compare's figures, the report's lists): a number, or null
+#: or absent where not measured (results stored before a metric existed).
+_NUMBER_METRICS = ("false_lane_frames", "false_lane_longest_s", "max_cross_track_error_m",
+                   "max_edge_error_m", "min_tape_clearance_m")
 #: Where a checked row keeps its metrics, parsed once.
 METRICS = "_metrics"
 _SHOWN = 60
@@ -113,4 +117,10 @@ def checked_row(row: Mapping[str, Any], where: str) -> dict[str, Any]:
     if not isinstance(metrics, dict):
         raise refuse("metrics_json", "not readable (expected the JSON object a campaign "
                                      "stores)")
+    for name in _NUMBER_METRICS:
+        value = metrics.get(name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            # read as "not measured", a damaged figure would hide a near miss or a false lane
+            raise UnreadableRow(f"{prefix}: metrics_json's {name} {_shown(value)} is not a "
+                                "number (expected what a campaign stores, or nothing)")
     return {**row, METRICS: metrics}

@@ -41,6 +41,9 @@ DAMAGE: list[tuple[str, Any, str]] = [
                           f"{EXPECTED_OUTCOMES})"),
     ("wall_s", "slow", "wall_s 'slow' is not a number of seconds (expected what a campaign "
                        "stores, or nothing)"),
+    ("metrics_json", '{"false_lane_frames": "many", "false_lane_longest_s": 1.0}',
+     "metrics_json's false_lane_frames 'many' is not a number (expected what a campaign "
+     "stores, or nothing)"),
     ("reason", "x" * (MAX_FIELD_CHARS + 1), "reason of 65,537 characters is longer than any a "
                                             "campaign stores (expected at most 65,536)"),
     ("metrics_json", '{"a": "' + "x" * MAX_METRICS_CHARS + '"}',
@@ -63,7 +66,7 @@ def stored_runs(out: Path) -> list[tuple[Any, ...]]:
 
 
 @pytest.mark.parametrize(("column", "value", "said"), DAMAGE,
-                         ids=["nested", "idx", "outcome", "wall_s", "reason_size",
+                         ids=["nested", "idx", "outcome", "wall_s", "metric", "reason_size",
                               "metrics_size"])
 def test_compare_and_a_resumed_campaign_refuse_a_damaged_row_in_the_same_line(
         column: str, value: Any, said: str, tiny_spec: Path, tmp_path: Path,
@@ -151,6 +154,9 @@ def test_every_reader_of_a_store_reads_checked_rows(tmp_path: Path) -> None:
                             "stores, or nothing)"),
     ({"metrics_json": b"{}"}, "metrics_json b'{}' is not readable (expected the JSON "
                               "object a campaign stores)"),
+    ({"metrics_json": '{"min_tape_clearance_m": [0.01]}'},
+     "metrics_json's min_tape_clearance_m [0.01] is not a number (expected what a campaign "
+     "stores, or nothing)"),
     ({"metrics_json": "[1, 2]"}, "metrics_json '[1, 2]' is not readable (expected the JSON "
                                  "object a campaign stores)"),
 ])
@@ -165,6 +171,8 @@ def test_rows_a_campaign_writes_are_read_as_they_are() -> None:
     error = dict(stored_row(5), outcome="error", metrics_json="{}", sim_time_s=None,
                  halt_reason=None)
     older = {"id": "r00006", "idx": 6, "outcome": "nominal"}  # columns from before they existed
-    for row in (stored_row(4), error, older, dict(older, metrics_json="")):
+    measured = dict(stored_row(7), metrics_json='{"false_lane_frames": 0, "min_tape_clearance_m"'
+                                                 ': -0.01, "max_edge_error_m": null}')
+    for row in (stored_row(4), error, older, dict(older, metrics_json=""), measured):
         checked = checked_row(row, "here")
         assert {k: v for k, v in checked.items() if k != "_metrics"} == row
