@@ -283,7 +283,9 @@ class StepTimes:
             return (f"input.t = {t!r}: expected a time after the previous step's "
                     f"({self.last!r}); step times must increase")
         if t - self.first > MAX_RUN_DURATION_S:
-            return (f"input.t = {t!r}: {t - self.first:.0f} s after the first step, more than a "
-                    f"recording may span ({MAX_RUN_DURATION_S:.0f} s)")
+            span = t - self.first  # (a forged 1e300 had been printed as its 301 digits)
+            shown = f"{span:.1f}" if span < 1e9 else f"{span:.3g}"
+            return (f"input.t = {t!r}: {shown} s after the first step, more than a recording "
+                    f"may span ({MAX_RUN_DURATION_S:.0f} s)")
         self.last = t
         return ""

@@ -25,7 +25,7 @@ from lanewarden.operator import (
     summary_lines,
 )
 from lanewarden.perception.observation import LaneObservation
-from lanewarden.run_record import StepError, StepInput, read_step, step_line
+from lanewarden.run_record import StepError, StepInput, StepTimes, read_step, step_line
 from lanewarden.supervisor.loop import StepRecord
 from lanewarden.terminal import format_status, key_action
 
@@ -324,3 +324,13 @@ def test_a_warning_is_one_line_on_stderr_and_on_stdout() -> None:
     assert out.getvalue().splitlines() == [
         "start requested (key)",
         "warning: the recording stopped: disk full; the run goes on unrecorded"]
+
+
+def test_a_step_time_far_beyond_the_first_is_said_in_a_short_line() -> None:
+    """A forged step time of 1e300 s was printed as its 301 digits."""
+    times = StepTimes()
+    assert times.check(10.0) == ""
+    assert times.check(1e300) == ("input.t = 1e+300: 1e+300 s after the first step, more than "
+                                  "a recording may span (86400 s)")
+    assert times.check(10.0 + 86_400.5) == ("input.t = 86410.5: 86400.5 s after the first "
+                                            "step, more than a recording may span (86400 s)")
