@@ -65,6 +65,10 @@ GROUND_POSE_KEYS = (
 #: The farthest a camera is mounted from the floor or the robot's centre, metres: a robot's
 #: camera, not a building's (1e308 had overflowed the floor model into NumPy warnings).
 MAX_MOUNT_DISTANCE_M = 10.0
+#: The lowest camera a ground pose may describe, metres: the smallest robots' are 0.1 m up (a
+#: JetBot's 0.125 m). A file saying 1e-9 had been taken, and the floor region then reported out
+#: of view, the blame on perception.roi and the file not named.
+MIN_MOUNT_HEIGHT_M = 0.02
 #: How the ground pose was obtained, its error on the floor and when (optional keys).
 GROUND_METHOD_KEY = "ground_method"
 GROUND_ERROR_KEY = "ground_reprojection_error_m"
@@ -98,10 +102,12 @@ class GroundCalibration:
 
     def __post_init__(self) -> None:
         pose = self.pose
-        if not (math.isfinite(pose.height_m) and 0 < pose.height_m <= MAX_MOUNT_DISTANCE_M):
+        if not (math.isfinite(pose.height_m)
+                and MIN_MOUNT_HEIGHT_M <= pose.height_m <= MAX_MOUNT_DISTANCE_M):
             raise PerceptionError(
-                f"calibration: ground_height_m {pose.height_m:g} must be above the floor and "
-                f"within {MAX_MOUNT_DISTANCE_M:g} m of it (0 < value <= {MAX_MOUNT_DISTANCE_M:g})"
+                f"calibration: ground_height_m {pose.height_m:g} must be at least "
+                f"{MIN_MOUNT_HEIGHT_M:g} m above the floor and within {MAX_MOUNT_DISTANCE_M:g} m "
+                f"of it ({MIN_MOUNT_HEIGHT_M:g} <= value <= {MAX_MOUNT_DISTANCE_M:g})"
             )
         for key, field in GROUND_POSE_KEYS[1:]:
             value = getattr(pose, field)

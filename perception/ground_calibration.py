@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from lanewarden.perception.calibration import CameraCalibration, Undistorter
+from lanewarden.perception.calibration import MIN_MOUNT_HEIGHT_M, CameraCalibration, Undistorter
 from lanewarden.perception.chessboard import ChessboardPattern
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose, GroundModel
@@ -79,15 +79,15 @@ def pose_from_mount(height_m: float, pitch_deg: float, roll_deg: float = 0.0,
                     forward_m: float = 0.0, lateral_m: float = 0.0,
                     yaw_deg: float = 0.0) -> CameraPose:
     """A measured mount as a pose; PerceptionError naming the flag for impossible values."""
-    checks = (("--height-m", height_m, 0.0, 5.0, "a height above the floor, 0..5 m"),
+    checks = (("--height-m", height_m, MIN_MOUNT_HEIGHT_M, 5.0,
+               f"a height above the floor, {MIN_MOUNT_HEIGHT_M:g}..5 m"),
               ("--pitch-deg", pitch_deg, -90.0, 90.0, "-90..90 deg (down is +)"),
               ("--roll-deg", roll_deg, -90.0, 90.0, "-90..90 deg"),
               ("--yaw-deg", yaw_deg, -90.0, 90.0, "-90..90 deg"),
               ("--forward-m", forward_m, -2.0, 2.0, "-2..2 m"),
               ("--lateral-m", lateral_m, -2.0, 2.0, "-2..2 m"))
     for flag, value, low, high, expected in checks:
-        if not (math.isfinite(value) and low <= value <= high) or (
-                flag == "--height-m" and value <= 0.0):
+        if not (math.isfinite(value) and low <= value <= high):
             raise PerceptionError(f"{flag} {value:g}: expected {expected}")
     return CameraPose(height_m=height_m, pitch_deg=pitch_deg, roll_deg=roll_deg,
                       yaw_deg=yaw_deg, forward_m=forward_m, lateral_m=lateral_m)

@@ -70,11 +70,16 @@ def _with_keys(tmp_path: Path, extra: str) -> Path:
 @pytest.mark.parametrize(("extra", "message"), [
     ("ground_height_m: 0.3\n", "node 'ground_pitch_deg' is missing"),
     ("ground_pitch_deg: 30.0\n", "node 'ground_height_m' is missing"),
-    ("ground_height_m: -0.3\nground_pitch_deg: 30.0\n", "ground_height_m -0.3 must be above"),
+    ("ground_height_m: -0.3\nground_pitch_deg: 30.0\n", "ground_height_m -0.3 must be at least"),
+    # a camera on the floor itself: the floor region was then said to be out of view, naming
+    # perception.roi and not the file (an attacker's review)
+    ("ground_height_m: 1e-9\nground_pitch_deg: 30.0\n",
+     "ground_height_m 1e-09 must be at least 0.02 m above the floor and within 10 m of it "
+     "(0.02 <= value <= 10)"),
     ("ground_height_m: 0.3\nground_pitch_deg: 130.0\n", "ground_pitch_deg 130 must be within"),
     # a mount no robot has (1e308 had overflowed the floor model into NumPy warnings)
     ("ground_height_m: 1e308\nground_pitch_deg: 30.0\n",
-     "ground_height_m 1e+308 must be above the floor and within 10 m of it"),
+     "ground_height_m 1e+308 must be at least 0.02 m above the floor and within 10 m of it"),
     ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_forward_m: -40.0\n",
      "ground_forward_m -40 must be within 10 m of the robot's centre"),
     ("ground_height_m: 0.3\nground_pitch_deg: 30.0\nground_yaw_deg: 720.0\n",

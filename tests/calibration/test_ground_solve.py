@@ -170,6 +170,8 @@ def test_a_rolled_camera_is_refused() -> None:
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     (dict(height_m=0.0, pitch_deg=30.0), "--height-m 0: expected a height above the floor"),
+    (dict(height_m=0.001, pitch_deg=30.0),
+     "--height-m 0.001: expected a height above the floor, 0.02..5 m"),
     (dict(height_m=0.3, pitch_deg=95.0), "--pitch-deg 95: expected -90..90"),
     (dict(height_m=0.3, pitch_deg=30.0, roll_deg=math.nan), "--roll-deg nan"),
     (dict(height_m=0.3, pitch_deg=30.0, forward_m=3.0), "--forward-m 3: expected -2..2 m"),
