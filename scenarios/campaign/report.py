@@ -361,6 +361,12 @@ def _case_rows(rows: Sequence[Row], out_dir: Path) -> str:
             f"<th>rerun (with video and plot)</th></tr>{''.join(lines)}</table></div>")
 
 
+def _figure(value: float | None, spec: str) -> str:
+    """A stored figure as the report shows it; '' where it was not stored (a store written
+    before the figure existed, or a damaged one: the report had stopped on it)."""
+    return "" if value is None else format(value, spec)
+
+
 def _before_halt_text(row: Row) -> str:
     """The run's `before_halt` summary in one line (empty for a run that never halted, or
     stored before the summary existed)."""
@@ -423,8 +429,9 @@ def _false_lanes(summary: CampaignSummary, out_dir: Path) -> str:
         clear = row.get("min_tape_clearance_m")
         lines.append(
             f"<tr>{_run_cells(row)}"
-            f"<td>{row['false_lane_longest_s']:.2f}</td><td>{row['false_lane_frames']}</td>"
-            f"<td>{row['max_edge_error_m']:.3f}</td>"
+            f"<td>{_figure(row.get('false_lane_longest_s'), '.2f')}</td>"
+            f"<td>{row['false_lane_frames']}</td>"
+            f"<td>{_figure(row.get('max_edge_error_m'), '.3f')}</td>"
             f"<td>{'' if clear is None else f'{1000 * clear:.1f}'}</td>"
             f"{_rerun_cell(out_dir, str(row['id']))}</tr>")
     return (head + f"<p>{counted(kept.count, 'run')} of {summary.false_lane_measured}, "

@@ -119,8 +119,38 @@ def checked_row(row: Mapping[str, Any], where: str) -> dict[str, Any]:
                                      "stores)")
     for name in _NUMBER_METRICS:
         value = metrics.get(name)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+        if value is not None and not _is_number(value):
             # read as "not measured", a damaged figure would hide a near miss or a false lane
             raise UnreadableRow(f"{prefix}: metrics_json's {name} {_shown(value)} is not a "
                                 "number (expected what a campaign stores, or nothing)")
+    if (summary := metrics.get("before_halt")) is not None and (problem := _summary_problem(
+            summary)):
+        raise UnreadableRow(f"{prefix}: metrics_json's before_halt {problem} (expected the "
+                            "summary a campaign stores, or nothing)")
     return {**row, METRICS: metrics}
+
+
+#: The counts of a stored `before_halt` summary (`scenarios.before_halt.before_halt`) the
+#: report's line reads; `window_s` is a number, `weakest` names with counts.
+_SUMMARY_COUNTS = ("frames", "confident", "usable", "unusable", "longest_confident_run")
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _summary_problem(summary: object) -> str:
+    """What a stored `before_halt` summary lacks for the report to describe it ('' when
+    nothing): a damaged one had stopped a resumed campaign's report with a KeyError."""
+    if not isinstance(summary, dict):
+        return f"{_shown(summary)} is not a summary"
+    if not _is_number(summary.get("window_s")):
+        return "has no window_s number"
+    for name in _SUMMARY_COUNTS:
+        if not isinstance(summary.get(name), int) or isinstance(summary.get(name), bool):
+            return f"has no whole-number {name}"
+    weakest = summary.get("weakest") or {}
+    if not isinstance(weakest, dict) or not all(
+            isinstance(k, str) and _is_number(v) for k, v in weakest.items()):
+        return f"weakest {_shown(weakest)} is not names with counts"
+    return ""

@@ -159,6 +159,17 @@ def test_every_reader_of_a_store_reads_checked_rows(tmp_path: Path) -> None:
      "stores, or nothing)"),
     ({"metrics_json": "[1, 2]"}, "metrics_json '[1, 2]' is not readable (expected the JSON "
                                  "object a campaign stores)"),
+    # the resumed campaign's report had stopped on these with a TypeError or a KeyError
+    ({"metrics_json": '{"before_halt": {"window_s": 2.0}}'},
+     "metrics_json's before_halt has no whole-number frames (expected the summary a campaign "
+     "stores, or nothing)"),
+    ({"metrics_json": '{"before_halt": "long"}'},
+     "metrics_json's before_halt 'long' is not a summary (expected the summary a campaign "
+     "stores, or nothing)"),
+    ({"metrics_json": '{"before_halt": {"window_s": 2.0, "frames": 1, "confident": 0, "usable": '
+                      '0, "unusable": 1, "longest_confident_run": 0, "weakest": [1]}}'},
+     "metrics_json's before_halt weakest [1] is not names with counts (expected the summary a "
+     "campaign stores, or nothing)"),
 ])
 def test_a_row_is_what_a_campaign_writes_or_refused_naming_the_column(
         change: dict[str, Any], said: str) -> None:
@@ -173,6 +184,24 @@ def test_rows_a_campaign_writes_are_read_as_they_are() -> None:
     older = {"id": "r00006", "idx": 6, "outcome": "nominal"}  # columns from before they existed
     measured = dict(stored_row(7), metrics_json='{"false_lane_frames": 0, "min_tape_clearance_m"'
                                                  ': -0.01, "max_edge_error_m": null}')
-    for row in (stored_row(4), error, older, dict(older, metrics_json=""), measured):
+    halted = dict(stored_row(8), metrics_json=(
+        '{"before_halt": {"window_s": 2.0, "frames": 61, "confident": 40, "usable": 5, '
+        '"unusable": 16, "jumped": 0, "weakest": {"lane_width": 9}, "longest_confident_run": 4, '
+        '"at_slope_cap": 5, "outliers": 13, "no_frame": 0}, "false_lane_frames": 2, '
+        '"false_lane_longest_s": 0.07}'))
+    for row in (stored_row(4), error, older, dict(older, metrics_json=""), measured, halted):
         checked = checked_row(row, "here")
         assert {k: v for k, v in checked.items() if k != "_metrics"} == row
+
+
+def test_a_false_lane_without_its_longest_spell_is_reported_not_a_traceback(
+        tiny_spec: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run on a false lane whose longest spell and edge error were not stored (a store written
+    before those figures existed, or damaged) had stopped a resumed campaign's report with a
+    TypeError; it is listed with those cells empty."""
+    out = campaign_dir(tmp_path, tiny_spec)
+    damage_row(out, "metrics_json", '{"false_lane_frames": 3}')
+    assert main(args(tiny_spec, out)) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    report = (out / "report.html").read_text(encoding="utf-8")
+    assert re.search(r"r00003.*?<td></td><td>3</td><td></td>", report, re.S), report[-3000:]
