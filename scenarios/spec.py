@@ -53,6 +53,9 @@ MAX_FAULTS = 50
 MAX_LIGHT_CHANGES = 20
 #: Anywhere in the world (start positions, offsets), metres from the origin.
 MAX_COORDINATE_M = 1000.0
+#: A position or shift on the floor, metres, within MAX_COORDINATE_M (a tile grid's or the ceiling
+#: lights' offset of 1e300 had made the floor NaN with warnings, or a traceback).
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
 
 Color = Annotated[str, Field(pattern=r"^#[0-9a-fA-F]{6}$")]
 TapeSide = Literal["left", "right", "both"]
@@ -166,7 +169,7 @@ class FloorSpec(_Model):
     tile_m: Annotated[float, Field(gt=0.05, le=5.0)] = 0.30
     seam_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.004
     grid_angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = 0.0
-    grid_offset_m: tuple[float, float] = (0.0, 0.0)
+    grid_offset_m: tuple[Coordinate, Coordinate] = (0.0, 0.0)
     variation: Annotated[float, Field(ge=0.0, le=0.5)] = 0.04
     grain: Annotated[float, Field(ge=0.0, le=0.5)] = 0.03
     chip_m: Annotated[float, Field(ge=0.003, le=0.08)] = 0.012
@@ -376,7 +379,7 @@ class CeilingLightsSpec(_Model):
     height_m: Annotated[float, Field(gt=0.5, le=20.0)] = 2.6
     spacing_m: tuple[Annotated[float, Field(gt=0.3, le=50.0)],
                      Annotated[float, Field(gt=0.3, le=50.0)]] = (2.4, 1.8)
-    offset_m: tuple[float, float] = (0.7, 0.4)
+    offset_m: tuple[Coordinate, Coordinate] = (0.7, 0.4)
     size_m: Annotated[float, Field(gt=0.01, le=3.0)] = 0.4
     strength: Annotated[float, Field(gt=0.0, le=1000.0)] = 40.0
     reach_m: Annotated[float, Field(gt=1.0, le=100.0)] = 20.0

@@ -299,3 +299,11 @@ def test_hough_resolutions_are_bounded_below_by_the_accumulator_they_make(
         f"{accepted} <= value <= 10")
     config = config_from_mapping(nested(("perception", "hough", key), accepted), "cfg.yaml")
     assert getattr(config.perception.hough, key) == accepted
+
+
+def test_the_simulated_base_integration_step_is_bounded_below() -> None:
+    """1e-9 s made the 20 s `straight` scenario take about a quarter of an hour, printing
+    nothing for its first minute (an attacker's review)."""
+    assert refusal(("actuation", "sim", "integration_step_s"), 1e-9) == (
+        "cfg.yaml: actuation.sim.integration_step_s = 1e-09: expected a finite number with "
+        "0.0001 <= value <= 0.05")

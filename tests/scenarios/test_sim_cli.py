@@ -211,6 +211,22 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path, capsys: pytest.Cap
     assert err == [f"lanewarden: error: {bad}: run.max_time_s = {expected}"]
 
 
+@pytest.mark.parametrize(("section", "said"), [
+    ("floor: {kind: tiles, grid_offset_m: [1.0e300, 0.0]}",
+     "floor.grid_offset_m.0 = 1e+300: input should be less than or equal to 1000"),
+    ("lighting:\n  ceiling: {offset_m: [0.0, -1.0e308]}",
+     "lighting.ceiling.offset_m.1 = -1e+308: input should be greater than or equal to -1000"),
+])
+def test_an_offset_on_the_floor_is_bounded(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                           section: str, said: str) -> None:
+    """A tile grid shifted by 1e300 m made the floor NaN, with NumPy's warnings and a robot that
+    never engaged; ceiling lights shifted by 1e308 m were an OverflowError traceback."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"{SHORT}{section}\n", encoding="utf-8")
+    assert main(["sim", "--scenario", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert capsys.readouterr().err.splitlines() == [f"lanewarden: error: {bad}: {said}"]
+
+
 @pytest.mark.parametrize(("flag", "what"), [("--scenario", "scenario"),
                                             ("--case", "campaign case")])
 def test_a_config_given_as_the_scenario_is_one_line_saying_so(
