@@ -346,3 +346,33 @@ def test_two_permanent_losses_of_the_camera_both_act() -> None:
     assert (row["outcome"], row["halt_reason"].split(":")[0]) == ("safe_halt", "CAMERA_ERROR")
     assert [e["kind"] for e in json.loads(row["effects_json"])] == ["camera_error",
                                                                      "camera_freeze"]
+
+
+def test_more_local_workers_than_the_machine_runs_are_refused_before_anything_starts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--workers took up to 512 whatever the machine: 64 on a 2-core machine did not finish a
+    3 s run in two minutes and took 1.5 GB more memory (an attacker's review). At most 4 per
+    core, and no more than the machine's memory holds at their memory limit."""
+    import os
+
+    cores = len(os.sched_getaffinity(0))
+    out = tmp_path / "c"
+    assert main(["campaign", "--spec", "default", "--runs", "1", "--out", str(out),
+                 "--workers", str(4 * cores + 1)]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: --workers {4 * cores + 1}: this machine has {cores} "
+        f"core{'s' if cores > 1 else ''}; expected at most {4 * cores} local worker processes "
+        "(4 per core: more only share them)"]
+    config = tmp_path / "big.yaml"
+    config.write_text("campaign: {worker_memory_limit_mb: 65536}\n", encoding="utf-8")
+    memory_mb = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2**20
+    workers = min(4 * cores, memory_mb // 65536 + 1)
+    if workers * 65536 <= memory_mb:
+        pytest.skip(f"this machine's memory ({memory_mb} MB) holds {4 * cores} workers of 64 GB")
+    assert main(["campaign", "--spec", "default", "--runs", "1", "--out", str(out),
+                 "--workers", str(workers), "--config", str(config)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"lanewarden: error: --workers {workers}: at campaign.worker_memory_limit_mb 65536 each "
+        f"they may use {workers * 65536} MB, more than this machine's {memory_mb} MB"), err
+    assert not out.exists()
