@@ -48,6 +48,7 @@ from lanewarden.scenarios.spec import (
     merge_overrides,
     parse_scenario,
 )
+from lanewarden.scenarios.world import build_world
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -276,6 +277,8 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                                 f"the spec's scenarios {spec.scenarios}")
     groups: list[tuple[str, Sequence[Choice]]] = [
         ("floors", spec.floors), ("tapes", spec.tapes), ("effects", spec.effects)]
+    bases = {} if unread else {name: _resolve(name, path).model_dump(
+        mode="json", exclude_defaults=True) for name in dict.fromkeys(spec.scenarios)}
     for what, choices in groups:
         for i, choice in enumerate(choices):
             for name in choice.exclude_scenarios:
@@ -284,12 +287,19 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                                     f"of the spec's scenarios {spec.scenarios}")
             if unread:
                 continue  # (one line per misspelt scenario, not one per floor, tape, effect)
-            try:
-                base = _resolve(spec.scenarios[0], path).model_dump(mode="json",
-                                                                    exclude_defaults=True)
-                parse_scenario(_dress(base, choice), f"{what}.{i} ({choice.name})")
-            except ScenarioError as exc:
-                problems.append(f"{path}: {what}.{i} ({choice.name}): {_one_line(exc)}")
+            # over every scenario a run may lay it on: a tape checked against the first alone
+            # had let a lane too wide for the lecture's 0.5 m bends through, and every run that
+            # drew the two was an error
+            for name in (n for n in bases if n not in choice.exclude_scenarios):
+                try:
+                    dressed = parse_scenario(_dress(bases[name], choice),
+                                             f"{what}.{i} ({choice.name})")
+                    if isinstance(choice, TapeChoice):  # the lane's width against its bends
+                        build_world(dressed)
+                except ScenarioError as exc:
+                    problems.append(f"{path}: {what}.{i} ({choice.name}) on scenario "
+                                    f"{name!r}: {_one_line(exc)}")
+                    break  # (one line per choice)
     problems += _config_problems(spec, path)
     for i, fault in enumerate(spec.faults):
         # Every value a draw can give at its extremes (each one_of option, each end of a range;
@@ -300,6 +310,15 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                        for key, value in fault.params.items()}
         except ValueError as exc:
             problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
+            continue
+        late = [at for at in options.get("at_s", []) if isinstance(at, int | float)
+                and not isinstance(at, bool) and at >= spec.max_time_s]
+        if late:
+            # as for fault_start_s: a fault set to start after the runs end never takes effect,
+            # and every run that drew it was an error
+            problems.append(f"{path}: faults.{i} ({fault.kind}): params.at_s = {max(late):g}: "
+                            f"the runs end at max_time_s {spec.max_time_s:g} s: expected a "
+                            "start below it")
             continue
         for params in _combinations(options):
             try:
@@ -320,14 +339,17 @@ def _config_problems(spec: CampaignSpec, path: Path) -> list[str]:
     from lanewarden.errors import ConfigError
 
     pieces: list[tuple[str, dict[str, Any]]] = [("config", {})]
+    pieces_by_choice: dict[int, dict[str, Any]] = {}
     for i, camera in enumerate(spec.cameras):
-        pieces.append((f"cameras.{i} ({camera.name})", merge_overrides(camera.config, {
+        pieces_by_choice[id(camera)] = merge_overrides(camera.config, {
             "simulation": {"width_px": camera.width_px, "height_px": camera.height_px,
-                           **camera.simulation}})))
+                           **camera.simulation}})
+        pieces.append((f"cameras.{i} ({camera.name})", pieces_by_choice[id(camera)]))
     groups: list[tuple[str, Sequence[Choice]]] = [
         ("floors", spec.floors), ("tapes", spec.tapes), ("effects", spec.effects)]
     for what, choices in groups:
         pieces += [(f"{what}.{i} ({c.name})", c.config) for i, c in enumerate(choices) if c.config]
+        pieces_by_choice.update((id(c), c.config) for c in choices)
     problems = []
     for where, overrides in pieces:
         try:
@@ -336,7 +358,48 @@ def _config_problems(spec: CampaignSpec, path: Path) -> list[str]:
             problems.append(str(exc))
             if where == "config":  # every other piece goes over it: one report is enough
                 break
+    if problems:
+        return problems
+    # Then the pieces a run may draw together, each fine alone: a camera's speed limit and an
+    # effect's slower base had made every run that drew both an error.
+    for drawn in _drawn_together(spec, pieces_by_choice):
+        named = [f"{what}.{i} ({c.name})" for what, i, c in drawn]
+        merged = dict(spec.config)
+        for _, _, choice in drawn:
+            merged = merge_overrides(merged, pieces_by_choice[id(choice)])
+        try:
+            config_from_mapping(merged, f"{path}: {' with '.join(named)}")
+        except ConfigError as exc:
+            problems.append(" ".join(str(exc).split("\n")[:1]))
+            break  # (one line: the first such draw)
     return problems
+
+
+def _drawn_together(spec: CampaignSpec, pieces: Mapping[int, dict[str, Any]],
+                    ) -> Iterator[list[tuple[str, int, Any]]]:
+    """The choices a run may draw together (a camera, and a floor, tape and effect where the
+    spec has them: some scenario none of them excludes, the tape laid on that floor) that bring
+    config overrides (`pieces`, by the choice's id), at least two; each such set once."""
+    groups: list[list[tuple[str, int, Any]]] = [
+        [("cameras", i, c) for i, c in enumerate(spec.cameras)]]
+    for what, choices in (("floors", spec.floors), ("tapes", spec.tapes),
+                          ("effects", spec.effects)):
+        if choices:
+            groups.append([(what, i, c) for i, c in enumerate(choices)])
+    seen: set[tuple[int, ...]] = set()
+    for drawn in itertools.product(*groups):
+        bringing = tuple(id(c) for _, _, c in drawn if pieces[id(c)])
+        if len(bringing) < 2 or bringing in seen:
+            continue  # (each piece alone was checked)
+        if not any(all(name not in c.exclude_scenarios for _, _, c in drawn)
+                   for name in spec.scenarios):
+            continue
+        floor = next((c for what, _, c in drawn if what == "floors"), None)
+        tape = next((c for what, _, c in drawn if what == "tapes"), None)
+        if floor is not None and tape is not None and tape.floors and floor.name not in tape.floors:
+            continue
+        seen.add(bringing)
+        yield [(what, i, c) for what, i, c in drawn if pieces[id(c)]]
 
 
 def _placement(kind: str, params: Mapping[str, Any]) -> dict[str, Any]:

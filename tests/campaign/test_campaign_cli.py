@@ -226,6 +226,38 @@ def test_a_spec_whose_faults_start_after_its_runs_end_is_refused(
     assert not (tmp_path / "o").exists()
 
 
+SMALL_SPEC = ("name: small\nscenarios: [straight, lecture]\nmax_time_s: 5\n"
+              "fault_start_s: [1, 2]\n")
+
+
+@pytest.mark.parametrize(("rest", "said"), [
+    # a fault whose own start is after the runs end never takes effect: every run an error
+    ("faults:\n  - {kind: bumper, params: {at_s: {one_of: [1.0, 500.0]}}}\n",
+     "faults.0 (bumper): params.at_s = 500: the runs end at max_time_s 5 s: expected a start "
+     "below it"),
+    # a tape checked on the first scenario alone: too wide for the lecture's 0.5 m bends
+    ("faults:\n  - {kind: bumper}\ntapes:\n  - {name: wide, lane: {width_m: 1.0}}\n",
+     "tapes.0 (wide) on scenario 'lecture': lecture: lane.segments.1.arc_radius_m = 0.5: "
+     "expected more than half the lane width plus the tape width (0.548 m)"),
+    # a camera's and an effect's config, each fine alone, not together
+    ("faults:\n  - {kind: bumper}\ncameras:\n  - {name: fast, width_px: 320, height_px: 240, "
+     "config: {supervisor: {limiter_max_linear_m_s: 0.6}}}\neffects:\n  - {name: slow, config: "
+     "{actuation: {max_linear_m_s: 0.4}}}\n",
+     "cameras.0 (fast) with effects.0 (slow): supervisor.limiter_max_linear_m_s = 0.6: must not "
+     "exceed actuation.max_linear_m_s (0.4 m/s), the base's own limit"),
+])
+def test_a_spec_whose_draws_could_only_be_errors_is_refused_before_any_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], rest: str, said: str) -> None:
+    """Each of these loaded, and every run that drew it became an error row, exit 0 (an
+    attacker's review): the docs promise a bad spec is refused before any run."""
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(SMALL_SPEC + rest, encoding="utf-8")
+    assert main(["campaign", "--spec", str(spec), "--out", str(tmp_path / "o"), "--runs", "2",
+                 "--scheduler", "in-process"]) == 2
+    assert capsys.readouterr().err.splitlines() == [f"lanewarden: error: {spec}: {said}"]
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_default_spec_covers_every_fault_kind() -> None:
     from lanewarden.scenarios.spec import FaultKind
 
