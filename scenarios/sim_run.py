@@ -28,6 +28,7 @@ from lanewarden.scenarios.report import run_summary, write_report
 from lanewarden.scenarios.simulator import (
     Simulation,
     SimulationResult,
+    camera_buffers_problem,
     effective_config,
     latest_time_s,
 )
@@ -109,6 +110,8 @@ def _check_world(request: RunRequest, config: LanewardenConfig) -> None:
     checks know only the scenario's name)."""
     try:
         build_world(request.spec, margin_m=config.simulation.world_margin_m)
+        if problem := camera_buffers_problem(request.spec, config):
+            raise ScenarioError(f"{request.spec.name}: {problem}")
     except ScenarioOutputError:
         raise
     except ScenarioError as exc:

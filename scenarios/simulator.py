@@ -119,6 +119,32 @@ def camera_model_of(camera: CameraSpec | None, width_px: int, height_px: int) ->
                        dist_coeffs=camera.distortion)
 
 
+#: The most memory the simulated camera's own frame buffers may take, bytes: its pool (frames
+#: kept to serve a `late_frames` latency) and its noise bank (float32 frames). A 1920x1440 colour
+#: camera at 120 Hz with a 5 s latency and 64 noise frames took 7.5 GB, without a word (an
+#: attacker's review); the defaults at the largest camera take 0.4 GB.
+MAX_CAMERA_BUFFER_BYTES = 2 * 2**30
+
+
+def camera_buffers_problem(spec: ScenarioSpec, config: LanewardenConfig) -> str:
+    """'' when the simulated camera's buffers fit MAX_CAMERA_BUFFER_BYTES, else why not and
+    what makes them large (checked before anything is painted or written)."""
+    sim = config.simulation
+    channels = 3 if sim.perception_color else 1
+    frame = sim.width_px * sim.height_px * channels
+    pool = camera_pool_size(spec.faults, sim.camera_rate_hz)
+    noise = max(1, sim.noise_bank_frames)
+    total = frame * (pool + 4 * noise)  # (the noise frames are float32)
+    if total <= MAX_CAMERA_BUFFER_BYTES:
+        return ""
+    return (f"the simulated camera's buffers would take {total / 2**30:.1f} GB, more than "
+            f"{MAX_CAMERA_BUFFER_BYTES / 2**30:g} GB: {pool} frames of {sim.width_px}x"
+            f"{sim.height_px}{' colour' if channels == 3 else ''} kept to serve late frames at "
+            f"simulation.camera_rate_hz {sim.camera_rate_hz:g}, and {noise} noise frames "
+            "(simulation.noise_bank_frames); expected a smaller camera, a lower rate, a shorter "
+            "late_frames latency or fewer noise frames")
+
+
 def sim_camera_model(config: LanewardenConfig, camera: CameraSpec | None = None) -> CameraModel:
     """The simulated camera: the scenario's camera block (default: CameraModel's geometry) at
     the configured resolution (see `effective_config`). With `simulation.rectified_frames` its
@@ -164,6 +190,8 @@ class Simulation:
         self._progress = progress
         self._camera_frames = camera_frames
         sim = config.simulation
+        if problem := camera_buffers_problem(spec, config):
+            raise ScenarioError(f"{spec.name}: {problem}")
         self.camera = sim_camera_model(config, spec.camera)
         self.world = build_world(spec, margin_m=sim.world_margin_m)
         # The painted floor depends only on these (and is reused by a campaign's worker); floor

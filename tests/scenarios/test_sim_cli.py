@@ -306,3 +306,28 @@ def test_check_flag_fails_an_unmet_expectation(tmp_path: Path) -> None:
                  "--no-video", "--check"])
     assert code == 2
     assert not (tmp_path / "o" / "video.mp4").exists()
+
+
+def test_a_simulated_camera_whose_buffers_would_take_gigabytes_is_refused_first(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each value within its bounds, together they took 7.5 GB without a word (an attacker's
+    review): a 1920x1440 colour camera at 120 Hz keeps 604 frames to serve a 5 s late_frames
+    latency, and 64 noise frames of float32."""
+    scenario = tmp_path / "late.yaml"
+    scenario.write_text("name: late\nlane:\n  segments:\n    - straight_m: 8.0\ncamera: "
+                        "{width_px: 1920, height_px: 1440}\nrun:\n  max_time_s: 8\nfaults: "
+                        "[{kind: late_frames, at_s: 0.0, latency_s: 5.0}]\n", encoding="utf-8")
+    config = tmp_path / "fast.yaml"
+    config.write_text("simulation: {camera_rate_hz: 120, perception_color: true, "
+                      "noise_bank_frames: 64}\n"
+                      f"supervisor: {{camera_period_s: {1 / 120!r}}}\n", encoding="utf-8")
+    out = tmp_path / "o"
+    assert main(["sim", "--scenario", str(scenario), "--config", str(config), "--out", str(out),
+                 "--quiet", "--no-video"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lanewarden: error: {scenario}: the simulated camera's buffers would take 6.6 GB, more "
+        "than 2 GB: 604 frames of 1920x1440 colour kept to serve late frames at "
+        "simulation.camera_rate_hz 120, and 64 noise frames (simulation.noise_bank_frames); "
+        "expected a smaller camera, a lower rate, a shorter late_frames latency or fewer noise "
+        "frames"]
+    assert not out.exists() or not any(out.iterdir())  # checked before anything is written
