@@ -638,6 +638,25 @@ class Expectation(_Model):
 
         return _known_names(names, [s.value for s in SupervisorState], "supervisor state")
 
+    @model_validator(mode="after")
+    def _can_pass(self) -> Expectation:
+        """An expectation no run can meet is refused when the file is read: one had run the whole
+        scenario (minutes, at max_time_s 600) to fail --check (an attacker's review)."""
+        for low, high in (("min_distance_past_lane_end_m", "max_distance_past_lane_end_m"),
+                          ("min_distance_travelled_m", "max_distance_travelled_m")):
+            a, b = getattr(self, low), getattr(self, high)
+            if a is not None and b is not None and a > b:
+                raise ValueError(f"{low} {a:g} is more than {high} {b:g}: no run can meet both")
+        if self.halted is False and (self.halt_reason_any_of or self.halted_before_s is not None):
+            given = "halt_reason_any_of" if self.halt_reason_any_of else "halted_before_s"
+            raise ValueError(f"halted: false with {given}: a run that does not halt has no halt "
+                             "to check")
+        both = sorted(set(self.states_visited_include) & set(self.states_visited_exclude))
+        if both:
+            raise ValueError(f"states {both} are both in states_visited_include and in "
+                             "states_visited_exclude")
+        return self
+
 
 def _event_names() -> list[str]:
     from lanewarden.supervisor.events import Event
@@ -663,6 +682,20 @@ class ScenarioSpec(_Model):
     faults: Annotated[list[FaultSpec], Field(max_length=MAX_FAULTS)] = []
     config: dict[str, Any] = {}
     expect: ExpectSpec = ExpectSpec()
+
+    @model_validator(mode="after")
+    def _turns_are_marked(self) -> ScenarioSpec:
+        """Every turn an expectation names is a lane segment's `mark` (one that is not could
+        never be completed: the run failed --check after running in full)."""
+        marks = {seg.mark for seg in self.lane.segments if seg.mark is not None}
+        for controller in ("supervised", "lecture"):
+            expected = getattr(self.expect, controller)
+            unknown = [t for t in (expected.turns_completed or []) if t not in marks] if (
+                expected is not None) else []
+            if unknown:
+                raise ValueError(f"expect.{controller}.turns_completed: {unknown} are not marks "
+                                 f"of the lane's segments ({sorted(marks) or 'none'})")
+        return self
 
     @model_validator(mode="after")
     def _one_render_size(self) -> ScenarioSpec:

@@ -331,3 +331,30 @@ def test_a_simulated_camera_whose_buffers_would_take_gigabytes_is_refused_first(
         "expected a smaller camera, a lower rate, a shorter late_frames latency or fewer noise "
         "frames"]
     assert not out.exists() or not any(out.iterdir())  # checked before anything is written
+
+
+@pytest.mark.parametrize(("expect", "said"), [
+    ("min_distance_travelled_m: 5.0, max_distance_travelled_m: 1.0",
+     "expect.supervised: min_distance_travelled_m 5 is more than max_distance_travelled_m 1: no "
+     "run can meet both"),
+    ("halted: false, halt_reason_any_of: [BUMPER]",
+     "expect.supervised: halted: false with halt_reason_any_of: a run that does not halt has no "
+     "halt to check"),
+    ("states_visited_include: [FOLLOW, HALT], states_visited_exclude: [FOLLOW]",
+     "expect.supervised: states ['FOLLOW'] are both in states_visited_include and in "
+     "states_visited_exclude"),
+    ("turns_completed: [Z]",
+     "expect.supervised.turns_completed: ['Z'] are not marks of the lane's segments (none)"),
+])
+def test_an_expectation_no_run_can_meet_is_refused_when_read(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], expect: str, said: str) -> None:
+    """Each had run the whole scenario, then failed --check (an attacker's review)."""
+    scenario = tmp_path / "contra.yaml"
+    scenario.write_text("name: contra\nlane:\n  segments: [{straight_m: 3.0}]\nrun: "
+                        f"{{max_time_s: 2}}\nexpect:\n  supervised: {{{expect}}}\n",
+                        encoding="utf-8")
+    assert main(["sim", "--scenario", str(scenario), "--out", str(tmp_path / "o"), "--quiet",
+                 "--no-video"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"lanewarden: error: {scenario}: "), err
+    assert err[0].endswith(said), err
