@@ -77,11 +77,16 @@ class SizeSetup:
         near, far = visible_range_m(ground)
         if area < _MIN_ROI_AREA_PX:
             roi = config.roi
+            # (a region in view but a few pixels large, a wide lens high up on a small image,
+            # had been called "not in the camera's view", beside a visible range holding it)
+            seen = (f"this floor is not in the camera's view at {width}x{height}; expected a "
+                    f"region overlapping {_range_text(near, far)}" if area == 0.0 else
+                    f"this floor covers only {area:.0f} of the {width}x{height} image's pixels; "
+                    f"expected at least {_MIN_ROI_AREA_PX:.0f} (a larger image, a narrower lens "
+                    "or a lower camera)")
             raise PerceptionConfigError(
                 f"perception.roi (near_m {roi.near_m:g}, far_m {roi.far_m:g}, lateral_m "
-                f"{roi.lateral_m:g}): this floor is not in the camera's view at {width}x{height}; "
-                f"expected a region overlapping {_range_text(near, far)}"
-            )
+                f"{roi.lateral_m:g}): {seen}")
         self.mask = np.zeros((height, width), dtype=np.uint8)
         cv2.fillPoly(self.mask, [self.polygon_px], 255)
         self.edge_budget_px = config.canny.max_edge_share * cv2.countNonZero(self.mask)

@@ -358,3 +358,20 @@ def test_an_expectation_no_run_can_meet_is_refused_when_read(
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"lanewarden: error: {scenario}: "), err
     assert err[0].endswith(said), err
+
+
+def test_a_floor_region_in_view_but_a_few_pixels_large_is_called_that(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 150 deg lens 2 m up on a 64x48 image sees the ROI in 36 pixels: it was called "not in
+    the camera's view", beside a visible range (-4.13 m to 7.59 m) that holds it (an attacker's
+    review)."""
+    scenario = tmp_path / "steep.yaml"
+    scenario.write_text("name: steep\nlane:\n  segments:\n    - straight_m: 3.0\ncamera: "
+                        "{pitch_deg: 85, hfov_deg: 150, height_m: 2.0, width_px: 64, height_px: "
+                        "48}\nrun:\n  max_time_s: 2\n", encoding="utf-8")
+    assert main(["sim", "--scenario", str(scenario), "--out", str(tmp_path / "o"), "--quiet",
+                 "--no-video"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        "lanewarden: error: perception.roi (near_m 0, far_m 1.6, lateral_m 0.65): this floor "
+        "covers only 36 of the 64x48 image's pixels; expected at least 64 (a larger image, a "
+        "narrower lens or a lower camera)"]
