@@ -36,9 +36,15 @@ import sqlite3
 from collections import Counter
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
-from lanewarden.scenarios.campaign.stored_row import Oversized, checked_row, field_limit
+from lanewarden.scenarios.campaign.stored_row import (
+    MAX_METRICS_CHARS,
+    Oversized,
+    UnreadableRow,
+    checked_row,
+    field_limit,
+)
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.sqlite_tables import computed_table
 
@@ -284,16 +290,34 @@ class ResultStore:
         if not self.unstored_path.exists():
             return 0
         rows = []
-        for line in self.unstored_path.read_text(encoding="utf-8").splitlines():
-            try:
-                row = json.loads(line)
-            except ValueError:
-                continue  # a line cut short when the disk filled: that run is simply rerun
-            if isinstance(row, dict) and isinstance(row.get("id"), str):
+        with self.unstored_path.open(encoding="utf-8", errors="replace") as stream:
+            for line in _bounded_lines(stream, MAX_UNSTORED_LINE_CHARS):
+                try:
+                    row = json.loads(line)
+                    checked_row(row, "")  # (the row as every reader would check it)
+                except (ValueError, RecursionError, TypeError, AttributeError, UnreadableRow):
+                    continue  # a line cut short when the disk filled, or damaged: rerun it
                 rows.append(row)
         self._write(lambda db: self._insert(db, rows))  # one transaction; the file stays if not
         self.unstored_path.unlink()
         return len(rows)
+
+
+#: The longest line of results.unstored.jsonl read, characters: a row's fields at their limits
+#: (`stored_row.field_limit`) and more; a longer line is damage, its run is rerun.
+MAX_UNSTORED_LINE_CHARS = 4 * MAX_METRICS_CHARS
+
+
+def _bounded_lines(stream: TextIO, limit: int) -> Iterator[str]:
+    """The lines of `stream` no longer than `limit` characters; a longer one is skipped without
+    holding it (a damaged or hostile file's line of gigabytes)."""
+    while line := stream.readline(limit + 1):
+        if len(line) <= limit or line.endswith("\n"):
+            if len(line.rstrip("\n")) <= limit:
+                yield line
+            continue
+        while (rest := stream.readline(limit)) and not rest.endswith("\n"):
+            pass  # (the rest of the long line, a piece at a time)
 
 
 # ---- checking and recovering a damaged file ---------------------------------------------------

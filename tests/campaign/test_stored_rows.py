@@ -205,3 +205,25 @@ def test_a_false_lane_without_its_longest_spell_is_reported_not_a_traceback(
     capsys.readouterr()
     report = (out / "report.html").read_text(encoding="utf-8")
     assert re.search(r"r00003.*?<td></td><td>3</td><td></td>", report, re.S), report[-3000:]
+
+
+def test_rows_left_unstored_are_carried_over_only_as_a_campaign_writes_them(
+        tmp_path: Path) -> None:
+    """results.sqlite.unstored.jsonl (rows a full disk kept out of the store) was read whole and
+    parsed line by line with only ValueError caught: a line nested 100,000 deep was a
+    RecursionError traceback, a line of gigabytes was held in memory, and a damaged row went
+    into the store. Such lines are passed over now: their runs are simply run again."""
+    import json
+
+    from tests.campaign.test_store_damage import stored_row as finished
+
+    path = tmp_path / "results.sqlite"
+    unstored = tmp_path / "results.sqlite.unstored.jsonl"
+    lines = [json.dumps(finished(0)), DEEP, json.dumps({**finished(1), "outcome": "Unsafe"}),
+             json.dumps({**finished(2), "reason": "x" * (5 * 2**20)}), json.dumps(finished(3)),
+             '{"id": "r00004", "idx": 4, "outc']  # (cut short when the disk filled)
+    unstored.write_text("\n".join(lines), encoding="utf-8")
+    with ResultStore(path) as store:
+        assert store.unstored_carried == 2
+        assert [r["id"] for r in store.iter_rows()] == ["r00000", "r00003"]
+    assert not unstored.exists()
