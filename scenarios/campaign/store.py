@@ -57,7 +57,6 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("worker", "TEXT"), ("metrics_json", "TEXT"), ("effects_json", "TEXT"),
 )
 COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
-_SELECT = f"SELECT {', '.join(COLUMN_NAMES)} FROM runs"
 #: How long a write waits for another program's read of the file to end, seconds.
 LOCK_WAIT_S = 600.0
 #: Rows that could not be written, beside the database (a name of its own, never overwritten).
@@ -438,11 +437,28 @@ def _computes_rows(db: sqlite3.Connection) -> bool:
 def _scan(db: sqlite3.Connection, query: str, found: dict[str, dict[str, Any]]) -> None:
     try:
         for values in db.execute(query):
-            row = dict(zip(COLUMN_NAMES, values, strict=True))
-            if isinstance(row["id"], str):
+            row = _readable(values)
+            if row is not None:
                 found.setdefault(row["id"], row)
     except sqlite3.Error:
         pass  # the scan reached the damage: what came before is kept
+
+
+def _readable(values: tuple[Any, ...]) -> dict[str, Any] | None:
+    """A row read with `_bounded_select` as a campaign writes it, or None: a field longer than
+    any run writes (never fetched), or a row every reader would refuse (`checked_row`). Such a
+    run is not carried over but run again: recovered, it would have held every later reader
+    up (a 300 MB field had also been read whole)."""
+    width = len(COLUMN_NAMES)
+    if any(length is not None and length > field_limit(name)
+           for name, length in zip(COLUMN_NAMES, values[width:], strict=True)):
+        return None
+    row = dict(zip(COLUMN_NAMES, values[:width], strict=True))
+    try:
+        checked_row(row, "")
+    except UnreadableRow:
+        return None
+    return row
 
 
 def _recover(path: Path) -> Recovery:
@@ -470,8 +486,9 @@ def _recover(path: Path) -> Recovery:
     try:
         if _computes_rows(db):
             return Recovery([], {}, kept, 0)  # rows it computes are no campaign's (nor bounded)
-        _scan(db, f"{_SELECT} ORDER BY rowid", found)
-        _scan(db, f"{_SELECT} ORDER BY rowid DESC", found)
+        select = _bounded_select()
+        _scan(db, f"{select} ORDER BY rowid", found)
+        _scan(db, f"{select} ORDER BY rowid DESC", found)
         try:  # the primary key's own index: the ids of rows the table scans could not reach
             for (id_,) in db.execute("SELECT id FROM runs INDEXED BY sqlite_autoindex_runs_1"):
                 ids.add(id_)
@@ -479,11 +496,11 @@ def _recover(path: Path) -> Recovery:
             pass
         for id_ in sorted(ids - set(found)):
             try:
-                values = db.execute(f"{_SELECT} WHERE id = ?", (id_,)).fetchone()
+                values = db.execute(f"{select} WHERE id = ?", (id_,)).fetchone()
             except sqlite3.Error:
                 continue
-            if values is not None:
-                found[id_] = dict(zip(COLUMN_NAMES, values, strict=True))
+            if values is not None and (row := _readable(values)) is not None:
+                found[id_] = row
         try:
             identity = {str(k): str(v) for k, v in db.execute("SELECT key, value FROM campaign")}
         except sqlite3.Error:

@@ -227,3 +227,27 @@ def test_rows_left_unstored_are_carried_over_only_as_a_campaign_writes_them(
         assert store.unstored_carried == 2
         assert [r["id"] for r in store.iter_rows()] == ["r00000", "r00003"]
     assert not unstored.exists()
+
+
+def test_recover_runs_again_what_no_reader_would_take_instead_of_carrying_it(
+        tiny_spec: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """--recover carried every row it could read as it was: a row every reader refuses (an
+    outcome no campaign stores) held the recovered store up again, and a field of hundreds of
+    MB was read whole. Such runs are run again."""
+    from tests.campaign.test_store_damage import damage_page
+
+    out = campaign_dir(tmp_path, tiny_spec)
+    damage_row(out, "outcome", "Unsafe", index=1)
+    damage_row(out, "reason", "x" * (MAX_FIELD_CHARS + 1), index=2)
+    damage_page(out / "results.sqlite", 8)
+    ran: list[str] = []
+    monkeypatch.setattr(runner_module, "run_case", counting(ran))
+    assert main(args(tiny_spec, out, "--recover")) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert {"r00001", "r00002"} <= set(ran)
+    with sqlite3.connect(out / "results.sqlite") as db:
+        outcomes = dict(db.execute("SELECT id, outcome FROM runs"))
+    db.close()
+    assert outcomes["r00001"] != "Unsafe"
+    assert main(["compare", str(out), str(out)]) == 0  # every row now readable
