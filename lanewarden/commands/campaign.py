@@ -59,7 +59,6 @@ def _counts(progress: CampaignProgress) -> str:
     return " ".join(f"{o}={progress.counts[o]}" for o in OUTCOMES if progress.counts[o])
 
 
-
 #: The most local worker processes per core: beyond it they only share the cores (64 workers on
 #: a 2-core machine did not finish a 3 s run in 2 minutes, and took 1.5 GB more memory).
 MAX_WORKERS_PER_CORE = 4
@@ -83,6 +82,7 @@ def _check_local_workers(workers: int, memory_limit_mb: int) -> None:
                          f"more than this machine's {memory_mb} MB; expected at most "
                          f"{counted(max(1, memory_mb // memory_limit_mb), 'worker')}, or a "
                          "lower limit")
+
 
 @click.command("campaign", epilog=EXAMPLES)
 @click.option("--spec", "spec_name", required=True, metavar="FILE|default",

@@ -261,9 +261,10 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
     """Every scenario resolves and every fault's parameter ranges give valid faults."""
     problems = []
     unread = False  # a scenario that does not resolve: the dressing below reads the first one
+    bases: dict[str, dict[str, Any]] = {}  # each scenario's data, what a choice is laid over
     for i, name in enumerate(spec.scenarios):
         try:
-            _resolve(name, path)
+            bases[name] = _resolve(name, path).model_dump(mode="json", exclude_defaults=True)
         except ScenarioError as exc:
             problems.append(f"{path}: scenarios.{i} = {name!r}: {exc}")
             unread = True
@@ -277,8 +278,6 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                                 f"the spec's scenarios {spec.scenarios}")
     groups: list[tuple[str, Sequence[Choice]]] = [
         ("floors", spec.floors), ("tapes", spec.tapes), ("effects", spec.effects)]
-    bases = {} if unread else {name: _resolve(name, path).model_dump(
-        mode="json", exclude_defaults=True) for name in dict.fromkeys(spec.scenarios)}
     for what, choices in groups:
         for i, choice in enumerate(choices):
             for name in choice.exclude_scenarios:

@@ -237,14 +237,9 @@ class ResultStore:
         args: tuple[int, ...] = ()
         if below_index is not None:
             query, args = f"{self._select} WHERE idx < ? ORDER BY idx", (below_index,)
-        width = len(COLUMN_NAMES)
         try:
             for values in self._db.execute(query, args):
-                row = {name: (Oversized(int(length)) if length is not None
-                              and length > field_limit(name) else value)
-                       for name, value, length in zip(COLUMN_NAMES, values[:width],
-                                                      values[width:], strict=True)}
-                yield checked_row(row, str(self.path))
+                yield checked_row(_row_read(values), str(self.path))
         except sqlite3.Error as exc:
             raise DamagedResults(f"{self.path}: cannot read the results ({_problem(exc)}); run "
                                  "the same command with --recover") from None
@@ -311,9 +306,8 @@ def _bounded_lines(stream: TextIO, limit: int) -> Iterator[str]:
     """The lines of `stream` no longer than `limit` characters; a longer one is skipped without
     holding it (a damaged or hostile file's line of gigabytes)."""
     while line := stream.readline(limit + 1):
-        if len(line) <= limit or line.endswith("\n"):
-            if len(line.rstrip("\n")) <= limit:
-                yield line
+        if len(line) <= limit or line.endswith("\n"):  # (a whole line of at most `limit`)
+            yield line
             continue
         while (rest := stream.readline(limit)) and not rest.endswith("\n"):
             pass  # (the rest of the long line, a piece at a time)
@@ -449,16 +443,22 @@ def _readable(values: tuple[Any, ...]) -> dict[str, Any] | None:
     any run writes (never fetched), or a row every reader would refuse (`checked_row`). Such a
     run is not carried over but run again: recovered, it would have held every later reader
     up (a 300 MB field had also been read whole)."""
-    width = len(COLUMN_NAMES)
-    if any(length is not None and length > field_limit(name)
-           for name, length in zip(COLUMN_NAMES, values[width:], strict=True)):
-        return None
-    row = dict(zip(COLUMN_NAMES, values[:width], strict=True))
+    row = _row_read(values)
     try:
-        checked_row(row, "")
+        checked_row(row, "")  # (refuses an Oversized field too)
     except UnreadableRow:
         return None
     return row
+
+
+def _row_read(values: tuple[Any, ...]) -> dict[str, Any]:
+    """A row as `_bounded_select` reads it: each column's value, or `Oversized` (its length)
+    where it was longer than `field_limit` and so not fetched."""
+    width = len(COLUMN_NAMES)
+    return {name: (Oversized(int(length)) if length is not None and length > field_limit(name)
+                   else value)
+            for name, value, length in zip(COLUMN_NAMES, values[:width], values[width:],
+                                           strict=True)}
 
 
 def _recover(path: Path) -> Recovery:
