@@ -161,18 +161,18 @@ class ResultStore:
 
     def identity(self) -> dict[str, str]:
         """What the directory holds (`claim`: the spec's fingerprint, the seed); {} for a file
-        from before it was kept."""
+        from before it was kept. UnreadableRow when the `campaign` table holds what no campaign
+        writes (`identity_read`)."""
         have = self._read(lambda db: db.execute(
             "SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'campaign'").fetchall())
         if not have:
             return {}
-        return {str(k): str(v) for k, v in self._read(lambda db: db.execute(
-            "SELECT key, value FROM campaign").fetchall())}
+        return identity_read(self._read(lambda db: db.execute(_IDENTITY_SELECT).fetchall()),
+                             self.path)
 
     def claim(self, identity: Mapping[str, str]) -> None:
         """Mark the directory as holding this campaign, or refuse another one."""
-        stored = dict(self._read(lambda db: db.execute(
-            "SELECT key, value FROM campaign").fetchall()))
+        stored = self.identity()
         for key, value in identity.items():
             if key in stored and stored[key] != value:
                 what = (f"its spec or --config differ (fingerprint {stored[key]!r}, this one "
@@ -311,6 +311,36 @@ def _bounded_lines(stream: TextIO, limit: int) -> Iterator[str]:
             continue
         while (rest := stream.readline(limit)) and not rest.endswith("\n"):
             pass  # (the rest of the long line, a piece at a time)
+
+
+#: The `campaign` table holds a campaign's identity: two keys (the spec's fingerprint, the seed)
+#: of a few characters each. More entries than this, or a key or value longer than this, are no
+#: campaign's: such a value is never fetched (a seed of 300 MB had been read whole and printed in
+#: the line refusing another seed).
+MAX_IDENTITY_ENTRIES = 16
+MAX_IDENTITY_CHARS = 256
+_IDENTITY_SELECT = (
+    f"SELECT CASE WHEN length(key) > {MAX_IDENTITY_CHARS} THEN NULL ELSE key END, "
+    f"CASE WHEN length(value) > {MAX_IDENTITY_CHARS} THEN NULL ELSE value END, length(key), "
+    f"length(value) FROM campaign LIMIT {MAX_IDENTITY_ENTRIES + 1}")
+
+
+def identity_read(rows: list[tuple[Any, ...]], path: Path) -> dict[str, str]:
+    """The identity `_IDENTITY_SELECT`'s `rows` hold, or UnreadableRow (one line naming the file
+    at `path`) for more entries than MAX_IDENTITY_ENTRIES or an entry longer than
+    MAX_IDENTITY_CHARS."""
+    expected = "expected the campaign's spec fingerprint and seed"
+    if len(rows) > MAX_IDENTITY_ENTRIES:
+        raise UnreadableRow(f"{path}: its campaign table holds more than {MAX_IDENTITY_ENTRIES} "
+                            f"entries; {expected}")
+    for key, value, key_length, value_length in rows:
+        if key is None or value is None:
+            name = "a key" if key is None else f"the value of {str(key)!r}"
+            length = key_length if key is None else value_length
+            what = "is NULL" if length is None else (
+                f"is {length:,} characters long (at most {MAX_IDENTITY_CHARS})")
+            raise UnreadableRow(f"{path}: {name} in its campaign table {what}; {expected}")
+    return {str(key): str(value) for key, value, _, _ in rows}
 
 
 # ---- checking and recovering a damaged file ---------------------------------------------------
@@ -502,9 +532,9 @@ def _recover(path: Path) -> Recovery:
             if values is not None and (row := _readable(values)) is not None:
                 found[id_] = row
         try:
-            identity = {str(k): str(v) for k, v in db.execute("SELECT key, value FROM campaign")}
-        except sqlite3.Error:
-            identity = {}
+            identity = identity_read(db.execute(_IDENTITY_SELECT).fetchall(), kept)
+        except (sqlite3.Error, UnreadableRow):
+            identity = {}  # (a campaign then claims the recovered file as its own)
     finally:
         db.close()
     return Recovery(sorted(found.values(), key=lambda r: (r.get("idx") or 0, r["id"])),

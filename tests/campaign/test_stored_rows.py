@@ -251,3 +251,49 @@ def test_recover_runs_again_what_no_reader_would_take_instead_of_carrying_it(
     db.close()
     assert outcomes["r00001"] != "Unsafe"
     assert main(["compare", str(out), str(out)]) == 0  # every row now readable
+
+
+def damage_identity(out: Path, key: str, value: Any) -> None:
+    with sqlite3.connect(out / "results.sqlite") as db:
+        db.execute("INSERT OR REPLACE INTO campaign VALUES (?, ?)", (key, value))
+    db.close()
+
+
+@pytest.mark.parametrize(("key", "value", "said"), [
+    ("seed", "7" * 300_000_000, "the value of 'seed' in its campaign table is 300,000,000 "
+                                "characters long (at most 256)"),
+    ("k" * 257, "1", "a key in its campaign table is 257 characters long (at most 256)"),
+    ("seed", None, "the value of 'seed' in its campaign table is NULL"),
+], ids=["huge_seed", "long_key", "null_seed"])
+def test_a_campaign_table_no_campaign_writes_is_refused_in_one_short_line(
+        key: str, value: Any, said: str, tiny_spec: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The identity (spec fingerprint, seed) is read with its lengths first: a seed of 300 MB
+    had been read whole and printed whole in the line refusing the other folder's seed."""
+    (tmp_path / "good").mkdir()
+    (tmp_path / "bad").mkdir()
+    good = campaign_dir(tmp_path / "good", tiny_spec)
+    bad = campaign_dir(tmp_path / "bad", tiny_spec)
+    damage_identity(bad, key, value)
+    line = (f"lanewarden: error: {bad / 'results.sqlite'}: {said}; expected the campaign's spec "
+            "fingerprint and seed")
+    assert main(["compare", str(good), str(bad)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+    stored = stored_runs(bad)
+    assert main(args(tiny_spec, bad)) == 2  # resumed: refused before it claims or runs
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+    assert stored_runs(bad) == stored
+
+
+def test_a_campaign_table_of_many_entries_is_refused(tiny_spec: Path, tmp_path: Path) -> None:
+    out = campaign_dir(tmp_path, tiny_spec)
+    for n in range(15):  # with the spec and the seed: 17 entries
+        damage_identity(out, f"extra{n}", "1")
+    with ResultStore(out / "results.sqlite", read_only=True) as store:
+        with pytest.raises(UnreadableRow, match="holds more than 16 entries"):
+            store.identity()
+    with sqlite3.connect(out / "results.sqlite") as db:
+        db.execute("DELETE FROM campaign WHERE key = 'extra0'")
+    db.close()
+    with ResultStore(out / "results.sqlite", read_only=True) as store:
+        assert store.identity()["seed"] == "7"  # 16 entries: read
