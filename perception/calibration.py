@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -39,7 +38,7 @@ from lanewarden.documents import (
     level_marks,
     nesting_depth,
 )
-from lanewarden.output_files import replace_file, unreplaceable
+from lanewarden.output_files import replace_file
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
 
@@ -220,58 +219,45 @@ class CameraCalibration:
 def save_calibration(calibration: CameraCalibration, path: str | Path) -> None:
     """Write `calibration` as OpenCV FileStorage YAML (camera_matrix, distortion_coefficients,
     image_width, image_height and, when known, rms, pattern, date, views_used and the ground
-    pose's keys, GROUND_POSE_KEYS and ground_method, ground_reprojection_error_m, ground_date)."""
+    pose's keys, GROUND_POSE_KEYS and ground_method, ground_reprojection_error_m, ground_date).
+
+    OpenCV writes it into memory (in the format the name's suffix picks: YAML, or XML or JSON
+    for those suffixes); `replace_file` then puts it in place: a full disk or a crash mid-write
+    never leaves a calibration cut short where one was (OpenCV's own writer does not say when
+    its last write fails), and a link at the name, or at a partial file's name beside it, is
+    never written through."""
     path = Path(path)
     if path.parent and not path.parent.exists():
         raise PerceptionError(f"{path}: folder {path.parent} does not exist")
-    if why := unreplaceable(path):  # moved over a device, it would replace it
-        raise PerceptionError(f"{path}: cannot write calibration file ({why})")
-    # Written beside it, read back, then moved over it: a full disk or a crash mid-write never
-    # leaves a calibration cut short in place of the one that was there (OpenCV's writer does
-    # not say when its last write fails). The same suffix: OpenCV picks the format by it.
-    partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+    text = _storage_text(calibration, path.name)
     try:
-        _write_storage(calibration, partial)
-        try:
-            load_calibration(partial)
-        except PerceptionError:
-            raise PerceptionError(f"{path}: cannot write calibration file (the written copy "
-                                  "does not read back: is the disk full?)") from None
-        os.replace(partial, path)
+        replace_file(path, text.encode("utf-8"))
     except OSError as exc:
         raise PerceptionError(f"{path}: cannot write calibration file "
                               f"({exc.strerror or exc})") from None
-    finally:
-        partial.unlink(missing_ok=True)
 
 
-def _write_storage(calibration: CameraCalibration, path: Path) -> None:
-    try:
-        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
-    except (cv2.error, SystemError) as exc:
-        raise PerceptionError(f"{path}: cannot write calibration file ({exc})") from exc
-    if not storage.isOpened():
-        raise PerceptionError(f"{path}: cannot open calibration file for writing")
-    try:
-        storage.write("camera_matrix", np.asarray(calibration.camera_matrix, dtype=np.float64))
-        storage.write(
-            "distortion_coefficients",
-            np.asarray(calibration.dist_coeffs, dtype=np.float64).reshape(1, -1),
-        )
-        storage.write("image_width", int(calibration.image_size[0]))
-        storage.write("image_height", int(calibration.image_size[1]))
-        if calibration.rms is not None:
-            storage.write("rms", float(calibration.rms))
-        if calibration.views_used is not None:
-            storage.write("views_used", int(calibration.views_used))
-        if calibration.pattern is not None:
-            storage.write("pattern", str(calibration.pattern))
-        if calibration.date is not None:
-            storage.write("date", str(calibration.date))
-        for key, value in ground_fields(calibration.ground).items():
-            storage.write(key, value)
-    finally:
-        storage.release()
+def _storage_text(calibration: CameraCalibration, name: str) -> str:
+    """The calibration as OpenCV's FileStorage writes it to a file called `name`."""
+    storage = cv2.FileStorage(name, cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    storage.write("camera_matrix", np.asarray(calibration.camera_matrix, dtype=np.float64))
+    storage.write(
+        "distortion_coefficients",
+        np.asarray(calibration.dist_coeffs, dtype=np.float64).reshape(1, -1),
+    )
+    storage.write("image_width", int(calibration.image_size[0]))
+    storage.write("image_height", int(calibration.image_size[1]))
+    if calibration.rms is not None:
+        storage.write("rms", float(calibration.rms))
+    if calibration.views_used is not None:
+        storage.write("views_used", int(calibration.views_used))
+    if calibration.pattern is not None:
+        storage.write("pattern", str(calibration.pattern))
+    if calibration.date is not None:
+        storage.write("date", str(calibration.date))
+    for key, value in ground_fields(calibration.ground).items():
+        storage.write(key, value)
+    return str(storage.releaseAndGetString())
 
 
 def ground_fields(ground: GroundCalibration | None) -> dict[str, float | str]:

@@ -56,6 +56,44 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     assert loaded.views_used == 14
 
 
+@pytest.mark.parametrize("name", ["camera.yaml", "camera.yml", "camera.xml", "camera.json",
+                                  "camera"])
+def test_each_format_the_suffix_picks_reads_back(tmp_path: Path, name: str) -> None:
+    """OpenCV writes into memory in the format the name's suffix picks; then it is put in place."""
+    save_calibration(_calibration(), tmp_path / name)
+    assert load_calibration(tmp_path / name).views_used == 14
+    assert [p.name for p in tmp_path.iterdir()] == [name]  # nothing left beside it
+
+
+def test_a_link_at_the_old_partial_files_name_is_not_written_through(tmp_path: Path) -> None:
+    """The calibration had been written to `.camera.partial.yaml` by OpenCV, which follows a
+    link there: a file elsewhere would have been overwritten."""
+    elsewhere = tmp_path / "elsewhere.txt"
+    elsewhere.write_text("keep me\n")
+    (tmp_path / ".camera.partial.yaml").symlink_to(elsewhere)
+    save_calibration(_calibration(), tmp_path / "camera.yaml")
+    assert elsewhere.read_text() == "keep me\n"
+    assert load_calibration(tmp_path / "camera.yaml").views_used == 14
+
+
+def test_a_full_disk_keeps_the_calibration_that_was_there(small_disk: Path) -> None:
+    path = small_disk / "camera.yaml"
+    save_calibration(_calibration(views_used=3), path)
+    before = path.read_bytes()
+    filler = small_disk / "filler"
+    with filler.open("wb", buffering=0) as out:  # the rest of the 400 KiB
+        try:
+            while out.write(b"\0" * 512):
+                pass
+        except OSError:
+            pass
+    with pytest.raises(PerceptionError, match=r"camera\.yaml: cannot write calibration file "
+                                              r"\(No space left on device\)"):
+        save_calibration(_calibration(), path)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in small_disk.iterdir()) == ["camera.yaml", "filler"]
+
+
 def test_loads_ros_camera_info_yaml(tmp_path: Path) -> None:
     path = tmp_path / "ost.yaml"
     path.write_text(
