@@ -69,7 +69,7 @@ from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, en
 from lanewarden.actuation.kobuki_feedback import decode_feedback
 from lanewarden.actuation.kobuki_framing import PacketReader
 from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
-from lanewarden.actuation.realtime import raise_priority
+from lanewarden.actuation.realtime import raise_priority, spare_from_oom
 
 EXIT_OK = 0
 EXIT_OPEN_FAILED = 3
@@ -340,6 +340,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         orphan_stop_s=args.orphan_stop_s, feedback_timeout_s=args.feedback_timeout_s,
         envelope=Envelope(args.max_linear_m_s, args.max_angular_rad_s,
                           args.max_linear_accel_m_s2, args.max_angular_accel_rad_s2))
+    spare_from_oom()  # (best effort, as the priority: root only)
     process = DeadmanProcess(args.port, control, settings, args.write_timeout_s,
                              raise_priority())
     process.install_signal_handlers()

@@ -45,7 +45,7 @@ import sys
 import threading
 import time
 import traceback
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -75,8 +75,18 @@ JPEG_QUALITY = 75
 MAX_VIEW_WIDTH_PX = 640
 #: Connections served at once; more are closed unserved (the page needs two or three).
 MAX_CONNECTIONS = 16
+#: Connections one client address may hold at once; more from it are closed unserved, so one
+#: host cannot take every slot (idle connections from one attacker, no token needed, had kept the
+#: page's Stop from being served for as long as it went on).
+MAX_CONNECTIONS_PER_CLIENT = MAX_CONNECTIONS // 2
 #: A connection's whole life (request in, response out); a slower client is cut off.
 CONNECTION_DEADLINE_S = 5.0
+#: ... and the request line and headers must have come within this (a browser sends them at
+#: once): an idle connection holds its slot this long, not the whole deadline.
+HEADER_DEADLINE_S = 1.0
+#: Closing the view after the run's last status, it keeps answering until a page that was
+#: watching has fetched that status (the reason the run ended), at most this long.
+FINAL_STATUS_WAIT_S = 1.0
 #: Bytes a connection may send: request line, headers and body together.
 MAX_REQUEST_BYTES = 8192
 #: The largest body a POST may carry (the page's carry none).
@@ -98,6 +108,8 @@ FRAME_STATUS_HEADER = "X-Lanewarden-Status"
 #: Host names that are this machine's loopback (IPv6 as in a URL).
 LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
 ACTIONS = ("start", "stop", "resume")
+#: What a browser asks for on its own, answered without the token or a line on the terminal.
+FAVICON_PATH = "/favicon.ico"
 #: `Sec-Fetch-Site` of the requests served: the page's own, and for a GET also an address typed,
 #: bookmarked or opened from the terminal ('none'); never another site's page (a browser sends
 #: 'cross-site' or 'same-site' for those: an <img> of /frame.jpg, a form, a fetch).
@@ -232,7 +244,10 @@ class AccessRules:
       address the connection arrived on. A DNS-rebinding page sends its own name: refused.
     - A state-changing request (POST): `X-Lanewarden` present; `Sec-Fetch-Site`, when sent, is
       `same-origin`; `Origin`, when sent, is `http://` + the Host header.
-    - Any other request (GET): `Sec-Fetch-Site`, when sent, is `same-origin` or `none`.
+    - Any other request (GET): `Sec-Fetch-Site`, when sent, is `same-origin` or `none`;
+      `Origin`, when sent, is `http://` + the Host header (a browser's WebSocket handshake
+      carries Origin alone: another site's page had kept the picture encoder busy); no
+      `Upgrade` (WebSocket) is served.
     - `token` (every bind but loopback): every request but the page itself carries it in
       `X-Lanewarden-Token` (compared in constant time).
     """
@@ -274,11 +289,19 @@ class AccessRules:
         """Why a state-changing request is not from this server's own page (None: it is)."""
         if problem := self.fetch_site_problem(fetch_site, state_changing=True):
             return problem
-        if origin is not None and origin.strip().lower() != f"http://{host.strip().lower()}":
-            return f"unexpected Origin {origin[:80]!r}"
+        if problem := _foreign_origin(origin, host):
+            return problem
         if not marked:
             return f"missing {REQUEST_HEADER} header"
         return None
+
+    def get_problem(self, origin: str | None, fetch_site: str | None, host: str,
+                    upgrade: str | None) -> str | None:
+        """Why a GET is not one this server serves (None: it is)."""
+        if upgrade is not None:
+            return f"an Upgrade to {upgrade[:40]!r} (only plain HTTP is served)"
+        return (self.fetch_site_problem(fetch_site, state_changing=False)
+                or _foreign_origin(origin, host))
 
     def token_problem(self, given: str | None) -> str | None:
         if self.token is None:
@@ -289,6 +312,13 @@ class AccessRules:
                                    self.token.encode()):
             return "wrong token"
         return None
+
+
+def _foreign_origin(origin: str | None, host: str) -> str | None:
+    """Why `origin` (when sent) is not this server's page, served as `host`."""
+    if origin is not None and origin.strip().lower() != f"http://{host.strip().lower()}":
+        return f"unexpected Origin {origin[:80]!r}"
+    return None
 
 
 # ---- the server ---------------------------------------------------------------------------------
@@ -339,11 +369,17 @@ class LiveView:
     def __init__(self, host: str, port: int, requests: Requests, *,
                  log: Callable[[str], None] = _stderr_line,
                  plot: Mapping[str, float] | None = None, token: str | None = None,
-                 connection_deadline_s: float = CONNECTION_DEADLINE_S) -> None:
+                 connection_deadline_s: float = CONNECTION_DEADLINE_S,
+                 header_deadline_s: float = HEADER_DEADLINE_S,
+                 final_status_wait_s: float = FINAL_STATUS_WAIT_S) -> None:
         self._requests = requests
         self._log = log
         self._plot = dict(plot or {})
         self.connection_deadline_s = connection_deadline_s
+        self.header_deadline_s = min(header_deadline_s, connection_deadline_s)
+        self._final_status_wait_s = final_status_wait_s
+        #: Set once a page has been served a status saying the run ended (`close` waits for it).
+        self._end_served = threading.Event()
         self._frames: LatestSlot[tuple[ViewFrame, dict[str, Any]]] = LatestSlot()
         self._status_lock = threading.Lock()
         self._status: dict[str, Any] = {"state": "HALT", "step": 0}
@@ -442,6 +478,8 @@ class LiveView:
         with self._status_lock:
             status = dict(self._status)
             samples = list(self._samples)
+        if status.get("end_reason"):
+            self._end_served.set()
         with self._jpeg_lock:
             status["frame_seq"] = self._jpeg_seq
         newest = samples[-1][1] if samples and samples[-1][1] is not None else 0.0
@@ -490,17 +528,19 @@ class LiveView:
             self.counts["closed"] += 1
             self.counts["largest_request"] = max(self.counts["largest_request"], bytes_read)
 
-    def busy(self, client: str) -> None:
-        """A connection closed unserved, every slot taken: one line on the terminal, at most
-        every REFUSAL_REPORT_EVERY_S (slow or idle clients holding every slot kept the page's
-        Stop from being served for seconds, and nothing said so: an attacker's review)."""
+    def busy(self, client: str, one_client: bool = False) -> None:
+        """A connection closed unserved, every slot taken (`one_client`: every slot one client
+        may hold): one line on the terminal, at most every REFUSAL_REPORT_EVERY_S (slow or idle
+        clients holding every slot kept the page's Stop from being served for seconds, and
+        nothing said so: an attacker's review)."""
         with self._counts_lock:
             self.counts["busy"] += 1
             more = self._busy.due(time.monotonic())
         if more is None:
             return
-        self._log(f"live view: all {MAX_CONNECTIONS} connections busy, one from "
-                  f"{printable(client)} closed unserved"
+        taken = (f"{MAX_CONNECTIONS_PER_CLIENT} connections from one client open" if one_client
+                 else f"all {MAX_CONNECTIONS} connections busy")
+        self._log(f"live view: {taken}, one from {printable(client)} closed unserved"
                   + (f" (and {more} more before)" if more else "")
                   + ": the page's buttons may not get through (slow or idle clients?); stop "
                   "from the keys, Ctrl-C or the base's B1")
@@ -523,6 +563,14 @@ class LiveView:
                   f"{printable(str(exc), 200)}{_where(exc)} (the run goes on; please report it)")
 
     def close(self) -> None:
+        """Stop serving. A page that was watching (a request within VIEWER_IDLE_S) is first given
+        the time to fetch the last status published, when it says why the run ended, at most
+        `final_status_wait_s`: the page had kept showing the last state, FOLLOW at 0.20 m/s, for
+        a run that had ended (the server closed before its next poll)."""
+        with self._status_lock:
+            ended = bool(self._status.get("end_reason"))
+        if ended and time.monotonic() - self._last_viewer_s <= VIEWER_IDLE_S:
+            self._end_served.wait(self._final_status_wait_s)
         self._frames.close()
         self._server.shutdown()
         self._server.server_close()
@@ -612,20 +660,31 @@ class _Server(ThreadingHTTPServer):
             self.address_family = socket.AF_INET6
         self.view = view
         self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+        self._per_client: Counter[str] = Counter()
+        self._per_client_lock = threading.Lock()
         super().__init__(address, handler)
 
     def process_request(self, request: Any, client_address: Any) -> None:
-        """A thread per connection, at most MAX_CONNECTIONS: more are closed at once."""
-        if not self._slots.acquire(blocking=False):
+        """A thread per connection, at most MAX_CONNECTIONS, and at most
+        MAX_CONNECTIONS_PER_CLIENT from one client address: more are closed at once."""
+        client = _address(client_address)
+        with self._per_client_lock:
+            one_client = self._per_client[client] >= MAX_CONNECTIONS_PER_CLIENT
+            if not one_client:
+                self._per_client[client] += 1
+        if one_client or not self._slots.acquire(blocking=False):
+            if not one_client:
+                self._client_left(client)
             self.shutdown_request(request)
             self.view.busy(f"{client_address[0]}:{client_address[1]}"
                            if isinstance(client_address, tuple) and len(client_address) >= 2
-                           else str(client_address))
+                           else str(client_address), one_client)
             return
         try:
             super().process_request(request, client_address)
         except BaseException:
             self._slots.release()
+            self._client_left(client)
             raise
 
     def process_request_thread(self, request: Any, client_address: Any) -> None:
@@ -633,6 +692,13 @@ class _Server(ThreadingHTTPServer):
             super().process_request_thread(request, client_address)
         finally:
             self._slots.release()
+            self._client_left(_address(client_address))
+
+    def _client_left(self, client: str) -> None:
+        with self._per_client_lock:
+            self._per_client[client] -= 1
+            if self._per_client[client] <= 0:
+                del self._per_client[client]
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         """No traceback for a client's doing (it hung up, reset, stalled); one line for ours."""
@@ -641,6 +707,13 @@ class _Server(ThreadingHTTPServer):
             self.view.count("cut_off")
             return
         self.view.report_error("answering a request", exc)
+
+
+def _address(client_address: Any) -> str:
+    """The client's address without its port (what MAX_CONNECTIONS_PER_CLIENT counts by)."""
+    if isinstance(client_address, tuple) and client_address:
+        return str(client_address[0])
+    return str(client_address)
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -655,8 +728,8 @@ class _Handler(BaseHTTPRequestHandler):
         self.rfile.close()  # replaced by a reader with a deadline and a budget
         view = self.server.view
         view.connection_opened()
-        self._reader = _DeadlineReader(self.connection,
-                                       time.monotonic() + view.connection_deadline_s,
+        self._opened_s = time.monotonic()
+        self._reader = _DeadlineReader(self.connection, self._opened_s + view.header_deadline_s,
                                        MAX_REQUEST_BYTES)
         self.rfile = self._lines = _LineReader(self._reader, 2048)
 
@@ -685,6 +758,9 @@ class _Handler(BaseHTTPRequestHandler):
             return False
         if self._lines.last_line not in (b"\r\n", b"\n"):
             raise ConnectionAbortedError("the client hung up within the headers")
+        if self._reader is not None:  # the headers came in time: the body and the answer may
+            # take the rest of the connection's deadline
+            self._reader.deadline_s = self._opened_s + self.server.view.connection_deadline_s
         return True
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 (the base's name)
@@ -771,7 +847,8 @@ class _Handler(BaseHTTPRequestHandler):
             problem = rules.origin_problem(self.headers.get("Origin"), fetch_site, hosts[0],
                                            self.headers.get(REQUEST_HEADER) is not None)
         elif problem is None:  # another site's <img> of /frame.jpg had shown the camera there
-            problem = rules.fetch_site_problem(fetch_site, state_changing=False)
+            problem = rules.get_problem(self.headers.get("Origin"), fetch_site, hosts[0],
+                                        self.headers.get("Upgrade"))
         if problem is not None:
             self._refuse(HTTPStatus.FORBIDDEN, problem)
             return False
@@ -787,10 +864,13 @@ class _Handler(BaseHTTPRequestHandler):
         view = self.server.view
         parts = urlsplit(self.path)
         path = parts.path
-        if not self._allowed(state_changing=False, needs_token=path not in ("/", "/index.html")):
+        if not self._allowed(state_changing=False,
+                             needs_token=path not in ("/", "/index.html", FAVICON_PATH)):
             return
         view.count("served")
-        if path in ("/", "/index.html"):
+        if path == FAVICON_PATH:  # (a browser asks on its own: no token, no line refused)
+            self._send(HTTPStatus.NOT_FOUND, b"no icon\n", "text/plain")
+        elif path in ("/", "/index.html"):
             self._send(HTTPStatus.OK, view.page(), "text/html; charset=utf-8")
         elif path == "/status":
             since = parse_qs(parts.query).get("since", ["-1"])[0]

@@ -12,9 +12,11 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -22,7 +24,7 @@ from lanewarden.actuation.base import STOP, VelocityCommand
 from lanewarden.actuation.deadman_logic import DeadmanMode
 from lanewarden.actuation.errors import ActuationError, DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_base import KobukiBase
-from lanewarden.actuation.realtime import raise_priority
+from lanewarden.actuation.realtime import OOM_NEVER, raise_priority, spare_from_oom
 from lanewarden.cli import main
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn
 from tests.actuation.processes import (
@@ -86,6 +88,30 @@ def test_the_deadman_raises_its_priority_or_says_it_could_not(kobuki: KobukiBase
         assert raised, health.deadman_priority
     else:
         assert "could not raise it" in health.deadman_priority
+
+
+def test_the_deadman_asks_the_oom_killer_to_spare_it_where_permitted(
+        kobuki: KobukiBase, tmp_path: Path) -> None:
+    """An attacker's review: killing the control process and the dead-man at once leaves the base
+    driving its last command. Running out of memory should take the control process (whose
+    death the dead-man answers with a stop), never the dead-man: it asks for oom_score_adj -1000,
+    which root may set; elsewhere the value stays and the kernel picks by size."""
+    def oom_score_adj(pid: str) -> int:
+        with open(f"/proc/{pid}/oom_score_adj", encoding="ascii") as adjust:
+            return int(adjust.read())
+
+    # (root without CAP_SYS_RESOURCE, as in some containers, may not lower it either)
+    permitted = subprocess.run(
+        [sys.executable, "-c", "from lanewarden.actuation.realtime import spare_from_oom; "
+         "print(spare_from_oom()[0])"], capture_output=True, text=True, check=True).stdout
+    inherited = oom_score_adj("self")
+    assert oom_score_adj(str(kobuki.deadman_pid)) == (
+        OOM_NEVER if permitted.strip() == "True" else inherited)
+    assert spare_from_oom(str(tmp_path / "absent" / "oom_score_adj")) == (
+        False, "oom_score_adj unchanged (No such file or directory)")
+    spared, said = spare_from_oom(str(tmp_path / "oom_score_adj"))  # (a file that takes it)
+    assert spared and said == "oom_score_adj -1000"
+    assert (tmp_path / "oom_score_adj").read_text(encoding="ascii") == "-1000"
 
 
 # ---- the control process suspends itself on purpose --------------------------------------------

@@ -161,6 +161,13 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
             browser.save_screenshot(str(tmp_path / "live-page-halted.png"))
         finally:
             os.kill(os.getpid(), signal.SIGINT)  # the operator's Ctrl-C ends the run
+        # the page gets the run's last status before the server closes (it had kept showing
+        # the last state): why it ended, then, with no more answers, "the run has ended"
+        seen["ended"] = wait_until(lambda: (js(browser, "return [document.getElementById("
+                                                "'ended').textContent, document.getElementById("
+                                                "'conn').textContent]") or ["", ""])[1]
+                                   .startswith("the run has ended; this page no longer"), 20.0)
+        seen["ended_text"] = js(browser, "return document.getElementById('ended').textContent")
 
     code = run_beside(operator, ["--camera", str(clip), "--base", "sim", "--view", str(port),
                                  "--record", str(record), "--config", str(config)])
@@ -181,6 +188,8 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
     assert abs(camera - picture) <= 1, f"no black area under the picture: {seen['heights']}"
     assert seen.get("halt") and seen.get("reason", "").startswith("OPERATOR_STOP"), seen
     assert seen["buttons_halt"] == {"start": False, "resume": True, "stop": False}
+    assert seen.get("ended"), seen
+    assert seen["ended_text"] == "run ended: operator stop (SIGINT)", seen
     assert seen["screenshot"].stat().st_size > 10_000
     assert "stop requested (page)" in out, "the page's stop is announced like the others"
     assert "Traceback" not in out + err

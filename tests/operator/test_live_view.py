@@ -23,6 +23,7 @@ import pytest
 from lanewarden.errors import UsageError
 from lanewarden.live_view import (
     MAX_CONNECTIONS,
+    MAX_CONNECTIONS_PER_CLIENT,
     MAX_REQUEST_BYTES,
     AccessRules,
     LiveView,
@@ -528,16 +529,24 @@ def test_a_slow_client_is_cut_off_at_its_deadline() -> None:
         v.server.close()
 
 
+def _from(address: str, port: int) -> socket.socket:
+    """A connection to the view on 127.0.0.1 from another loopback address (another client)."""
+    return socket.create_connection(("127.0.0.1", port), timeout=10,
+                                    source_address=(address, 0))
+
+
 def test_many_connections_are_bounded() -> None:
-    """Three times MAX_CONNECTIONS idle connections: at most MAX_CONNECTIONS are served at once
-    (one thread each), the rest closed unserved; the control side's publish never waits; once
-    they are gone the page is served again."""
-    v = View(connection_deadline_s=60.0)  # none is cut off by its deadline meanwhile
+    """Three times MAX_CONNECTIONS idle connections (from six client addresses, each within
+    MAX_CONNECTIONS_PER_CLIENT): at most MAX_CONNECTIONS are served at once (one thread each),
+    the rest closed unserved; the control side's publish never waits; once they are gone the
+    page is served again."""
+    # none is cut off by a deadline meanwhile
+    v = View(connection_deadline_s=60.0, header_deadline_s=60.0)
     before = threading.active_count()
     idle = []
     try:
-        for _ in range(3 * MAX_CONNECTIONS):
-            idle.append(socket.create_connection(("127.0.0.1", v.port), timeout=10))
+        for k in range(3 * MAX_CONNECTIONS):
+            idle.append(_from(f"127.0.0.{2 + k // MAX_CONNECTIONS_PER_CLIENT}", v.port))
         counts = v.server.counts
         assert wait_until(lambda: counts["busy"] + counts["peak_open"] >= 3 * MAX_CONNECTIONS,
                           20.0), counts
@@ -546,7 +555,7 @@ def test_many_connections_are_bounded() -> None:
         # said on the terminal, once for the burst (the rest within REFUSAL_REPORT_EVERY_S)
         assert len(v.lines) == 1, v.lines
         assert v.lines[0].startswith(f"live view: all {MAX_CONNECTIONS} connections busy, one "
-                                     "from 127.0.0.1:"), v.lines
+                                     "from 127.0.0.4:"), v.lines
         assert v.lines[0].endswith("stop from the keys, Ctrl-C or the base's B1")
         assert threading.active_count() <= before + MAX_CONNECTIONS
         v.server.publish({"state": "HALT", "step": 1}, None)
@@ -559,6 +568,108 @@ def test_many_connections_are_bounded() -> None:
         assert v.requests.calls == []
     finally:
         v.server.close()
+
+
+def test_one_client_cannot_take_every_connection() -> None:
+    """An attacker's review: idle connections from one host, no token needed, took every slot,
+    and the operator's Stop got 'not connected' for as long as it went on. One client address
+    holds at most MAX_CONNECTIONS_PER_CLIENT; the others' requests are served meanwhile."""
+    v = View(connection_deadline_s=60.0, header_deadline_s=60.0)
+    idle = []
+    try:
+        for _ in range(3 * MAX_CONNECTIONS_PER_CLIENT):
+            idle.append(_from("127.0.0.2", v.port))
+        counts = v.server.counts
+        assert wait_until(lambda: counts["busy"] + counts["peak_open"]
+                          >= 3 * MAX_CONNECTIONS_PER_CLIENT, 20.0), counts
+        assert counts["peak_open"] == MAX_CONNECTIONS_PER_CLIENT
+        assert counts["busy"] == 2 * MAX_CONNECTIONS_PER_CLIENT
+        assert v.lines[0].startswith(f"live view: {MAX_CONNECTIONS_PER_CLIENT} connections from "
+                                     "one client open, one from 127.0.0.2:"), v.lines
+        # the operator, from another address, is served while they are held
+        assert exchange(v.port, post("/stop", v.port)).startswith(b"HTTP/1.1 200 ")
+        assert v.requests.calls == [("stop", "page")]
+    finally:
+        for s in idle:
+            s.close()
+        v.server.close()
+
+
+def test_an_idle_connection_holds_its_slot_only_until_the_header_deadline() -> None:
+    """A connection that sends nothing is closed at `header_deadline_s` (1 s by default), long
+    before the connection's own deadline (60 s here: the recv below would wait that long)."""
+    v = View(connection_deadline_s=60.0, header_deadline_s=0.3)
+    try:
+        with socket.create_connection(("127.0.0.1", v.port), timeout=10) as s:
+            assert s.recv(4096) == b"", "closed without an answer"
+        assert wait_until(v.idle, 10.0)
+        assert exchange(v.port, post("/stop", v.port)).startswith(b"HTTP/1.1 200 ")
+        assert v.requests.calls == [("stop", "page")]
+    finally:
+        v.server.close()
+
+
+def test_a_websocket_or_another_origin_gets_no_picture(view: View) -> None:
+    """An attacker's review: a browser's WebSocket handshake carries Origin but no
+    Sec-Fetch-Site, so another site's page opening ws://127.0.0.1:PORT/frame.jpg had been
+    served, and kept the picture encoder busy. A GET with another Origin, or an Upgrade, is
+    refused; the page's own Origin is served."""
+    base = f"GET /frame.jpg HTTP/1.1\r\nHost: 127.0.0.1:{view.port}\r\n"
+    websocket = (base + "Origin: http://localhost:9000\r\nUpgrade: websocket\r\n"
+                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                 "Sec-WebSocket-Version: 13\r\n\r\n")
+    answers = {
+        "websocket": exchange(view.port, websocket.encode()),
+        "own upgrade": exchange(view.port, (base + f"Origin: http://127.0.0.1:{view.port}\r\n"
+                                            "Upgrade: websocket\r\n\r\n").encode()),
+        "other origin": exchange(view.port, (base + "Origin: http://evil.example\r\n\r\n")
+                                 .encode()),
+        "null origin": exchange(view.port, (base + "Origin: null\r\n\r\n").encode()),
+        "own origin": exchange(view.port, (base + f"Origin: http://127.0.0.1:{view.port}\r\n"
+                                           "\r\n").encode()),
+    }
+    assert {k: statuses(a) for k, a in answers.items()} == {
+        "websocket": [403], "own upgrade": [403], "other origin": [403], "null origin": [403],
+        "own origin": [503]}  # (served: no frame published yet)
+    assert answers["websocket"].endswith(b"an Upgrade to 'websocket' (only plain HTTP is "
+                                         b"served)\n")
+    assert answers["other origin"].endswith(b"unexpected Origin 'http://evil.example'\n")
+
+
+def test_the_browsers_icon_request_is_answered_without_a_token_or_a_line() -> None:
+    """On a non-loopback bind every page load asked /favicon.ico without the token, and the
+    refusal it printed could be the line shown while a real refusal was only counted."""
+    v = View(host="0.0.0.0")
+    try:
+        answer = exchange(v.port, f"GET /favicon.ico HTTP/1.1\r\nHost: 127.0.0.1:{v.port}\r\n"
+                          "\r\n".encode())
+        assert statuses(answer) == [404]
+        assert v.server.counts["refused"] == 0 and v.lines == []
+        status = exchange(v.port, f"GET /status HTTP/1.1\r\nHost: 127.0.0.1:{v.port}\r\n\r\n"
+                          .encode())
+        assert statuses(status) == [401]  # (everything else still needs the token)
+    finally:
+        v.server.close()
+
+
+def test_closing_waits_for_a_watching_page_to_get_the_end_reason() -> None:
+    """An attacker's review: the run published its last status (why it ended) and closed the view
+    at once, so the page, polling every 150 ms, kept showing FOLLOW at 0.20 m/s. Closing now
+    waits until a page that was watching has fetched that status (at most final_status_wait_s;
+    here long, so the test never depends on timing); with no page watching, it does not wait."""
+    v = View(final_status_wait_s=60.0)
+    v.server.publish({"state": "FOLLOW", "step": 5}, None)
+    assert fetch(v.port, "GET", "/status")[0] == 200  # a page is watching
+    v.server.publish({"state": "FOLLOW", "step": 6, "end_reason": "stopped by Ctrl-C"}, None)
+    closer = threading.Thread(target=v.server.close)
+    closer.start()
+    status, body, _ = fetch(v.port, "GET", "/status")  # the page's next poll: still served
+    closer.join(30)
+    assert not closer.is_alive()
+    assert status == 200 and json.loads(body)["end_reason"] == "stopped by Ctrl-C"
+    unwatched = View(final_status_wait_s=3600.0)
+    unwatched.server.publish({"state": "HALT", "step": 1, "end_reason": "done"}, None)
+    unwatched.server.close()  # no page has asked: returns at once (a wait would hang the test)
 
 
 def test_huge_headers_are_refused_within_the_budget(view: View) -> None:
