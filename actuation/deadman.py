@@ -68,7 +68,12 @@ from lanewarden.actuation.deadman_messages import (
 from lanewarden.actuation.kobuki_commands import STOP_PACKET, command_packet, encode_velocity
 from lanewarden.actuation.kobuki_feedback import decode_feedback
 from lanewarden.actuation.kobuki_framing import PacketReader
-from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.kobuki_port import (
+    PORT_ERRORS,
+    describe_open_error,
+    open_kobuki_serial,
+    put_stop,
+)
 from lanewarden.actuation.realtime import raise_priority, spare_from_oom
 
 EXIT_OK = 0
@@ -82,7 +87,7 @@ HELLO_TIMEOUT_S = 10.0
 
 #: Serial read timeout of the feedback thread (bounds how long stopping it takes).
 READ_TIMEOUT_S = 0.05
-SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
+SERIAL_ERRORS = PORT_ERRORS
 #: Control messages handled per wake-up before the send loop polls again.
 MAX_MESSAGES_PER_WAKE = 64
 
@@ -293,13 +298,14 @@ class DeadmanProcess:
             pass
 
     def _shutdown(self, reader: threading.Thread) -> None:
-        """Last words: one more stop, flush, close. Never raises."""
+        """Last words: one more stop (what is queued for a device that stopped reading dropped
+        first, its leaving waited for within the write timeout: `kobuki_port.put_stop`), close.
+        Never raises."""
         self._reading.clear()
         link = self._link
         if link is not None:
             try:
-                link.write(STOP_PACKET)
-                link.flush()
+                put_stop(link, STOP_PACKET, 1, self._write_timeout_s)
             except SERIAL_ERRORS:
                 pass
             reader.join(timeout=4 * READ_TIMEOUT_S)

@@ -41,6 +41,7 @@ import serial
 
 from lanewarden.actuation.base import VelocityCommand
 from lanewarden.actuation.config import ActuationConfig
+from lanewarden.actuation.deadman import EXIT_LINK_LOST
 from lanewarden.actuation.deadman_logic import CLOSE_STOP_PACKETS, DeadmanMode, Heartbeat
 from lanewarden.actuation.deadman_messages import (
     MAX_MESSAGE_BYTES,
@@ -64,31 +65,18 @@ from lanewarden.actuation.deadman_messages import (
 )
 from lanewarden.actuation.errors import KobukiLinkError
 from lanewarden.actuation.kobuki_commands import STOP_PACKET
-from lanewarden.actuation.kobuki_port import describe_open_error, open_kobuki_serial
+from lanewarden.actuation.kobuki_port import STOP_RETRY_S, StopOutcome, stop_through_port
 from lanewarden.actuation.realtime import raise_priority
 
 SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
 
 
-def write_stop_directly(port: str, write_timeout_s: float) -> str:
-    """Reopen `port` and write the stop packet a few times. Call ONLY once the dead-man process
-    is confirmed dead. Returns one line saying whether the stop went out. Never raises."""
-    try:
-        link, _ = open_kobuki_serial(port, read_timeout_s=0.0, write_timeout_s=write_timeout_s)
-    except SERIAL_ERRORS as exc:
-        return f"could not write a stop to the port ({describe_open_error(port, exc)})"
-    try:
-        for _ in range(CLOSE_STOP_PACKETS):
-            link.write(STOP_PACKET)
-        link.flush()
-    except SERIAL_ERRORS as exc:
-        return f"could not write a stop to the port ({' '.join(str(exc).split())})"
-    finally:
-        try:
-            link.close()
-        except SERIAL_ERRORS:
-            pass
-    return "a stop was written to the port directly"
+def write_stop_directly(port: str, write_timeout_s: float) -> StopOutcome:
+    """Reopen `port` and write the stop packet a few times (`kobuki_port.stop_through_port`:
+    what is queued for the device dropped first, the port tried again for a while when it is
+    gone). Call ONLY once the dead-man process is confirmed dead. Returns whether the stop went
+    out, and one line saying so. Never raises."""
+    return stop_through_port(port, STOP_PACKET, CLOSE_STOP_PACKETS, write_timeout_s)
 
 
 def receive_or_silence(recv: Callable[[], bytes], deadline_s: float | None,
@@ -155,6 +143,9 @@ class DeadmanLink:
         self.priority = "unknown"
         self.open_error: str | None = None
         self.lost: str | None = None
+        #: Set when a stop this side had to write could not be (one line saying so): the base
+        #: may still be driving its last command (`KobukiBase.stop_failed`).
+        self.stop_failed: str | None = None
         self.gone = False
         self.hello: Hello | None = None
         self.mode = DeadmanMode.DISARMED
@@ -259,7 +250,11 @@ class DeadmanLink:
             with self.cond:
                 opened = self.opened
             if opened:
-                write_stop_directly(self.port, self._config.write_timeout_s)
+                outcome = write_stop_directly(self.port, self._config.write_timeout_s)
+                if not outcome.written:
+                    with self.cond:
+                        self.stop_failed = (f"{self.port}: the dead-man process did not exit "
+                                            f"when closed: killed it; {outcome.line}")
         try:
             self._control.shutdown(socket.SHUT_RDWR)
         except OSError:
@@ -268,7 +263,8 @@ class DeadmanLink:
         with self.cond:
             emergency = self._emergency
         if emergency is not None:
-            emergency.join(timeout=self._config.close_timeout_s + self._config.write_timeout_s)
+            emergency.join(timeout=self._config.close_timeout_s + STOP_RETRY_S
+                           + 2 * self._config.write_timeout_s)
         self._control.close()
 
     # ---- the relay thread -----------------------------------------------------------------------
@@ -331,7 +327,13 @@ class DeadmanLink:
             returncode = self.process.wait()
         with self.cond:
             closing, opened = self.closing, self.opened
-        if closing:
+        if returncode == EXIT_LINK_LOST and opened:
+            # The port failed under it (a device gone, a write that would not end): its own stop
+            # went nowhere, also on its way out when asked to close. A device that comes back (a
+            # USB glitch) gets the stop from here; the firmware would drive the last command
+            # forever (an attacker's review).
+            self._start_emergency_stop("lost the serial link", kill=False)
+        elif closing:
             self._lose(None)
         elif returncode < 0 and opened:
             self._start_emergency_stop(f"was killed ({_signal_name(returncode)})", kill=False)
@@ -357,14 +359,22 @@ class DeadmanLink:
         try:
             self.process.wait(timeout=self._config.close_timeout_s)
         except subprocess.TimeoutExpired:
-            outcome = "could not confirm it dead, so no stop was written"
+            outcome = StopOutcome(False, "could not confirm it dead, so no stop was written: the "
+                                  "base may still be driving its last command: switch it off")
         else:
             outcome = write_stop_directly(self.port, self._config.write_timeout_s)
-        self._lose(f"{self.port}: the dead-man process {what}; {outcome}")
+        with self.cond:
+            said = self.lost  # (the dead-man's own line, when it said why it ended)
+        line = (f"{said}; {outcome.line}" if said else
+                f"{self.port}: the dead-man process {what}; {outcome.line}")
+        if not outcome.written:
+            with self.cond:
+                self.stop_failed = line
+        self._lose(line, replace=True)
 
-    def _lose(self, reason: str | None) -> None:
+    def _lose(self, reason: str | None, *, replace: bool = False) -> None:
         with self.cond:
             self.gone = True
-            if self.lost is None and reason is not None:
+            if (self.lost is None or replace) and reason is not None:
                 self.lost = reason
             self.cond.notify_all()

@@ -348,6 +348,14 @@ class KobukiBase:
             return self._link.lost
 
     @property
+    def stop_failed(self) -> str | None:
+        """One line when a stop the control side had to write itself (the dead-man gone, killed,
+        or its port failed) could not be written: the base may still be driving its last
+        command. None otherwise. Final once `close()` has returned."""
+        with self._cond:
+            return self._link.stop_failed
+
+    @property
     def packets_received(self) -> int:
         with self._cond:
             return self._packets

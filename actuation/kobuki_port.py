@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import errno
 import os
+import time
 from collections.abc import Callable, Sequence
+from typing import NamedTuple
 
 import serial
 
@@ -84,3 +86,86 @@ def open_kobuki_serial(port: str, *, read_timeout_s: float,
         except (ValueError, OSError):
             low_latency = False  # e.g. a pseudo-terminal: no serial_struct to set
     return link, low_latency
+
+
+try:
+    from termios import error as _TermiosError  # pyserial lets tcflush's through (not an OSError)
+except ImportError:  # (not POSIX)
+    class _TermiosError(Exception):  # type: ignore[no-redef]
+        pass
+
+#: pyserial's errors on a port that is gone, stalled or closed.
+PORT_ERRORS = (serial.SerialException, OSError, ValueError, TypeError, _TermiosError)
+#: A stop that could not reach the base is tried again, the port reopened, for this long (a USB
+#: glitch or re-enumeration: udev brings the device back within about a second)...
+STOP_RETRY_S = 2.0
+#: ... every this many seconds.
+STOP_RETRY_EVERY_S = 0.05
+#: While a stop leaves the OS's buffer, how often the buffer is looked at.
+_DRAIN_POLL_S = 0.002
+
+
+def put_stop(link: serial.SerialBase, packet: bytes, count: int, drain_s: float) -> None:
+    """Write `packet` (the stop) `count` times on `link`, first dropping what the OS holds for
+    the device and it has not taken: a device that stopped reading and then reads again would get
+    that motion before the stop (an attacker's review: 200 mm/s came last). Then wait up to
+    `drain_s` for the stop to leave (pyserial's flush() is tcdrain, which waits without bound on
+    a stalled adapter). Raises pyserial's errors (PORT_ERRORS) when the stop cannot be written."""
+    try:
+        link.reset_output_buffer()
+    except PORT_ERRORS:
+        pass  # (what cannot be dropped is sent first: the stop still comes after it)
+    for _ in range(count):
+        link.write(packet)
+    deadline_s = time.monotonic() + drain_s
+    while time.monotonic() < deadline_s:
+        try:
+            if not link.out_waiting:
+                return
+        except PORT_ERRORS:
+            return  # (no way to tell: the stop is handed to the OS)
+        time.sleep(_DRAIN_POLL_S)
+
+
+class StopOutcome(NamedTuple):
+    """Whether a stop went out (`written`), and one line saying so (`line`)."""
+
+    written: bool
+    line: str
+
+
+def stop_through_port(port: str, packet: bytes, count: int, write_timeout_s: float,
+                      retry_s: float = STOP_RETRY_S,
+                      wait: Callable[[float], None] = time.sleep) -> StopOutcome:
+    """Open `port` and put the stop on it (`put_stop`), trying again every STOP_RETRY_EVERY_S
+    for `retry_s` while the port cannot be opened or written (a device that vanished may come
+    back; `wait(seconds)` waits between tries). Whether the stop went out, and one line saying
+    so (where it did not: that the base may still be driving its last command). Never raises. Call
+    only when nothing else holds the port (two writers must never race)."""
+    start_s = time.monotonic()
+    tries = 0
+    while True:
+        tries += 1
+        try:
+            link, _ = open_kobuki_serial(port, read_timeout_s=0.0,
+                                         write_timeout_s=write_timeout_s)
+        except PORT_ERRORS as exc:
+            why = describe_open_error(port, exc)
+        else:
+            try:
+                put_stop(link, packet, count, write_timeout_s)
+                return StopOutcome(True, "a stop was written to the port directly" + (
+                    "" if tries == 1 else
+                    f" (at try {tries}, {time.monotonic() - start_s:.2f} s after the first)"))
+            except PORT_ERRORS as exc:
+                why = " ".join(str(exc).split()) or type(exc).__name__
+            finally:
+                try:
+                    link.close()
+                except PORT_ERRORS:
+                    pass
+        if time.monotonic() - start_s >= retry_s:
+            return StopOutcome(False, f"could not write a stop to the port ({why}, tried for "
+                               f"{retry_s:g} s): the base may still be driving its last "
+                               "command: switch it off")
+        wait(STOP_RETRY_EVERY_S)

@@ -7,6 +7,7 @@ exit code as a Ctrl-C a moment later (`lanewarden.cli.main`).
 
 from __future__ import annotations
 
+import signal
 import sys
 
 from lanewarden.errors import EXIT_INTERRUPTED
@@ -18,4 +19,11 @@ def main() -> int:
     except KeyboardInterrupt:
         sys.stderr.write("lanewarden: error: interrupted\n")
         return EXIT_INTERRUPTED
-    return run_command()
+    try:
+        return run_command()
+    finally:
+        # The command is over (the robot stopped, everything said): a Ctrl-C or SIGTERM from now
+        # on, while the interpreter shuts down, had printed a KeyboardInterrupt from an atexit
+        # callback, or exited by the signal (-2) instead of with the run's exit code.
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)

@@ -355,6 +355,13 @@ def run_robot(
                     loop.operator_stop(now)
                     session.before_step(now)
                     loop.step(clock.now())
+            if isinstance(base, KobukiBase) and (failed := base.stop_failed) is not None:
+                # Closed, the base may still drive: no stop this side had to write itself got
+                # through (its port gone, or a device that stopped reading). Whatever ended the
+                # loop, the run ends as a failure saying so (it had ended 'operator stop' with
+                # exit 0, or 'halted', while the base drove its last command).
+                loop_end = LoopEnd(LoopEndKind.FAILURE, f"BASE_LINK_LOST: {failed}",
+                                   loop_end.steps)
         except Exception as exc:
             if loop_end.kind is LoopEndKind.ERROR:  # the recording says which error, in one line
                 # (the same steps: the closing stop after them is still not the run's end)

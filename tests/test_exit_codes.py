@@ -190,7 +190,7 @@ def test_ctrl_c_while_the_command_starts_is_one_line() -> None:
     """The CLI takes seconds to import; a Ctrl-C then (here: the KeyboardInterrupt it raises,
     at the import of lanewarden.cli, without a race against a real signal) had printed Python's
     traceback and exited -2. The entry point says it in one line, exit 130."""
-    program = "\n".join([
+    done = _launched_after(
         "import builtins",
         "real = builtins.__import__",
         "def ctrl_c(name, *args, **kwargs):",
@@ -198,9 +198,25 @@ def test_ctrl_c_while_the_command_starts_is_one_line() -> None:
         "        raise KeyboardInterrupt",
         "    return real(name, *args, **kwargs)",
         "builtins.__import__ = ctrl_c",
-        "from lanewarden.launcher import main",
-        "raise SystemExit(main())",
-    ])
-    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
-                          timeout=120)
+    )
     assert (done.returncode, done.stderr) == (130, "lanewarden: error: interrupted\n")
+
+
+def _launched_after(*setup: str) -> subprocess.CompletedProcess[str]:
+    """The entry point (`lanewarden.launcher.main`) run in a new interpreter after `setup`'s
+    lines."""
+    program = "\n".join([*setup, "from lanewarden.launcher import main",
+                          "raise SystemExit(main())"])
+    return subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_a_late_ctrl_c_keeps_the_exit_code_and_prints_nothing() -> None:
+    """An attacker's review: a Ctrl-C right after a run's last line, while the interpreter shut
+    down, printed a KeyboardInterrupt from an atexit callback, or the process died of the signal
+    (-2) instead of exiting with the run's code. Here the command returns 3 and the Ctrl-C comes
+    from an atexit callback (no race against a real signal)."""
+    done = _launched_after("import atexit, os, signal", "import lanewarden.cli",
+                           "lanewarden.cli.main = lambda: 3",
+                           "atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT))")
+    assert (done.returncode, done.stderr) == (3, "")

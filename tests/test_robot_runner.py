@@ -445,6 +445,13 @@ def test_a_lost_base_link_is_a_safety_stop(
     line = _safety_line(err)
     assert line.startswith(f"lanewarden: safety stop: BASE_LINK_LOST: {base.port}: serial link "
                            "lost")
+    # the port was tried again for the stop; the device never came back, and the line says so
+    # (it had said only "halted", while the firmware drives its last command)
+    assert line.endswith("; could not write a stop to the port "
+                         f"({base.port}: no such device: plug in and switch on the base, check "
+                         "--port, or install the Kobuki udev rule (it creates /dev/kobuki and "
+                         "sets the FTDI latency timer to 1 ms), tried for 2 s): the base may "
+                         "still be driving its last command: switch it off"), line
     assert last_line(out).startswith("run ended by a safety stop: BASE_LINK_LOST: ")
 
 

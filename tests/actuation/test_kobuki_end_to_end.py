@@ -250,6 +250,33 @@ def test_unplugging_the_pty_is_a_clear_error_not_a_hang(standin: KobukiStandIn,
     assert feedback.received_at_s is not None and feedback.received_at_s <= now
     assert not kobuki.link_health(now).alive
     kobuki.close()
+    # the port was tried again for the stop, and that no stop went out is said plainly
+    assert kobuki.link_lost is not None and kobuki.link_lost.endswith(
+        "the base may still be driving its last command: switch it off"), kobuki.link_lost
+    assert kobuki.stop_failed == kobuki.link_lost
+
+
+def test_a_base_that_comes_back_at_its_path_gets_the_stop(tmp_path: Path) -> None:
+    """An attacker's review: the device vanished (a USB glitch) while the robot drove and came
+    back at its path at once; nothing reopened it, no stop was written, and the run said halted.
+    The control side now tries the port again once the dead-man has lost it."""
+    port = tmp_path / "kobuki"  # as udev's /dev/kobuki: a link to the device of the moment
+    with KobukiStandIn() as first:
+        port.symlink_to(first.port)
+        with KobukiStandIn() as second, KobukiBase.open(str(port)) as kobuki:
+            kobuki.send(MOVE, time.monotonic())
+            assert first.wait_for(lambda pkts: any(map(_is_motion, pkts)), DEADLINE_S)
+            port.unlink()
+            port.symlink_to(second.port)  # back at its path, another device node
+            first.unplug()
+            assert second.wait_for(lambda pkts: any(p.packet == STOP_PACKET for p in pkts),
+                                   DEADLINE_S), "the stop reached the device that came back"
+            assert kobuki.wait_for(lambda b: b.link_lost is not None
+                                   and "a stop was written to the port directly" in b.link_lost,
+                                   DEADLINE_S), kobuki.link_lost
+            assert "serial link lost" in str(kobuki.link_lost)
+            assert not any(map(_is_motion, second.snapshot()))
+        assert kobuki.stop_failed is None
 
 
 def test_a_quiet_caller_trips_the_deadman_and_must_rearm(standin: KobukiStandIn,

@@ -20,7 +20,7 @@ SAFETY_FILES = {
     "perception/confidence.py", "perception/lines.py", "perception/one_side.py",
     "perception/edge_choice.py", "lanewarden/survey.py", "supervisor/center_offset.py",
     "perception/detector.py", "lanewarden/runner.py", "lanewarden/survey_run.py",
-    "lanewarden/commands/base.py", "supervisor/slope_filter.py",
+    "lanewarden/commands/base.py", "supervisor/slope_filter.py", "actuation/kobuki_port.py",
 }  # fmt: skip
 
 
@@ -31,7 +31,7 @@ def test_every_listed_mutant_still_matches_the_code() -> None:
 def test_the_list_covers_every_safety_file_with_fast_tests() -> None:
     mutants = load()
     assert {m.file for m in mutants} == SAFETY_FILES
-    assert 30 <= len(mutants) <= 150  # (the CI run: about 3 s a mutant on 2 cores)
+    assert 30 <= len(mutants) <= 160  # (the CI run: about 3 s a mutant on 2 cores)
     for m in mutants:
         for test in m.tests:
             assert Path(test.split("::")[0]).parts[0] == "tests", (m.id, test)
