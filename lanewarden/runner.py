@@ -362,6 +362,10 @@ def run_robot(
                 # exit 0, or 'halted', while the base drove its last command).
                 loop_end = LoopEnd(LoopEndKind.FAILURE, f"BASE_LINK_LOST: {failed}",
                                    loop_end.steps)
+            elif (isinstance(base, KobukiBase) and loop_end.kind is LoopEndKind.FAILURE
+                  and loop_end.text.startswith("BASE_LINK_LOST: ") and base.link_lost):
+                # the link's last word, now the base is closed: whether the stop went out
+                loop_end = replace(loop_end, text=f"BASE_LINK_LOST: {base.link_lost}")
         except Exception as exc:
             if loop_end.kind is LoopEndKind.ERROR:  # the recording says which error, in one line
                 # (the same steps: the closing stop after them is still not the run's end)
