@@ -160,7 +160,8 @@ class DeadmanProcess:
                 for payload in self._packets.feed(data):
                     basic = decode_feedback(payload).basic
                     sensors = None if basic is None else SafetySensors(
-                        time.monotonic(), basic.bumper, basic.cliff, basic.wheel_drop)
+                        time.monotonic(), basic.bumper, basic.cliff, basic.wheel_drop,
+                        basic.timestamp_ms)
                     # the main loop judges the hazard bits at once, then relays the packet
                     self._from_base.append(
                         (sensors, FeedbackReceived(self._packets.checksum_errors, payload)))

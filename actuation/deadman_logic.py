@@ -84,6 +84,8 @@ class SafetySensors:
     bumper: int = 0
     cliff: int = 0
     wheel_drop: int = 0
+    #: The base's own time stamp of the packet (its u16 millisecond counter; None: not known).
+    timestamp_ms: int | None = None
 
     def hazard(self) -> str | None:
         """What is wrong, one line ("bumper pressed (left)"), or None when no bit is set."""
@@ -145,6 +147,10 @@ class DeadmanLogic:
         self._last_heartbeat_s = start_s
         self._last_seq = -1
         self._feedback_s: float | None = None  # when the newest feedback packet was read
+        #: the newest packet's own time stamp, and that stamp when packets repeat it (None: the
+        #: newest packet was a new one)
+        self._timestamp_ms: int | None = None
+        self._repeated_ms: int | None = None
         self._sensor_hazard: str | None = None  # what the newest feedback packet says is wrong
         self._next_send_s = start_s  # the first stop goes out at once
         self._urgent = True
@@ -224,8 +230,17 @@ class DeadmanLogic:
 
     # ---- inputs from the base -----------------------------------------------------------------
     def on_feedback(self, now: float, sensors: SafetySensors) -> None:
-        """One feedback packet's hazard bits: a hazard latches (DISARMED or ARMED) at once."""
-        if self._feedback_s is None or sensors.read_s > self._feedback_s:
+        """One feedback packet's hazard bits: a hazard latches (DISARMED or ARMED) at once. A
+        packet carrying the same time stamp as the one before is no news of the base (the base
+        stamps each packet anew, 50 a second): it never makes the feedback fresh (an attacker's
+        review: a device replaying one packet 10 times a second kept the link 'ok' while the
+        robot moved nowhere, and would have hidden a bumper), while its hazard bits still
+        count."""
+        stamp = sensors.timestamp_ms
+        repeated = stamp is not None and stamp == self._timestamp_ms
+        self._timestamp_ms = stamp
+        self._repeated_ms = stamp if repeated else None
+        if not repeated and (self._feedback_s is None or sensors.read_s > self._feedback_s):
             self._feedback_s = sensors.read_s
         self._sensor_hazard = sensors.hazard()
         if self._sensor_hazard is not None and self._mode in (DeadmanMode.DISARMED,
@@ -287,8 +302,11 @@ class DeadmanLogic:
         if self._feedback_s is None:
             return "no feedback from the base yet"
         if now >= self._feedback_deadline_s():
+            repeated = ("" if self._repeated_ms is None else
+                        f"; its packets repeat the time stamp {self._repeated_ms} ms: the same "
+                        "packet replayed")
             return (f"no feedback from the base for {now - self._feedback_s:.3f} s (timeout "
-                    f"{self._settings.feedback_timeout_s:g} s)")
+                    f"{self._settings.feedback_timeout_s:g} s{repeated})")
         return None
 
     def _heartbeat_deadline_s(self) -> float:

@@ -459,6 +459,38 @@ def test_stale_feedback_latches_a_stop_at_the_feedback_timeout() -> None:
     assert refusal.startswith("resume refused: no feedback from the base for 0.700 s")
 
 
+def test_a_packet_replayed_with_its_time_stamp_is_no_fresh_feedback() -> None:
+    """An attacker's review: a device repeating one packet (the same time stamp) 10 times a
+    second kept the feedback fresh while the robot moved nowhere; a bumper pressed meanwhile
+    would not have been seen. Packets of a new stamp keep it fresh; a repeated stamp does not,
+    and the latch says so. (The base stamps each packet anew; the u16 counter wraps.)"""
+    logic = DeadmanLogic(SETTINGS, 0.0)
+    for k in range(30):  # 0.6 s of packets, each with its own stamp (wrapping at 65536)
+        t = 0.02 * k
+        logic.on_feedback(t, SafetySensors(t, timestamp_ms=(65500 + 20 * k) % 65536))
+        if k == 0:
+            arm(logic, t)
+        command(logic, MOVE, t)
+        logic.poll(t)
+    assert logic.mode is DeadmanMode.ARMED
+    replayed = (65500 + 20 * 29) % 65536
+    latched = []
+    for k in range(30, 60):  # then the last one, over and over
+        t = 0.02 * k
+        logic.on_feedback(t, SafetySensors(t, timestamp_ms=replayed))
+        command(logic, MOVE, t)
+        latched += [e.reason for e in logic.poll(t).events]
+    assert logic.mode is DeadmanMode.LATCHED
+    assert latched == [f"no feedback from the base for 0.200 s (timeout 0.2 s; its packets "
+                       f"repeat the time stamp {replayed} ms: the same packet replayed)"]
+    # a repeated packet's hazard bits still count (a latch at once, whatever its stamp)
+    bumped = DeadmanLogic(SETTINGS, 0.0)
+    bumped.on_feedback(0.0, SafetySensors(0.0, timestamp_ms=7))
+    arm(bumped, 0.0)
+    bumped.on_feedback(0.01, SafetySensors(0.01, bumper=4, timestamp_ms=7))
+    assert bumped.mode is DeadmanMode.LATCHED
+
+
 def test_stale_feedback_does_not_latch_a_disarmed_deadman_but_arming_then_latches() -> None:
     logic = new_logic()
     assert logic.poll(0.5).events == () and logic.mode is DeadmanMode.DISARMED
