@@ -253,6 +253,8 @@ class DeadmanProcess:
                 sensors, message = self._from_base.popleft()
                 if sensors is not None:
                     logic.on_feedback(now, sensors)
+                else:
+                    logic.on_packet_without_sensors()
                 relay.append(message)
             if self._control is not None and self._control in ready:
                 self._receive(logic, link)

@@ -151,6 +151,8 @@ class DeadmanLogic:
         #: newest packet was a new one)
         self._timestamp_ms: int | None = None
         self._repeated_ms: int | None = None
+        #: packets read without readable basic sensor data since the last packet with it
+        self._without_sensors = 0
         self._sensor_hazard: str | None = None  # what the newest feedback packet says is wrong
         self._next_send_s = start_s  # the first stop goes out at once
         self._urgent = True
@@ -236,6 +238,7 @@ class DeadmanLogic:
         review: a device replaying one packet 10 times a second kept the link 'ok' while the
         robot moved nowhere, and would have hidden a bumper), while its hazard bits still
         count."""
+        self._without_sensors = 0
         stamp = sensors.timestamp_ms
         repeated = stamp is not None and stamp == self._timestamp_ms
         self._timestamp_ms = stamp
@@ -246,6 +249,12 @@ class DeadmanLogic:
         if self._sensor_hazard is not None and self._mode in (DeadmanMode.DISARMED,
                                                               DeadmanMode.ARMED):
             self._latch(self._sensor_hazard)
+
+    def on_packet_without_sensors(self) -> None:
+        """A packet read whose basic sensor data is missing or unreadable: no news of the base's
+        hazards, so no fresh feedback; counted, so that a latch for stale feedback says packets
+        do arrive (it had said only 'no feedback' while 50 a second came)."""
+        self._without_sensors += 1
 
     # ---- outputs ------------------------------------------------------------------------------
     def poll(self, now: float) -> WireAction:
@@ -305,6 +314,9 @@ class DeadmanLogic:
             repeated = ("" if self._repeated_ms is None else
                         f"; its packets repeat the time stamp {self._repeated_ms} ms: the same "
                         "packet replayed")
+            if self._without_sensors:
+                repeated += (f"; {self._without_sensors} packets since carry no readable basic "
+                             "sensor data")
             return (f"no feedback from the base for {now - self._feedback_s:.3f} s (timeout "
                     f"{self._settings.feedback_timeout_s:g} s{repeated})")
         return None

@@ -491,6 +491,22 @@ def test_a_packet_replayed_with_its_time_stamp_is_no_fresh_feedback() -> None:
     assert bumped.mode is DeadmanMode.LATCHED
 
 
+def test_packets_without_sensor_data_are_no_feedback_and_the_latch_says_they_came() -> None:
+    """An attacker's review: packets whose basic sensor data was cut short came 50 a second,
+    and the latch said only 'no feedback from the base'."""
+    logic = new_logic()
+    arm(logic, 0.0)
+    reasons = []
+    for k in range(1, 12):
+        logic.on_packet_without_sensors()
+        command(logic, MOVE, 0.02 * k)
+        reasons += [e.reason for e in logic.poll(0.02 * k).events]
+    assert logic.mode is DeadmanMode.LATCHED
+    assert reasons == ["armed by the control process",
+                       "no feedback from the base for 0.200 s (timeout 0.2 s; 10 packets since "
+                       "carry no readable basic sensor data)"]
+
+
 def test_stale_feedback_does_not_latch_a_disarmed_deadman_but_arming_then_latches() -> None:
     logic = new_logic()
     assert logic.poll(0.5).events == () and logic.mode is DeadmanMode.DISARMED

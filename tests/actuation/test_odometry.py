@@ -73,3 +73,20 @@ def test_half_circle_of_radius_half_a_metre() -> None:
     assert pose.x_m == pytest.approx(0.0, abs=2e-3)
     assert pose.y_m == pytest.approx(2 * radius, abs=2e-3)
     assert abs(pose.theta_rad) == pytest.approx(math.pi, abs=2e-3)
+
+
+def test_a_counter_that_jumps_is_no_motion() -> None:
+    """An attacker's review: a device adding 30000 ticks a packet made 468 m of odometry in
+    3.6 s. A step beyond MAX_WHEEL_STEP_M (0.25 m: about 2931 ticks) is passed over, and the
+    motion after it counts from the new reading."""
+    odometry = EncoderOdometry()
+    odometry.update(0, 0)
+    for k in range(1, 6):
+        odometry.update(30000 * k % 65536, 30000 * k % 65536)
+    assert odometry.pose.x_m == 0.0 and odometry.jumps == 5
+    step = round(0.1 * TICKS_PER_METRE)  # then 0.1 m straight ahead
+    last = 30000 * 5 % 65536
+    odometry.update((last + step) % 65536, (last + step) % 65536)
+    assert odometry.pose.x_m == pytest.approx(0.1, abs=1e-4) and odometry.jumps == 5
+    odometry.update((last + step + 2900) % 65536, (last + step + 2900) % 65536)  # 0.247 m: motion
+    assert odometry.jumps == 5
