@@ -37,8 +37,6 @@ import threading
 import time
 from collections.abc import Callable
 
-import serial
-
 from lanewarden.actuation.base import VelocityCommand
 from lanewarden.actuation.config import ActuationConfig
 from lanewarden.actuation.deadman import EXIT_LINK_LOST
@@ -67,8 +65,6 @@ from lanewarden.actuation.errors import KobukiLinkError
 from lanewarden.actuation.kobuki_commands import STOP_PACKET
 from lanewarden.actuation.kobuki_port import STOP_RETRY_S, StopOutcome, stop_through_port
 from lanewarden.actuation.realtime import raise_priority
-
-SERIAL_ERRORS = (serial.SerialException, OSError, ValueError, TypeError)
 
 
 def write_stop_directly(port: str, write_timeout_s: float) -> StopOutcome:

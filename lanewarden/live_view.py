@@ -13,8 +13,12 @@ The control loop is never slowed or blocked:
   sample; nothing is copied, drawn or encoded there.
 - A separate encoder thread draws the overlay and encodes JPEG at most `VIEW_FPS` times a second,
   and only while a page has asked for something in the last `VIEWER_IDLE_S` seconds.
-- Each connection is served by its own thread, at most `MAX_CONNECTIONS` at once (more are closed
-  at once, unserved), each with a deadline for the whole connection and a byte budget.
+- Each connection is served by its own thread, at most `MAX_CONNECTIONS` at once and
+  `MAX_CONNECTIONS_PER_CLIENT` from one client address (more are closed at once, unserved), each
+  with a deadline for its headers (`HEADER_DEADLINE_S`), one for the whole connection and a byte
+  budget.
+- Closing, it gives a page that was watching up to `FINAL_STATUS_WAIT_S` to fetch the last status
+  (why the run ended).
 
 It must never let a request it did not mean to serve reach the robot (issue 18's attacks):
 - One request per connection, always `Connection: close`: a body can never be served as a second
