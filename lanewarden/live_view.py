@@ -14,9 +14,10 @@ The control loop is never slowed or blocked:
 - A separate encoder thread draws the overlay and encodes JPEG at most `VIEW_FPS` times a second,
   and only while a page has asked for something in the last `VIEWER_IDLE_S` seconds.
 - Each connection is served by its own thread, at most `MAX_CONNECTIONS` at once and
-  `MAX_CONNECTIONS_PER_CLIENT` from one client address (more are closed at once, unserved), each
-  with a deadline for its headers (`HEADER_DEADLINE_S`), one for the whole connection and a byte
-  budget.
+  `MAX_CONNECTIONS_PER_CLIENT` from one client address (more are closed at once, unserved; every
+  slot taken, the oldest connection whose request has not come through gives way to a new one),
+  each with a deadline for its headers (`HEADER_DEADLINE_S`), one for the whole connection and a
+  byte budget.
 - Closing, it gives a page that was watching up to `FINAL_STATUS_WAIT_S` to fetch the last status
   (why the run ended).
 
@@ -88,6 +89,10 @@ CONNECTION_DEADLINE_S = 5.0
 #: ... and the request line and headers must have come within this (a browser sends them at
 #: once): an idle connection holds its slot this long, not the whole deadline.
 HEADER_DEADLINE_S = 1.0
+#: Every slot taken, a new connection takes the slot of the oldest one whose request has not been
+#: let through yet (idle, dribbling its headers or body, or still being checked): that one is
+#: closed, and the new one waits this long at most for its slot.
+EVICTION_WAIT_S = 0.5
 #: Closing the view after the run's last status, it keeps answering until a page that was
 #: watching has fetched that status (the reason the run ended), at most this long.
 FINAL_STATUS_WAIT_S = 1.0
@@ -397,7 +402,8 @@ class LiveView:
         #: What the server did, for the operator and the tests: connections served, refused
         #: (busy), cut off (deadline, byte budget, hang-up), refused requests by reason, the most
         #: connections open at once and the most bytes one connection sent.
-        self.counts: dict[str, int] = {"served": 0, "closed": 0, "busy": 0, "cut_off": 0,
+        self.counts: dict[str, int] = {"served": 0, "closed": 0, "busy": 0, "evicted": 0,
+                                       "cut_off": 0,
                                        "refused": 0, "peak_open": 0, "largest_request": 0}
         self._open = 0
         self._refusals = _Throttle()
@@ -549,6 +555,19 @@ class LiveView:
                   + ": the page's buttons may not get through (slow or idle clients?); stop "
                   "from the keys, Ctrl-C or the base's B1")
 
+    def evicted(self, victim: str, newcomer: str) -> None:
+        """Every slot taken, the oldest connection whose request had not come through was closed
+        for a new one: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S."""
+        with self._counts_lock:
+            self.counts["evicted"] += 1
+            more = self._busy.due(time.monotonic())
+        if more is None:
+            return
+        self._log(f"live view: all {MAX_CONNECTIONS} connections busy: closed the oldest whose "
+                  f"request had not come through, from {printable(victim)}, for one from "
+                  f"{printable(newcomer)}" + (f" (and {more} more before)" if more else "")
+                  + " (slow or idle clients?)")
+
     def refused(self, what: str, client: str, problem: str) -> None:
         """A refused request: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S
         (with how many more were refused meanwhile)."""
@@ -666,6 +685,9 @@ class _Server(ThreadingHTTPServer):
         self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
         self._per_client: Counter[str] = Counter()
         self._per_client_lock = threading.Lock()
+        #: connections whose request has not been let through yet: when each was accepted, and
+        #: from where
+        self._pending: dict[socket.socket, tuple[float, str]] = {}
         super().__init__(address, handler)
 
     def process_request(self, request: Any, client_address: Any) -> None:
@@ -676,25 +698,54 @@ class _Server(ThreadingHTTPServer):
             one_client = self._per_client[client] >= MAX_CONNECTIONS_PER_CLIENT
             if not one_client:
                 self._per_client[client] += 1
-        if one_client or not self._slots.acquire(blocking=False):
+        shown = (f"{client_address[0]}:{client_address[1]}"
+                 if isinstance(client_address, tuple) and len(client_address) >= 2
+                 else str(client_address))
+        if one_client or not (self._slots.acquire(blocking=False)
+                              or self._evict_for_one(shown)):
             if not one_client:
                 self._client_left(client)
             self.shutdown_request(request)
-            self.view.busy(f"{client_address[0]}:{client_address[1]}"
-                           if isinstance(client_address, tuple) and len(client_address) >= 2
-                           else str(client_address), one_client)
+            self.view.busy(shown, one_client)
             return
+        with self._per_client_lock:
+            self._pending[request] = (time.monotonic(), shown)
         try:
             super().process_request(request, client_address)
         except BaseException:
+            self.let_through(request)
             self._slots.release()
             self._client_left(client)
             raise
+
+    def _evict_for_one(self, newcomer: str) -> bool:
+        """Every slot taken: close the oldest connection whose request has not been let through
+        (many hosts' idle or dribbling connections, each within its deadlines, had kept the
+        page's Stop out), then wait up to EVICTION_WAIT_S for its slot. Whether a slot was
+        taken."""
+        with self._per_client_lock:
+            if not self._pending:
+                return False
+            oldest = min(self._pending, key=self._pending.__getitem__)
+            _, victim = self._pending.pop(oldest)
+            try:
+                oldest.shutdown(socket.SHUT_RDWR)  # its thread reads the end and leaves
+            except OSError:
+                pass
+        self.view.evicted(victim, newcomer)
+        return self._slots.acquire(timeout=EVICTION_WAIT_S)
+
+    def let_through(self, request: socket.socket) -> None:
+        """The request on this connection passed the checks (or the connection ended): it is
+        served, never closed for a newcomer."""
+        with self._per_client_lock:
+            self._pending.pop(request, None)
 
     def process_request_thread(self, request: Any, client_address: Any) -> None:
         try:
             super().process_request_thread(request, client_address)
         finally:
+            self.let_through(request)
             self._slots.release()
             self._client_left(_address(client_address))
 
@@ -861,6 +912,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._refuse(HTTPStatus.UNAUTHORIZED,
                          f"{problem}: this page needs the token printed on the robot's terminal")
             return False
+        self.server.let_through(self.connection)
         return True
 
     # ---- the endpoints --------------------------------------------------------------------------
