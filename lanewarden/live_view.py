@@ -543,42 +543,36 @@ class LiveView:
         may hold): one line on the terminal, at most every REFUSAL_REPORT_EVERY_S (slow or idle
         clients holding every slot kept the page's Stop from being served for seconds, and
         nothing said so: an attacker's review)."""
-        with self._counts_lock:
-            self.counts["busy"] += 1
-            more = self._busy.due(time.monotonic())
-        if more is None:
-            return
         taken = (f"{MAX_CONNECTIONS_PER_CLIENT} connections from one client open" if one_client
                  else f"all {MAX_CONNECTIONS} connections busy")
-        self._log(f"live view: {taken}, one from {printable(client)} closed unserved"
-                  + (f" (and {more} more before)" if more else "")
-                  + ": the page's buttons may not get through (slow or idle clients?); stop "
-                  "from the keys, Ctrl-C or the base's B1")
+        self._counted("busy", self._busy, lambda more: (
+            f"live view: {taken}, one from {printable(client)} closed unserved"
+            + (f" (and {more} more before)" if more else "")
+            + ": the page's buttons may not get through (slow or idle clients?); stop from the "
+            "keys, Ctrl-C or the base's B1"))
 
     def evicted(self, victim: str, newcomer: str) -> None:
         """Every slot taken, the oldest connection whose request had not come through was closed
         for a new one: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S."""
-        with self._counts_lock:
-            self.counts["evicted"] += 1
-            more = self._busy.due(time.monotonic())
-        if more is None:
-            return
-        self._log(f"live view: all {MAX_CONNECTIONS} connections busy: closed the oldest whose "
-                  f"request had not come through, from {printable(victim)}, for one from "
-                  f"{printable(newcomer)}" + (f" (and {more} more before)" if more else "")
-                  + " (slow or idle clients?)")
+        self._counted("evicted", self._busy, lambda more: (
+            f"live view: all {MAX_CONNECTIONS} connections busy: closed the oldest whose request "
+            f"had not come through, from {printable(victim)}, for one from {printable(newcomer)}"
+            + (f" (and {more} more before)" if more else "") + " (slow or idle clients?)"))
 
     def refused(self, what: str, client: str, problem: str) -> None:
         """A refused request: one line on the terminal, at most every REFUSAL_REPORT_EVERY_S
         (with how many more were refused meanwhile)."""
+        self._counted("refused", self._refusals, lambda more: (
+            f"live view: refused {printable(what)} from {printable(client)}: "
+            f"{printable(problem, 200)}" + (f" (and {more} more refused before)" if more else "")))
+
+    def _counted(self, key: str, throttle: _Throttle, line: Callable[[int], str]) -> None:
+        """Count `key`; say `line(how many were held back since)` when `throttle` lets it."""
         with self._counts_lock:
-            self.counts["refused"] += 1
-            more = self._refusals.due(time.monotonic())
-        if more is None:
-            return
-        self._log(f"live view: refused {printable(what)} from {printable(client)}: "
-                  f"{printable(problem, 200)}"
-                  + (f" (and {more} more refused before)" if more else ""))
+            self.counts[key] += 1
+            more = throttle.due(time.monotonic())
+        if more is not None:
+            self._log(line(more))
 
     def report_error(self, doing: str, exc: BaseException) -> None:
         """An error in our own code while serving: one line, the run goes on."""
