@@ -87,7 +87,6 @@ HELLO_TIMEOUT_S = 10.0
 
 #: Serial read timeout of the feedback thread (bounds how long stopping it takes).
 READ_TIMEOUT_S = 0.05
-SERIAL_ERRORS = PORT_ERRORS
 #: Control messages handled per wake-up before the send loop polls again.
 MAX_MESSAGES_PER_WAKE = 64
 
@@ -166,7 +165,7 @@ class DeadmanProcess:
                     self._from_base.append(
                         (sensors, FeedbackReceived(self._packets.checksum_errors, payload)))
                     self._wake()
-        except SERIAL_ERRORS as exc:
+        except PORT_ERRORS as exc:
             if self._reading.is_set():
                 self._lost = _lost_message(self._port, exc)
                 self._wake()
@@ -198,7 +197,7 @@ class DeadmanProcess:
         try:
             self._link, low_latency = open_kobuki_serial(
                 self._port, read_timeout_s=READ_TIMEOUT_S, write_timeout_s=self._write_timeout_s)
-        except SERIAL_ERRORS as exc:
+        except PORT_ERRORS as exc:
             self._tell(OpenFailed(describe_open_error(self._port, exc)))
             return EXIT_OPEN_FAILED
         self._tell(PortOpened(low_latency, *self._priority))
@@ -208,7 +207,7 @@ class DeadmanProcess:
         reader.start()
         try:
             return self._loop()
-        except SERIAL_ERRORS as exc:
+        except PORT_ERRORS as exc:
             self._tell(LinkLost(_lost_message(self._port, exc)))
             return EXIT_LINK_LOST
         except BaseException as exc:  # noqa: BLE001 - the stop below must happen whatever failed
@@ -309,12 +308,12 @@ class DeadmanProcess:
         if link is not None:
             try:
                 put_stop(link, STOP_PACKET, 1, self._write_timeout_s)
-            except SERIAL_ERRORS:
+            except PORT_ERRORS:
                 pass
             reader.join(timeout=4 * READ_TIMEOUT_S)
             try:
                 link.close()
-            except SERIAL_ERRORS:
+            except PORT_ERRORS:
                 pass
         if self._control is not None:
             self._control.close()

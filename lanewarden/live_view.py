@@ -677,18 +677,18 @@ class _Server(ThreadingHTTPServer):
             self.address_family = socket.AF_INET6
         self.view = view
         self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+        self._lock = threading.Lock()  # (the two below)
         self._per_client: Counter[str] = Counter()
-        self._per_client_lock = threading.Lock()
-        #: connections whose request has not been let through yet: when each was accepted, and
-        #: from where
-        self._pending: dict[socket.socket, tuple[float, str]] = {}
+        #: connections whose request has not been let through yet, and where each comes from, in
+        #: the order they were accepted (the first is the oldest)
+        self._pending: dict[socket.socket, str] = {}
         super().__init__(address, handler)
 
     def process_request(self, request: Any, client_address: Any) -> None:
         """A thread per connection, at most MAX_CONNECTIONS, and at most
         MAX_CONNECTIONS_PER_CLIENT from one client address: more are closed at once."""
         client = _address(client_address)
-        with self._per_client_lock:
+        with self._lock:
             one_client = self._per_client[client] >= MAX_CONNECTIONS_PER_CLIENT
             if not one_client:
                 self._per_client[client] += 1
@@ -702,8 +702,8 @@ class _Server(ThreadingHTTPServer):
             self.shutdown_request(request)
             self.view.busy(shown, one_client)
             return
-        with self._per_client_lock:
-            self._pending[request] = (time.monotonic(), shown)
+        with self._lock:
+            self._pending[request] = shown
         try:
             super().process_request(request, client_address)
         except BaseException:
@@ -717,11 +717,11 @@ class _Server(ThreadingHTTPServer):
         (many hosts' idle or dribbling connections, each within its deadlines, had kept the
         page's Stop out), then wait up to EVICTION_WAIT_S for its slot. Whether a slot was
         taken."""
-        with self._per_client_lock:
+        with self._lock:
             if not self._pending:
                 return False
-            oldest = min(self._pending, key=self._pending.__getitem__)
-            _, victim = self._pending.pop(oldest)
+            oldest = next(iter(self._pending))
+            victim = self._pending.pop(oldest)
             try:
                 oldest.shutdown(socket.SHUT_RDWR)  # its thread reads the end and leaves
             except OSError:
@@ -732,7 +732,7 @@ class _Server(ThreadingHTTPServer):
     def let_through(self, request: socket.socket) -> None:
         """The request on this connection passed the checks (or the connection ended): it is
         served, never closed for a newcomer."""
-        with self._per_client_lock:
+        with self._lock:
             self._pending.pop(request, None)
 
     def process_request_thread(self, request: Any, client_address: Any) -> None:
@@ -744,7 +744,7 @@ class _Server(ThreadingHTTPServer):
             self._client_left(_address(client_address))
 
     def _client_left(self, client: str) -> None:
-        with self._per_client_lock:
+        with self._lock:
             self._per_client[client] -= 1
             if self._per_client[client] <= 0:
                 del self._per_client[client]

@@ -149,6 +149,20 @@ def _ending_fault(base: Base, frames: CameraFrameSource, camera: str,
     return None
 
 
+def _closed_link_end(base: KobukiBase, loop_end: LoopEnd) -> LoopEnd:
+    """What ended the loop, once the base is closed: where no stop the control side had to
+    write itself got through (its port gone, or a device that stopped reading), the base may
+    still drive, and whatever ended the loop the run ends as a failure saying so (it had ended
+    'operator stop' with exit 0, or 'halted', while the base drove its last command); a run
+    ended by BASE_LINK_LOST gets the link's last word (whether the stop went out)."""
+    if (failed := base.stop_failed) is not None:
+        return LoopEnd(LoopEndKind.FAILURE, f"BASE_LINK_LOST: {failed}", loop_end.steps)
+    if (loop_end.kind is LoopEndKind.FAILURE and loop_end.text.startswith("BASE_LINK_LOST: ")
+            and base.link_lost):
+        return replace(loop_end, text=f"BASE_LINK_LOST: {base.link_lost}")
+    return loop_end
+
+
 #: The flag that lets a real base drive on an assumed camera (`assumed_camera`).
 ASSUME_CAMERA_FLAG = "--assume-camera"
 
@@ -355,17 +369,8 @@ def run_robot(
                     loop.operator_stop(now)
                     session.before_step(now)
                     loop.step(clock.now())
-            if isinstance(base, KobukiBase) and (failed := base.stop_failed) is not None:
-                # Closed, the base may still drive: no stop this side had to write itself got
-                # through (its port gone, or a device that stopped reading). Whatever ended the
-                # loop, the run ends as a failure saying so (it had ended 'operator stop' with
-                # exit 0, or 'halted', while the base drove its last command).
-                loop_end = LoopEnd(LoopEndKind.FAILURE, f"BASE_LINK_LOST: {failed}",
-                                   loop_end.steps)
-            elif (isinstance(base, KobukiBase) and loop_end.kind is LoopEndKind.FAILURE
-                  and loop_end.text.startswith("BASE_LINK_LOST: ") and base.link_lost):
-                # the link's last word, now the base is closed: whether the stop went out
-                loop_end = replace(loop_end, text=f"BASE_LINK_LOST: {base.link_lost}")
+            if isinstance(base, KobukiBase):
+                loop_end = _closed_link_end(base, loop_end)
         except Exception as exc:
             if loop_end.kind is LoopEndKind.ERROR:  # the recording says which error, in one line
                 # (the same steps: the closing stop after them is still not the run's end)
