@@ -6,11 +6,14 @@ Request Extra with hardware/firmware version and UDID, moves its encoders accord
 base-control command, and records every command packet it receives with its arrival time
 (time.monotonic, comparable across processes).
 
-Use `port` (the pty slave's name) as the serial port. `sensor_changes` lists when a feedback
-packet first carried each new (bumper, cliff, wheel drop) state (the time just before its write);
+Use `port` as the serial port: a link to the pty slave (`device`), as udev's /dev/kobuki is, in a
+folder of its own. `unplug()` removes it with the pty: a driver trying the port again (a stop
+after the link failed) never reaches a pty another test opened later under the same number.
+`sensor_changes` lists when a feedback packet first carried each new (bumper, cliff, wheel drop)
+state (the time just before its write);
 `press(...)` sets the bits and returns that time for them.
-`unplug()` closes the master under the driver. `unplug_on_motion=True` does that on the first
-non-zero base-control command.
+`unplug()` closes the master under the driver (and removes `port`). `unplug_on_motion=True` does
+that on the first non-zero base-control command.
 `corrupt_every=N` spoils the checksum of every Nth feedback packet.
 """
 
@@ -19,7 +22,9 @@ from __future__ import annotations
 import math
 import os
 import select
+import shutil
 import struct
+import tempfile
 import threading
 import time
 import tty
@@ -88,7 +93,10 @@ class KobukiStandIn:
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)  # no echo, no line discipline, before anyone reads
         os.set_blocking(self._master, False)
-        self.port = os.ttyname(self._slave)
+        self.device = os.ttyname(self._slave)
+        self._link_folder = tempfile.mkdtemp(prefix="kobuki-standin-")
+        self.port = os.path.join(self._link_folder, "kobuki")
+        os.symlink(self.device, self.port)
         self._threads = [threading.Thread(target=self._stream_feedback, daemon=True),
                          threading.Thread(target=self._read_commands, daemon=True)]
         self._unplugged = False
@@ -114,6 +122,7 @@ class KobukiStandIn:
         with self._cond:
             if not self._unplugged:
                 self._unplugged = True
+                shutil.rmtree(self._link_folder, ignore_errors=True)  # (gone from its path first)
                 os.close(self._master)
                 os.close(self._slave)
             self._cond.notify_all()
