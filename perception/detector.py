@@ -41,6 +41,7 @@ Never reads a clock (the frame time is passed in), never touches motors, never p
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -48,6 +49,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from lanewarden.perception import line_kernel
 from lanewarden.perception.calibration import Undistorter
 from lanewarden.perception.confidence import (
     EdgeEvidence,
@@ -171,6 +173,9 @@ class LaneDetector:
         self._states: dict[tuple[int, int], SizeSetup] = {}
         self._theta_rad = math.radians(config.hough.theta_deg)
         self.setup_for(*self.ground.image_size)
+        # (Compiled, or loaded from numba's cache, now rather than on the first frame; a
+        # compile is said on stderr through logging, once: the first run after an install.)
+        line_kernel.ready(logging.getLogger(__name__).warning)
 
     # ------------------------------------------------------------------------------ public
 

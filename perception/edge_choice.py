@@ -412,7 +412,7 @@ def _pairs_worth_checking(cand: list[LineRow], angle_tol: float, tape_width: flo
     polarity, angle, near_fx, near_fy, far_fx, far_fy, near_y, far_y = columns.T
     if not np.isfinite(angle).all():
         return itertools.combinations(range(n), 2)  # (a line made by hand; never from Hough)
-    i, j = pairs_within_angle(angle, angle_tol, unordered=True)
+    i, j = pairs_within_angle(angle, angle_tol)
     if unsigned_outer:
         keep = (polarity[i] == 0.0) != (polarity[j] == 0.0)
     else:

@@ -25,7 +25,7 @@ FloatArray = NDArray[np.float64]
 
 #: A pixel whose ray meets the floor at a homogeneous scale below this is at or above the
 #: horizon (no floor there).
-_MIN_SCALE = 1e-12
+MIN_SCALE = 1e-12
 
 
 def _as_tuple(h: np.ndarray) -> tuple[float, ...]:
@@ -45,7 +45,7 @@ class FloorView:
         ahead = ground.position[0] + 1.0, ground.position[1]
         u, v = self.to_image(*ahead)
         h = self._to_floor
-        self._below_sign = 1.0 if h[6] * u + h[7] * v + h[8] > 0 else -1.0
+        self.below_sign = 1.0 if h[6] * u + h[7] * v + h[8] > 0 else -1.0
         # `to_floor_rows`' constants: what u and v are multiplied by and what is added, for the
         # numerators of x and y and for the scale w, each (3, 1) to broadcast along a row.
         by_u = np.array(h[0::3]).reshape(3, 1)
@@ -54,12 +54,15 @@ class FloorView:
         for constant in (by_u, by_v, plus):
             constant.flags.writeable = False
         self._rows_h = by_u, by_v, plus
+        #: image_to_floor's nine values, row by row (for compiled code: `perception.line_kernel`)
+        self.image_to_floor_flat = np.array(self._to_floor)
+        self.image_to_floor_flat.flags.writeable = False
 
     def to_image(self, x: float, y: float) -> Point:
         """Floor point -> undistorted pixel (NaN behind the camera)."""
         h = self._to_image
         w = h[6] * x + h[7] * y + h[8]
-        if w <= _MIN_SCALE:
+        if w <= MIN_SCALE:
             return math.nan, math.nan
         return (h[0] * x + h[1] * y + h[2]) / w, (h[3] * x + h[4] * y + h[5]) / w
 
@@ -67,7 +70,7 @@ class FloorView:
         """Undistorted pixel -> floor point (NaN at or above the horizon)."""
         h = self._to_floor
         w = h[6] * u + h[7] * v + h[8]
-        if w * self._below_sign <= _MIN_SCALE:
+        if w * self.below_sign <= MIN_SCALE:
             return math.nan, math.nan
         return (h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w
 
@@ -88,8 +91,8 @@ class FloorView:
         rows += by_v * uv[1]
         rows += plus
         w = rows[2]
-        # w * sign > _MIN_SCALE, sign being +-1 (a product by +-1 is exact: the same test).
-        valid = w > _MIN_SCALE if self._below_sign > 0 else w < -_MIN_SCALE
+        # w * sign > MIN_SCALE, sign being +-1 (a product by +-1 is exact: the same test).
+        valid = w > MIN_SCALE if self.below_sign > 0 else w < -MIN_SCALE
         floor = rows[:2]
         floor /= np.where(valid, w, np.nan)
         return floor

@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,6 +30,16 @@ SLOW_TESTS = Path(__file__).with_name("slow_tests.txt")
 # The mutation run (tests/mutation/run.py) only needs to know that a property fails, not its
 # smallest counterexample: no shrinking, no explaining (the examples themselves stay the same).
 settings.register_profile("mutation", phases=(Phase.explicit, Phase.reuse, Phase.generate))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Before any test (in the controller, before xdist's workers start): perception's compiled
+    kernel is made ready once (`perception.line_kernel.ready`), so that no test, nor a command a
+    test runs, waits for numba's compile or sees its one-line notice on stderr."""
+    if not hasattr(config, "workerinput"):
+        from lanewarden.perception import line_kernel
+
+        line_kernel.ready(lambda text: print(text, file=sys.stderr))
 
 
 def slow_tests(path: Path = SLOW_TESTS) -> tuple[str, ...]:

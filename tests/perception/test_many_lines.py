@@ -1,9 +1,8 @@
 """A textured floor's frame (terrazzo's chips at 320x240: 150-280 Hough segments within the edge
 budget, `perception.canny.max_edge_share`, 500-odd without; 100-odd candidate lines a side)
-takes two shortcuts that must not change a result: clustering compares only segments whose
-directions are within the angle tolerance (`lines._compatible_pairs`, beyond 64 segments), and
-the choice of tapes sifts a side's pairs with numpy before its loop
-(`edge_choice._pairs_worth_checking`, from 16 lines). Each is held here to the plain way, element
+takes a shortcut that must not change a result: the choice of tapes sifts a side's pairs with
+numpy before its loop (`edge_choice._pairs_worth_checking`, from 16 lines), through a window over
+the lines' sorted angles (`lines.pairs_within_angle`). Both are held here to the plain way, element
 for element, on seeded random input that includes the ties at the tolerance's very edge."""
 
 from __future__ import annotations
@@ -13,38 +12,24 @@ import pytest
 
 from lanewarden.perception import edge_choice
 from lanewarden.perception.edge_choice import tape_candidates
-from lanewarden.perception.lines import LineRow, _compatible_dense, _compatible_pairs, _Pieces
+from lanewarden.perception.lines import LineRow, pairs_within_angle
 from tests.perception.test_tape_rules import CONFIG, floor_line
 from tests.perception.test_unsigned_outer_edge import SETUP
 
 
-def random_pieces(count: int, seed: int) -> _Pieces:
-    """`count` segments at random places and directions; their angles on a 2.5° grid, so many
-    pairs differ by exactly the 5° tolerance used below, or by nothing."""
-    rng = np.random.default_rng(seed)
-    angle = rng.integers(8, 65, count) * 2.5  # 20°..160°
-    length = rng.uniform(4.0, 40.0, count)
-    x0, y0 = rng.uniform(0.0, 320.0, count), rng.uniform(40.0, 240.0, count)
-    rad = np.radians(angle)
-    seg = np.column_stack([x0, y0, x0 + length * np.cos(rad), y0 - length * np.sin(rad)])
-    return _Pieces.of(seg, angle)
-
-
-@pytest.mark.parametrize(("count", "seed"), [(65, 0), (300, 1), (600, 2)])
-@pytest.mark.parametrize("offset_tol_px", [3.0, 1000.0])
-def test_clustering_by_angle_window_is_the_whole_matrix(count: int, seed: int,
-                                                         offset_tol_px: float) -> None:
-    pieces = random_pieces(count, seed)
-    dense = _compatible_dense(pieces, 5.0, offset_tol_px)
-    rows, columns = _compatible_pairs(pieces, 5.0, offset_tol_px)
-    windowed = np.zeros_like(dense)
-    windowed[rows, columns] = True
-    assert np.array_equal(windowed, dense)
-    assert len(rows) == dense.sum()  # each pair once
-    assert dense.sum() > count  # not vacuous: more than each segment with itself
-    if offset_tol_px > 320.0:  # every pair within the angle: those exactly at it are compatible
-        at_edge = np.abs(pieces.angle[None, :] - pieces.angle[:, None]) == 5.0
-        assert (dense & at_edge).any()
+@pytest.mark.parametrize(("count", "seed"), [(2, 0), (65, 0), (300, 1), (600, 2)])
+def test_the_angle_window_finds_every_pair_within_the_tolerance(count: int, seed: int) -> None:
+    """Angles on a 2.5° grid, so many pairs differ by exactly the 5° tolerance, or by nothing:
+    the window gives each pair within it once, (smaller, larger), those at its very edge
+    included, and no other."""
+    angle = np.random.default_rng(seed).integers(8, 65, count) * 2.5  # 20°..160°
+    i, j = pairs_within_angle(angle, 5.0)
+    found = sorted(zip(i.tolist(), j.tolist(), strict=True))
+    every = [(a, b) for a in range(count) for b in range(a + 1, count)
+             if abs(angle[a] - angle[b]) <= 5.0]
+    assert found == every
+    if count > 2:  # not vacuous: ties at the edge are among them
+        assert any(abs(angle[a] - angle[b]) == 5.0 for a, b in every)
 
 
 def random_side(count: int, seed: int) -> list[LineRow]:
