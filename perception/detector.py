@@ -41,7 +41,6 @@ Never reads a clock (the frame time is passed in), never touches motors, never p
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
@@ -175,7 +174,7 @@ class LaneDetector:
         self.setup_for(*self.ground.image_size)
         # (Compiled, or loaded from numba's cache, now rather than on the first frame; a
         # compile is said on stderr through logging, once: the first run after an install.)
-        line_kernel.ready(logging.getLogger(__name__).warning)
+        line_kernel.ready()
 
     # ------------------------------------------------------------------------------ public
 

@@ -20,6 +20,7 @@ compiled code ready before the first frame and says so when it must compile.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 
@@ -270,14 +271,18 @@ class _CompileNotice(numba.core.event.Listener):  # type: ignore[misc]
 _made_ready = False
 
 
-def ready(notice: Callable[[str], None]) -> None:
+def ready(notice: Callable[[str], None] | None = None) -> None:
     """Have `measure_lines` ready for the argument types perception passes it (`lines.
     build_line_set`), so that the first frame does not wait: loaded from numba's cache, or
-    compiled, and then `notice` is told once, before the wait. Once per process."""
+    compiled, and then `notice` (by default a warning through `logging`: one line on stderr
+    where nothing else is set up) is told once, before the wait. Once per process; a command
+    that starts worker processes calls it first, so that a compile happens (and is said) once,
+    not once a worker (forked workers inherit the compiled code, spawned ones load the cache)."""
     global _made_ready
     if _made_ready:
         return
-    with numba.core.event.install_listener("numba:compile", _CompileNotice(notice)):
+    listener = _CompileNotice(logging.getLogger(__name__).warning if notice is None else notice)
+    with numba.core.event.install_listener("numba:compile", listener):
         measure_lines(np.zeros((1, 1, 4), dtype=np.int32), np.zeros((2, 2), dtype=np.uint8),
                       10.0, 170.0, 5.0, 1.0, 1.0, 3, 1.5, 1.0, 1, 1, np.eye(3).ravel(), 1.0,
                       1e-12)

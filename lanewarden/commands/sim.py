@@ -28,6 +28,7 @@ from lanewarden.commands.output_folders import (
 )
 from lanewarden.config import load_config, narrow_lane_warning
 from lanewarden.errors import QualityGateError, UsageError
+from lanewarden.perception import line_kernel
 from lanewarden.scenarios.before_halt import halt_line
 from lanewarden.scenarios.camera_clip import check_clip_target
 from lanewarden.scenarios.errors import ScenarioError
@@ -266,6 +267,7 @@ def _check_clip_beside_outputs(camera_out: Path, out: Path) -> None:
 def _run_in_parallel(requests: list[RunRequest]) -> list[dict[str, object]]:
     """The runs are independent: one process each (the machine has two cores). Forked (no
     re-import: ~2 s less each) only from a single-threaded process, where forking is safe."""
+    line_kernel.ready()  # (before the workers: a compile happens, and is said, once)
     single = threading.active_count() == 1
     method = "fork" if single and "fork" in multiprocessing.get_all_start_methods() else "spawn"
     # Ctrl-C on a terminal reaches every process of the group: the workers leave it to this

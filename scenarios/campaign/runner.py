@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from lanewarden.perception import line_kernel
 from lanewarden.scenarios.campaign.cases import (
     CampaignSpec,
     Case,
@@ -309,6 +310,7 @@ def _execute_on_dask(cases: Iterator[Case], build_stack: BuildStack, client: Cli
 
     from lanewarden.scenarios.campaign.worker_plugin import LeaveInterruptsToTheParent
 
+    line_kernel.ready()  # (before the workers: a compile happens, and is said, once)
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
         if client is None:
