@@ -63,8 +63,12 @@ def _compiled(function: _Function) -> _Function:
     320x240 frame about 0.8 ms instead of 0.06 on a desktop core)."""
     if not HAVE_NUMBA:
         return function
+    try:
+        compiled = numba.njit(cache=True, nogil=True, error_model="numpy")(function)
+    except RuntimeError:  # nowhere writable to cache it (read-only install and home): compiled
+        compiled = numba.njit(cache=False, nogil=True, error_model="numpy")(function)  # each run
     # (numba's Dispatcher is called as `function` is: typed as it, not as the dispatcher)
-    return cast(_Function, numba.njit(cache=True, nogil=True, error_model="numpy")(function))
+    return cast(_Function, compiled)
 
 
 @_compiled

@@ -43,6 +43,16 @@ def test_the_first_detector_says_it_compiles_and_later_ones_load_quietly(tmp_pat
     assert python(MAKE_A_DETECTOR, NUMBA_CACHE_DIR=cache).stderr == ""
 
 
+def test_with_nowhere_to_cache_it_the_kernel_is_compiled_in_each_run() -> None:
+    """A read-only install and home (a hardened service, a read-only robot image): numba finds
+    no writable place for its cache (here: none of its places is tried) and refuses to cache;
+    perception then compiles the kernel in every run, and says so each time, instead of failing
+    to start."""
+    no_place = "import numba.core.caching as c; c.CacheImpl._locator_classes = []; "
+    for _ in range(2):
+        assert python(no_place + MAKE_A_DETECTOR).stderr == COMPILING + "\n"
+
+
 def lines_digest() -> str:
     """Every candidate line's numbers and every observation of the speed benchmark's rendered
     scenes at 320x240 and of every 40th frame of the repo's real JetBot set, as one digest."""
