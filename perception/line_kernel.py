@@ -74,7 +74,7 @@ def _compiled(function: _Function) -> _Function:
 @_compiled
 def segment_pieces(segments: np.ndarray, lowest_deg: float,
                    highest_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """HoughLinesP's segments ((N, 1, 4) or (N, 4) ints) as a pieces block (rows `X1`...,
+    """HoughLinesP's segments ((N, 4) ints) as a pieces block (rows `X1`...,
     one column per segment whose angle lies within [lowest_deg, highest_deg]: the not-flat
     ones), and the index of each kept segment among the N."""
     count = segments.shape[0]
@@ -316,8 +316,11 @@ def ready(notice: Callable[[str], None] | None = None) -> None:
     if not HAVE_NUMBA:
         tell(INTERPRETED)
     else:
+        # The types `build_line_set` passes, exactly (numba compiles once per set of types:
+        # segments (N, 4) int32, the blurred frame, the ground model's read-only homography).
+        homography = np.eye(3).ravel()
+        homography.flags.writeable = False
         with numba.core.event.install_listener("numba:compile", _compile_listener(tell)):
-            measure_lines(np.zeros((1, 1, 4), dtype=np.int32), np.zeros((2, 2), dtype=np.uint8),
-                          10.0, 170.0, 5.0, 1.0, 1.0, 3, 1.5, 1.0, 1, 1, np.eye(3).ravel(), 1.0,
-                          1e-12)
+            measure_lines(np.zeros((1, 4), dtype=np.int32), np.zeros((2, 2), dtype=np.uint8),
+                          10.0, 170.0, 5.0, 1.0, 1.0, 3, 1.5, 1.0, 1, 1, homography, 1.0, 1e-12)
     _made_ready = True

@@ -187,7 +187,8 @@ def build_line_set(
     width = smooth_gray.shape[1]
     lowest, highest = _steep_enough(edges.min_angle_from_horizontal_deg)
     label, fit, ends, on_floor, samples = line_kernel.measure_lines(
-        np.ascontiguousarray(segments, dtype=np.int32), smooth_gray, lowest, highest,
+        np.ascontiguousarray(segments, dtype=np.int32).reshape(-1, 4), smooth_gray, lowest,
+        highest,
         float(edges.cluster_angle_tol_deg),
         max(float(edges.cluster_offset_frac_of_width) * width, 1.0), float(y_bottom),
         *_sample_setup(tape, width), floor.image_to_floor_flat, floor.below_sign, MIN_SCALE,

@@ -43,6 +43,17 @@ def test_the_first_detector_says_it_compiles_and_later_ones_load_quietly(tmp_pat
     assert python(MAKE_A_DETECTOR, NUMBA_CACHE_DIR=cache).stderr == ""
 
 
+def test_the_first_frames_compile_nothing_more() -> None:
+    """`ready` (at the detector's construction, before `run` opens the base) compiles the
+    kernel for the very types perception passes it: the first frames, rendered at both sizes
+    and real, wait for no compile (a warm-up of other types once left a second compile of
+    about 2 s, longer on a Pi, for the first frame: a stalled loop)."""
+    done = python("from tests.perception.test_line_kernel import lines_digest; "
+                  "from lanewarden.perception import line_kernel; lines_digest(); "
+                  "print(len(line_kernel.measure_lines.signatures))")
+    assert done.stdout.strip() == "1"
+
+
 def test_with_nowhere_to_cache_it_the_kernel_is_compiled_in_each_run() -> None:
     """A read-only install and home (a hardened service, a read-only robot image): numba finds
     no writable place for its cache (here: none of its places is tried) and refuses to cache;
@@ -56,11 +67,11 @@ def test_with_nowhere_to_cache_it_the_kernel_is_compiled_in_each_run() -> None:
 def lines_digest() -> str:
     """Every candidate line's numbers and every observation of the speed benchmark's rendered
     scenes at 320x240 and of every 40th frame of the repo's real JetBot set, as one digest."""
-    frames = [np.ascontiguousarray(synthetic.render(scene, 320, 240))
-              for scene in SCENES.values()]
+    frames = [np.ascontiguousarray(synthetic.render(scene, width, height))
+              for scene in SCENES.values() for width, height in ((320, 240), (640, 480))]
     real = sorted((PROJECT_ROOT / "data/real/jetbot-tape-lane").glob("*/*.jpg"))[::40]
     frames += [cv2.imread(str(path)) for path in real]
-    assert len(frames) >= 14  # (not vacuous)
+    assert len(frames) >= 20  # (not vacuous)
     digest = hashlib.sha256()
     for frame in frames:
         observation, debug = LaneDetector(PerceptionConfig()).detect_debug(frame, 0, 0.0)
