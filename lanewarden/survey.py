@@ -36,6 +36,9 @@ from lanewarden.wording import counted, shown_name
 
 LANE = "lane"
 NONE = "none"
+#: The no-lane photos of the README's recipe ("Before you drive: survey your floor"): a SAFE
+#: verdict on fewer gets a note that it says little.
+RECIPE_NO_LANE_FRAMES = 6
 #: The labels, and the folder (and title) of each class.
 EXPECTS = (LANE, NONE)
 CLASS_FOLDERS = {LANE: "lane", NONE: "no-lane"}
@@ -725,6 +728,13 @@ def survey_notes(figures: SurveyFigures, calibrated: bool, ground_pose: bool = T
         notes.append(f"note: the supervisor engages on none of the "
                      f"{counted(lane.frames, 'lane frame')} ({lane.decisions} with a decision): "
                      f"this robot would never drive here{little}; {check}")
+    few = figures.verdict.no_lane_frames
+    if figures.verdict.safe and 0 < few < RECIPE_NO_LANE_FRAMES:
+        # a new user's survey of 2 no-lane photos said SAFE with nothing more
+        notes.append(f"note: SAFE on {counted(few, 'no-lane frame')} says little: the recipe "
+                     f"takes at least {RECIPE_NO_LANE_FRAMES} (bare floor with its seams, one "
+                     "tape alone, the tape's end, a dark spot, clutter; README, 'Before you "
+                     "drive: survey your floor')")
     if not calibrated:
         notes.append("note: no --calibration: the frames were judged as if from the simulator's "
                      "default camera (its lens, height and pitch); with your camera's "

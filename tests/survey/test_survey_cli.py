@@ -143,22 +143,24 @@ def test_a_safe_verdict_says_what_it_does_not_prove(
                              capsys)
     assert code == 0, err
     lines = out.splitlines()
-    assert lines[-3] == ("note: no decision on any of the 3 lane frames either: perception never "
+    assert lines[-4] == ("note: no decision on any of the 3 lane frames either: perception never "
                          "found your lane, so SAFE says little; check perception.tape and "
                          "perception.lane in --config (the widths of your tape and lane) and "
                          "--calibration (the camera and its pose)")
+    few = lines[-3]  # (this folder's 2 no-lane frames: fewer than the recipe's 6)
+    assert few.startswith("note: SAFE on 2 no-lane frames says little")
     assert lines[-2].startswith("note: no --calibration: the frames were judged as if from the "
                                 "simulator's default camera")
     # ...and so do the report and survey.json (a newcomer opens the page, not the terminal)
     document = json.loads((tmp_path / "o" / "survey.json").read_text())
-    assert document["notes"] == [lines[-3].removeprefix("note: "),
-                                 lines[-2].removeprefix("note: ")]
+    assert document["notes"] == [line.removeprefix("note: ") for line in lines[-4:-1]]
     page = (tmp_path / "o" / "report.html").read_text()
-    assert f'<p class="note">{html.escape(lines[-3])}</p>' in page
-    # with the calibration and the right widths: neither note
+    assert f'<p class="note">{html.escape(lines[-4])}</p>' in page
+    # with the calibration and the right widths: neither note (the few frames' note stays)
     code, out, _ = _survey([str(floor), "--calibration", str(floor.parent / "camera.yaml"),
                             "--out", str(tmp_path / "o")], capsys)
-    assert code == 0 and "note:" not in out
+    assert code == 0
+    assert [line for line in out.splitlines() if line.startswith("note:")] == [few]
 
 
 def test_a_not_safe_verdict_never_says_safe_says_little() -> None:
@@ -207,6 +209,28 @@ def test_a_safe_verdict_on_which_the_supervisor_never_engages_says_so() -> None:
         "perception.lane in --config (the widths of your tape and lane) and --calibration (the "
         "camera and its pose)"]
     assert notes(1) == []
+
+
+def test_a_safe_verdict_on_fewer_no_lane_frames_than_the_recipe_says_it_says_little() -> None:
+    """A new user's own folder of 2 lane and 2 no-lane photos said SAFE and nothing more: with
+    fewer no-lane frames than the README's recipe (6), a note says so; none at 6, none under a
+    NOT SAFE verdict."""
+    from lanewarden.survey import LANE, ClassFigures, SurveyFigures, Verdict, survey_notes
+
+    lane = ClassFigures(LANE, frames=2, decisions=2, confident=2, false_lanes=(), runs=(),
+                        components=())
+
+    def notes(safe: bool, no_lane_frames: int) -> list[str]:
+        return survey_notes(SurveyFigures({LANE: lane}, Verdict(safe, (), no_lane_frames, None),
+                                          ()), calibrated=True)
+
+    assert notes(True, 2) == [
+        "note: SAFE on 2 no-lane frames says little: the recipe takes at least 6 (bare floor "
+        "with its seams, one tape alone, the tape's end, a dark spot, clutter; README, 'Before "
+        "you drive: survey your floor')"]
+    assert notes(True, 5)[0].startswith("note: SAFE on 5 no-lane frames says little")
+    assert notes(True, 6) == []
+    assert notes(False, 2) == []
 
 
 def test_a_camera_refused_without_a_calibration_says_it_was_assumed(
