@@ -46,14 +46,6 @@ class FloorView:
         u, v = self.to_image(*ahead)
         h = self._to_floor
         self.below_sign = 1.0 if h[6] * u + h[7] * v + h[8] > 0 else -1.0
-        # `to_floor_rows`' constants: what u and v are multiplied by and what is added, for the
-        # numerators of x and y and for the scale w, each (3, 1) to broadcast along a row.
-        by_u = np.array(h[0::3]).reshape(3, 1)
-        by_v = np.array(h[1::3]).reshape(3, 1)
-        plus = np.array(h[2::3]).reshape(3, 1)
-        for constant in (by_u, by_v, plus):
-            constant.flags.writeable = False
-        self._rows_h = by_u, by_v, plus
         #: image_to_floor's nine values, row by row (for compiled code: `perception.line_kernel`)
         self.image_to_floor_flat = np.array(self._to_floor)
         self.image_to_floor_flat.flags.writeable = False
@@ -73,29 +65,6 @@ class FloorView:
         if w * self.below_sign <= MIN_SCALE:
             return math.nan, math.nan
         return (h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w
-
-    def to_floor_many(self, u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """`to_floor` for arrays of pixels (one homography product; NaN at or above the
-        horizon)."""
-        uv = np.array((u, v), dtype=np.float64)
-        x, y = self.to_floor_rows(uv.reshape(2, -1)).reshape(uv.shape)
-        return x, y
-
-    def to_floor_rows(self, uv: FloatArray) -> FloatArray:
-        """`to_floor_many` for pixels given as rows (2, m) (u, v), returned as rows (2, m)
-        (x, y). The same arithmetic in the same order, (h0 * u + h1 * v) + h2 and its quotient
-        by w, but x, y and w each step as one (3, m) operation: with a few dozen points, numpy's
-        price per call is what this costs, not the arithmetic."""
-        by_u, by_v, plus = self._rows_h
-        rows = by_u * uv[0]
-        rows += by_v * uv[1]
-        rows += plus
-        w = rows[2]
-        # w * sign > MIN_SCALE, sign being +-1 (a product by +-1 is exact: the same test).
-        valid = w > MIN_SCALE if self.below_sign > 0 else w < -MIN_SCALE
-        floor = rows[:2]
-        floor /= np.where(valid, w, np.nan)
-        return floor
 
     def metres_per_px_across(self, u: float, v: float, du: float, dv: float,
                              floor_normal: Point, floor_at: Point | None = None) -> float:

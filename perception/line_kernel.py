@@ -5,8 +5,9 @@ ones, cluster collinear ones greedily (longest first), fit each line, and read t
 both sides of it at a few points along it. A frame has a few dozen segments and a few lines, so
 written as numpy this was forty-odd calls whose cost was numpy's price per call, not the
 arithmetic (about 0.2 ms a frame at 320x240 on a desktop core, a fifth of perception's whole
-time); compiled loops do it in a few microseconds. What follows (the polarity rules, the lines'
-floor positions) stays in `perception.lines`.
+time); compiled loops do it in a few microseconds. The lines' ends are projected on the floor
+here too (`floor_points`: `FloorView.to_floor`'s arithmetic, held to it by a test). The
+polarity rules that read a line's whole row of steps stay in `perception.lines`.
 
 Why numba: it compiles these plain loops over numpy arrays to machine code with no build step
 (the compiled code is cached beside this file, in `__pycache__`, on the first run: a few seconds

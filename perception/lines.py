@@ -180,7 +180,8 @@ def build_line_set(
     `cluster_angle_tol_deg` and its midpoint lies within `cluster_offset_frac_of_width` of that
     line (collinear pieces: Hough's broken edge, dashes of one tape). `floor` is the ground
     model of this image size (undistorted pixels). The arithmetic per segment and per sample
-    is compiled (`perception.line_kernel`); the polarity rules and the floor positions are here.
+    is compiled (`perception.line_kernel`, the floor positions of the ends too); the polarity
+    rules that read a line's whole row of steps are here.
     """
     if segments is None or len(segments) == 0:
         return empty_line_set()

@@ -1,6 +1,7 @@
-"""`FloorView`'s array projections give, point for point, exactly what its scalar `to_floor`
-gives (the line ends of every frame go through `to_floor_rows`; the edge choice measures
-pairs through `to_floor`: the two must agree to the last bit, and say NaN at the same pixels)."""
+"""The compiled projection of the lines' ends (`line_kernel.floor_points`) gives, point for point,
+exactly what `FloorView.to_floor` gives (the line ends of every frame go through the first; the
+edge choice measures pairs through the second: the two must agree to the last bit, and say NaN
+at the same pixels)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,12 @@ import pytest
 
 from lanewarden.perception.config import PerceptionConfig
 from lanewarden.perception.detector import LaneDetector
+from lanewarden.perception.floor_view import MIN_SCALE
+from lanewarden.perception.line_kernel import floor_points
 
 
 @pytest.mark.parametrize("size", [(320, 240), (640, 480)])
-def test_the_array_projections_are_the_scalar_one_point_for_point(size: tuple[int, int]) -> None:
+def test_the_compiled_projection_is_the_scalar_one_point_for_point(size: tuple[int, int]) -> None:
     view = LaneDetector(PerceptionConfig()).setup_for(*size).view
     rng = np.random.default_rng(7)
     width, height = size
@@ -26,9 +29,10 @@ def test_the_array_projections_are_the_scalar_one_point_for_point(size: tuple[in
     expected = [view.to_floor(float(a), float(b)) for a, b in zip(u, v, strict=True)]
     above = sum(1 for x, _ in expected if math.isnan(x))
     assert 0 < above < len(expected)  # both kinds of pixel are asked about
-    rows = view.to_floor_rows(np.array((u, v)))
-    many_x, many_y = view.to_floor_many(u, v)
-    for got in (rows, np.array((many_x, many_y))):
+    # (as line ends: (x|y, near|far, line), the far ends the same points backwards)
+    ends = np.array(((u, u[::-1]), (v, v[::-1])))
+    on_floor = floor_points(ends, view.image_to_floor_flat, view.below_sign, MIN_SCALE)
+    for got in (on_floor[:, 0], on_floor[:, 1, ::-1]):
         for k, (x, y) in enumerate(expected):
             if math.isnan(x):
                 assert math.isnan(got[0, k]) and math.isnan(got[1, k]), (u[k], v[k])
