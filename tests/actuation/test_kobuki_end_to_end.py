@@ -25,6 +25,8 @@ from lanewarden.actuation.errors import DeadmanTrippedError, KobukiLinkError
 from lanewarden.actuation.kobuki_base import KobukiBase
 from lanewarden.actuation.kobuki_commands import SoundSequence, encode_base_control
 from lanewarden.cli import main
+from lanewarden.run_outcome import LoopEnd, LoopEndKind, RunWatch, end_reason
+from lanewarden.runner import _closed_link_end
 from tests.actuation.kobuki_standin import STOP_PACKET, KobukiStandIn, ReceivedPacket
 from tests.actuation.processes import ControlProcess, stderr_lines
 
@@ -254,6 +256,44 @@ def test_unplugging_the_pty_is_a_clear_error_not_a_hang(standin: KobukiStandIn,
     assert kobuki.link_lost is not None and kobuki.link_lost.endswith(
         "the base may still be driving its last command: switch it off"), kobuki.link_lost
     assert kobuki.stop_failed == kobuki.link_lost
+
+
+@pytest.mark.parametrize("normal", [
+    LoopEnd(LoopEndKind.CLIP, "end of the clip", 40),
+    LoopEnd(LoopEndKind.OPERATOR, "operator stop (SIGINT)", 40),
+    LoopEnd(LoopEndKind.DURATION, "--duration 2 s reached", 40),
+])
+def test_a_normal_end_whose_closing_stop_fails_is_a_safety_stop(
+        standin: KobukiStandIn, kobuki: KobukiBase, normal: LoopEnd) -> None:
+    """The runner's loop ended as it should (the clip ran out, the operator stopped it, its
+    duration was reached) while the robot followed, but the device was gone before the closing
+    stop: no stop reached the base, which may drive its last command. The run must end as a
+    safety stop, exit 3, saying so; it had ended with exit 0 and its normal reason."""
+    watch = RunWatch()
+    for step in range(40):
+        watch.observe("FOLLOW", None, step / 30, step / 30)
+    assert end_reason(watch, normal).exit_code == 0  # the same end, its stop written
+    kobuki.send(MOVE, time.monotonic())
+    standin.unplug()
+    assert kobuki.wait_for(lambda b: b.link_lost is not None, DEADLINE_S)
+    kobuki.close()  # the closing stop: tried, not written
+    end = end_reason(watch, _closed_link_end(kobuki, normal))
+    assert end.exit_code == 3
+    assert end.safety_stop is not None and end.safety_stop.startswith(
+        f"BASE_LINK_LOST: {standin.port}: serial link lost"), end.safety_stop
+    assert end.safety_stop.endswith("the base may still be driving its last command: switch it "
+                                    "off"), end.safety_stop
+
+
+def test_a_normal_end_whose_closing_stop_went_out_stays_normal(kobuki: KobukiBase) -> None:
+    watch = RunWatch()
+    for step in range(40):
+        watch.observe("FOLLOW", None, step / 30, step / 30)
+    kobuki.send(MOVE, time.monotonic())
+    kobuki.close()
+    clip_end = LoopEnd(LoopEndKind.CLIP, "end of the clip", 40)
+    assert _closed_link_end(kobuki, clip_end) == clip_end
+    assert end_reason(watch, clip_end).exit_code == 0
 
 
 def test_a_base_that_comes_back_at_its_path_gets_the_stop(tmp_path: Path) -> None:
