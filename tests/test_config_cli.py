@@ -97,7 +97,9 @@ def test_missing_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     missing = tmp_path / "nope.yaml"
     assert main(["config", "show", "--config", str(missing)]) == 2
     err = capsys.readouterr().err
-    assert f"{missing}: config file not found" in err
+    # the flag, the value and what was expected, before anything is read
+    assert (f"Invalid value for '--config': Path '{missing}' does not exist; expected a config "
+            "file") in err
 
 
 def test_unknown_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:

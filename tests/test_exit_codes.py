@@ -78,12 +78,15 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 #: (family, code, argv with {file} placeholders, text the one error line must contain)
 CASES = [
     ("config", 0, ["config", "show"], ""),
-    ("config", 2, ["config", "show", "--config", "{folder}/missing.yaml"], "config file not found"),
+    ("config", 2, ["config", "show", "--config", "{folder}/missing.yaml"],
+     "Invalid value for '--config': Path '{folder}/missing.yaml' does not exist; expected a "
+     "config file"),
     ("detect", 0, ["detect", "{lane}"], ""),
     ("detect", 1, ["detect", "{lane}", "--out", "{blocked}"], "cannot write image"),
     ("detect", 2, ["detect", "{lane}", "{notes}"], "not a readable image"),
     ("detect", 2, ["detect", "{lane}", "--calibration", "{folder}/missing.yaml"],
-     "calibration file not found"),
+     "Invalid value for '--calibration': Path '{folder}/missing.yaml' does not exist; expected "
+     "a calibration file"),
     ("undistort", 0, ["undistort", "{lane}", "--calibration", "{good}", "--out",
                       "{folder}/undistorted"], ""),
     ("undistort", 1, ["undistort", "{lane}", "--calibration", "{good}", "--out",

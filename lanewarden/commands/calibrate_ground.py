@@ -229,7 +229,7 @@ def _default_check_path(out: Path) -> Path:
 
 @click.command("ground")
 @click.option("--calibration", "calibration_path", required=True,
-              type=PathFlag("a calibration file", dir_okay=False), metavar="FILE",
+              type=PathFlag("a calibration file", dir_okay=False, exists=True), metavar="FILE",
               help="The camera's calibration (from `lanewarden calibrate`).")
 @click.option("--out", "out_path", required=True,
               type=PathFlag("a file name", dir_okay=False),

@@ -10,9 +10,10 @@ from lanewarden.config import config_as_yaml, load_config
 
 
 def config_option(func: click.decorators.FC) -> click.decorators.FC:
-    """The shared `--config FILE` option (not checked for existence here: load_config names it)."""
+    """The shared `--config FILE` option (a missing file is refused here, naming the flag)."""
     return click.option(
-        "--config", "config_path", type=PathFlag("a config file", dir_okay=True), default=None,
+        "--config", "config_path", type=PathFlag("a config file", dir_okay=True, exists=True),
+        default=None,
         help="YAML config file (default: built-in defaults; see `lanewarden config show`).",
     )(func)
 

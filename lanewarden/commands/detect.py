@@ -98,7 +98,7 @@ def _emit(line: str) -> None:
 @click.argument("images", nargs=-1, required=True, type=PathFlag("an image file"),
                 metavar="IMAGE...")
 @config_option
-@click.option("--calibration", "calibration_path", type=PathFlag("a calibration file"),
+@click.option("--calibration", "calibration_path", type=PathFlag("a calibration file", exists=True),
               default=None,
               metavar="FILE", help="Undistort with this calibration (OpenCV FileStorage YAML).")
 @click.option("--out", "out_dir", type=PathFlag("a folder"), default=None, metavar="DIR",

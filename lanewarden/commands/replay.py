@@ -40,7 +40,7 @@ Examples:
               default=None, help="Output directory (default: lanewarden-out/replay-<source name>).")
 @config_option
 @click.option("--calibration", "calibration_path",
-              type=PathFlag("a calibration file", dir_okay=False), default=None,
+              type=PathFlag("a calibration file", dir_okay=False, exists=True), default=None,
               help="Camera calibration (default: the run folder's own, else none).")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=None,
               help=f"Who drives (default: the recorded run's, else {DEFAULT_CONTROLLER}).")

@@ -42,7 +42,7 @@ MAX_RUN_DURATION_S = 86_400.0
 @click.option("--port", default=None,
               help="Kobuki serial port (default: actuation.port, then /dev/kobuki, /dev/ttyUSB0).")
 @click.option("--calibration", "calibration_path",
-              type=PathFlag("a calibration file", dir_okay=False), default=None,
+              type=PathFlag("a calibration file", dir_okay=False, exists=True), default=None,
               help="Camera calibration (OpenCV YAML from `lanewarden calibrate`).")
 @click.option("--assume-camera", "assume_camera", is_flag=True,
               help="Let --base kobuki drive on an assumed camera: with no --calibration the "

@@ -64,7 +64,7 @@ Examples:
               "the lane/ and no-lane/ sub-folders, whichever FOLDER has (with both, name "
               "the labels with --labels).")
 @click.option("--calibration", "calibration_path",
-              type=PathFlag("a calibration file", dir_okay=False), default=None,
+              type=PathFlag("a calibration file", dir_okay=False, exists=True), default=None,
               metavar="FILE", help="Camera calibration (default: a run folder's own, else none).")
 @config_option
 @click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,

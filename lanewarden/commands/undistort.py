@@ -53,7 +53,7 @@ def _write(path: Path, image: np.ndarray) -> None:
 @click.argument("images", nargs=-1, required=True,
                 type=PathFlag("an image file", dir_okay=False))
 @click.option("--calibration", "calibration_path", required=True,
-              type=PathFlag("a calibration file"),
+              type=PathFlag("a calibration file", exists=True),
               metavar="FILE", help="Calibration YAML written by `lanewarden calibrate`.")
 @click.option("--out", "out_dir", required=True, type=PathFlag("a folder"), metavar="DIR",
               help="Folder for the undistorted images and before/after pictures (created).")

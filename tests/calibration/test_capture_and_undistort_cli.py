@@ -188,7 +188,8 @@ def test_undistort_bad_inputs(synthetic_views: SyntheticViews, tmp_path: Path,
     code = main(["undistort", str(small), "--calibration", str(tmp_path / "none.yaml"),
                  "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 2 and "none.yaml: calibration file not found" in err
+    assert code == 2 and (f"Invalid value for '--calibration': Path '{tmp_path / 'none.yaml'}' "
+                          "does not exist; expected a calibration file") in err
 
 
 def test_side_by_side_draws_the_same_lines_on_both() -> None:

@@ -172,8 +172,10 @@ def test_a_config_refused_at_a_size_is_said_once(
     ("extra", "code", "expected"),
     [
         (["--config", "{typo}"], 2, "unknown key 'perception.canny.low_treshold'"),
-        (["--config", "{nothing}"], 2, "config file not found"),
-        (["--calibration", "{nothing}"], 2, "calibration file not found"),
+        (["--config", "{nothing}"], 2,
+         "Invalid value for '--config': Path '{nothing}' does not exist; expected a config file"),
+        (["--calibration", "{nothing}"], 2, "Invalid value for '--calibration': Path '{nothing}' "
+         "does not exist; expected a calibration file"),
         (["--out", "{straight}"], 2, "exists and is not a folder"),
     ],
 )
@@ -196,7 +198,7 @@ def test_bad_options_are_one_line(
     got, out, err = run(args, capsys)
     assert got == code
     assert out == ""
-    assert expected in err
+    assert expected.format(**names) in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
