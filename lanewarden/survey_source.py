@@ -33,7 +33,7 @@ from pathlib import Path
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
 from lanewarden.errors import InputFileError, UsageError
-from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_facts
+from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_facts, read_image
 from lanewarden.replay_sources import (
     RUN_MCAP,
     SOURCE_HELP,
@@ -385,6 +385,10 @@ def _check_headers(paths: list[tuple[str, Path]], max_pixels: int) -> None:
             problems.append(f"{name}: {why}")
             continue
         size, why = header_facts(path, max_pixels)  # one read of each header
+        if size is None and not why:  # a format Pillow cannot tell (or no image at all): decoded
+            # now, so an unreadable file is named before the survey starts, not after its work
+            image, why = read_image(path, max_pixels=max_pixels)
+            size = None if image is None else (image.shape[1], image.shape[0])
         if size is not None:
             sizes.setdefault(size, []).append(name)
         if why:

@@ -721,9 +721,12 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
 def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     argv, says = _bad(tmp_path, case)
-    code, _, err = _survey([*argv, "--out", str(tmp_path / "o")], capsys)
+    code, out, err = _survey([*argv, "--out", str(tmp_path / "o")], capsys)
     assert code == 2, err
     assert err.count("\n") == 1 and "Traceback" not in err, err
+    # refused before the survey starts, not after its ground model's line (a new user's review;
+    # a photo's EXIF turn shows only once OpenCV decodes it, during the survey)
+    assert out == "" or case == "a photo turned by its EXIF orientation", out
     assert err.startswith(f"lanewarden: error: {says}"), err
     # no output folder left behind, not even an empty one (a reviewer found one after a photo
     # that could not be read)
