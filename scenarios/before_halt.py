@@ -109,8 +109,8 @@ def halt_line(summary: object) -> str | None:
 
 
 def describe(summary: dict[str, Any]) -> str:
-    """One line for a report: 'last 2 s: 61 frames, 40 confident (at most 4 in a row), 5 usable,
-    16 unusable (lane_width 9, parallel 4); 5 at the slope cap; 13 outliers'."""
+    """One line for a report: 'last 2 s: 61 frames, 40 confident (at most 4 in a row), 5 usable but
+    not confident, 16 unusable (lane_width 9, parallel 4); 5 at the slope cap; 13 outliers'."""
     weakest = summary.get("weakest") or {}
     unusable = f"{summary['unusable']} unusable"
     reasons = [f"{name} {count}" for name, count in weakest.items()]
@@ -120,7 +120,7 @@ def describe(summary: dict[str, Any]) -> str:
         unusable += " (" + ", ".join(reasons) + ")"
     parts = [f"last {summary['window_s']:g} s: {counted(summary['frames'], 'frame')}, "
              f"{summary['confident']} confident (at most {summary['longest_confident_run']} in "
-             f"a row), {summary['usable']} usable, {unusable}"]
+             f"a row), {summary['usable']} usable but not confident, {unusable}"]
     if summary.get("at_slope_cap"):
         parts.append(f"{summary['at_slope_cap']} at the slope cap")
     if summary.get("outliers"):

@@ -25,6 +25,10 @@ def check_expectation(metrics: Mapping[str, object], expect: Expectation) -> lis
             f"halted = {halted}, expected {expect.halted}"
             + (f" (reason: {reason})" if halted else "")
         )
+    # HALT is the controller's state: whatever else is expected, a robot that halted must stop
+    # (a base whose commands no longer arrive drives on; a campaign calls that run unsafe)
+    if halted and (moving := metrics.get("motion_after_halt")):
+        failures.append(f"halted = True, but the robot did not stop: {moving}")
     if expect.halt_reason_any_of and not any(k in reason for k in expect.halt_reason_any_of):
         failures.append(
             f"halt_reason = {reason or None!r}, expected one containing "

@@ -25,6 +25,14 @@ plus the world and the camera; outputs are numbers for `metrics.json`. Definitio
   `distance_past_lane_end_m`, how far past the end of the markings it was; None if not halted.
 - `turns_completed`: marks (A, B, ...) whose gate (the segment across the lane, tape to tape, at
   the end of the marked segment) the robot's centre crossed, in order.
+- `motion_after_halt`: why a robot that halted did not stop (`motion_after_halt`, the rule the
+  campaign's judge calls unsafe): a non-zero command after HALT, or still moving faster than
+  `AT_REST_M_S` at the end of a run that went on `STOPPED_AFTER_S` or more after HALT (a base
+  whose commands no longer arrive keeps driving its last one); None when it stopped or never
+  halted.
+- `fault_effects`: when each of the scenario's faults took effect (index, kind, camera frame,
+  time); `fault_to_halt`: the last fault that took effect at or before the HALT and how long
+  after it the HALT came (None: no fault before the halt, or no halt).
 - `lane_not_visible_frames`: frames in which the camera did not show the lane (`LaneContrast`:
   some tape with no contrast the detector could use against the floor beside it, or not in its
   ROI); None when not measured.
@@ -56,6 +64,10 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 HALT_STATE = "HALT"
+#: A halted robot must be at rest (below AT_REST_M_S) this long after HALT (it brakes in well
+#: under a second from any speed it drives at).
+STOPPED_AFTER_S = 1.5
+AT_REST_M_S = 0.01
 #: A halt this close before the point where the lane would leave the view counts as a response to
 #: the lane end (lane_loss_to_halt_s is extrapolated); farther back it was about something else.
 EXTRAPOLATE_LANE_LOSS_M = 1.0
@@ -473,6 +485,39 @@ def first_halt_index(states: Sequence[str]) -> int | None:
         elif engaged:
             return i
     return 0 if states and not engaged else None
+
+
+def motion_after_halt(times: Sequence[float] | FloatArray, states: Sequence[str],
+                      commands_nonzero: Sequence[bool], final_speed_m_s: float) -> str | None:
+    """Why a robot that halted (after engaging) did not stop, in one line: a non-zero command
+    at or after the HALT, or still moving faster than AT_REST_M_S when the run ended
+    STOPPED_AFTER_S or more after it. None when it stopped, never halted, or the run ended
+    sooner (still braking)."""
+    halt = first_halt_index(states)
+    if not halt:  # never halted, or never engaged (it never moved)
+        return None
+    after = [i for i in range(halt, len(states)) if commands_nonzero[i]]
+    if after:
+        return (f"non-zero command at {float(times[after[0]]):.3f} s after HALT at "
+                f"{float(times[halt]):.3f} s")
+    settled = float(times[-1]) - float(times[halt]) >= STOPPED_AFTER_S
+    if settled and final_speed_m_s > AT_REST_M_S:
+        return f"still moving at {final_speed_m_s:.2f} m/s {STOPPED_AFTER_S:g} s or more after HALT"
+    return None
+
+
+def fault_to_halt(effects: Sequence[tuple[int, str, float]],
+                  halt_time_s: float | None) -> dict[str, object] | None:
+    """The last fault (index, kind, time it took effect) that took effect at or before the HALT,
+    and the HALT's delay after it; None without a halt or without such a fault."""
+    if halt_time_s is None:
+        return None
+    before = [e for e in effects if e[2] <= halt_time_s + 1e-9]
+    if not before:
+        return None
+    index, kind, took_effect_s = max(before, key=lambda e: (e[2], e[0]))
+    return {"index": index, "kind": kind, "took_effect_s": round(took_effect_s, 4),
+            "to_halt_s": round(halt_time_s - took_effect_s, 4)}
 
 
 def compute_metrics(

@@ -14,6 +14,7 @@ matplotlib with the Agg backend (no display needed). Drawing only: takes arrays,
 
 from __future__ import annotations
 
+import itertools
 import textwrap
 from collections import Counter
 from collections.abc import Sequence
@@ -199,7 +200,8 @@ def _draw_markers(axes: Sequence[Axes], markers: Sequence[PlotMarker], end: floa
     """Vertical lines on every panel (legend on the first); an estimate is dotted and says so,
     and the time after the run's end is shaded. Returns the latest time drawn."""
     latest = end
-    for marker, colour in zip(markers, ["C1", "C3", "C4", "C5"], strict=False):
+    for marker, colour in zip(markers, itertools.cycle(["C1", "C3", "C4", "C5", "C6", "C8"]),
+                              strict=False):
         t = marker.time_s
         label = f"{marker.name} ({t:.1f} s)"
         if marker.estimated:

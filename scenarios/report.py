@@ -21,6 +21,10 @@ from lanewarden.scenarios.video import video_legend
 TABLE_ROWS: tuple[tuple[str, str], ...] = (
     ("halted", "halted"),
     ("halt_reason", "halt reason"),
+    ("halt_time_s", "halt time (s)"),
+    ("fault_effects", "faults (when each took effect)"),
+    ("fault_to_halt", "last fault -> HALT"),
+    ("motion_after_halt", "after HALT"),
     ("halt_position", "halt position"),
     ("turns_completed", "turns completed"),
     ("states_visited", "states visited"),
@@ -86,8 +90,57 @@ def table_notes(runs: Mapping[str, Mapping[str, object]]) -> list[str]:
     return notes
 
 
+def faults_text(metrics: Mapping[str, object]) -> str:
+    """'camera_freeze (fault 0) at 3.000 s; fault 1 never took effect', or 'none'."""
+    effects = metrics.get("fault_effects") or []
+    assert isinstance(effects, list)
+    took = {int(e["index"]): e for e in effects}
+    count = metrics.get("fault_count")
+    indices = range(count) if isinstance(count, int) else sorted(took)
+    said = [f"{took[i]['kind']} (fault {i}) at {float(took[i]['time_s']):.3f} s" if i in took
+            else f"fault {i} never took effect" for i in indices]
+    return "; ".join(said) if said else "none"
+
+
+def fault_to_halt_text(metrics: Mapping[str, object]) -> str:
+    """'0.133 s after camera_freeze (fault 0) took effect', or '-'."""
+    last = metrics.get("fault_to_halt")
+    if not isinstance(last, Mapping):
+        return "-"
+    return (f"{float(last['to_halt_s']):.3f} s after {last['kind']} (fault {last['index']}) "
+            "took effect")
+
+
+def after_halt_text(metrics: Mapping[str, object]) -> str:
+    """Whether a robot that halted came to rest: 'stopped', 'NOT STOPPED: still moving ...', or
+    '-' (it never halted)."""
+    if not metrics.get("halted"):
+        return "-"
+    moving = metrics.get("motion_after_halt")
+    return f"NOT STOPPED: {moving}" if moving else "stopped"
+
+
+def fault_lines(metrics: Mapping[str, object]) -> list[str]:
+    """The terminal's lines on the faults and the HALT's time (`sim`): what was injected when,
+    and how long after the last fault before it the HALT came."""
+    lines = []
+    if metrics.get("fault_effects") or metrics.get("fault_count"):
+        lines.append(f"  faults: {faults_text(metrics)}")
+    halt_time = metrics.get("halt_time_s")
+    if metrics.get("halted") and isinstance(halt_time, int | float):
+        after = fault_to_halt_text(metrics)
+        lines.append(f"  HALT at {halt_time:.3f} s" + ("" if after == "-" else f", {after}"))
+    return lines
+
+
 def format_metric(metrics: Mapping[str, object], key: str) -> str:
     """One metric as the table shows it; an extrapolated lane-loss time says it is estimated."""
+    if key == "fault_effects":
+        return faults_text(metrics)
+    if key == "fault_to_halt":
+        return fault_to_halt_text(metrics)
+    if key == "motion_after_halt":
+        return after_halt_text(metrics)
     text = format_value(metrics.get(key))
     if key == "lane_loss_to_halt_s" and metrics.get(key) is not None \
             and metrics.get("lane_loss_estimated"):
@@ -149,6 +202,8 @@ def run_story(name: str, m: Mapping[str, object]) -> str:
     value = m.get("distance_past_lane_end_m")
     if m.get("halted"):
         ending = f"halted ({format_value(m.get('halt_reason'))}) {_halted_where(m)}"
+        if moving := m.get("motion_after_halt"):  # HALT is a state; the base drove on
+            ending += f", but the robot did not stop: {moving}"
     else:
         ending = f"never stopped, ending {_past(m)}"
         if isinstance(value, int | float) and value > 0.5 and not m.get("crossed_tape"):
@@ -167,8 +222,11 @@ def demo_summary(lecture: Mapping[str, object], supervised: Mapping[str, object]
 
 
 def run_summary(metrics: Mapping[str, object]) -> str:
-    """One sentence on what happened in one run."""
-    return _sentence(run_story(str(metrics.get("controller", "")), metrics))
+    """One sentence on what happened in one run (and a campaign case's outcome, `sim --case`)."""
+    said = _sentence(run_story(str(metrics.get("controller", "")), metrics))
+    if metrics.get("outcome"):
+        said += f" Campaign outcome: {metrics['outcome']} ({metrics.get('outcome_reason')})."
+    return said
 
 
 def _css_rgb(bgr: BGR) -> str:

@@ -220,6 +220,8 @@ def write_run_plot(path: Path, result: SimulationResult, config: LanewardenConfi
     if isinstance(loss_time, float):
         markers.append(PlotMarker("lane out of view", loss_time,
                                   estimated=bool(metrics.get("lane_loss_estimated"))))
+    for index, effect in sorted(result.fault_effects.items()):  # the fault, then the answer
+        markers.append(PlotMarker(f"fault {index}: {effect.kind}", effect.time_s))
     halt_time = metrics.get("halt_time_s") if metrics.get("halted") else None
     if isinstance(halt_time, float):
         markers.append(PlotMarker("HALT", halt_time))

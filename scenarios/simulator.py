@@ -42,7 +42,9 @@ from lanewarden.scenarios.metrics import (
     RunTrace,
     TapeVisibility,
     compute_metrics,
+    fault_to_halt,
     first_halt_index,
+    motion_after_halt,
 )
 from lanewarden.scenarios.render import CameraRenderer
 from lanewarden.scenarios.sim_camera import SimCamera
@@ -352,6 +354,15 @@ class Simulation:
             trace.time_s, frame_edge_errors(self.world, trace.time_s, trace.poses, records)))
         metrics["end_reason"] = end_reason
         halt = first_halt_index(trace.states)
+        metrics["motion_after_halt"] = motion_after_halt(
+            trace.time_s, trace.states, [not r.command.is_stop for r in records],
+            float(trace.speed_m_s[-1]) if len(trace.speed_m_s) else 0.0)
+        effects = sorted(self.faults.effects.items())
+        metrics["fault_count"] = len(spec.faults)
+        metrics["fault_effects"] = [e.as_json() for _, e in effects]
+        metrics["fault_to_halt"] = fault_to_halt(
+            [(i, e.kind, e.time_s) for i, e in effects],
+            float(trace.time_s[halt]) if halt else None)
         metrics["before_halt"] = None if not halt else before_halt(
             records, halt, self.config.supervisor, self.config.perception.edges.max_abs_slope)
         if self._video is not None and self._video.poster_shows is not None:

@@ -37,6 +37,7 @@ from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
 from lanewarden.scenarios.report import (
     comparison_rows,
     demo_summary,
+    fault_lines,
     format_table,
     format_value,
     table_notes,
@@ -74,8 +75,11 @@ def _summary_lines(metrics: dict[str, object]) -> list[str]:
         f"{metrics['wall_time_s']} s",
         f"  halted: {fmt('halted')}  reason: {metrics.get('halt_reason') or '-'}",
     ]
+    lines += fault_lines(metrics)
     if metrics.get("halted"):
         lines.append(f"  halt position: {fmt('halt_position')}")
+    if moving := metrics.get("motion_after_halt"):
+        lines.append(f"  NOT STOPPED after HALT: {moving} (the base kept driving: unsafe)")
     if line := halt_line(metrics.get("before_halt")):
         lines.append(line)
     lines += [

@@ -48,15 +48,12 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from lanewarden.scenarios.campaign.config import CampaignConfig
+from lanewarden.scenarios.metrics import motion_after_halt
 from lanewarden.scenarios.spec import FaultSpec
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.wording import counted
 
 OUTCOMES = ("safe_halt", "recovered", "nominal", "false_halt", "unsafe", "error")
-#: A halted robot must be at rest (below AT_REST_M_S) this long after HALT (it brakes in well
-#: under a second from any speed it drives at).
-STOPPED_AFTER_S = 1.5
-AT_REST_M_S = 0.01
 #: Outcomes a campaign counts as failures of the supervisor (JUnit <failure>).
 FAILURES = ("false_halt", "unsafe")
 
@@ -267,15 +264,10 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
     if isinstance(past, int | float) and past > config.max_past_lane_end_m:
         return verdict("unsafe", f"ended {past:.2f} m past the end of the tape "
                                  f"(limit {config.max_past_lane_end_m:g} m)")
-    if halt is not None:
-        after = [i for i in range(halt, len(facts.states)) if facts.commands_nonzero[i]]
-        if after:
-            return verdict("unsafe", f"non-zero command at {facts.times[after[0]]:.3f} s after "
-                                     f"HALT at {halt_s:.3f} s")
-        settled = float(facts.times[-1]) - float(facts.times[halt]) >= STOPPED_AFTER_S
-        if settled and facts.final_speed_m_s > AT_REST_M_S:
-            return verdict("unsafe", f"still moving at {facts.final_speed_m_s:.2f} m/s "
-                                     f"{STOPPED_AFTER_S:g} s or more after HALT")
+    moving = motion_after_halt(facts.times, facts.states, facts.commands_nonzero,
+                               facts.final_speed_m_s)  # (the same rule `sim --check` applies)
+    if moving is not None:
+        return verdict("unsafe", moving)
     unanswered = _unanswered_hazard(facts, config, limits, halt_s)
     if unanswered is not None:
         return verdict("unsafe", *unanswered)

@@ -124,5 +124,4 @@ def judge_metrics(result: SimulationResult, config: LanewardenConfig) -> dict[st
     """`judge` as metrics.json keys (for `lanewarden sim --case`)."""
     verdict = judge(result, config)
     return {"outcome": verdict.outcome, "outcome_reason": verdict.reason,
-            "time_to_halt_s": verdict.time_to_halt_s,
-            "fault_effects": [e.as_json() for _, e in sorted(result.fault_effects.items())]}
+            "time_to_halt_s": verdict.time_to_halt_s}  # (fault_effects: every run's metrics)

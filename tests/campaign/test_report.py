@@ -184,8 +184,8 @@ def test_a_false_halt_shows_what_perception_gave_the_supervisor_before_it(
     rows = [halted if r["id"] == "r00006" else r for r in ROWS]
     worst = _section(report_html("spec", summarize(rows), tmp_path, "text"), "Worst cases")
     assert "<th>perception before the halt</th>" in worst
-    line = ("last 2 s: 60 frames, 40 confident (at most 4 in a row), 5 usable, 15 unusable "
-            "(lane_width 9, parallel 4); 5 at the slope cap; 13 outliers")
+    line = ("last 2 s: 60 frames, 40 confident (at most 4 in a row), 5 usable but not confident, "
+            "15 unusable (lane_width 9, parallel 4); 5 at the slope cap; 13 outliers")
     assert f'<td class="before">{line}</td>' in worst
     old = _section(report_html("spec", summarize(ROWS), tmp_path, "text"), "Worst cases")
     assert old.count('<td class="before"></td>') == len(_run_ids(old))

@@ -66,8 +66,9 @@ def test_counts_grades_runs_and_the_weakest_components_of_the_last_two_seconds()
         "at_slope_cap": 1, "outliers": 1, "no_frame": 1,
     }
     assert describe(summary) == (
-        "last 0.49 s: 14 frames, 10 confident (at most 3 in a row), 1 usable, 3 unusable "
-        "(lane_width 2, parallel 1); 1 at the slope cap; 1 outlier; 1 step without a frame")
+        "last 0.49 s: 14 frames, 10 confident (at most 3 in a row), 1 usable but not confident, "
+        "3 unusable (lane_width 2, parallel 1); 1 at the slope cap; 1 outlier; 1 step without a "
+        "frame")
 
 
 def test_a_clean_window_says_only_the_counts() -> None:
@@ -76,7 +77,7 @@ def test_a_clean_window_says_only_the_counts() -> None:
     assert summary["frames"] == 60 and summary["confident"] == 60
     assert summary["longest_confident_run"] == 60
     assert describe(summary) == ("last 1.99 s: 60 frames, 60 confident (at most 60 in a row), "
-                                 "0 usable, 0 unusable")
+                                 "0 usable but not confident, 0 unusable")
 
 
 def test_a_lane_placed_from_one_tape_is_usable_never_confident() -> None:
@@ -103,7 +104,8 @@ def test_a_placed_lane_the_supervisor_called_untrusted_is_unusable_and_said_so()
     assert (summary["confident"], summary["usable"], summary["unusable"]) == (0, 1, 3)
     assert summary["jumped"] == 2 and summary["weakest"] == {"lane_width": 1}
     assert describe(summary) == ("last 2 s: 4 frames, 0 confident (at most 0 in a row), "
-                                 "1 usable, 3 unusable (lane_width 1, placed lane jumped 2)")
+                                 "1 usable but not confident, 3 unusable (lane_width 1, "
+                                 "placed lane jumped 2)")
 
 
 def test_sim_prints_the_summary_under_the_halt_and_only_for_a_halt() -> None:
@@ -117,7 +119,7 @@ def test_sim_prints_the_summary_under_the_halt_and_only_for_a_halt() -> None:
                "max_cross_track_error_m": 0.01, "crossed_tape": False, "before_halt": summary}
     lines = _summary_lines(metrics)
     assert lines[3] == ("  before the halt: last 2 s: 60 frames, 0 confident (at most 0 in a "
-                        "row), 0 usable, 60 unusable (both_sides 60)")
+                        "row), 0 usable but not confident, 60 unusable (both_sides 60)")
     never = {**metrics, "halted": False, "halt_reason": None, "before_halt": None}
     assert not any("before the halt" in line for line in _summary_lines(never))
 

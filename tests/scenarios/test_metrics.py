@@ -9,16 +9,20 @@ import pytest
 
 from lanewarden.actuation.base import Pose2D
 from lanewarden.scenarios.camera import CameraModel
+from lanewarden.scenarios.expectations import check_expectation
 from lanewarden.scenarios.metrics import (
     GroundRoi,
     RunTrace,
     TapeVisibility,
     compute_metrics,
     convex_half_planes,
+    fault_to_halt,
     first_halt_index,
+    motion_after_halt,
     points_in_polygon,
     turns_completed,
 )
+from lanewarden.scenarios.spec import Expectation
 from lanewarden.scenarios.world import build_world
 from tests.scenarios.helpers import spec_from, straight_spec
 
@@ -188,3 +192,54 @@ def test_half_planes_only_for_a_convex_polygon() -> None:
     notch = np.array([[0, 0], [2, 0], [1, 1], [2, 2], [0, 2]], float)
     assert convex_half_planes(notch) is None
     assert convex_half_planes(np.array([[0, 0], [1, 1], [2, 2]], float)) is None  # a line
+
+
+# ---- did the robot stop after HALT? (sim --check and the campaign's judge) ----------------------
+TIMES = [i / 10 for i in range(31)]  # 0.0 .. 3.0 s
+#: engaged at 0.1 s, HALT from 1.0 s on
+STATES = ["HALT"] + ["FOLLOW"] * 9 + ["HALT"] * 21
+STOPS = [False] * 31  # every command after HALT a stop
+
+
+@pytest.mark.parametrize(("commands_nonzero", "final_speed", "times", "expected"), [
+    (STOPS, 0.0, TIMES, None),  # stopped
+    (STOPS, 0.005, TIMES, None),  # below AT_REST_M_S (0.01)
+    (STOPS, 0.2, TIMES, "still moving at 0.20 m/s 1.5 s or more after HALT"),
+    (STOPS, 0.2, TIMES[:25], None),  # ended 1.4 s after HALT: may still be braking
+    (STOPS, 0.2, TIMES[:26], "still moving at 0.20 m/s 1.5 s or more after HALT"),  # 1.5 s
+    ([*STOPS[:12], True, *STOPS[13:]], 0.0, TIMES,
+     "non-zero command at 1.200 s after HALT at 1.000 s"),
+    ([*STOPS[:9], True, *STOPS[10:]], 0.0, TIMES, None),  # before the HALT: allowed
+])
+def test_motion_after_halt(commands_nonzero: list[bool], final_speed: float,
+                           times: list[float], expected: str | None) -> None:
+    n = len(times)
+    assert motion_after_halt(times, STATES[:n], commands_nonzero[:n], final_speed) == expected
+
+
+def test_no_motion_after_halt_without_a_halt_after_engaging() -> None:
+    assert motion_after_halt(TIMES, ["FOLLOW"] * 31, STOPS, 0.3) is None  # never halted
+    assert motion_after_halt(TIMES, ["HALT"] * 31, STOPS, 0.3) is None  # never engaged
+
+
+def test_fault_to_halt_is_the_last_fault_before_the_halt() -> None:
+    effects = [(0, "camera_freeze", 3.0), (1, "bumper", 2.0), (2, "cliff", 5.0)]
+    assert fault_to_halt(effects, 3.133) == {"index": 0, "kind": "camera_freeze",
+                                             "took_effect_s": 3.0, "to_halt_s": 0.133}
+    assert fault_to_halt(effects, 2.0) == {"index": 1, "kind": "bumper",
+                                           "took_effect_s": 2.0, "to_halt_s": 0.0}
+    assert fault_to_halt(effects, 1.5) is None  # halted before any fault
+    assert fault_to_halt(effects, None) is None  # never halted
+    assert fault_to_halt([], 3.0) is None
+
+
+def test_an_expectation_is_never_met_by_a_halt_the_base_did_not_obey() -> None:
+    metrics = {"halted": True, "halt_reason": "BASE_LINK_LOST: no feedback",
+               "motion_after_halt": "still moving at 0.20 m/s 1.5 s or more after HALT"}
+    moving = ("halted = True, but the robot did not stop: still moving at 0.20 m/s 1.5 s or "
+              "more after HALT")
+    assert check_expectation(metrics, Expectation(halted=True)) == [moving]
+    assert check_expectation(metrics, Expectation(halt_reason_any_of=["BASE_LINK_LOST"])) == [
+        moving]  # a halt reason expected: a halt expected
+    assert check_expectation({**metrics, "motion_after_halt": None},
+                             Expectation(halted=True)) == []

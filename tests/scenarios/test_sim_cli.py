@@ -375,3 +375,54 @@ def test_a_floor_region_in_view_but_a_few_pixels_large_is_called_that(
         "lanewarden: error: perception.roi (near_m 0, far_m 1.6, lateral_m 0.65): this floor "
         "covers only 36 of the 64x48 image's pixels; expected at least 64 (a larger image, a "
         "narrower lens or a lower camera)"]
+
+
+#: A write to the base that blocks for good from 3 s: the supervisor halts (BASE_LINK_LOST), but
+#: no command reaches the base any more, and the simulated base drives its last one (a Kobuki has
+#: no command timeout).
+WRITES_BLOCK = """\
+name: writes-block
+lane:
+  segments:
+    - straight_m: 8.0
+faults: [{kind: write_blocks, at_s: 3.0}]
+run:
+  max_time_s: 6
+config:
+  simulation: {width_px: 320, height_px: 240, texture_mm_per_px: 5.0}
+expect:
+  supervised: {halted: true, halt_reason_any_of: [BASE_LINK_LOST]}
+"""
+
+
+def test_check_fails_a_halt_the_base_never_obeyed_and_every_output_says_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A safety reviewer's test (a helper's review): `sim --check` said 'expected outcome: met'
+    (exit 0) for a run whose supervisor halted while the robot drove on to the time limit, and
+    neither the terminal nor report.html said when the fault came or that the robot never
+    stopped. HALT is the controller's state; the base must stop."""
+    scenario = tmp_path / "writes-block.yaml"
+    scenario.write_text(WRITES_BLOCK, encoding="utf-8")
+    out = tmp_path / "o"
+    code = main(["sim", "--scenario", str(scenario), "--out", str(out), "--quiet", "--no-video",
+                 "--check"])
+    stdout, err = capsys.readouterr()
+    assert code == 2, err
+    assert err == "lanewarden: error: scenario writes-block: expected outcome not met\n"
+    moving = "still moving at 0.20 m/s 1.5 s or more after HALT"
+    assert ("  expected outcome: NOT met: halted = True, but the robot did not stop: "
+            f"{moving}\n") in stdout
+    assert f"  NOT STOPPED after HALT: {moving} (the base kept driving: unsafe)\n" in stdout
+    assert "  faults: write_blocks (fault 0) at 3.000 s\n" in stdout
+    halt = json.loads((out / "metrics.json").read_text())
+    assert halt["motion_after_halt"] == moving
+    assert halt["fault_effects"] == [
+        {"index": 0, "kind": "write_blocks", "frame_index": 90, "time_s": 3.0}]
+    to_halt = halt["fault_to_halt"]
+    assert to_halt["kind"] == "write_blocks" and to_halt["took_effect_s"] == 3.0
+    assert to_halt["to_halt_s"] == pytest.approx(halt["halt_time_s"] - 3.0, abs=1e-4)
+    assert (f"  HALT at {halt['halt_time_s']:.3f} s, {to_halt['to_halt_s']:.3f} s after "
+            "write_blocks (fault 0) took effect\n") in stdout
+    page = (out / "report.html").read_text()
+    assert f"NOT STOPPED: {moving}" in page and "but the robot did not stop" in page
+    assert "write_blocks (fault 0) at 3.000 s" in page
