@@ -89,6 +89,8 @@ class SupervisedController:
 
         previous = inputs.previous_command
         events |= self._watchdog.check(now, inputs.frame, inputs.feedback, not previous.is_stop)
+        if Event.FRAME_STALE in events:
+            details.setdefault(Event.FRAME_STALE, self._watchdog.stale_detail(now, inputs.frame))
         frame = NO_FRAME_JUDGED
         if inputs.observation is not None and Event.FRAME_INVALID not in events:
             frame = self._judge(inputs.observation, inputs.frame, events, details)

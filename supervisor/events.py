@@ -84,7 +84,7 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
         Event.BUMPER: EventRule(_H, "bumper pressed"),
         Event.CLIFF: EventRule(_H, "cliff sensor triggered"),
         Event.WHEEL_DROP: EventRule(_H, "wheel dropped"),
-        Event.BASE_LINK_LOST: EventRule(_H, "no feedback from the base (link lost)"),
+        Event.BASE_LINK_LOST: EventRule(_H, "link lost (no feedback, or a command not written)"),
         Event.BATTERY_CRITICAL: EventRule(
             _H, "battery below battery_critical_v: charge it before the base browns out"
         ),
@@ -100,7 +100,7 @@ EVENT_TABLE: Mapping[Event, EventRule] = MappingProxyType(
             _H, "frame timestamp or index is invalid (from the future, backwards or not finite)"
         ),
         Event.CLOCK_INVALID: EventRule(_H, "step time went backwards or is not finite"),
-        Event.FRAME_STALE: EventRule(_H, "no new camera frame within the watchdog limit"),
+        Event.FRAME_STALE: EventRule(_H, "newest camera frame older than frame_stale_s"),
         Event.FRAME_FROZEN: EventRule(_H, "camera frames identical while moving (frozen camera)"),
         Event.LANE_DEPARTURE: EventRule(
             _H, "a lane edge inside the robot's footprint for lane_departure_frames frames "

@@ -96,6 +96,19 @@ class Watchdog:
         """Capture time of the newest accepted frame."""
         return self._newest_time_s
 
+    def stale_detail(self, now: float, frame: FrameInfo | None) -> str:
+        """What FRAME_STALE measured, one line: how old the newest frame is and whether frames
+        still arrive (late ones: their capture times lag) or none does (a camera that stopped
+        delivering); a reviewer could not tell the two apart from the halt reason."""
+        if self._newest_time_s is None:
+            since = now - (self._first_check_s if self._first_check_s is not None else now)
+            return f"no frame at all in {since:.2f} s"
+        age = now - self._newest_time_s
+        limit = f"the limit {self._config.frame_stale_s:g} s"
+        if frame is not None and frame.is_new:
+            return f"frames arrive, but the newest was captured {age:.2f} s ago, over {limit}"
+        return f"no new frame: the newest was captured {age:.2f} s ago, over {limit}"
+
     def check(
         self,
         now: float,

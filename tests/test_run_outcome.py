@@ -18,7 +18,7 @@ from lanewarden.run_outcome import (
 )
 
 LANE_LOST = "LANE_LOST: no usable lane for longer than lane_lost_halt_s"
-STALE = "FRAME_STALE: no new camera frame within the watchdog limit"
+STALE = "FRAME_STALE: newest camera frame older than frame_stale_s"
 CAMERA = "CAMERA_ERROR: CameraLost: end of the recorded clip after 75 frames"
 BUMPER = "BUMPER: bumper pressed"
 OPERATOR = "OPERATOR_STOP: operator stop"

@@ -35,7 +35,7 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "BUMPER": ("HALT", "bumper pressed"),
     "CLIFF": ("HALT", "cliff sensor triggered"),
     "WHEEL_DROP": ("HALT", "wheel dropped"),
-    "BASE_LINK_LOST": ("HALT", "no feedback from the base (link lost)"),
+    "BASE_LINK_LOST": ("HALT", "link lost (no feedback, or a command not written)"),
     "BATTERY_CRITICAL": (
         "HALT", "battery below battery_critical_v: charge it before the base browns out"),
     "CAMERA_ERROR": ("HALT", "the frame source raised an error"),
@@ -46,7 +46,7 @@ EXPECTED_POLICY: dict[str, tuple[str, str]] = {
     "FRAME_INVALID": (
         "HALT", "frame timestamp or index is invalid (from the future, backwards or not finite)"),
     "CLOCK_INVALID": ("HALT", "step time went backwards or is not finite"),
-    "FRAME_STALE": ("HALT", "no new camera frame within the watchdog limit"),
+    "FRAME_STALE": ("HALT", "newest camera frame older than frame_stale_s"),
     "FRAME_FROZEN": ("HALT", "camera frames identical while moving (frozen camera)"),
     "LANE_DEPARTURE": ("HALT", "a lane edge inside the robot's footprint for "
                                "lane_departure_frames frames (leaving the lane)"),

@@ -34,6 +34,9 @@ from lanewarden.supervisor.lecture import LectureController
 from lanewarden.supervisor.loop import ControlLoop, StepRecord
 from tests.supervisor.rig import DT, RecordingBase, ScriptedCamera, ScriptedDetector
 
+#: The gate's halt reason for a lost base link, written out.
+LINK_LOST = "BASE_LINK_LOST: link lost (no feedback, or a command not written)"
+
 CONFIG = SupervisorConfig()
 LINEAR_STEP = 0.01  # 0.3 m/s^2 * 1/30 s
 ANGULAR_STEP = 3.5 / 30.0
@@ -129,7 +132,7 @@ def test_a_misbehaving_controller_never_reaches_the_base_unfiltered() -> None:
         loop.step(k * DT)
     halted = [r for r in records if r.time_s > 61 * DT and r.state == "HALT"]
     assert halted and halted[0].time_s <= 61 * DT + 0.2 + DT + 1e-9
-    assert halted[0].halt_reason == "BASE_LINK_LOST: no feedback from the base (link lost)"
+    assert halted[0].halt_reason == LINK_LOST
     assert all(c == STOP for t, c in sent if t >= halted[0].time_s)
 
     # It was told every hazard, and what was really sent; it just ignored them.
@@ -166,8 +169,8 @@ def test_nothing_non_zero_leaves_while_halted_on_a_simulated_base() -> None:
         ({"feedback_bits": {"wheel_drop": 2}}, "WHEEL_DROP: wheel dropped (left)"),
         ({"events": frozenset({Event.BASE_LINK_LOST}),
           "event_details": {Event.BASE_LINK_LOST: "/dev/ttyUSB0: write failed"}},
-         "BASE_LINK_LOST: no feedback from the base (link lost) (/dev/ttyUSB0: write failed)"),
-        ({"feedback_age_s": 0.21}, "BASE_LINK_LOST: no feedback from the base (link lost)"),
+         f"{LINK_LOST} (/dev/ttyUSB0: write failed)"),
+        ({"feedback_age_s": 0.21}, LINK_LOST),
         ({"feedback_bits": {"battery_v": 13.1}},
          "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the base browns "
          "out (13.1 V)"),
@@ -279,7 +282,7 @@ HAZARDS = {
     "bumper": ({"feedback_bits": {"bumper": 4}}, "BUMPER: bumper pressed (left)"),
     "cliff": ({"feedback_bits": {"cliff": 1}}, "CLIFF: cliff sensor triggered (right)"),
     "wheel-drop": ({"feedback_bits": {"wheel_drop": 3}}, "WHEEL_DROP: wheel dropped (left, right)"),
-    "link-lost": ({"feedback_age_s": 0.5}, "BASE_LINK_LOST: no feedback from the base (link lost)"),
+    "link-lost": ({"feedback_age_s": 0.5}, LINK_LOST),
     "battery-critical": ({"feedback_bits": {"battery_v": 12.0}},
                          "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the "
                          "base browns out (12.0 V)"),

@@ -46,6 +46,24 @@ def test_frame_age_goes_late_then_stale() -> None:
     assert (min(stale) - 1) * DT <= CONFIG.frame_stale_s
 
 
+def test_a_stale_frame_says_whether_frames_still_arrive() -> None:
+    """A safety reviewer's review: a camera that stopped and one whose frames arrive 0.3 s late
+    halted with the same words. The detail says which, with the newest frame's age."""
+    limit = CONFIG.frame_stale_s  # 0.15 s
+    late, dead = Watchdog(CONFIG), Watchdog(CONFIG)
+    for wd in (late, dead):
+        wd.check(0.0, _frame(0, 0.0), _alive(0.0), moving=True)
+    now = 0.2
+    assert Event.FRAME_STALE in late.check(now, _frame(1, now - 0.18), _alive(now), moving=True)
+    assert late.stale_detail(now, _frame(1, now - 0.18)) == (
+        f"frames arrive, but the newest was captured 0.18 s ago, over the limit {limit:g} s")
+    assert Event.FRAME_STALE in dead.check(now, _frame(0, 0.0, new=False), _alive(now),
+                                           moving=True)
+    assert dead.stale_detail(now, _frame(0, 0.0, new=False)) == (
+        f"no new frame: the newest was captured 0.20 s ago, over the limit {limit:g} s")
+    assert Watchdog(CONFIG).stale_detail(1.0, None) == "no frame at all in 0.00 s"
+
+
 def test_nothing_ever_arriving_is_stale_after_the_limit() -> None:
     wd = Watchdog(CONFIG)
     assert wd.check(5.0, None, None, moving=False) == frozenset()
