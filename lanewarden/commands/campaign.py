@@ -20,7 +20,10 @@ import click
 from lanewarden.assembly import build_stack
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag, WholeRange
-from lanewarden.commands.output_folders import refuse_a_recording_folder
+from lanewarden.commands.output_folders import (
+    refuse_a_recording_folder,
+    refuse_another_commands_folder,
+)
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
@@ -136,6 +139,7 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
     overrides: dict[str, Any] = config.model_dump(mode="json", exclude_defaults=True)
     out = Path(out_dir)
     refuse_a_recording_folder(out)
+    refuse_another_commands_folder(out, "campaign")
     notable: dict[str, dict[str, Any]] | None = None
     if notable_dir is not None:
         notable, runs = _notable(Path(notable_dir), out, runs, seed)

@@ -32,10 +32,35 @@ def refuse_a_recording_folder(folder: Path, flag: str = "--out",
                          "are never written into: expected another folder")
 
 
-def create_output_folder(folder: Path, flag: str = "--out") -> Path:
+#: What each command leaves in its --out folder, by the file that tells it: (the file, what it
+#: is). `sim` and `replay` write the same outputs (a run's).
+OUTPUT_KINDS: dict[str, tuple[str, str]] = {
+    "campaign": ("results.sqlite", "a campaign's results"),
+    "run": ("metrics.json", "a simulated or replayed run's outputs"),
+    "demo": ("supervised/metrics.json", "the demo's outputs"),
+    "survey": ("survey.json", "a survey's outputs"),
+}
+
+
+def refuse_another_commands_folder(folder: Path, writes: str, flag: str = "--out") -> None:
+    """UsageError when `folder` holds another command's outputs (OUTPUT_KINDS) than the kind
+    this one `writes`: `sim --out` into a campaign's folder had replaced its report.html without
+    a word, and `campaign --out` a run's (a safety reviewer's review). A folder of the same kind
+    is replaced, as each command's help says."""
+    for kind, (marker, what) in OUTPUT_KINDS.items():
+        if kind != writes and (folder / marker).is_file():
+            raise UsageError(f"{flag} '{folder}': holds {what} ({marker}), which these outputs "
+                             "would mix with or replace; expected a new folder, or one this "
+                             "command wrote before")
+
+
+def create_output_folder(folder: Path, flag: str = "--out", writes: str | None = None) -> Path:
     """`folder`, created with its missing parents; UsageError if it exists and is not a folder
-    (a file, a FIFO, a device), is a link to nothing or holds a recording."""
+    (a file, a FIFO, a device), is a link to nothing, holds a recording or (`writes`: the kind
+    of outputs the command writes, OUTPUT_KINDS) another command's outputs."""
     refuse_a_recording_folder(folder, flag)
+    if writes is not None:
+        refuse_another_commands_folder(folder, writes, flag)
     if link := dangling_link(folder):
         raise UsageError(f"{flag} '{folder}': {link}; expected a folder")
     if folder.exists() and not folder.is_dir():

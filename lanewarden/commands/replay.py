@@ -63,6 +63,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
         create_output_folder,
         interrupted_in,
         refuse_a_recording_folder,
+        refuse_another_commands_folder,
     )
     from lanewarden.config import load_config
     from lanewarden.perception.detector import too_small
@@ -78,6 +79,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
 
     if out_dir is not None:
         refuse_a_recording_folder(Path(out_dir))  # before the source is read
+        refuse_another_commands_folder(Path(out_dir), "run")
         _refuse_the_source_folder(Path(out_dir), source)
     given = load_config(config_path)
     replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
@@ -103,7 +105,8 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if size is not None and (small := too_small(*size)):  # before any output is written
         raise InputFileError(f"SOURCE '{source}': {_frame_names(replay_source, [0])}: {small}")
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"replay-{replay_source.name}"
-    create_output_folder(out)  # a FIFO or a file there is refused before the work, as by `sim`
+    # a FIFO, a file or another command's outputs there are refused before the work, as by `sim`
+    create_output_folder(out, writes="run")
     # which ground model perception sees the frames through, as `run` and `detect` say it (a
     # tub replayed without its camera's description is seen through the default camera)
     if size is not None:

@@ -171,7 +171,7 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         request = replace(request, camera_out=check_clip_target(camera_out))
     if narrow := narrow_lane_warning(effective_config(request.config, spec)):
         click.echo(f"warning: {narrow}")
-    create_output_folder(out)
+    create_output_folder(out, writes="run")
     try:
         metrics = run_to_directory(request)
     except KeyboardInterrupt:
@@ -222,7 +222,7 @@ def demo_command(out_dir: str, config_path: str | None, seed: int, no_video: boo
     started = time.perf_counter()
     config = load_config(config_path)
     spec = _load_scenario(DEMO_SCENARIO)
-    out = create_output_folder(Path(out_dir))
+    out = create_output_folder(Path(out_dir), writes="demo")
     names = ("lecture", "supervised")
     for name in names:  # each run's outputs go into its own folder there
         refuse_a_recording_folder(out / name)

@@ -135,7 +135,7 @@ def survey_command(folder: str, labels_path: str | None, calibration_path: str |
     out = Path(out_dir) if out_dir else Path("lanewarden-out") / f"survey-{source.name}"
     _refuse_out_among_inputs(out, folder, source, flag=out_dir is not None)
     made = not out.exists()
-    create_output_folder(out)
+    create_output_folder(out, writes="survey")
     try:
         return _survey_into(out, folder, source, config, config_origin, calibration,
                             calibration_path, size, as_json, jitter, partial(
