@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,12 @@ from lanewarden.errors import Interrupted, UsageError
 from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
 from lanewarden.scenarios.campaign.compare import NEAR_TAPE_M, drawn_difference, is_notable
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
-from lanewarden.scenarios.campaign.report import summarize, write_junit, write_report
+from lanewarden.scenarios.campaign.report import (
+    CampaignSummary,
+    summarize,
+    write_junit,
+    write_report,
+)
 from lanewarden.scenarios.campaign.run_case import case_columns
 from lanewarden.scenarios.campaign.runner import (
     IN_PROCESS,
@@ -59,7 +65,12 @@ Examples:
 
 
 def _counts(progress: CampaignProgress) -> str:
-    return " ".join(f"{o}={progress.counts[o]}" for o in OUTCOMES if progress.counts[o])
+    return _outcome_counts(progress.counts)
+
+
+def _outcome_counts(counts: Mapping[str, int]) -> str:
+    """'safe_halt=3 nominal=2': the outcomes with runs, in OUTCOMES' order."""
+    return " ".join(f"{o}={counts[o]}" for o in OUTCOMES if counts.get(o))
 
 
 #: The most local worker processes per core: beyond it they only share the cores (64 workers on
@@ -199,29 +210,49 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
         if bar is None:  # still connecting to the scheduler or opening results.sqlite
             raise Interrupted("before any run started") from None
         bar.close(finished=False)
-        # one line (it had been this, a blank line and "lanewarden: error: interrupted")
-        raise Interrupted(f"finished runs are stored in {out / 'results.sqlite'}; run the same "
-                          "command again to resume") from None
+        # the report and junit.xml of the runs stored so far (a safety reviewer's review: an
+        # interrupted campaign had left neither, and its progress bar showed fewer runs than
+        # were stored); one line (it had been this, a blank line and "lanewarden: error:
+        # interrupted")
+        stored, _ = _write_outputs(out, spec.name, plan.runs, lambda summary: (
+            f"INTERRUPTED: {summary.runs} of {counted(plan.runs, 'run')} of spec {spec.name} "
+            f"stored (seed {seed}); run the same command again to resume: "
+            f"{_outcome_counts(summary.counts)}"))
+        raise Interrupted(f"{stored} of {counted(plan.runs, 'run')} are stored in "
+                          f"{out / 'results.sqlite'} (report.html and junit.xml cover them); "
+                          "run the same command again to resume") from None
     finally:
         signal.signal(signal.SIGTERM, previous)
         if bar is not None:
             bar.close(finished=finished)
-    with ResultStore(out / "results.sqlite") as store:
-        summary = summarize(store.iter_rows(plan.runs))
+    screen = ("" if only is None else
+              f"; a screen: only the notable runs of {notable_dir}, not a sample")
+
+    def said(summary: CampaignSummary) -> str:
         ran = (f"{summary.runs - stored_at_start} run now" if stored_at_start
                else "all run now")
-        screen = ("" if only is None else
-                  f"; a screen: only the notable runs of {notable_dir}, not a sample")
-        text = (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}{screen}; "
+        return (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}{screen}; "
                 f"{ran}, {time.perf_counter() - started:.0f} s): {_counts(progress)}")
-        try:
-            write_junit(out / "junit.xml", spec.name, store.iter_rows(plan.runs), summary)
-            write_report(out / "report.html", spec.name, summary, out, text)
-        except OSError as exc:
-            raise ScenarioOutputError(f"{out}: cannot write the report ({exc})") from exc
-    click.echo(text)
+
+    _, line = _write_outputs(out, spec.name, plan.runs, said)
+    click.echo(line)
     click.echo(f"Results: {out / 'results.sqlite'}  JUnit: {out / 'junit.xml'}  "
                f"Report: {out / 'report.html'}")
+
+
+def _write_outputs(out: Path, name: str, runs: int,
+                   text: Callable[[CampaignSummary], str]) -> tuple[int, str]:
+    """junit.xml and report.html of every run stored in `out` (up to `runs`), under the line
+    `text` makes of their summary; returns how many runs are stored, and that line."""
+    with ResultStore(out / "results.sqlite") as store:
+        summary = summarize(store.iter_rows(runs))
+        try:
+            write_junit(out / "junit.xml", name, store.iter_rows(runs), summary)
+            line = text(summary)
+            write_report(out / "report.html", name, summary, out, line)
+        except OSError as exc:
+            raise ScenarioOutputError(f"{out}: cannot write the report ({exc})") from exc
+    return summary.runs, line
 
 
 def _notable(source: Path, out: Path, runs: int | None,

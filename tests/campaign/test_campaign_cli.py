@@ -90,11 +90,17 @@ def test_interrupted_campaign_leaves_a_resumable_file(
     args = ["campaign", "--spec", str(tiny_spec), "--out", str(out), "--seed", "7", "--runs",
             "3", "--scheduler", "in-process", "--quiet"]
     assert main(args) == 130
-    # one line (it had been "campaign interrupted: ...", a blank line, then "...: interrupted")
+    # one line (it had been "campaign interrupted: ...", a blank line, then "...: interrupted"),
+    # with how many runs are stored (a reviewer's progress bar had said fewer)
     assert capsys.readouterr().err.splitlines()[-1:] == [
-        f"lanewarden: error: interrupted: finished runs are stored in {out / 'results.sqlite'}; "
-        "run the same command again to resume"]
+        f"lanewarden: error: interrupted: 1 of 3 runs are stored in {out / 'results.sqlite'} "
+        "(report.html and junit.xml cover them); run the same command again to resume"]
     assert len(rows(out)) == 1
+    # the report and junit.xml of the stored run, marked as interrupted (there had been none)
+    page = (out / "report.html").read_text()
+    assert "INTERRUPTED: 1 of 3 runs of spec tiny stored (seed 7); run the same command again "\
+        "to resume: " in page
+    assert 'tests="1"' in (out / "junit.xml").read_text()
     monkeypatch.setattr(runner_module, "run_case", real)
     assert main(args) == 0
     assert len(rows(out)) == 3

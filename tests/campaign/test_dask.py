@@ -159,6 +159,7 @@ def test_ctrl_c_on_a_terminal_stops_a_local_cluster_campaign_with_one_line(
     assert err.splitlines() == [  # (no blank line: a new user found one)
         "campaign tiny: 8 runs (seed 0), 0 already stored; running local Dask cluster, 2 worker "
         "processes",
-        f"lanewarden: error: interrupted: finished runs are stored in {out / 'results.sqlite'}; "
-        "run the same command again to resume"]
+        f"lanewarden: error: interrupted: {stored()} of 8 runs are stored in "
+        f"{out / 'results.sqlite'} (report.html and junit.xml cover them); run the same command "
+        "again to resume"]
     assert 1 <= stored() < 8
