@@ -522,6 +522,12 @@ def describe_validation_error(
         kind, allowed = _number_kind(field), allowed_range(field)
         if kind is not None and allowed:
             message = f"expected {kind} with {allowed}"
+    if err["type"] in ("literal_error", "enum") and isinstance(err.get("input"), str):
+        # a misspelt name among many ('camera_freez' among 26 fault kinds): the closest first
+        named = re.findall(r"'([^']*)'", str((err.get("ctx") or {}).get("expected", "")))
+        close = difflib.get_close_matches(err["input"], named, n=1, cutoff=0.6)
+        if close:
+            message = f"did you mean '{close[0]}'? ({message})"
     if err["type"] == "value_error" and isinstance(err.get("input"), Mapping):
         # a section's own check of several of its keys: the message names them ("perception:
         # edges.look_ahead_m (5) must lie within ..."), "= a mapping" would say nothing

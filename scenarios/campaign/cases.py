@@ -307,8 +307,8 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
         try:
             options = {key: _extremes(value, f"faults.{i}.params.{key}")
                        for key, value in fault.params.items()}
-        except ValueError as exc:
-            problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
+        except ValueError as exc:  # (the line names the key: faults.{i}.params.{key})
+            problems.append(f"{path}: {_one_line(exc)}")
             continue
         late = [at for at in options.get("at_s", []) if isinstance(at, int | float)
                 and not isinstance(at, bool) and at >= spec.max_time_s]
@@ -323,7 +323,11 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
             try:
                 FaultSpec.model_validate({"kind": fault.kind, **_placement(fault.kind, params),
                                           **params})
-            except (ValueError, ValidationError) as exc:
+            except ValidationError as exc:  # worded as a scenario file's problems are
+                problems.append(validation_error_lines(
+                    str(path), exc, FaultSpec, prefix=("faults", i, "params")))
+                break
+            except ValueError as exc:
                 problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
                 break
     if problems:

@@ -126,8 +126,12 @@ def test_every_option_of_a_fault_parameter_is_checked_at_load(tmp_path: Path) ->
     spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
     spec["faults"] = [{"kind": "bumper", "params": {"bits": {"one_of": [2] * 30 + [99]}}}]
     (tmp_path / "spec.yaml").write_text(yaml.safe_dump(spec), encoding="utf-8")
-    with pytest.raises(ScenarioError, match=r"faults\.0 \(bumper\): bits"):
+    with pytest.raises(ScenarioError) as info:
         load_campaign_spec(str(tmp_path / "spec.yaml"))
+    # worded as a scenario file's problem is (it had been "faults.0 (bumper): bits = 99: Input
+    # should be less than or equal to 7")
+    assert str(info.value) == (f"{tmp_path / 'spec.yaml'}: faults.0.params.bits = 99: expected "
+                               "an integer with 1 <= value <= 7")
 
 
 def test_the_default_spec_draws_floors_tapes_and_effects() -> None:
@@ -195,3 +199,20 @@ def test_case_files_round_trip_the_looks(tmp_path: Path) -> None:
     again = load_case(path)
     assert (again.floor, again.tape, again.effect) == (case.floor, case.tape, case.effect)
     assert yaml.safe_load(path.read_text())["scenario"]["floor"]["kind"] == "terrazzo"
+
+
+@pytest.mark.parametrize(("kind", "said"), [
+    ("camera_freez", "faults.0.kind = 'camera_freez': did you mean 'camera_freeze'? (input "
+                     "should be 'camera_freeze', 'camera_ring', "),
+    ("xyzzy", "faults.0.kind = 'xyzzy': input should be 'camera_freeze', 'camera_ring', "),
+])
+def test_a_misspelt_fault_kind_gets_the_closest_one_first(tmp_path: Path, kind: str,
+                                                          said: str) -> None:
+    """A safety reviewer's review: a misspelt kind listed all 26 and suggested none, where a
+    misspelt scenario or config key gets 'did you mean'."""
+    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    spec["faults"] = [{"kind": kind}]
+    (tmp_path / "spec.yaml").write_text(yaml.safe_dump(spec), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_campaign_spec(str(tmp_path / "spec.yaml"))
+    assert str(info.value).startswith(f"{tmp_path / 'spec.yaml'}: {said}"), str(info.value)
