@@ -525,9 +525,9 @@ def describe_validation_error(
     if err["type"] in ("literal_error", "enum") and isinstance(err.get("input"), str):
         # a misspelt name among many ('camera_freez' among 26 fault kinds): the closest first
         named = re.findall(r"'([^']*)'", str((err.get("ctx") or {}).get("expected", "")))
-        close = difflib.get_close_matches(err["input"], named, n=1, cutoff=0.6)
-        if close:
-            message = f"did you mean '{close[0]}'? ({message})"
+        closest = difflib.get_close_matches(err["input"], named, n=1, cutoff=0.6)
+        if closest:
+            message = f"did you mean '{closest[0]}'? ({message})"
     if err["type"] == "value_error" and isinstance(err.get("input"), Mapping):
         # a section's own check of several of its keys: the message names them ("perception:
         # edges.look_ahead_m (5) must lie within ..."), "= a mapping" would say nothing
