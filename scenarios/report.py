@@ -71,7 +71,10 @@ def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]
     """Header + one row per metric, one column per run."""
     names = list(runs)
     rows = [["", *names]]
+    replayed = bool(runs) and all("source_kind" in m for m in runs.values())
     for key, label in TABLE_ROWS:
+        if key == "sim_time_s" and replayed:  # a recording's time, not a simulation's
+            label = "recorded time replayed (s)"
         rows.append([label, *(format_metric(runs[n], key) for n in names)])
     return rows
 

@@ -229,8 +229,8 @@ def campaign_command(spec_name: str, out_dir: str, runs: int | None, seed: int,
               f"; a screen: only the notable runs of {notable_dir}, not a sample")
 
     def said(summary: CampaignSummary) -> str:
-        ran = (f"{summary.runs - stored_at_start} run now" if stored_at_start
-               else "all run now")
+        ran = (f"{stored_at_start} stored before, {summary.runs - stored_at_start} run now"
+               if stored_at_start else "all run now")
         return (f"{counted(summary.runs, 'run')} of spec {spec.name} (seed {seed}{screen}; "
                 f"{ran}, {time.perf_counter() - started:.0f} s): {_counts(progress)}")
 

@@ -169,6 +169,11 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
         refuse_a_recording_folder(camera_out.parent, "--camera-out", given=camera_out)
         _check_clip_beside_outputs(camera_out, out)
         request = replace(request, camera_out=check_clip_target(camera_out))
+    if check and getattr(spec.expect, controller, None) is None:  # said before the run, not after
+        raise QualityGateError(
+            f"--check: scenario {spec.name} states no expected outcome for controller "
+            f"{controller!r} (add an expect: block for it), nothing was checked"
+        )
     if narrow := narrow_lane_warning(effective_config(request.config, spec)):
         click.echo(f"warning: {narrow}")
     create_output_folder(out, writes="run")
@@ -194,11 +199,6 @@ def sim_command(scenario: str | None, case_file: str | None, controller: str, se
                    f"{clip['calibration']}" + (f", config {clip['config']}" if clip['config']
                                                else ""))
         click.echo(f"  play it through the whole loop: {clip['run']}")
-    if check and met is None:
-        raise QualityGateError(
-            f"--check: scenario {spec.name} states no expected outcome for controller "
-            f"{controller!r} (add an expect: block for it), nothing was checked"
-        )
     if check and met is False:
         raise QualityGateError(f"scenario {spec.name}: expected outcome not met")
 

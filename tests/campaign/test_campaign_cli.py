@@ -69,7 +69,7 @@ def test_a_rerun_resumes_and_runs_only_what_is_missing(
     capsys.readouterr()
     assert main([*args, "--runs", "3"]) == 0
     assert ran == ["r00002"]  # the first two were stored: not run again
-    assert "3 runs of spec tiny (seed 7; 1 run now, " in capsys.readouterr().out
+    assert "3 runs of spec tiny (seed 7; 2 stored before, 1 run now, " in capsys.readouterr().out
     assert rows(out)[:2] == first
 
 

@@ -27,6 +27,8 @@ def _outputs_written(out: Path) -> dict[str, object]:
         assert (out / name).stat().st_size > 0, name
     report = (out / "report.html").read_text()
     assert 'src="video.mp4"' in report and 'src="plot.png"' in report
+    # a recording's time, not a simulation's (a reviewer read "simulated time" of a real run)
+    assert "<th>recorded time replayed (s)</th>" in report and "simulated time" not in report
     assert not (out / "PARTIAL").exists()
     return json.loads((out / "metrics.json").read_text())
 

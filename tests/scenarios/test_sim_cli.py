@@ -426,3 +426,18 @@ def test_check_fails_a_halt_the_base_never_obeyed_and_every_output_says_so(
     page = (out / "report.html").read_text()
     assert f"NOT STOPPED: {moving}" in page and "but the robot did not stop" in page
     assert "write_blocks (fault 0) at 3.000 s" in page
+
+
+def test_check_without_an_expectation_is_refused_before_the_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """It had run the whole simulation first (a reviewer's `--controller lecture --check` on a
+    scenario that states only the supervisor's outcome), then refused."""
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text(SHORT, encoding="utf-8")
+    out = tmp_path / "o"
+    assert main(["sim", "--scenario", str(scenario), "--controller", "lecture", "--check",
+                 "--out", str(out), "--quiet", "--no-video"]) == 2
+    assert capsys.readouterr().err == (
+        "lanewarden: error: --check: scenario short states no expected outcome for controller "
+        "'lecture' (add an expect: block for it), nothing was checked\n")
+    assert not out.exists()
