@@ -186,7 +186,8 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
     metrics = replay_metrics(source, records, divergences, distance, config, found=(end, halt))
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
-    _write_plot(out / "plot.png", source, records, times, config, halt)
+    _write_plot(out / "plot.png", source, records, times, config, halt,
+                ending_halt(source, records, end))
     outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
     if video is not None:
         outputs += ["video.mp4"] + (["poster.jpg"] if (out / "poster.jpg").exists() else [])
@@ -204,9 +205,13 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
 
 
 def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: list[float],
-                config: LanewardenConfig, halt: int | None) -> None:
-    """plot.png; `halt`: the index of the first halt after engaging (`first_halt`), marked."""
+                config: LanewardenConfig, halt: int | None, last: int | None) -> None:
+    """plot.png; `halt`: the index of the first halt after engaging (`first_halt`), and `last`,
+    the halt the run ended in (`ending_halt`), marked."""
     t0 = times[0] if times else 0.0
+    markers = [] if halt is None else [PlotMarker("HALT", records[halt].time_s - t0)]
+    if last is not None and last != halt:
+        markers.append(PlotMarker("HALT that ended the run", records[last].time_s - t0))
     states = [r.state for r in records]
     write_plot(
         path, f"replay of {source.name} ({source.kind})",
@@ -217,7 +222,7 @@ def _write_plot(path: Path, source: ReplaySource, records: list[Any], times: lis
         states,
         state_reasons(states, [r.events for r in records], [r.halt_reason for r in records]),
         config.supervisor.turn_enter_slope_sum,
-        [] if halt is None else [PlotMarker("HALT", records[halt].time_s - t0)],
+        markers,
     )
 
 
@@ -244,6 +249,22 @@ def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int 
     return first_halt_index([r.state for r in considered]) or None
 
 
+def ending_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int | None:
+    """Where the halt the run ended in began: the start of its last stretch of HALT after
+    engaging, the runner's closing stop not counted; None when it ended engaged (or never
+    engaged). A run stopped and resumed from the page had been described by its first halt,
+    the operator's stop, not by the one that ended it (an instructor's review)."""
+    steps = _loop_end(source).steps
+    considered = records if steps is None else records[:steps]
+    if (end.kind is LoopEndKind.CLIP and end.state != "HALT") or not considered \
+            or considered[-1].state != "HALT":
+        return None
+    start = len(considered) - 1
+    while start > 0 and considered[start - 1].state == "HALT":
+        start -= 1
+    return start or None  # (0: it never engaged)
+
+
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
                    distance_m: float, config: LanewardenConfig | None = None, *,
                    found: tuple[EndReason, int | None] | None = None) -> dict[str, Any]:
@@ -259,6 +280,7 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         end = _run_end(source, records)
         found = end, first_halt(source, records, end)
     end, halt = found
+    last = ending_halt(source, records, end)
     first_time = records[0].time_s if records else 0.0
     engaged_steps = sum(r.state != "HALT" for r in records)
     missing = missing_frames(source)
@@ -274,6 +296,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "halt_reason": end.halt_reason,
         "first_halt_reason": records[halt].halt_reason if halt is not None else None,
         "first_halt_time_s": round(records[halt].time_s - first_time, 4) if halt else None,
+        # the halt the run ended in (as `run`'s summary describes it), when it ended halted
+        "halt_time_s": round(records[last].time_s - first_time, 4) if last else None,
         "final_state": end.state if records else None,
         "states_visited": states,
         "engaged_fraction": round(engaged_steps / len(records), 4) if records else 0.0,
@@ -282,11 +306,12 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
         "incomplete": list(source.incomplete),
     }
     if config is not None:
-        # what perception gave before a safety stop, as `run`'s summary says it; an operator's
-        # stop is no such halt (a replay of space, r, Ctrl-C had printed "before the halt")
-        operator = halt is not None and halt_event(records[halt].halt_reason or "") in NORMAL_HALTS
-        metrics["before_halt"] = None if halt is None or operator else before_halt(
-            records, halt, config.supervisor, config.perception.edges.max_abs_slope)
+        # what perception gave before the safety stop that ended the run, as `run`'s summary
+        # says it; an operator's stop is no such halt (a replay of space, r, Ctrl-C had printed
+        # "before the halt")
+        operator = last is not None and halt_event(records[last].halt_reason or "") in NORMAL_HALTS
+        metrics["before_halt"] = None if last is None or operator else before_halt(
+            records, last, config.supervisor, config.perception.edges.max_abs_slope)
     # frames that are there but did not decode: the loop got no frame at those steps
     wanted = frame_indices(source)
     if source.kind != "run":

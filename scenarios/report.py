@@ -94,7 +94,10 @@ def table_notes(runs: Mapping[str, Mapping[str, object]]) -> list[str]:
 
 
 def faults_text(metrics: Mapping[str, object]) -> str:
-    """'camera_freeze (fault 0) at 3.000 s; fault 1 never took effect', or 'none'."""
+    """'camera_freeze (fault 0) at 3.000 s; fault 1 never took effect', 'none', or '-' where
+    nothing was injected (a replay of a recording)."""
+    if "fault_effects" not in metrics:
+        return "-"
     effects = metrics.get("fault_effects") or []
     assert isinstance(effects, list)
     took = {int(e["index"]): e for e in effects}
@@ -117,8 +120,8 @@ def fault_to_halt_text(metrics: Mapping[str, object]) -> str:
 def after_halt_text(metrics: Mapping[str, object]) -> str:
     """Whether a robot that halted came to rest: 'stopped', 'NOT STOPPED: still moving ...', or
     '-' (it never halted)."""
-    if not metrics.get("halted"):
-        return "-"
+    if not metrics.get("halted") or "motion_after_halt" not in metrics:
+        return "-"  # (a replay does not know where the real base went)
     moving = metrics.get("motion_after_halt")
     return f"NOT STOPPED: {moving}" if moving else "stopped"
 

@@ -7,8 +7,9 @@ covers) and the path so far, coloured by the controller's state. Every colour dr
 `video_legend()` (the report prints it). The caption names the state with its reason (HALT:
 LANE_LOST, DEGRADED (LANE_UNTRUSTED)). Frames are encoded to H.264 yuv420p through
 `imageio_ffmpeg.write_frames` (browsers play it; OpenCV's wheels cannot encode H.264), with the
-ffmpeg binary that package ships. The poster (`poster.jpg`) is the outcome: the first frame in
-HALT after the controller engaged, else the last frame.
+ffmpeg binary that package ships. The poster (`poster.jpg`) is the outcome: the first frame of
+the HALT the video ends in, after the controller engaged (a halt it was resumed from is not the
+outcome), else the last frame.
 
 Drawing only: never steps the loop, never reads a clock; buffers are allocated once.
 """
@@ -388,6 +389,10 @@ class VideoRecorder:
         self._last_time_s = now
         if record.state != "HALT":
             self._engaged = True
+            if self.poster_shows is not None:  # engaged again (a resume): that halt was not
+                # the outcome (a replay's poster had shown an operator's stop long before the
+                # halt that ended the run)
+                self._poster, self.poster_shows, self.poster_time_s = None, None, None
         elif self._engaged and self.poster_shows is None:
             self._poster = self._frame.copy()
             self.poster_shows, self.poster_time_s = "the halt", now

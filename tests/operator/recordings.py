@@ -49,7 +49,8 @@ class ClipFrames:
 
 
 def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig, *,
-               stop_at_step: int | None = None, image_kind: str = PERCEPTION_INPUT,
+               stop_at_step: int | None = None, resume_at_step: int | None = None,
+               image_kind: str = PERCEPTION_INPUT,
                calibration: Path | None = None,
                loaded_calibration: CameraCalibration | None = None,
                close: bool = True, source: FrameSource | None = None) -> list[StepRecord]:
@@ -78,6 +79,8 @@ def record_run(folder: Path, frames: list[np.ndarray], config: LanewardenConfig,
             loop.start(now)
         if stop_at_step is not None and k == stop_at_step:
             loop.operator_stop(now)
+        if resume_at_step is not None and k == resume_at_step:
+            loop.resume(now)
         records.append(loop.step(now))
     if close:
         summary = recorder.close({"end_reason": "end of the clip", "exit_code": 0})

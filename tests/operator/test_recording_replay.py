@@ -136,6 +136,34 @@ def test_a_recorded_run_replays_exactly(clip: list[np.ndarray], tmp_path: Path,
     assert code == 0, capsys.readouterr().out
 
 
+def test_a_replay_describes_the_halt_that_ended_the_run(clip: list[np.ndarray], tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """Stopped from the page, resumed, then halted for good: the replay's 'before the halt',
+    halt time and plot are of the halt that ended the run, as `run`'s summary is (an
+    instructor's review: they had described the operator's stop, and 'before the halt' was
+    missing)."""
+    folder = tmp_path / "run"
+    records = record_run(folder, clip, LanewardenConfig(), stop_at_step=20, resume_at_step=23)
+    states = [r.state for r in records]
+    stopped = states.index("HALT", states.index("FOLLOW"))  # the operator's stop
+    again = states.index("FOLLOW", stopped)  # engaged again after the resume
+    last = max(i for i in range(again, len(states)) if states[i - 1] != "HALT"
+               and states[i] == "HALT")
+    assert "OPERATOR_STOP" in records[stopped].events and states[-1] == "HALT"
+    assert all(state == "HALT" for state in states[last:])
+    code = main(["replay", str(folder), "--check", "--no-video", "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    first_time = records[0].time_s
+    assert metrics["first_halt_reason"].startswith("OPERATOR_STOP")
+    assert metrics["first_halt_time_s"] == round(records[stopped].time_s - first_time, 4)
+    assert metrics["halt_time_s"] == round(records[last].time_s - first_time, 4)
+    assert metrics["halt_reason"] == records[last].halt_reason != records[stopped].halt_reason
+    assert metrics["before_halt"] is not None and "  before the halt: " in out
+    assert metrics["before_halt"]["frames"] >= 1
+
+
 def test_a_format_1_folder_still_replays(clip: list[np.ndarray], tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     """Folders recorded before run.mcap (run.jsonl + frames/) replay and check the same."""

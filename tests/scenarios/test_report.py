@@ -179,6 +179,10 @@ def _record(t: float, state: str, events: tuple[str, ...] = (),
     (["HALT", "FOLLOW", "DEGRADED", "HALT", "HALT"], "the halt", 0.3),
     (["HALT", "FOLLOW", "TURN_LEFT", "FOLLOW", "FOLLOW"], "the last frame", 0.4),
     (["HALT", "HALT", "HALT", "HALT", "HALT"], "the last frame", 0.4),  # never engaged
+    # stopped, resumed, then halted for good: the halt that ended it (a replay of a run stopped
+    # and resumed from the live page had shown the operator's stop)
+    (["HALT", "FOLLOW", "HALT", "FOLLOW", "HALT", "HALT"], "the halt", 0.4),
+    (["HALT", "FOLLOW", "HALT", "FOLLOW", "FOLLOW"], "the last frame", 0.4),  # resumed to the end
 ])
 def test_the_poster_is_the_outcome(tmp_path: Path, states: list[str], shows: str,
                                    time_s: float) -> None:
