@@ -259,8 +259,12 @@ class RunSession:
         """Publish the last status (with the end reason) to the terminal and the live page, stop
         the keys, the page and the status line, finish the recording (summary.json: the end
         reason and what ended the loop, so a replay decides the same); the summary lines."""
-        self.final_status = {**self._status, "end_reason": end.text,
-                             "exit_code": exit_code}
+        # the run's end, not its closing stop: the last step published is that stop's, and
+        # the page had shown OPERATOR_STOP as the reason of a run whose duration was reached
+        # (an instructor's review); the robot is stopped now, whatever state it ended in
+        self.final_status = {**self._status, "state": "HALT",
+                             "halt_reason": end.halt_reason or f"the run ended: {end.text}",
+                             "events": [], "end_reason": end.text, "exit_code": exit_code}
         self.printer.publish(self.final_status)
         if self.view is not None:
             self.view.publish(self.final_status, None)

@@ -168,6 +168,9 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
                                                 "'conn').textContent]") or ["", ""])[1]
                                    .startswith("the run has ended; this page no longer"), 20.0)
         seen["ended_text"] = js(browser, "return document.getElementById('ended').textContent")
+        # nothing is left to press once the run has ended (Resume had been enabled a moment,
+        # then Stop alone, under "the run has ended": an instructor's review)
+        seen["buttons_ended"] = buttons()
 
     code = run_beside(operator, ["--camera", str(clip), "--base", "sim", "--view", str(port),
                                  "--record", str(record), "--config", str(config)])
@@ -190,6 +193,7 @@ def test_the_page_shows_the_run_and_its_stop_button_halts_it(
     assert seen["buttons_halt"] == {"start": False, "resume": True, "stop": False}
     assert seen.get("ended"), seen
     assert seen["ended_text"] == "run ended: operator stop (SIGINT)", seen
+    assert seen["buttons_ended"] == {"start": False, "resume": False, "stop": False}, seen
     assert seen["screenshot"].stat().st_size > 10_000
     assert "stop requested (page)" in out, "the page's stop is announced like the others"
     assert "Traceback" not in out + err
