@@ -95,6 +95,7 @@ NEEDS_HARDWARE = {
     "lanewarden base drive --linear 0.1 --duration 2": "a Kobuki (the wheels turn)",
     "lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/": "camera 0",
     "lanewarden calibrate capture --camera 0 --pattern 9x6 --out shots/ --count 25": "camera 0",
+    "lanewarden calibrate capture --camera 0 --pattern 9x6 --count 1 --out floor/": "camera 0",
     "lanewarden run --camera 0 --calibration camera.yaml --view 8080": "camera 0 and a Kobuki",
     "lanewarden run --camera 0 --base none": "camera 0",
 }
