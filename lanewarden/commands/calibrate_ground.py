@@ -186,8 +186,10 @@ def _payload(pose: CameraPose, method: str, summary: GroundSummary,
 def _read_photo(calibration: CameraCalibration, path: Path,
                        flag: str) -> np.ndarray:
     image, why = read_image(path)
-    if image is None:
-        raise UsageError(f"{flag} '{path}': {why}")
+    if image is None:  # what the photo is, and how to take one (a headless Pi has no camera app)
+        raise UsageError(f"{flag} '{path}': {why}; expected a photo from the robot's camera of "
+                         "the chessboard lying flat on the floor (lanewarden calibrate capture "
+                         "--camera 0 --pattern COLSxROWS --count 1 --out DIR takes one)")
     height, width = image.shape[:2]
     if (width, height) != tuple(calibration.image_size):
         raise UsageError(

@@ -240,6 +240,11 @@ def test_an_upside_down_photo_exits_2(photo: tuple[FloorPhoto, Path], intrinsics
     (["--height-m", "nan", "--pitch-deg", "30"], "Invalid value for '--height-m'"),
     (["--board-center-m", "0.5"], "Invalid value for '--board-center-m': '0.5': expected X,Y"),
     (["--square", "0"], "Invalid value for '--square'"),
+    # a photo not taken yet: what it is and how to take one (an instructor's review)
+    (["--pattern", "9x6", "--square", "0.03", "--board-center-m", "0.55,0", "--image",
+      "floor.jpg"], "--image 'floor.jpg': no such file; expected a photo from the robot's "
+     "camera of the chessboard lying flat on the floor (lanewarden calibrate capture --camera 0 "
+     "--pattern COLSxROWS --count 1 --out DIR takes one)"),
 ])
 def test_bad_invocations_are_one_line_and_exit_2(
         intrinsics: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
