@@ -21,7 +21,7 @@ import json
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar, get_args
 
 import numpy as np
 import yaml
@@ -231,7 +231,13 @@ def load_campaign_spec(name_or_file: str) -> tuple[CampaignSpec, Path]:
         hint = f"did you mean '{close[0]}'? " if close else ""
         raise ScenarioError(f"--spec {name_or_file}: no such spec file; {hint}expected "
                             f"'{DEFAULT_SPEC}' (the built-in spec) or a YAML file")
-    spec = _validated(_read_mapping(path, "campaign spec"), path, "campaign spec", CampaignSpec)
+    data = _read_mapping(path, "campaign spec")
+    try:
+        spec = _validated(data, path, "campaign spec", CampaignSpec)
+    except ScenarioError as exc:
+        if more := _problems_beside(data, path):
+            raise ScenarioError("\n".join([str(exc), *more])) from None
+        raise
     _check_draws(spec, path)
     return spec, path
 
@@ -263,10 +269,11 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
     unread = False  # a scenario that does not resolve: the dressing below reads the first one
     bases: dict[str, dict[str, Any]] = {}  # each scenario's data, what a choice is laid over
     for i, name in enumerate(spec.scenarios):
-        try:
-            bases[name] = _resolve(name, path).model_dump(mode="json", exclude_defaults=True)
-        except ScenarioError as exc:
-            problems.append(f"{path}: scenarios.{i} = {name!r}: {exc}")
+        base, problem = _scenario_base(i, name, path)
+        if base is not None:
+            bases[name] = base
+        if problem is not None:
+            problems.append(problem)
             unread = True
         if all(name in c.exclude_scenarios for c in spec.cameras):
             problems.append(f"{path}: scenarios.{i} = {name!r}: every camera excludes it "
@@ -301,37 +308,71 @@ def _check_draws(spec: CampaignSpec, path: Path) -> None:
                     break  # (one line per choice)
     problems += _config_problems(spec, path)
     for i, fault in enumerate(spec.faults):
-        # Every value a draw can give at its extremes (each one_of option, each end of a range;
-        # every combination while they are few): three random draws had let {one_of: [99, 2]}
-        # through, and run 0 then failed.
-        try:
-            options = {key: _extremes(value, f"faults.{i}.params.{key}")
-                       for key, value in fault.params.items()}
-        except ValueError as exc:  # (the line names the key: faults.{i}.params.{key})
-            problems.append(f"{path}: {_one_line(exc)}")
-            continue
-        late = [at for at in options.get("at_s", []) if isinstance(at, int | float)
-                and not isinstance(at, bool) and at >= spec.max_time_s]
-        if late:
-            # as for fault_start_s: a fault set to start after the runs end never takes effect,
-            # and every run that drew it was an error
-            problems.append(f"{path}: faults.{i} ({fault.kind}): params.at_s = {max(late):g}: "
-                            f"the runs end at max_time_s {spec.max_time_s:g} s: expected a "
-                            "start below it")
-            continue
-        for params in _combinations(options):
-            try:
-                FaultSpec.model_validate({"kind": fault.kind, **_placement(fault.kind, params),
-                                          **params})
-            except ValidationError as exc:  # worded as a scenario file's problems are
-                problems.append(validation_error_lines(
-                    str(path), exc, FaultSpec, prefix=("faults", i, "params")))
-                break
-            except ValueError as exc:
-                problems.append(f"{path}: faults.{i} ({fault.kind}): {_one_line(exc)}")
-                break
+        if problem := _fault_problem(i, fault.kind, fault.params, spec.max_time_s, path):
+            problems.append(problem)
     if problems:
         raise ScenarioError("\n".join(problems))
+
+
+def _scenario_base(i: int, name: str, path: Path) -> tuple[dict[str, Any] | None, str | None]:
+    """Scenario `name` (the spec's `scenarios.{i}`) as data a choice is laid over, or the line
+    saying why it does not resolve."""
+    try:
+        return _resolve(name, path).model_dump(mode="json", exclude_defaults=True), None
+    except ScenarioError as exc:
+        return None, f"{path}: scenarios.{i} = {name!r}: {exc}"
+
+
+def _fault_problem(i: int, kind: str, params: dict[str, Any], max_time_s: float,
+                   path: Path) -> str | None:
+    """Why fault `faults.{i}` (`kind` with its parameter ranges) can draw a fault that is not
+    valid, in one line or a few (None: every draw is valid). Every value a draw can give at its
+    extremes is tried (each one_of option, each end of a range; every combination while they
+    are few): three random draws had let {one_of: [99, 2]} through, and run 0 then failed."""
+    try:
+        options = {key: _extremes(value, f"faults.{i}.params.{key}")
+                   for key, value in params.items()}
+    except ValueError as exc:  # (the line names the key: faults.{i}.params.{key})
+        return f"{path}: {_one_line(exc)}"
+    late = [at for at in options.get("at_s", []) if isinstance(at, int | float)
+            and not isinstance(at, bool) and at >= max_time_s]
+    if late:
+        # as for fault_start_s: a fault set to start after the runs end never takes effect,
+        # and every run that drew it was an error
+        return (f"{path}: faults.{i} ({kind}): params.at_s = {max(late):g}: the runs end at "
+                f"max_time_s {max_time_s:g} s: expected a start below it")
+    for drawn in _combinations(options):
+        try:
+            FaultSpec.model_validate({"kind": kind, **_placement(kind, drawn), **drawn})
+        except ValidationError as exc:  # worded as a scenario file's problems are
+            return validation_error_lines(str(path), exc, FaultSpec,
+                                          prefix=("faults", i, "params"))
+        except ValueError as exc:
+            return f"{path}: faults.{i} ({kind}): {_one_line(exc)}"
+    return None
+
+
+def _problems_beside(data: dict[str, Any], path: Path) -> list[str]:
+    """A spec that fails its own checks: the scenario names and fault parameters that can still
+    be checked in its data, so that one run shows every problem (a safety reviewer's spec with
+    six typos took two rounds: these checks had waited for a spec that passes)."""
+    problems = []
+    scenarios = data.get("scenarios")
+    for i, name in enumerate(scenarios if isinstance(scenarios, list) else []):
+        if isinstance(name, str) and (problem := _scenario_base(i, name, path)[1]):
+            problems.append(problem)
+    max_time_s = data.get("max_time_s", CampaignSpec.model_fields["max_time_s"].default)
+    if not isinstance(max_time_s, int | float) or isinstance(max_time_s, bool):
+        max_time_s = CampaignSpec.model_fields["max_time_s"].default
+    faults = data.get("faults")
+    for i, fault in enumerate(faults if isinstance(faults, list) else []):
+        if not isinstance(fault, dict) or fault.get("kind") not in get_args(FaultKind):
+            continue  # (its own line says what is wrong with it)
+        params = fault.get("params", {})
+        if isinstance(params, dict) and all(isinstance(key, str) for key in params) and (
+                problem := _fault_problem(i, fault["kind"], params, float(max_time_s), path)):
+            problems.append(problem)
+    return problems
 
 
 def _config_problems(spec: CampaignSpec, path: Path) -> list[str]:

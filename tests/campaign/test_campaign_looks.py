@@ -216,3 +216,21 @@ def test_a_misspelt_fault_kind_gets_the_closest_one_first(tmp_path: Path, kind: 
     with pytest.raises(ScenarioError) as info:
         load_campaign_spec(str(tmp_path / "spec.yaml"))
     assert str(info.value).startswith(f"{tmp_path / 'spec.yaml'}: {said}"), str(info.value)
+
+
+def test_every_problem_of_a_spec_is_said_at_once(tmp_path: Path) -> None:
+    """A safety reviewer's spec with several typos took two rounds: the scenario names and the
+    fault parameters were checked only once the spec's own structure passed."""
+    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    spec["controller"] = "superviesd"  # a structural problem ...
+    spec["scenarios"] = ["lane-end"]  # ... and the two kinds checked after it
+    spec["faults"] = [{"kind": "glare_sweep", "params": {"intensity": [0.5, 2.0]}}]
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_campaign_spec(str(path))
+    lines = str(info.value).splitlines()
+    assert [line.split(": ")[1].split(" =")[0] for line in lines] == [
+        "controller", "scenarios.0", "faults.0.params.intensity"], lines
+    assert lines[2] == (f"{path}: faults.0.params.intensity = 2.0: expected a finite number with "
+                        "0 <= value <= 1")
