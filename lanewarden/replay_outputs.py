@@ -182,12 +182,12 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
         if video is not None:
             video.close()
     end = _run_end(source, records)
-    halt = first_halt(source, records, end)
-    metrics = replay_metrics(source, records, divergences, distance, config, found=(end, halt))
+    halt, last = first_halt(source, records, end), ending_halt(source, records, end)
+    metrics = replay_metrics(source, records, divergences, distance, config,
+                             found=(end, halt, last))
     metrics.update(controller=request.controller, config=source.config_origin,
                    wall_time_s=round(time.perf_counter() - started, 3))
-    _write_plot(out / "plot.png", source, records, times, config, halt,
-                ending_halt(source, records, end))
+    _write_plot(out / "plot.png", source, records, times, config, halt, last)
     outputs = ["metrics.json", "plot.png", "report.html", "run.jsonl"]
     if video is not None:
         outputs += ["video.mp4"] + (["poster.jpg"] if (out / "poster.jpg").exists() else [])
@@ -197,7 +197,8 @@ def run_replay(request: ReplayRequest) -> dict[str, Any]:
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
         write_report(out / "report.html", {RUN_NAME: metrics}, summary_sentence(metrics),
                      title=f"Lanewarden replay: {source.name} ({source.kind})",
-                     folders={RUN_NAME: ""})
+                     folders={RUN_NAME: ""},
+                     labels={"sim_time_s": "recorded time replayed (s)"})  # not simulated
     except OSError as exc:
         raise OutputError(f"{out}: cannot write the replay's outputs ({exc})") from exc
     folder.finish()
@@ -235,13 +236,18 @@ def _run_end(source: ReplaySource, records: list[Any]) -> EndReason:
                          _loop_end(source))
 
 
+def _loop_records(source: ReplaySource, records: list[Any]) -> list[Any]:
+    """The records of the run's loop: not the runner's closing stop after it."""
+    steps = _loop_end(source).steps
+    return records if steps is None else records[:steps]
+
+
 def first_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int | None:
     """The first halt after engaging, as the run's end reason counts halts: not the runner's
     closing stop (the steps after the loop's end) and not a clip's own end (a run that was
     engaged when its clip ran out: `end.state` is not HALT), which `replay` had reported as
     `halted: true` with no reason."""
-    steps = _loop_end(source).steps
-    considered = records if steps is None else records[:steps]
+    considered = _loop_records(source, records)
     if end.kind is LoopEndKind.CLIP and end.state != "HALT":
         while considered and considered[-1].state == "HALT":
             considered = considered[:-1]
@@ -254,8 +260,7 @@ def ending_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int
     engaging, the runner's closing stop not counted; None when it ended engaged (or never
     engaged). A run stopped and resumed from the page had been described by its first halt,
     the operator's stop, not by the one that ended it (an instructor's review)."""
-    steps = _loop_end(source).steps
-    considered = records if steps is None else records[:steps]
+    considered = _loop_records(source, records)
     if (end.kind is LoopEndKind.CLIP and end.state != "HALT") or not considered \
             or considered[-1].state != "HALT":
         return None
@@ -267,20 +272,20 @@ def ending_halt(source: ReplaySource, records: list[Any], end: EndReason) -> int
 
 def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[Divergence],
                    distance_m: float, config: LanewardenConfig | None = None, *,
-                   found: tuple[EndReason, int | None] | None = None) -> dict[str, Any]:
+                   found: tuple[EndReason, int | None, int | None] | None = None
+                   ) -> dict[str, Any]:
     """Numbers for metrics.json (the keys `sim` uses where they apply); with the `config` the
-    steps ran under, `before_halt` too (what perception gave the supervisor before its first
-    halt after engaging). `found`: the run's end reason and first halt when the caller has them
-    already (`_run_end`, `first_halt`)."""
+    steps ran under, `before_halt` too (what perception gave the supervisor before the halt the
+    run ended in). `found`: the run's end reason, first halt and ending halt when the caller has
+    them already (`_run_end`, `first_halt`, `ending_halt`)."""
     states: list[str] = []
     for record in records:
         if record.state not in states:
             states.append(record.state)
     if found is None:
         end = _run_end(source, records)
-        found = end, first_halt(source, records, end)
-    end, halt = found
-    last = ending_halt(source, records, end)
+        found = end, first_halt(source, records, end), ending_halt(source, records, end)
+    end, halt, last = found
     first_time = records[0].time_s if records else 0.0
     engaged_steps = sum(r.state != "HALT" for r in records)
     missing = missing_frames(source)

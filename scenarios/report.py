@@ -67,15 +67,15 @@ def format_position(position: Mapping[str, object]) -> str:
     return "-"
 
 
-def comparison_rows(runs: Mapping[str, Mapping[str, object]]) -> list[list[str]]:
-    """Header + one row per metric, one column per run."""
+def comparison_rows(runs: Mapping[str, Mapping[str, object]],
+                    labels: Mapping[str, str] | None = None) -> list[list[str]]:
+    """Header + one row per metric, one column per run; `labels`: a row's label in place of
+    TABLE_ROWS' (a replay's time is a recording's, not a simulation's)."""
     names = list(runs)
     rows = [["", *names]]
-    replayed = bool(runs) and all("source_kind" in m for m in runs.values())
     for key, label in TABLE_ROWS:
-        if key == "sim_time_s" and replayed:  # a recording's time, not a simulation's
-            label = "recorded time replayed (s)"
-        rows.append([label, *(format_metric(runs[n], key) for n in names)])
+        rows.append([(labels or {}).get(key, label),
+                     *(format_metric(runs[n], key) for n in names)])
     return rows
 
 
@@ -298,10 +298,12 @@ def _run_section(name: str, folder: str, metrics: Mapping[str, object], heading:
 def write_report(path: Path, runs: Mapping[str, Mapping[str, object]], summary: str,
                  title: str = "Lanewarden demo: the lecture's course",
                  folders: Mapping[str, str] | None = None,
-                 headings: Mapping[str, str] | None = None) -> None:
+                 headings: Mapping[str, str] | None = None,
+                 labels: Mapping[str, str] | None = None) -> None:
     """report.html for `runs` (name -> metrics). `folders`: each run's folder relative to the
-    page (default: its name; "" for the page's own folder); `headings`: each run's heading."""
-    rows = comparison_rows(runs)
+    page (default: its name; "" for the page's own folder); `headings`: each run's heading;
+    `labels`: the table's own labels of some rows (`comparison_rows`)."""
+    rows = comparison_rows(runs, labels)
     head = "".join(f"<th>{html.escape(c)}</th>" for c in rows[0])
     body = "".join(
         "<tr>" + "".join(

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from lanewarden.scenarios.campaign.config import CampaignConfig
-from lanewarden.scenarios.metrics import motion_after_halt
+from lanewarden.scenarios.metrics import first_halt_index, motion_after_halt
 from lanewarden.scenarios.spec import FaultSpec
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.wording import counted
@@ -212,16 +212,6 @@ class Verdict:
                 "halt_time_s": self.halt_time_s, "time_to_halt_s": self.time_to_halt_s}
 
 
-def _first_halt(states: Sequence[str]) -> int | None:
-    engaged = False
-    for i, state in enumerate(states):
-        if state != "HALT":
-            engaged = True
-        elif engaged:
-            return i
-    return None
-
-
 def _code(reason: str | None) -> str:
     return (reason or "").split(":")[0].strip()
 
@@ -248,7 +238,7 @@ def classify(facts: RunFacts, config: CampaignConfig, limits: Limits) -> Verdict
         return Verdict("error", "fault never took effect: " + ", ".join(missing))
     if not any(s != "HALT" for s in facts.states):
         return Verdict("error", f"never engaged ({facts.end_reason})")
-    halt = _first_halt(facts.states)
+    halt = first_halt_index(facts.states) or None  # (0: never engaged, refused above)
     halt_s = None if halt is None else float(facts.times[halt])
 
     def verdict(outcome: str, reason: str, answered: int | None = None) -> Verdict:
