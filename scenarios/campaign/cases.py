@@ -141,13 +141,17 @@ class FaultRange(_Model):
     params: dict[str, Any] = {}
 
 
+#: The most scenarios, and the most fault kinds, a spec lists.
+MAX_LISTED = 200
+
+
 class CampaignSpec(_Model):
     """What a campaign draws its runs from."""
 
     name: Annotated[str, Field(min_length=1, max_length=60, pattern=r"^[A-Za-z0-9_.-]+$")]
     description: str = ""
     controller: Literal["supervised", "lecture"] = "supervised"
-    scenarios: Annotated[list[str], Field(min_length=1, max_length=200)]
+    scenarios: Annotated[list[str], Field(min_length=1, max_length=MAX_LISTED)]
     cameras: Annotated[list[CameraChoice], Field(min_length=1, max_length=50)] = [
         CameraChoice(name="320x240")]
     #: floor seeds are drawn from range(floor_seeds); few seeds let workers reuse the floor
@@ -158,7 +162,7 @@ class CampaignSpec(_Model):
     #: when a timed fault starts, unless its params say (s)
     fault_start_s: tuple[Annotated[float, Field(ge=0.0, le=600.0)],
                          Annotated[float, Field(ge=0.0, le=600.0)]] = (2.5, 12.0)
-    faults: Annotated[list[FaultRange], Field(min_length=1, max_length=200)]
+    faults: Annotated[list[FaultRange], Field(min_length=1, max_length=MAX_LISTED)]
     #: floors, tapes and camera effects drawn per run (none: each scenario's own)
     floors: Annotated[list[FloorChoice], Field(max_length=50)] = []
     tapes: Annotated[list[TapeChoice], Field(max_length=50)] = []
@@ -357,15 +361,18 @@ def _problems_beside(data: dict[str, Any], path: Path) -> list[str]:
     be checked in its data, so that one run shows every problem (a safety reviewer's spec with
     six typos took two rounds: these checks had waited for a spec that passes)."""
     problems = []
-    scenarios = data.get("scenarios")
-    for i, name in enumerate(scenarios if isinstance(scenarios, list) else []):
+
+    def listed(key: str) -> list[Any]:  # (a list longer than a spec may be: its own line says
+        value = data.get(key)           # so; each entry would cost a check)
+        return value if isinstance(value, list) and len(value) <= MAX_LISTED else []
+
+    for i, name in enumerate(listed("scenarios")):
         if isinstance(name, str) and (problem := _scenario_base(i, name, path)[1]):
             problems.append(problem)
     max_time_s = data.get("max_time_s", CampaignSpec.model_fields["max_time_s"].default)
     if not isinstance(max_time_s, int | float) or isinstance(max_time_s, bool):
         max_time_s = CampaignSpec.model_fields["max_time_s"].default
-    faults = data.get("faults")
-    for i, fault in enumerate(faults if isinstance(faults, list) else []):
+    for i, fault in enumerate(listed("faults")):
         if not isinstance(fault, dict) or fault.get("kind") not in get_args(FaultKind):
             continue  # (its own line says what is wrong with it)
         params = fault.get("params", {})

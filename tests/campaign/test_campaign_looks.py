@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 import yaml
 
-from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
+from lanewarden.scenarios.campaign.cases import MAX_LISTED, draw_case, load_campaign_spec
 from lanewarden.scenarios.campaign.report import summarize, write_report
 from lanewarden.scenarios.campaign.store import ResultStore
 from lanewarden.scenarios.errors import ScenarioError
@@ -234,3 +234,20 @@ def test_every_problem_of_a_spec_is_said_at_once(tmp_path: Path) -> None:
         "controller", "scenarios.0", "faults.0.params.intensity"], lines
     assert lines[2] == (f"{path}: faults.0.params.intensity = 2.0: expected a finite number with "
                         "0 <= value <= 1")
+
+
+def test_a_list_longer_than_a_spec_may_hold_is_not_checked_entry_by_entry(tmp_path: Path) -> None:
+    """The checks beside a failing spec are bounded as the spec is: 60 000 scenario names had
+    been resolved one by one (41 s) after the line that refused their number."""
+    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    spec["controller"] = "superviesd"
+    spec["scenarios"] = ["lane-end"] * (MAX_LISTED + 1)
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_campaign_spec(str(path))
+    lines = str(info.value).splitlines()
+    assert [line.split(": ")[1].split(" =")[0] for line in lines] == [
+        "controller", "scenarios"], lines
+    assert lines[1] == (f"{path}: scenarios = a list of {MAX_LISTED + 1} items: list should have "
+                        f"at most {MAX_LISTED} items after validation, not {MAX_LISTED + 1}")
