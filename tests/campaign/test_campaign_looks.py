@@ -201,6 +201,22 @@ def test_case_files_round_trip_the_looks(tmp_path: Path) -> None:
     assert yaml.safe_load(path.read_text())["scenario"]["floor"]["kind"] == "terrazzo"
 
 
+def _refused(tmp_path: Path, **changes: object) -> tuple[Path, list[str]]:
+    """The test spec with `changes`, written and loaded: its file, and the lines refusing it."""
+    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
+    spec.update(changes)
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_campaign_spec(str(path))
+    return path, str(info.value).splitlines()
+
+
+def _keys(lines: list[str]) -> list[str]:
+    """The key each line names ('/x/spec.yaml: faults.0.kind = ...' -> 'faults.0.kind')."""
+    return [line.split(": ")[1].split(" =")[0] for line in lines]
+
+
 @pytest.mark.parametrize(("kind", "said"), [
     ("camera_freez", "faults.0.kind = 'camera_freez': did you mean 'camera_freeze'? (input "
                      "should be 'camera_freeze', 'camera_ring', "),
@@ -210,28 +226,18 @@ def test_a_misspelt_fault_kind_gets_the_closest_one_first(tmp_path: Path, kind: 
                                                           said: str) -> None:
     """A safety reviewer's review: a misspelt kind listed all 26 and suggested none, where a
     misspelt scenario or config key gets 'did you mean'."""
-    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
-    spec["faults"] = [{"kind": kind}]
-    (tmp_path / "spec.yaml").write_text(yaml.safe_dump(spec), encoding="utf-8")
-    with pytest.raises(ScenarioError) as info:
-        load_campaign_spec(str(tmp_path / "spec.yaml"))
-    assert str(info.value).startswith(f"{tmp_path / 'spec.yaml'}: {said}"), str(info.value)
+    path, lines = _refused(tmp_path, faults=[{"kind": kind}])
+    assert "\n".join(lines).startswith(f"{path}: {said}"), lines
 
 
 def test_every_problem_of_a_spec_is_said_at_once(tmp_path: Path) -> None:
     """A safety reviewer's spec with several typos took two rounds: the scenario names and the
     fault parameters were checked only once the spec's own structure passed."""
-    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
-    spec["controller"] = "superviesd"  # a structural problem ...
-    spec["scenarios"] = ["lane-end"]  # ... and the two kinds checked after it
-    spec["faults"] = [{"kind": "glare_sweep", "params": {"intensity": [0.5, 2.0]}}]
-    path = tmp_path / "spec.yaml"
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    with pytest.raises(ScenarioError) as info:
-        load_campaign_spec(str(path))
-    lines = str(info.value).splitlines()
-    assert [line.split(": ")[1].split(" =")[0] for line in lines] == [
-        "controller", "scenarios.0", "faults.0.params.intensity"], lines
+    path, lines = _refused(
+        tmp_path, controller="superviesd",  # a structural problem ...
+        scenarios=["lane-end"],  # ... and the two kinds checked after it
+        faults=[{"kind": "glare_sweep", "params": {"intensity": [0.5, 2.0]}}])
+    assert _keys(lines) == ["controller", "scenarios.0", "faults.0.params.intensity"], lines
     assert lines[2] == (f"{path}: faults.0.params.intensity = 2.0: expected a finite number with "
                         "0 <= value <= 1")
 
@@ -239,15 +245,8 @@ def test_every_problem_of_a_spec_is_said_at_once(tmp_path: Path) -> None:
 def test_a_list_longer_than_a_spec_may_hold_is_not_checked_entry_by_entry(tmp_path: Path) -> None:
     """The checks beside a failing spec are bounded as the spec is: 60 000 scenario names had
     been resolved one by one (41 s) after the line that refused their number."""
-    spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
-    spec["controller"] = "superviesd"
-    spec["scenarios"] = ["lane-end"] * (MAX_LISTED + 1)
-    path = tmp_path / "spec.yaml"
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    with pytest.raises(ScenarioError) as info:
-        load_campaign_spec(str(path))
-    lines = str(info.value).splitlines()
-    assert [line.split(": ")[1].split(" =")[0] for line in lines] == [
-        "controller", "scenarios"], lines
+    path, lines = _refused(tmp_path, controller="superviesd",
+                           scenarios=["lane-end"] * (MAX_LISTED + 1))
+    assert _keys(lines) == ["controller", "scenarios"], lines
     assert lines[1] == (f"{path}: scenarios = a list of {MAX_LISTED + 1} items: list should have "
                         f"at most {MAX_LISTED} items after validation, not {MAX_LISTED + 1}")
