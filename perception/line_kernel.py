@@ -185,6 +185,25 @@ def _pixel_index(value: float, largest: float) -> int:
 
 
 @_compiled
+def _median_and_sign(ordered: np.ndarray, threshold: float) -> tuple[float, float]:
+    """The median of a sorted row of whole-number steps (the mean of the middle two: exact) and
+    its sign: +1 above `threshold`, -1 below minus it, 0 between (never -0.0)."""
+    k = ordered.shape[0]
+    middle = (int(ordered[(k - 1) // 2]) + int(ordered[k // 2])) * 0.5
+    return middle, (1.0 if middle > threshold else (-1.0 if middle < -threshold else 0.0))
+
+
+@_compiled
+def median_signs(steps: np.ndarray, threshold: float) -> np.ndarray:
+    """Per row of whole-number steps ((rows, n) int16), the sign of its median as
+    `side_samples` reads a line's (`_median_and_sign`)."""
+    signs = np.empty(steps.shape[0])
+    for row in range(steps.shape[0]):
+        signs[row] = _median_and_sign(np.sort(steps[row]), threshold)[1]
+    return signs
+
+
+@_compiled
 def side_samples(
     gray: np.ndarray, ends: np.ndarray, unit: np.ndarray, k: int, offset_px: float,
     threshold: float, whole_threshold: int, quarter: int,
@@ -222,9 +241,7 @@ def side_samples(
             right[line, q], left[line, q] = on_right, on_left
             step[line, q] = np.int16(on_right) - np.int16(on_left)
         ordered = np.sort(step[line])
-        middle = (int(ordered[(k - 1) // 2]) + int(ordered[k // 2])) * 0.5
-        contrast[line] = middle
-        sign[line] = 1.0 if middle > threshold else (-1.0 if middle < -threshold else 0.0)
+        contrast[line], sign[line] = _median_and_sign(ordered, threshold)
         quarter_down[line] = ordered[quarter - 1] < -whole_threshold
         quarter_up[line] = ordered[k - quarter] > whole_threshold
     return step, right, left, contrast, sign, quarter_down, quarter_up

@@ -27,7 +27,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, NamedTuple, cast
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -152,7 +152,6 @@ def _operand(value: float, dtype: type[np.generic] = np.float64) -> NDArray[Any]
     return operand
 
 
-_HALF = _operand(0.5)
 _ZERO = _operand(0.0)
 
 
@@ -234,7 +233,7 @@ def _sample_setup(tape: TapeConfig, width: int) -> tuple[int, float, float, int,
     k = POLARITY_SAMPLE_FACTOR * int(tape.polarity_samples)
     threshold = float(tape.min_contrast_levels)
     return (k, max(float(tape.polarity_offset_frac_of_width) * width, 1.5), threshold,
-            _step_limits(threshold).whole, _quarter(k))
+            math.floor(threshold), _quarter(k))
 
 
 def _quarter(k: int) -> int:
@@ -314,8 +313,7 @@ def _polarity_of_samples(
     elsewhere, and their mean says "no contrast" (or the wrong sign). Whole-number steps are
     compared with the threshold's whole part: step > t exactly when step > floor(t)."""
     k = step.shape[1]
-    limits = _step_limits(tape.min_contrast_levels)
-    whole_threshold = limits.whole
+    whole_threshold = math.floor(tape.min_contrast_levels)
     whole = median_sign
     # Where a tape has a gap (a worn patch, a dash gap, the gap of a broken line coming into
     # view), the points in it show no step at all, and the median says "no contrast" once the
@@ -361,7 +359,8 @@ def _polarity_of_samples(
     if rows.size:
         least_lit = np.argsort(np.minimum(right[rows], left[rows]), axis=1,
                                kind="stable")[:, :half]
-        unlit = _signs(_median(np.take_along_axis(step[rows], least_lit, axis=1)), limits)
+        unlit = line_kernel.median_signs(np.take_along_axis(step[rows], least_lit, axis=1),
+                                         float(tape.min_contrast_levels))
         was = whole[rows]
         up, down = step[rows] > whole_threshold, step[rows] < -whole_threshold
         same = np.where((unlit > 0.0)[:, None], up, down)
@@ -451,37 +450,6 @@ def _run_from_an_end(bits: int, first: int, last: int) -> bool:
     """Whether all the bits of `first` (the row's first points), or all those of `last` (its last
     points), are set in `bits`."""
     return bits & first == first or bits & last == last
-
-
-def _median(values: NDArray[np.int16]) -> FloatArray:
-    """Per row, the median (exact in whole numbers: the middle two of the sorted values)."""
-    return _middle(np.sort(values, axis=1))
-
-
-def _middle(ordered: NDArray[np.int16]) -> FloatArray:
-    """Per row of values sorted along it, their median (the mean of the middle two)."""
-    m = ordered.shape[1]
-    return cast(FloatArray, (ordered[:, (m - 1) // 2] + ordered[:, m // 2]) * _HALF)
-
-
-class _StepLimits(NamedTuple):
-    """What a step is clear beyond (`tape.min_contrast_levels`): the threshold and minus it, as
-    `_operand`s, and for whole-number steps its whole part (`whole`)."""
-
-    above: FloatArray
-    below: FloatArray
-    whole: int
-
-
-@functools.cache
-def _step_limits(threshold: float) -> _StepLimits:
-    return _StepLimits(_operand(threshold), _operand(-threshold), math.floor(threshold))
-
-
-def _signs(median: FloatArray, limits: _StepLimits) -> FloatArray:
-    """+1 above `limits.above`, -1 below `limits.below`, 0 between (the two tests' difference as
-    floats: never -0.0)."""
-    return np.subtract(median > limits.above, median < limits.below, dtype=np.float64)
 
 
 def line_angle_deg(ux: float, uy: float) -> float:
