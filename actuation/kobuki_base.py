@@ -91,6 +91,7 @@ class KobukiBase:
         self._checksum_errors = 0
         self._malformed = 0
         self._received_at_s: float | None = None
+        self._stamp_ms: int | None = None  # the newest basic packet's own time stamp
         self._latest = FeedbackPacket()
         self._sensors: BasicSensorData | None = None
         self._hardware_version: Version | None = None
@@ -421,7 +422,14 @@ class KobukiBase:
         if packet.basic is not None:
             # Only the base's sensor stream proves a live Kobuki: a port that echoes our own
             # command frames back (loop://, a terminal with echo on) carries valid frames too.
-            self._received_at_s = arrived_s
+            # And only a packet the base stamped anew (50 a second, its u16 millisecond
+            # counter): one repeating the last one's stamp is the same packet replayed, no news
+            # of the base, and leaves the feedback as old as it was (the dead-man's rule too,
+            # `DeadmanLogic.on_feedback`: each layer holds it without the other).
+            stamp = packet.basic.timestamp_ms
+            if stamp != self._stamp_ms:
+                self._received_at_s = arrived_s
+            self._stamp_ms = stamp
             self._packets += 1
             self._latest = packet
             self._sensors = packet.basic

@@ -78,6 +78,8 @@ class KobukiStandIn:
         self.cliff = 0
         self.wheel_drop = 0
         self.buttons = 0
+        #: a device replaying one packet: the base's time stamp no longer advances
+        self.replaying = False
         self.received: list[ReceivedPacket] = []
         self.sensor_changes: list[tuple[float, tuple[int, int, int]]] = []
         self.feedback_sent = 0
@@ -195,7 +197,8 @@ class KobukiStandIn:
                 right_mm_s = omega * (radius + HALF_WHEEL_BASE_MM)
             self._left_ticks += left_mm_s / 1000.0 * self.period_s * TICKS_PER_METRE
             self._right_ticks += right_mm_s / 1000.0 * self.period_s * TICKS_PER_METRE
-            self._timestamp_ms = (self._timestamp_ms + round(self.period_s * 1000)) % 65536
+            if not self.replaying:
+                self._timestamp_ms = (self._timestamp_ms + round(self.period_s * 1000)) % 65536
             basic = struct.pack("<HBBBHHbbBBBB", self._timestamp_ms, bumper,
                                 wheel_drop, cliff,
                                 int(self._left_ticks) % 65536, int(self._right_ticks) % 65536,

@@ -6,6 +6,7 @@ generous deadline. Latencies are measured in benchmarks/deadman_latency.py, not 
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import select
@@ -194,6 +195,28 @@ def test_checksum_errors_are_counted_and_the_stream_survives() -> None:
     with KobukiStandIn(corrupt_every=3) as standin, KobukiBase.open(standin.port) as base:
         _wait_packets(base, 6)
         assert base.link_health(time.monotonic()).checksum_errors >= 2
+
+
+def test_a_packet_repeating_its_time_stamp_is_no_fresh_feedback() -> None:
+    # The control side's own rule, beside the dead-man's: a device replaying one packet (its
+    # time stamp no longer advancing) must not keep the feedback fresh for the gate, which halts
+    # on BASE_LINK_LOST once it is older than base_link_timeout_s. The injected clock counts
+    # its calls, so each arrival has its own time.
+    calls = itertools.count()
+    with KobukiStandIn() as standin, KobukiBase.open(
+            standin.port, clock=lambda: float(next(calls))) as base:
+        _wait_packets(base, 2)
+        streaming = base.feedback(0.0).received_at_s
+        _wait_packets(base, 2)
+        assert base.feedback(0.0).received_at_s != streaming  # fresh packets refresh it
+        standin.replaying = True
+        _wait_packets(base, 3)  # (the one in flight when it began is fresh)
+        replayed_from = base.feedback(0.0).received_at_s
+        _wait_packets(base, 5)
+        assert base.feedback(0.0).received_at_s == replayed_from
+        standin.replaying = False
+        _wait_packets(base, 2)
+        assert base.feedback(0.0).received_at_s != replayed_from  # stamped anew: fresh again
 
 
 def test_unchanged_command_is_repeated_at_a_steady_rate(standin: KobukiStandIn) -> None:

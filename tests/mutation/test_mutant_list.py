@@ -22,6 +22,7 @@ SAFETY_FILES = {
     "perception/edge_choice.py", "lanewarden/survey.py", "supervisor/center_offset.py",
     "perception/detector.py", "lanewarden/runner.py", "lanewarden/survey_run.py",
     "lanewarden/commands/base.py", "supervisor/slope_filter.py", "actuation/kobuki_port.py",
+    "actuation/kobuki_base.py",
 }  # fmt: skip
 
 
