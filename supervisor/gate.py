@@ -52,7 +52,12 @@ from lanewarden.supervisor.events import (
     halt_reason,
     ordered,
 )
-from lanewarden.supervisor.hazards import base_hazard_events, battery_events, feedback_age_s
+from lanewarden.supervisor.hazards import (
+    base_hazard_events,
+    battery_events,
+    feedback_age_s,
+    stale_feedback_detail,
+)
 from lanewarden.supervisor.limiter import CommandLimiter, CommandLimits
 from lanewarden.supervisor.state_machine import NOT_STARTED_REASON
 
@@ -176,7 +181,8 @@ class SafetyGate:
         found.update(battery_events(inputs.feedback, *self._battery_v))
         age = feedback_age_s(inputs.feedback, self._first_now, now)
         if not math.isfinite(age) or age > self._link_timeout_s:
-            found.setdefault(Event.BASE_LINK_LOST, "")
+            found.setdefault(Event.BASE_LINK_LOST,
+                             stale_feedback_detail(inputs.feedback, age, self._link_timeout_s))
         return found
 
 

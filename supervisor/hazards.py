@@ -62,3 +62,11 @@ def feedback_age_s(feedback: BaseFeedback | None, first_step_s: float, now: floa
     """Seconds since the newest feedback was received (since `first_step_s` before any)."""
     received = None if feedback is None else feedback.received_at_s
     return now - (first_step_s if received is None else received)
+
+
+def stale_feedback_detail(feedback: BaseFeedback | None, age_s: float, limit_s: float) -> str:
+    """What BASE_LINK_LOST measured when the feedback grew too old, one line (as FRAME_STALE's
+    `Watchdog.stale_detail`): how old the newest feedback is, or that none came at all."""
+    if feedback is None or feedback.received_at_s is None:
+        return f"no feedback at all in {age_s:.2f} s"
+    return f"no new feedback: the newest arrived {age_s:.2f} s ago, over the limit {limit_s:g} s"

@@ -132,7 +132,8 @@ def test_a_misbehaving_controller_never_reaches_the_base_unfiltered() -> None:
         loop.step(k * DT)
     halted = [r for r in records if r.time_s > 61 * DT and r.state == "HALT"]
     assert halted and halted[0].time_s <= 61 * DT + 0.2 + DT + 1e-9
-    assert halted[0].halt_reason == LINK_LOST
+    assert halted[0].halt_reason == (
+        f"{LINK_LOST} (no new feedback: the newest arrived 0.20 s ago, over the limit 0.2 s)")
     assert all(c == STOP for t, c in sent if t >= halted[0].time_s)
 
     # It was told every hazard, and what was really sent; it just ignored them.
@@ -170,7 +171,8 @@ def test_nothing_non_zero_leaves_while_halted_on_a_simulated_base() -> None:
         ({"events": frozenset({Event.BASE_LINK_LOST}),
           "event_details": {Event.BASE_LINK_LOST: "/dev/ttyUSB0: write failed"}},
          f"{LINK_LOST} (/dev/ttyUSB0: write failed)"),
-        ({"feedback_age_s": 0.21}, LINK_LOST),
+        ({"feedback_age_s": 0.21},
+         f"{LINK_LOST} (no new feedback: the newest arrived 0.21 s ago, over the limit 0.2 s)"),
         ({"feedback_bits": {"battery_v": 13.1}},
          "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the base browns "
          "out (13.1 V)"),
@@ -274,6 +276,16 @@ def test_bring_up_gate_ramps_to_the_base_limits_and_halts_on_hazards() -> None:
     assert (hit.command, hit.halt_reason) == (STOP, "WHEEL_DROP: wheel dropped (right)")
 
 
+def test_a_base_that_never_answered_halts_saying_so() -> None:
+    gate = SafetyGate(Misbehaving(), CONFIG)
+    silent = BaseFeedback(received_at_s=None)
+    gate.step(_inputs(0.0, start_requested=True, feedback=silent), 0.0)
+    # steps 1/30 .. 7/30 s: over the 0.2 s limit at the seventh, 0.233 s
+    outputs = _run(gate, 7, start=DT, feedback=silent)
+    assert not any("BASE_LINK_LOST" in (o.halt_reason or "") for o in outputs[:6])
+    assert outputs[6].halt_reason == f"{LINK_LOST} (no feedback at all in 0.23 s)"
+
+
 # --- one truth: the events the gate halts on are its own -------------------------------------
 
 #: Written out: the gate latches these, whatever the controller and whatever the event table says.
@@ -282,7 +294,9 @@ HAZARDS = {
     "bumper": ({"feedback_bits": {"bumper": 4}}, "BUMPER: bumper pressed (left)"),
     "cliff": ({"feedback_bits": {"cliff": 1}}, "CLIFF: cliff sensor triggered (right)"),
     "wheel-drop": ({"feedback_bits": {"wheel_drop": 3}}, "WHEEL_DROP: wheel dropped (left, right)"),
-    "link-lost": ({"feedback_age_s": 0.5}, LINK_LOST),
+    "link-lost": ({"feedback_age_s": 0.5},
+                  f"{LINK_LOST} (no new feedback: the newest arrived 0.50 s ago, over the limit "
+                  "0.2 s)"),
     "battery-critical": ({"feedback_bits": {"battery_v": 12.0}},
                          "BATTERY_CRITICAL: battery below battery_critical_v: charge it before the "
                          "base browns out (12.0 V)"),
