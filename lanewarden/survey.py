@@ -686,9 +686,23 @@ def what_if_lines(what_if: WhatIf, before: SurveyFigures) -> list[str]:
         f"  with it: lane frames with a decision {lane_after.decisions} (was "
         f"{lane_before.decisions}), confident {lane_after.confident} (was "
         f"{lane_before.confident}); {engage_line(after.verdict.engage)}",
-        f"  to drive with it, add to --config: {setting.as_config}; what it costs: "
-        f"{setting.costs}",
+        f"  {what_if_advice(what_if)}",
     ]
+
+
+def what_if_advice(what_if: WhatIf) -> str:
+    """How to drive with a stricter setting and what it costs, only where it makes the survey
+    SAFE with the supervisor still engaging; otherwise why not to (a new user was told to add
+    a setting that left the survey NOT SAFE, or with which the robot never engages)."""
+    setting, verdict = what_if.setting, what_if.figures.verdict
+    if not verdict.safe:
+        return ("it does not make these frames safe: not a setting to drive with (look at the "
+                "pictures of the false lanes left, and check their labels)")
+    if verdict.engage is None or not verdict.engage.would_engage:
+        return ("it makes these frames safe, but the supervisor never engages with it: not a "
+                "setting to drive with")
+    return (f"to drive with it, set in --config (merged into its perception: section if it has "
+            f"one): {setting.as_config}; what it costs: {setting.costs}")
 
 
 def what_if_json(what_if: WhatIf) -> dict[str, Any]:
@@ -697,7 +711,7 @@ def what_if_json(what_if: WhatIf) -> dict[str, Any]:
     lane = figures.classes[LANE]
     return {
         "setting": setting.key, "value": setting.value, "config": setting.as_config,
-        "does": setting.does, "costs": setting.costs,
+        "does": setting.does, "costs": setting.costs, "advice": what_if_advice(what_if),
         "verdict": _verdict_json(figures.verdict),
         "lane": {"frames": lane.frames, "decisions": lane.decisions,
                  "confident": lane.confident},

@@ -809,9 +809,9 @@ def test_a_not_safe_survey_tries_the_stricter_setting_on_the_same_frames(
         "  with it: lane frames with a decision 1 (was 1), confident 1 (was 1); supervisor: "
         "engages on 1 of 1 lane stills held in view for 1.0 s after a start (after 0.30 s at the "
         "most)",
-        "  to drive with it, add to --config: perception: {tape: {unverifiable_score: 0}}; what "
-        "it costs: a bend whose inner tape leaves the view is then no lane, and the robot halts "
-        "there (LANE_LOST)"]
+        "  to drive with it, set in --config (merged into its perception: section if it has "
+        "one): perception: {tape: {unverifiable_score: 0}}; what it costs: a bend whose inner "
+        "tape leaves the view is then no lane, and the robot halts there (LANE_LOST)"]
     document = json.loads((tmp_path / "out" / "survey.json").read_text())
     [what_if] = document["what_if"]
     assert (what_if["setting"], what_if["value"], what_if["verdict"]["safe"],
@@ -821,8 +821,8 @@ def test_a_not_safe_survey_tries_the_stricter_setting_on_the_same_frames(
     assert document["verdict"]["safe"] is False
     page = (tmp_path / "out" / "report.html").read_text()
     assert "Tried on the same frames: a stricter setting" in page
-    assert "<p>to drive with it, add to --config: perception: {tape: {unverifiable_score: 0}};" \
-        in page
+    assert ("<p>to drive with it, set in --config (merged into its perception: section if it "
+            "has one): perception: {tape: {unverifiable_score: 0}};") in page
     # without --jitter the same stills are SAFE: nothing tried
     code, out, _ = _survey_jetbot_few(tmp_path, capsys, [SHADING, SLIVER])
     assert code == 0 and "what if" not in out

@@ -13,11 +13,15 @@ import pytest
 import lanewarden.survey as survey_module
 from lanewarden.errors import InputFileError
 from lanewarden.survey import (
+    STRICTER_SETTINGS,
     ConfidentRun,
     EngageFigures,
     FrameResult,
     LabelledFrame,
     OnItsOwn,
+    SurveyFigures,
+    Verdict,
+    WhatIf,
     _engage_json,
     _result_json,
     class_figures,
@@ -32,6 +36,7 @@ from lanewarden.survey import (
     summary_lines,
     survey_json,
     verdict_line,
+    what_if_advice,
 )
 
 
@@ -309,3 +314,26 @@ def test_survey_json_has_the_verdict_the_classes_and_every_frame() -> None:
         {"first": "frame 1", "last": "frame 1", "frames": 1}]
     assert [f["frame"] for f in document["frames"]] == ["frame 1", "frame 2"]
     assert document["frames"][1]["weakest"] == "both_sides"
+
+
+def test_a_stricter_setting_is_advised_only_where_it_makes_the_frames_safe_and_engages() -> None:
+    """A new user was told 'to drive with it, add ...' for a setting that left the survey NOT
+    SAFE, and for one with which the supervisor never engaged."""
+    setting = STRICTER_SETTINGS[0]
+    engages = EngageFigures("held", 1.0, attempts=4, engaged=3, times_s=(0.3,))
+    never = EngageFigures("sequence", 3.3, 1, 0, lane_frames=892)
+
+    def advice(safe: bool, engage: EngageFigures) -> str:
+        verdict = Verdict(safe=safe, false_lanes=(), no_lane_frames=6, engage=engage)
+        return what_if_advice(WhatIf(setting, SurveyFigures({}, verdict, ())))
+
+    assert advice(True, engages) == (
+        "to drive with it, set in --config (merged into its perception: section if it has one): "
+        "perception: {tape: {unverifiable_score: 0}}; what it costs: a bend whose inner tape "
+        "leaves the view is then no lane, and the robot halts there (LANE_LOST)")
+    assert advice(False, engages) == (
+        "it does not make these frames safe: not a setting to drive with (look at the pictures "
+        "of the false lanes left, and check their labels)")
+    assert advice(True, never) == (
+        "it makes these frames safe, but the supervisor never engages with it: not a setting to "
+        "drive with")
