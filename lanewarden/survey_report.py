@@ -52,6 +52,8 @@ body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width
 .what-if h2 { font-size: 1.05em; margin: .5em 0; }
 .safe { background: #e3f4e1; border: 2px solid #3c8d3c; }
 .unsafe { background: #fbe3e1; border: 2px solid #c0392b; }
+.idle { background: #fff8e1; border: 2px solid #f9a825; }
+.verdict .idle-note { font-size: 1em; }
 .engage { margin: .4em 0 0; font-size: .9em; }
 table { border-collapse: collapse; margin: .8em 0 1.5em; }
 th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; vertical-align: top; }
@@ -189,7 +191,13 @@ def report_html(figures: SurveyFigures, about: Mapping[str, Any],
                 false_lane_pictures: Sequence[Picture], weak_pictures: Sequence[Picture],
                 notes: Sequence[str] = (), what_ifs: Sequence[WhatIf] = ()) -> str:
     verdict = figures.verdict
-    css = "safe" if verdict.safe else "unsafe"
+    engages = verdict.engage is not None and verdict.engage.would_engage
+    # SAFE where the supervisor never engages proves little (a wrong tape width gives no decision
+    # anywhere): not the green of a survey that found the lane (a new user read it as good to go)
+    css = "unsafe" if not verdict.safe else "safe" if engages else "idle"
+    idle = ('<p class="engage"><b class="idle-note">but this robot would never drive here</b> '
+            "(the supervisor engages on no lane frame): a SAFE verdict then shows little; see the "
+            "notes below</p>" if css == "idle" else "")
     text = verdict_line(verdict).removeprefix("verdict: ").removeprefix(verdict.headline)
     about_rows = "".join(f"<li>{_e(_about_row(k, v))}</li>" for k, v in about.items())
     false_count = len(verdict.false_lanes)
@@ -204,7 +212,7 @@ def report_html(figures: SurveyFigures, about: Mapping[str, Any],
 <title>Lanewarden survey: {_e(about.get("source", ""))}</title><style>{_STYLE}</style></head><body>
 <h1>Lanewarden survey: {_e(about.get("source", ""))}</h1>
 <div class="verdict {css}"><b>{_e(verdict.headline)}</b>{_e(text.lstrip(": "))}
-<p class="engage">{_e(engage_line(verdict.engage))}</p></div>
+<p class="engage">{_e(engage_line(verdict.engage))}</p>{idle}</div>
 {"".join(f'<p class="note">{_e(note)}</p>' for note in notes)}
 {_what_ifs(what_ifs, figures)}
 <ul class="about">{about_rows}</ul>

@@ -211,6 +211,30 @@ def test_a_safe_verdict_on_which_the_supervisor_never_engages_says_so() -> None:
     assert notes(1) == []
 
 
+def test_the_report_of_a_safe_verdict_on_which_the_supervisor_never_engages_is_not_green(
+) -> None:
+    """The report's verdict box: green SAFE only where the supervisor engages; a SAFE on which it
+    never does (a survey with the wrong tape widths finds no lane anywhere) is amber and says
+    the robot would never drive there (a new user took the green box as good to go)."""
+    from lanewarden.survey import LANE, NONE, ClassFigures, EngageFigures, SurveyFigures, Verdict
+    from lanewarden.survey_report import report_html
+
+    classes = {expect: ClassFigures(expect, frames=frames, decisions=0, confident=0,
+                                    false_lanes=(), runs=(), components=())
+               for expect, frames in ((LANE, 4), (NONE, 6))}
+
+    def box(engaged: int, safe: bool = True) -> str:
+        engage = EngageFigures("held", 1.0, attempts=4, engaged=engaged)
+        page = report_html(SurveyFigures(classes, Verdict(safe, (), 6, engage), ()), {}, (), ())
+        return page[page.index('<div class="verdict'):page.index("</div>")]
+
+    assert box(0).startswith('<div class="verdict idle"><b>SAFE</b>')
+    assert "<b class=\"idle-note\">but this robot would never drive here</b>" in box(0)
+    assert box(1).startswith('<div class="verdict safe"><b>SAFE</b>')
+    assert "never drive here" not in box(1)
+    assert box(0, safe=False).startswith('<div class="verdict unsafe"><b>NOT SAFE</b>')
+
+
 def test_a_safe_verdict_on_fewer_no_lane_frames_than_the_recipe_says_it_says_little() -> None:
     """A new user's own folder of 2 lane and 2 no-lane photos said SAFE and nothing more: with
     fewer no-lane frames than the README's recipe (6), a note says so; none at 6, none under a
