@@ -888,6 +888,25 @@ def _recording_file_problem(path: Path, expected: str = "the recording file") ->
     return f"{path}: {_what_is_there(path, 'file')}, expected {expected}"
 
 
+#: Each `ReplaySource.kind` in words, for a line naming what SOURCE was taken for.
+KIND_WORDS = {"run": "a recorded run", "bag": "a ROS bag", "tub": "a Donkeycar tub",
+              "images": "a folder of images", "video": "a video"}
+
+
+def recording_kind(path: Path) -> str | None:
+    """What recording the folder `path` is, as `_folder` recognises one ("a recorded run", "a
+    ROS bag", "a Donkeycar tub"), or None: for a command that takes recordings only with more
+    (`survey` needs --labels) to say so."""
+    if (path / RUN_MCAP).is_file() or ((path / "run.jsonl").is_file()
+                                       and (path / "meta.json").is_file()):
+        return KIND_WORDS["run"]
+    if is_bag(path):
+        return KIND_WORDS["bag"]
+    if any(path.glob("catalog_*.catalog")) and (path / "images").is_dir():
+        return KIND_WORDS["tub"]
+    return None
+
+
 def _folder(path: Path, source: str, topic: str | None, max_pixels: int,
             camera_rate_hz: float) -> ReplaySource:
     for name in (RUN_MCAP, "run.jsonl"):

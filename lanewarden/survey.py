@@ -721,13 +721,15 @@ def what_if_json(what_if: WhatIf) -> dict[str, Any]:
 
 
 def survey_notes(figures: SurveyFigures, calibrated: bool, ground_pose: bool = True,
-                 calibration_name: str = "the --calibration") -> list[str]:
+                 calibration_name: str = "the --calibration", beside: str = "") -> list[str]:
     """What a verdict does not say: that perception never found the lane either (a SAFE verdict
     then proves little: a wrong tape width or camera also gives no decision anywhere), and that
     without a calibration the frames were judged through the simulator's default camera, or
     with one that has no ground pose (`ground_pose` False) on the simulator's mount (a new
     user's survey with `calibrate`'s file alone said SAFE with no note; `calibration_name`
-    says which: "--calibration FILE", "the recording's calibration")."""
+    says which: "--calibration FILE", "the recording's calibration"; `beside`: where a clip's
+    own calibration lies, `camera_clip.clip_calibration_hint`'s words, ending the note on a
+    survey without one)."""
     notes = []
     lane = figures.classes[LANE]
     little = ", so SAFE says little" if figures.verdict.safe else ""
@@ -753,7 +755,7 @@ def survey_notes(figures: SurveyFigures, calibrated: bool, ground_pose: bool = T
         notes.append("note: no --calibration: the frames were judged as if from the simulator's "
                      "default camera (its lens, height and pitch); with your camera's "
                      "calibration (lanewarden calibrate, then calibrate ground) the figures are "
-                     "your camera's")
+                     f"your camera's{beside}")
     elif not ground_pose:
         notes.append(f"note: {calibration_name} has no ground pose: the frames were judged as if "
                      f"your camera were mounted as the simulator's ({default_pose().describe()}), "

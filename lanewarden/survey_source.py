@@ -40,6 +40,7 @@ from lanewarden.replay_sources import (
     PathFrames,
     ReplaySource,
     open_replay_source,
+    recording_kind,
 )
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -421,6 +422,11 @@ def open_survey_source(folder: str, labels: str | None, camera_rate_hz: float,
                                  f"{'/ and '.join(classes)}/: keep one way of labelling, or "
                                  "name the labels with --labels")
             labels_path = path / LABELS_NAME
+    if labels_path is None and (kind := recording_kind(path)) is not None:
+        # (a tub's images/ had been refused as an unknown class folder, which sent a new user
+        # to rename it)
+        raise UsageError(f"FOLDER '{folder}': {kind}; a recording needs --labels FILE "
+                         "(frames,expect[,note]: which of its frames show the lane)")
     if labels_path is None:
         stills, hidden = _class_folders(path)
         if not stills:

@@ -70,6 +70,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     from lanewarden.replay import check_preparation
     from lanewarden.replay_outputs import ReplayRequest, run_replay
     from lanewarden.replay_sources import (
+        KIND_WORDS,
         frame_indices,
         open_replay_source,
         replay_config,
@@ -85,6 +86,10 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     replay_source = open_replay_source(source, 1.0 / given.supervisor.camera_period_s,
                                        topic=topic,
                                        max_pixels=given.perception.max_image_pixels)
+    if check and replay_source.kind != "run":  # before the work (it had come after the replay)
+        raise UsageError(f"--check: {source} is {KIND_WORDS[replay_source.kind]}, not a "
+                         "recorded run: "
+                         "there is nothing to compare with")
     config = replay_config(replay_source, config_path)
     # checked as run checks it (a NaN focal length had been a ValueError traceback here, a NaN
     # distortion a silent replay)
@@ -182,9 +187,6 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
     if check and metrics["incomplete"]:
         raise QualityGateError(f"replay {source}: the recording is incomplete "
                                f"({metrics['incomplete'][0]}), so it cannot be checked")
-    if check and replay_source.kind != "run":
-        raise QualityGateError(f"--check: {source} is a {replay_source.kind}, not a recorded run: "
-                               "there is nothing to compare with")
     if check and not metrics["exact_input"]:
         raise QualityGateError(f"replay {source}: the recording is not exact (frames dropped or "
                                "lossy), so it cannot be checked")

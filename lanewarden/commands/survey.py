@@ -210,6 +210,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     from lanewarden.perception.calibration import Undistorter
     from lanewarden.perception.detector import LaneDetector
     from lanewarden.perception.errors import PerceptionConfigError
+    from lanewarden.scenarios.camera_clip import clip_calibration_hint
     from lanewarden.scenarios.progress import Progress
     from lanewarden.survey import (
         WhatIf,
@@ -272,7 +273,8 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
     notes = survey_notes(figures, calibration is not None,
                          calibration is None or calibration.ground is not None,
                          f"--calibration {calibration_path}" if calibration_path
-                         else "the recording's calibration")
+                         else "the recording's calibration",
+                         "" if calibration is not None else clip_calibration_hint(folder))
     if source.unlabelled:
         some = first_few([shorten(name) for name in source.unlabelled[:4]])
         notes.append(f"note: {counted(len(source.unlabelled), 'image')} in {folder} not in the "

@@ -222,3 +222,16 @@ def test_a_clip_replayed_without_the_calibration_beside_it_is_warned(
     assert main(["replay", str(video), "--no-video", "--calibration", str(beside), "--out",
                  str(tmp_path / "b")]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+def test_check_of_what_is_not_a_recorded_run_is_refused_before_the_work(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`replay VIDEO --check` had replayed the whole clip, written its outputs and printed the
+    summary before saying there was nothing to compare with (a new user's review)."""
+    folder = write_images(lane_end_frames(start_m=2.0, end_m=2.1, speed_m_s=0.6), tmp_path / "i")
+    out = tmp_path / "o"
+    assert main(["replay", str(folder), "--check", "--no-video", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (f"lanewarden: error: --check: {folder} is a folder of images, not a "
+                            "recorded run: there is nothing to compare with\n")
+    assert captured.out == "" and not out.exists()

@@ -911,3 +911,19 @@ def test_a_calibration_without_a_ground_pose_gets_a_note() -> None:
         "robot's centre), so tapes and seams were measured through that mount; with its ground "
         "pose (lanewarden calibrate ground) the figures are your camera's"]
     assert survey_notes(figures, calibrated=True, ground_pose=True) == []
+
+
+def test_a_clip_surveyed_without_its_calibration_is_pointed_to_the_one_beside_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`sim --camera-out clip.mp4` writes clip.calibration.yaml beside the clip; `replay` named
+    it when it was left out, `survey` only said 'no --calibration' (a new user's review)."""
+    clip = write_video(lane_end_frames(start_m=2.0, end_m=2.4, speed_m_s=0.6), tmp_path / "c.mp4")
+    beside = tmp_path / "c.calibration.yaml"
+    save_calibration(CameraModel().calibration(), beside)
+    labels = tmp_path / "c.csv"
+    labels.write_text("frames,expect\n0-5,lane\n6-10,none\n")
+    code, out, err = _survey([str(clip), "--labels", str(labels), "--out", str(tmp_path / "o")],
+                             capsys)
+    assert code in (0, 3), err
+    [note] = [line for line in out.splitlines() if line.startswith("note: no --calibration")]
+    assert note.endswith(f"; the clip's own calibration lies beside it: --calibration {beside}")

@@ -391,3 +391,22 @@ def test_a_labels_files_folder_nested_deeper_than_pythons_recursion_limit_is_loo
             "no-lane/" + "d/" * 1200 + "b.png"]
     finally:
         _remove_deep(tmp_path / "no-lane", 1200)
+
+
+@pytest.mark.parametrize(("files", "kind"), [
+    (("run.mcap",), "a recorded run"),
+    (("run.jsonl", "meta.json"), "a recorded run"),
+    (("catalog_0.catalog", "images/0_cam_image_array_.jpg"), "a Donkeycar tub"),
+], ids=["run", "run-format-1", "tub"])
+def test_a_recording_without_labels_is_told_to_name_them(tmp_path: Path, files: tuple[str, ...],
+                                                         kind: str) -> None:
+    """A new user surveyed a tub without --labels and was told its images/ folder was an
+    unknown class folder (expected lane/ or no-lane/), as if to rename it; a run folder got the
+    line for an empty folder."""
+    for name in files:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(b"")
+    with pytest.raises(UsageError) as caught:
+        open_survey_source(str(tmp_path), None, 30.0, 10**7)
+    assert str(caught.value) == (f"FOLDER '{tmp_path}': {kind}; a recording needs --labels FILE "
+                                 "(frames,expect[,note]: which of its frames show the lane)")
