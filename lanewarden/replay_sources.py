@@ -888,6 +888,15 @@ def _recording_file_problem(path: Path, expected: str = "the recording file") ->
     return f"{path}: {_what_is_there(path, 'file')}, expected {expected}"
 
 
+def frame_name(source: ReplaySource, index: int) -> str:
+    """"frame 51", and where the frames are files (a folder or pattern of images) the file too:
+    "frame 51 (frame_0204.png)" (a new user had to count files to find a frame a survey named
+    by number)."""
+    paths = source.frames.paths if isinstance(source.frames, PathFrames) else None
+    return f"frame {index}" + (f" ({paths[index].name})" if paths and 0 <= index < len(paths)
+                               else "")
+
+
 #: Each `ReplaySource.kind` in words, for a line naming what SOURCE was taken for.
 KIND_WORDS = {"run": "a recorded run", "bag": "a ROS bag", "tub": "a Donkeycar tub",
               "images": "a folder of images", "video": "a video"}

@@ -441,22 +441,33 @@ def judge(results: Iterable[FrameResult], engage: EngageFigures | None) -> Surve
 
 
 # ---- words ------------------------------------------------------------------------------------
+#: "frame 51" or "frame 51 (frame_0204.png)" (`replay_sources.frame_name`): a frame number and
+#: a file name (no spaces, an extension), not words ("frame 11 (straight at 0.53)").
+_NUMBERED = re.compile(r"frame (\d+)(?: \(([^\s()]+\.\w+)\))?")
+
+
 def _compact(names: Sequence[str]) -> list[str]:
-    """"frame 6", "frame 7", "frame 8" -> "frames 6-8"; other names as they are."""
+    """"frame 6", "frame 7", "frame 8" -> "frames 6-8", and with their files ("frame 6
+    (a.png)", ...) -> "frames 6-8 (a.png .. c.png)"; other names as they are."""
     out: list[str] = []
-    run: list[int] = []
+    run: list[tuple[int, str | None]] = []
 
     def flush() -> None:
         if run:
-            out.append(f"frame {run[0]}" if len(run) == 1 else f"frames {run[0]}-{run[-1]}")
+            (first, first_file), (last, last_file) = run[0], run[-1]
+            files = (f" ({first_file})" if len(run) == 1 else f" ({first_file} .. {last_file})"
+                     ) if first_file and last_file else ""
+            out.append(f"frame {first}{files}" if len(run) == 1
+                       else f"frames {first}-{last}{files}")
             run.clear()
 
     for name in names:
-        number = name.removeprefix("frame ")
-        if name.startswith("frame ") and number.isdigit():
-            if run and int(number) != run[-1] + 1:
+        if numbered := _NUMBERED.fullmatch(name):
+            number = int(numbered.group(1))
+            if run and (number != run[-1][0] + 1 or (numbered.group(2) is None)
+                        != (run[-1][1] is None)):
                 flush()
-            run.append(int(number))
+            run.append((number, numbered.group(2)))
         else:
             flush()
             out.append(name)

@@ -49,7 +49,7 @@ from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneObservation
 from lanewarden.perception.overlay import as_bgr, draw_detection, perception_text
 from lanewarden.replay import ReplayedStep, replay_steps
-from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps
+from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps, frame_name
 from lanewarden.supervisor.config import SupervisorConfig
 from lanewarden.supervisor.lane_evidence import LaneEvidence
 from lanewarden.supervisor.state_machine import ENGAGED_STATES, SupervisorState
@@ -461,9 +461,9 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
         record = step.record
         engaged = is_engaged(record.state)
         if engaged and first_engaged is None:
-            first_engaged = (f"frame {index}", step.step_input.t - start_s)
+            first_engaged = (frame_name(recording, index), step.step_input.t - start_s)
         if was_engaged and not engaged:
-            halts.append(f"frame {index} {record.halt_reason}")
+            halts.append(f"{frame_name(recording, index)} {record.halt_reason}")
         was_engaged = engaged
         frame = labelled.get(index)
         if frame is None:

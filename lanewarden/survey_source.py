@@ -39,6 +39,7 @@ from lanewarden.replay_sources import (
     SOURCE_HELP,
     PathFrames,
     ReplaySource,
+    frame_name,
     open_replay_source,
     recording_kind,
 )
@@ -359,8 +360,8 @@ def _labelled_frames(source: ReplaySource, table: LabelsTable
             raise InputFileError(f"{table.source}:{row.line}: frames {span}: none of these "
                                  f"frames is in {source.name} ({source.kind}, {have})")
         for index in inside:
-            labelled[index] = LabelledFrame(f"frame {index}", row.expect, position[index],
-                                            row.note)
+            labelled[index] = LabelledFrame(frame_name(source, index), row.expect,
+                                            position[index], row.note)
     return labelled, skipped
 
 

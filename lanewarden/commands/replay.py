@@ -210,9 +210,9 @@ def _refuse_the_source_folder(out: Path, source: str) -> None:
 def _frame_names(replay_source: ReplaySource, indices: list[int], shown: int = 3) -> str:
     """'frame 4 (name.jpg), ...': the first `shown` of a clip's frames, by index (and file name
     for a folder of images)."""
-    paths = getattr(replay_source.frames, "paths", None)
-    names = [f"frame {i}" + (f" ({paths[i].name})" if paths and 0 <= i < len(paths) else "")
-             for i in indices[:shown]]
+    from lanewarden.replay_sources import frame_name
+
+    names = [frame_name(replay_source, i) for i in indices[:shown]]
     more = len(indices) - shown
     return ", ".join(names) + (f" and {more} more" if more > 0 else "")
 

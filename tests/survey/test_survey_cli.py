@@ -478,27 +478,30 @@ def test_a_recordings_no_lane_frame_is_also_judged_on_its_own(
                         "(1 only judged on its own); no confident frame; weakest: consistency "
                         "in 1 frame (median there 0.00), lane_width in 1 (0.00)")
     assert lines[3] == ("no-lane, each also judged on its own (as a photo is, without the frame "
-                        "before it): 1 decision in 2 frames: frame 10 (left at 0.77)")
+                        "before it): 1 decision in 2 frames: frame 10 (010.jpg) (left at 0.77)")
     assert lines[4] == ("verdict: NOT SAFE: 1 false lane (a decision on a no-lane frame, judged "
-                        "in sequence or on its own): frame 10 (on its own: left at 0.77)")
+                        "in sequence or on its own): frame 10 (010.jpg) (on its own: left at "
+                        "0.77)")
     assert err.endswith("lanewarden: not safe: 1 false lane (a decision on a no-lane frame, "
-                        "judged in sequence or on its own): frame 10 (on its own: left at "
-                        "0.77)\n")
+                        "judged in sequence or on its own): frame 10 (010.jpg) (on its own: "
+                        "left at 0.77)\n")
     document = json.loads((tmp_path / "o" / "survey.json").read_text())
-    assert document["verdict"]["false_lanes"] == ["frame 10"]
+    assert document["verdict"]["false_lanes"] == ["frame 10 (010.jpg)"]
     no_lane = {f["frame"]: (f["decision"], f["confidence"], f["weakest"], f["on_its_own"])
                for f in document["frames"] if f["expect"] == "none"}
     assert no_lane == {
-        "frame 10": ("none", 0.0, "consistency", {"decision": "left", "confidence": 0.7746}),
-        "frame 11": ("none", 0.0, "lane_width", {"decision": "none", "confidence": 0.0})}
+        "frame 10 (010.jpg)": ("none", 0.0, "consistency",
+                               {"decision": "left", "confidence": 0.7746}),
+        "frame 11 (011.jpg)": ("none", 0.0, "lane_width",
+                               {"decision": "none", "confidence": 0.0})}
     # lane frames keep the loop's judgement: none is judged again
     assert not any("on_its_own" in f for f in document["frames"] if f["expect"] == "lane")
     page = html.unescape((tmp_path / "o" / "report.html").read_text())
     false_lanes = page[page.index("<h2>False lanes</h2>"):page.index("<h2>Least confident")]
     assert false_lanes.count("<figure>") == 1
-    assert ("<figcaption><b>frame 10</b><br>judged on its own, as a photo is (in sequence: none "
-            "at 0.00)<br>slope sum +10.86<br>confidence 0.77 (lowest tape_pair_left 0.60)<br>"
-            "decision left</figcaption>") in false_lanes
+    assert ("<figcaption><b>frame 10 (010.jpg)</b><br>judged on its own, as a photo is (in "
+            "sequence: none at 0.00)<br>slope sum +10.86<br>confidence 0.77 (lowest "
+            "tape_pair_left 0.60)<br>decision left</figcaption>") in false_lanes
     assert "<td>none; on its own: left at 0.77</td>" in page
     assert "<td class=num>1 (1 only judged on its own)</td>" in page
 

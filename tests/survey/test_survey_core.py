@@ -286,6 +286,12 @@ def test_frame_names_are_compacted_and_cut() -> None:
     names = [f"frame {i}" for i in (1, 2, 3, 5, 8, 9)] + ["no-lane/x.jpg"]
     assert name_frames(names) == "frames 1-3, frame 5, frames 8-9, no-lane/x.jpg"
     assert name_frames(names, limit=2) == "frames 1-3, frame 5 and 2 more"
+    # a folder of images: each frame with its file, a range with its first and last
+    files = [f"frame {i} (f_{4 * i:04d}.png)" for i in (1, 2, 3, 5)]
+    assert name_frames(files) == ("frames 1-3 (f_0004.png .. f_0012.png), frame 5 (f_0020.png)")
+    # words in brackets are not a file: such names are not joined
+    assert name_frames(["frame 11 (straight at 0.53)", "frame 12 (straight at 0.33)"]) == (
+        "frame 11 (straight at 0.53), frame 12 (straight at 0.33)")
 
 
 def test_engage_lines() -> None:
