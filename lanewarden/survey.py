@@ -854,6 +854,7 @@ def survey_json(figures: SurveyFigures, about: Mapping[str, Any],
     per class, the stricter settings tried (`what_if`: a NOT SAFE survey's) and every frame's
     result."""
     verdict = figures.verdict
+    false_lanes = {id(r) for r in verdict.false_lanes}  # (the verdict holds the results)
     return {
         **about,
         "verdict": {
@@ -864,5 +865,6 @@ def survey_json(figures: SurveyFigures, about: Mapping[str, Any],
         "classes": {CLASS_FOLDERS[e]: _class_json(figures.classes[e]) for e in EXPECTS},
         "engage": _engage_json(verdict.engage),
         "what_if": [what_if_json(w) for w in what_ifs],
-        "frames": [_result_json(r) for r in figures.results],
+        "frames": [{**_result_json(r), "false_lane": id(r) in false_lanes}
+                   for r in figures.results],
     }

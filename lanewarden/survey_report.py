@@ -234,12 +234,17 @@ order.</p>
 def write_outputs(out: Path, figures: SurveyFigures, about: Mapping[str, Any],
                   false_lane_pictures: Sequence[Picture],
                   weak_pictures: Sequence[Picture], notes: Sequence[str] = (),
-                  what_ifs: Sequence[WhatIf] = ()) -> dict[str, Any]:
+                  what_ifs: Sequence[WhatIf] = (),
+                  effective_config: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Write OUT/survey.json and OUT/report.html; returns the JSON document. `notes`: the
     terminal's `note:` lines, which both carry too (a SAFE that says little is said there);
-    `what_ifs`: the stricter settings tried on the same frames (a NOT SAFE survey's)."""
+    `what_ifs`: the stricter settings tried on the same frames (a NOT SAFE survey's);
+    `effective_config`: every setting the frames were judged with (survey.json's
+    `effective_config`: the config file named may change or be gone when it is read)."""
     document = {**survey_json(figures, about, what_ifs),
                 "notes": [note.removeprefix("note: ") for note in notes]}
+    if effective_config is not None:
+        document["effective_config"] = dict(effective_config)
     texts = {"survey.json": json.dumps(document, indent=1) + "\n",
              "report.html": report_html(figures, about, false_lane_pictures, weak_pictures,
                                         notes, what_ifs)}

@@ -16,6 +16,7 @@ writes.
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import json
 import tempfile
 from collections.abc import Callable
@@ -25,6 +26,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from lanewarden import __version__
 from lanewarden.commands.config_cmd import config_option
 from lanewarden.commands.flags import PathFlag, WholeRange
 from lanewarden.commands.output_folders import create_output_folder
@@ -267,9 +269,11 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
         tried = surveyed(again, stricter, LaneDetector(stricter.perception, detector.undistorter),
                          f"survey with {setting.key} {setting.value:g}")
         what_ifs.append(WhatIf(setting, judge(tried.results, tried.engage)))
+    # what a survey.json read months later needs to stand alone: which lanewarden, when
     about = {"source": folder, "labelled": source.description, "config": config_origin,
              "calibration": calibration_path or ("the recording's" if calibration else "none"),
-             "ground_model": ground, "jitter": jitter}
+             "ground_model": ground, "jitter": jitter, "lanewarden": __version__,
+             "surveyed": dt.datetime.now(dt.UTC).isoformat(timespec="seconds")}
     notes = survey_notes(figures, calibration is not None,
                          calibration is None or calibration.ground is not None,
                          f"--calibration {calibration_path}" if calibration_path
@@ -288,7 +292,7 @@ def _survey_into(out: Path, folder: str, source: SurveySource, config: Lanewarde
                      f"recording, not surveyed (dropped or skipped while recording: frame "
                      f"{source.skipped[0]}{', ...' if len(source.skipped) > 1 else ''})")
     document = write_outputs(out, figures, about, run.false_lane_pictures, run.weak_pictures,
-                             notes, what_ifs)
+                             notes, what_ifs, config.model_dump(mode="json"))
     if as_json:
         click.echo(json.dumps(document))
     else:

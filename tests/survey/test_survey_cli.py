@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import lanewarden
 from lanewarden.cli import main
 from lanewarden.perception.calibration import save_calibration
 from lanewarden.scenarios import progress as progress_module
@@ -808,6 +809,15 @@ def test_a_false_lane_in_a_shifted_version_makes_it_not_safe(
             for name, s in shifted.items()} == {SHADING: (16, 2, 2), SLIVER: (16, 9, 9)}
     assert all(0.2 <= c < 0.6 for s in shifted.values() for c in s["confidences"])
     assert all(f["decision"] == "none" for f in document["frames"] if f["expect"] == "none")
+    # a frame's own record says it is a false lane, though its decision as judged was none (a
+    # new user had to cross-check verdict.false_lanes), and the file stands alone: which
+    # lanewarden, when, and every setting the frames were judged with
+    assert [f["frame"] for f in document["frames"] if f["false_lane"]] == [SHADING, SLIVER]
+    assert document["lanewarden"] == lanewarden.__version__
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00", document["surveyed"])
+    effective = document["effective_config"]
+    assert (effective["perception"]["tape"]["width_m"], effective["perception"]["lane"]["width_m"],
+            effective["supervisor"]["lane_departure_clearance_m"]) == (0.019, 0.19, 0.05)
     page = (tmp_path / "out" / "report.html").read_text()
     # the picture of a shifted version: which one, in words that end (the caption had ended in
     # "shifted by a fraction of a pixel:" and nothing after the colon)
