@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from lanewarden.errors import OutputError
+from lanewarden.perception.confidence import COMPONENT_MEANINGS
 from lanewarden.perception.overlay import OVERLAY_STYLES
 from lanewarden.survey import (
     CLASS_FOLDERS,
@@ -131,9 +132,14 @@ def _legend(undistorted: bool) -> str:
         f"<b>{_e(s.label)}</b>: {_e(s.meaning)}</li>" for s in OVERLAY_STYLES.values())
     how = ("undistorted with the calibration" if undistorted
            else "as the camera gave it: no calibration, so not undistorted")
+    components = "".join(f"<li><b>{_e(name)}</b>: {_e(meaning)}</li>"
+                         for name, meaning in COMPONENT_MEANINGS.items())
     return (f'<section class="legend"><h2>Reading the pictures</h2><p>Each picture is the frame '
             f"perception analysed ({how}) with what it saw drawn on it; the caption is what "
-            f"perception said about it.</p><ul>{items}</ul></section>")
+            f"perception said about it.</p><ul>{items}</ul>"
+            f"<p>The confidence is a product of components, each from 0 to 1; the caption and "
+            f"the tables name the lowest (docs/perception.md, 'Confidence'):</p>"
+            f"<ul>{components}</ul></section>")
 
 
 def _frame_row(result: FrameResult) -> str:

@@ -68,19 +68,24 @@ from lanewarden.perception.observation import (
     reference_lanes,
 )
 
-COMPONENT_NAMES = (
-    "both_sides",
-    "support_left",
-    "support_right",
-    "lane_width",
-    "parallel",
-    "tape_pair_left",
-    "tape_pair_right",
-    "verified_tape",
-    "floor_between",
-    "heading",
-    "consistency",
-)
+#: Each component in a phrase, for a reader of a report (the docstring above says how each is
+#: computed), in the order `LaneObservation.components` gives them.
+COMPONENT_MEANINGS = MappingProxyType({
+    "both_sides": "a lane edge found on each side (0.5 with one)",
+    "support_left": "how much line the left edge rests on (short or sparse edges score low)",
+    "support_right": "how much line the right edge rests on",
+    "lane_width": "the two edges lie the configured lane width apart on the floor",
+    "parallel": "the two edges run parallel on the floor",
+    "tape_pair_left": "the left edge is a tape's edge (verified by its width and band, or by "
+                      "its brightness profile; tape.unverifiable_score, 0.6 by default, when its "
+                      "tape lies beyond the image's border and cannot be checked)",
+    "tape_pair_right": "the right edge is a tape's edge (as tape_pair_left)",
+    "verified_tape": "at least one side is a tape verified by its width and band (a gate)",
+    "floor_between": "the two edges enclose floor, not a tape or a floor strip (a gate)",
+    "heading": "the lane runs within lane.max_heading_deg of the robot's heading (a gate)",
+    "consistency": "agreement with the frame before (1 for a still)",
+})
+COMPONENT_NAMES = tuple(COMPONENT_MEANINGS)
 
 
 @dataclass(frozen=True)

@@ -926,6 +926,26 @@ def test_a_calibration_without_a_ground_pose_gets_a_note() -> None:
     assert survey_notes(figures, calibrated=True, ground_pose=True) == []
 
 
+def test_the_report_says_what_each_confidence_component_means() -> None:
+    """Captions and tables name the lowest component (lane_width, tape_pair_left, ...), and
+    nothing on the page said what those are (a new user's review): the legend lists each."""
+    from lanewarden.survey import LANE, NONE, ClassFigures, SurveyFigures, Verdict
+    from lanewarden.survey_report import report_html
+
+    classes = {expect: ClassFigures(expect, frames=1, decisions=0, confident=0, false_lanes=(),
+                                    runs=(), components=()) for expect in (LANE, NONE)}
+    page = report_html(SurveyFigures(classes, Verdict(True, (), 1, None), ()), {}, (), ())
+    legend = page[page.index("<h2>Reading the pictures"):]
+    named = re.findall(r"<li><b>([a-z_]+)</b>: ", legend)
+    assert named == ["both_sides", "support_left", "support_right", "lane_width", "parallel",
+                     "tape_pair_left", "tape_pair_right", "verified_tape", "floor_between",
+                     "heading", "consistency"]
+    assert ("<li><b>tape_pair_left</b>: the left edge is a tape&#x27;s edge (verified by its "
+            "width and band, or by its brightness profile; tape.unverifiable_score, 0.6 by "
+            "default, when its tape lies beyond the image&#x27;s border and cannot be "
+            "checked)</li>") in legend
+
+
 def test_a_clip_surveyed_without_its_calibration_is_pointed_to_the_one_beside_it(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`sim --camera-out clip.mp4` writes clip.calibration.yaml beside the clip; `replay` named
