@@ -27,7 +27,6 @@ Never reads a clock, never prints.
 from __future__ import annotations
 
 import io
-import json
 import math
 import os
 import tempfile
@@ -52,6 +51,7 @@ from lanewarden.documents import (
     NOT_A_REGULAR_FILE,
     is_special_file,
     parse_yaml_text,
+    read_json,
     shorten,
 )
 from lanewarden.errors import ConfigError, InputFileError, UsageError
@@ -346,7 +346,7 @@ def _unsaid_end(summary: Mapping[str, Any]) -> str:
 
 def _json_object(data: bytes, where: str, what: str) -> dict[str, Any]:
     try:
-        value = json.loads(data.decode("utf-8"))
+        value = read_json(data.decode("utf-8"))
     except (ValueError, RecursionError) as exc:
         raise InputFileError(f"{where}: the {what} is not JSON ({_json_problem(exc)})") from None
     if not isinstance(value, dict):
@@ -426,7 +426,7 @@ def _load_run_mcap(path: Path, name: str, max_pixels: int) -> ReplaySource:
             raise _step_problem(where, f"record is {len(text)} characters (at most "
                                 f"{MAX_STEP_BYTES})")
         try:
-            line = json.loads(text)
+            line = read_json(text)
         except (ValueError, RecursionError) as exc:
             raise _step_problem(where, f"record is not JSON ({_json_problem(exc)})") from None
         reader.add(line, where)
@@ -545,7 +545,7 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
             if not raw.strip():
                 continue
             try:
-                line = json.loads(raw)
+                line = read_json(raw)
             except (ValueError, RecursionError) as exc:
                 if not raw.endswith(b"\n") and not stream.read(1):
                     incomplete.append(f"the last line of run.jsonl ({number}) is cut short: "
@@ -727,7 +727,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
         for number, raw in enumerate(text.splitlines(), 1):
             if raw.strip():
                 try:
-                    record = json.loads(raw)
+                    record = read_json(raw)
                 except (ValueError, RecursionError) as exc:
                     raise InputFileError(f"{catalog}:{number}: not a JSON record "
                                          f"({_json_problem(exc)})") from None
@@ -740,7 +740,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
     if manifest.exists():
         for raw in _read_small(manifest, "tub manifest").decode("utf-8", "replace").splitlines():
             try:
-                entry = json.loads(raw)
+                entry = read_json(raw)
             except (ValueError, RecursionError):
                 continue
             if isinstance(entry, dict) and isinstance(entry.get("deleted_indexes"), list):

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import heapq
 import html
-import json
 import math
 import shlex
 from collections import Counter, defaultdict
@@ -31,6 +30,7 @@ from pathlib import Path
 from typing import Any, TextIO
 from xml.sax.saxutils import quoteattr
 
+from lanewarden.documents import read_json
 from lanewarden.scenarios.before_halt import describe as describe_before_halt
 from lanewarden.scenarios.campaign.outcome import (
     FAILURES,
@@ -164,7 +164,7 @@ class CampaignSummary:
 
 def _slim(row: Row) -> dict[str, Any]:
     """What a listed row shows (the rest of a row, its metrics and effects, is not kept)."""
-    metrics = json.loads(row.get("metrics_json") or "{}")
+    metrics = read_json(row.get("metrics_json") or "{}")
     keep = ("id", "idx", "outcome", "scenario", "camera", "fault_kinds", "reason",
             "time_to_halt_s")
     return {**{k: row.get(k) for k in keep},

@@ -38,6 +38,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, TextIO
 
+from lanewarden.documents import read_json
 from lanewarden.scenarios.campaign.stored_row import (
     MAX_METRICS_CHARS,
     Oversized,
@@ -287,7 +288,7 @@ class ResultStore:
         with self.unstored_path.open(encoding="utf-8", errors="replace") as stream:
             for line in _bounded_lines(stream, MAX_UNSTORED_LINE_CHARS):
                 try:
-                    row = json.loads(line)
+                    row = read_json(line)
                     checked_row(row, "")  # (the row as every reader would check it)
                 except (ValueError, RecursionError, TypeError, AttributeError, UnreadableRow):
                     continue  # a line cut short when the disk filled, or damaged: rerun it

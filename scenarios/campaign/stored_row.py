@@ -15,10 +15,10 @@ module only judges what was read. Pure: never reads a file.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
+from lanewarden.documents import read_json
 from lanewarden.scenarios.campaign.cases import case_id
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.errors import ScenarioError
@@ -111,7 +111,7 @@ def checked_row(row: Mapping[str, Any], where: str) -> dict[str, Any]:
     metrics: object = {} if text is None or text == "" else None  # a run in error: none
     if isinstance(text, str) and text:
         try:
-            metrics = json.loads(text)
+            metrics = read_json(text)
         except (ValueError, RecursionError):  # RecursionError: nested thousands deep
             metrics = None
     if not isinstance(metrics, dict):

@@ -297,3 +297,14 @@ def test_a_campaign_table_of_many_entries_is_refused(tiny_spec: Path, tmp_path: 
     db.close()
     with ResultStore(out / "results.sqlite", read_only=True) as store:
         assert store.identity()["seed"] == "7"  # 16 entries: read
+
+
+def test_a_number_too_long_for_a_float_is_not_a_traceback() -> None:
+    """A 401-digit integer planted as a run's closest approach had stopped `compare` and
+    `--only-notable` with an OverflowError (math.isfinite of an int beyond floats: an
+    attacker's review); read as inf, it is a figure no reader takes for a measurement."""
+    from lanewarden.scenarios.campaign.compare import clearance_m
+
+    planted = dict(stored_row(3), metrics_json='{"min_tape_clearance_m": 1' + "0" * 400 + "}")
+    checked = checked_row(planted, "here")
+    assert clearance_m(checked) is None

@@ -78,6 +78,11 @@ FORGED_STEPS: dict[str, tuple[int, Callable[[dict[str, Any]], None], tuple[str, 
     "last step +1e6 s": (-1, lambda r: r["input"].update(t=r["input"]["t"] + 1e6),
                          ("more than a recording may span",)),
     "NaN time": (5, _set("input.t", float("nan")), ("input.t = nan", "a finite number")),
+    # a 401-digit integer passed the number checks as an int, and math.isfinite raised
+    # OverflowError (a traceback: an attacker's review); read as inf, it is refused
+    "a 401-digit time": (5, _set("input.t", 10**400), ("input.t = inf", "a finite number")),
+    "a 401-digit battery": (5, _set("input.feedback.battery_v", 10**400),
+                            ("input.feedback.battery_v = inf", "a finite number or null")),
     "backwards time": (5, lambda r: r["input"].update(t=r["input"]["t"] - 1.0),
                        ("step times must increase",)),
     "string battery": (5, _set("input.feedback.battery_v", "15.9"),
