@@ -235,6 +235,9 @@ def write_plot(
     import matplotlib
 
     matplotlib.use("Agg")
+    # every text here is plain: a '$' pair in a source's name ('price_$5_$10.mp4') was read as
+    # math and its parse error lost the replay's outputs (an attacker's review)
+    matplotlib.rcParams["text.parse_math"] = False
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(4, 1, figsize=(12.5, 8.5), sharex=True,

@@ -110,6 +110,17 @@ def test_a_plot_that_cannot_be_written_names_plot_png(tmp_path: Path) -> None:
     assert str(failed.value) == f"{plot}: cannot write the plot (No space left on device)"
 
 
+def test_a_title_or_reason_with_dollar_signs_is_plain_text(tmp_path: Path) -> None:
+    """'replay of price_$5_$10' and a run folder named '$\\undefinedfoo{x}$' were read as math
+    text: a ParseSyntaxException traceback, and the replay's metrics and report were lost (an
+    attacker's review)."""
+    plot = tmp_path / "plot.png"
+    write_plot(plot, "replay of $\\undefinedfoo{x}$ price_$5_$10", np.array([0.0, 0.1]),
+               [0.1, 0.2], [0.1, 0.2], [0.9, 0.9], ["FOLLOW", "HALT"],
+               [None, "CAMERA_LOST: --camera $x$: gone"], 0.5, [])
+    assert plot.stat().st_size > 0
+
+
 def test_a_video_on_a_full_disk_is_one_line_saying_so(small_disk: Path) -> None:
     """On a real full disk ffmpeg had added two lines of its own ("[out#0/mp4 @ 0x...] Error
     writing trailer: No space left on device", "Error closing file: ...") to ours, which said
