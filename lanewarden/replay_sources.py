@@ -53,6 +53,7 @@ from lanewarden.documents import (
     parse_yaml_text,
     read_json,
     shorten,
+    shown_value,
 )
 from lanewarden.errors import ConfigError, InputFileError, UsageError
 from lanewarden.image_files import (
@@ -735,6 +736,10 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                     raise InputFileError(f"{catalog}:{number}: a {type(record).__name__}, "
                                          "expected a JSON object (a tub record)")
                 records.append(record)
+                if len(records) > MAX_STEPS:  # (as a recording's steps: a tub's catalogs
+                    # were read whole, 896k records naming one image in 59 MB of catalogs)
+                    raise InputFileError(f"{folder}: more than {MAX_STEPS} records; longer "
+                                         "than replay reads")
     deleted: set[int] = set()
     manifest = folder / "manifest.json"
     if manifest.exists():
@@ -745,8 +750,13 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                 continue
             if isinstance(entry, dict) and isinstance(entry.get("deleted_indexes"), list):
                 deleted |= {i for i in entry["deleted_indexes"] if isinstance(i, int)}
-    records = [r for r in records if r.get("_index") not in deleted]
     try:
+        # (an _index that is no whole number, [0], is no record: it had been looked up among
+        # the deleted ones, a TypeError traceback)
+        if bad := next((r for r in records if not isinstance(r.get("_index"), int)
+                        or isinstance(r.get("_index"), bool)), None):
+            raise TypeError(f"_index {shown_value(bad.get('_index'))} is not a whole number")
+        records = [r for r in records if r["_index"] not in deleted]
         records.sort(key=lambda r: int(r["_index"]))
         paths = [folder / "images" / str(r["cam/image_array"]) for r in records]
         stamps = [float(r["_timestamp_ms"]) / 1000.0 for r in records]
@@ -755,7 +765,11 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                          f"({shorten(str(exc))})") from None
     if not records:
         raise UsageError(f"{folder}: the tub holds no records")
+    checked: set[Path] = set()  # (records may name one image many times: each read once)
     for record, path in zip(records, paths, strict=True):
+        if path in checked:
+            continue
+        checked.add(path)
         # a record names a file in images/: never one elsewhere (../../etc/passwd), never one
         # that is not there (the replay would go on with fewer frames and no word)
         if path.parent != folder / "images" or path.name in ("", ".", ".."):
@@ -764,7 +778,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                                  "name in images/")
         if why := file_problem(path):
             raise InputFileError(f"{folder}: record {record.get('_index')}: {path}: {why}")
-    _one_size(paths, str(folder), max_pixels)
+    _one_size(list(dict.fromkeys(paths)), str(folder), max_pixels)
     if not all(math.isfinite(s) for s in stamps):
         raise UsageError(f"{folder}: a tub record's _timestamp_ms is not a finite number")
     times = [t - stamps[0] for t in stamps]

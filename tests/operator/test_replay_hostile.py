@@ -655,8 +655,13 @@ def _record(index: int, image: object) -> str:
     ([], b"\xff\xfe garbage", "catalog_0.catalog: not UTF-8 text"),
     (["[" * 100_000], b"", "catalog_0.catalog:1: not a JSON record"),
     (['["a", "list"]'], b"", "catalog_0.catalog:1: a list, expected a JSON object"),
-    (['{"_index": 0, "_timestamp_ms": 1' + "0" * 400 + ', "cam/image_array": "0.jpg"}'], b"",
-     "a tub record lacks _index, _timestamp_ms or cam/image_array (int too large"),
+    (['{"_index": 0, "_timestamp_ms": 1' + "0" * 400 + ', "cam/image_array": '
+      '"0_cam_image_array_.jpg"}'], b"",
+     "a tub record's _timestamp_ms is not a finite number"),
+    # a list as _index was looked up among the deleted records: a TypeError traceback
+    (['{"_index": [0], "_timestamp_ms": 0, "cam/image_array": "0_cam_image_array_.jpg"}'], b"",
+     "a tub record lacks _index, _timestamp_ms or cam/image_array (_index [0] is not a whole "
+     "number)"),
     ([_record(0, "0_cam_image_array_.jpg"), _record(1, "../../../../etc/passwd")], b"",
      "record 1: cam/image_array '../../../../etc/passwd': expected a file name in images/"),
     ([_record(0, "0_cam_image_array_.jpg"), _record(1, "missing.jpg")], b"",
@@ -672,6 +677,21 @@ def test_a_damaged_tub_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
     assert code == 2, err
     assert len(err.strip().splitlines()) == 1, err
     assert message in err
+
+
+def test_a_tub_longer_than_replay_reads_is_refused_while_its_catalogs_are_read(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Tubs alone were not held to MAX_STEPS: 62 catalogs of records naming one 14 kB image
+    (896k records) read for minutes past 1 GB (an attacker's review). The limit lowered to 2
+    for the test: the third record is refused."""
+    from lanewarden import replay_sources
+
+    monkeypatch.setattr(replay_sources, "MAX_STEPS", 2)
+    tub = _tub(tmp_path / "tub", [])
+    assert main(["replay", str(tub), "--no-video", "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err == (f"lanewarden: error: {tub}: more than 2 records; longer "
+                                       "than replay reads\n")
 
 
 def test_a_tub_frame_of_another_size_is_refused(tmp_path: Path,
