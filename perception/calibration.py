@@ -337,6 +337,10 @@ def _read_matrix(node: cv2.FileNode, path: Path, name: str) -> FloatArray:
         values.append(item.real())
     rows = _read_int(node.getNode("rows"), path, f"{name}.rows")
     cols = _read_int(node.getNode("cols"), path, f"{name}.cols")
+    for side, value in (("rows", rows), ("cols", cols)):
+        if value < 1:  # (-3 x -3 matched 9 values, and reshape raised a ValueError traceback)
+            raise PerceptionError(f"{path}: node '{name}' {side} = {value}: expected a whole "
+                                  "number of at least 1")
     if rows * cols != len(values):
         raise PerceptionError(
             f"{path}: node '{name}' is {rows}x{cols} but has {len(values)} values"

@@ -123,6 +123,12 @@ def test_loads_ros_camera_info_yaml(tmp_path: Path) -> None:
         ("camera_matrix: 5\n", "node 'camera_matrix' is not a matrix"),
         ("camera_matrix:\n  rows: 2\n  cols: 2\n  data: [1, 2, 3, 4]\n", "expected 3x3"),
         ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 2, 3]\n", "is 3x3 but has 3 values"),
+        # -3 x -3 matched the 9 values, and numpy's reshape raised a ValueError traceback
+        ("camera_matrix:\n  rows: -3\n  cols: -3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n",
+         "node 'camera_matrix' rows = -3: expected a whole number of at least 1"),
+        ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n"
+         "distortion_coefficients:\n  rows: -1\n  cols: -5\n  data: [0, 0, 0, 0, 0]\n",
+         "node 'distortion_coefficients' rows = -1: expected a whole number of at least 1"),
         ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n"
          "distortion_coefficients:\n  rows: 1\n  cols: 3\n  data: [0, 0, 0]\n",
          "'distortion_coefficients' has 3 values"),
