@@ -186,6 +186,8 @@ def decode_image(data: bytes, flags: int, max_pixels: int) -> tuple[np.ndarray |
         return None, why
     if size is None:
         return None, "not a readable image"
+    if why := jpeg_scans_problem(data):
+        return None, why
     # OpenCV's own log line for what it cannot decode (a PPM cut short: "[ERROR:0@...]
     # imdecode_ ... Unexpected end of input stream") would stand beside the caller's one line
     level = cv2.utils.logging.getLogLevel()
@@ -201,6 +203,27 @@ def decode_image(data: bytes, flags: int, max_pixels: int) -> tuple[np.ndarray |
     if why := too_many_pixels(image.shape[1], image.shape[0], max_pixels):
         return None, why
     return image, ""
+
+
+#: A JPEG's scans beyond which it is refused before decoding: a camera's baseline JPEG has
+#: one, a progressive one about ten. Each scan is a pass over the whole image, and OpenCV's
+#: decoder reads as many as the file holds: a 2 MB file of 100 000 tiny scans over a 9 Mpx
+#: image took 92 s to decode (an attacker's review).
+MAX_JPEG_SCANS = 100
+
+
+def jpeg_scans_problem(data: bytes) -> str:
+    """Why a JPEG's bytes are refused for their number of scans ('' when not a JPEG or within
+    MAX_JPEG_SCANS). Its scans are counted by their start marker (FF DA): inside the coded data
+    an FF byte is always followed by 00 or a restart marker, so only a scan's start (or a byte
+    pair in a metadata segment, which can only add to the count) reads so."""
+    if not data.startswith(b"\xff\xd8"):
+        return ""
+    scans = data.count(b"\xff\xda")
+    if scans > MAX_JPEG_SCANS:
+        return (f"a JPEG of {scans} scans, more than any camera writes (at most "
+                f"{MAX_JPEG_SCANS} are decoded)")
+    return ""
 
 
 #: How a photo is decoded to be shown or undistorted as it is (`undistort`): upright as its EXIF

@@ -143,3 +143,37 @@ def test_a_truncated_ppm_gets_one_line_not_opencvs_error_too(
     assert main(["detect", str(cut)]) == 2
     err = capfd.readouterr().err.strip().splitlines()
     assert err == [f"lanewarden: error: 1 of 1 images not analysed: {cut}: not a readable image"]
+
+
+def _progressive_jpeg(extra_scans: int) -> bytes:
+    """A 300x300 progressive JPEG (Pillow writes 6 scans), its last scan repeated
+    `extra_scans` times before the end marker."""
+    import io
+
+    from PIL import Image
+
+    noise = np.random.default_rng(0).integers(0, 255, (300, 300), dtype=np.uint8)
+    encoded = io.BytesIO()
+    Image.fromarray(noise).save(encoded, "JPEG", progressive=True, quality=80)
+    data = encoded.getvalue()
+    last = data.rindex(b"\xff\xda")
+    return data[:-2] + data[last:-2] * extra_scans + b"\xff\xd9"
+
+
+def test_a_jpeg_of_more_scans_than_any_camera_writes_is_not_decoded(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each scan is a pass over the whole image and OpenCV decodes as many as a file holds: a
+    2 MB file of 100 000 tiny scans over 9 Mpx took 92 s in `detect` (an attacker's review).
+    Beyond 100 scans a JPEG is refused from its bytes; a camera's progressive JPEG decodes."""
+    usual = tmp_path / "usual.jpg"
+    usual.write_bytes(_progressive_jpeg(0))
+    image, why = read_image(usual)
+    assert why == "" and image is not None and image.shape[:2] == (300, 300)
+    bomb = tmp_path / "bomb.jpg"
+    bomb.write_bytes(_progressive_jpeg(150))
+    assert read_image(bomb) == (None, "a JPEG of 156 scans, more than any camera writes (at "
+                                      "most 100 are decoded)")
+    assert main(["detect", str(bomb)]) == 2
+    assert capsys.readouterr().err == (f"lanewarden: error: 1 of 1 images not analysed: {bomb}: a "
+                                       "JPEG of 156 scans, more than any camera writes (at most "
+                                       "100 are decoded)\n")
