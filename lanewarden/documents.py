@@ -35,6 +35,8 @@ import yaml
 from pydantic import BaseModel, ValidationError, ValidationInfo, field_validator
 from pydantic.fields import FieldInfo
 
+from lanewarden.wording import shown_name
+
 #: Largest config or scenario file read, bytes (the shipped ones are a few kB).
 MAX_DOCUMENT_BYTES = 1_000_000
 #: Deepest nesting of mappings and lists (the config tree is 5 deep, a scenario 4).
@@ -515,7 +517,10 @@ def describe_validation_error(
     `prefix` is prepended to the key as shown (e.g. a scenario's `config.` block) but not used to
     look the key up in `model`."""
     loc = tuple(err["loc"])
-    key = ".".join(str(part) for part in (*prefix, *loc)) or "(top level)"
+    # as any name from a file: one line, whatever it holds (a key of ESC, BEL and a newline had
+    # set the terminal's title and forged a second error line; one of 900 000 characters was
+    # shown whole: an attacker's review)
+    key = shorten(shown_name(".".join(str(part) for part in (*prefix, *loc)))) or "(top level)"
     holder, field = _locate(model, loc) if model is not None else (None, None)
     if err["type"] == "extra_forbidden":
         close = _did_you_mean(holder, key)

@@ -37,10 +37,12 @@ from lanewarden.documents import (
     is_special_file,
     level_marks,
     nesting_depth,
+    shorten,
 )
 from lanewarden.output_files import replace_file
 from lanewarden.perception.errors import PerceptionError
 from lanewarden.perception.ground import CameraPose
+from lanewarden.wording import shown_name
 
 if TYPE_CHECKING:
     from lanewarden.perception.calibration_config import CalibrationConfig
@@ -379,9 +381,12 @@ def _read_optional_real(node: cv2.FileNode, path: Path, name: str) -> float | No
 
 
 def _read_optional_string(node: cv2.FileNode) -> str | None:
+    """A text node as one short printable line (`ground_method`, `ground_date` are shown in the
+    ground model's line: a method of ESC, BEL and a newline had set the terminal's title and
+    split that line, an attacker's review)."""
     if node.isNone() or not node.isString():
         return None
-    return str(node.string())
+    return shorten(shown_name(str(node.string())))
 
 
 def _unknown_ground_key(root: cv2.FileNode, path: Path) -> None:

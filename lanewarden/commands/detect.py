@@ -58,6 +58,7 @@ from lanewarden.perception.detector import LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import confidence_text, draw_overlay
+from lanewarden.wording import shown_name
 
 
 def result_json(image: str, observation: LaneObservation, decision: str) -> dict[str, object]:
@@ -154,21 +155,24 @@ def detect_command(
     unwritten: list[str] = []
     # A config this camera cannot work with at an image size is said once for that size, with
     # how many images it kept from being analysed (not once per image).
-    refused: dict[tuple[int, int], tuple[str, list[Path]]] = {}
+    refused: dict[tuple[int, int], tuple[str, list[str]]] = {}
     for index, name in enumerate(images):
         path = Path(name)
+        # a file's name as one printable line (a name holding a newline had split its result
+        # line and forged a second 'lanewarden: error:' line: an attacker's review)
+        shown = shown_name(name)
         image, why = read_image(path, max_pixels=config.max_image_pixels)
         if image is None:
-            failures.append(f"{path}: {why}")
+            failures.append(f"{shown}: {why}")
             continue
         size = (image.shape[1], image.shape[0])
         if undistorter is not None and size != undistorter.calibration.image_size:
-            failures.append(f"{path}: image is {size[0]}x{size[1]}, but --calibration "
+            failures.append(f"{shown}: image is {size[0]}x{size[1]}, but --calibration "
                             f"{calibration_path} is for "
                             f"{'x'.join(map(str, undistorter.calibration.image_size))} images")
             continue
         if size in refused:
-            refused[size][1].append(path)
+            refused[size][1].append(shown)
             continue
         try:
             describe(size)
@@ -178,16 +182,16 @@ def detect_command(
                 else detector.detect_debug(image, index, 0.0)
             )
         except PerceptionConfigError as exc:
-            refused[size] = (str(exc), [path])
+            refused[size] = (str(exc), [shown])
             continue
         except PerceptionError as exc:
-            failures.append(f"{path}: {exc}")
+            failures.append(f"{shown}: {exc}")
             continue
         decision = decide(observation)
         if as_json:
             _emit(json.dumps(result_json(name, observation, decision)))
         else:
-            _emit(result_text(name, observation, decision))
+            _emit(result_text(shown, observation, decision))
         if out is not None and debug is not None:
             target = out / f"{path.stem}_detect.png"
             overlay = draw_overlay(debug.image, observation, debug, decision)
