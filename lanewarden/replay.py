@@ -40,6 +40,7 @@ from lanewarden.run_mcap import CAMERA_GRAY, PERCEPTION_INPUT
 from lanewarden.run_record import RecordedStep, StepInput
 from lanewarden.supervisor.loop import ControlLoop, Frame, StepRecord
 from lanewarden.supervisor.watchdog import FINGERPRINT_STRIDE
+from lanewarden.wording import counted
 
 __all__ = ["Divergence", "ReplaySource", "ReplayedStep", "check_preparation", "compare_step",
            "frame_indices", "missing_frames", "open_replay_source", "replay_config",
@@ -306,6 +307,17 @@ def replay_steps(source: ReplaySource, config: LanewardenConfig,
     loop = ControlLoop(frames, ReplayDetection(tap, frames), stack.gate, base)
     start_s: float | None = None
     for k, step_input in enumerate(source.steps):
+        end = source.frames.stream_end()
+        if (k > 0 and end is not None and step_input.frame is not None
+                and step_input.frame[0] >= end):
+            # a video whose header claims more frames than its stream holds: replayed as far as
+            # it goes (a 1 MB AVI claiming 999 999 frames of its 3 had stepped the loop through
+            # them all, minutes and 1.1 GB: an attacker's review); one whose first frame does
+            # not decode is said to be damaged (frames_undecoded), after its first step
+            if end > 0:
+                source.incomplete.append(f"its stream ends after {counted(end, 'frame')}, "
+                                         f"where its header claims {len(source.steps)}")
+            break
         now = step_input.t
         if start_s is None:
             start_s = now

@@ -319,6 +319,8 @@ def replay_metrics(source: ReplaySource, records: list[Any], divergences: list[D
             records, last, config.supervisor, config.perception.edges.max_abs_slope)
     # frames that are there but did not decode: the loop got no frame at those steps
     wanted = frame_indices(source)
+    if stream_end := source.frames.stream_end():  # (none beyond it exists; at 0: damaged)
+        wanted = {i for i in wanted if i < stream_end}
     if source.kind != "run":
         metrics["frames_undecoded"] = sorted(wanted - {r.frame_index for r in records})
     else:  # (a run's frames dropped while recording are `frames_missing`, not these)

@@ -138,6 +138,11 @@ class FrameStore:
     def image(self, index: int) -> np.ndarray | None:
         raise NotImplementedError
 
+    def stream_end(self) -> int | None:
+        """The first frame index the source's stream could not give although its header claimed
+        it (a video whose stream ends early), once a read found it; None otherwise."""
+        return None
+
     def close(self) -> None:
         pass
 
@@ -186,11 +191,18 @@ class VideoFrames(FrameStore):
         self._max_pixels = max_pixels
         self._index = -1
         self._image: np.ndarray | None = None
+        self._end: int | None = None
+
+    def stream_end(self) -> int | None:
+        return self._end
 
     def image(self, index: int) -> np.ndarray | None:
+        if self._end is not None and index >= self._end:
+            return None  # (no read again: the stream ended)
         while self._index < index:
             ok, image = self._capture.read()
             if not ok:
+                self._end = self._index + 1
                 return None
             self._index += 1
             too_large = too_many_pixels(image.shape[1], image.shape[0], self._max_pixels)

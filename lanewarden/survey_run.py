@@ -66,6 +66,7 @@ from lanewarden.survey import (
     on_its_own_text,
 )
 from lanewarden.survey_source import StillFrame, SurveySource, problems_line
+from lanewarden.wording import counted
 
 CONTROLLER = "supervised"
 #: Shortest time a lane still is held in view for the engage test, s.
@@ -243,6 +244,9 @@ class CheckedFrames(FrameStore):
         self._size_of = "the first frame" if calibration is None else "the calibration's size"
         self.problem: str | None = None
         self.missing: set[int] = set()
+
+    def stream_end(self) -> int | None:
+        return self._store.stream_end()
 
     def image(self, index: int) -> np.ndarray | None:
         image = self._store.image(index)
@@ -488,6 +492,14 @@ def survey_sequence(source: SurveySource, config: LanewardenConfig,
                                          step.step_input.t, detector, decide))
         else:
             keeper.offer(result, partial(picture, result, observation, debug))
+    if (end := checked.stream_end()) is not None and (beyond := [
+            f.name for i, f in sorted(labelled.items()) if i >= end]):
+        # (its header claims frames its stream does not hold: the loop stopped at its end)
+        raise InputFileError(f"{recording.name}: {counted(len(beyond), 'labelled frame')} "
+                             f"beyond the end of its stream ({beyond[0]}"
+                             f"{', ...' if len(beyond) > 1 else ''}): it ends after "
+                             f"{counted(end, 'frame')}, where its header claims "
+                             f"{len(recording.steps)}; label only the frames it holds")
     if unread:
         raise InputFileError(problems_line(f"labelled frames of {recording.name} could not be "
                                            "read or analysed", len(labelled), unread))

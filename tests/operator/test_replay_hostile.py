@@ -923,3 +923,46 @@ def test_a_format_1_folder_without_its_meta_or_frames_is_one_line(
             code, out, err = replay(run, tmp_path, capsys, *extra)
             assert_one_line(code, err, f"lanewarden: error: {run}/{says}\n")
             assert out == "" and not (tmp_path / "out").exists()
+
+
+def _video_claiming(path: Path, claimed: int) -> Path:
+    """A 3-frame MJPEG AVI (320x240) whose headers claim `claimed` frames (its index cut off,
+    as an attacker's file: OpenCV then believes the headers), no more frames than bytes."""
+    import struct
+
+    import cv2
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (320, 240))
+    for i in range(3):
+        writer.write(np.full((240, 320, 3), 60 + 40 * i, np.uint8))
+    writer.release()
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<I", data, data.index(b"avih") + 8 + 16, claimed)  # dwTotalFrames
+    struct.pack_into("<I", data, data.index(b"strh") + 8 + 32, claimed)  # dwLength
+    data = data[:data.index(b"idx1")]
+    path.write_bytes(bytes(data) + bytes(max(0, claimed - len(data))))
+    return path
+
+
+def test_a_video_claiming_more_frames_than_its_stream_holds_ends_with_its_stream(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 1 MB AVI claiming 999 999 frames of its 3 had stepped the replay's loop through them
+    all (minutes, 1.1 GB), and a survey label of its frame 999 998 was looked for as long (an
+    attacker's review): the replay ends with the stream and says so; a label beyond it is one
+    line."""
+    video = _video_claiming(tmp_path / "lie.avi", 5000)
+    out = tmp_path / "out"
+    assert main(["replay", str(video), "--no-video", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "lie (video, config: defaults): 4 steps, 3 frames," in printed
+    assert ("  the recording is incomplete: its stream ends after 3 frames, where its header "
+            "claims 5000\n") in printed
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert (metrics["frames"], metrics["frames_undecoded"]) == (3, [])
+    labels = tmp_path / "lie.csv"
+    labels.write_text("frames,expect\n0-1,lane\n4998,none\n")
+    assert main(["survey", str(video), "--labels", str(labels), "--out",
+                 str(tmp_path / "s")]) == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "lanewarden: error: lie: 1 labelled frame beyond the end of its stream (frame 4998): it "
+        "ends after 3 frames, where its header claims 5000; label only the frames it holds")
