@@ -108,6 +108,7 @@ from lanewarden.run_record import (
     StepTimes,
     read_step,
 )
+from lanewarden.wording import shown_name
 
 SOURCE_HELP = ("a run folder (lanewarden run --record) or its run.mcap, a ROS 2 bag (.mcap, .db3 "
                "or a rosbag2 folder), a video file, a folder or glob of camera frames, or a "
@@ -594,6 +595,15 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
         config_origin=f"recorded ({config_path})" if config is not None else "defaults")
 
 
+def _refuse_a_link_out(path: Path, inside: Path) -> None:
+    """InputFileError when `path` is a link whose target lies outside the folder `inside`
+    (resolved)."""
+    if path.is_symlink() and not path.resolve().is_relative_to(inside):
+        raise InputFileError(f"{shown_name(str(path))}: a link to "
+                             f"{shown_name(str(path.resolve()))}, outside {inside}; expected the "
+                             "recording's own frames in its folder")
+
+
 def _check_frames_folder(frames: Path, names: set[str]) -> None:
     """InputFileError when a format-1 run's `frames` folder cannot give the frames its steps
     name (`names`, such as '000005.png'): it is missing, no folder (a file, a link to itself),
@@ -606,12 +616,20 @@ def _check_frames_folder(frames: Path, names: set[str]) -> None:
     if not frames.is_dir():
         what = _what_is_there(frames, "folder") if os.path.lexists(frames) else "no such folder"
         raise InputFileError(f"{frames}: {what}, {expected}")
+    # the recording's own frames: a link out of its folder (frames/ to another folder, a frame
+    # to /etc/passwd) is refused, as survey refuses one out of its FOLDER (an attacker's review)
+    inside = frames.parent.resolve()
+    _refuse_a_link_out(frames, inside)
     try:
         with os.scandir(frames) as entries:  # a regular file costs no stat (its d_type)
-            there = {e.name: e.is_file() for e in entries if e.name in names}
+            listed = [(e.name, e.is_file(), e.is_symlink()) for e in entries if e.name in names]
     except OSError as exc:
         raise InputFileError(f"{frames}: cannot read this folder ({exc.strerror or exc})"
                              ) from None
+    there = {name: regular for name, regular, _ in listed}
+    for name, _, link in listed:
+        if link:
+            _refuse_a_link_out(frames / name, inside)
     if names and not there:
         raise InputFileError(f"{frames}: none of the {len(names)} frames the recording's steps "
                              f"name is there, {expected}")

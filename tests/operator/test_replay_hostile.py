@@ -966,3 +966,28 @@ def test_a_video_claiming_more_frames_than_its_stream_holds_ends_with_its_stream
     assert capsys.readouterr().err.splitlines()[-1] == (
         "lanewarden: error: lie: 1 labelled frame beyond the end of its stream (frame 4998): it "
         "ends after 3 frames, where its header claims 5000; label only the frames it holds")
+
+
+def test_a_format_1_runs_frames_leading_out_of_its_folder_are_refused(
+        recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """frames/ a link to another folder was replayed without a word, and a frame linked to
+    /etc/passwd was opened (an attacker's review); a link inside the folder is followed."""
+    import shutil
+
+    old = as_format_1(recorded, tmp_path / "old")
+    elsewhere = tmp_path / "elsewhere"
+    shutil.move(old / "frames", elsewhere)
+    (old / "frames").symlink_to(elsewhere)
+    code, _, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, f"{old / 'frames'}: a link to {elsewhere}, outside {old}")
+    (old / "frames").unlink()
+    shutil.move(elsewhere, old / "kept")
+    (old / "frames").symlink_to("kept")  # inside: followed
+    code, _, err = replay(old, tmp_path, capsys)
+    assert code == 0, err
+    first = min((old / "kept").iterdir())
+    first.unlink()
+    first.symlink_to("/etc/passwd")
+    code, _, err = replay(old, tmp_path, capsys)
+    assert_one_line(code, err, f"{old / 'frames' / first.name}: a link to /etc/passwd, outside "
+                    f"{old}")
