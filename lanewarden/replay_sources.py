@@ -627,9 +627,6 @@ def _check_frames_folder(frames: Path, names: set[str]) -> None:
         raise InputFileError(f"{frames}: cannot read this folder ({exc.strerror or exc})"
                              ) from None
     there = {name: regular for name, regular, _ in listed}
-    for name, _, link in listed:
-        if link:
-            _refuse_a_link_out(frames / name, inside)
     if names and not there:
         raise InputFileError(f"{frames}: none of the {len(names)} frames the recording's steps "
                              f"name is there, {expected}")
@@ -639,6 +636,9 @@ def _check_frames_folder(frames: Path, names: set[str]) -> None:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputFileError(f"{frames / problems[0][0]}: {problems[0][1]}{more}, expected a "
                              "recorded frame (an image file)")
+    for name, _, link in listed:  # (a link to a device was said above: not an image file)
+        if link:
+            _refuse_a_link_out(frames / name, inside)
 
 
 def _check_image_message(message: BagMessage, decoded: Any, where: str,
