@@ -27,7 +27,7 @@ from lanewarden.commands.output_folders import (
 )
 from lanewarden.config import load_config
 from lanewarden.errors import Interrupted, UsageError
-from lanewarden.scenarios.campaign.cases import draw_case, load_campaign_spec
+from lanewarden.scenarios.campaign.cases import MAX_SEED, draw_case, load_campaign_spec
 from lanewarden.scenarios.campaign.compare import NEAR_TAPE_M, drawn_difference, is_notable
 from lanewarden.scenarios.campaign.outcome import OUTCOMES
 from lanewarden.scenarios.campaign.report import (
@@ -109,7 +109,7 @@ def _check_local_workers(workers: int, memory_limit_mb: int) -> None:
 @click.option("--runs", type=WholeRange(1, MAX_RUNS), default=None,
               help=f"Number of runs to draw (default: 100; at most {MAX_RUNS:,}: more is "
               "another --seed in another --out). Resuming, at least the runs --out holds.")
-@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, MAX_SEED), default=0, show_default=True,
               help="Campaign seed: the same seed draws the same cases.")
 @click.option("--scheduler", default=None, metavar="ADDRESS|local|in-process",
               help=f"A Dask scheduler address (default: ${SCHEDULER_ENV} if set, else a "

@@ -31,6 +31,7 @@ from lanewarden.errors import QualityGateError, UsageError
 from lanewarden.perception import line_kernel
 from lanewarden.scenarios.before_halt import halt_line
 from lanewarden.scenarios.camera_clip import check_clip_target
+from lanewarden.scenarios.campaign.cases import MAX_SEED
 from lanewarden.scenarios.errors import ScenarioError
 from lanewarden.scenarios.library import library_names, resolve_scenario
 from lanewarden.scenarios.output_folder import PARTIAL, OutputFolder
@@ -124,7 +125,7 @@ Examples:
               "seed, controller and config; prints its outcome class.")
 @click.option("--controller", type=click.Choice(list(CONTROLLERS)), default=DEFAULT_CONTROLLER,
               show_default=True, help="Who drives: the supervisor, or the lecture's rule.")
-@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, MAX_SEED), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--out", "out_dir", type=PathFlag("a folder", file_okay=False), default=None,
               help="Output directory (default: lanewarden-out/<scenario>-<controller>); its "
@@ -211,7 +212,7 @@ Example:
               default=DEFAULT_DEMO_OUT,
               show_default=True, help="Output directory; its old outputs are replaced.")
 @config_option
-@click.option("--seed", type=WholeRange(0, 2**32 - 1), default=0, show_default=True,
+@click.option("--seed", type=WholeRange(0, MAX_SEED), default=0, show_default=True,
               help="Varies the floor texture and the sensor noise.")
 @click.option("--no-video", is_flag=True, help="Skip the videos (faster).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")

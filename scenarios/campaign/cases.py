@@ -195,15 +195,20 @@ class CampaignSpec(_Model):
         return self
 
 
+#: The largest seed a command takes (`--seed`), and a case file with it.
+MAX_SEED = 2**32 - 1
+
+
 class Case(_Model):
     """One run, completely: `lanewarden sim --case FILE` reproduces it."""
 
     id: str
     campaign: str
-    campaign_seed: Annotated[int, Field(ge=0)]
+    # (as --seed bounds them: a case file's seed of 10**39 had been taken)
+    campaign_seed: Annotated[int, Field(ge=0, le=MAX_SEED)]
     index: Annotated[int, Field(ge=0)]
     controller: Literal["supervised", "lecture"]
-    seed: Annotated[int, Field(ge=0)]
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED)]
     camera: str
     fault_kinds: list[str]
     #: the drawn floor, tape and camera effects (names from the spec; `scenario`/`default`:

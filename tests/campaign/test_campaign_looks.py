@@ -201,6 +201,24 @@ def test_case_files_round_trip_the_looks(tmp_path: Path) -> None:
     assert yaml.safe_load(path.read_text())["scenario"]["floor"]["kind"] == "terrazzo"
 
 
+def test_a_case_files_seed_is_bounded_as_the_seed_flag_is(tmp_path: Path) -> None:
+    """`--seed` takes 0 to 2**32 - 1; a case file's seed of 10**39 had been taken (an attacker's
+    review)."""
+    from lanewarden.scenarios.campaign.cases import case_yaml, load_case
+
+    case = cases(spec_file(tmp_path), n=1)[0]
+    path = tmp_path / "case.yaml"
+    document = yaml.safe_load(case_yaml(case))
+    for key in ("seed", "campaign_seed"):
+        path.write_text(yaml.safe_dump({**document, key: 10**39}), encoding="utf-8")
+        with pytest.raises(ScenarioError) as info:
+            load_case(path)
+        assert str(info.value) == (f"{path}: {key} = 1000000000000000000000000000000000000000: "
+                                   "expected an integer with 0 <= value <= 4294967295")
+    path.write_text(yaml.safe_dump({**document, "seed": 2**32 - 1}), encoding="utf-8")
+    assert load_case(path).seed == 2**32 - 1
+
+
 def _refused(tmp_path: Path, **changes: object) -> tuple[Path, list[str]]:
     """The test spec with `changes`, written and loaded: its file, and the lines refusing it."""
     spec = yaml.safe_load(spec_file(tmp_path).read_text(encoding="utf-8"))
