@@ -932,11 +932,13 @@ def _recording_file_problem(path: Path, expected: str = "the recording file") ->
     return f"{path}: {_what_is_there(path, 'file')}, expected {expected}"
 
 
-def frame_name(source: ReplaySource, index: int) -> str:
-    """"frame 51", and where the frames are files (a folder or pattern of images) the file too:
+def frame_name(source: ReplaySource, index: int, files_of: tuple[str, ...] = ("images",)) -> str:
+    """"frame 51", and where the frames are files of a source of a kind in `files_of` (by
+    default a folder or pattern of images, whose names the numbers do not tell) the file too:
     "frame 51 (frame_0204.png)" (a new user had to count files to find a frame a survey named
-    by number)."""
-    paths = source.frames.paths if isinstance(source.frames, PathFrames) else None
+    by number; replay's error lines name a tub's files too)."""
+    paths = (source.frames.paths if isinstance(source.frames, PathFrames)
+             and source.kind in files_of else None)
     return f"frame {index}" + (f" ({paths[index].name})" if paths and 0 <= index < len(paths)
                                else "")
 

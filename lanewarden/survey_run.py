@@ -47,7 +47,7 @@ from lanewarden.perception.calibration import CameraCalibration
 from lanewarden.perception.detector import DetectionDebug, LaneDetector
 from lanewarden.perception.errors import PerceptionConfigError, PerceptionError
 from lanewarden.perception.observation import LaneObservation
-from lanewarden.perception.overlay import as_bgr, draw_detection, perception_text
+from lanewarden.perception.overlay import as_bgr, draw_detection, enlarged, perception_text
 from lanewarden.replay import ReplayedStep, replay_steps
 from lanewarden.replay_sources import FrameStore, ReplaySource, camera_steps, frame_name
 from lanewarden.supervisor.config import SupervisorConfig
@@ -134,9 +134,7 @@ def picture(result: FrameResult, observation: LaneObservation, debug: DetectionD
     line says which."""
     canvas = as_bgr(debug.image)
     draw_detection(canvas, observation, debug)
-    if canvas.shape[0] < PICTURE_MIN_ROWS:
-        scale = math.ceil(PICTURE_MIN_ROWS / canvas.shape[0])
-        canvas = cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    canvas = enlarged(canvas, PICTURE_MIN_ROWS)
     ok, data = cv2.imencode(".jpg", canvas, [cv2.IMWRITE_JPEG_QUALITY, PICTURE_JPEG_QUALITY])
     assert ok, "OpenCV could not encode a picture"
     caption = tuple(perception_text(observation, result.decision if other is None else other[1]))

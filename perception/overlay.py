@@ -10,6 +10,7 @@ the detector's hot path, and it never changes the observation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -163,13 +164,27 @@ def as_bgr(image: np.ndarray) -> np.ndarray:
     return image.copy()
 
 
+def enlarged(canvas: np.ndarray, min_rows: int) -> np.ndarray:
+    """`canvas` enlarged by the smallest whole factor that gives it at least `min_rows` rows
+    (nearest neighbour: each pixel a block, nothing smoothed away), or itself."""
+    if canvas.shape[0] >= min_rows:
+        return canvas
+    scale = math.ceil(min_rows / canvas.shape[0])
+    return cv2.resize(canvas, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+
+
 def draw_overlay(
-    image: np.ndarray, observation: LaneObservation, debug: DetectionDebug, decision: str
+    image: np.ndarray, observation: LaneObservation, debug: DetectionDebug, decision: str,
+    min_rows: int = 0,
 ) -> np.ndarray:
     """A BGR uint8 copy of `image` (the frame the detector analysed, i.e. after undistortion;
-    gray or BGR, same size) with the detection and perception's text drawn on it."""
+    gray or BGR, same size) with the detection and perception's text drawn on it; enlarged
+    first to at least `min_rows` rows (`enlarged`), so that the text fits a small frame's
+    width (`detect --out` of a 224x224 frame had cut 'confidence 0.00 (lowest lane_width 0.'
+    off at its right edge)."""
     canvas = as_bgr(image)
     draw_detection(canvas, observation, debug)
+    canvas = enlarged(canvas, min_rows)
     # Capitals 1/30 of the height (16 px at 480 rows), never below 9 px.
     cap = max(9.0, canvas.shape[0] / 30.0)
     put_text_lines(canvas, overlay_text(observation, debug, decision),

@@ -60,6 +60,10 @@ from lanewarden.perception.observation import LaneEdge, LaneObservation
 from lanewarden.perception.overlay import confidence_text, draw_overlay
 from lanewarden.wording import shown_name
 
+#: `--out`'s annotated images of smaller frames are enlarged to at least this many rows, so
+#: that perception's text fits their width.
+ANNOTATED_MIN_ROWS = 480
+
 
 def result_json(image: str, observation: LaneObservation, decision: str) -> dict[str, object]:
     """The `--json` line for one image (key order as documented)."""
@@ -194,7 +198,8 @@ def detect_command(
             _emit(result_text(shown, observation, decision))
         if out is not None and debug is not None:
             target = out / f"{path.stem}_detect.png"
-            overlay = draw_overlay(debug.image, observation, debug, decision)
+            overlay = draw_overlay(debug.image, observation, debug, decision,
+                                   min_rows=ANNOTATED_MIN_ROWS)
             try:
                 write_image(target, overlay)
             except OSError as exc:

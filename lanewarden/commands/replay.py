@@ -212,7 +212,7 @@ def _frame_names(replay_source: ReplaySource, indices: list[int], shown: int = 3
     for a folder of images)."""
     from lanewarden.replay_sources import frame_name
 
-    names = [frame_name(replay_source, i) for i in indices[:shown]]
+    names = [frame_name(replay_source, i, files_of=("images", "tub")) for i in indices[:shown]]
     more = len(indices) - shown
     return ", ".join(names) + (f" and {more} more" if more > 0 else "")
 
