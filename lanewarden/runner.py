@@ -283,7 +283,7 @@ def run_robot(
             require_camera_view(first, f"--camera {camera}")
         if calibration is not None:
             require_usable_calibration(calibration, (width, height), config.calibration,
-                                       f"--calibration {calibration_path}")
+                                       f"--calibration {calibration_path}", "refusing to engage")
         # after the camera's and the calibration's own checks, before anything can move
         refuse_assumed_camera(base_kind, camera, calibration_path, calibration, assume_camera)
         stack = build_stack(config, controller=controller_name, calibration=calibration,

@@ -61,7 +61,7 @@ HEADER_HELP = "file,expect[,note] (images) or frames,expect[,note] (a video, run
 LINE_BREAK = re.compile(r"\r\n|\r|\n")
 #: A frame index or an inclusive range of them, in ASCII digits (int() also takes '٣', '+3' and
 #: '1_000'), at most 12 digits each (int() refuses a field of 4301 digits with a ValueError).
-FRAME_RANGE = re.compile(r"([0-9]{1,12})(?:-([0-9]{1,12}))?")
+FRAME_RANGE = re.compile(r"([0-9]{1,12})(?: *- *([0-9]{1,12}))?")  # ("490 - 841" too)
 
 
 # ---- labels -----------------------------------------------------------------------------------

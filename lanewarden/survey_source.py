@@ -28,7 +28,7 @@ from __future__ import annotations
 import difflib
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 from lanewarden.camera_source import image_sequence_paths
 from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
@@ -289,7 +289,8 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
             raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
                                  "inside it")
         if why := file_problem(path):
-            raise InputFileError(f"{where}: {why} (paths are relative to {folder})")
+            raise InputFileError(f"{where}: {why}{_closest_file(path, row.file)} (paths are "
+                                 f"relative to {folder})")
         # 'a.jpg' and './a.jpg' (or a link to it) are one image: labelled twice
         if (same := _same_file(path, f"line {row.line}", seen)) is not None:
             raise InputFileError(f"{where}: the same file as {same}; expected each image "
@@ -297,6 +298,28 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
         stills.append(StillFrame(LabelledFrame(shown_name(row.file), row.expect, order, row.note),
                                  path))
     return stills
+
+
+def _closest_file(path: Path, written: str) -> str:
+    """"; did you mean 'lane/a.jpg'?" for a labelled file (`path`, `written` so in the labels
+    file) that is not there but whose folder holds one of a close name (a typo in labels.csv);
+    '' otherwise. Only that one folder is read, at most MAX_LISTED_NAMES of its names."""
+    if os.path.lexists(path):  # (there, but unreadable: a link loop, a broken link)
+        return ""
+    try:
+        with os.scandir(path.parent) as entries:
+            names = [e.name for e, _ in zip(entries, range(MAX_LISTED_NAMES), strict=False)]
+    except OSError:
+        return ""
+    close = difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)
+    if not close:
+        return ""
+    parent = PurePosixPath(written.replace("\\", "/")).parent
+    return f"; did you mean {quoted(str(parent / close[0]) if str(parent) != '.' else close[0])}?"
+
+
+#: Names of a folder read at most for a labelled file's did-you-mean (`_closest_file`).
+MAX_LISTED_NAMES = 10_000
 
 
 #: Images looked for beyond a labels file's rows (a bound on a huge folder's walk).

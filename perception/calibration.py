@@ -692,10 +692,13 @@ def require_usable_calibration(
     image_size: tuple[int, int],
     gates: CalibrationConfig,
     source: str,
+    refusal: str = "not a usable calibration",
 ) -> None:
     """The one calibration check behind `run`, `detect` and `undistort`: PerceptionError (one
-    line naming `source`, e.g. '--calibration camera.yaml') listing every `check_calibration`
-    problem, or nothing when the calibration is usable for `image_size` frames."""
+    line naming `source`, e.g. '--calibration camera.yaml', then `refusal`: `run` says it is
+    'refusing to engage', the others that the calibration is not usable) listing every
+    `check_calibration` problem, or nothing when the calibration is usable for `image_size`
+    frames."""
     problems = check_calibration(calibration, image_size, gates)
     if problems:
-        raise PerceptionError(f"{source}: refusing to engage: {'; '.join(problems)}")
+        raise PerceptionError(f"{source}: {refusal}: {'; '.join(problems)}")

@@ -164,7 +164,7 @@ def test_unusable_calibrations_are_refused_as_run_refuses_them(
     captured = capsys.readouterr()
     assert captured.out == ""
     assert captured.err.strip().splitlines() == [
-        f"lanewarden: error: --calibration {path}: refusing to engage: {problem}"
+        f"lanewarden: error: --calibration {path}: not a usable calibration: {problem}"
     ]
 
 

@@ -54,3 +54,8 @@ def test_the_jitter_line_in_full(capsys: pytest.CaptureFixture[str]) -> None:
     assert capsys.readouterr().err == (
         "lanewarden: error: lanewarden survey: Invalid value for '--jitter': abc: expected an "
         "integer with 0 <= value <= 64\n")
+    # an empty value is named as such (it had read "'--jitter': : expected")
+    assert main(["survey", "somewhere", "--jitter", ""]) == 2
+    assert capsys.readouterr().err == (
+        "lanewarden: error: lanewarden survey: Invalid value for '--jitter': '': expected an "
+        "integer with 0 <= value <= 64\n")

@@ -58,7 +58,8 @@ class WholeRange(click.IntRange):
         try:
             return super().convert(value, param, ctx)
         except click.BadParameter:
-            self.fail(f"{str(value)[:60]}: expected an integer with {self.min} <= value <= "
+            shown = str(value)[:60] if str(value).strip() else repr(str(value))  # ('' said)
+            self.fail(f"{shown}: expected an integer with {self.min} <= value <= "
                       f"{self.max}", param, ctx)
 
 

@@ -841,7 +841,7 @@ def test_a_calibration_run_would_refuse_is_refused(change: tuple[int, str], says
     bad = tmp_path / "bad.yaml"
     bad.write_text("\n".join(lines) + "\n")
     code, out, err = replay(recorded, tmp_path, capsys, "--calibration", str(bad))
-    assert_one_line(code, err, f"--calibration {bad}: refusing to engage: ", says)
+    assert_one_line(code, err, f"--calibration {bad}: not a usable calibration: ", says)
     assert out == "" and not (tmp_path / "out").exists()
 
 

@@ -726,7 +726,8 @@ def _bad(tmp_path: Path, case: str) -> tuple[list[str], str]:
         return [str(folder)], f"{labels}:2: \\x1b]0;pwned\\x07.png: no such file"
     if case == "labelled file missing":
         labels.write_text("file,expect\nstraight.jpg,lane\ntile.jpg,none\n")
-        return [str(folder)], f"{labels}:3: tile.jpg: no such file (paths are relative to {folder})"
+        return [str(folder)], (f"{labels}:3: tile.jpg: no such file; did you mean tiles.jpg? "
+                               f"(paths are relative to {folder})")
     if case == "labels too large":
         labels.write_text("file,expect\n" + "straight.jpg,lane\n" * 60_000)
         return [str(folder)], f"{labels}: larger than 1000000 bytes"

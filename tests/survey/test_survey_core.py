@@ -60,6 +60,9 @@ def test_frame_labels_single_frames_and_ranges() -> None:
     table = parse_labels("frames,expect\n120-340,lane\n7,none\n", "clip.csv")
     assert table.kind == "frames"
     assert [(r.frames, r.expect) for r in table.rows] == [((120, 340), "lane"), ((7, 7), "none")]
+    # spaces around the dash, as around a label (a new user's '490 - 841' had been refused)
+    spaced = parse_labels("frames,expect\n490 - 841, lane \n", "clip.csv")
+    assert [(r.frames, r.expect) for r in spaced.rows] == [((490, 841), "lane")]
 
 
 @pytest.mark.parametrize(("text", "message"), [

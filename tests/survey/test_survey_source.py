@@ -410,3 +410,20 @@ def test_a_recording_without_labels_is_told_to_name_them(tmp_path: Path, files: 
         open_survey_source(str(tmp_path), None, 30.0, 10**7)
     assert str(caught.value) == (f"FOLDER '{tmp_path}': {kind}; a recording needs --labels FILE "
                                  "(frames,expect[,note]: which of its frames show the lane)")
+
+
+def test_a_labelled_file_misspelt_gets_the_closest_name_in_its_folder(tmp_path: Path) -> None:
+    """A typo in a labels file's name said 'no such file' alone (a new user's review)."""
+    (tmp_path / "lane").mkdir()
+    (tmp_path / "lane" / "shot_01.jpg").write_bytes(b"")
+    table = parse_labels("file,expect\nlane/shot_1.jpg,lane\nlane/other.jpg,none\n",
+                         "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path, table)
+    assert str(caught.value) == ("labels.csv:2: lane/shot_1.jpg: no such file; did you mean "
+                                 f"lane/shot_01.jpg? (paths are relative to {tmp_path})")
+    table = parse_labels("file,expect\nlane/other.jpg,none\n", "labels.csv")
+    with pytest.raises(InputFileError) as caught:
+        _labelled_files(tmp_path, table)
+    assert str(caught.value) == ("labels.csv:2: lane/other.jpg: no such file (paths are "
+                                 f"relative to {tmp_path})")
