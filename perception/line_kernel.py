@@ -320,8 +320,9 @@ _made_ready = False
 
 
 def ready(notice: Callable[[str], None] | None = None) -> None:
-    """Have `measure_lines` ready for the argument types perception passes it (`lines.
-    build_line_set`), so that the first frame does not wait: loaded from numba's cache, or
+    """Have `measure_lines` and `median_signs` ready for the argument types perception passes
+    them (`lines.build_line_set`), so that the first frame does not wait: loaded from numba's
+    cache, or
     compiled, and then `notice` (by default a warning through `logging`: one line on stderr
     where nothing else is set up) is told once, before the wait; where numba is not installed,
     `notice` is told so (`INTERPRETED`). Once per process; a command that starts worker
@@ -341,4 +342,8 @@ def ready(notice: Callable[[str], None] | None = None) -> None:
         with numba.core.event.install_listener("numba:compile", _compile_listener(tell)):
             measure_lines(np.zeros((1, 4), dtype=np.int32), np.zeros((2, 2), dtype=np.uint8),
                           10.0, 170.0, 5.0, 1.0, 1.0, 3, 1.5, 1.0, 1, 1, homography, 1.0, 1e-12)
+            # the least-lit half's steps (`lines._polarity`: int16 rows picked along each row,
+            # a new C-ordered array) and the threshold as a float
+            median_signs(np.take_along_axis(np.zeros((1, 2), dtype=np.int16),
+                                            np.zeros((1, 1), dtype=np.intp), axis=1), 1.0)
     _made_ready = True
