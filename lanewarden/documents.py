@@ -104,7 +104,7 @@ def dangling_link(path: Path) -> str:
     """"a link to 'TARGET', which does not exist" when `path` is a symbolic link to nothing,
     else ''."""
     if path.is_symlink() and not path.exists():
-        return f"a link to '{os.readlink(path)}', which does not exist"
+        return f"a link to '{shown_name(os.readlink(path))}', which does not exist"
     return ""
 
 

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
+from lanewarden.documents import NOT_A_REGULAR_FILE, dangling_link, is_special_file
 from lanewarden.output_files import replace_file
 from lanewarden.perception.config import PerceptionConfig
 
@@ -98,8 +98,8 @@ def file_problem(path: Path) -> str:
     missing, a folder, a FIFO or a device (reading those waits for a writer or never ends)."""
     try:
         mode = path.stat().st_mode
-    except FileNotFoundError:
-        return "no such file"
+    except FileNotFoundError:  # (a link to nothing says so: a new user read 'no such file'
+        return dangling_link(path) or "no such file"  # of a photo they could see listed)
     except OSError as exc:
         return f"cannot read file ({exc.strerror or exc})"
     if stat.S_ISDIR(mode):

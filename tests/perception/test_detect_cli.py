@@ -302,3 +302,14 @@ def test_annotated_images_on_a_full_disk_are_one_short_line(
     first, more = int(found[1]), int(found[2])
     assert first + 1 + more == 12  # every image from the first that failed on
     assert "libpng" not in err
+
+
+def test_a_link_to_nothing_says_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A photo listed in its folder but linked to a file that is gone had read 'no such file'
+    (a new user's review)."""
+    link = tmp_path / "shot.jpg"
+    link.symlink_to("gone.jpg")
+    code, _, err = run(["detect", str(link)], capsys)
+    assert code == 2
+    assert err.splitlines()[-1] == (f"lanewarden: error: 1 of 1 images not analysed: {link}: a "
+                                    "link to 'gone.jpg', which does not exist")
