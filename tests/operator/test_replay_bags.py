@@ -239,7 +239,10 @@ def test_a_bag_cut_short_replays_what_it_has_and_says_so(
     code = main(["replay", str(half), "--no-video", "--out", str(out), "--check"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
-    assert f"replay {half}: the recording is incomplete (half.mcap was cut short" in err
+    # (a bag has no recorded steps to compare with: refused before the work, as any source
+    # that is not a recorded run is)
+    assert err == (f"lanewarden: error: --check: {half} is a ROS bag, not a recorded run: there "
+                   "is nothing to compare with\n")
     for size, what in ((0, "empty (0 bytes)"),
                        (5, "cut short before any image (it ends at byte 5, before MCAP's "
                         "first record)"),
