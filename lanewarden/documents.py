@@ -108,6 +108,16 @@ def dangling_link(path: Path) -> str:
     return ""
 
 
+def leads_outside(path: Path, inside: Path) -> bool:
+    """Does `path`, its links followed, lie outside the folder `inside` (resolved)? A link loop
+    leads nowhere, so not (Path.resolve raises on one; reading the file then says why, in one
+    line)."""
+    try:
+        return not path.resolve().is_relative_to(inside)
+    except (OSError, RuntimeError):
+        return False
+
+
 class _Loader(_SAFE_LOADER):  # type: ignore[misc, valid-type]
     """The safe loader (LibYAML's where there is one), refusing a mapping that repeats a key:
     YAML keeps the last one silently, so `lane_lost_halt_s: 0.2` followed further down by

@@ -50,6 +50,7 @@ from lanewarden.documents import (
     MAX_DOCUMENT_BYTES,
     NOT_A_REGULAR_FILE,
     is_special_file,
+    leads_outside,
     parse_yaml_text,
     read_json,
     shorten,
@@ -598,7 +599,7 @@ def _load_legacy_run(folder: Path, max_pixels: int) -> ReplaySource:
 def _refuse_a_link_out(path: Path, inside: Path) -> None:
     """InputFileError when `path` is a link whose target lies outside the folder `inside`
     (resolved)."""
-    if path.is_symlink() and not path.resolve().is_relative_to(inside):
+    if path.is_symlink() and leads_outside(path, inside):
         raise InputFileError(f"{shown_name(str(path))}: a link to "
                              f"{shown_name(str(path.resolve()))}, outside {inside}; expected the "
                              "recording's own frames in its folder")
@@ -795,11 +796,12 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                          f"({shorten(str(exc))})") from None
     if not records:
         raise UsageError(f"{folder}: the tub holds no records")
-    checked: set[Path] = set()  # (records may name one image many times: each read once)
+    # each image and the first record naming it (records may name one image many times: each
+    # image is checked and its header read once)
+    named: dict[Path, dict[str, Any]] = {}
     for record, path in zip(records, paths, strict=True):
-        if path in checked:
-            continue
-        checked.add(path)
+        named.setdefault(path, record)
+    for path, record in named.items():
         # a record names a file in images/: never one elsewhere (../../etc/passwd), never one
         # that is not there (the replay would go on with fewer frames and no word)
         if path.parent != folder / "images" or path.name in ("", ".", ".."):
@@ -808,7 +810,7 @@ def _load_tub(folder: Path, catalogs: list[Path], max_pixels: int) -> ReplaySour
                                  "name in images/")
         if why := file_problem(path):
             raise InputFileError(f"{folder}: record {record.get('_index')}: {path}: {why}")
-    _one_size(list(dict.fromkeys(paths)), str(folder), max_pixels)
+    _one_size(list(named), str(folder), max_pixels)
     if not all(math.isfinite(s) for s in stamps):
         raise UsageError(f"{folder}: a tub record's _timestamp_ms is not a finite number")
     times = [t - stamps[0] for t in stamps]

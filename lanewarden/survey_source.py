@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from lanewarden.camera_source import image_sequence_paths
-from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file
+from lanewarden.documents import NOT_A_REGULAR_FILE, is_special_file, leads_outside
 from lanewarden.errors import InputFileError, UsageError
 from lanewarden.image_files import IMAGE_SUFFIXES, file_problem, header_facts, read_image
 from lanewarden.replay_sources import (
@@ -202,21 +202,12 @@ def is_hidden(path: Path) -> bool:
     return path.name.startswith(".")
 
 
-def _leads_outside(path: Path, inside: Path) -> bool:
-    """Does `path`, its links followed, lie outside `inside`? A link loop leads nowhere, so not
-    (Path.resolve raises on one; reading the file then says why, in one line)."""
-    try:
-        return not path.resolve().is_relative_to(inside)
-    except (OSError, RuntimeError):
-        return False
-
-
 def _refuse_a_link_outside(path: Path, inside: Path) -> None:
     """InputFileError when `path` is a link that leads out of `inside` (the survey's FOLDER,
     resolved): a class folder, a folder under one or a photo, all by one rule (a linked photo or
     class folder leading out had been surveyed without a word, a linked sub-folder refused). A
     link inside FOLDER is followed."""
-    if path.is_symlink() and _leads_outside(path, inside):
+    if path.is_symlink() and leads_outside(path, inside):
         target = shown_name(str(path.resolve()))
         raise InputFileError(f"{shown_name(str(path))}: a link to {target}, outside {inside}; "
                              "expected the survey's photos inside its folder (copy them in)")
@@ -285,7 +276,7 @@ def _labelled_files(folder: Path, table: LabelsTable) -> list[StillFrame]:
         assert row.file is not None
         path = folder / row.file
         where = f"{table.source}:{row.line}: {quoted(row.file)}"  # no escapes sent
-        if Path(row.file).is_absolute() or _leads_outside(path, folder.resolve()):
+        if Path(row.file).is_absolute() or leads_outside(path, folder.resolve()):
             raise InputFileError(f"{where}: outside {folder}; expected a path relative to it, "
                                  "inside it")
         if why := file_problem(path):

@@ -322,10 +322,9 @@ _made_ready = False
 def ready(notice: Callable[[str], None] | None = None) -> None:
     """Have `measure_lines` and `median_signs` ready for the argument types perception passes
     them (`lines.build_line_set`), so that the first frame does not wait: loaded from numba's
-    cache, or
-    compiled, and then `notice` (by default a warning through `logging`: one line on stderr
-    where nothing else is set up) is told once, before the wait; where numba is not installed,
-    `notice` is told so (`INTERPRETED`). Once per process; a command that starts worker
+    cache, or compiled, and then `notice` (by default a warning through `logging`: one line on
+    stderr where nothing else is set up) is told once, before the wait; where numba is not
+    installed, `notice` is told so (`INTERPRETED`). Once per process; a command that starts worker
     processes calls it first, so that a compile happens (and is said) once, not once a worker
     (forked workers inherit the compiled code, spawned ones load the cache)."""
     global _made_ready

@@ -88,8 +88,7 @@ def replay_command(source: str, out_dir: str | None, config_path: str | None,
                                        max_pixels=given.perception.max_image_pixels)
     if check and replay_source.kind != "run":  # before the work (it had come after the replay)
         raise UsageError(f"--check: {source} is {KIND_WORDS[replay_source.kind]}, not a "
-                         "recorded run: "
-                         "there is nothing to compare with")
+                         "recorded run: there is nothing to compare with")
     config = replay_config(replay_source, config_path)
     # checked as run checks it (a NaN focal length had been a ValueError traceback here, a NaN
     # distortion a silent replay)
